@@ -1,0 +1,12 @@
+"""Topic names of the activetrack node graph (plain strings; the core stays ROS-free)."""
+
+CLOCK = "/clock"
+PLATFORM_STATES = "/activetrack/platform_states"
+BEARING_MEASUREMENTS = "/activetrack/bearing_measurements"
+POLAR_MEASUREMENTS = "/activetrack/polar_measurements"
+GROUND_TRUTH = "/activetrack/ground_truth"  # evaluators only: tracker and planner never read it
+TRACK = "/activetrack/track"
+MANOEUVRE_COMMANDS = "/activetrack/manoeuvre_commands"
+SENSOR_SELECTION = "/activetrack/sensor_selection"
+PLAN_REPORT = "/activetrack/plan_report"
+DIAGNOSTICS = "/diagnostics"

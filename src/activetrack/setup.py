@@ -1,0 +1,9 @@
+# Shim so that colcon (ament_python) builds the core too; the metadata lives in pyproject.toml.
+from setuptools import setup
+
+setup(
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/activetrack"]),
+        ("share/activetrack", ["package.xml"]),
+    ],
+)

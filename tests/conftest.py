@@ -1,0 +1,12 @@
+"""Test-wide settings: ROS isolation for every test in this run.
+
+ROS tests run in one process each with their own rclpy.Context. Discovery is switched off
+(ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: same-process traffic only), so nothing from other
+processes on the machine reaches them, and a domain id derived from the pid separates
+concurrent test runs should a test switch discovery back on for child processes.
+"""
+
+import os
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "OFF"
+os.environ["ROS_DOMAIN_ID"] = str(100 + os.getpid() % 100)

@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# Sets up the workspace: .venv with the pinned ROS 2 Jazzy wheels and Python packages, msgs_defs
+# built with cmake and installed into the venv, the project's packages installed editable.
+# Idempotent: each step keeps a stamp (a hash of its inputs) and is skipped when nothing changed.
+# A failing step stops the script with its name and leaves no stamp, so the next run redoes it.
+set -euo pipefail
+
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+VENV="$ROOT/.venv"
+PY="$VENV/bin/python"
+BUILD="$ROOT/build"
+STAMPS="$VENV/.activetrack-stamps"
+STEP="start"
+
+fail() {
+    echo "setup: FAILED in step '$STEP' (see the output above); rerun 'make setup' after fixing it" >&2
+}
+trap fail ERR
+
+step() { STEP="$1"; echo "setup: [$STEP] $2"; }
+hash_of() { cat "$@" | sha256sum | cut -c1-16; }
+stamp_ok() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
+stamp_write() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; }
+
+# --- 1. system tools (cmake, ninja, a C compiler: Debian packages) -------------------------
+step system-tools "checking cmake, ninja and a C/C++ compiler"
+missing=()
+command -v cmake >/dev/null || missing+=(cmake)
+command -v ninja >/dev/null || missing+=(ninja-build)
+command -v g++ >/dev/null || missing+=(g++)
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "setup: installing ${missing[*]} with apt-get"
+    SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    $SUDO apt-get update -qq
+    $SUDO apt-get install -y -qq "${missing[@]}"
+fi
+
+# --- 2. the virtual environment -------------------------------------------------------------
+step venv "python 3.11 virtual environment in .venv"
+BASE_PY=${PYTHON:-$(command -v python3.11 || command -v python3)}
+"$BASE_PY" -c 'import sys; assert sys.version_info[:2] == (3, 11), sys.version' \
+    || { echo "setup: the ros-jazzy-* wheels are built for CPython 3.11; set PYTHON=/path/to/python3.11" >&2; false; }
+if [ ! -x "$PY" ] || ! "$PY" -c 'import sys' 2>/dev/null; then
+    rm -rf "$VENV"
+    "$BASE_PY" -m venv "$VENV"
+fi
+
+# --- 3. pinned Python packages ---------------------------------------------------------------
+step python-packages "pinned wheels from requirements.txt / constraints.txt"
+h=$(hash_of "$ROOT/requirements.txt" "$ROOT/constraints.txt" "$ROOT/tools/fix_ros_wheel_paths.py")
+if ! stamp_ok python-packages "$h"; then
+    rm -f "$STAMPS/python-packages" "$STAMPS/msgs_defs"
+    # The ROS wheels' bootstrap re-execs python once; never inherit it from another venv.
+    env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -m pip install -qq --disable-pip-version-check \
+        -r "$ROOT/requirements.txt" -c "$ROOT/constraints.txt"
+    "$PY" "$ROOT/tools/fix_ros_wheel_paths.py" "$VENV"
+    stamp_write python-packages "$h"
+else
+    echo "setup: [$STEP] unchanged, skipped"
+fi
+
+# --- 4. msgs_defs (rosidl, cmake) installed into the venv prefix ----------------------------
+step msgs_defs "building the msgs_defs interface package with cmake"
+h=$(hash_of "$STAMPS/python-packages" "$ROOT"/src/msgs_defs/CMakeLists.txt \
+    "$ROOT"/src/msgs_defs/package.xml "$ROOT"/src/msgs_defs/msg/*.msg)
+if ! stamp_ok msgs_defs "$h" || ! "$PY" -c 'import msgs_defs.msg' 2>/dev/null; then
+    rm -f "$STAMPS/msgs_defs"
+    rm -rf "$BUILD/msgs_defs"; mkdir -p "$BUILD"
+    env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE AMENT_PREFIX_PATH="$VENV" \
+        cmake -S "$ROOT/src/msgs_defs" -B "$BUILD/msgs_defs" -G Ninja \
+        -DCMAKE_PREFIX_PATH="$VENV" -DCMAKE_INSTALL_PREFIX="$VENV" \
+        -DPython3_EXECUTABLE="$PY" -DBUILD_TESTING=OFF > "$BUILD/msgs_defs.configure.log" 2>&1 \
+        || { tail -n 40 "$BUILD/msgs_defs.configure.log"; false; }
+    cmake --build "$BUILD/msgs_defs" --target install > "$BUILD/msgs_defs.build.log" 2>&1 \
+        || { tail -n 40 "$BUILD/msgs_defs.build.log"; false; }
+    env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c 'from msgs_defs.msg import BearingMeasurement'
+    stamp_write msgs_defs "$h"
+else
+    echo "setup: [$STEP] unchanged, skipped"
+fi
+
+# --- 5. the project's Python packages, editable ---------------------------------------------
+step editable-packages "installing the project's packages in editable mode"
+PKGS=(activetrack sim_node tracker_node planner_node activetrack_bringup)
+meta=()
+for p in "${PKGS[@]}"; do
+    for f in pyproject.toml setup.py setup.cfg package.xml; do
+        [ -f "$ROOT/src/$p/$f" ] && meta+=("$ROOT/src/$p/$f")
+    done
+done
+h=$(hash_of "$STAMPS/python-packages" "${meta[@]}")
+if ! stamp_ok editable-packages "$h"; then
+    rm -f "$STAMPS/editable-packages"
+    args=()
+    for p in "${PKGS[@]}"; do args+=(-e "$ROOT/src/$p"); done
+    env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -m pip install -qq --disable-pip-version-check \
+        --no-deps --no-build-isolation "${args[@]}"
+    stamp_write editable-packages "$h"
+else
+    echo "setup: [$STEP] unchanged, skipped"
+fi
+
+STEP="check"
+env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c 'import rclpy, activetrack, msgs_defs.msg, activetrack_bringup'
+echo "setup: done ($VENV)"
