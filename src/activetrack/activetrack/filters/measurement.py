@@ -1,0 +1,158 @@
+"""Data the filters exchange: one sensor report in, one update summary out.
+
+A :class:`Measurement` is what one sensor reported at one time: a detection ``z`` or, with
+``z is None``, a look that produced no detection (a missed detection when ``pd < 1``, or a
+target outside the sensor's ``[r_min, r_max]`` detection ranges, Hernandez sec. 2.3).
+Both filters (:class:`~activetrack.filters.ekf.ExtendedKalmanFilter` and
+:class:`~activetrack.filters.particle.ParticleFilter`) follow :class:`TrackingFilter`, so a
+node can pick one by a parameter.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+__all__ = [
+    "Measurement",
+    "TrackingFilter",
+    "UpdateInfo",
+    "check_measurement_times",
+    "check_predict_time",
+]
+
+# Slack for comparing measurement stamps with the filter time (float round-off in t0 + k*T).
+TIME_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One sensor report.
+
+    sensor: a sensor model from :mod:`activetrack.models.sensors` (``measure``, ``jacobian``,
+        ``residual``, ``R``, ``dim_z``, ``pd``, ``in_range``).
+    sensor_state: the platform's pv vector ``(x, xdot, y, ydot)``, shape ``(4,)``.
+    z: the measurement, shape ``(sensor.dim_z,)`` (a scalar is accepted for ``dim_z == 1``),
+        or ``None`` for "looked, no detection".
+    time: measurement time in seconds. The filters treat a measurement as taken at their
+        current time (call ``predict(time)`` or ``step`` first); a measurement later than
+        the filter's time is rejected.
+    sensor_id: free label carried through to :class:`UpdateInfo`.
+
+    ``z`` and ``sensor_state`` are stored as read-only float arrays.
+    """
+
+    sensor: Any
+    sensor_state: np.ndarray
+    z: np.ndarray | None
+    time: float
+    sensor_id: str = ""
+
+    def __post_init__(self):
+        s = np.array(self.sensor_state, dtype=float)
+        if s.shape != (4,) or not np.all(np.isfinite(s)):
+            raise ValueError(
+                f"sensor_state must be a finite pv vector (x, xdot, y, ydot) of shape (4,), "
+                f"got {self.sensor_state!r}"
+            )
+        s.flags.writeable = False
+        object.__setattr__(self, "sensor_state", s)
+        t = float(self.time)
+        if not math.isfinite(t):
+            raise ValueError(f"time must be finite, got {self.time!r}")
+        object.__setattr__(self, "time", t)
+        if self.z is not None:
+            dim_z = int(self.sensor.dim_z)
+            z = np.array(self.z, dtype=float).reshape(-1)
+            if z.shape != (dim_z,):
+                raise ValueError(
+                    f"z must have shape ({dim_z},) for a {self.sensor.kind} sensor, "
+                    f"got shape {np.shape(self.z)}"
+                )
+            if not np.all(np.isfinite(z)):
+                raise ValueError(f"z must be finite (no NaN or inf), got {self.z!r}")
+            z.flags.writeable = False
+            object.__setattr__(self, "z", z)
+
+    @property
+    def detected(self) -> bool:
+        """True when the sensor reported a detection (``z is not None``)."""
+        return self.z is not None
+
+
+@dataclass(frozen=True)
+class UpdateInfo:
+    """Summary of one ``update(measurements)`` call.
+
+    time: filter time of the update.
+    n_detections, n_missed: measurements with and without ``z``.
+    nis: sum of the normalised innovation squared ``nu^T S^-1 nu`` over the detections (EKF;
+        chi-square with ``dof`` degrees of freedom for a consistent filter); NaN for the
+        particle filter and when nothing was detected.
+    dof: sum of ``dim_z`` over the detections.
+    nis_per_measurement: NIS of each detection in input order (NaN for a missed one).
+    log_likelihood: log p(z_k | Z_{k-1}) of the whole update (Gaussian for the EKF; the
+        log mean unnormalised weight for the particle filter).
+    ess: effective sample size ``1 / sum w^2`` of the updated weights before any resampling
+        (particle filter; NaN for the EKF).
+    resampled: whether the particle filter resampled after this update.
+    collapsed: the particle weights all vanished and the update was discarded (PF,
+        ``on_collapse="reset"``); ``message`` says why.
+    """
+
+    time: float
+    n_detections: int = 0
+    n_missed: int = 0
+    nis: float = math.nan
+    dof: int = 0
+    nis_per_measurement: tuple[float, ...] = ()
+    log_likelihood: float = 0.0
+    ess: float = math.nan
+    resampled: bool = False
+    collapsed: bool = False
+    sensor_ids: tuple[str, ...] = field(default=())
+    message: str = ""
+
+
+class TrackingFilter(Protocol):
+    """The interface both filters share (so the tracker node can switch by a parameter)."""
+
+    @property
+    def time(self) -> float: ...
+
+    @property
+    def mean(self) -> np.ndarray: ...
+
+    @property
+    def cov(self) -> np.ndarray: ...
+
+    def predict(self, t: float) -> None: ...
+
+    def update(self, measurements: Sequence[Measurement]) -> UpdateInfo: ...
+
+    def step(self, t: float, measurements: Sequence[Measurement]) -> UpdateInfo: ...
+
+
+def check_predict_time(t, current: float) -> float:
+    """Return ``t`` as a float; raise unless it is finite and not before ``current``."""
+    t = float(t)
+    if not math.isfinite(t) or t < current - TIME_TOLERANCE * max(1.0, abs(current)):
+        raise ValueError(f"t must be finite and >= the filter time {current!r}, got {t!r}")
+    return max(t, current)
+
+
+def check_measurement_times(measurements: Sequence[Measurement], current: float) -> None:
+    """Raise if a measurement is stamped after the filter time (predict to it first)."""
+    slack = TIME_TOLERANCE * max(1.0, abs(current))
+    for m in measurements:
+        if not isinstance(m, Measurement):
+            raise ValueError(f"measurements must hold Measurement objects, got {type(m)!r}")
+        if m.time > current + slack:
+            raise ValueError(
+                f"measurements: time {m.time!r} is after the filter time {current!r}; "
+                "call predict(t) or step(t, measurements) first"
+            )

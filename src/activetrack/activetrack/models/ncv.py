@@ -1,0 +1,116 @@
+"""Nearly-constant-velocity (NCV) motion in 2-D, state pv = (x, xdot, y, ydot).
+
+Two noise conventions, both with the transition of Ramdaras eq. 4:
+
+    F = blkdiag(F1, F1),  F1 = [[1, T], [0, 1]]
+
+* ``NearlyConstantVelocity(q)``: continuous white-noise acceleration with power spectral
+  density q (Hernandez sec. 5.1, where it is called l), which integrates to
+  Q = q * blkdiag(Q1, Q1),  Q1 = [[T^3/3, T^2/2], [T^2/2, T]].
+* ``NearlyConstantVelocityDiscrete(sigma_x, sigma_y)``: the discrete white-noise form of
+  Ramdaras eq. 3-4, x_{k+1} = F x_k + G u with u ~ N(0, I_2), so Q = G G^T with
+  G = [[T^2/2 sigma_x, 0], [T sigma_x, 0], [0, T^2/2 sigma_y], [0, T sigma_y]].
+"""
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from activetrack.checks import require_nonnegative
+from activetrack.models._common import add_gaussian_noise, check_dt, check_rng, check_state
+
+PV_NAMES = ("x", "xdot", "y", "ydot")
+
+
+def cv_transition(dt):
+    """Ramdaras eq. 4 F for pv states, shape (4, 4)."""
+    F = np.eye(4)
+    F[0, 1] = F[2, 3] = dt
+    return F
+
+
+class _LinearPV:
+    """Members shared by the linear models whose state is pv itself."""
+
+    dim: ClassVar[int] = 4
+    state_names: ClassVar[tuple[str, ...]] = PV_NAMES
+    is_linear: ClassVar[bool] = True
+
+    def propagate(self, x, dt):
+        """Noise-free f(x) = F x, ``(..., 4) -> (..., 4)``."""
+        x = check_state("x", x, 4)
+        return x @ self.transition_matrix(dt).T
+
+    def jacobian(self, x, dt):
+        """df/dx = F broadcast to ``(..., 4, 4)``."""
+        x = check_state("x", x, 4)
+        return np.broadcast_to(self.transition_matrix(dt), (*x.shape[:-1], 4, 4)).copy()
+
+    def sample(self, x, dt, rng):
+        """f(x) + w, w ~ N(0, Q), independently for each state of the batch ``(..., 4)``."""
+        check_rng(rng)
+        return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
+
+    def kinematics(self, x):
+        """The state is already pv: returns a copy, ``(..., 4)``."""
+        return np.array(check_state("x", x, 4), dtype=float)
+
+    def kinematics_jacobian(self, x):
+        """d pv / dx = I, ``(..., 4, 4)``."""
+        x = check_state("x", x, 4)
+        return np.broadcast_to(np.eye(4), (*x.shape[:-1], 4, 4)).copy()
+
+
+@dataclass(frozen=True)
+class NearlyConstantVelocity(_LinearPV):
+    """NCV with continuous white-noise acceleration of PSD ``q`` (m^2/s^3) on each axis.
+
+    Hernandez sec. 5.1 (there q = l = 1e-8).  ``q = 0`` gives deterministic constant velocity.
+    """
+
+    q: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "q", require_nonnegative("q", self.q))
+
+    def transition_matrix(self, dt):
+        """F of Ramdaras eq. 4, (4, 4)."""
+        return cv_transition(check_dt(dt))
+
+    def process_noise(self, dt, x=None):
+        """Q = q * blkdiag(Q1, Q1), Q1 = [[T^3/3, T^2/2], [T^2/2, T]], shape (4, 4)."""
+        T = check_dt(dt)
+        Q1 = self.q * np.array([[T**3 / 3, T**2 / 2], [T**2 / 2, T]])
+        Q = np.zeros((4, 4))
+        Q[:2, :2] = Q[2:, 2:] = Q1
+        return Q
+
+
+@dataclass(frozen=True)
+class NearlyConstantVelocityDiscrete(_LinearPV):
+    """NCV with the discrete noise gain of Ramdaras eq. 3-4 (sigma in m/s^2 per axis)."""
+
+    sigma_x: float
+    sigma_y: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "sigma_x", require_nonnegative("sigma_x", self.sigma_x))
+        object.__setattr__(self, "sigma_y", require_nonnegative("sigma_y", self.sigma_y))
+
+    def transition_matrix(self, dt):
+        """F of Ramdaras eq. 4, (4, 4)."""
+        return cv_transition(check_dt(dt))
+
+    def noise_gain(self, dt):
+        """G of Ramdaras eq. 4, (4, 2): the noise enters as G u with u ~ N(0, I_2)."""
+        T = check_dt(dt)
+        G = np.zeros((4, 2))
+        G[0, 0], G[1, 0] = 0.5 * T**2 * self.sigma_x, T * self.sigma_x
+        G[2, 1], G[3, 1] = 0.5 * T**2 * self.sigma_y, T * self.sigma_y
+        return G
+
+    def process_noise(self, dt, x=None):
+        """Q = G G^T (Ramdaras eq. 3-4), shape (4, 4)."""
+        G = self.noise_gain(dt)
+        return G @ G.T
