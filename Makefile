@@ -8,7 +8,7 @@ setup:
 	@bash tools/setup.sh
 
 run: setup
-	$(PY) -m activetrack_bringup.cli smoke
+	.venv/bin/activetrack run scenarios/default.yaml
 
 test: setup
 	$(PY) -m pytest
@@ -20,6 +20,11 @@ lint: setup
 format: setup
 	.venv/bin/ruff format .
 	.venv/bin/ruff check --fix .
+
+# Filter benchmarks against Stone Soup and filterpy; Stone Soup is installed for this only.
+bench: setup
+	$(PY) -m pip install -qq -r requirements-bench.txt -c constraints.txt
+	$(PY) benchmarks/filters.py
 
 clean:
 	rm -rf build .venv runs

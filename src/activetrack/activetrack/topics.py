@@ -10,3 +10,6 @@ MANOEUVRE_COMMANDS = "/activetrack/manoeuvre_commands"
 SENSOR_SELECTION = "/activetrack/sensor_selection"
 PLAN_REPORT = "/activetrack/plan_report"
 DIAGNOSTICS = "/diagnostics"
+TRACK_POSE = "/activetrack/track_pose"  # geometry_msgs/PoseWithCovarianceStamped
+PARTICLES = "/activetrack/particles"  # geometry_msgs/PoseArray, subsampled PF cloud
+MARKERS = "/activetrack/markers"  # visualization_msgs/MarkerArray

@@ -1,30 +1,193 @@
-"""The ``activetrack`` command line."""
+"""The ``activetrack`` command line.
+
+activetrack run SCENARIO [--processes] [--mode lockstep|free] [--json PATH]
+                                        the ROS node graph, closed loop, with a run folder
+activetrack batch SCENARIO [--runs N] [--json PATH]
+                                        the same closed loop without ROS (the reference)
+activetrack record BAG [--topics T ...] [--duration S]
+                                        record graph topics to a rosbag2 directory (MCAP)
+activetrack play BAG [--topics T ...] [--rate R]
+                                        republish a bag
+activetrack info BAG                    topics, types and counts of a bag
+activetrack reproduce NAME [ARGS...]    reproduce a paper's tables (hernandez, ...)
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import json
 import sys
+from pathlib import Path
+
+EXPERIMENTS = ("hernandez", "ramdaras", "valverde", "vanderhook")
 
 
-def _cmd_smoke(args: argparse.Namespace) -> int:
-    from activetrack_bringup.smoke import run_smoke
+def _print_summary(s, wall_time_s: float | None = None) -> None:
+    print(f"scenario {s.scenario}: {s.runs} run(s) x {s.steps} steps")
+    print(f"  RMSE       x {s.rmse_x:9.3f} m   y {s.rmse_y:9.3f} m   (time-averaged)")
+    print(f"  PCRLB      x {s.mean_bound_x:9.3f} m   y {s.mean_bound_y:9.3f} m   (time-averaged)")
+    print(
+        f"  planning   {s.evaluations_per_decision:.1f} evaluations/decision, "
+        f"{1e3 * s.decision_time_s:.2f} ms/decision"
+    )
 
-    result = run_smoke(timeout=args.timeout)
-    print(f"{'message':<20} {'consumer':<14} {'fields intact':<14} consumed")
-    for name, consumer, intact, consumed in result.rows:
-        print(f"{name:<20} {consumer:<14} {intact!s:<14} {consumed}")
-    print(f"smoke: {'OK' if result.ok else 'FAILED'} in {result.wall_time_s:.2f} s")
-    return 0 if result.ok else 1
+
+def _write_json(path: str, data: dict) -> None:
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_text(json.dumps(data, indent=2))
+    print(f"  summary    {path}")
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from activetrack.scenarios import ScenarioError
+    from activetrack_bringup.runner import run_graph
+
+    try:
+        result = run_graph(
+            args.scenario,
+            run=args.run,
+            mode=args.mode,
+            processes=args.processes,
+            run_dir=args.out,
+            record=not args.no_bag,
+            timeout=args.timeout,
+        )
+    except ScenarioError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    _print_summary(result.summary)
+    print(f"  decisions  {len(result.summary.records[0].decisions)}")
+    print(
+        f"  wall time  {result.wall_time_s:.2f} s, real-time factor "
+        f"{result.real_time_factor:.1f}x ({'processes' if args.processes else 'one process'})"
+    )
+    for node, counts in result.diagnostics.items():
+        rejected = {k: v for k, v in counts.items() if k.startswith("rejected.")}
+        if rejected:
+            print(f"  {node}: {rejected}")
+    print(f"  run folder {result.run_dir}")
+    if args.json:
+        _write_json(args.json, result.to_json())
+    return 0
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from activetrack.closed_loop.batch import run_batch
+    from activetrack.scenarios import ScenarioError, load_scenario
+
+    try:
+        scenario = load_scenario(args.scenario)
+    except ScenarioError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    s = run_batch(scenario, runs=args.runs)
+    _print_summary(s)
+    print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
+    if args.json:
+        _write_json(args.json, s.to_json())
+    return 0
+
+
+def _cmd_record(args: argparse.Namespace) -> int:
+    import time
+
+    from activetrack_bringup.bag import GRAPH_TOPICS, BagRecorder
+    from activetrack_bringup.inprocess import InProcessGraph
+
+    topic_types = GRAPH_TOPICS
+    if args.topics:
+        unknown = [t for t in args.topics if t not in GRAPH_TOPICS]
+        if unknown:
+            print(f"error: --topics must be among {sorted(GRAPH_TOPICS)}; got {unknown}")
+            return 2
+        topic_types = {t: GRAPH_TOPICS[t] for t in args.topics}
+    with InProcessGraph() as graph:
+        recorder = graph.add(BagRecorder(args.bag, topic_types, context=graph.context))
+        print(f"recording {len(topic_types)} topics to {args.bag} (Ctrl-C to stop)")
+        end = time.monotonic() + (args.duration if args.duration else float("inf"))
+        try:
+            graph.spin_until(lambda: time.monotonic() > end, timeout=float("inf"))
+        except KeyboardInterrupt:
+            pass
+        finally:
+            recorder.close()
+    print(f"recorded {recorder.count} messages")
+    return 0
+
+
+def _cmd_play(args: argparse.Namespace) -> int:
+    from activetrack_bringup.bag import BagPlayer
+    from activetrack_bringup.inprocess import InProcessGraph
+
+    with InProcessGraph() as graph:
+        player = graph.add(BagPlayer(args.bag, args.topics, args.rate, context=graph.context))
+        graph.spin_until(
+            lambda: (player.play_step(), player.done)[1], timeout=float("inf"), step=0.001
+        )
+        graph.spin_until(lambda: False, timeout=0.2)  # let reliable deliveries finish
+    print(f"published {player.published} messages from {args.bag}")
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from activetrack_bringup.bag import bag_info
+
+    info = bag_info(args.bag)
+    print(f"bag {args.bag}: {info['messages']} messages, {info['duration_s']:.2f} s")
+    for topic, t in sorted(info["topics"].items()):
+        print(f"  {topic:<40} {t['type']:<45} {t['count']}")
+    return 0
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    module = importlib.import_module(f"activetrack.experiments.{args.name}")
+    return int(module.main(args.rest) or 0)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="activetrack", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-    smoke = sub.add_parser(
-        "smoke", help="bring up sim, tracker and planner and exchange every message type"
+    parser = argparse.ArgumentParser(
+        prog="activetrack", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
-    smoke.add_argument("--timeout", type=float, default=10.0, help="seconds (default 10)")
-    smoke.set_defaults(func=_cmd_smoke)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    run = sub.add_parser("run", help="run the ROS node graph on a scenario, closed loop")
+    run.add_argument("scenario", help="scenario YAML file")
+    run.add_argument("--processes", action="store_true", help="one OS process per node (DDS)")
+    run.add_argument("--mode", choices=("lockstep", "free"), default="lockstep")
+    run.add_argument("--run", type=int, default=None, help="Monte Carlo run index (seeding)")
+    run.add_argument("--out", help="run folder (default runs/<scenario>-<timestamp>)")
+    run.add_argument("--no-bag", action="store_true", help="do not record the bag")
+    run.add_argument("--timeout", type=float, default=600.0, help="wall seconds (default 600)")
+    run.add_argument("--json", help="also write the summary to this JSON file")
+    run.set_defaults(func=_cmd_run)
+
+    batch = sub.add_parser("batch", help="run a scenario closed loop without ROS")
+    batch.add_argument("scenario", help="scenario YAML file")
+    batch.add_argument("--runs", type=int, default=1, help="seeded Monte Carlo runs")
+    batch.add_argument("--json", help="write the summary to this JSON file")
+    batch.set_defaults(func=_cmd_batch)
+
+    rec = sub.add_parser("record", help="record graph topics to a rosbag2 directory")
+    rec.add_argument("bag", help="output directory (must not exist)")
+    rec.add_argument("--topics", nargs="+", help="topics (default: every graph topic)")
+    rec.add_argument("--duration", type=float, help="seconds (default: until Ctrl-C)")
+    rec.set_defaults(func=_cmd_record)
+
+    play = sub.add_parser("play", help="republish a recorded bag")
+    play.add_argument("bag")
+    play.add_argument("--topics", nargs="+", help="only these topics")
+    play.add_argument("--rate", type=float, default=1.0, help="speed factor (default 1)")
+    play.set_defaults(func=_cmd_play)
+
+    info = sub.add_parser("info", help="topics, types and counts of a bag")
+    info.add_argument("bag")
+    info.set_defaults(func=_cmd_info)
+
+    rep = sub.add_parser("reproduce", help="reproduce a paper's tables and figures")
+    rep.add_argument("name", choices=EXPERIMENTS)
+    rep.add_argument("rest", nargs=argparse.REMAINDER, help="options of the experiment")
+    rep.set_defaults(func=_cmd_reproduce)
     return parser
 
 

@@ -84,6 +84,7 @@ def example_messages() -> list:
         PlatformState(
             header=_header(),
             platform_id="p1",
+            epoch=3,
             sensor_id="s1",
             sensor_kind="bearing",
             position=sensor_pos,
@@ -94,6 +95,7 @@ def example_messages() -> list:
         TrackEstimate(
             header=_header(),
             target_id="t1",
+            epoch=6,
             filter_kind="pf",
             motion_model="ncv",
             state_names=["x", "xdot", "y", "ydot"],
@@ -142,6 +144,7 @@ def example_messages() -> list:
         GroundTruth(
             header=_header(),
             target_id="t1",
+            epoch=9,
             state_names=["x", "xdot", "y", "ydot"],
             state=[100.0, 8.0, -50.0, 6.0],
             position=Point(x=100.0, y=-50.0, z=-2.0),

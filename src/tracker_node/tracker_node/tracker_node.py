@@ -1,40 +1,234 @@
-"""tracker_node: EKF or particle filter on bearing and polar measurements.
+"""tracker_node: EKF or particle filter on bearing and polar measurements
+(activetrack.closed_loop.TrackerCore).
 
-Publishes the track with its covariance. The filters live in ``activetrack.filters``.
+Collects the measurements of an epoch (``epoch_measurement_count`` of them), updates the
+filter once per epoch and publishes the track: ``TrackEstimate`` (with the planner's posterior
+samples for a PF), ``geometry_msgs/PoseWithCovarianceStamped`` and a subsampled particle cloud
+(``geometry_msgs/PoseArray``) for standard tools. Bad messages (non-finite values, unknown
+sensors, out-of-order or future epochs and stamps, a covariance that is not positive definite)
+are rejected, counted and logged; the node keeps running.
 """
 
-from collections import Counter
+import math
 
+import numpy as np
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.time import Time
+from std_msgs.msg import Header
 
 from activetrack import topics
+from activetrack.closed_loop.batch import component_rngs
+from activetrack.closed_loop.counters import NodeCounters
+from activetrack.closed_loop.tracker import TrackerCore, pose_of
+from activetrack.filters.measurement import Measurement
+from activetrack.scenarios import load_scenario
 from msgs_defs.msg import BearingMeasurement, PolarMeasurement, TrackEstimate
+
+LATCHED = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
+STREAM = QoSProfile(depth=256, reliability=ReliabilityPolicy.RELIABLE)
+BEARING_KINDS = ("bearing", "ambiguous_bearing")
+STAMP_TOLERANCE = 1e-6  # s between a stamp and its epoch time k T
 
 
 class TrackerNode(Node):
     def __init__(self, **kwargs):
         super().__init__("tracker_node", **kwargs)
-        self.declare_parameter("filter", "pf")
-        self.declare_parameter("particles", 10000)
-        self.declare_parameter("motion_model", "ncv")
-        self.track_pub = self.create_publisher(TrackEstimate, topics.TRACK, 10)
+        self.declare_parameter("scenario", "")
+        self.declare_parameter("run", -1)
+        self.declare_parameter("mode", "lockstep")  # lockstep: only epoch k+1 follows epoch k
+        self.declare_parameter("cloud_size", 200)  # particles in the published cloud
+        path = self.get_parameter("scenario").value
+        if not path:
+            raise ValueError("parameter 'scenario' must name a scenario YAML file")
+        self.scenario = load_scenario(path)
+        self.mode = self.get_parameter("mode").value
+        if self.mode not in ("lockstep", "free"):
+            raise ValueError(f"parameter 'mode' must be 'lockstep' or 'free', got {self.mode!r}")
+        run = int(self.get_parameter("run").value)
+        rng = component_rngs(self.scenario.seed, None if run < 0 else run)[1]
+        self.core = TrackerCore(self.scenario, rng)
+        self.cloud_size = int(self.get_parameter("cloud_size").value)
+        # Scenario order of the sensors: measurements of an epoch are applied in this order.
+        self.sensor_order = {sid: i for i, sid in enumerate(self.core.sensors)}
+        self.counters = NodeCounters()
+        self.buffer: dict[int, list[Measurement]] = {}
+        self.expected: dict[int, int] = {}
+        self.last_epoch = 0
+
+        self.track_pub = self.create_publisher(TrackEstimate, topics.TRACK, LATCHED)
+        self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, topics.TRACK_POSE, 10)
+        self.cloud_pub = self.create_publisher(PoseArray, topics.PARTICLES, 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self.create_subscription(
-            BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing, 10
+            BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing, STREAM
         )
-        self.create_subscription(PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar, 10)
-        self.received = Counter()
+        self.create_subscription(PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar, STREAM)
+        self.publish_track(self.core.snapshot())  # epoch 0: the prior
+
+    # --- validation and conversion -------------------------------------------------------
+
+    def _reject(self, reason: str, detail: str) -> None:
+        self.counters.rejected(reason)
+        self.get_logger().warning(f"rejected {reason}: {detail}")
+
+    def _check_common(self, msg, kinds) -> str | None:
+        """Reason to reject a measurement message, or None."""
+        sensor = self.core.sensors.get(msg.sensor_id)
+        if sensor is None:
+            return "unknown_sensor"
+        if sensor.kind not in kinds:
+            return "wrong_sensor_kind"
+        pos = (msg.sensor_position.x, msg.sensor_position.y)
+        vel = (msg.sensor_velocity.x, msg.sensor_velocity.y)
+        if not all(math.isfinite(v) for v in (*pos, *vel)):
+            return "non_finite"
+        if msg.epoch <= self.last_epoch:
+            return "out_of_order"
+        if msg.epoch > self.scenario.steps or (
+            self.mode == "lockstep" and msg.epoch > self.last_epoch + 1
+        ):
+            return "future_epoch"
+        stamp = Time.from_msg(msg.header.stamp).nanoseconds * 1e-9
+        if abs(stamp - msg.epoch * self.scenario.dt) > STAMP_TOLERANCE:
+            return "bad_stamp"
+        return None
+
+    def _measurement(self, msg, z) -> Measurement:
+        s = msg.sensor_position, msg.sensor_velocity
+        return Measurement(
+            self.core.sensors[msg.sensor_id],
+            np.array([s[0].x, s[1].x, s[0].y, s[1].y]),
+            z,
+            msg.epoch * self.scenario.dt,  # exact k T, as in the batch loop
+            msg.sensor_id,
+        )
 
     def on_bearing(self, msg: BearingMeasurement) -> None:
-        self.received["BearingMeasurement"] += 1
+        self.counters.received("BearingMeasurement")
+        reason = self._check_common(msg, BEARING_KINDS)
+        if reason is None and msg.detected and not math.isfinite(msg.bearing):
+            reason = "non_finite"
+        if reason is not None:
+            return self._reject(reason, f"bearing from {msg.sensor_id!r} epoch {msg.epoch}")
+        z = [msg.bearing] if msg.detected else None
+        self.accept(msg, self._measurement(msg, z))
 
     def on_polar(self, msg: PolarMeasurement) -> None:
-        self.received["PolarMeasurement"] += 1
+        self.counters.received("PolarMeasurement")
+        reason = self._check_common(msg, ("range_bearing", "range_rate_bearing"))
+        if reason is None:
+            sensor = self.core.sensors[msg.sensor_id]
+            values = {"range": msg.range, "range_rate": msg.range_rate, "bearing": msg.bearing}
+            z = [values[c] for c in sensor.components]
+            n = sensor.dim_z
+            if msg.has_range_rate != ("range_rate" in sensor.components):
+                reason = "wrong_sensor_kind"
+            elif msg.detected and not all(math.isfinite(v) for v in z):
+                reason = "non_finite"
+            elif len(msg.covariance) != n * n:
+                reason = "bad_covariance"
+            else:
+                R = np.array(msg.covariance, dtype=float).reshape(n, n)
+                if not (np.all(np.isfinite(R)) and np.allclose(R, R.T)):
+                    reason = "bad_covariance"
+                elif np.any(np.linalg.eigvalsh(R) <= 0):
+                    reason = "bad_covariance"
+        if reason is not None:
+            return self._reject(reason, f"polar from {msg.sensor_id!r} epoch {msg.epoch}")
+        self.accept(msg, self._measurement(msg, z if msg.detected else None))
+
+    # --- epochs --------------------------------------------------------------------------
+
+    def accept(self, msg, measurement: Measurement) -> None:
+        k = msg.epoch
+        if any(m.sensor_id == measurement.sensor_id for m in self.buffer.get(k, [])):
+            return self._reject("duplicate", f"second measurement of {msg.sensor_id!r} at {k}")
+        self.buffer.setdefault(k, []).append(measurement)
+        self.expected[k] = msg.epoch_measurement_count
+        # Earlier incomplete epochs are flushed when a later one starts (free mode only).
+        for e in sorted(e for e in self.buffer if e < k):
+            self.counters.count("incomplete_epochs")
+            self.process(e)
+        count = self.expected[k]
+        if count == 0 or len(self.buffer[k]) >= count:
+            self.process(k)
+
+    def process(self, epoch: int) -> None:
+        measurements = sorted(self.buffer.pop(epoch), key=lambda m: self.sensor_order[m.sensor_id])
+        self.expected.pop(epoch, None)
+        snapshot = self.core.step(epoch, epoch * self.scenario.dt, measurements)
+        self.last_epoch = epoch
+        self.counters.count("updates")
+        self.counters.count("missed_detections", sum(m.z is None for m in measurements))
+        self.publish_track(snapshot)
+
+    # --- outputs -------------------------------------------------------------------------
+
+    def publish_track(self, snap) -> None:
+        header = Header(
+            stamp=Time(seconds=snap.epoch * self.scenario.dt).to_msg(), frame_id="world"
+        )
+        samples = snap.samples
+        self.track_pub.publish(
+            TrackEstimate(
+                header=header,
+                target_id=self.scenario.target.id,
+                epoch=snap.epoch,
+                filter_kind=snap.filter_kind,
+                motion_model=snap.motion_model,
+                state_names=list(snap.state_names),
+                state=[float(v) for v in snap.mean],
+                covariance=[float(v) for v in snap.cov.ravel()],
+                update_count=snap.update_count,
+                missed_detections=snap.missed_detections,
+                nis=float(snap.nis),
+                ess=float(snap.ess),
+                particle_count=snap.particle_count,
+                particle_samples=[] if samples is None else [float(v) for v in samples.ravel()],
+                sample_count=0 if samples is None else len(samples),
+            )
+        )
+        x, y, course, P_xy = pose_of(snap, self.core.model)
+        pose = PoseWithCovarianceStamped(header=header)
+        pose.pose.pose.position.x, pose.pose.pose.position.y = x, y
+        pose.pose.pose.orientation.z = math.sin(course / 2)
+        pose.pose.pose.orientation.w = math.cos(course / 2)
+        cov6 = [0.0] * 36  # (x, y, z, roll, pitch, yaw), row-major
+        cov6[0], cov6[1], cov6[6], cov6[7] = (float(v) for v in P_xy.ravel())
+        pose.pose.covariance = cov6
+        self.pose_pub.publish(pose)
+        if samples is not None and self.cloud_size > 0:
+            step = max(1, len(samples) // self.cloud_size)
+            cloud = PoseArray(header=header)
+            for x in self.core.model.kinematics(samples[::step]):
+                p = Pose()
+                p.position.x, p.position.y = float(x[0]), float(x[2])
+                cloud.poses.append(p)
+            self.cloud_pub.publish(cloud)
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.WARN if self.counters.total_rejected else DiagnosticStatus.OK,
+            name="activetrack/tracker_node",
+            hardware_id=self.scenario.name,
+            message=f"epoch {snap.epoch} {snap.filter_kind}: ESS {snap.ess:.0f} NIS {snap.nis:.2f}",
+            values=[KeyValue(key=k, value=v) for k, v in self.counters.as_pairs()],
+        )
+        self.diag_pub.publish(DiagnosticArray(header=header, status=[status]))
 
 
 def main(args=None):
     rclpy.init(args=args)
-    node = TrackerNode()
+    try:
+        node = TrackerNode()
+    except ValueError as exc:
+        print(f"tracker_node: {exc}")
+        rclpy.try_shutdown()
+        raise SystemExit(2) from None
     try:
         rclpy.spin(node)
     except KeyboardInterrupt:

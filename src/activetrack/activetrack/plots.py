@@ -1,0 +1,52 @@
+"""PNG plots of closed-loop runs (matplotlib, Agg backend)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+
+def plot_run(summary, out_dir: str | Path) -> list[Path]:
+    """Trajectories of one run, and RMSE vs the PCRLB over time. Returns the files written."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rec = summary.records[0]
+    files = []
+
+    fig, ax = plt.subplots(figsize=(6, 6))
+    ax.plot(rec.truth[:, 0], rec.truth[:, 2], "k-", label="target (truth)")
+    ax.plot(rec.estimate[:, 0], rec.estimate[:, 2], "r--", label="estimate")
+    for j, pid in enumerate(rec.platform_ids):
+        path = rec.platform_paths[:, j]
+        ax.plot(path[:, 0], path[:, 2], ".-", label=f"platform {pid}")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title(summary.scenario)
+    files.append(out / "trajectories.png")
+    fig.savefig(files[-1], dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+    k = np.arange(1, summary.steps + 1)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    for ax, coord, rmse, bound in (
+        (axes[0], "x", summary.rmse_x_t, summary.bound_x_t),
+        (axes[1], "y", summary.rmse_y_t, summary.bound_y_t),
+    ):
+        ax.plot(k, rmse, "r-", label=f"RMSE ({summary.runs} run(s))")
+        ax.plot(k, bound, "k--", label="PCRLB along the flown paths")
+        ax.set_xlabel("epoch k")
+        ax.set_title(f"{coord}-coordinate")
+        ax.set_yscale("log")
+        ax.legend(fontsize="small")
+    axes[0].set_ylabel("m")
+    files.append(out / "rmse_vs_bound.png")
+    fig.savefig(files[-1], dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return files

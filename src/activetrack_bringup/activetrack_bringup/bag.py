@@ -1,0 +1,196 @@
+"""Record and replay graph topics as standard rosbag2 directories (rosbags; no rosbag2 on PyPI).
+
+Recording writes raw CDR bytes as received (``raw=True`` subscriptions) into MCAP storage with
+the message definitions embedded, so plain ``rosbags``, Foxglove and ``ros2 bag info`` read the
+bag without this package. Replay republishes the stored bytes unchanged.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import time
+from pathlib import Path
+
+from ament_index_python.packages import get_package_share_directory
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from activetrack import topics
+
+# Every topic of the graph with its type (what `activetrack record` records by default).
+GRAPH_TOPICS = {
+    topics.CLOCK: "rosgraph_msgs/msg/Clock",
+    topics.GROUND_TRUTH: "msgs_defs/msg/GroundTruth",
+    topics.PLATFORM_STATES: "msgs_defs/msg/PlatformState",
+    topics.BEARING_MEASUREMENTS: "msgs_defs/msg/BearingMeasurement",
+    topics.POLAR_MEASUREMENTS: "msgs_defs/msg/PolarMeasurement",
+    topics.TRACK: "msgs_defs/msg/TrackEstimate",
+    topics.TRACK_POSE: "geometry_msgs/msg/PoseWithCovarianceStamped",
+    topics.PARTICLES: "geometry_msgs/msg/PoseArray",
+    topics.MANOEUVRE_COMMANDS: "msgs_defs/msg/ManoeuvreCommand",
+    topics.SENSOR_SELECTION: "msgs_defs/msg/SensorSelection",
+    topics.PLAN_REPORT: "msgs_defs/msg/PlanReport",
+    topics.DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
+}
+# Topics published with transient-local durability (late joiners get the latest messages).
+LATCHED_TOPICS = {
+    topics.GROUND_TRUTH,
+    topics.PLATFORM_STATES,
+    topics.TRACK,
+    topics.MANOEUVRE_COMMANDS,
+    topics.SENSOR_SELECTION,
+}
+
+
+def graph_typestore():
+    """The Jazzy typestore plus the msgs_defs types, read from their installed .msg files."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    try:
+        share = Path(get_package_share_directory("msgs_defs"))
+    except (OSError, LookupError):  # no AMENT_PREFIX_PATH: msgs_defs is installed in this prefix
+        share = Path(sys.prefix) / "share" / "msgs_defs"
+    msg_dir = share / "msg"
+    types = {}
+    for path in sorted(msg_dir.glob("*.msg")):
+        types.update(get_types_from_msg(path.read_text(), f"msgs_defs/msg/{path.stem}"))
+    store.register(types)
+    return store
+
+
+def message_class(msgtype: str):
+    """The rclpy message class of a type name like ``msgs_defs/msg/TrackEstimate``."""
+    package, _, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{package}.msg"), name)
+
+
+def _qos_for(topic: str) -> QoSProfile:
+    if topic in LATCHED_TOPICS:
+        return QoSProfile(
+            depth=64,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        )
+    return QoSProfile(depth=256, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def _bag_qos(topic: str) -> list[Qos]:
+    """Offered QoS written to metadata.yaml, so that a real `ros2 bag play` matches ours."""
+    latched = topic in LATCHED_TOPICS
+    return [
+        Qos(
+            history=QosHistory.KEEP_LAST,
+            depth=64 if latched else 256,
+            reliability=QosReliability.RELIABLE,
+            durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+            deadline=QosTime(0, 0),
+            lifespan=QosTime(0, 0),
+            liveliness=QosLiveliness.AUTOMATIC,
+            liveliness_lease_duration=QosTime(0, 0),
+            avoid_ros_namespace_conventions=False,
+        )
+    ]
+
+
+class BagRecorder(Node):
+    """Subscribes to topics (raw CDR) and writes them to a rosbag2 directory (MCAP)."""
+
+    def __init__(self, path: str | Path, topic_types: dict[str, str] | None = None, **kwargs):
+        super().__init__("activetrack_recorder", **kwargs)
+        self.path = Path(path)
+        self.topic_types = dict(topic_types or GRAPH_TOPICS)
+        self.typestore = graph_typestore()
+        self.writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self.writer.open()
+        self.connections = {}
+        self.count = 0
+        for topic, msgtype in self.topic_types.items():
+            self.connections[topic] = self.writer.add_connection(
+                topic, msgtype, typestore=self.typestore, offered_qos_profiles=_bag_qos(topic)
+            )
+            self.create_subscription(
+                message_class(msgtype),
+                topic,
+                lambda data, t=topic: self._write(t, data),
+                _qos_for(topic),
+                raw=True,
+            )
+
+    def _write(self, topic: str, data: bytes) -> None:
+        self.writer.write(self.connections[topic], time.time_ns(), data)
+        self.count += 1
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+            self.writer = None
+
+
+def bag_info(path: str | Path) -> dict:
+    """Topics, types and message counts of a bag (what `ros2 bag info` shows)."""
+    with Reader(path) as reader:
+        return {
+            "duration_s": reader.duration * 1e-9,
+            "messages": reader.message_count,
+            "topics": {
+                c.topic: {"type": c.msgtype, "count": c.msgcount} for c in reader.connections
+            },
+        }
+
+
+class BagPlayer(Node):
+    """Republishes a bag's raw messages with their recorded timing (scaled by ``rate``)."""
+
+    def __init__(self, path: str | Path, topics_filter=None, rate: float = 1.0, **kwargs):
+        super().__init__("activetrack_player", **kwargs)
+        if not rate > 0:
+            raise ValueError(f"rate must be > 0, got {rate!r}")
+        self.rate = rate
+        self.reader = Reader(path)
+        self.reader.open()
+        conns = [
+            c for c in self.reader.connections if not topics_filter or c.topic in topics_filter
+        ]
+        missing = set(topics_filter or ()) - {c.topic for c in conns}
+        if missing:
+            raise ValueError(f"topics not in the bag: {sorted(missing)}")
+        self.pubs = {
+            c.id: self.create_publisher(message_class(c.msgtype), c.topic, _qos_for(c.topic))
+            for c in conns
+        }
+        self.messages = self.reader.messages(connections=conns)
+        self.published = 0
+        self.done = False
+        self._t0_bag = None
+        self._t0_wall = None
+
+    def play_step(self) -> None:
+        """Publish every message whose (scaled) time has come; call repeatedly."""
+        now = time.monotonic()
+        while True:
+            if getattr(self, "_next", None) is None:
+                try:
+                    self._next = next(self.messages)
+                except StopIteration:
+                    self.done = True
+                    self.reader.close()
+                    return
+            conn, stamp, data = self._next
+            if self._t0_bag is None:
+                self._t0_bag, self._t0_wall = stamp, now
+            due = self._t0_wall + (stamp - self._t0_bag) * 1e-9 / self.rate
+            if due > now:
+                return
+            self.pubs[conn.id].publish(bytes(data))
+            self.published += 1
+            self._next = None
