@@ -27,9 +27,7 @@ def test_examples_cover_every_type_with_non_default_fields():
         defaults = dict(_flatten(type(msg)()))
         for path, value in _flatten(msg):
             # A field left at its default could be dropped in transport unnoticed.
-            assert value != defaults[path], (
-                f"{type(msg).__name__}.{path} is left at its default"
-            )
+            assert value != defaults[path], f"{type(msg).__name__}.{path} is left at its default"
 
 
 @pytest.mark.parametrize("msg", EXAMPLES, ids=lambda m: type(m).__name__)

@@ -13,3 +13,9 @@ DIAGNOSTICS = "/diagnostics"
 TRACK_POSE = "/activetrack/track_pose"  # geometry_msgs/PoseWithCovarianceStamped
 PARTICLES = "/activetrack/particles"  # geometry_msgs/PoseArray, subsampled PF cloud
 MARKERS = "/activetrack/markers"  # visualization_msgs/MarkerArray
+
+# History depths. The per-epoch topics (measurements, truth, platform states, tracks, commands,
+# selections, plan reports) are transient-local with a deep history, so a node or recorder that
+# joins late (another process still discovering, a restarted planner) still gets the run so far.
+LATCHED_DEPTH = 1024
+STREAM_DEPTH = 256

@@ -43,8 +43,11 @@ GRAPH_TOPICS = {
     topics.PLAN_REPORT: "msgs_defs/msg/PlanReport",
     topics.DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
 }
-# Topics published with transient-local durability (late joiners get the latest messages).
+# Topics published with transient-local durability (late joiners get the run's history).
 LATCHED_TOPICS = {
+    topics.BEARING_MEASUREMENTS,
+    topics.POLAR_MEASUREMENTS,
+    topics.PLAN_REPORT,
     topics.GROUND_TRUTH,
     topics.PLATFORM_STATES,
     topics.TRACK,
@@ -77,11 +80,11 @@ def message_class(msgtype: str):
 def _qos_for(topic: str) -> QoSProfile:
     if topic in LATCHED_TOPICS:
         return QoSProfile(
-            depth=64,
+            depth=topics.LATCHED_DEPTH,
             reliability=ReliabilityPolicy.RELIABLE,
             durability=DurabilityPolicy.TRANSIENT_LOCAL,
         )
-    return QoSProfile(depth=256, reliability=ReliabilityPolicy.RELIABLE)
+    return QoSProfile(depth=topics.STREAM_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def _bag_qos(topic: str) -> list[Qos]:
@@ -90,7 +93,7 @@ def _bag_qos(topic: str) -> list[Qos]:
     return [
         Qos(
             history=QosHistory.KEEP_LAST,
-            depth=64 if latched else 256,
+            depth=topics.LATCHED_DEPTH if latched else topics.STREAM_DEPTH,
             reliability=QosReliability.RELIABLE,
             durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
             deadline=QosTime(0, 0),
@@ -152,18 +155,18 @@ class BagPlayer(Node):
     """Republishes a bag's raw messages with their recorded timing (scaled by ``rate``)."""
 
     def __init__(self, path: str | Path, topics_filter=None, rate: float = 1.0, **kwargs):
-        super().__init__("activetrack_player", **kwargs)
         if not rate > 0:
             raise ValueError(f"rate must be > 0, got {rate!r}")
-        self.rate = rate
-        self.reader = Reader(path)
-        self.reader.open()
-        conns = [
-            c for c in self.reader.connections if not topics_filter or c.topic in topics_filter
-        ]
+        reader = Reader(path)
+        reader.open()
+        conns = [c for c in reader.connections if not topics_filter or c.topic in topics_filter]
         missing = set(topics_filter or ()) - {c.topic for c in conns}
         if missing:
+            reader.close()
             raise ValueError(f"topics not in the bag: {sorted(missing)}")
+        super().__init__("activetrack_player", **kwargs)
+        self.rate = rate
+        self.reader = reader
         self.pubs = {
             c.id: self.create_publisher(message_class(c.msgtype), c.topic, _qos_for(c.topic))
             for c in conns
@@ -174,10 +177,13 @@ class BagPlayer(Node):
         self._t0_bag = None
         self._t0_wall = None
 
-    def play_step(self) -> None:
-        """Publish every message whose (scaled) time has come; call repeatedly."""
+    def play_step(self, max_burst: int = 64) -> None:
+        """Publish the messages whose (scaled) time has come, at most ``max_burst`` per call so
+        that subscribers in the same executor keep up; call repeatedly."""
+        if self.done:
+            return
         now = time.monotonic()
-        while True:
+        for _ in range(max_burst):
             if getattr(self, "_next", None) is None:
                 try:
                     self._next = next(self.messages)

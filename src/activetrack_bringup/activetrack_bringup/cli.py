@@ -130,13 +130,35 @@ def _cmd_play(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_info(args: argparse.Namespace) -> int:
+def _cmd_bag_info(args: argparse.Namespace) -> int:
     from activetrack_bringup.bag import bag_info
 
     info = bag_info(args.bag)
     print(f"bag {args.bag}: {info['messages']} messages, {info['duration_s']:.2f} s")
     for topic, t in sorted(info["topics"].items()):
         print(f"  {topic:<40} {t['type']:<45} {t['count']}")
+    if args.json:
+        _write_json(args.json, info)
+    return 0
+
+
+def _cmd_bag_retrack(args: argparse.Namespace) -> int:
+    from activetrack_bringup.retrack import retrack
+
+    r = retrack(args.bag, args.scenario, filter_kind=args.filter, run=args.run)
+    print(f"replayed {r.epochs} epochs of {args.bag} into a fresh {r.replayed_filter} tracker")
+    print(f"  max |state difference| vs recorded track      {r.max_state_difference:.3g}")
+    print(f"  max |covariance difference| vs recorded track {r.max_covariance_difference:.3g}")
+    print(
+        f"  RMSE vs truth  recorded ({r.recorded_filter}): x {r.recorded_rmse[0]:.3f} "
+        f"y {r.recorded_rmse[1]:.3f} m"
+    )
+    print(
+        f"                 replayed ({r.replayed_filter}): x {r.replayed_rmse[0]:.3f} "
+        f"y {r.replayed_rmse[1]:.3f} m"
+    )
+    if args.json:
+        _write_json(args.json, r.to_json())
     return 0
 
 
@@ -180,9 +202,19 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument("--rate", type=float, default=1.0, help="speed factor (default 1)")
     play.set_defaults(func=_cmd_play)
 
-    info = sub.add_parser("info", help="topics, types and counts of a bag")
+    bag = sub.add_parser("bag", help="inspect bags and replay them into a tracker")
+    bag_sub = bag.add_subparsers(dest="bag_command", required=True)
+    info = bag_sub.add_parser("info", help="topics, types, counts and duration of a bag")
     info.add_argument("bag")
-    info.set_defaults(func=_cmd_info)
+    info.add_argument("--json", help="write the information to this JSON file")
+    info.set_defaults(func=_cmd_bag_info)
+    rt = bag_sub.add_parser("retrack", help="replay a run's measurements into a fresh tracker")
+    rt.add_argument("bag")
+    rt.add_argument("--scenario", required=True, help="the scenario the run used")
+    rt.add_argument("--filter", choices=("ekf", "pf"), help="another filter (default: as run)")
+    rt.add_argument("--run", type=int, default=None, help="Monte Carlo run index of the run")
+    rt.add_argument("--json", help="write the report to this JSON file")
+    rt.set_defaults(func=_cmd_bag_retrack)
 
     rep = sub.add_parser("reproduce", help="reproduce a paper's tables and figures")
     rep.add_argument("name", choices=EXPERIMENTS)

@@ -67,13 +67,29 @@ class EvaluatorNode(Node):
         self.reports[msg.epoch] = msg
 
     @property
+    def expects_reports(self) -> bool:
+        """The planner reports a decision per epoch when it commands any platform."""
+        return self.scenario.planner.enabled and any(
+            p.controllable for p in self.scenario.platforms
+        )
+
+    @property
     def complete(self) -> bool:
+        return not self.missing()
+
+    def missing(self) -> str:
+        """What the evaluator still lacks (for a timeout message)."""
         K = self.scenario.steps
         n_platforms = len(self.scenario.platforms)
-        return all(
-            k in self.truth and k in self.tracks and len(self.platforms.get(k, {})) == n_platforms
-            for k in range(K + 1)
-        )
+        lacks = {
+            "truth": [k for k in range(K + 1) if k not in self.truth],
+            "track": [k for k in range(K + 1) if k not in self.tracks],
+            "platforms": [k for k in range(K + 1) if len(self.platforms.get(k, {})) < n_platforms],
+            "plan report": [k for k in range(K) if k not in self.reports]
+            if self.expects_reports
+            else [],
+        }
+        return ", ".join(f"{what} missing at epochs {ks}" for what, ks in lacks.items() if ks)
 
     def record(self, wall_time_s: float) -> RunRecord:
         K = self.scenario.steps
@@ -184,8 +200,8 @@ def run_graph(
             ok = graph.spin_until(lambda: evaluator.complete, timeout=timeout)
             if not ok:
                 raise TimeoutError(
-                    f"scenario {scenario.name} did not complete within {timeout} s "
-                    f"(epochs with a track: {sorted(evaluator.tracks)[-1:]})"
+                    f"scenario {scenario.name} did not complete within {timeout} s: "
+                    f"{evaluator.missing()}"
                 )
             graph.spin_until(lambda: False, timeout=0.1)  # let the last messages be recorded
         finally:

@@ -11,6 +11,7 @@ import math
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
@@ -31,7 +32,9 @@ from msgs_defs.msg import (
 )
 
 LATCHED = QoSProfile(
-    depth=64, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+    depth=topics.LATCHED_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
 
@@ -59,7 +62,7 @@ class PlannerNode(Node):
         self.selection_pub = self.create_publisher(
             SensorSelection, topics.SENSOR_SELECTION, LATCHED
         )
-        self.report_pub = self.create_publisher(PlanReport, topics.PLAN_REPORT, 10)
+        self.report_pub = self.create_publisher(PlanReport, topics.PLAN_REPORT, LATCHED)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self.create_subscription(TrackEstimate, topics.TRACK, self.on_track, LATCHED)
         self.create_subscription(PlatformState, topics.PLATFORM_STATES, self.on_platform, LATCHED)
@@ -84,8 +87,12 @@ class PlannerNode(Node):
             return self._reject("bad_covariance", f"track epoch {msg.epoch}")
         if msg.sample_count and samples.size != msg.sample_count * n:
             return self._reject("malformed", f"{samples.size} sample values for {msg.sample_count}")
-        if msg.epoch <= self.last_decided or msg.epoch > self.scenario.steps:
-            return self._reject("stale_epoch", f"track epoch {msg.epoch}")
+        if msg.epoch > self.scenario.steps:
+            return self._reject("future_epoch", f"track epoch {msg.epoch}")
+        if msg.epoch <= self.last_decided or (self.track and msg.epoch < self.track.epoch):
+            # History replayed to a late joiner, not bad input: the latest track is what counts.
+            self.counters.count("old_tracks_ignored")
+            return
         self.track = TrackSnapshot(
             epoch=msg.epoch,
             time=Time.from_msg(msg.header.stamp).nanoseconds * 1e-9,
@@ -202,7 +209,7 @@ def main(args=None):
         raise SystemExit(2) from None
     try:
         rclpy.spin(node)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         node.destroy_node()

@@ -18,6 +18,7 @@ import time
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, Vector3
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
@@ -41,9 +42,10 @@ from msgs_defs.msg import (
 )
 
 LATCHED = QoSProfile(
-    depth=64, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+    depth=topics.LATCHED_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-STREAM = QoSProfile(depth=256, reliability=ReliabilityPolicy.RELIABLE)
 BEARING_KINDS = ("bearing", "ambiguous_bearing")
 
 
@@ -60,7 +62,7 @@ class SimNode(Node):
         self.declare_parameter("rate", 1.0)
         self.declare_parameter("command_timeout", 5.0)
         self.declare_parameter("tick", 0.001)
-        self.declare_parameter("linger", 1.0)  # s to stay up after the last epoch (delivery)
+        self.declare_parameter("exit_when_done", False)  # else keep serving latched topics
         path = self.get_parameter("scenario").value
         if not path:
             raise ValueError("parameter 'scenario' must name a scenario YAML file")
@@ -81,9 +83,9 @@ class SimNode(Node):
         self.truth_pub = self.create_publisher(GroundTruth, topics.GROUND_TRUTH, LATCHED)
         self.platform_pub = self.create_publisher(PlatformState, topics.PLATFORM_STATES, LATCHED)
         self.bearing_pub = self.create_publisher(
-            BearingMeasurement, topics.BEARING_MEASUREMENTS, STREAM
+            BearingMeasurement, topics.BEARING_MEASUREMENTS, LATCHED
         )
-        self.polar_pub = self.create_publisher(PolarMeasurement, topics.POLAR_MEASUREMENTS, STREAM)
+        self.polar_pub = self.create_publisher(PolarMeasurement, topics.POLAR_MEASUREMENTS, LATCHED)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self.create_subscription(
             ManoeuvreCommand, topics.MANOEUVRE_COMMANDS, self.on_command, LATCHED
@@ -292,12 +294,10 @@ def main(args=None):
         rclpy.try_shutdown()
         raise SystemExit(2) from None
     try:
-        while rclpy.ok() and not node.done:
+        exit_when_done = bool(node.get_parameter("exit_when_done").value)
+        while rclpy.ok() and not (exit_when_done and node.done):
             rclpy.spin_once(node, timeout_sec=0.1)
-        linger_until = time.monotonic() + float(node.get_parameter("linger").value)
-        while rclpy.ok() and time.monotonic() < linger_until:
-            rclpy.spin_once(node, timeout_sec=0.05)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         node.destroy_node()

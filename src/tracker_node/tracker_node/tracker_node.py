@@ -15,6 +15,7 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
@@ -25,13 +26,14 @@ from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.counters import NodeCounters
 from activetrack.closed_loop.tracker import TrackerCore, pose_of
 from activetrack.filters.measurement import Measurement
-from activetrack.scenarios import load_scenario
+from activetrack.scenarios import load_scenario, with_tracker_overrides
 from msgs_defs.msg import BearingMeasurement, PolarMeasurement, TrackEstimate
 
 LATCHED = QoSProfile(
-    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+    depth=topics.LATCHED_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-STREAM = QoSProfile(depth=256, reliability=ReliabilityPolicy.RELIABLE)
 BEARING_KINDS = ("bearing", "ambiguous_bearing")
 STAMP_TOLERANCE = 1e-6  # s between a stamp and its epoch time k T
 
@@ -43,10 +45,16 @@ class TrackerNode(Node):
         self.declare_parameter("run", -1)
         self.declare_parameter("mode", "lockstep")  # lockstep: only epoch k+1 follows epoch k
         self.declare_parameter("cloud_size", 200)  # particles in the published cloud
+        self.declare_parameter("filter", "")  # ekf | pf; empty: the scenario's
+        self.declare_parameter("particles", 0)  # 0: the scenario's
         path = self.get_parameter("scenario").value
         if not path:
             raise ValueError("parameter 'scenario' must name a scenario YAML file")
-        self.scenario = load_scenario(path)
+        self.scenario = with_tracker_overrides(
+            load_scenario(path),
+            filter=self.get_parameter("filter").value or None,
+            particles=self.get_parameter("particles").value or None,
+        )
         self.mode = self.get_parameter("mode").value
         if self.mode not in ("lockstep", "free"):
             raise ValueError(f"parameter 'mode' must be 'lockstep' or 'free', got {self.mode!r}")
@@ -66,9 +74,11 @@ class TrackerNode(Node):
         self.cloud_pub = self.create_publisher(PoseArray, topics.PARTICLES, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self.create_subscription(
-            BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing, STREAM
+            BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing, LATCHED
         )
-        self.create_subscription(PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar, STREAM)
+        self.create_subscription(
+            PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar, LATCHED
+        )
         self.publish_track(self.core.snapshot())  # epoch 0: the prior
 
     # --- validation and conversion -------------------------------------------------------
@@ -231,7 +241,7 @@ def main(args=None):
         raise SystemExit(2) from None
     try:
         rclpy.spin(node)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         node.destroy_node()

@@ -1,7 +1,12 @@
 """Scenario files: schema, loading with clear errors, and builders for the core objects."""
 
 from activetrack.scenarios.build import build_motion_model, build_sensor
-from activetrack.scenarios.load import ScenarioError, load_scenario, parse_scenario
+from activetrack.scenarios.load import (
+    ScenarioError,
+    load_scenario,
+    parse_scenario,
+    with_tracker_overrides,
+)
 from activetrack.scenarios.schema import Scenario
 
 __all__ = [
@@ -11,4 +16,5 @@ __all__ = [
     "build_sensor",
     "load_scenario",
     "parse_scenario",
+    "with_tracker_overrides",
 ]

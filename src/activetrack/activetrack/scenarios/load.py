@@ -52,3 +52,13 @@ def load_scenario(path: str | Path) -> Scenario:
     except yaml.YAMLError as exc:
         raise ScenarioError(f"{path}: not valid YAML: {exc}") from None
     return parse_scenario(data, str(path))
+
+
+def with_tracker_overrides(scenario: Scenario, **overrides) -> Scenario:
+    """The scenario with tracker settings replaced (None values are ignored), re-validated."""
+    changes = {k: v for k, v in overrides.items() if v is not None}
+    if not changes:
+        return scenario
+    data = scenario.model_dump()
+    data["tracker"].update(changes)
+    return parse_scenario(data, f"{scenario.name} (tracker overrides {changes})")

@@ -1,0 +1,147 @@
+"""Scalar costs of (bound) covariance matrices for sensor planning and selection.
+
+All costs take covariance batches ``P`` ``(..., n, n)`` (a PCRLB J^{-1} or an MRE prediction) and
+return ``(...)``. Positions are the pv entries x (index 0) and y (index 2) unless
+``position_indices`` says otherwise.
+
+- ``rmse_bound``: Hernandez eq. 10, b_k = max(sqrt(P(1,1)), sqrt(P(3,3))), the largest
+  position RMSE bound (1-based indices as in the paper).
+- ``trace_cost``, ``determinant_cost``: trace / determinant criteria on the whole matrix.
+- ``position_determinant``: Ramdaras eq. 24, det of the (x, y) block.
+- ``criterion_variance``: Ramdaras eq. 25, C = H^c P H^c^T with H^c of eq. 26 for heading,
+  range, Doppler (range rate) or bearing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "COSTS",
+    "CRITERIA",
+    "criterion_jacobian",
+    "criterion_variance",
+    "determinant_cost",
+    "evaluate_cost",
+    "position_determinant",
+    "rmse_bound",
+    "trace_cost",
+]
+
+CRITERIA = ("heading", "range", "doppler", "bearing")
+
+
+def _cov(P) -> np.ndarray:
+    P = np.asarray(P, dtype=float)
+    if P.ndim < 2 or P.shape[-1] != P.shape[-2]:
+        raise ValueError(f"P must be a batch of square matrices (..., n, n); got {P.shape}")
+    if not np.all(np.isfinite(P)):
+        raise ValueError("P must be finite")
+    return P
+
+
+def rmse_bound(P, position_indices: tuple[int, int] = (0, 2)) -> np.ndarray:
+    """Hernandez eq. 10: b_k = max(sqrt(P[x, x]), sqrt(P[y, y])), ``(..., n, n) -> (...)``.
+
+    P is the bound J_k^{-1}; b_k is the larger of the x and y RMSE bounds.
+    """
+    P = _cov(P)
+    ix, iy = position_indices
+    var = np.stack([P[..., ix, ix], P[..., iy, iy]], axis=-1)
+    if np.any(var < 0):
+        raise ValueError("P must have non-negative position variances")
+    return np.sqrt(var.max(axis=-1))
+
+
+def trace_cost(P) -> np.ndarray:
+    """Trace criterion tr(P), ``(..., n, n) -> (...)``."""
+    return np.trace(_cov(P), axis1=-2, axis2=-1)
+
+
+def determinant_cost(P) -> np.ndarray:
+    """Determinant criterion det(P), ``(..., n, n) -> (...)``."""
+    return np.linalg.det(_cov(P))
+
+
+def position_determinant(P, position_indices: tuple[int, int] = (0, 2)) -> np.ndarray:
+    """Ramdaras eq. 24: det [[P(1,1), P(1,3)], [P(3,1), P(3,3)]] = s_xx s_yy - s_xy^2."""
+    P = _cov(P)
+    ix, iy = position_indices
+    return P[..., ix, ix] * P[..., iy, iy] - P[..., ix, iy] * P[..., iy, ix]
+
+
+def criterion_jacobian(criterion: str, x, sensor_state=None) -> np.ndarray:
+    """H^c of Ramdaras eq. 26 at the predicted pv state x ``(..., 4) -> (..., 4)``.
+
+    Geometry is relative to ``sensor_state`` (pv, default the origin as in the paper), with
+    r = sqrt(dx^2 + dy^2):
+
+    - heading psi = atan2(ydot, xdot): (0, -ydot/v^2, 0, xdot/v^2)
+    - range: (dx/r, 0, dy/r, 0)
+    - Doppler rdot = (dx dvx + dy dvy)/r (relative velocity; eq. 11 with a still sensor):
+      (dvx/r - dx rdot/r^2, dx/r, dvy/r - dy rdot/r^2, dy/r). The Doppler row of eq. 26 is
+      OCR-damaged; this is its derivative, checked against finite differences in the tests.
+    - bearing: (-dy/r^2, 0, dx/r^2, 0)
+    """
+    x = np.asarray(x, dtype=float)
+    if x.shape[-1:] != (4,):
+        raise ValueError(f"x must be a pv state (..., 4); got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("x must be finite")
+    rel = x if sensor_state is None else x - np.asarray(sensor_state, dtype=float)
+    if not np.all(np.isfinite(rel)):
+        raise ValueError("sensor_state must be finite")
+    dx, dvx, dy, dvy = (rel[..., i] for i in range(4))
+    zero = np.zeros_like(dx)
+    if criterion == "heading":
+        v2 = x[..., 1] ** 2 + x[..., 3] ** 2
+        if np.any(v2 == 0):
+            raise ValueError("x: the heading criterion needs a nonzero target speed")
+        return np.stack([zero, -x[..., 3] / v2, zero, x[..., 1] / v2], axis=-1)
+    if criterion not in CRITERIA:
+        raise ValueError(f"criterion must be one of {CRITERIA} (got {criterion!r})")
+    r2 = dx * dx + dy * dy
+    if np.any(r2 == 0):
+        raise ValueError("x: zero range between target and sensor_state")
+    r = np.sqrt(r2)
+    if criterion == "range":
+        return np.stack([dx / r, zero, dy / r, zero], axis=-1)
+    if criterion == "bearing":
+        return np.stack([-dy / r2, zero, dx / r2, zero], axis=-1)
+    rdot = (dx * dvx + dy * dvy) / r
+    return np.stack([dvx / r - dx * rdot / r2, dx / r, dvy / r - dy * rdot / r2, dy / r], axis=-1)
+
+
+def criterion_variance(criterion: str, P, x, sensor_state=None) -> np.ndarray:
+    """Ramdaras eq. 25: C = H^c(x) P H^c(x)^T for a pv covariance ``(..., 4, 4) -> (...)``."""
+    P = _cov(P)
+    if P.shape[-1] != 4:
+        raise ValueError(f"P must be a pv covariance (..., 4, 4); got {P.shape}")
+    h = criterion_jacobian(criterion, x, sensor_state)
+    return np.einsum("...i,...ij,...j->...", h, P, h)
+
+
+def _criterion(name: str):
+    def cost(P, x=None, sensor_state=None):
+        if x is None:
+            raise ValueError(f"x (the predicted target pv state) is required for the {name} cost")
+        return criterion_variance(name, P, x, sensor_state)
+
+    return cost
+
+
+# Costs by name (planner configuration): each is cost(P, x=None, sensor_state=None) -> (...).
+COSTS = {
+    "rmse_bound": lambda P, x=None, sensor_state=None: rmse_bound(P),
+    "trace": lambda P, x=None, sensor_state=None: trace_cost(P),
+    "determinant": lambda P, x=None, sensor_state=None: determinant_cost(P),
+    "position_determinant": lambda P, x=None, sensor_state=None: position_determinant(P),
+    **{name: _criterion(name) for name in CRITERIA},
+}
+
+
+def evaluate_cost(name: str, P, x=None, sensor_state=None) -> np.ndarray:
+    """Cost ``name`` (a key of ``COSTS``) of covariances ``(..., n, n)``, returning ``(...)``."""
+    if name not in COSTS:
+        raise ValueError(f"cost name must be one of {tuple(COSTS)} (got {name!r})")
+    return COSTS[name](P, x, sensor_state)

@@ -1,0 +1,138 @@
+"""Modified Riccati equation with detection probability (Ramdaras et al. 2010, eq. 23).
+
+    P_{k+1|k} = F P_{k|k-1} F^T
+                - pd F P_{k|k-1} H_k^T (H_k P_{k|k-1} H_k^T + R)^{-1} H_k P_{k|k-1} F^T + Q
+
+H_k is the measurement Jacobian (Ramdaras eq. 13) at the predicted target state x_{k|k-1} and
+the (candidate) sensor position. Because P - P H^T S^{-1} H P is the updated covariance of the
+EKF (Ramdaras eq. 22), eq. 23 is computed as the pd-weighted mix::
+
+    P_{k+1|k} = F [(1 - pd) P_{k|k-1} + pd P_{k|k}] F^T + Q
+
+with P_{k|k} in Joseph form (eq. 22), which keeps the result symmetric positive definite.
+All functions are batched over candidate sensor positions (leading ``...``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from activetrack.bounds.pcrlb import _as_sensor_batch, _cholesky
+from activetrack.checks import require_finite, symmetrize
+
+__all__ = ["mre_predict", "mre_recursion", "mre_step", "mre_update"]
+
+
+def mre_update(P: np.ndarray, H: np.ndarray, R: np.ndarray, pd=1.0) -> np.ndarray:
+    """Expected covariance after one possible detection: (1 - pd) P + pd P_{k|k}.
+
+    ``P`` ``(..., n, n)`` predicted covariance, ``H`` ``(..., m, n)``, ``R`` ``(m, m)``,
+    ``pd`` scalar or ``(...)`` in [0, 1]. P_{k|k} is the Joseph form of Ramdaras eq. 20-22.
+    """
+    P = np.asarray(P, dtype=float)
+    H = np.asarray(H, dtype=float)
+    R = np.atleast_2d(np.asarray(R, dtype=float))
+    pd = np.asarray(pd, dtype=float)
+    if not (np.isfinite(pd).all() and np.all((pd >= 0.0) & (pd <= 1.0))):
+        raise ValueError(f"pd must lie in [0, 1] (got {pd})")
+    if H.shape[-2:] != (R.shape[0], P.shape[-1]):
+        raise ValueError(
+            f"H must have shape (..., m, n) = (..., {R.shape[0]}, {P.shape[-1]}); got {H.shape}"
+        )
+    if not np.isfinite(H).all():
+        raise ValueError("H must be finite")
+    Ht = np.swapaxes(H, -1, -2)
+    S = H @ P @ Ht + R  # innovation covariance, Ramdaras eq. 17
+    _cholesky("S = H P H^T + R", S)
+    K = np.swapaxes(np.linalg.solve(S, H @ P), -1, -2)  # gain P H^T S^{-1}, eq. 20
+    I_KH = np.eye(P.shape[-1]) - K @ H
+    P_upd = I_KH @ P @ np.swapaxes(I_KH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)  # eq. 22
+    pd = pd[..., None, None]
+    return symmetrize((1.0 - pd) * P + pd * P_upd)
+
+
+def mre_step(
+    P: np.ndarray, F: np.ndarray, Q: np.ndarray, H: np.ndarray, R: np.ndarray, pd=1.0
+) -> np.ndarray:
+    """Ramdaras eq. 23: P_{k+1|k} from P_{k|k-1} ``(..., n, n)``, batched over ``H`` and pd."""
+    P = np.asarray(P, dtype=float)
+    _cholesky("P", P)
+    F = np.asarray(F, dtype=float)
+    Q = np.asarray(Q, dtype=float)
+    require_finite("F", F)
+    require_finite("Q", Q)
+    return symmetrize(F @ mre_update(P, H, R, pd) @ F.T + Q)
+
+
+def _sensor_update(P, sensors, sensor_states, x_pred, kinematics_jacobian):
+    """Apply mre_update for each sensor in turn (sequential updates; exact for pd = 1)."""
+    sensors, states = _as_sensor_batch(sensors, sensor_states, "sensor_states")
+    for j, sensor in enumerate(sensors):
+        s = states[..., j, :]
+        H = np.asarray(sensor.jacobian(x_pred, s), dtype=float)  # Ramdaras eq. 13
+        if kinematics_jacobian is not None:
+            H = H @ kinematics_jacobian
+        # Inside the minimum range (I_r = 0, Hernandez eq. 8) there is no detection.
+        pd = float(getattr(sensor, "pd", 1.0)) * np.asarray(sensor.in_range(x_pred, s), float)
+        P = mre_update(P, H, sensor.R, pd)
+    return P
+
+
+def mre_predict(
+    P_pred: np.ndarray,
+    F: np.ndarray,
+    Q: np.ndarray,
+    sensors,
+    x_pred: np.ndarray,
+    sensor_states: np.ndarray,
+    *,
+    kinematics_jacobian: np.ndarray | None = None,
+) -> np.ndarray:
+    """Ramdaras eq. 23 for sensor(s) at candidate positions: P_{k+1|k} ``(..., n, n)``.
+
+    Args:
+        P_pred: P_{k|k-1} ``(n, n)`` or ``(..., n, n)``.
+        F, Q: linear(ised) dynamics ``(n, n)``.
+        sensors: one sensor (``sensor_states`` ``(..., 4)``) or a sequence of S sensors
+            (``(..., S, 4)``), each with its own pd; several sensors are applied sequentially.
+        x_pred: predicted target pv x_{k|k-1} ``(4,)`` where H is evaluated.
+        kinematics_jacobian: d pv / d x ``(4, n)`` when the state is not pv.
+    """
+    P_pred = np.asarray(P_pred, dtype=float)
+    _cholesky("P_pred", P_pred)
+    x_pred = np.asarray(x_pred, dtype=float)
+    require_finite("x_pred", x_pred)
+    F = np.asarray(F, dtype=float)
+    Q = np.asarray(Q, dtype=float)
+    require_finite("F", F)
+    require_finite("Q", Q)
+    P = _sensor_update(P_pred, sensors, sensor_states, x_pred, kinematics_jacobian)
+    return symmetrize(F @ P @ F.T + Q)
+
+
+def mre_recursion(
+    P_pred0: np.ndarray,
+    F: np.ndarray,
+    Q: np.ndarray,
+    sensors,
+    x_pred0: np.ndarray,
+    sensor_paths: np.ndarray,
+) -> np.ndarray:
+    """Iterate eq. 23 along sensor paths ``(K, ..., S, 4)`` for pv states and linear F.
+
+    P_{0|-1} = ``P_pred0``, x_{0|-1} = ``x_pred0``; the expected predicted mean follows
+    x_{k+1|k} = F x_{k|k-1} (zero-mean innovations). Returns P_{k+1|k}, k = 0..K-1,
+    ``(K, ..., 4, 4)``.
+    """
+    paths = np.asarray(sensor_paths, dtype=float)
+    if paths.ndim < 2:
+        raise ValueError(f"sensor_paths must have shape (K, ..., S, 4); got {paths.shape}")
+    F = np.asarray(F, dtype=float)
+    P = np.asarray(P_pred0, dtype=float)
+    x = np.asarray(x_pred0, dtype=float)
+    out = []
+    for k in range(paths.shape[0]):
+        P = mre_predict(P, F, Q, sensors, x, paths[k])
+        x = F @ x
+        out.append(P)
+    return np.stack(out)

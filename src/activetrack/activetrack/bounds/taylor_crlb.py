@@ -1,0 +1,148 @@
+"""CRLB by Taylor's method along a deterministic nominal path (Valverde eq. 44-51).
+
+Without process noise (w_k = 0) the state is a deterministic function of x_0 and the Fisher
+information about the current state x_k obeys (Valverde eq. 50-51, with Phi_k = df/dx at
+x_{k-1} on the nominal path and H_k the measurement Jacobian at x_k, eq. 47)::
+
+    J_k = [Phi_k J_{k-1}^{-1} Phi_k^T]^{-1} + H_k^T R^{-1} H_k
+        = Phi_k^{-T} J_{k-1} Phi_k^{-1} + H_k^T R^{-1} H_k
+
+The second line is what is computed (two solves with Phi_k^T), so J_{k-1} may be singular
+(no prior). Equivalently (eq. 46-48) the information about the initial state is
+J(x_0) = S_0^{-1} + sum_k Phi_{k,0}^T H_k^T R^{-1} H_k Phi_{k,0}, Phi_{k,0} = dx_k/dx_0, and
+J_k = Phi_{k,0}^{-T} J(x_0) Phi_{k,0}^{-1}. With ``process_noise=True`` Q is included as in
+Valverde eq. 65 (the approximate PCRB along the nominal path).
+
+Detection probability and the range indicator enter as in Hernandez eq. 8: pd * I_r evaluated at
+the nominal state.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from activetrack.bounds.pcrlb import (
+    _as_sensor_batch,
+    _spd_inverse,
+    measurement_information,
+    pcrlb_step,
+)
+from activetrack.checks import require_finite, symmetrize
+
+__all__ = ["nominal_path", "taylor_crlb", "taylor_information_initial"]
+
+
+def nominal_path(model, x0: np.ndarray, n_steps: int, dt: float) -> np.ndarray:
+    """Noise-free path x_k = f(x_{k-1}) for k = 0..n_steps: ``(n_steps + 1, n)``."""
+    x = np.asarray(x0, dtype=float)
+    require_finite("x0", x)
+    if x.shape != (int(model.dim),):
+        raise ValueError(f"x0 must have shape ({model.dim},); got {x.shape}")
+    if int(n_steps) < 1:
+        raise ValueError(f"n_steps must be >= 1 (got {n_steps})")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be finite and > 0 (got {dt})")
+    path = [x]
+    for _ in range(int(n_steps)):
+        x = np.asarray(model.propagate(x, dt), dtype=float)
+        path.append(x)
+    return np.stack(path)
+
+
+def _check_paths(sensors, sensor_paths, n_steps: int) -> np.ndarray:
+    paths = np.asarray(sensor_paths, dtype=float)
+    if paths.ndim < 2 or paths.shape[0] != int(n_steps):
+        raise ValueError(
+            f"sensor_paths must have shape (n_steps={n_steps}, ..., S, 4); got {paths.shape}"
+        )
+    _as_sensor_batch(sensors, paths[0], "sensor_paths")
+    if not np.isfinite(paths).all():
+        raise ValueError("sensor_paths must be finite (sensor positions/velocities)")
+    return paths
+
+
+def _nominal_information(model, sensors, sensor_state, x) -> np.ndarray:
+    """pd * I_r * H^T R^{-1} H at one nominal state x ``(n,)``: ``(..., n, n)`` (eq. 47-48)."""
+    return measurement_information(
+        sensors,
+        sensor_state,
+        np.asarray(model.kinematics(x), dtype=float)[None, :],
+        kinematics_jacobian=np.asarray(model.kinematics_jacobian(x), dtype=float)[None],
+    )
+
+
+def taylor_crlb(
+    model,
+    sensors,
+    sensor_paths: np.ndarray,
+    x0: np.ndarray,
+    n_steps: int,
+    dt: float,
+    *,
+    P0: np.ndarray | None = None,
+    process_noise: bool = False,
+) -> np.ndarray:
+    """Fisher information J_k about x_k, k = 1..n_steps, along the nominal path (eq. 50-51).
+
+    Args:
+        model: motion model (contract ``activetrack.models.motion``).
+        sensors: one sensor or a sequence of S sensors.
+        sensor_paths: sensor pv states at epochs 1..n_steps, ``(n_steps, ..., S, 4)``.
+        x0: nominal initial state ``(n,)``.
+        P0: optional prior covariance S_0 ``(n, n)`` (eq. 44); without it J_0 = 0.
+        process_noise: include Q as in Valverde eq. 65 (requires ``P0``).
+
+    Returns:
+        J ``(n_steps, ..., n, n)``; positive definite once the state is observable.
+    """
+    path = nominal_path(model, x0, n_steps, dt)
+    paths = _check_paths(sensors, sensor_paths, n_steps)
+    n = path.shape[-1]
+    if P0 is None:
+        if process_noise:
+            raise ValueError("P0 is required when process_noise=True (eq. 65 needs J_0^{-1})")
+        J = np.zeros((n, n))
+    else:
+        J = _spd_inverse("P0", np.asarray(P0, dtype=float))
+    Q = np.asarray(model.process_noise(dt), dtype=float) if process_noise else None
+    out = []
+    for k in range(1, int(n_steps) + 1):
+        Phi = np.asarray(model.jacobian(path[k - 1], dt), dtype=float)
+        J_Z = _nominal_information(model, sensors, paths[k - 1], path[k])
+        if process_noise:
+            J = pcrlb_step(J, Phi, Q, J_Z)  # Valverde eq. 65
+        else:
+            B = np.linalg.solve(Phi.T, J)  # Phi^{-T} J
+            J = symmetrize(np.linalg.solve(Phi.T, np.swapaxes(B, -1, -2)) + J_Z)  # eq. 50
+        out.append(J)
+    return np.stack(out)
+
+
+def taylor_information_initial(
+    model,
+    sensors,
+    sensor_paths: np.ndarray,
+    x0: np.ndarray,
+    n_steps: int,
+    dt: float,
+    *,
+    P0: np.ndarray | None = None,
+) -> np.ndarray:
+    """Information about the initial state x_0 after epochs 1..k (Valverde eq. 46-48).
+
+    J_k(x_0) = S_0^{-1} + sum_{i<=k} Phi_{i,0}^T H_i^T R^{-1} H_i Phi_{i,0}, with the state
+    transition sensitivity Phi_{i,0} = dx_i/dx_0 = Phi_i ... Phi_1 along the nominal path.
+    Returns ``(n_steps, ..., n, n)``.
+    """
+    path = nominal_path(model, x0, n_steps, dt)
+    paths = _check_paths(sensors, sensor_paths, n_steps)
+    n = path.shape[-1]
+    J = np.zeros((n, n)) if P0 is None else _spd_inverse("P0", np.asarray(P0, dtype=float))
+    Phi_k0 = np.eye(n)
+    out = []
+    for k in range(1, int(n_steps) + 1):
+        Phi_k0 = np.asarray(model.jacobian(path[k - 1], dt), dtype=float) @ Phi_k0
+        J_Z = _nominal_information(model, sensors, paths[k - 1], path[k])
+        J = symmetrize(J + Phi_k0.T @ J_Z @ Phi_k0)
+        out.append(J)
+    return np.stack(out)

@@ -1,0 +1,144 @@
+"""General nonlinear PCRLB by the Tichavsky recursion (Valverde eq. 56-65).
+
+For x_{k+1} = f(x_k) + w_k, w_k ~ N(0, Q) and z = h(x) + v, v ~ N(0, R) (Valverde eq. 1)::
+
+    J_{k+1} = D22_k - D21_k (J_k + D11_k)^{-1} D12_k                        (eq. 56)
+    D11_k = E[F_k^T Q^{-1} F_k],   F_k = df/dx at the true x_k              (eq. 62)
+    D12_k = -E[F_k^T] Q^{-1} = (D21_k)^T                                     (eq. 63)
+    D22_k = Q^{-1} + E[sum_j pd_j I_r H_j^T R_j^{-1} H_j] at x_{k+1}         (eq. 64)
+
+The expectations are over the true state trajectories, estimated by Monte Carlo: n_mc
+trajectories drawn from x_0 ~ N(x0, P0) and the model's noisy dynamics (``model.sample``).
+J_0 = P0^{-1}. The measurement term reuses the Hernandez eq. 8 machinery of ``pcrlb`` with the
+chain rule H_state = H_pv @ d pv / d x (contract ``state_jacobian``), with pd and I_r as there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from activetrack.bounds.pcrlb import (
+    _as_sensor_batch,
+    _cholesky,
+    _spd_inverse,
+    gaussian_samples,
+    measurement_information,
+)
+from activetrack.checks import require_finite, symmetrize
+
+__all__ = ["tichavsky_pcrlb", "tichavsky_step"]
+
+
+def tichavsky_step(J: np.ndarray, D11: np.ndarray, D12: np.ndarray, D22: np.ndarray) -> np.ndarray:
+    """Valverde eq. 56: J_{k+1} = D22 - D21 (J_k + D11)^{-1} D12, batched ``(..., n, n)``.
+
+    With L L^T = J_k + D11 and Y = L^{-1} D12, the subtracted term is Y^T Y (symmetric).
+    """
+    L = _cholesky("J + D11", np.asarray(J, dtype=float) + D11)
+    Y = np.linalg.solve(L, D12)
+    return symmetrize(D22 - np.swapaxes(Y, -1, -2) @ Y)
+
+
+def tichavsky_pcrlb(
+    model,
+    sensors,
+    sensor_paths: np.ndarray,
+    x0: np.ndarray,
+    P0: np.ndarray,
+    n_steps: int,
+    dt: float,
+    n_mc: int,
+    rng: np.random.Generator | None,
+    *,
+    q_floor: float = 0.0,
+    trajectories: np.ndarray | None = None,
+) -> np.ndarray:
+    """Fisher information J_k, k = 1..n_steps, of a nonlinear model (Valverde eq. 56-64).
+
+    Args:
+        model: a motion model (contract ``activetrack.models.motion``: ``jacobian``,
+            ``sample``, ``process_noise``, ``kinematics``, ``kinematics_jacobian``), e.g.
+            ``ConstantTurn`` or ``CircularMotion``; Q must not depend on the state.
+        sensors: one sensor or a sequence of S sensors.
+        sensor_paths: sensor pv states at epochs 1..n_steps, ``(n_steps, ..., S, 4)``
+            (``(n_steps, ..., 4)`` for one sensor); ``...`` are candidate paths.
+        x0, P0: Gaussian prior of the model state, ``(n,)`` and ``(n, n)`` SPD; J_0 = P0^{-1}.
+        n_steps, dt: number of epochs and the time between them [s].
+        n_mc: Monte Carlo trajectories for the expectations (>= 1).
+        rng: generator for the trajectories (unused when ``trajectories`` is given).
+        q_floor: added to the diagonal of Q before inverting it. Eq. 60-64 need Q^{-1}; models
+            with noise on a subset of states (CircularMotion, Valverde eq. 25) have a singular
+            Q and need q_floor > 0 (a small regulariser: deterministic nonlinear components
+            make the exact bound degenerate).
+        trajectories: optional true-state samples ``(n_steps + 1, M, n)`` for epochs 0..n_steps
+            (then x0 and P0 only set J_0), so several bounds can share the same Monte Carlo set.
+
+    Returns:
+        J ``(n_steps, ..., n, n)``; the bound is ``covariance_bound(J)``.
+    """
+    x0 = np.asarray(x0, dtype=float)
+    P0 = np.asarray(P0, dtype=float)
+    require_finite("x0", x0)
+    n = int(model.dim)
+    if x0.shape != (n,) or P0.shape != (n, n):
+        raise ValueError(f"x0 must be ({n},) and P0 ({n}, {n}); got {x0.shape}, {P0.shape}")
+    J0 = _spd_inverse("P0", P0)
+    if int(n_steps) < 1:
+        raise ValueError(f"n_steps must be >= 1 (got {n_steps})")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be finite and > 0 (got {dt})")
+    if not (np.isfinite(q_floor) and q_floor >= 0):
+        raise ValueError(f"q_floor must be finite and >= 0 (got {q_floor})")
+    paths = np.asarray(sensor_paths, dtype=float)
+    if paths.ndim < 2 or paths.shape[0] != int(n_steps):
+        raise ValueError(
+            f"sensor_paths must have shape (n_steps={n_steps}, ..., S, 4); got {paths.shape}"
+        )
+    _as_sensor_batch(sensors, paths[0], "sensor_paths")  # shape and finiteness check
+    if not np.isfinite(paths).all():
+        raise ValueError("sensor_paths must be finite (sensor positions/velocities)")
+
+    Q = np.asarray(model.process_noise(dt), dtype=float)
+    if Q.shape != (n, n):
+        raise ValueError(f"model.process_noise(dt) must be a constant ({n}, {n}) matrix")
+    try:
+        W = _spd_inverse("Q", Q + q_floor * np.eye(n))  # Q^{-1} of eq. 60
+    except ValueError:
+        raise ValueError(
+            "q_floor: the model's process noise Q is singular; pass q_floor > 0 "
+            "(Valverde eq. 60-64 need Q^{-1})"
+        ) from None
+
+    if trajectories is None:
+        if int(n_mc) < 1:
+            raise ValueError(f"n_mc must be >= 1 (got {n_mc})")
+        if rng is None:
+            raise ValueError("rng must be a numpy Generator when trajectories is not given")
+        X = gaussian_samples(x0, P0, int(n_mc), rng)
+    else:
+        trajectories = np.asarray(trajectories, dtype=float)
+        if trajectories.ndim != 3 or trajectories.shape[0] != int(n_steps) + 1:
+            raise ValueError(
+                f"trajectories must have shape (n_steps + 1 = {int(n_steps) + 1}, M, {n}); "
+                f"got {trajectories.shape}"
+            )
+        require_finite("trajectories", trajectories)
+        X = trajectories[0]
+
+    J = J0
+    out = []
+    for k in range(int(n_steps)):
+        F = np.asarray(model.jacobian(X, dt), dtype=float)  # (M, n, n) at the true x_k
+        FtW = np.swapaxes(F, -1, -2) @ W
+        D11 = symmetrize(np.mean(FtW @ F, axis=0))  # eq. 62
+        D12 = -np.mean(FtW, axis=0)  # eq. 63
+        X = model.sample(X, dt, rng) if trajectories is None else trajectories[k + 1]
+        J_Z = measurement_information(
+            sensors,
+            paths[k],
+            model.kinematics(X),
+            kinematics_jacobian=model.kinematics_jacobian(X),
+        )
+        J = tichavsky_step(J, D11, D12, W + J_Z)  # eq. 64 then eq. 56
+        out.append(J)
+    return np.stack(out)

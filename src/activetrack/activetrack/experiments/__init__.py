@@ -1,0 +1,1 @@
+"""Experiment runners reproducing the papers' tables and figures."""

@@ -1,0 +1,72 @@
+"""PCRLB manoeuvre planning (Hernandez 2004 sec. 3-4; Ramdaras 2010 sec. 4).
+
+``plan(platforms, belief, settings, F=..., Q=..., dt=...)`` is the entry point; see
+:mod:`activetrack.planning.planner`. Building blocks: the manoeuvre model (``manoeuvre``),
+batched PCRLB costs (``costs``), the searches (``searches``), the horizons (``horizons``) and
+the multi-platform iteration (``multisensor``).
+"""
+
+from activetrack.planning.costs import CRITERIA, HorizonModel, criterion_cost, platform_information
+from activetrack.planning.horizons import SearchSettings, optimise_platform
+from activetrack.planning.manoeuvre import (
+    PlatformLimits,
+    hold_course,
+    manoeuvre_to_unit,
+    rollout,
+    speed_interval,
+    step_platform,
+    unit_to_manoeuvre,
+)
+from activetrack.planning.multisensor import Coordination, coordinate_platforms
+from activetrack.planning.planner import (
+    PlannedManoeuvre,
+    PlannerPlatform,
+    PlanReport,
+    PlanResult,
+    PlanSettings,
+    TargetBelief,
+    advance_belief,
+    plan,
+    platforms_from_scenario,
+)
+from activetrack.planning.searches import (
+    SEARCHES,
+    SearchResult,
+    evolution_search,
+    grid_search,
+    quadrant_search,
+    sector_search,
+)
+
+__all__ = [
+    "CRITERIA",
+    "SEARCHES",
+    "Coordination",
+    "HorizonModel",
+    "PlanReport",
+    "PlanResult",
+    "PlanSettings",
+    "PlannedManoeuvre",
+    "PlannerPlatform",
+    "PlatformLimits",
+    "SearchResult",
+    "SearchSettings",
+    "TargetBelief",
+    "advance_belief",
+    "coordinate_platforms",
+    "criterion_cost",
+    "evolution_search",
+    "grid_search",
+    "hold_course",
+    "manoeuvre_to_unit",
+    "optimise_platform",
+    "plan",
+    "platform_information",
+    "platforms_from_scenario",
+    "quadrant_search",
+    "rollout",
+    "sector_search",
+    "speed_interval",
+    "step_platform",
+    "unit_to_manoeuvre",
+]

@@ -1,0 +1,322 @@
+"""Beta-cautious greedy localisation with an infinite-line (ambiguous bearing) sensor.
+
+Vander Hook, Tokekar, Isler (003), sec. II-III, Algorithm 1. The target is stationary and
+its position estimate is a 2-D Gaussian N(x_hat, P). The sensor measures the bearing only
+modulo pi, so every measurement has two candidate bearings, z and z + pi; the EKF takes the
+more likely one, which is wrong when the target lies *behind* the sensor (eq. 2). A
+beta-cautious strategy keeps that probability below beta by measuring from far enough away
+(eq. 3), and greedily reduces the larger eigenvalue of P by measuring perpendicular to the
+major axis (Lemma 2), from the closer of the two candidate points (Algorithm 1, line 7).
+
+Shapes: positions ``(..., 2)``; covariances ``(..., 2, 2)``; bearings and ranges ``(...)``.
+All functions are batched over the leading axes (used for whole Monte Carlo batches at
+once). :class:`CautiousPlanner` is the single-target entry point for the ROS planner node: after
+each processed measurement call ``next_action(mean, cov, robot_position)``, drive to the
+returned waypoint, stop ``t_m`` seconds and measure; ``done`` ends the localisation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from statistics import NormalDist
+
+import numpy as np
+
+from activetrack.angles import wrap_angle, wrap_half_angle
+from activetrack.checks import (
+    require_finite,
+    require_in_range,
+    require_nonnegative,
+    require_positive,
+    require_spd,
+    symmetrize,
+)
+
+__all__ = [
+    "TAILS",
+    "AmbiguousUpdate",
+    "CautiousAction",
+    "CautiousPlanner",
+    "ambiguous_bearing_update",
+    "caution_gamma",
+    "cautious_range",
+    "measurement_waypoint",
+    "position_estimate",
+    "principal_axes",
+    "reduction_reached",
+    "sigma_beta",
+]
+
+
+TAILS = ("two_sided", "one_sided")
+
+
+def sigma_beta(beta, tail="two_sided"):
+    """Largest innovation standard deviation that is beta-cautious (line after eq. 3).
+
+    ``tail="two_sided"`` (the printed formula): sigma_beta = pi / (2 Phi^-1(1 - beta / 2)), so a
+    zero-mean Gaussian innovation exceeds |pi/2| (target behind the sensor, eq. 2) with
+    probability beta; beta in (0, 1). Algorithm 1 line 1 prints the left side as sigma_beta^2;
+    the text after eq. 3 and the tail argument give sigma_beta, which we use.
+    ``tail="one_sided"``: pi / (2 Phi^-1(1 - beta)), beta in (0, 0.5] (inf at 0.5: no caution).
+    The paper's Table I simulations are reproduced by this variant (docs/vanderhook.md).
+    Radians.
+    """
+    if tail == "two_sided":
+        beta = require_in_range("beta", beta, 0.0, 1.0, lo_inclusive=False, hi_inclusive=False)
+        return math.pi / (2.0 * NormalDist().inv_cdf(1.0 - 0.5 * beta))
+    if tail == "one_sided":
+        beta = require_in_range("beta", beta, 0.0, 0.5, lo_inclusive=False)
+        if beta == 0.5:
+            return math.inf
+        return math.pi / (2.0 * NormalDist().inv_cdf(1.0 - beta))
+    raise ValueError(f"tail must be one of {TAILS}, got {tail!r}")
+
+
+def caution_gamma(beta, sigma_s, tail="two_sided"):
+    """gamma = sigma_beta^2 / sigma_s^2 (Lemma 4): the variance reduction of one cautious step
+    (may be inf: one-sided beta = 0.5 puts no bound on the range).
+
+    Raises ValueError unless gamma > 1 (the paper assumes sigma_beta > sigma_s: otherwise the
+    sensor is too noisy to be beta-cautious at any range).
+    """
+    sigma_s = require_positive("sigma_s", sigma_s)
+    sb = sigma_beta(beta, tail)
+    if not sb > sigma_s:
+        raise ValueError(
+            f"sigma_s must be < sigma_beta(beta={beta}) = {sb:.6g} rad for a cautious "
+            f"strategy to exist (003 sec. III), got {sigma_s:.6g}"
+        )
+    return (sb / sigma_s) ** 2
+
+
+def principal_axes(P):
+    """Eigen-decomposition of ``P (..., 2, 2)`` sorted largest first.
+
+    Returns ``(variances (..., 2), major (..., 2))``: sigma^2(1) >= sigma^2(2) and the unit
+    eigenvector of sigma^2(1) (003 sec. II notation).
+    """
+    w, V = np.linalg.eigh(symmetrize(P))
+    return w[..., ::-1], V[..., :, 1]
+
+
+def cautious_range(P, alpha, beta, sigma_s, tail="two_sided"):
+    """Smallest beta-cautious range (eq. 3), ``(...)``.
+
+    r >= sqrt((sigma^2(1) sin^2 alpha + sigma^2(2) cos^2 alpha) / (sigma_beta^2 - sigma_s^2)),
+    alpha the angle between the sensor direction (seen from x_hat) and the major axis.
+    alpha = pi/2 gives Algorithm 1 line 6, r = sqrt(sigma^2(1) / (sigma_beta^2 - sigma_s^2)).
+    P ``(..., 2, 2)`` SPD; alpha ``(...)``; 0 when sigma_beta is infinite.
+    """
+    P = require_spd("P", P)
+    alpha = require_finite("alpha", alpha)
+    gamma = caution_gamma(beta, sigma_s, tail)
+    var, _ = principal_axes(P)
+    s, c = np.sin(alpha), np.cos(alpha)
+    across = var[..., 0] * s * s + var[..., 1] * c * c
+    return np.sqrt(across / (float(sigma_s) ** 2 * (gamma - 1.0)))
+
+
+def measurement_waypoint(x_hat, P, robot, r, tie_rtol=1e-9):
+    """Next sensing location s_i (Algorithm 1, lines 5-7), ``(..., 2)``.
+
+    The two cautious points lie at range r from x_hat on the line through x_hat perpendicular
+    to the major axis (alpha = +-pi/2); the one closer to the robot is returned. For a circular
+    P (eigenvalues equal to ``tie_rtol``) every direction is a major axis, so we take the one
+    perpendicular to the robot's direction: the waypoint is then on the segment toward the
+    robot, the closest cautious point of all.
+
+    x_hat, robot: ``(..., 2)``; P: ``(..., 2, 2)``; r: ``(...)`` >= 0.
+    """
+    x_hat = require_finite("x_hat", x_hat)
+    robot = require_finite("robot", robot)
+    r = require_finite("r", r)
+    if np.any(r < 0.0):
+        raise ValueError("r must be >= 0")
+    var, major = principal_axes(require_spd("P", P))
+    minor = np.stack([-major[..., 1], major[..., 0]], axis=-1)
+    to_robot = robot - x_hat
+    dist = np.linalg.norm(to_robot, axis=-1, keepdims=True)
+    circular = (var[..., 0] - var[..., 1] <= tie_rtol * var[..., 0])[..., None] & (dist > 0.0)
+    toward = to_robot / np.where(dist > 0.0, dist, 1.0)
+    side = np.where(np.sum(minor * to_robot, axis=-1, keepdims=True) >= 0.0, 1.0, -1.0)
+    direction = np.where(circular, toward, side * minor)
+    return x_hat + np.asarray(r)[..., None] * direction
+
+
+@dataclass(frozen=True)
+class AmbiguousUpdate:
+    """Result of :func:`ambiguous_bearing_update` (all batched like the inputs).
+
+    mean ``(..., 2)``, cov ``(..., 2, 2)``; innovation y ``(...)`` in [-pi/2, pi/2);
+    S ``(...)`` the innovation variance; bearing ``(...)`` the chosen full bearing in [-pi, pi).
+    """
+
+    mean: np.ndarray
+    cov: np.ndarray
+    innovation: np.ndarray
+    S: np.ndarray
+    bearing: np.ndarray
+
+
+def ambiguous_bearing_update(x_hat, P, z, sensor, sigma_s):
+    """EKF update of a stationary 2-D target with an ambiguous bearing (003 sec. II-III).
+
+    h(x, s) = atan2(x_y - s_y, x_x - s_x); H = [-dy, dx] / r^2 = [-sin a, cos a] / r;
+    S = H P H^T + sigma_s^2; K = P H^T / S; x = x_hat + K y; P by the Joseph form.
+    The line measurement z stands for the bearings z and z + pi. Both give Gaussian
+    innovations with the same S, so the more likely one has the smaller |y|:
+    y = wrap_half_angle(z - h) (sec. III), which is AmbiguousBearingSensor.residual.
+
+    x_hat, sensor: ``(..., 2)``; P ``(..., 2, 2)`` SPD; z ``(...)`` radians (any branch);
+    sigma_s > 0 rad. Raises ValueError when the sensor sits on x_hat (range 0).
+    """
+    x_hat = require_finite("x_hat", x_hat)
+    sensor = require_finite("sensor", sensor)
+    P = require_spd("P", P)
+    z = require_finite("z", z)
+    sigma_s = require_positive("sigma_s", sigma_s)
+    d = x_hat - sensor
+    r2 = np.sum(d * d, axis=-1)
+    if np.any(r2 == 0.0):
+        raise ValueError("sensor coincides with x_hat (range 0): the range must be > 0")
+    zhat = np.arctan2(d[..., 1], d[..., 0])
+    H = np.stack([-d[..., 1], d[..., 0]], axis=-1) / r2[..., None]  # (..., 2)
+    y = wrap_half_angle(z - zhat)
+    PHt = np.einsum("...ij,...j->...i", P, H)
+    S = np.sum(H * PHt, axis=-1) + sigma_s**2
+    K = PHt / S[..., None]
+    mean = x_hat + K * y[..., None]
+    IKH = np.eye(2) - K[..., :, None] * H[..., None, :]
+    cov = IKH @ P @ np.swapaxes(IKH, -1, -2) + sigma_s**2 * K[..., :, None] * K[..., None, :]
+    return AmbiguousUpdate(
+        mean=mean, cov=symmetrize(cov), innovation=y, S=S, bearing=wrap_angle(zhat + y)
+    )
+
+
+def reduction_reached(P, P0, c_d):
+    """Stopping rule of Algorithm 1 (negation of line 4), bool ``(...)``.
+
+    True once sigma(1) < c_d sigma_0(1) and sigma(2) < c_d sigma_0(2), the standard deviations
+    along the principal axes sorted largest first; P ``(..., 2, 2)``, P0 ``(2, 2)`` or batched.
+    """
+    c_d = require_in_range("c_d", c_d, 0.0, 1.0, lo_inclusive=False, hi_inclusive=False)
+    var, _ = principal_axes(P)
+    var0, _ = principal_axes(P0)
+    return np.all(var < c_d**2 * var0, axis=-1)
+
+
+def position_estimate(mean, cov):
+    """The (x, y) block of an estimate given either as position (2,) or as pv (4,).
+
+    pv is (x, xdot, y, ydot) (core contract), so the position entries are 0 and 2.
+    Returns ``(mean (2,), cov (2, 2))``.
+    """
+    mean = require_finite("mean", mean)
+    cov = require_finite("cov", cov)
+    if mean.shape == (2,) and cov.shape == (2, 2):
+        return mean, cov
+    if mean.shape == (4,) and cov.shape == (4, 4):
+        idx = np.array([0, 2])
+        return mean[idx], cov[np.ix_(idx, idx)]
+    raise ValueError(
+        f"mean/cov must be position (2,)/(2, 2) or pv (4,)/(4, 4), got {mean.shape}/{cov.shape}"
+    )
+
+
+@dataclass(frozen=True)
+class CautiousAction:
+    """What the robot does next: drive to ``waypoint`` (2,) and measure for ``dwell`` seconds,
+    or stop (``done``, waypoint None). ``range`` is the planned range to x_hat (m) and
+    ``travel`` the straight-line distance from the robot (m)."""
+
+    done: bool
+    waypoint: np.ndarray | None
+    range: float
+    travel: float
+    dwell: float
+
+
+@dataclass(frozen=True)
+class CautiousPlanner:
+    """Algorithm 1 as a stateless step: one call per processed measurement.
+
+    sigma_s: sensor noise (rad); beta: caution risk in (0, 1); c_d: desired reduction of both
+    standard deviations in (0, 1); prior_cov: the prior position covariance Sigma_0 (2, 2)
+    (or pv (4, 4)), the reference of the stopping rule; t_m: dwell per measurement (s);
+    r_min: smallest standoff (m), a floor under the cautious range (must be > 0 when
+    sigma_beta is infinite); max_measurements: hard stop (None: none); tail: which
+    sigma_beta formula (:func:`sigma_beta`).
+    """
+
+    sigma_s: float
+    prior_cov: np.ndarray
+    beta: float = 0.1
+    c_d: float = 0.1
+    t_m: float = 60.0
+    r_min: float = 0.0
+    max_measurements: int | None = None
+    tail: str = "two_sided"
+    _P0: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        # Validates beta, sigma_s, tail and sigma_beta > sigma_s.
+        gamma = caution_gamma(self.beta, self.sigma_s, self.tail)
+        require_in_range("c_d", self.c_d, 0.0, 1.0, lo_inclusive=False, hi_inclusive=False)
+        require_nonnegative("t_m", self.t_m)
+        require_nonnegative("r_min", self.r_min)
+        if math.isinf(gamma) and self.r_min <= 0.0:
+            raise ValueError("r_min must be > 0 when sigma_beta is infinite (no caution range)")
+        if self.max_measurements is not None and self.max_measurements < 1:
+            raise ValueError(f"max_measurements must be >= 1 or None, got {self.max_measurements}")
+        P0 = np.asarray(self.prior_cov, dtype=float)
+        if P0.shape == (4, 4):
+            P0 = P0[np.ix_([0, 2], [0, 2])]
+        if P0.shape != (2, 2):
+            raise ValueError(f"prior_cov must be (2, 2) or pv (4, 4), got {P0.shape}")
+        object.__setattr__(self, "_P0", require_spd("prior_cov", P0))
+
+    @property
+    def gamma(self) -> float:
+        return caution_gamma(self.beta, self.sigma_s, self.tail)
+
+    def is_done(self, cov, n_measurements: int = 0) -> bool:
+        """Stopping rule (Algorithm 1 line 4, and ``max_measurements``)."""
+        if self.max_measurements is not None and n_measurements >= self.max_measurements:
+            return True
+        P = require_finite("cov", cov)
+        if P.shape == (4, 4):
+            P = P[np.ix_([0, 2], [0, 2])]
+        if P.shape != (2, 2):
+            raise ValueError(f"cov must be (2, 2) or pv (4, 4), got {P.shape}")
+        return bool(reduction_reached(P, self._P0, self.c_d))
+
+    def next_action(self, mean, cov, robot_position, n_measurements: int = 0) -> CautiousAction:
+        """Algorithm 1 lines 4-7 for the current estimate.
+
+        mean/cov: the target estimate, position (2,)/(2, 2) or pv (4,)/(4, 4);
+        robot_position: (2,) or the robot's pv (4,); n_measurements: taken so far.
+        """
+        x_hat, P = position_estimate(mean, cov)
+        robot = require_finite("robot_position", robot_position)
+        if robot.shape == (4,):
+            robot = robot[[0, 2]]
+        if robot.shape != (2,):
+            raise ValueError(f"robot_position must be (2,) or pv (4,), got {robot.shape}")
+        if self.is_done(P, n_measurements):
+            return CautiousAction(True, None, 0.0, 0.0, 0.0)
+        r = cautious_range(P, 0.5 * math.pi, self.beta, self.sigma_s, self.tail)
+        r = max(float(r), self.r_min)
+        waypoint = measurement_waypoint(x_hat, P, robot, r)
+        travel = float(np.linalg.norm(waypoint - robot))
+        return CautiousAction(False, waypoint, r, travel, float(self.t_m))
+
+    def update(self, mean, cov, z, sensor_position) -> AmbiguousUpdate:
+        """EKF update of the position estimate with an ambiguous bearing z measured at
+        sensor_position ((2,) or pv (4,)); see :func:`ambiguous_bearing_update`."""
+        x_hat, P = position_estimate(mean, cov)
+        s = require_finite("sensor_position", sensor_position)
+        if s.shape == (4,):
+            s = s[[0, 2]]
+        return ambiguous_bearing_update(x_hat, P, z, s, self.sigma_s)

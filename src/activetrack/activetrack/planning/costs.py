@@ -1,0 +1,85 @@
+"""PCRLB costs of candidate manoeuvres over a planning horizon (glue to ``activetrack.bounds``).
+
+A :class:`HorizonModel` holds what one decision at epoch k needs: the linear target dynamics
+(F, Q), the target samples at epochs k+1..k+R (Hernandez sec. 3.2: the prior, or the tracker's
+posterior for renewals, pushed through the dynamics) and the information the platforms that are
+*not* being optimised contribute at those epochs. Scoring candidates for the platform being
+optimised is then one batched PCRLB step (Hernandez eq. 3 with eq. 8-9)::
+
+    J_{k+r} = (Q + F J_{k+r-1}^{-1} F^T)^{-1} + J_Z^fixed(k+r) + J_Z^platform(k+r; candidates)
+
+and a criterion of J^{-1}: ``"b_k"`` (eq. 10), ``"trace"`` or ``"det_pos"`` (Ramdaras eq. 24).
+Every candidate J computed counts as one cost evaluation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from activetrack.bounds.costs import position_determinant, rmse_bound, trace_cost
+from activetrack.bounds.pcrlb import covariance_bound, measurement_information, pcrlb_step
+
+__all__ = ["CRITERIA", "HorizonModel", "criterion_cost", "platform_information"]
+
+CRITERIA = {
+    "b_k": rmse_bound,  # Hernandez eq. 10: max(sqrt(P(1,1)), sqrt(P(3,3)))
+    "trace": trace_cost,
+    "det_pos": position_determinant,  # Ramdaras eq. 24
+}
+
+
+def criterion_cost(criterion: str, J: np.ndarray) -> np.ndarray:
+    """Criterion ``criterion`` of the bound J^{-1} for information matrices ``(..., 4, 4)``."""
+    if criterion not in CRITERIA:
+        raise ValueError(f"criterion must be one of {tuple(CRITERIA)}, got {criterion!r}")
+    return CRITERIA[criterion](covariance_bound(J))
+
+
+def platform_information(sensors: Sequence, pv: np.ndarray, samples: np.ndarray) -> np.ndarray:
+    """J_Z (Hernandez eq. 8-9) of one platform's sensors at pv states ``(..., 4)`` for target
+    samples ``(M, 4)``: ``(..., 4, 4)``. All sensors of a platform sit at its pv."""
+    pv = np.asarray(pv, dtype=float)
+    if len(sensors) == 1:
+        return measurement_information(sensors[0], pv, samples)
+    states = np.broadcast_to(pv[..., None, :], (*pv.shape[:-1], len(sensors), 4))
+    return measurement_information(tuple(sensors), states, samples)
+
+
+class HorizonModel:
+    """Batched PCRLB steps and costs over epochs k+1..k+R for one platform being optimised.
+
+    F, Q: ``(4, 4)`` target dynamics (eq. 2). samples: ``(R, M, 4)`` target samples at
+    k+1..k+R. fixed_information: ``(R, 4, 4)`` J_Z of all other platforms at those epochs.
+    sensors: the optimised platform's sensors. ``evaluations`` counts candidate PCRLB steps.
+    """
+
+    def __init__(self, F, Q, samples, fixed_information, sensors, criterion: str = "b_k"):
+        if criterion not in CRITERIA:
+            raise ValueError(f"criterion must be one of {tuple(CRITERIA)}, got {criterion!r}")
+        self.F = np.asarray(F, dtype=float)
+        self.Q = np.asarray(Q, dtype=float)
+        self.samples = np.asarray(samples, dtype=float)
+        self.fixed = np.asarray(fixed_information, dtype=float)
+        self.sensors = tuple(sensors)
+        self.criterion = criterion
+        self.evaluations = 0
+
+    @property
+    def horizon(self) -> int:
+        return self.samples.shape[0]
+
+    def step(self, J_prev: np.ndarray, r: int, pv: np.ndarray) -> np.ndarray:
+        """J at epoch k+1+r with the platform at ``pv`` ``(..., 4)``; J_prev broadcasts
+        ``(..., 4, 4)``. Hernandez eq. 3."""
+        pv = np.asarray(pv, dtype=float)
+        J_Z = self.fixed[r] + platform_information(self.sensors, pv, self.samples[r])
+        self.evaluations += int(np.prod(pv.shape[:-1], dtype=int))
+        # The prediction depends on J_prev only: compute it once per distinct J_prev.
+        J_prev = np.asarray(J_prev, dtype=float)
+        return pcrlb_step(J_prev, self.F, self.Q, np.zeros_like(J_prev)) + J_Z
+
+    def cost(self, J: np.ndarray) -> np.ndarray:
+        """The criterion of J^{-1}, ``(..., 4, 4) -> (...)``."""
+        return CRITERIA[self.criterion](covariance_bound(J))

@@ -1,0 +1,143 @@
+"""Platform manoeuvre model of Hernandez sec. 3.3.1 and 5.1.
+
+At each decision epoch k a platform turns instantly by ``dpsi`` in [-dpsi_max, dpsi_max] and
+sets a new speed ``v'`` in [max(v_min, v - dv_max), min(v_max, v + dv_max)], then flies a
+constant-velocity leg of T seconds to epoch k+1. The set of positions it can reach at k+1 is an
+annular sector; the searches explore it through the unit square u = (u_psi, u_v) in [0, 1]^2:
+
+    dpsi = (2 u_psi - 1) dpsi_max,    v' = v_lo + u_v (v_hi - v_lo)
+
+so u = (0.5, .) is "straight ahead". Ramdaras' limits (sec. 5: longitudinal acceleration a_max,
+heading rate psi_rate_max) enter as dv_max = a_max T and dpsi_max = psi_rate_max T
+(``PlatformLimits.from_config``).
+
+Manoeuvres are stored physically as ``(dpsi, v')`` pairs, shape ``(..., 2)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from activetrack.angles import wrap_angle
+
+__all__ = [
+    "PlatformLimits",
+    "hold_course",
+    "rollout",
+    "speed_interval",
+    "step_platform",
+    "unit_to_manoeuvre",
+]
+
+
+@dataclass(frozen=True)
+class PlatformLimits:
+    """Per-epoch manoeuvre limits: |dpsi| <= dpsi_max (rad), |v' - v| <= dv_max (m/s),
+    v_min <= v' <= v_max (Hernandez sec. 5.1: pi/10, 10 m/s, [50, 200] m/s)."""
+
+    dpsi_max: float
+    dv_max: float
+    v_min: float
+    v_max: float
+
+    def __post_init__(self):
+        for name in ("dpsi_max", "dv_max", "v_min", "v_max"):
+            value = float(getattr(self, name))
+            if not math.isfinite(value) or value < 0.0:
+                raise ValueError(f"limits.{name} must be finite and >= 0, got {value!r}")
+            object.__setattr__(self, name, value)
+        if self.dpsi_max > math.pi:
+            raise ValueError(f"limits.dpsi_max must be in [0, pi], got {self.dpsi_max!r}")
+        if self.v_max <= 0.0 or self.v_min > self.v_max:
+            raise ValueError(
+                f"limits: need 0 <= v_min <= v_max and v_max > 0, got v_min={self.v_min}, "
+                f"v_max={self.v_max}"
+            )
+
+    @classmethod
+    def from_config(cls, cfg, dt: float) -> PlatformLimits:
+        """From a scenario ``ManoeuvreLimits`` (either limit pair) for decisions dt apart."""
+        dpsi_max, dv_max = cfg.per_epoch(dt)
+        return cls(min(float(dpsi_max), math.pi), float(dv_max), cfg.v_min, cfg.v_max)
+
+
+def speed_interval(speed, limits: PlatformLimits) -> tuple[np.ndarray, np.ndarray]:
+    """Reachable new speeds [v_lo, v_hi] from ``speed`` ``(...)``.
+
+    v_lo = max(v_min, v - dv_max), v_hi = min(v_max, v + dv_max); a speed outside
+    [v_min, v_max] is first brought back as far as dv_max allows (the interval never inverts).
+    """
+    v = np.asarray(speed, dtype=float)
+    lo = np.clip(v - limits.dv_max, limits.v_min, limits.v_max)
+    hi = np.clip(v + limits.dv_max, limits.v_min, limits.v_max)
+    return lo, hi
+
+
+def unit_to_manoeuvre(u, speed, limits: PlatformLimits) -> np.ndarray:
+    """Map unit-square points ``u`` ``(..., 2)`` to manoeuvres (dpsi, v') ``(..., 2)``.
+
+    ``speed`` ``(...)`` is the platform speed before the manoeuvre (broadcasts against u).
+    """
+    u = np.asarray(u, dtype=float)
+    lo, hi = speed_interval(speed, limits)
+    dpsi = (2.0 * u[..., 0] - 1.0) * limits.dpsi_max
+    v = lo + u[..., 1] * (hi - lo)
+    return np.stack(np.broadcast_arrays(dpsi, v), axis=-1)
+
+
+def manoeuvre_to_unit(manoeuvre, speed, limits: PlatformLimits) -> np.ndarray:
+    """Inverse of :func:`unit_to_manoeuvre` (a degenerate speed interval maps to u_v = 0.5)."""
+    m = np.asarray(manoeuvre, dtype=float)
+    lo, hi = speed_interval(speed, limits)
+    u_psi = 0.5 if limits.dpsi_max == 0.0 else 0.5 * (m[..., 0] / limits.dpsi_max + 1.0)
+    width = hi - lo
+    u_v = np.where(width > 0.0, (m[..., 1] - lo) / np.where(width > 0.0, width, 1.0), 0.5)
+    return np.stack(np.broadcast_arrays(u_psi, u_v), axis=-1)
+
+
+def step_platform(pv, heading, manoeuvre, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Apply manoeuvres (dpsi, v') at epoch k and fly the constant-velocity leg to k+1.
+
+    pv ``(..., 4)``, heading ``(...)`` and manoeuvre ``(..., 2)`` broadcast together.
+    Returns pv at k+1 ``(..., 4)`` (velocity = the new leg's velocity) and the new heading.
+    """
+    pv = np.asarray(pv, dtype=float)
+    m = np.asarray(manoeuvre, dtype=float)
+    psi = wrap_angle(np.asarray(heading, dtype=float) + m[..., 0])
+    vx = m[..., 1] * np.cos(psi)
+    vy = m[..., 1] * np.sin(psi)
+    x = pv[..., 0] + vx * dt
+    y = pv[..., 2] + vy * dt
+    return np.stack(np.broadcast_arrays(x, vx, y, vy), axis=-1), psi
+
+
+def rollout(pv, heading, manoeuvres, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Platform pv and heading at epochs k+1..k+R for manoeuvre sequences ``(..., R, 2)``.
+
+    Returns pv ``(..., R, 4)`` and headings ``(..., R)``.
+    """
+    m = np.asarray(manoeuvres, dtype=float)
+    pvs, headings = [], []
+    p, h = np.asarray(pv, dtype=float), np.asarray(heading, dtype=float)
+    for r in range(m.shape[-2]):
+        p, h = step_platform(p, h, m[..., r, :], dt)
+        pvs.append(p)
+        headings.append(h)
+    return np.stack(pvs, axis=-2), np.stack(headings, axis=-1)
+
+
+def hold_course(speed: float, limits: PlatformLimits, steps: int) -> np.ndarray:
+    """The manoeuvre sequence "keep heading and speed" ``(steps, 2)`` (speed clipped into the
+    reachable interval when it lies outside [v_min, v_max])."""
+    lo, hi = speed_interval(speed, limits)
+    v = float(np.clip(speed, lo, hi))
+    out = np.zeros((int(steps), 2))
+    out[:, 1] = v
+    # Later legs start from v itself, which is then inside [v_min, v_max] or moving towards it.
+    for r in range(1, int(steps)):
+        lo, hi = speed_interval(out[r - 1, 1], limits)
+        out[r, 1] = float(np.clip(out[r - 1, 1], lo, hi))
+    return out

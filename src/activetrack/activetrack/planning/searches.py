@@ -1,0 +1,272 @@
+"""Searches over the reachable region (the unit square of ``manoeuvre.unit_to_manoeuvre``).
+
+Every search minimises B independent problems in lockstep, so that a two-step dynamic
+programme can run the inner searches of all outer candidates together. The cost function is
+
+    cost_fn(rows, u) -> costs            or  -> (costs, aux)
+
+with ``rows`` ``(b,)`` the indices of the problems still searching, ``u`` ``(b, C, 2)`` the
+candidates of one search stage (scored in one vectorised call) and ``costs`` ``(b, C)``.
+``aux`` ``(b, C, ...)`` is an optional payload per candidate (e.g. the second-step plan a
+dynamic programme found for it); the search returns the payload of each problem's best point.
+
+- :func:`grid_search`: enumerative n x n grid (Hernandez sec. 4.2, 101 x 101).
+- :func:`quadrant_search`: Hernandez sec. 4.1: 9 points split the region into 4 quadrants; take
+  the quadrant with the lowest average corner cost and split it again (5 new points); stop after
+  ``divisions`` splits or ``patience`` splits without improvement; return the best point seen.
+  6 divisions cost at most 9 + 5 x 5 = 34 evaluations.
+- :func:`sector_search`: Ramdaras sec. 4: a 3 x 3 split into nine sectors (16 corners), take the
+  sector with the smallest summed corner cost and split it into nine again (12 new corners),
+  ``levels`` times; the answer is the centre of the last sector (one more evaluation). The
+  middle sector keeps "straight ahead" reachable.
+- :func:`evolution_search`: scipy's differential evolution over a D-dimensional unit cube
+  (the R-step planner, Hernandez eq. 16 and sec. 3.3.4); one problem, population vectorised.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "SEARCHES",
+    "SearchResult",
+    "evolution_search",
+    "grid_search",
+    "quadrant_search",
+    "sector_search",
+]
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """Best point per problem: ``u`` ``(B, D)``, ``cost`` ``(B,)``, ``aux`` ``(B, ...)`` or None,
+    and ``evaluations``: cost evaluations spent, summed over the B problems."""
+
+    u: np.ndarray
+    cost: np.ndarray
+    aux: np.ndarray | None
+    evaluations: int
+
+
+def _call(cost_fn, rows, u):
+    out = cost_fn(rows, u)
+    costs, aux = out if isinstance(out, tuple) else (out, None)
+    costs = np.asarray(costs, dtype=float)
+    if costs.shape != u.shape[:2]:
+        raise ValueError(f"cost_fn must return costs of shape {u.shape[:2]}, got {costs.shape}")
+    return costs, aux
+
+
+class _Best:
+    """Best point, cost and payload seen so far for each of B problems."""
+
+    def __init__(self, n_problems: int, dim: int = 2):
+        self.u = np.full((n_problems, dim), np.nan)
+        self.cost = np.full(n_problems, np.inf)
+        self.aux = None
+
+    def offer(self, rows, u, costs, aux) -> np.ndarray:
+        """Take each row's lowest candidate if it beats the stored one; returns improved (b,)."""
+        i = np.argmin(costs, axis=1)
+        c = costs[np.arange(len(rows)), i]
+        better = c < self.cost[rows]
+        if self.aux is None and aux is not None:
+            self.aux = np.zeros((self.cost.shape[0], *aux.shape[2:]))
+        take = rows[better]
+        self.cost[take] = c[better]
+        self.u[take] = u[better, i[better]]
+        if aux is not None:
+            self.aux[take] = aux[better, i[better]]
+        return better
+
+    def result(self, evaluations: int) -> SearchResult:
+        return SearchResult(self.u, self.cost, self.aux, int(evaluations))
+
+
+def _check_problems(n_problems) -> int:
+    if isinstance(n_problems, bool) or int(n_problems) != n_problems or n_problems < 1:
+        raise ValueError(f"n_problems must be an integer >= 1, got {n_problems!r}")
+    return int(n_problems)
+
+
+def grid_search(
+    cost_fn: Callable, n_problems: int = 1, size: int = 101, chunk: int = 2048
+) -> SearchResult:
+    """Enumerative search on a ``size`` x ``size`` grid over the unit square (Hernandez
+    sec. 4.2), evaluated in chunks of at most ``chunk`` points per problem per call."""
+    B = _check_problems(n_problems)
+    if isinstance(size, bool) or int(size) != size or size < 2:
+        raise ValueError(f"size must be an integer >= 2, got {size!r}")
+    if int(chunk) < 1:
+        raise ValueError(f"chunk must be >= 1, got {chunk!r}")
+    g = np.linspace(0.0, 1.0, int(size))
+    pts = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+    rows = np.arange(B)
+    best = _Best(B)
+    for start in range(0, len(pts), int(chunk)):
+        u = np.broadcast_to(pts[start : start + int(chunk)], (B, *pts[start : start + chunk].shape))
+        costs, aux = _call(cost_fn, rows, np.array(u))
+        best.offer(rows, u, costs, aux)
+    return best.result(B * len(pts))
+
+
+def quadrant_search(
+    cost_fn: Callable, n_problems: int = 1, divisions: int = 6, patience: int | None = None
+) -> SearchResult:
+    """Hernandez's efficient search (sec. 4.1, Fig. 1), B problems in lockstep.
+
+    Each problem holds a square (origin, side) and the costs of its 3 x 3 points; division 1
+    evaluates all 9, later divisions the 5 points that are new in the chosen quadrant.
+    """
+    B = _check_problems(n_problems)
+    if isinstance(divisions, bool) or int(divisions) != divisions or divisions < 1:
+        raise ValueError(f"divisions must be an integer >= 1, got {divisions!r}")
+    patience = int(divisions) if patience is None else patience
+    if isinstance(patience, bool) or int(patience) != patience or patience < 1:
+        raise ValueError(f"patience must be an integer >= 1, got {patience!r}")
+    offsets = np.array([0.0, 0.5, 1.0])
+    ij = np.stack(np.meshgrid(np.arange(3), np.arange(3), indexing="ij"), -1).reshape(9, 2)
+    origin = np.zeros((B, 2))
+    side = np.ones(B)
+    values = np.full((B, 3, 3), np.nan)  # costs of the 3 x 3 points of each square
+    payload = None
+    stale = np.zeros(B, dtype=int)  # divisions without improvement
+    best = _Best(B)
+    rows = np.arange(B)
+    evaluations = 0
+    for division in range(int(divisions)):
+        # New points: all 9 at the first division, else the 5 not inherited from the parent.
+        new = ij if division == 0 else ij[np.isnan(values[rows[0]]).reshape(-1)]
+        u = origin[rows, None, :] + side[rows, None, None] * offsets[new]
+        costs, aux = _call(cost_fn, rows, u)
+        evaluations += costs.size
+        values[rows[:, None], new[:, 0], new[:, 1]] = costs
+        if aux is not None:
+            if payload is None:
+                payload = np.zeros((B, 3, 3, *aux.shape[2:]))
+            payload[rows[:, None], new[:, 0], new[:, 1]] = aux
+        improved = best.offer(rows, u, costs, aux)
+        stale[rows] = np.where(improved, 0, stale[rows] + 1)
+        if division == int(divisions) - 1:
+            break
+        rows = rows[stale[rows] < patience]
+        if rows.size == 0:
+            break
+        # Average corner cost of each quadrant (a, b) in {0, 1}^2; take the lowest.
+        v = values[rows]
+        quad = 0.25 * (v[:, :2, :2] + v[:, 1:, :2] + v[:, :2, 1:] + v[:, 1:, 1:])
+        q = np.argmin(quad.reshape(len(rows), 4), axis=1)
+        a, b = q // 2, q % 2
+        # The chosen quadrant's corners become the new square's corners (indices 0 and 2).
+        child = np.full((len(rows), 3, 3), np.nan)
+        for da in (0, 1):
+            for db in (0, 1):
+                child[:, 2 * da, 2 * db] = v[np.arange(len(rows)), a + da, b + db]
+        if payload is not None:
+            pchild = np.zeros((len(rows), 3, 3, *payload.shape[3:]))
+            for da in (0, 1):
+                for db in (0, 1):
+                    pchild[:, 2 * da, 2 * db] = payload[rows, a + da, b + db]
+            payload[rows] = pchild
+        values[rows] = child
+        origin[rows] = origin[rows] + 0.5 * side[rows, None] * np.stack([a, b], axis=1)
+        side[rows] = 0.5 * side[rows]
+    return best.result(evaluations)
+
+
+def sector_search(cost_fn: Callable, n_problems: int = 1, levels: int = 3) -> SearchResult:
+    """Ramdaras' nine-sector search (sec. 4, Fig. 4), B problems in lockstep.
+
+    Level 1 evaluates the 4 x 4 corners of nine sectors; each further level the 12 corners that
+    are new inside the chosen sector. After ``levels`` levels the centre of the last chosen
+    sector is evaluated and returned: 16 + 12 (levels - 1) + 1 evaluations per problem.
+    """
+    B = _check_problems(n_problems)
+    if isinstance(levels, bool) or int(levels) != levels or levels < 1:
+        raise ValueError(f"levels must be an integer >= 1, got {levels!r}")
+    offsets = np.arange(4) / 3.0
+    ij = np.stack(np.meshgrid(np.arange(4), np.arange(4), indexing="ij"), -1).reshape(16, 2)
+    origin = np.zeros((B, 2))
+    side = 1.0
+    values = np.full((B, 4, 4), np.nan)
+    rows = np.arange(B)
+    evaluations = 0
+    for _ in range(int(levels)):
+        new = ij[np.isnan(values[0]).reshape(-1)]
+        u = origin[:, None, :] + side * offsets[new]
+        costs, _ = _call(cost_fn, rows, u)
+        evaluations += costs.size
+        values[:, new[:, 0], new[:, 1]] = costs
+        # Summed corner cost of each sector (a, b) in {0, 1, 2}^2; take the lowest.
+        v = values
+        total = v[:, :3, :3] + v[:, 1:, :3] + v[:, :3, 1:] + v[:, 1:, 1:]
+        s = np.argmin(total.reshape(B, 9), axis=1)
+        a, b = s // 3, s % 3
+        child = np.full((B, 4, 4), np.nan)
+        for da in (0, 1):
+            for db in (0, 1):
+                child[:, 3 * da, 3 * db] = v[rows, a + da, b + db]
+        values = child
+        origin = origin + side / 3.0 * np.stack([a, b], axis=1)
+        side = side / 3.0
+    centre = origin[:, None, :] + 0.5 * side
+    costs, aux = _call(cost_fn, rows, centre)
+    best = _Best(B)
+    best.offer(rows, centre, costs, aux)
+    return best.result(evaluations + costs.size)
+
+
+def evolution_search(
+    cost_fn: Callable,
+    dim: int,
+    rng: np.random.Generator | int | None = None,
+    *,
+    popsize: int = 15,
+    maxiter: int = 100,
+    tol: float = 1e-6,
+    x0: np.ndarray | None = None,
+) -> SearchResult:
+    """Differential evolution (scipy) over [0, 1]^dim for one problem (Hernandez sec. 3.3.4:
+    an evolutionary search over all R manoeuvres at once).
+
+    ``cost_fn(rows, u)`` is called with rows = [0] and ``u`` ``(1, P, dim)`` for a whole
+    population. ``x0`` ``(dim,)`` seeds the population (e.g. "hold course").
+    """
+    from scipy.optimize import differential_evolution
+
+    if isinstance(dim, bool) or int(dim) != dim or dim < 1:
+        raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
+    for name, value in (("popsize", popsize), ("maxiter", maxiter)):
+        if isinstance(value, bool) or int(value) != value or value < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    rows = np.zeros(1, dtype=int)
+    best = _Best(1, int(dim))
+    count = [0]
+
+    def f(x):
+        u = np.atleast_2d(np.asarray(x, dtype=float).T)[None]  # (1, P, dim)
+        costs, aux = _call(cost_fn, rows, u)
+        count[0] += costs.size
+        best.offer(rows, u, costs, aux)
+        return costs[0]
+
+    seed = rng if rng is None or isinstance(rng, np.random.Generator) else int(rng)
+    differential_evolution(
+        f,
+        bounds=[(0.0, 1.0)] * int(dim),
+        popsize=int(popsize),
+        maxiter=int(maxiter),
+        tol=float(tol),
+        polish=False,
+        vectorized=True,
+        updating="deferred",
+        rng=seed,
+        x0=None if x0 is None else np.clip(np.asarray(x0, dtype=float), 0.0, 1.0),
+    )
+    return best.result(count[0])
+
+
+SEARCHES = ("grid", "quadrant", "sector", "evolution")
