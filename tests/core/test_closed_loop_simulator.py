@@ -117,3 +117,20 @@ def test_tracker_pf_snapshot_samples(scenario):
     snap = trk.step(1, sim.time + 5.0, sim.advance())
     assert snap.update_count == 1 and 1 <= snap.ess <= 2000
     assert np.all(np.linalg.eigvalsh(snap.cov) > 0)
+
+
+def test_covariance_ellipse_axes():
+    from activetrack.geometry import covariance_ellipse
+
+    # Principal axes 3 and 1 (std), rotated by 30 degrees, 2-sigma outline.
+    a = np.deg2rad(30)
+    V = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    P = V @ np.diag([9.0, 1.0]) @ V.T
+    pts = covariance_ellipse([10.0, -5.0], P, scale=2.0, n_points=721)
+    d = pts - [10.0, -5.0]
+    r = np.hypot(d[:, 0], d[:, 1])
+    assert r.max() == pytest.approx(6.0, rel=1e-4) and r.min() == pytest.approx(2.0, rel=1e-4)
+    # Every point satisfies d^T P^-1 d = scale^2.
+    m = np.einsum("ni,ij,nj->n", d, np.linalg.inv(P), d)
+    np.testing.assert_allclose(m, 4.0, rtol=1e-9)
+    np.testing.assert_allclose(pts[0], pts[-1])

@@ -42,6 +42,7 @@ GRAPH_TOPICS = {
     topics.SENSOR_SELECTION: "msgs_defs/msg/SensorSelection",
     topics.PLAN_REPORT: "msgs_defs/msg/PlanReport",
     topics.DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
+    topics.MARKERS: "visualization_msgs/msg/MarkerArray",
 }
 # Topics published with transient-local durability (late joiners get the run's history).
 LATCHED_TOPICS = {

@@ -18,6 +18,7 @@ from datetime import datetime
 from pathlib import Path
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -43,6 +44,9 @@ class EvaluatorNode(Node):
         self.tracks: dict[int, TrackEstimate] = {}
         self.platforms: dict[int, dict[str, np.ndarray]] = {}
         self.reports: dict[int, PlanReport] = {}
+        self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
+        self.sim_finished_at: float | None = None
+        self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics, 100)
         for msg_type, topic, cb in (
             (GroundTruth, topics.GROUND_TRUTH, self.on_truth),
             (TrackEstimate, topics.TRACK, self.on_track),
@@ -66,6 +70,17 @@ class EvaluatorNode(Node):
     def on_report(self, msg):
         self.reports[msg.epoch] = msg
 
+    def on_diagnostics(self, msg):
+        for status in msg.status:
+            node = status.name.rsplit("/", 1)[-1].removesuffix("_node")
+            self.diagnostics[node] = {kv.key: int(kv.value) for kv in status.values}
+            if node == "sim" and status.message == "finished" and self.sim_finished_at is None:
+                self.sim_finished_at = time.monotonic()
+
+    # Plan reports may be missing for good (a planner that died); once the sim has finished
+    # and the reports stopped coming for this long, the run is complete without them.
+    REPORT_GRACE_S = 1.0
+
     @property
     def expects_reports(self) -> bool:
         """The planner reports a decision per epoch when it commands any platform."""
@@ -75,6 +90,9 @@ class EvaluatorNode(Node):
 
     @property
     def complete(self) -> bool:
+        K = self.scenario.steps
+        if len(self.tracks) <= K or len(self.truth) <= K:  # cheap test first: called often
+            return False
         return not self.missing()
 
     def missing(self) -> str:
@@ -86,10 +104,14 @@ class EvaluatorNode(Node):
             "track": [k for k in range(K + 1) if k not in self.tracks],
             "platforms": [k for k in range(K + 1) if len(self.platforms.get(k, {})) < n_platforms],
             "plan report": [k for k in range(K) if k not in self.reports]
-            if self.expects_reports
+            if self.expects_reports and not self._reports_given_up()
             else [],
         }
         return ", ".join(f"{what} missing at epochs {ks}" for what, ks in lacks.items() if ks)
+
+    def _reports_given_up(self) -> bool:
+        t = self.sim_finished_at
+        return t is not None and time.monotonic() - t > self.REPORT_GRACE_S
 
     def record(self, wall_time_s: float) -> RunRecord:
         K = self.scenario.steps
@@ -158,10 +180,12 @@ def run_graph(
     timeout: float = 600.0,
     sim_params: dict | None = None,
     before_spin=None,
+    during_spin=None,
 ) -> GraphRun:
     """Bring the graph up on a scenario, run it to the end, summarise and save the run folder.
 
-    ``before_spin(graph)`` (tests) may add nodes to the in-process graph before it runs.
+    ``before_spin(graph)`` may add nodes to the in-process graph before it runs, and
+    ``during_spin(graph)`` is called between executor steps (fault-injection tests).
     """
     scenario = load_scenario(scenario_path)  # fails before anything starts
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name)
@@ -182,22 +206,30 @@ def run_graph(
         if processes:
             children = _spawn_nodes(params, sim_params)
         else:
-            overrides = lambda p: [Parameter(k, value=v) for k, v in p.items()]  # noqa: E731
-            nodes["tracker"] = graph.add(
-                TrackerNode(context=ctx, parameter_overrides=overrides(params))
-            )
-            nodes["planner"] = graph.add(
-                PlannerNode(context=ctx, parameter_overrides=overrides(params))
-            )
-            nodes["sim"] = graph.add(
-                SimNode(
-                    context=ctx, parameter_overrides=overrides({**params, **(sim_params or {})})
-                )
-            )
+
+            def options(p):
+                # No parameter services in one process: nobody can call them, and every
+                # service adds to each executor wait.
+                overrides = [Parameter(k, value=v) for k, v in p.items()]
+                return {
+                    "context": ctx,
+                    "parameter_overrides": overrides,
+                    "start_parameter_services": False,
+                }
+
+            nodes["tracker"] = graph.add(TrackerNode(**options(params)))
+            nodes["planner"] = graph.add(PlannerNode(**options(params)))
+            nodes["sim"] = graph.add(SimNode(**options({**params, **(sim_params or {})})))
         if before_spin is not None:
             before_spin(graph)
         try:
-            ok = graph.spin_until(lambda: evaluator.complete, timeout=timeout)
+
+            def finished() -> bool:
+                if during_spin is not None:
+                    during_spin(graph)
+                return evaluator.complete
+
+            ok = graph.spin_until(finished, timeout=timeout)
             if not ok:
                 raise TimeoutError(
                     f"scenario {scenario.name} did not complete within {timeout} s: "
@@ -215,7 +247,9 @@ def run_graph(
             if recorder is not None:
                 recorder.close()
         wall = time.monotonic() - start
+        # Counters straight from the nodes in one process, else their last /diagnostics.
         diagnostics = {name: dict(node.counters.counts) for name, node in nodes.items()}
+        diagnostics = diagnostics or dict(evaluator.diagnostics)
         summary = summarize(scenario, [evaluator.record(wall)], wall)
     result = GraphRun(
         summary=summary,

@@ -23,7 +23,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Header
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import Marker, MarkerArray
 
 from activetrack import topics
 from activetrack.closed_loop.batch import component_rngs
@@ -61,7 +62,7 @@ class SimNode(Node):
         self.declare_parameter("mode", "lockstep")
         self.declare_parameter("rate", 1.0)
         self.declare_parameter("command_timeout", 5.0)
-        self.declare_parameter("tick", 0.001)
+        self.declare_parameter("tick", 0.01)  # s between checks for timeouts (free: steps)
         self.declare_parameter("exit_when_done", False)  # else keep serving latched topics
         path = self.get_parameter("scenario").value
         if not path:
@@ -87,6 +88,8 @@ class SimNode(Node):
         )
         self.polar_pub = self.create_publisher(PolarMeasurement, topics.POLAR_MEASUREMENTS, LATCHED)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
+        self.marker_pub = self.create_publisher(MarkerArray, topics.MARKERS, 10)
+        self.paths: dict[str, list[Point]] = {pid: [] for pid in self.sim.platforms}
         self.create_subscription(
             ManoeuvreCommand, topics.MANOEUVRE_COMMANDS, self.on_command, LATCHED
         )
@@ -131,6 +134,8 @@ class SimNode(Node):
             self.apply(cmd)
         else:
             self.pending[msg.platform_id] = cmd
+            if self.ready():
+                self.on_tick()  # the last command of the epoch: step now, not at the next tick
 
     def on_selection(self, msg: SensorSelection) -> None:
         self.counters.received("SensorSelection")
@@ -145,6 +150,8 @@ class SimNode(Node):
     def on_track(self, msg: TrackEstimate) -> None:
         # Only a lockstep signal when no platform is commanded: the sim never reads the estimate.
         self.last_track_epoch = max(self.last_track_epoch, msg.epoch)
+        if self.mode == "lockstep" and not self.sim.controllable_ids and self.ready():
+            self.on_tick()
 
     # --- stepping ------------------------------------------------------------------------
 
@@ -166,7 +173,7 @@ class SimNode(Node):
             return
         if self.sim.finished:
             self.done = True
-            self.publish_diagnostics()
+            self.publish_diagnostics(finished=True)
             self.get_logger().info(f"scenario {self.scenario.name} finished")
             return
         if self.mode == "free":
@@ -233,6 +240,7 @@ class SimNode(Node):
                 )
             )
         self.counters.count("epochs_published")
+        self.publish_markers(t)
         self.publish_diagnostics()
 
     def publish_measurement(self, m, epoch: int, t: float, count: int) -> None:
@@ -274,12 +282,26 @@ class SimNode(Node):
         if m.z is None:
             self.counters.count("missed_detections")
 
-    def publish_diagnostics(self) -> None:
+    def publish_markers(self, t: float) -> None:
+        """Each platform's path so far as a line strip (namespace ``platforms``)."""
+        array = MarkerArray()
+        for i, (pid, p) in enumerate(self.sim.platforms.items()):
+            self.paths[pid].append(Point(x=float(p.pv[0]), y=float(p.pv[2])))
+            m = Marker(header=_stamp(t), ns="platforms", id=i, type=Marker.LINE_STRIP)
+            m.action = Marker.ADD
+            m.pose.orientation.w = 1.0
+            m.scale.x = 20.0  # line width, m
+            m.color = ColorRGBA(r=0.1, g=0.4, b=0.9, a=1.0)
+            m.points = list(self.paths[pid])
+            array.markers.append(m)
+        self.marker_pub.publish(array)
+
+    def publish_diagnostics(self, finished: bool = False) -> None:
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if self.counters.total_rejected else DiagnosticStatus.OK,
             name="activetrack/sim_node",
             hardware_id=self.scenario.name,
-            message=f"epoch {self.sim.epoch}/{self.scenario.steps}",
+            message="finished" if finished else f"epoch {self.sim.epoch}/{self.scenario.steps}",
             values=[KeyValue(key=k, value=v) for k, v in self.counters.as_pairs()],
         )
         self.diag_pub.publish(DiagnosticArray(header=_stamp(self.sim.time), status=[status]))

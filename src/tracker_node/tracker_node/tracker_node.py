@@ -14,18 +14,20 @@ import math
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped
+from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovarianceStamped
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
-from std_msgs.msg import Header
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import Marker, MarkerArray
 
 from activetrack import topics
 from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.counters import NodeCounters
 from activetrack.closed_loop.tracker import TrackerCore, pose_of
 from activetrack.filters.measurement import Measurement
+from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_scenario, with_tracker_overrides
 from msgs_defs.msg import BearingMeasurement, PolarMeasurement, TrackEstimate
 
@@ -44,7 +46,7 @@ class TrackerNode(Node):
         self.declare_parameter("scenario", "")
         self.declare_parameter("run", -1)
         self.declare_parameter("mode", "lockstep")  # lockstep: only epoch k+1 follows epoch k
-        self.declare_parameter("cloud_size", 200)  # particles in the published cloud
+        self.declare_parameter("cloud_size", 100)  # particles in the published cloud
         self.declare_parameter("filter", "")  # ekf | pf; empty: the scenario's
         self.declare_parameter("particles", 0)  # 0: the scenario's
         path = self.get_parameter("scenario").value
@@ -73,6 +75,7 @@ class TrackerNode(Node):
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, topics.TRACK_POSE, 10)
         self.cloud_pub = self.create_publisher(PoseArray, topics.PARTICLES, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
+        self.marker_pub = self.create_publisher(MarkerArray, topics.MARKERS, 10)
         self.create_subscription(
             BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing, LATCHED
         )
@@ -213,6 +216,16 @@ class TrackerNode(Node):
         cov6[0], cov6[1], cov6[6], cov6[7] = (float(v) for v in P_xy.ravel())
         pose.pose.covariance = cov6
         self.pose_pub.publish(pose)
+        ellipse = Marker(header=header, ns="track", id=0, type=Marker.LINE_STRIP)
+        ellipse.action = Marker.ADD
+        ellipse.pose.orientation.w = 1.0
+        ellipse.scale.x = 5.0  # line width, m
+        ellipse.color = ColorRGBA(r=0.9, g=0.1, b=0.1, a=1.0)
+        # 2-sigma position ellipse of the track.
+        ellipse.points = [
+            Point(x=float(px), y=float(py)) for px, py in covariance_ellipse((x, y), P_xy, 2.0)
+        ]
+        self.marker_pub.publish(MarkerArray(markers=[ellipse]))
         if samples is not None and self.cloud_size > 0:
             step = max(1, len(samples) // self.cloud_size)
             cloud = PoseArray(header=header)

@@ -30,6 +30,7 @@ from activetrack.bounds.pcrlb import (
     propagate_samples,
 )
 from activetrack.filters import Measurement, ParticleFilter
+from activetrack.geometry import covariance_ellipse
 from activetrack.planning import (
     PlannerPlatform,
     PlanSettings,
@@ -282,13 +283,8 @@ def _fmt_table2(cases: dict) -> str:
 
 def _ellipse(ax, centre, P, scale=10.0, **kw):
     """Outline of the 1-sigma ellipse of the position block of P, magnified ``scale`` times."""
-    S = P[np.ix_([0, 2], [0, 2])]
-    lam, V = np.linalg.eigh(S)
-    t = np.linspace(0, 2 * np.pi, 60)
-    pts = centre[:, None] + scale * V @ (
-        np.sqrt(np.clip(lam, 0, None))[:, None] * np.stack([np.cos(t), np.sin(t)])
-    )
-    ax.plot(pts[0], pts[1], **kw)
+    pts = covariance_ellipse(centre, P[np.ix_([0, 2], [0, 2])], scale)
+    ax.plot(pts[:, 0], pts[:, 1], **kw)
 
 
 def _plot_paths(ax, case, title):

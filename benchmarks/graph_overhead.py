@@ -1,0 +1,60 @@
+"""What the ROS node graph adds over the batch loop, on the same scenario, in one process.
+
+Runs the closed loop twice per repetition, alternating: `activetrack batch` (core only) and
+`activetrack run` (sim, tracker and planner nodes in one process, bag recording on), checks they
+give the same track, and prints both wall times and the ratio. Default scenario: Hernandez
+2-sensor two-step planning with the 10,000-particle PF.
+
+    .venv/bin/python benchmarks/graph_overhead.py [SCENARIO] [--repeats N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+
+import numpy as np
+
+from activetrack.closed_loop.batch import run_batch
+from activetrack.scenarios import load_scenario
+from activetrack_bringup.runner import run_graph
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("scenario", nargs="?", default="scenarios/hernandez_2sensor_two.yaml")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    scenario = load_scenario(args.scenario)
+    batch_t, graph_t = [], []
+    for i in range(args.repeats):
+        order = ("batch", "graph") if i % 2 == 0 else ("graph", "batch")
+        for which in order:
+            start = time.perf_counter()
+            if which == "batch":
+                b = run_batch(scenario, runs=1)
+                batch_t.append(time.perf_counter() - start)
+            else:
+                with tempfile.TemporaryDirectory() as tmp:
+                    g = run_graph(args.scenario, run_dir=tmp, plots=False)
+                graph_t.append(time.perf_counter() - start)
+        same = np.array_equal(b.records[0].estimate, g.summary.records[0].estimate)
+        print(
+            f"repeat {i}: batch {batch_t[-1]:.2f} s, graph {graph_t[-1]:.2f} s, same track: {same}"
+        )
+        if not same:
+            print("error: the graph's track differs from the batch run")
+            return 1
+    mb, mg = statistics.median(batch_t), statistics.median(graph_t)
+    print(
+        f"scenario {scenario.name}: {scenario.steps} epochs, {scenario.tracker.particles} particles"
+    )
+    print(f"median wall time: batch {mb:.2f} s, ROS graph in one process {mg:.2f} s")
+    print(f"graph_overhead={100 * (mg / mb - 1):.1f}% (target <= 25%)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
