@@ -168,6 +168,9 @@ def test_bad_input_is_rejected_counted_and_the_run_unchanged(clean_run, tmp_path
         for reason, n in reasons.items():
             got = result.diagnostics[node].get(f"rejected.{reason}", 0)
             assert got >= n, f"{node} counted {got} rejected.{reason}, expected {n}"
+    # The tracker reads platform states too (epochs without measurements) and rejects the same.
+    assert result.diagnostics["tracker"].get("rejected.unknown_platform", 0) >= 1
+    assert result.diagnostics["tracker"].get("rejected.non_finite", 0) >= 3
     a, b = result.summary.records[0], clean_run.summary.records[0]
     np.testing.assert_array_equal(a.estimate, b.estimate)
     np.testing.assert_array_equal(a.platform_paths, b.platform_paths)

@@ -91,6 +91,7 @@ def example_messages() -> list:
             velocity=sensor_vel,
             heading=-2.356,
             speed=56.57,
+            epoch_measurement_count=2,
         ),
         TrackEstimate(
             header=_header(),
@@ -117,6 +118,7 @@ def example_messages() -> list:
             speed_change=-10.0,
             commanded_heading=-2.042,
             commanded_speed=46.57,
+            gate_measurement=True,
             take_measurement=True,
             waypoint=Point(x=10.0, y=-20.0, z=1.0),
             has_waypoint=True,

@@ -28,7 +28,14 @@ from activetrack.plots import plot_run
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.bag import BagRecorder, _qos_for
 from activetrack_bringup.inprocess import InProcessGraph
-from msgs_defs.msg import GroundTruth, PlanReport, PlatformState, TrackEstimate
+from msgs_defs.msg import (
+    BearingMeasurement,
+    GroundTruth,
+    PlanReport,
+    PlatformState,
+    PolarMeasurement,
+    TrackEstimate,
+)
 from planner_node.planner_node import PlannerNode
 from sim_node.sim_node import SimNode
 from tracker_node.tracker_node import TrackerNode
@@ -44,6 +51,7 @@ class EvaluatorNode(Node):
         self.tracks: dict[int, TrackEstimate] = {}
         self.platforms: dict[int, dict[str, np.ndarray]] = {}
         self.reports: dict[int, PlanReport] = {}
+        self.looked: dict[int, set[str]] = {}  # sensors that measured at each epoch
         self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
         self.sim_finished_at: float | None = None
         self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics, 100)
@@ -52,6 +60,8 @@ class EvaluatorNode(Node):
             (TrackEstimate, topics.TRACK, self.on_track),
             (PlatformState, topics.PLATFORM_STATES, self.on_platform),
             (PlanReport, topics.PLAN_REPORT, self.on_report),
+            (BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_measurement),
+            (PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_measurement),
         ):
             self.create_subscription(msg_type, topic, cb, _qos_for(topic))
 
@@ -69,6 +79,9 @@ class EvaluatorNode(Node):
 
     def on_report(self, msg):
         self.reports[msg.epoch] = msg
+
+    def on_measurement(self, msg):
+        self.looked.setdefault(msg.epoch, set()).add(msg.sensor_id)
 
     def on_diagnostics(self, msg):
         for status in msg.status:
@@ -129,6 +142,17 @@ class EvaluatorNode(Node):
             ),
             platform_ids=ids,
             decisions=reports,
+            measured=np.array(
+                [
+                    [
+                        s.id in self.looked.get(k, ())
+                        for p in self.scenario.platforms
+                        for s in p.sensors
+                    ]
+                    for k in range(1, K + 1)
+                ],
+                dtype=bool,
+            ),
             wall_time_s=wall_time_s,
             planning_time_s=sum(r.planning_wall_time for r in reports),
             evaluations=sum(r.evaluations for r in reports),

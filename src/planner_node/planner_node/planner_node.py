@@ -150,17 +150,21 @@ class PlannerNode(Node):
             del self.platforms[e]
         header = Header(stamp=Time(seconds=k * self.scenario.dt).to_msg(), frame_id="world")
         for c in decision.commands:
-            self.command_pub.publish(
-                ManoeuvreCommand(
-                    header=header,
-                    platform_id=c.platform_id,
-                    epoch=c.epoch,
-                    heading_change=c.heading_change,
-                    speed_change=c.speed_change,
-                    commanded_heading=c.commanded_heading,
-                    commanded_speed=c.commanded_speed,
-                )
+            msg = ManoeuvreCommand(
+                header=header,
+                platform_id=c.platform_id,
+                epoch=c.epoch,
+                heading_change=c.heading_change,
+                speed_change=c.speed_change,
+                commanded_heading=c.commanded_heading,
+                commanded_speed=c.commanded_speed,
+                gate_measurement=c.take_measurement is not None,
+                take_measurement=bool(c.take_measurement),
+                has_waypoint=c.waypoint is not None,
             )
+            if c.waypoint is not None:
+                msg.waypoint.x, msg.waypoint.y = (float(v) for v in c.waypoint)
+            self.command_pub.publish(msg)
         if decision.selected_sensor_ids is not None:
             self.selection_pub.publish(
                 SensorSelection(

@@ -101,6 +101,9 @@ class SimNode(Node):
         self.pending: dict[str, Command] = {}
         self.selection: tuple[str, ...] | None = None
         self.selection_epoch = -1
+        # Lockstep: with selection on, epoch k+1 also waits for the selection decided at k.
+        planner = self.scenario.planner
+        self.expects_selection = planner.enabled and planner.selection.enabled
         self.last_track_epoch = -1
         self.done = False
         self.epoch_started = time.monotonic()
@@ -129,7 +132,13 @@ class SimNode(Node):
                 return self._reject("stale_epoch", f"epoch {msg.epoch} < {self.sim.epoch}")
             if msg.epoch > self.sim.epoch:
                 return self._reject("future_epoch", f"epoch {msg.epoch} > {self.sim.epoch}")
-        cmd = Command(msg.platform_id, self.sim.epoch, msg.heading_change, msg.speed_change)
+        cmd = Command(
+            msg.platform_id,
+            self.sim.epoch,
+            msg.heading_change,
+            msg.speed_change,
+            take_measurement=msg.take_measurement if msg.gate_measurement else None,
+        )
         if self.mode == "free":
             self.apply(cmd)
         else:
@@ -164,6 +173,8 @@ class SimNode(Node):
 
     def ready(self) -> bool:
         k = self.sim.epoch
+        if self.expects_selection and self.selection_epoch != k:
+            return False
         if not self.sim.controllable_ids:
             return self.last_track_epoch >= k
         return all(pid in self.pending for pid in self.sim.controllable_ids)
@@ -237,6 +248,7 @@ class SimNode(Node):
                     velocity=Vector3(x=float(s.pv[1]), y=float(s.pv[3])),
                     heading=s.heading,
                     speed=s.speed,
+                    epoch_measurement_count=len(measurements),
                 )
             )
         self.counters.count("epochs_published")

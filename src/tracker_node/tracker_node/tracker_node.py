@@ -2,7 +2,9 @@
 (activetrack.closed_loop.TrackerCore).
 
 Collects the measurements of an epoch (``epoch_measurement_count`` of them), updates the
-filter once per epoch and publishes the track: ``TrackEstimate`` (with the planner's posterior
+filter once per epoch and publishes the track; an epoch without measurements (a stop-and-measure
+robot on the move, a gated sensor) is announced by the platform states and only predicts, as in
+the batch loop. Outputs: ``TrackEstimate`` (with the planner's posterior
 samples for a PF), ``geometry_msgs/PoseWithCovarianceStamped`` and a subsampled particle cloud
 (``geometry_msgs/PoseArray``) for standard tools. Bad messages (non-finite values, unknown
 sensors, out-of-order or future epochs and stamps, a covariance that is not positive definite)
@@ -29,7 +31,7 @@ from activetrack.closed_loop.tracker import TrackerCore, pose_of
 from activetrack.filters.measurement import Measurement
 from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_scenario, with_tracker_overrides
-from msgs_defs.msg import BearingMeasurement, PolarMeasurement, TrackEstimate
+from msgs_defs.msg import BearingMeasurement, PlatformState, PolarMeasurement, TrackEstimate
 
 LATCHED = QoSProfile(
     depth=topics.LATCHED_DEPTH,
@@ -66,9 +68,11 @@ class TrackerNode(Node):
         self.cloud_size = int(self.get_parameter("cloud_size").value)
         # Scenario order of the sensors: measurements of an epoch are applied in this order.
         self.sensor_order = {sid: i for i, sid in enumerate(self.core.sensors)}
+        self.platform_ids = {p.id for p in self.scenario.platforms}
         self.counters = NodeCounters()
         self.buffer: dict[int, list[Measurement]] = {}
         self.expected: dict[int, int] = {}
+        self.quiet: dict[int, set[str]] = {}  # platforms whose state says epoch k had nothing
         self.last_epoch = 0
 
         self.track_pub = self.create_publisher(TrackEstimate, topics.TRACK, LATCHED)
@@ -82,6 +86,7 @@ class TrackerNode(Node):
         self.create_subscription(
             PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar, LATCHED
         )
+        self.create_subscription(PlatformState, topics.PLATFORM_STATES, self.on_platform, LATCHED)
         self.publish_track(self.core.snapshot())  # epoch 0: the prior
 
     # --- validation and conversion -------------------------------------------------------
@@ -156,6 +161,31 @@ class TrackerNode(Node):
             return self._reject(reason, f"polar from {msg.sensor_id!r} epoch {msg.epoch}")
         self.accept(msg, self._measurement(msg, z if msg.detected else None))
 
+    def on_platform(self, msg: PlatformState) -> None:
+        """An epoch with no measurements at all is only seen here: once every platform's state
+        of epoch k says the sim published nothing at k, predict through it."""
+        self.counters.received("PlatformState")
+        if msg.platform_id not in self.platform_ids:
+            return self._reject("unknown_platform", f"platform state of {msg.platform_id!r}")
+        values = (msg.position.x, msg.position.y, msg.velocity.x, msg.velocity.y)
+        if not all(math.isfinite(v) for v in values):
+            return self._reject("non_finite", f"platform state of {msg.platform_id!r}")
+        k = msg.epoch
+        if msg.epoch_measurement_count > 0 or k <= self.last_epoch or k in self.buffer:
+            return  # measurements will drive the epoch, or it is done already
+        if k > self.scenario.steps or (self.mode == "lockstep" and k > self.last_epoch + 1):
+            return self._reject("future_epoch", f"platform state of {msg.platform_id!r} at {k}")
+        quiet = self.quiet.setdefault(k, set())
+        quiet.add(msg.platform_id)
+        if quiet != self.platform_ids:
+            return
+        for e in sorted(e for e in self.buffer if e < k):
+            self.counters.count("incomplete_epochs")
+            self.process(e)
+        self.buffer[k] = []
+        self.counters.count("epochs_without_measurements")
+        self.process(k)
+
     # --- epochs --------------------------------------------------------------------------
 
     def accept(self, msg, measurement: Measurement) -> None:
@@ -175,6 +205,8 @@ class TrackerNode(Node):
     def process(self, epoch: int) -> None:
         measurements = sorted(self.buffer.pop(epoch), key=lambda m: self.sensor_order[m.sensor_id])
         self.expected.pop(epoch, None)
+        for e in [e for e in self.quiet if e <= epoch]:
+            del self.quiet[e]
         snapshot = self.core.step(epoch, epoch * self.scenario.dt, measurements)
         self.last_epoch = epoch
         self.counters.count("updates")

@@ -11,7 +11,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from activetrack.bounds.pcrlb import covariance_bound, gaussian_samples, pcrlb_trajectory
+from activetrack.bounds.pcrlb import (
+    covariance_bound,
+    gaussian_samples,
+    measurement_information,
+    pcrlb_step,
+    pcrlb_trajectory,
+    propagate_samples,
+)
 from activetrack.closed_loop.planner import PlannerCore
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
@@ -38,6 +45,9 @@ class RunRecord:
     platform_paths: np.ndarray  # (K+1, P, 4)
     platform_ids: tuple[str, ...]
     decisions: list = field(default_factory=list)
+    # (K, S) which sensors looked at epochs 1..K (selection and stop-and-measure gating);
+    # None: all of them, every epoch.
+    measured: np.ndarray | None = None
     clamps: int = 0
     wall_time_s: float = 0.0
     planning_time_s: float = 0.0
@@ -65,9 +75,13 @@ def run_once(scenario: Scenario, run: int | None = None) -> RunRecord:
         paths.append(np.stack([sim.platforms[i].pv for i in ids]))
 
     record(track)
+    sensor_ids = list(sim.sensors)
+    measured = []
     for k in range(scenario.steps + 1):
         if k > 0:
             measurements = sim.advance()
+            looked = {m.sensor_id for m in measurements}
+            measured.append([sid in looked for sid in sensor_ids])
             track = tracker.step(k, sim.time, measurements)
             record(track)
         if k < scenario.steps:
@@ -87,6 +101,7 @@ def run_once(scenario: Scenario, run: int | None = None) -> RunRecord:
         platform_paths=np.array(paths),
         platform_ids=ids,
         decisions=decisions,
+        measured=np.array(measured, dtype=bool),
         clamps=clamps,
         wall_time_s=time.perf_counter() - start,
         planning_time_s=planning,
@@ -97,6 +112,7 @@ def run_once(scenario: Scenario, run: int | None = None) -> RunRecord:
 def path_bound(scenario: Scenario, record: RunRecord, rng: np.random.Generator) -> np.ndarray:
     """PCRLB (Hernandez eq. 3, 8-9) along the flown platform paths: (K, 4, 4) bound J^-1.
 
+    Only the sensors that looked at an epoch (``record.measured``) contribute to its J_Z.
     Linear (NCV) target dynamics only; NaN for other motion models.
     """
     model = build_motion_model(scenario.target.motion)
@@ -113,8 +129,19 @@ def path_bound(scenario: Scenario, record: RunRecord, rng: np.random.Generator) 
     paths = record.platform_paths[1:, columns, :]  # (K, S, 4)
     F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
     X0 = gaussian_samples(np.array(prior.mean), C0, BOUND_SAMPLES, rng)
-    J = pcrlb_trajectory(np.linalg.inv(C0), F, Q, X0, sensors, paths, rng)
-    return covariance_bound(J)
+    if record.measured is None or record.measured.all():
+        J = pcrlb_trajectory(np.linalg.inv(C0), F, Q, X0, sensors, paths, rng)
+        return covariance_bound(J)
+    samples = propagate_samples(X0, F, Q, K, rng)
+    J = np.linalg.inv(C0)
+    out = []
+    for k in range(K):
+        J_Z = np.zeros((4, 4))
+        for j in np.flatnonzero(record.measured[k]):
+            J_Z = J_Z + measurement_information(sensors[j], paths[k, j], samples[k])
+        J = pcrlb_step(J, F, Q, J_Z)
+        out.append(J)
+    return covariance_bound(np.stack(out))
 
 
 @dataclass

@@ -27,7 +27,12 @@ class PlatformSnapshot:
 
 @dataclass(frozen=True)
 class Command:
-    """A manoeuvre decided at epoch ``epoch`` for the leg from t_epoch to t_epoch+1."""
+    """A manoeuvre decided at epoch ``epoch`` for the leg from t_epoch to t_epoch+1.
+
+    take_measurement: None, the platform's sensors always measure; True/False, they measure at
+    epoch+1 or not (stop-and-measure platforms). waypoint: (x, y) the platform is heading for,
+    for display only (the heading and speed changes are what the simulator flies).
+    """
 
     platform_id: str
     epoch: int
@@ -35,6 +40,8 @@ class Command:
     speed_change: float
     commanded_heading: float = math.nan
     commanded_speed: float = math.nan
+    take_measurement: bool | None = None
+    waypoint: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)

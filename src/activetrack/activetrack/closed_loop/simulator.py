@@ -68,6 +68,7 @@ class Simulator:
                 self.sensors[s.id] = (p.id, build_sensor(s))
         self.epoch = 0
         self.selected: tuple[str, ...] | None = None  # None: every sensor measures
+        self.measuring = {pid: True for pid in self.platforms}  # stop-and-measure gating
 
     @property
     def time(self) -> float:
@@ -110,6 +111,8 @@ class Simulator:
         for sensor_id, (platform_id, sensor) in self.sensors.items():
             if self.selected is not None and sensor_id not in self.selected:
                 continue
+            if not self.measuring[platform_id]:
+                continue
             s_pv = self.platforms[platform_id].pv
             detected = bool(sensor.detect(target_pv, s_pv, self.rng))
             z = sensor.sample(target_pv, s_pv, self.rng) if detected else None
@@ -150,8 +153,17 @@ class Simulator:
         p.pv = np.array(
             [p.pv[0], new_speed * math.cos(new_heading), p.pv[2], new_speed * math.sin(new_heading)]
         )
+        if cmd.take_measurement is not None:
+            self.measuring[cmd.platform_id] = bool(cmd.take_measurement)
         applied = Command(
-            cmd.platform_id, cmd.epoch, dpsi, new_speed - speed, new_heading, new_speed
+            cmd.platform_id,
+            cmd.epoch,
+            dpsi,
+            new_speed - speed,
+            new_heading,
+            new_speed,
+            cmd.take_measurement,
+            cmd.waypoint,
         )
         return ApplyResult(applied, bool(notes), "; ".join(notes))
 

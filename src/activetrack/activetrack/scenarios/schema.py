@@ -238,6 +238,17 @@ class SelectionConfig(_Strict):
     count: Annotated[int, Field(ge=1)] = 1
 
 
+class CautiousConfig(_Strict):
+    """Beta-cautious greedy localisation (Vander Hook et al., Algorithm 1)."""
+
+    beta: Annotated[float, Field(gt=0, lt=1)] = 0.1
+    c_d: Annotated[float, Field(gt=0, lt=1)] = 0.1  # reduce both standard deviations by c_d
+    t_m: NonNegFloat = 60.0  # s stopped for each measurement
+    r_min: NonNegFloat = 1.0  # m, smallest standoff
+    tail: Literal["two_sided", "one_sided"] = "two_sided"
+    max_measurements: Annotated[int, Field(ge=1)] | None = None
+
+
 class PlannerConfig(_Strict):
     enabled: bool = True
     cost: Literal["pcrlb", "mre"] = "pcrlb"
@@ -252,6 +263,7 @@ class PlannerConfig(_Strict):
     mc_samples: Annotated[int, Field(ge=1)] = 1000
     max_sensor_iterations: Annotated[int, Field(ge=1)] = 10
     selection: SelectionConfig = SelectionConfig()
+    cautious: CautiousConfig = CautiousConfig()
 
 
 # --- the whole scenario ------------------------------------------------------------------------
