@@ -101,5 +101,7 @@ else
 fi
 
 STEP="check"
-env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c 'import rclpy, activetrack, msgs_defs.msg, activetrack_bringup'
+# Also fills the bag-schema cache (.venv/share/activetrack), so the first recording is fast.
+env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c 'import rclpy, activetrack, msgs_defs.msg
+from activetrack_bringup.bag import graph_schemas; graph_schemas()'
 echo "setup: done ($VENV)"

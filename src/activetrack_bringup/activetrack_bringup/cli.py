@@ -51,9 +51,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
             processes=args.processes,
             run_dir=args.out,
             record=not args.no_bag,
+            plots=not args.no_plots,
             timeout=args.timeout,
         )
-    except ScenarioError as exc:
+    except (ScenarioError, FileExistsError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     _print_summary(result.summary)
@@ -180,6 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--run", type=int, default=None, help="Monte Carlo run index (seeding)")
     run.add_argument("--out", help="run folder (default runs/<scenario>-<timestamp>)")
     run.add_argument("--no-bag", action="store_true", help="do not record the bag")
+    run.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
     run.add_argument("--timeout", type=float, default=600.0, help="wall seconds (default 600)")
     run.add_argument("--json", help="also write the summary to this JSON file")
     run.set_defaults(func=_cmd_run)

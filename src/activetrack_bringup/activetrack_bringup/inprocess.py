@@ -44,6 +44,22 @@ class InProcessGraph:
             self.executor.spin_once(timeout_sec=step)
         return True
 
+    def spin_until_quiet(
+        self, progress: Callable[[], int], quiet: float = 0.02, timeout: float = 1.0
+    ) -> bool:
+        """Spin until ``progress()`` (e.g. a message count) has not changed for ``quiet``
+        seconds, or ``timeout`` seconds pass."""
+        deadline = time.monotonic() + timeout
+        last, since = progress(), time.monotonic()
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=quiet / 4)
+            now = progress()
+            if now != last:
+                last, since = now, time.monotonic()
+            elif time.monotonic() - since >= quiet:
+                return True
+        return False
+
     def close(self) -> None:
         for node in self.nodes:
             self.executor.remove_node(node)

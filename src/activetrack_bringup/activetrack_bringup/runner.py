@@ -24,7 +24,6 @@ from rclpy.parameter import Parameter
 
 from activetrack import topics
 from activetrack.closed_loop.batch import RunRecord, summarize
-from activetrack.plots import plot_run
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.bag import BagRecorder, _qos_for
 from activetrack_bringup.inprocess import InProcessGraph
@@ -215,6 +214,8 @@ def run_graph(
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name)
     run_dir.mkdir(parents=True, exist_ok=True)
     bag_path = run_dir / "bag" if record else None
+    if bag_path is not None and bag_path.exists():
+        raise FileExistsError(f"{bag_path} exists already: choose another run folder (--out)")
     start = time.monotonic()
     children = []
     if processes:
@@ -223,8 +224,11 @@ def run_graph(
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     with InProcessGraph() as graph:
         ctx = graph.context
-        evaluator = graph.add(EvaluatorNode(scenario, context=ctx))
-        recorder = graph.add(BagRecorder(bag_path, context=ctx)) if record else None
+        # No parameter services on the helper nodes: nobody calls them in one process, and they
+        # cost imports at start and entities in every executor wait.
+        quiet = {"context": ctx, "start_parameter_services": False}
+        evaluator = graph.add(EvaluatorNode(scenario, **quiet))
+        recorder = graph.add(BagRecorder(bag_path, **quiet)) if record else None
         params = _node_params(scenario_path, run, mode)
         nodes = {}
         if processes:
@@ -259,7 +263,8 @@ def run_graph(
                     f"scenario {scenario.name} did not complete within {timeout} s: "
                     f"{evaluator.missing()}"
                 )
-            graph.spin_until(lambda: False, timeout=0.1)  # let the last messages be recorded
+            if recorder is not None:  # let the last messages (diagnostics, markers) be recorded
+                graph.spin_until_quiet(lambda: recorder.count)
         finally:
             for child in children:
                 child.terminate()
@@ -284,6 +289,8 @@ def run_graph(
         diagnostics=diagnostics,
     )
     if plots:
+        from activetrack.plots import plot_run  # matplotlib: 0.7 s of imports, only for plots
+
         result.files = plot_run(summary, run_dir)
     (run_dir / "summary.json").write_text(json.dumps(result.to_json(), indent=2))
     return result

@@ -11,6 +11,7 @@ sensors, out-of-order or future epochs and stamps, a covariance that is not posi
 are rejected, counted and logged; the node keeps running.
 """
 
+import array
 import math
 
 import numpy as np
@@ -235,7 +236,10 @@ class TrackerNode(Node):
                 nis=float(snap.nis),
                 ess=float(snap.ess),
                 particle_count=snap.particle_count,
-                particle_samples=[] if samples is None else [float(v) for v in samples.ravel()],
+                # array('d') from the raw buffer: a 10,000 x 4 list would cost ~25 ms per epoch.
+                particle_samples=array.array("d")
+                if samples is None
+                else array.array("d", np.ascontiguousarray(samples, dtype=float).tobytes()),
                 sample_count=0 if samples is None else len(samples),
             )
         )
