@@ -118,17 +118,21 @@ def test_criteria_change_the_selection_in_closed_loop():
     assert counts["heading"]["s2"] > counts["det_pos"]["s2"] + 5
 
 
-def test_experiment_loop_is_the_batch_loop():
+def test_measured_and_detected_rows_follow_the_selection_and_the_misses():
     for case in ("case3_pd", "case2"):
         scenario = variant(load_case(case), "random", steps=12)
-        a, b = run_traced(scenario, 3), run_once(scenario, 3)
-        np.testing.assert_array_equal(a.truth, b.truth)
-        np.testing.assert_array_equal(a.estimate, b.estimate)
-        np.testing.assert_array_equal(a.cov, b.estimate_cov)
-        np.testing.assert_array_equal(a.paths, b.platform_paths)
-        sel = [d.selected_sensor_ids for d in b.decisions]
-        got = [tuple(np.array(a.sensor_ids)[row]) for row in a.measured]
-        assert got == sel
+        r = run_once(scenario, 3)
+        a = run_traced(scenario, 3)
+        sensor_ids = np.array(a.sensor_ids)
+        # Only the sensor selected at decision k-1 measured at epoch k.
+        sel = [d.selected_sensor_ids for d in r.decisions]
+        assert [tuple(sensor_ids[row]) for row in r.measured] == sel
+        assert not (r.detected & ~r.measured).any()
+        # Every measured-but-not-detected entry is a miss the tracker counted.
+        assert r.missed_detections == int((r.measured & ~r.detected).sum())
+        if case == "case2":  # pd = 1
+            np.testing.assert_array_equal(r.detected, r.measured)
+        np.testing.assert_array_equal(a.cov, r.estimate_cov)
 
 
 def test_random_selection_draws_only_from_the_planner_generator():

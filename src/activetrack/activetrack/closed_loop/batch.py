@@ -48,6 +48,8 @@ class RunRecord:
     # (K, S) which sensors looked at epochs 1..K (selection and stop-and-measure gating);
     # None: all of them, every epoch.
     measured: np.ndarray | None = None
+    detected: np.ndarray | None = None  # (K, S) and saw the target (batch only)
+    missed_detections: int = 0  # the tracker's count at the end of the run
     clamps: int = 0
     wall_time_s: float = 0.0
     planning_time_s: float = 0.0
@@ -76,12 +78,14 @@ def run_once(scenario: Scenario, run: int | None = None) -> RunRecord:
 
     record(track)
     sensor_ids = list(sim.sensors)
-    measured = []
+    measured, detected = [], []
     for k in range(scenario.steps + 1):
         if k > 0:
             measurements = sim.advance()
             looked = {m.sensor_id for m in measurements}
+            seen = {m.sensor_id for m in measurements if m.z is not None}
             measured.append([sid in looked for sid in sensor_ids])
+            detected.append([sid in seen for sid in sensor_ids])
             track = tracker.step(k, sim.time, measurements)
             record(track)
         if k < scenario.steps:
@@ -101,7 +105,9 @@ def run_once(scenario: Scenario, run: int | None = None) -> RunRecord:
         platform_paths=np.array(paths),
         platform_ids=ids,
         decisions=decisions,
-        measured=np.array(measured, dtype=bool),
+        measured=np.array(measured, dtype=bool).reshape(-1, len(sensor_ids)),
+        detected=np.array(detected, dtype=bool).reshape(-1, len(sensor_ids)),
+        missed_detections=track.missed_detections,
         clamps=clamps,
         wall_time_s=time.perf_counter() - start,
         planning_time_s=planning,

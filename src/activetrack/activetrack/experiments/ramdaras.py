@@ -34,10 +34,7 @@ import numpy as np
 
 from activetrack.bounds.costs import position_determinant
 from activetrack.bounds.mre import mre_update
-from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.planner import PlannerCore
-from activetrack.closed_loop.simulator import Simulator
-from activetrack.closed_loop.tracker import TrackerCore
+from activetrack.closed_loop.batch import run_once
 from activetrack.planning.selection import expected_update
 from activetrack.scenarios import build_motion_model, load_scenario
 from activetrack.scenarios.build import build_sensor
@@ -143,59 +140,25 @@ class RunTrace:
 
 
 def run_traced(scenario: Scenario, run: int | None = None) -> RunTrace:
-    """One closed-loop run: the same components, generators and order as
-    :func:`activetrack.closed_loop.batch.run_once`, also recording which sensors measured,
-    the detections and the planner's MRE covariance."""
-    sim_rng, trk_rng, plan_rng, _ = component_rngs(scenario.seed, run)
-    start = time.perf_counter()
-    sim = Simulator(scenario, sim_rng)
-    tracker = TrackerCore(scenario, trk_rng)
-    planner = PlannerCore(scenario, plan_rng)
-    ids = tuple(sim.platforms)
-    sensor_ids = tuple(sim.sensors)
-    K = scenario.steps
-    track = tracker.snapshot()
-    truth, est, cov, paths = [], [], [], []
-    measured = np.zeros((K, len(sensor_ids)), dtype=bool)
-    detected = np.zeros_like(measured)
-    planner_cov = np.full((K, 4, 4), np.nan)
-
-    def record(track):
-        truth.append(sim.truth_pv())
-        est.append(track.mean)
-        cov.append(track.cov)
-        paths.append(np.stack([sim.platforms[i].pv for i in ids]))
-
-    record(track)
-    for k in range(K + 1):
-        if k > 0:
-            ms = sim.advance()
-            for m in ms:
-                j = sensor_ids.index(m.sensor_id)
-                measured[k - 1, j] = True
-                detected[k - 1, j] = m.z is not None
-            track = tracker.step(k, sim.time, ms)
-            record(track)
-        if k < K:
-            decision = planner.decide(k, track, sim.platform_snapshots())
-            if "mre_updated_cov" in decision.extra:
-                planner_cov[k] = decision.extra["mre_updated_cov"]
-            for cmd in decision.commands:
-                sim.apply_command(cmd)
-            if decision.selected_sensor_ids is not None:
-                sim.apply_selection(decision.selected_sensor_ids)
+    """One closed-loop run (:func:`activetrack.closed_loop.batch.run_once`) with the
+    planner's MRE covariance of each decision."""
+    r = run_once(scenario, run)
+    planner_cov = np.full((scenario.steps, 4, 4), np.nan)
+    for k, decision in enumerate(r.decisions):
+        if "mre_updated_cov" in decision.extra:
+            planner_cov[k] = decision.extra["mre_updated_cov"]
     return RunTrace(
-        truth=np.array(truth),
-        estimate=np.array(est),
-        cov=np.array(cov),
-        paths=np.array(paths),
-        platform_ids=ids,
-        sensor_ids=sensor_ids,
-        measured=measured,
-        detected=detected,
+        truth=r.truth,
+        estimate=r.estimate,
+        cov=r.estimate_cov,
+        paths=r.platform_paths,
+        platform_ids=r.platform_ids,
+        sensor_ids=tuple(s.id for p in scenario.platforms for s in p.sensors),
+        measured=r.measured,
+        detected=r.detected,
         planner_cov=planner_cov,
-        tracker_missed=track.missed_detections,
-        wall_time_s=time.perf_counter() - start,
+        tracker_missed=r.missed_detections,
+        wall_time_s=r.wall_time_s,
     )
 
 
