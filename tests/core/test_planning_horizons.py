@@ -21,6 +21,7 @@ from activetrack.planning import (
     speed_interval,
     unit_to_manoeuvre,
 )
+from activetrack.planning.costs import rmse_bound_of_information
 
 DT = 5.0
 MODEL = NearlyConstantVelocity(q=1e-8)
@@ -260,3 +261,14 @@ def test_other_criteria_plan_and_are_consistent_with_their_definition(criterion)
     b = belief(200)
     res = plan(platforms(), b, PlanSettings(criterion=criterion), F=F, Q=Q, dt=DT)
     assert res.report.objective == pytest.approx(res.report.predicted[criterion], rel=1e-10)
+
+
+def test_rmse_bound_of_information_equals_eq10_on_the_inverse():
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(6, 5, 4, 4))
+    J = A @ np.swapaxes(A, -1, -2) + 1e-3 * np.eye(4)
+    np.testing.assert_allclose(
+        rmse_bound_of_information(J), rmse_bound(covariance_bound(J)), rtol=1e-10
+    )
+    with pytest.raises(ValueError, match="J must be symmetric positive definite"):
+        rmse_bound_of_information(np.zeros((4, 4)))

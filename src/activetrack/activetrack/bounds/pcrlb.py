@@ -171,26 +171,34 @@ def _bearing_information(sensor, s: np.ndarray, X: np.ndarray, K: np.ndarray | N
     """
     dx = X[:, 0] - s[..., 0, None]  # (..., M)
     dy = X[:, 2] - s[..., 2, None]
-    r2 = dx * dx + dy * dy
+    r2 = dx * dx
+    r2 += dy * dy
     r_min = float(getattr(sensor, "r_min", 0.0))
     r_max = float(getattr(sensor, "r_max", np.inf))
-    if r_min > 0.0 or r_max < np.inf:
-        # I_r (eq. 8, contract in_range: r_min <= r <= r_max); r^2 = inf gives weight 0.
-        detect = (r2 >= r_min * r_min) & (r2 <= r_max * r_max)
-        if not detect.all():
-            r2 = np.where(detect, r2, np.inf)
-    if not r2.all():
+    # Reductions decide whether any sample falls outside the detection ranges (eq. 8's I_r,
+    # contract in_range: r_min <= r <= r_max) or sits on a sensor; the mask only if one does.
+    lo = float(r2.min(initial=np.inf))
+    hi = float(r2.max(initial=0.0)) if r_max < np.inf else 0.0
+    if lo == 0.0:
         raise ValueError("sensor_states: a target sample coincides with a sensor (zero range)")
+    if lo < r_min * r_min or hi > r_max * r_max:
+        detect = (r2 >= r_min * r_min) & (r2 <= r_max * r_max)
+        r2 = np.where(detect, r2, np.inf)  # r^2 = inf gives weight 0
     sigma2 = float(np.asarray(sensor.R, dtype=float).reshape(-1)[0])
     scale = float(getattr(sensor, "pd", 1.0)) / (sigma2 * X.shape[0])  # pd and the MC mean
-    w = 1.0 / (r2 * r2)
     if K is None:
-        wdx, wdy = w * dx, w * dy
-        out = np.zeros((*dx.shape[:-1], 4, 4))
-        out[..., 0, 0] = scale * _dot(wdy, dy)
-        out[..., 2, 2] = scale * _dot(wdx, dx)
-        out[..., 0, 2] = out[..., 2, 0] = -scale * _dot(wdx, dy)
+        # With a = dx / r^2 and b = dy / r^2: H^T H = (b^2, -a b, a^2) in the (x, y) block.
+        inv = np.reciprocal(r2, out=r2)
+        a = dx
+        a *= inv
+        b = dy
+        b *= inv
+        out = np.zeros((*a.shape[:-1], 4, 4))
+        out[..., 0, 0] = scale * _dot(b, b)
+        out[..., 2, 2] = scale * _dot(a, a)
+        out[..., 0, 2] = out[..., 2, 0] = -scale * _dot(a, b)
         return out
+    w = 1.0 / (r2 * r2)
     # Chain rule to a model state: H_state = H_pv @ dpv/dx (contract state_jacobian).
     g = dx[..., None] * K[:, 2, :] - dy[..., None] * K[:, 0, :]  # (..., M, n)
     return scale * np.einsum("...mi,...mj,...m->...ij", g, g, w)
@@ -283,11 +291,20 @@ def pcrlb_step(J_prev: np.ndarray, F: np.ndarray, Q: np.ndarray, J_Z: np.ndarray
         raise ValueError("Q must be symmetric positive semi-definite")
     if not np.isfinite(J_Z).all():
         raise ValueError("J_Z must be finite")
+    return predicted_information(J_prev, F, Q) + J_Z
+
+
+def predicted_information(J_prev: np.ndarray, F: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """The prediction part of eq. 3, (Q + F J_k^{-1} F^T)^{-1}, for ``J_prev`` ``(..., n, n)``.
+
+    F and Q ``(n, n)`` are taken as valid (the planner checks them once per decision, through
+    :func:`pcrlb_step`); J_prev is still checked to be SPD.
+    """
     L = _cholesky("J_prev", J_prev)
     Xt = _lower_solve(L, F.T)  # (..., n, n) = L^{-1} F^T
     C = Q + np.swapaxes(Xt, -1, -2) @ Xt  # predicted-state bound Q + F J^{-1} F^T
-    # C and its inverse L^{-T} L^{-1} are symmetric by construction; so is J_Z.
-    return _spd_inverse("Q + F J_prev^-1 F^T", C, check_symmetry=False) + J_Z
+    # C and its inverse L^{-T} L^{-1} are symmetric by construction.
+    return _spd_inverse("Q + F J_prev^-1 F^T", C, check_symmetry=False)
 
 
 def propagate_samples(

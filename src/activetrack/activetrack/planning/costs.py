@@ -19,7 +19,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from activetrack.bounds.costs import position_determinant, rmse_bound, trace_cost
-from activetrack.bounds.pcrlb import covariance_bound, measurement_information, pcrlb_step
+from activetrack.bounds.pcrlb import (
+    covariance_bound,
+    measurement_information,
+    pcrlb_step,
+    predicted_information,
+)
 
 __all__ = ["CRITERIA", "HorizonModel", "criterion_cost", "platform_information"]
 
@@ -65,6 +70,8 @@ class HorizonModel:
         self.sensors = tuple(sensors)
         self.criterion = criterion
         self.evaluations = 0
+        n = self.F.shape[0]
+        pcrlb_step(np.eye(n), self.F, self.Q, np.zeros((n, n)))  # validates F and Q once
 
     @property
     def horizon(self) -> int:
@@ -77,9 +84,26 @@ class HorizonModel:
         J_Z = self.fixed[r] + platform_information(self.sensors, pv, self.samples[r])
         self.evaluations += int(np.prod(pv.shape[:-1], dtype=int))
         # The prediction depends on J_prev only: compute it once per distinct J_prev.
-        J_prev = np.asarray(J_prev, dtype=float)
-        return pcrlb_step(J_prev, self.F, self.Q, np.zeros_like(J_prev)) + J_Z
+        return predicted_information(np.asarray(J_prev, dtype=float), self.F, self.Q) + J_Z
 
     def cost(self, J: np.ndarray) -> np.ndarray:
         """The criterion of J^{-1}, ``(..., 4, 4) -> (...)``."""
+        if self.criterion == "b_k":
+            return rmse_bound_of_information(J)
         return CRITERIA[self.criterion](covariance_bound(J))
+
+
+_POSITION_COLUMNS = np.eye(4)[:, [0, 2]]
+
+
+def rmse_bound_of_information(J: np.ndarray) -> np.ndarray:
+    """Hernandez eq. 10 straight from information matrices ``(..., 4, 4) -> (...)``: the two
+    position variances of J^{-1} from one solve J V = [e_x, e_y], no full inverse."""
+    try:
+        V = np.linalg.solve(J, _POSITION_COLUMNS)  # (..., 4, 2) = columns x, y of J^{-1}
+    except np.linalg.LinAlgError:
+        raise ValueError("J must be symmetric positive definite (it is singular)") from None
+    var = np.maximum(V[..., 0, 0], V[..., 2, 1])
+    if not np.all(var > 0.0):
+        raise ValueError("J must be symmetric positive definite (non-positive variance)")
+    return np.sqrt(var)

@@ -1,0 +1,49 @@
+"""Keep numpy's mid-sized temporaries on the heap (glibc malloc tuning, process-wide).
+
+The planner and the particle filter create many short-lived arrays of 0.1-10 MB (1,000
+samples x tens of candidates, 10,000 particles x 4). glibc serves those with mmap and, once
+freed, returns them to the kernel, so every new array page-faults its pages back in: measured
+here, ``dx * dx + dy * dy`` on 45 x 1,000 arrays took 0.5 ms instead of 0.05 ms, and a two-step
+3-sensor planning run spent 40 % of its time in the kernel. Raising the mmap and trim
+thresholds makes freed blocks reusable. Results do not change, only speed.
+
+Applied once when ``activetrack`` is imported, on glibc only; skipped when the user set any
+``MALLOC_*`` variable (theirs wins) or ``ACTIVETRACK_MALLOC_TUNING=0``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+import sys
+
+M_TRIM_THRESHOLD = -1  # glibc <malloc.h>
+M_MMAP_THRESHOLD = -3
+MMAP_THRESHOLD = 32 * 1024 * 1024  # bytes: blocks below this come from the heap
+TRIM_THRESHOLD = 128 * 1024 * 1024  # bytes of free heap top kept before giving it back
+
+_applied: bool | None = None
+
+
+def tune_allocator() -> bool:
+    """Set glibc's mmap and trim thresholds; True if applied (idempotent)."""
+    global _applied
+    if _applied is not None:
+        return _applied
+    _applied = False
+    if not sys.platform.startswith("linux") or os.environ.get("ACTIVETRACK_MALLOC_TUNING") == "0":
+        return False
+    if any(k.startswith("MALLOC_") for k in os.environ):
+        return False
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):  # not glibc (e.g. musl): nothing to tune
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    mallopt.restype = ctypes.c_int
+    _applied = bool(mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and bool(
+        mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD)
+    )
+    return _applied
