@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import yaml
 from rclpy.node import Node
+from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -121,6 +122,20 @@ def test_plain_rosbags_reads_every_custom_type(graph_run):
         "msgs_defs/msg/PlatformState",
         "msgs_defs/msg/TrackEstimate",
     }
+
+
+def test_bag_is_self_describing(graph_run):
+    # No typestore at all: every type comes from the definitions embedded in the bag.
+    rclpy_tracks = read_topic(graph_run.bag, topics.TRACK, TrackEstimate)
+    counts = {}
+    with AnyReader([graph_run.bag], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        for conn, _, data in reader.messages():
+            msg = reader.deserialize(data, conn.msgtype)
+            counts[conn.msgtype] = counts.get(conn.msgtype, 0) + 1
+            if conn.topic == topics.TRACK:
+                np.testing.assert_array_equal(msg.covariance, rclpy_tracks[msg.epoch].covariance)
+    assert counts["msgs_defs/msg/TrackEstimate"] == len(rclpy_tracks)
+    assert len(counts) >= 10
 
 
 def test_replay_into_fresh_tracker_reproduces_the_track(graph_run):
