@@ -162,6 +162,16 @@ def run_traced(scenario: Scenario, run: int | None = None) -> RunTrace:
     )
 
 
+def _recursion_inputs(scenario: Scenario, trace: RunTrace):
+    """F, Q, ``{sensor id: (platform id, sensor)}``, platform column of ``trace.paths`` and
+    P_{0|0}: what a covariance recursion along a run starts from."""
+    model = build_motion_model(scenario.target.motion)
+    F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
+    sensors = {s.id: (p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors}
+    column = {pid: j for j, pid in enumerate(trace.platform_ids)}
+    return F, Q, sensors, column, scenario.target.prior.covariance()
+
+
 def mre_path_bound(scenario: Scenario, trace: RunTrace) -> np.ndarray:
     """The MRE recursion (eq. 23) along a run: the expected P_{k|k} ``(K, 4, 4)`` from the
     prior, with the sensors that measured at each epoch at their flown positions and H
@@ -172,11 +182,7 @@ def mre_path_bound(scenario: Scenario, trace: RunTrace) -> np.ndarray:
     P -> (P^-1 + H^T R^-1 H)^-1 is concave and monotone, so by Jensen E[P_{k|k}] <= P^MRE_{k|k}
     (equality when pd = 1).
     """
-    model = build_motion_model(scenario.target.motion)
-    F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
-    sensors = {s.id: (p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors}
-    column = {pid: j for j, pid in enumerate(trace.platform_ids)}
-    P = scenario.target.prior.covariance()
+    F, Q, sensors, column, P = _recursion_inputs(scenario, trace)
     out = []
     for k in range(1, scenario.steps + 1):
         P = F @ P @ F.T + Q
@@ -415,11 +421,7 @@ def bound_check(
 def detection_average_realized(scenario: Scenario, trace: RunTrace) -> np.ndarray:
     """The Riccati recursion of a run's own detections with H at the truth ``(K, 4, 4)``:
     what the EKF's P_{k|k} is up to its linearisation at the estimate."""
-    model = build_motion_model(scenario.target.motion)
-    F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
-    sensors = {s.id: (p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors}
-    column = {pid: j for j, pid in enumerate(trace.platform_ids)}
-    P = scenario.target.prior.covariance()
+    F, Q, sensors, column, P = _recursion_inputs(scenario, trace)
     out = []
     for k in range(1, scenario.steps + 1):
         P = F @ P @ F.T + Q
