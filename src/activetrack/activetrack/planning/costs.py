@@ -80,11 +80,20 @@ class HorizonModel:
     def step(self, J_prev: np.ndarray, r: int, pv: np.ndarray) -> np.ndarray:
         """J at epoch k+1+r with the platform at ``pv`` ``(..., 4)``; J_prev broadcasts
         ``(..., 4, 4)``. Hernandez eq. 3."""
+        return self.update(self.predict(J_prev), r, pv)
+
+    def predict(self, J_prev: np.ndarray) -> np.ndarray:
+        """The prediction part of eq. 3, (Q + F J_prev^{-1} F^T)^{-1}: it depends on J_prev
+        only, so a search computes it once per J_prev and scores all candidates against it."""
+        return predicted_information(np.asarray(J_prev, dtype=float), self.F, self.Q)
+
+    def update(self, J_pred: np.ndarray, r: int, pv: np.ndarray) -> np.ndarray:
+        """``J_pred`` (from :meth:`predict`) plus J_Z at epoch k+1+r with the platform at
+        ``pv`` ``(..., 4)`` and the others' fixed information."""
         pv = np.asarray(pv, dtype=float)
         J_Z = self.fixed[r] + platform_information(self.sensors, pv, self.samples[r])
         self.evaluations += int(np.prod(pv.shape[:-1], dtype=int))
-        # The prediction depends on J_prev only: compute it once per distinct J_prev.
-        return predicted_information(np.asarray(J_prev, dtype=float), self.F, self.Q) + J_Z
+        return J_pred + J_Z
 
     def cost(self, J: np.ndarray) -> np.ndarray:
         """The criterion of J^{-1}, ``(..., 4, 4) -> (...)``."""

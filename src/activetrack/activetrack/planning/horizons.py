@@ -91,11 +91,12 @@ def _dynamic_programme(model, level, J_prev, pv, heading, speed, limits, dt, sea
     Returns the plans ``(B, R - level, 2)`` and the values ``(B,)`` (eq. 13-15 nested).
     """
     R = model.horizon
+    J_pred = model.predict(J_prev)  # (B, 4, 4): the same for every stage of the search
 
     def cost_fn(rows, u):
         man = unit_to_manoeuvre(u, speed[rows, None], limits)  # (b, C, 2)
         pv1, h1 = step_platform(pv[rows, None, :], heading[rows, None], man, dt)
-        J1 = model.step(J_prev[rows, None], level, pv1)  # (b, C, 4, 4)
+        J1 = model.update(J_pred[rows, None], level, pv1)  # (b, C, 4, 4)
         costs = model.cost(J1)
         plan = man[:, :, None, :]
         if level + 1 < R:
