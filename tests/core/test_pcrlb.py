@@ -233,6 +233,28 @@ def test_batched_trajectory_equals_per_candidate_loop():
     assert np.trace(J[-1, 0, 0] - J_prior) > 0.2
 
 
+def test_trajectory_counts_only_the_active_sensors_of_each_epoch():
+    sensors = [BearingSensor(0.01), RangeBearingSensor(20.0, 0.02)]
+    K = 3
+    samples = propagate_samples(_samples(300), F, Q, K, np.random.default_rng(3))
+    paths = np.broadcast_to(
+        np.array([[1800.0, -40.0, 2000.0, -40.0], [1500.0, 0.0, 400.0, 10.0]]), (K, 2, 4)
+    )
+    J0 = np.linalg.inv(C0)
+    active = np.array([[True, True], [False, True], [False, False]])
+    J = pcrlb_trajectory(J0, F, Q, samples, sensors, paths, active=active)
+    np.testing.assert_array_equal(
+        pcrlb_trajectory(J0, F, Q, samples, sensors, paths, active=np.ones((K, 2), bool)),
+        pcrlb_trajectory(J0, F, Q, samples, sensors, paths),
+    )
+    J1 = pcrlb_step(J0, F, Q, measurement_information(sensors, paths[0], samples[0]))
+    J2 = pcrlb_step(J1, F, Q, measurement_information(sensors[1], paths[1, 1], samples[1]))
+    J3 = pcrlb_step(J2, F, Q, np.zeros((4, 4)))  # nobody looked: prediction only
+    np.testing.assert_allclose(J, np.stack([J1, J2, J3]), rtol=1e-12)
+    with pytest.raises(ValueError, match="active must be"):
+        pcrlb_trajectory(J0, F, Q, samples, sensors, paths, active=active[:2])
+
+
 def test_trajectory_with_rng_propagates_prior_like_propagate_samples():
     sensor = BearingSensor(0.01)
     paths = np.tile([1800.0, -40.0, 2000.0, -40.0], (3, 1))

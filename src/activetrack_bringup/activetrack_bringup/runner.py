@@ -224,8 +224,8 @@ def run_graph(
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     with InProcessGraph() as graph:
         ctx = graph.context
-        # No parameter services on the helper nodes: nobody calls them in one process, and they
-        # cost imports at start and entities in every executor wait.
+        # No parameter services in one process: nobody can call them, and they cost imports at
+        # start and entities in every executor wait.
         quiet = {"context": ctx, "start_parameter_services": False}
         evaluator = graph.add(EvaluatorNode(scenario, **quiet))
         recorder = graph.add(BagRecorder(bag_path, **quiet)) if record else None
@@ -236,13 +236,9 @@ def run_graph(
         else:
 
             def options(p):
-                # No parameter services in one process: nobody can call them, and every
-                # service adds to each executor wait.
-                overrides = [Parameter(k, value=v) for k, v in p.items()]
                 return {
-                    "context": ctx,
-                    "parameter_overrides": overrides,
-                    "start_parameter_services": False,
+                    **quiet,
+                    "parameter_overrides": [Parameter(k, value=v) for k, v in p.items()],
                 }
 
             nodes["tracker"] = graph.add(TrackerNode(**options(params)))

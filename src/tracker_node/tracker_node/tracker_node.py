@@ -180,9 +180,7 @@ class TrackerNode(Node):
         quiet.add(msg.platform_id)
         if quiet != self.platform_ids:
             return
-        for e in sorted(e for e in self.buffer if e < k):
-            self.counters.count("incomplete_epochs")
-            self.process(e)
+        self.flush_before(k)
         self.buffer[k] = []
         self.counters.count("epochs_without_measurements")
         self.process(k)
@@ -195,13 +193,16 @@ class TrackerNode(Node):
             return self._reject("duplicate", f"second measurement of {msg.sensor_id!r} at {k}")
         self.buffer.setdefault(k, []).append(measurement)
         self.expected[k] = msg.epoch_measurement_count
-        # Earlier incomplete epochs are flushed when a later one starts (free mode only).
-        for e in sorted(e for e in self.buffer if e < k):
-            self.counters.count("incomplete_epochs")
-            self.process(e)
+        self.flush_before(k)
         count = self.expected[k]
         if count == 0 or len(self.buffer[k]) >= count:
             self.process(k)
+
+    def flush_before(self, k: int) -> None:
+        """Earlier incomplete epochs are processed when a later one starts (free mode only)."""
+        for e in sorted(e for e in self.buffer if e < k):
+            self.counters.count("incomplete_epochs")
+            self.process(e)
 
     def process(self, epoch: int) -> None:
         measurements = sorted(self.buffer.pop(epoch), key=lambda m: self.sensor_order[m.sensor_id])

@@ -279,19 +279,24 @@ def pcrlb_step(J_prev: np.ndarray, F: np.ndarray, Q: np.ndarray, J_Z: np.ndarray
     with L L^T = J_k and X = L^{-1} F^T, F J_k^{-1} F^T = X^T X.
     """
     J_prev = np.asarray(J_prev, dtype=float)
+    F, Q = check_dynamics(F, Q, J_prev.shape[-1])
+    J_Z = np.asarray(J_Z, dtype=float)
+    if not np.isfinite(J_Z).all():
+        raise ValueError("J_Z must be finite")
+    return predicted_information(J_prev, F, Q) + J_Z
+
+
+def check_dynamics(F: np.ndarray, Q: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """F and Q of eq. 2 as float arrays, checked: ``(n, n)``, finite, Q symmetric."""
     F = np.asarray(F, dtype=float)
     Q = np.asarray(Q, dtype=float)
-    J_Z = np.asarray(J_Z, dtype=float)
-    n = J_prev.shape[-1]
     if F.shape != (n, n) or Q.shape != (n, n):
         raise ValueError(f"F and Q must be ({n}, {n}); got F {F.shape}, Q {Q.shape}")
     if not (np.isfinite(F).all() and np.isfinite(Q).all()):
         raise ValueError("F and Q must be finite")
     if not (Q == Q.T).all() and np.max(np.abs(Q - Q.T)) > 1e-9 * np.max(np.abs(Q)):
         raise ValueError("Q must be symmetric positive semi-definite")
-    if not np.isfinite(J_Z).all():
-        raise ValueError("J_Z must be finite")
-    return predicted_information(J_prev, F, Q) + J_Z
+    return F, Q
 
 
 def predicted_information(J_prev: np.ndarray, F: np.ndarray, Q: np.ndarray) -> np.ndarray:
@@ -347,6 +352,7 @@ def pcrlb_trajectory(
     rng: np.random.Generator | None = None,
     *,
     method: str = "auto",
+    active: np.ndarray | None = None,
 ) -> np.ndarray:
     """Fisher information J_k, k = 1..K, along sensor paths (Hernandez eq. 3-4 and 8-9).
 
@@ -359,6 +365,8 @@ def pcrlb_trajectory(
         sensors: one sensor or a sequence of S sensors.
         sensor_paths: sensor pv states at epochs 1..K, ``(K, ..., S, 4)``
             (``(K, ..., 4)`` for a single sensor); ``...`` are candidate paths.
+        active: optional ``(K, S)`` bool, the sensors that measure at each epoch (sensor
+            selection, stop-and-measure); the others add no information there. None: all.
 
     Returns:
         J ``(K, ..., 4, 4)``; the bound on the error covariance is ``covariance_bound(J)``.
@@ -383,8 +391,24 @@ def pcrlb_trajectory(
         samples = propagate_samples(_check_samples(X), F, Q, n_steps, rng)
     J = J0
     out = []
+    if active is not None:
+        if not isinstance(sensors, (list, tuple)):
+            raise ValueError("active needs sensors as a sequence of S sensors")
+        active = np.asarray(active, dtype=bool)
+        if active.shape != (n_steps, len(sensors)):
+            raise ValueError(
+                f"active must be (K, S) = ({n_steps}, {len(sensors)}), got {active.shape}"
+            )
     for k in range(n_steps):
-        J_Z = measurement_information(sensors, paths[k], samples[k], method=method)
+        if active is None or active[k].all():
+            J_Z = measurement_information(sensors, paths[k], samples[k], method=method)
+        elif active[k].any():
+            idx = np.flatnonzero(active[k])
+            J_Z = measurement_information(
+                [sensors[j] for j in idx], paths[k][..., idx, :], samples[k], method=method
+            )
+        else:
+            J_Z = np.zeros_like(J)
         J = pcrlb_step(J, F, Q, J_Z)
         out.append(J)
     return np.stack(out)

@@ -11,14 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from activetrack.bounds.pcrlb import (
-    covariance_bound,
-    gaussian_samples,
-    measurement_information,
-    pcrlb_step,
-    pcrlb_trajectory,
-    propagate_samples,
-)
+from activetrack.bounds.pcrlb import covariance_bound, gaussian_samples, pcrlb_trajectory
 from activetrack.closed_loop.planner import PlannerCore
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
@@ -135,19 +128,8 @@ def path_bound(scenario: Scenario, record: RunRecord, rng: np.random.Generator) 
     paths = record.platform_paths[1:, columns, :]  # (K, S, 4)
     F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
     X0 = gaussian_samples(np.array(prior.mean), C0, BOUND_SAMPLES, rng)
-    if record.measured is None or record.measured.all():
-        J = pcrlb_trajectory(np.linalg.inv(C0), F, Q, X0, sensors, paths, rng)
-        return covariance_bound(J)
-    samples = propagate_samples(X0, F, Q, K, rng)
-    J = np.linalg.inv(C0)
-    out = []
-    for k in range(K):
-        J_Z = np.zeros((4, 4))
-        for j in np.flatnonzero(record.measured[k]):
-            J_Z = J_Z + measurement_information(sensors[j], paths[k, j], samples[k])
-        J = pcrlb_step(J, F, Q, J_Z)
-        out.append(J)
-    return covariance_bound(np.stack(out))
+    J = pcrlb_trajectory(np.linalg.inv(C0), F, Q, X0, sensors, paths, rng, active=record.measured)
+    return covariance_bound(J)
 
 
 @dataclass

@@ -176,10 +176,7 @@ class PlannerCore:
         result = plan(
             platforms, belief, self.settings, F=self.F, Q=self.Q, dt=self.dt, rng=self.rng
         )
-        commands = tuple(
-            Command(m.platform_id, epoch, m.heading_change, m.speed_change, m.heading, m.speed)
-            for m in result.manoeuvres
-        )
+        commands = _commands(result, epoch)
         r = result.report
         report = PlanReportData(
             epoch=epoch,
@@ -227,13 +224,8 @@ class PlannerCore:
                 platforms, belief, self.settings, F=self.F, Q=self.Q, dt=self.dt, rng=self.rng
             )
             evaluations += result.report.evaluations
-            for m in result.manoeuvres:
-                commands.append(
-                    Command(
-                        m.platform_id, epoch, m.heading_change, m.speed_change, m.heading, m.speed
-                    )
-                )
-                next_pv[m.platform_id] = m.next_pv
+            commands.extend(_commands(result, epoch))
+            next_pv.update((m.platform_id, m.next_pv) for m in result.manoeuvres)
         for p in self.scenario.platforms:
             snap = by_id[p.id]
             if p.id in next_pv:
@@ -329,3 +321,11 @@ class PlannerCore:
             wall_time_s=time.perf_counter() - start,
         )
         return Decision(epoch, tuple(commands), report=report, extra=extra, **decision_sel)
+
+
+def _commands(result, epoch: int) -> tuple[Command, ...]:
+    """The commands of a PCRLB plan's manoeuvres for the leg epoch -> epoch+1."""
+    return tuple(
+        Command(m.platform_id, epoch, m.heading_change, m.speed_change, m.heading, m.speed)
+        for m in result.manoeuvres
+    )

@@ -314,11 +314,8 @@ def detection_average(
     """E[P_{k|k}] over ``draws`` detection sequences for a run's truth and schedule
     ``(K, 4, 4)``: the Riccati recursion with H at the true states and each measuring sensor
     detecting with its pd, vectorised over the draws (mre_update with pd in {0, 1})."""
-    model = build_motion_model(scenario.target.motion)
-    F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
-    sensors = {s.id: (p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors}
-    column = {pid: j for j, pid in enumerate(trace.platform_ids)}
-    P = np.broadcast_to(scenario.target.prior.covariance(), (int(draws), 4, 4)).copy()
+    F, Q, sensors, column, P0 = _recursion_inputs(scenario, trace)
+    P = np.broadcast_to(P0, (int(draws), 4, 4)).copy()
     out = []
     for k in range(1, scenario.steps + 1):
         P = F @ P @ F.T + Q

@@ -20,9 +20,9 @@ import numpy as np
 
 from activetrack.bounds.costs import position_determinant, rmse_bound, trace_cost
 from activetrack.bounds.pcrlb import (
+    check_dynamics,
     covariance_bound,
     measurement_information,
-    pcrlb_step,
     predicted_information,
 )
 
@@ -39,6 +39,8 @@ def criterion_cost(criterion: str, J: np.ndarray) -> np.ndarray:
     """Criterion ``criterion`` of the bound J^{-1} for information matrices ``(..., 4, 4)``."""
     if criterion not in CRITERIA:
         raise ValueError(f"criterion must be one of {tuple(CRITERIA)}, got {criterion!r}")
+    if criterion == "b_k":  # two variances of J^{-1} are enough: one solve, no inverse
+        return rmse_bound_of_information(J)
     return CRITERIA[criterion](covariance_bound(J))
 
 
@@ -63,15 +65,12 @@ class HorizonModel:
     def __init__(self, F, Q, samples, fixed_information, sensors, criterion: str = "b_k"):
         if criterion not in CRITERIA:
             raise ValueError(f"criterion must be one of {tuple(CRITERIA)}, got {criterion!r}")
-        self.F = np.asarray(F, dtype=float)
-        self.Q = np.asarray(Q, dtype=float)
+        self.F, self.Q = check_dynamics(F, Q, 4)  # once: the steps below trust them
         self.samples = np.asarray(samples, dtype=float)
         self.fixed = np.asarray(fixed_information, dtype=float)
         self.sensors = tuple(sensors)
         self.criterion = criterion
         self.evaluations = 0
-        n = self.F.shape[0]
-        pcrlb_step(np.eye(n), self.F, self.Q, np.zeros((n, n)))  # validates F and Q once
 
     @property
     def horizon(self) -> int:
@@ -97,9 +96,7 @@ class HorizonModel:
 
     def cost(self, J: np.ndarray) -> np.ndarray:
         """The criterion of J^{-1}, ``(..., 4, 4) -> (...)``."""
-        if self.criterion == "b_k":
-            return rmse_bound_of_information(J)
-        return CRITERIA[self.criterion](covariance_bound(J))
+        return criterion_cost(self.criterion, J)
 
 
 _POSITION_COLUMNS = np.eye(4)[:, [0, 2]]

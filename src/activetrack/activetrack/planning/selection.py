@@ -39,8 +39,8 @@ from activetrack.bounds.costs import (
 )
 from activetrack.bounds.mre import mre_predict, mre_update
 from activetrack.checks import require_finite, require_spd
+from activetrack.planning.horizons import SearchSettings
 from activetrack.planning.manoeuvre import PlatformLimits, step_platform, unit_to_manoeuvre
-from activetrack.planning.searches import grid_search, quadrant_search, sector_search
 
 __all__ = [
     "MRE_CRITERIA",
@@ -269,11 +269,13 @@ def position_platform(
             P = mre_update(P, sensor.jacobian(x_pred, nxt), sensor.R, pd)
         return mre_criterion(criterion, F @ P @ F.T + Q, x_pred)
 
-    if search == "sector":
-        result = sector_search(cost_fn, 1, levels=levels)
-    elif search == "quadrant":
-        result = quadrant_search(cost_fn, 1, divisions=divisions, patience=patience)
-    else:
-        result = grid_search(cost_fn, 1, size=grid_size)
+    settings = SearchSettings(
+        search=search,
+        grid_size=grid_size,
+        quadrant_divisions=divisions,
+        quadrant_patience=patience,
+        sector_levels=levels,
+    )
+    result = settings.lockstep_search()(cost_fn, 1)
     m, nxt, psi = candidates(result.u[0])
     return PositioningResult(m, nxt, float(psi), float(result.cost[0]), result.evaluations)
