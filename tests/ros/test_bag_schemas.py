@@ -6,6 +6,7 @@ import json
 import pytest
 
 from activetrack_bringup import bag
+from activetrack_ros.graph import GRAPH_TOPICS
 
 pytestmark = pytest.mark.ros
 
@@ -21,7 +22,7 @@ def test_cache_equals_the_typestore(cache):
     store = bag.graph_typestore()
     schemas = bag.graph_schemas()
     assert cache.exists()
-    assert set(schemas) == set(bag.GRAPH_TOPICS.values())
+    assert set(schemas) == set(GRAPH_TOPICS.values())
     for msgtype, (msgdef, rihs01) in schemas.items():
         assert msgdef == store.generate_msgdef(msgtype, ros_version=2)[0]
         assert rihs01 == store.hash_rihs01(msgtype)

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from activetrack import topics
 from activetrack.closed_loop.batch import run_batch
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.retrack import read_topic
 from activetrack_bringup.runner import run_graph
+from activetrack_ros import graph as topics
 from msgs_defs.msg import BearingMeasurement, ManoeuvreCommand
 
 pytestmark = pytest.mark.ros

@@ -11,14 +11,15 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from activetrack import topics
 from activetrack.closed_loop.batch import run_batch
 from activetrack.scenarios import ScenarioError, load_scenario
-from activetrack_bringup.bag import BagPlayer, _qos_for, bag_info
+from activetrack_bringup.bag import BagPlayer, bag_info
 from activetrack_bringup.cli import main as cli_main
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_bringup.retrack import read_topic, retrack
 from activetrack_bringup.runner import run_graph
+from activetrack_ros import graph as topics
+from activetrack_ros.graph import qos_for
 from msgs_defs.msg import ManoeuvreCommand, PlanReport, TrackEstimate
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
@@ -153,7 +154,7 @@ def test_play_republishes_with_recorded_timing(graph_run):
     with InProcessGraph() as graph:
         listener = graph.add(Node("listener", context=graph.context))
         listener.create_subscription(
-            PlanReport, topics.PLAN_REPORT, got.append, _qos_for(topics.PLAN_REPORT)
+            PlanReport, topics.PLAN_REPORT, got.append, qos_for(topics.PLAN_REPORT)
         )
         player = graph.add(
             BagPlayer(graph_run.bag, [topics.PLAN_REPORT], rate=4.0, context=graph.context)

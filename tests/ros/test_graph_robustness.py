@@ -10,9 +10,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Header
 
-from activetrack import topics
-from activetrack_bringup.bag import _qos_for
 from activetrack_bringup.runner import run_graph
+from activetrack_ros import graph as topics
+from activetrack_ros.graph import qos_for
 from msgs_defs.msg import (
     BearingMeasurement,
     ManoeuvreCommand,
@@ -134,7 +134,7 @@ class Injector(Node):
         }[kind]
         if kind not in self.pubs:
             # The graph's per-epoch topics are transient-local: publishers into them offer it.
-            self.pubs[kind] = self.create_publisher(kind, topic, _qos_for(topic))
+            self.pubs[kind] = self.create_publisher(kind, topic, qos_for(topic))
         self.pubs[kind].publish(msg)
 
     def on_track(self, msg):

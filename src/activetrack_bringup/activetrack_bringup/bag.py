@@ -16,7 +16,6 @@ from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import (
     Qos,
     QosDurability,
@@ -28,35 +27,8 @@ from rosbags.interfaces import (
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from activetrack import topics
-
-# Every topic of the graph with its type (what `activetrack record` records by default).
-GRAPH_TOPICS = {
-    topics.CLOCK: "rosgraph_msgs/msg/Clock",
-    topics.GROUND_TRUTH: "msgs_defs/msg/GroundTruth",
-    topics.PLATFORM_STATES: "msgs_defs/msg/PlatformState",
-    topics.BEARING_MEASUREMENTS: "msgs_defs/msg/BearingMeasurement",
-    topics.POLAR_MEASUREMENTS: "msgs_defs/msg/PolarMeasurement",
-    topics.TRACK: "msgs_defs/msg/TrackEstimate",
-    topics.TRACK_POSE: "geometry_msgs/msg/PoseWithCovarianceStamped",
-    topics.PARTICLES: "geometry_msgs/msg/PoseArray",
-    topics.MANOEUVRE_COMMANDS: "msgs_defs/msg/ManoeuvreCommand",
-    topics.SENSOR_SELECTION: "msgs_defs/msg/SensorSelection",
-    topics.PLAN_REPORT: "msgs_defs/msg/PlanReport",
-    topics.DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
-    topics.MARKERS: "visualization_msgs/msg/MarkerArray",
-}
-# Topics published with transient-local durability (late joiners get the run's history).
-LATCHED_TOPICS = {
-    topics.BEARING_MEASUREMENTS,
-    topics.POLAR_MEASUREMENTS,
-    topics.PLAN_REPORT,
-    topics.GROUND_TRUTH,
-    topics.PLATFORM_STATES,
-    topics.TRACK,
-    topics.MANOEUVRE_COMMANDS,
-    topics.SENSOR_SELECTION,
-}
+from activetrack_ros import graph as topics
+from activetrack_ros.graph import GRAPH_TOPICS, LATCHED_TOPICS, reader_qos, writer_qos
 
 
 def _msgs_defs_files() -> list[Path]:
@@ -116,16 +88,6 @@ def message_class(msgtype: str):
     return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
-def _qos_for(topic: str) -> QoSProfile:
-    if topic in LATCHED_TOPICS:
-        return QoSProfile(
-            depth=topics.LATCHED_DEPTH,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-        )
-    return QoSProfile(depth=topics.STREAM_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
-
-
 def _bag_qos(topic: str) -> list[Qos]:
     """Offered QoS written to metadata.yaml, so that a real `ros2 bag play` matches ours."""
     latched = topic in LATCHED_TOPICS
@@ -165,7 +127,7 @@ class BagRecorder(Node):
                 message_class(msgtype),
                 topic,
                 lambda data, t=topic: self._write(t, data),
-                _qos_for(topic),
+                reader_qos(topic),
                 raw=True,
             )
 
@@ -208,7 +170,7 @@ class BagPlayer(Node):
         self.rate = rate
         self.reader = reader
         self.pubs = {
-            c.id: self.create_publisher(message_class(c.msgtype), c.topic, _qos_for(c.topic))
+            c.id: self.create_publisher(message_class(c.msgtype), c.topic, writer_qos(c.topic))
             for c in conns
         }
         self.messages = self.reader.messages(connections=conns)

@@ -93,8 +93,9 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 def _cmd_record(args: argparse.Namespace) -> int:
     import time
 
-    from activetrack_bringup.bag import GRAPH_TOPICS, BagRecorder
+    from activetrack_bringup.bag import BagRecorder
     from activetrack_bringup.inprocess import InProcessGraph
+    from activetrack_ros.graph import GRAPH_TOPICS
 
     topic_types = GRAPH_TOPICS
     if args.topics:

@@ -9,7 +9,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Vector3
 from std_msgs.msg import Header
 
-from activetrack import topics
+from activetrack_ros import graph as topics
 from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,

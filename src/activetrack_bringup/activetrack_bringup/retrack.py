@@ -15,9 +15,10 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader
 
-from activetrack import topics
-from activetrack_bringup.bag import BagPlayer, _qos_for
+from activetrack_bringup.bag import BagPlayer
 from activetrack_bringup.inprocess import InProcessGraph
+from activetrack_ros import graph as topics
+from activetrack_ros.graph import reader_qos
 from msgs_defs.msg import GroundTruth, TrackEstimate
 from tracker_node.tracker_node import TrackerNode
 
@@ -39,7 +40,7 @@ class _TrackCollector(Node):
             TrackEstimate,
             topics.TRACK,
             lambda m: self.tracks.__setitem__(m.epoch, m),
-            _qos_for(topics.TRACK),
+            reader_qos(topics.TRACK),
         )
 
 

@@ -22,11 +22,12 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from activetrack import topics
 from activetrack.closed_loop.batch import RunRecord, summarize
 from activetrack.scenarios import load_scenario
-from activetrack_bringup.bag import BagRecorder, _qos_for
+from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.inprocess import InProcessGraph
+from activetrack_ros import graph as topics
+from activetrack_ros.graph import reader_qos
 from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
@@ -62,7 +63,7 @@ class EvaluatorNode(Node):
             (BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_measurement),
             (PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_measurement),
         ):
-            self.create_subscription(msg_type, topic, cb, _qos_for(topic))
+            self.create_subscription(msg_type, topic, cb, reader_qos(topic))
 
     def on_truth(self, msg):
         self.truth[msg.epoch] = np.array(

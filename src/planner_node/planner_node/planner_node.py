@@ -13,16 +13,15 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from std_msgs.msg import Header
 
-from activetrack import topics
 from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.counters import NodeCounters
 from activetrack.closed_loop.data import PlatformSnapshot, TrackSnapshot
 from activetrack.closed_loop.planner import PlannerCore
 from activetrack.scenarios import load_scenario
+from activetrack_ros import graph as topics
 from msgs_defs.msg import (
     ManoeuvreCommand,
     PlanReport,
@@ -31,11 +30,7 @@ from msgs_defs.msg import (
     TrackEstimate,
 )
 
-LATCHED = QoSProfile(
-    depth=topics.LATCHED_DEPTH,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+LATCHED = topics.writer_qos(topics.TRACK)
 
 
 class PlannerNode(Node):

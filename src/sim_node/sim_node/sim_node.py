@@ -20,18 +20,17 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, Vector3
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from activetrack import topics
 from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.counters import NodeCounters
 from activetrack.closed_loop.data import Command
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.scenarios import load_scenario
+from activetrack_ros import graph as topics
 from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
@@ -42,11 +41,8 @@ from msgs_defs.msg import (
     TrackEstimate,
 )
 
-LATCHED = QoSProfile(
-    depth=topics.LATCHED_DEPTH,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+LATCHED = topics.writer_qos(topics.TRACK)
+
 BEARING_KINDS = ("bearing", "ambiguous_bearing")
 
 

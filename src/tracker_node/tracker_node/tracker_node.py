@@ -20,25 +20,21 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovarianceStamped
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from activetrack import topics
 from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.counters import NodeCounters
 from activetrack.closed_loop.tracker import TrackerCore, pose_of
 from activetrack.filters.measurement import Measurement
 from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_scenario, with_tracker_overrides
+from activetrack_ros import graph as topics
 from msgs_defs.msg import BearingMeasurement, PlatformState, PolarMeasurement, TrackEstimate
 
-LATCHED = QoSProfile(
-    depth=topics.LATCHED_DEPTH,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+LATCHED = topics.writer_qos(topics.TRACK)
+
 BEARING_KINDS = ("bearing", "ambiguous_bearing")
 STAMP_TOLERANCE = 1e-6  # s between a stamp and its epoch time k T
 

@@ -1,0 +1,1 @@
+"""Shared ROS plumbing of the activetrack nodes (topic table, QoS, trust, node base)."""
