@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from activetrack.argtypes import int_in_range
 from activetrack.bounds.pcrlb import (
     covariance_bound,
     gaussian_samples,
@@ -31,6 +32,16 @@ from activetrack.bounds.pcrlb import (
 )
 from activetrack.filters import Measurement, ParticleFilter
 from activetrack.geometry import covariance_ellipse
+from activetrack.limits import (
+    MAX_GRID_SIZE,
+    MAX_JOBS,
+    MAX_PARTICLES,
+    MAX_PLANNER_BATCH,
+    MAX_RUNS,
+    MAX_SAMPLES,
+    MAX_SEARCH_EVALUATIONS,
+    MAX_SEED,
+)
 from activetrack.planning import (
     PlannerPlatform,
     PlanSettings,
@@ -40,6 +51,7 @@ from activetrack.planning import (
     platforms_from_scenario,
 )
 from activetrack.scenarios import build_motion_model, load_scenario
+from activetrack.scenarios.schema import PlannerConfig
 
 # Hernandez Table 1: (sensors, horizon) -> (bound_x, bound_y, pf_rmse_x, pf_rmse_y), metres.
 PAPER_TABLE1 = {
@@ -376,10 +388,23 @@ def _parse(argv):
         prog="activetrack reproduce hernandez",
         description="Reproduce Hernandez (2004) Tables 1-2 and Figs. 2-3.",
     )
-    ap.add_argument("--runs", type=int, default=100, help="Monte Carlo PF runs per case (100)")
-    ap.add_argument("--particles", type=int, default=10000, help="PF particles (10,000)")
     ap.add_argument(
-        "--mc-samples", type=int, default=None, help="planner Monte Carlo samples (scenario: 1000)"
+        "--runs",
+        type=int_in_range(0, MAX_RUNS, note="0: the bounds only"),
+        default=100,
+        help="Monte Carlo PF runs per case (100; 0: the bounds only)",
+    )
+    ap.add_argument(
+        "--particles",
+        type=int_in_range(1, MAX_PARTICLES),
+        default=10000,
+        help="PF particles (10,000)",
+    )
+    ap.add_argument(
+        "--mc-samples",
+        type=int_in_range(1, MAX_SAMPLES),
+        default=None,
+        help="planner Monte Carlo samples (scenario: 1000)",
     )
     ap.add_argument("--sensors", default="1,2,3", help="sensor counts, e.g. 1,2,3")
     ap.add_argument("--horizons", default="1,2", help="planning horizons, 1 and/or 2")
@@ -389,12 +414,24 @@ def _parse(argv):
         choices=("quadrant", "grid", "sector"),
         help="override the scenarios' search (quadrant)",
     )
-    ap.add_argument("--grid-size", type=int, default=101, help="grid of the comparison (101)")
+    ap.add_argument(
+        "--grid-size",
+        type=int_in_range(2, MAX_GRID_SIZE),
+        default=101,
+        help="grid of the comparison (101)",
+    )
     ap.add_argument(
         "--no-comparison", action="store_true", help="skip the quadrant vs 101x101 grid comparison"
     )
-    ap.add_argument("--seed", type=int, default=None, help="seed (scenario seed)")
-    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="PF worker processes")
+    ap.add_argument(
+        "--seed", type=int_in_range(0, MAX_SEED), default=None, help="seed (scenario seed)"
+    )
+    ap.add_argument(
+        "--jobs",
+        type=int_in_range(1, MAX_JOBS),
+        default=os.cpu_count() or 1,
+        help="PF worker processes",
+    )
     ap.add_argument("--json", default=None, help="write the numbers to this JSON file")
     ap.add_argument("--out", default="runs/reproduce-hernandez", help="figure directory")
     ap.add_argument("--no-figures", action="store_true", help="do not write PNG figures")
@@ -409,8 +446,22 @@ def _parse(argv):
         ap.error("--sensors must be among 1,2,3")
     if not set(args.horizon_list) <= {1, 2}:
         ap.error("--horizons must be among 1,2")
-    if args.runs < 0 or args.particles < 1 or args.jobs < 1 or args.grid_size < 2:
-        ap.error("--runs >= 0, --particles >= 1, --jobs >= 1, --grid-size >= 2")
+    # --search grid plans on the scenarios' grid (101 x 101): two steps nest two grids.
+    if args.search == "grid" and 2 in args.horizon_list:
+        per_decision = PlannerConfig().grid_size ** 4
+        if per_decision > MAX_SEARCH_EVALUATIONS:
+            ap.error(
+                f"--search grid with --horizons 2 costs {per_decision:.2e} cost evaluations per "
+                f"decision, at most {MAX_SEARCH_EVALUATIONS:.0e}: use --horizons 1"
+            )
+    # The grid comparison scores up to 2,048 grid points against every planner sample at once.
+    samples = 1000 if args.mc_samples is None else args.mc_samples
+    batch = min(args.grid_size**2, 2048) * samples
+    if not args.no_comparison and 1 in args.sensor_counts and batch > MAX_PLANNER_BATCH:
+        ap.error(
+            f"--mc-samples {samples} with --grid-size {args.grid_size} scores {batch:.2e} "
+            f"sample-candidate pairs at once, at most {MAX_PLANNER_BATCH:.1e} (about 1 GB)"
+        )
     return args
 
 

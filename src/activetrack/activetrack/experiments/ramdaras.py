@@ -32,9 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
+from activetrack.argtypes import int_in_range
 from activetrack.bounds.costs import position_determinant
 from activetrack.bounds.mre import mre_update
 from activetrack.closed_loop.batch import run_once
+from activetrack.limits import MAX_JOBS, MAX_RUNS
 from activetrack.planning.selection import expected_update
 from activetrack.scenarios import build_motion_model, load_scenario
 from activetrack.scenarios.build import build_sensor
@@ -569,10 +571,20 @@ def _parse(argv):
         description="Reproduce Ramdaras et al. (2010) sec. 5-6: MRE sensor selection and "
         "positioning, Cases 1-3 and Pd < 1 variants.",
     )
-    ap.add_argument("--runs", type=int, default=None, help="Monte Carlo runs per case (20)")
+    ap.add_argument(
+        "--runs",
+        type=int_in_range(1, MAX_RUNS),
+        default=None,
+        help="Monte Carlo runs per case (20)",
+    )
     ap.add_argument("--quick", action="store_true", help="3 runs, fewer baselines")
     ap.add_argument("--cases", default=None, help="comma-separated case keys (default: all)")
-    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    ap.add_argument(
+        "--jobs",
+        type=int_in_range(1, MAX_JOBS),
+        default=os.cpu_count() or 1,
+        help="worker processes",
+    )
     ap.add_argument("--json", default=None, help="write the numbers to this JSON file")
     ap.add_argument("--out", default="runs/reproduce-ramdaras", help="figure directory")
     ap.add_argument("--no-figures", action="store_true", help="do not write PNG figures")
@@ -580,8 +592,6 @@ def _parse(argv):
     args = ap.parse_args(argv)
     if args.runs is None:
         args.runs = 3 if args.quick else 20
-    if args.runs < 1:
-        ap.error("--runs must be >= 1")
     keys = [c for c, _, _ in CASES]
     args.case_keys = keys if args.cases is None else [c.strip() for c in args.cases.split(",")]
     bad = [c for c in args.case_keys if c not in keys]

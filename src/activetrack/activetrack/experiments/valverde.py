@@ -39,10 +39,12 @@ from pathlib import Path
 import numpy as np
 
 from activetrack.angles import wrap_angle
+from activetrack.argtypes import int_in_range
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import nominal_path, taylor_crlb
 from activetrack.bounds.tichavsky import tichavsky_pcrlb
 from activetrack.checks import symmetrize
+from activetrack.limits import MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
 from activetrack.models.motion import CircularMotion, ConstantTurn
 from activetrack.models.sensors import RangeBearingSensor, state_jacobian
 from activetrack.observability import observability_rank
@@ -560,9 +562,19 @@ def _parse(argv):
         prog="activetrack reproduce valverde",
         description="Valverde USBL tracking: EKF MSE vs CRLB / PCRB (Tables I-V, Figs. 2-8).",
     )
-    p.add_argument("--runs", type=int, default=None, help="Monte Carlo runs (default 1000)")
-    p.add_argument("--steps", type=int, default=None, help="epochs (default 252, two laps)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--runs",
+        type=int_in_range(2, MAX_RUNS, note="the Monte Carlo error needs two runs"),
+        default=None,
+        help="Monte Carlo runs (default 1000)",
+    )
+    p.add_argument(
+        "--steps",
+        type=int_in_range(1, MAX_STEPS),
+        default=None,
+        help="epochs (default 252, two laps)",
+    )
+    p.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0)
     p.add_argument("--json", help="write the table rows to this JSON file")
     p.add_argument("--out", default="runs/reproduce-valverde", help="figure directory")
     p.add_argument("--quick", action="store_true", help="50 runs, one lap")
@@ -572,10 +584,11 @@ def _parse(argv):
         args.runs = 50 if args.quick else 1000
     if args.steps is None:
         args.steps = 126 if args.quick else 252
-    if args.runs < 2:
-        p.error("--runs must be >= 2 (the Monte Carlo error needs two runs)")
-    if args.steps < 1:
-        p.error("--steps must be >= 1")
+    if args.runs * args.steps > MAX_RUN_EPOCHS:
+        p.error(
+            f"--runs x --steps must be <= {MAX_RUN_EPOCHS:.1e} (the runs are held in memory "
+            f"together), got {args.runs} x {args.steps}"
+        )
     return args
 
 

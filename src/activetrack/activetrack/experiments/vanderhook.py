@@ -25,11 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from activetrack.argtypes import int_in_range
 from activetrack.experiments.vanderhook_sim import (
     SIGMA_S_DEFAULT,
     LocalisationBatch,
     simulate_localisation,
 )
+from activetrack.limits import MAX_RUNS, MAX_SEED
 from activetrack.models.sensors import AmbiguousBearingSensor
 from activetrack.planning.cautious import CautiousPlanner, caution_gamma
 from activetrack.planning.cautious_bounds import (
@@ -374,15 +376,15 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="activetrack reproduce vanderhook", description=__doc__.splitlines()[0]
     )
-    parser.add_argument("--runs", type=int, default=4000, help="Monte Carlo runs per row")
+    parser.add_argument(
+        "--runs", type=int_in_range(1, MAX_RUNS), default=4000, help="Monte Carlo runs per row"
+    )
     parser.add_argument("--json", type=Path, default=None, help="write the results as JSON")
     parser.add_argument("--out", type=Path, default=Path("runs/reproduce-vanderhook"))
     parser.add_argument("--quick", action="store_true", help="400 runs, fewer beta values")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0)
     args = parser.parse_args(argv)
     runs = 400 if args.quick else args.runs
-    if runs < 1:
-        parser.error("--runs must be >= 1")
     betas = (0.01, 0.1, 0.5) if args.quick else (0.001, 0.01, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5)
 
     example = worked_example(runs=min(runs, 1000), seed=args.seed)

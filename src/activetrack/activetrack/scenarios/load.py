@@ -1,7 +1,13 @@
-"""Load and validate scenario files; errors name the field and what is allowed."""
+"""Load and validate scenario files; errors name the field and what is allowed.
+
+Whatever a file holds, :func:`load_scenario` returns a valid :class:`Scenario` or raises
+:class:`ScenarioError` with a short reason: unreadable, too large, not UTF-8, not YAML, nested
+too deeply, an alias bomb, not a mapping, or the list of invalid fields.
+"""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import yaml
@@ -9,48 +15,171 @@ from pydantic import ValidationError
 
 from activetrack.scenarios.schema import Scenario
 
+# A scenario file is a few kB; these bound what a malformed or hostile one can cost.
+MAX_FILE_BYTES = 1 << 20  # 1 MiB
+MAX_NESTING = 32  # levels of YAML collections (a scenario uses 5)
+MAX_NODES = 100_000  # YAML nodes with every alias expanded (a scenario has a few hundred)
+MAX_ERROR_LINES = 20  # invalid fields listed before "... and N more"
+_SHOW_INPUT = 60  # characters of an offending value shown in a message
+
+_FIELD_MESSAGE = re.compile(r"([A-Za-z_][\w.]*): (.+)", re.DOTALL)
+
 
 class ScenarioError(ValueError):
     """A scenario file that cannot be used; the message lists every offending field."""
 
 
-def _describe(err: dict) -> str:
-    where = ".".join(str(p) for p in err["loc"]) or "(top level)"
+def _shown(value) -> str:
+    text = repr(value)
+    return text if len(text) <= _SHOW_INPUT else text[:_SHOW_INPUT] + "..."
+
+
+def _describe(err: dict) -> list[str]:
+    """Lines ``  field: message`` for one pydantic error."""
+    loc = [str(p) for p in err["loc"]]
     msg = err["msg"]
     ctx = err.get("ctx") or {}
+    if err["type"] == "value_error":
+        # Our validators' messages: one rule per line, each "field: message" relative to loc.
+        lines = []
+        for line in str(ctx.get("error", msg)).splitlines():
+            m = _FIELD_MESSAGE.fullmatch(line)
+            where = ".".join([*loc, m.group(1)]) if m else ".".join(loc)
+            lines.append(f"  {where or '(top level)'}: {m.group(2) if m else line}")
+        return lines
     if err["type"] == "literal_error" and "expected" in ctx:
         msg = f"must be one of {ctx['expected']}"
     elif err["type"] == "extra_forbidden":
-        msg = "unknown field (check the spelling; see docs/scenarios.md)"
+        msg = "unknown field (check the spelling; the fields: activetrack/scenarios/schema.py)"
     elif err["type"] == "union_tag_invalid" and "expected_tags" in ctx:
-        msg = f"must be one of {ctx['expected_tags']}, got {ctx.get('tag')!r}"
+        msg = f"must be one of {ctx['expected_tags']}, got {_shown(ctx.get('tag'))}"
     elif "input" in err and not isinstance(err["input"], dict | list):
-        msg = f"{msg} (got {err['input']!r})"
-    return f"  {where}: {msg}"
+        msg = f"{msg} (got {_shown(err['input'])})"
+    return [f"  {'.'.join(loc) or '(top level)'}: {msg}"]
 
 
 def parse_scenario(data: dict, source: str = "<dict>") -> Scenario:
     """Validate a scenario given as a dict (already parsed YAML)."""
     if not isinstance(data, dict):
-        raise ScenarioError(f"{source}: a scenario must be a mapping, got {type(data).__name__}")
+        raise ScenarioError(
+            f"{source}: a scenario must be a mapping of fields (name:, dt:, ...), "
+            f"got {type(data).__name__}"
+        )
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
-        lines = [_describe(e) for e in exc.errors()]
+        lines = [line for e in exc.errors() for line in _describe(e)]
+        if len(lines) > MAX_ERROR_LINES:
+            lines = [*lines[:MAX_ERROR_LINES], f"  ... and {len(lines) - MAX_ERROR_LINES} more"]
         raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(lines)) from None
+    except RecursionError:
+        raise ScenarioError(f"{source}: invalid scenario: nested too deeply") from None
+    except Exception as exc:  # a check of ours failed unexpectedly: still one clear error
+        raise ScenarioError(
+            f"{source}: invalid scenario (internal check failed: {type(exc).__name__}: "
+            f"{_shown(str(exc))})"
+        ) from None
+
+
+def _read_text(path: Path) -> str:
+    """The file as text, at most MAX_FILE_BYTES, UTF-8; ScenarioError otherwise."""
+    if path.is_dir():
+        raise ScenarioError(f"{path}: is a directory, not a scenario file")
+    try:
+        with path.open("rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read scenario file: {exc.strerror or exc}") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise ScenarioError(
+            f"{path}: too large for a scenario file (more than {MAX_FILE_BYTES} bytes)"
+        )
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(
+            f"{path}: not a UTF-8 text file (byte 0x{data[exc.start]:02x} at offset {exc.start})"
+        ) from None
+    if not text.strip():
+        raise ScenarioError(f"{path}: the file is empty")
+    return text
+
+
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    """One line: what is wrong and where (PyYAML's own message spans several lines)."""
+    parts = [getattr(exc, "context", None), getattr(exc, "problem", None)]
+    text = "; ".join(str(p) for p in parts if p) or str(exc)
+    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    return f"not valid YAML{where}: {' '.join(text.split())}"
+
+
+def _check_structure(text: str) -> None:
+    """Walk the YAML events (no recursion, no objects built): bound the nesting depth and the
+    size with aliases expanded (a "billion laughs" document is a few hundred bytes)."""
+    depth = 0
+    counts = [0]  # nodes under each open collection, expanded
+    open_anchors = [None]  # anchor of each open collection
+    anchored: dict[str, int] = {}  # anchor -> expanded size of its node
+    for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        if isinstance(event, yaml.AliasEvent):
+            if event.anchor not in anchored:  # unknown, or the collection it sits in
+                raise ScenarioError(f"alias *{event.anchor} refers to itself or to no anchor")
+            size = anchored[event.anchor]
+        elif isinstance(event, yaml.ScalarEvent):
+            size = 1
+            if event.anchor is not None:
+                anchored[event.anchor] = 1
+        elif isinstance(event, yaml.CollectionStartEvent):
+            depth += 1
+            if depth > MAX_NESTING:
+                raise ScenarioError(f"nested deeper than {MAX_NESTING} levels")
+            counts.append(1)
+            open_anchors.append(event.anchor)
+            continue
+        elif isinstance(event, yaml.CollectionEndEvent):
+            depth -= 1
+            size = counts.pop()
+            anchor = open_anchors.pop()
+            if anchor is not None:
+                anchored[anchor] = size
+        else:  # stream and document start / end
+            continue
+        counts[-1] += size
+        if counts[-1] > MAX_NODES:
+            raise ScenarioError(
+                f"more than {MAX_NODES} values once aliases are expanded (an alias bomb?)"
+            )
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a YAML scenario file. Raises ScenarioError before anything runs."""
-    path = Path(path)
+    """Read and validate a YAML scenario file. Raises ScenarioError before anything runs,
+    and no other exception, whatever the file holds."""
     try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read scenario file: {exc.strerror}") from None
+        path = Path(path)
+    except TypeError:
+        raise ScenarioError(f"{path!r}: not a file path") from None
     try:
+        text = _read_text(path)
+    except ValueError as exc:  # ScenarioError, or a path with a NUL character
+        if isinstance(exc, ScenarioError):
+            raise
+        raise ScenarioError(f"{path}: cannot read scenario file: {exc}") from None
+    try:
+        _check_structure(text)
         data = yaml.safe_load(text)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{path}: {exc}") from None
     except yaml.YAMLError as exc:
-        raise ScenarioError(f"{path}: not valid YAML: {exc}") from None
+        raise ScenarioError(f"{path}: {_yaml_problem(exc)}") from None
+    except RecursionError:
+        raise ScenarioError(f"{path}: nested too deeply") from None
+    except Exception as exc:  # the YAML library failed some other way: one clear error
+        raise ScenarioError(
+            f"{path}: not valid YAML ({type(exc).__name__}: {_shown(str(exc))})"
+        ) from None
+    if data is None:
+        raise ScenarioError(f"{path}: the file holds no scenario (only comments)")
     return parse_scenario(data, str(path))
 
 

@@ -4,20 +4,115 @@ One schema for the batch loop, the experiment runners and the ROS nodes. Units: 
 seconds, radians. States are pv vectors (x, xdot, y, ydot) unless the motion model says
 otherwise.
 
-Unknown keys are errors (a typo must not silently fall back to a default).
+Unknown keys are errors (a typo must not silently fall back to a default). Every rule the
+simulator, tracker and planner cores would enforce when they are built or in their first
+epochs is checked here, cross-field rules included (``Scenario._cross_field_rules``), so a
+scenario that loads runs. Sizes and magnitudes are bounded by :mod:`activetrack.limits`.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+from activetrack.limits import (
+    MAX_ACCELERATION,
+    MAX_ANGLE,
+    MAX_BEARING_SIGMA,
+    MAX_DESCRIPTION_LENGTH,
+    MAX_DT,
+    MAX_DURATION,
+    MAX_DWELL,
+    MAX_GRID_SIZE,
+    MAX_HORIZON,
+    MAX_ID_LENGTH,
+    MAX_MEASUREMENTS,
+    MAX_NAME_LENGTH,
+    MAX_PARTICLES,
+    MAX_PLANNER_BATCH,
+    MAX_PLATFORMS,
+    MAX_POSITION,
+    MAX_PRIOR_VARIANCE,
+    MAX_Q,
+    MAX_QUADRANT_DIVISIONS,
+    MAX_RANGE,
+    MAX_ROUGHENING,
+    MAX_SAMPLES,
+    MAX_SEARCH_EVALUATIONS,
+    MAX_SECTOR_LEVELS,
+    MAX_SEED,
+    MAX_SENSOR_ITERATIONS,
+    MAX_SENSORS,
+    MAX_SPEED,
+    MAX_STATE_DIM,
+    MAX_STEPS,
+    MAX_TURN_RATE,
+    MIN_DT,
+    MIN_PARTICLES_FOR_PLANNING,
+    MIN_PRIOR_VARIANCE,
+    MIN_SIGMA,
+)
+
+
+def _range(lo=None, hi=None, *, gt=None, lt=None):
+    """A finite float type with the given bounds."""
+    return Annotated[float, Field(ge=lo, le=hi, gt=gt, lt=lt, allow_inf_nan=False)]
+
+
+FiniteFloat = _range()
+# Magnitudes (activetrack.limits).
+Speed = _range(0, MAX_SPEED)  # m/s
+PositiveSpeed = _range(gt=0, hi=MAX_SPEED)
+Acceleration = _range(0, MAX_ACCELERATION)  # m/s^2
+NoisePsd = _range(0, MAX_Q)  # m^2/s^3
+TurnRate = _range(-MAX_TURN_RATE, MAX_TURN_RATE)  # rad/s
+TurnRateStd = _range(0, MAX_TURN_RATE)
+PositiveTurnRate = _range(gt=0, hi=MAX_TURN_RATE)
+HeadingChange = _range(gt=0, hi=math.pi)  # rad; a turn beyond pi is one the other way
+RangeM = _range(0, MAX_RANGE)  # m
+BearingSigma = _range(MIN_SIGMA, MAX_BEARING_SIGMA)  # rad
+RangeSigma = _range(MIN_SIGMA, MAX_RANGE)  # m
+RateSigma = _range(MIN_SIGMA, MAX_SPEED)  # m/s
+Variance = _range(0, MAX_PRIOR_VARIANCE)
+Covariance = _range(-MAX_PRIOR_VARIANCE, MAX_PRIOR_VARIANCE)
+Dt = _range(MIN_DT, MAX_DT)  # s
+Dwell = _range(0, MAX_DWELL)  # s
+Roughening = _range(0, MAX_ROUGHENING)
+
+
+def _count(lo: int, hi: int):
+    return Annotated[int, Field(ge=lo, le=hi)]
+
+
+Particles = _count(1, MAX_PARTICLES)
+Samples = _count(1, MAX_SAMPLES)
+SensorCount = _count(1, MAX_SENSORS)
+Horizon = _count(1, MAX_HORIZON)
+GridSize = _count(3, MAX_GRID_SIZE)
+Divisions = _count(1, MAX_QUADRANT_DIVISIONS)
+SectorLevels = _count(1, MAX_SECTOR_LEVELS)
+SensorIterations = _count(1, MAX_SENSOR_ITERATIONS)
+Measurements = _count(1, MAX_MEASUREMENTS)
+Seed = _count(0, MAX_SEED)
+Steps = _count(1, MAX_STEPS)
+
+
+# Scenario names become folder names (runs/<name>-<time>), ids go into messages and plots.
+_IDENTIFIER = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]*")
+
+
+def _identifier(what: str, value: str, max_length: int) -> str:
+    if not (len(value) <= max_length and _IDENTIFIER.fullmatch(value)):
+        shown = value if len(value) <= 40 else value[:40] + "..."
+        raise ValueError(
+            f"{what} must be 1-{max_length} characters of letters, digits, '_', '-' and '.', "
+            f"not starting with '.', got {shown!r}"
+        )
+    return value
 
 
 class _Strict(BaseModel):
@@ -31,37 +126,37 @@ class NcvMotion(_Strict):
     """Continuous white-noise acceleration, PSD q (Hernandez sec. 5.1, l)."""
 
     model: Literal["ncv"]
-    q: NonNegFloat
+    q: NoisePsd
 
 
 class NcvDiscreteMotion(_Strict):
     """Discrete noise gain G with sigma_x, sigma_y (Ramdaras eq. 3-4)."""
 
     model: Literal["ncv_discrete"]
-    sigma_x: NonNegFloat
-    sigma_y: NonNegFloat
+    sigma_x: Acceleration
+    sigma_y: Acceleration
 
 
 class ConstantTurnMotion(_Strict):
     """Constant turn with known rate omega (Valverde eq. 30-37)."""
 
     model: Literal["constant_turn"]
-    omega: FiniteFloat
-    q: NonNegFloat
+    omega: TurnRate
+    q: NoisePsd
 
 
 class CircularMotionConfig(_Strict):
     """Circular motion, state (psi, px, py, omega, v) (Valverde eq. 15-28)."""
 
     model: Literal["circular"]
-    sigma_omega: NonNegFloat
-    sigma_v: NonNegFloat
+    sigma_omega: TurnRateStd
+    sigma_v: Speed
 
 
 class CircularKnownOmegaMotion(_Strict):
     model: Literal["circular_known_omega"]
-    omega: FiniteFloat
-    sigma_v: NonNegFloat
+    omega: TurnRate
+    sigma_v: Speed
 
 
 MotionConfig = Annotated[
@@ -73,52 +168,96 @@ MotionConfig = Annotated[
     Field(discriminator="model"),
 ]
 
-MOTION_STATE_DIM = {
-    "ncv": 4,
-    "ncv_discrete": 4,
-    "constant_turn": 4,
-    "circular": 5,
-    "circular_known_omega": 4,
+PV = ("x", "xdot", "y", "ydot")
+# State of each motion model (the cores' ``state_names``).
+MOTION_STATE = {
+    "ncv": PV,
+    "ncv_discrete": PV,
+    "constant_turn": PV,
+    "circular": ("psi", "px", "py", "omega", "v"),
+    "circular_known_omega": ("psi", "px", "py", "v"),
 }
+MOTION_STATE_DIM = {model: len(names) for model, names in MOTION_STATE.items()}
+# Linear dynamics on a pv state: what PCRLB / MRE planning and the cautious planner need.
+PV_MODELS = ("ncv", "ncv_discrete", "constant_turn")
+_STATE_BOUND = {
+    "x": MAX_POSITION,
+    "y": MAX_POSITION,
+    "px": MAX_POSITION,
+    "py": MAX_POSITION,
+    "xdot": MAX_SPEED,
+    "ydot": MAX_SPEED,
+    "v": MAX_SPEED,
+    "psi": MAX_ANGLE,
+    "omega": MAX_TURN_RATE,
+}
+
+
+def _check_state(values, names) -> None:
+    """Each entry within the bound of its state component (``_STATE_BOUND``)."""
+    for i, (value, name) in enumerate(zip(values, names, strict=False)):
+        bound = _STATE_BOUND[name]
+        if abs(value) > bound:
+            raise ValueError(
+                f"entry {i} ({name}) must be within +-{bound:g} (activetrack.limits), got {value!r}"
+            )
+
+
+def _position(values, model: str) -> tuple[float, float]:
+    names = MOTION_STATE[model]
+    ix = names.index("x") if "x" in names else names.index("px")
+    iy = names.index("y") if "y" in names else names.index("py")
+    return float(values[ix]), float(values[iy])
+
 
 # --- sensors -----------------------------------------------------------------------------------
 
 
 class _SensorCommon(_Strict):
-    id: str = Field(min_length=1)
+    id: str
     pd: Annotated[float, Field(gt=0, le=1)] = 1.0
-    r_min: NonNegFloat = 0.0
-    r_max: Annotated[float, Field(gt=0)] = math.inf
+    r_min: RangeM = 0.0
+    r_max: Annotated[float, Field(gt=0)] = math.inf  # inf: no maximum range
+
+    @field_validator("id")
+    @classmethod
+    def _id(cls, value):
+        return _identifier("a sensor id", value, MAX_ID_LENGTH)
 
     @model_validator(mode="after")
     def _ranges(self):
+        if math.isfinite(self.r_max) and self.r_max > MAX_RANGE:
+            raise ValueError(
+                f"r_max: must be <= {MAX_RANGE:g} m or .inf (no maximum), got {self.r_max!r}"
+            )
         if not self.r_min < self.r_max:
-            raise ValueError(f"r_max ({self.r_max}) must be greater than r_min ({self.r_min})")
+            raise ValueError(f"r_max: must be greater than r_min ({self.r_min}), got {self.r_max}")
         return self
 
 
 class BearingSensorConfig(_SensorCommon):
     kind: Literal["bearing", "ambiguous_bearing"]
-    sigma: PositiveFloat  # rad
+    sigma: BearingSigma  # rad
 
 
 class RangeBearingSensorConfig(_SensorCommon):
     kind: Literal["range_bearing"]
-    sigma_r: PositiveFloat  # m
-    sigma_b: PositiveFloat  # rad
+    sigma_r: RangeSigma  # m
+    sigma_b: BearingSigma  # rad
 
 
 class RangeRateBearingSensorConfig(_SensorCommon):
     kind: Literal["range_rate_bearing"]
-    sigma_r: PositiveFloat  # m
-    sigma_rr: PositiveFloat  # m/s
-    sigma_b: PositiveFloat  # rad
+    sigma_r: RangeSigma  # m
+    sigma_rr: RateSigma  # m/s
+    sigma_b: BearingSigma  # rad
 
 
 SensorConfig = Annotated[
     BearingSensorConfig | RangeBearingSensorConfig | RangeRateBearingSensorConfig,
     Field(discriminator="kind"),
 ]
+BEARING_KINDS = ("bearing", "ambiguous_bearing")
 
 # --- platforms ---------------------------------------------------------------------------------
 
@@ -129,12 +268,12 @@ class ManoeuvreLimits(_Strict):
     longitudinal acceleration a_max, heading rate psi_rate_max) map to dv_max = a_max T and
     dpsi_max = psi_rate_max T; give either pair."""
 
-    dpsi_max: PositiveFloat | None = None
-    dv_max: NonNegFloat | None = None
-    a_max: NonNegFloat | None = None
-    psi_rate_max: PositiveFloat | None = None
-    v_min: NonNegFloat = 0.0
-    v_max: PositiveFloat
+    dpsi_max: HeadingChange | None = None
+    dv_max: Speed | None = None
+    a_max: Acceleration | None = None
+    psi_rate_max: PositiveTurnRate | None = None
+    v_min: Speed = 0.0
+    v_max: PositiveSpeed
 
     @model_validator(mode="after")
     def _one_pair(self):
@@ -145,7 +284,7 @@ class ManoeuvreLimits(_Strict):
                 "give exactly one of the pairs (dpsi_max, dv_max) or (a_max, psi_rate_max)"
             )
         if not self.v_min <= self.v_max:
-            raise ValueError(f"v_min ({self.v_min}) must not exceed v_max ({self.v_max})")
+            raise ValueError(f"v_min: must not exceed v_max ({self.v_max}), got {self.v_min}")
         return self
 
     def per_epoch(self, dt: float) -> tuple[float, float]:
@@ -156,16 +295,27 @@ class ManoeuvreLimits(_Strict):
 
 
 class PlatformConfig(_Strict):
-    id: str = Field(min_length=1)
+    id: str
     initial_state: list[FiniteFloat] = Field(min_length=4, max_length=4)  # pv
     controllable: bool = False
     limits: ManoeuvreLimits | None = None
-    sensors: list[SensorConfig] = Field(min_length=1)
+    sensors: list[SensorConfig] = Field(min_length=1, max_length=MAX_SENSORS)
+
+    @field_validator("id")
+    @classmethod
+    def _id(cls, value):
+        return _identifier("a platform id", value, MAX_ID_LENGTH)
+
+    @field_validator("initial_state")
+    @classmethod
+    def _state(cls, value):
+        _check_state(value, PV)
+        return value
 
     @model_validator(mode="after")
     def _limits_if_controllable(self):
         if self.controllable and self.limits is None:
-            raise ValueError("a controllable platform needs limits")
+            raise ValueError("limits: a controllable platform needs limits")
         return self
 
 
@@ -173,22 +323,39 @@ class PlatformConfig(_Strict):
 
 
 class PriorConfig(_Strict):
-    """Gaussian prior of the target state: mean and either cov (full) or std (diagonal)."""
+    """Gaussian prior of the target state: mean and either cov (full) or var (diagonal)."""
 
-    mean: list[FiniteFloat]
-    cov: list[list[FiniteFloat]] | None = None
-    var: list[NonNegFloat] | None = None
+    mean: list[FiniteFloat] = Field(min_length=1, max_length=MAX_STATE_DIM)
+    cov: list[list[Covariance]] | None = Field(default=None, max_length=MAX_STATE_DIM)
+    var: list[Variance] | None = Field(default=None, max_length=MAX_STATE_DIM)
 
     @model_validator(mode="after")
     def _one_cov(self):
+        from activetrack.checks import require_spd
+
         if (self.cov is None) == (self.var is None):
             raise ValueError("give exactly one of cov (full matrix) or var (diagonal)")
-        P = self.covariance()
+        field = "cov" if self.cov is not None else "var"
         n = len(self.mean)
-        if P.shape != (n, n):
-            raise ValueError(f"covariance must be {n}x{n} to match mean, got {P.shape}")
-        if not np.allclose(P, P.T) or np.any(np.linalg.eigvalsh(P) <= 0):
-            raise ValueError("covariance must be symmetric positive definite")
+        if self.cov is not None:
+            shape = (len(self.cov), *{len(row) for row in self.cov})
+            if shape != (n, n):
+                raise ValueError(
+                    f"cov: must be {n}x{n} to match mean, got rows of lengths "
+                    f"{[len(row) for row in self.cov]}"
+                )
+        elif len(self.var) != n:
+            raise ValueError(f"var: must have {n} entries to match mean, got {len(self.var)}")
+        try:  # the filters' own check: symmetric to 1e-9 relative, Cholesky succeeds
+            P = require_spd("the covariance", self.covariance())
+        except ValueError as exc:
+            raise ValueError(f"{field}: {exc}") from None
+        smallest = float(np.linalg.eigvalsh(P)[0])
+        if not smallest >= MIN_PRIOR_VARIANCE:
+            raise ValueError(
+                f"{field}: the covariance's smallest eigenvalue must be >= "
+                f"{MIN_PRIOR_VARIANCE:g} (activetrack.limits), got {smallest:.3g}"
+            )
         return self
 
     def covariance(self) -> np.ndarray:
@@ -200,15 +367,34 @@ class TargetConfig(_Strict):
     motion: MotionConfig
     prior: PriorConfig
     # Truth at k = 0: a fixed state, or drawn from the prior with the simulator's generator.
-    initial_state: list[FiniteFloat] | None = None
+    initial_state: list[FiniteFloat] | None = Field(default=None, max_length=MAX_STATE_DIM)
+
+    @field_validator("id")
+    @classmethod
+    def _id(cls, value):
+        return _identifier("the target id", value, MAX_ID_LENGTH)
 
     @model_validator(mode="after")
     def _dims(self):
-        n = MOTION_STATE_DIM[self.motion.model]
+        model = self.motion.model
+        n = MOTION_STATE_DIM[model]
         if len(self.prior.mean) != n:
-            raise ValueError(f"prior.mean must have {n} entries for motion {self.motion.model}")
+            raise ValueError(
+                f"prior.mean: must have {n} entries {MOTION_STATE[model]} for motion {model}, "
+                f"got {len(self.prior.mean)}"
+            )
         if self.initial_state is not None and len(self.initial_state) != n:
-            raise ValueError(f"initial_state must have {n} entries for motion {self.motion.model}")
+            raise ValueError(
+                f"initial_state: must have {n} entries {MOTION_STATE[model]} for motion "
+                f"{model}, got {len(self.initial_state)}"
+            )
+        states = (("prior.mean", self.prior.mean), ("initial_state", self.initial_state))
+        for field, values in states:
+            if values is not None:
+                try:
+                    _check_state(values, MOTION_STATE[model])
+                except ValueError as exc:
+                    raise ValueError(f"{field}: {exc}") from None
         return self
 
 
@@ -217,15 +403,15 @@ class TargetConfig(_Strict):
 
 class TrackerConfig(_Strict):
     filter: Literal["ekf", "pf"] = "pf"
-    particles: Annotated[int, Field(ge=1)] = 10000
+    particles: Particles = 10000
     resample: Literal["always", "ess"] = "always"
     ess_threshold: Annotated[float, Field(gt=0, le=1)] = 0.5
-    roughening: NonNegFloat = 0.0
+    roughening: Roughening = 0.0
     min_range: Literal["ignore", "negative"] = "ignore"
     # Motion model the filter assumes; None: the target's own.
     motion: MotionConfig | None = None
     # Equally weighted posterior samples handed to the planner for renewal (PF only).
-    planner_samples: Annotated[int, Field(ge=1)] = 1000
+    planner_samples: Samples = 1000
 
 
 class SelectionConfig(_Strict):
@@ -235,7 +421,7 @@ class SelectionConfig(_Strict):
     strategy: Literal["mre", "random", "fixed", "trace"] = "mre"
     criterion: Literal["det_pos", "heading", "range", "doppler", "bearing"] = "det_pos"
     fixed_sensor: str | None = None
-    count: Annotated[int, Field(ge=1)] = 1
+    count: SensorCount = 1
 
 
 class CautiousConfig(_Strict):
@@ -243,42 +429,61 @@ class CautiousConfig(_Strict):
 
     beta: Annotated[float, Field(gt=0, lt=1)] = 0.1
     c_d: Annotated[float, Field(gt=0, lt=1)] = 0.1  # reduce both standard deviations by c_d
-    t_m: NonNegFloat = 60.0  # s stopped for each measurement
-    r_min: NonNegFloat = 1.0  # m, smallest standoff
+    t_m: Dwell = 60.0  # s stopped for each measurement
+    r_min: RangeM = 1.0  # m, smallest standoff
     tail: Literal["two_sided", "one_sided"] = "two_sided"
-    max_measurements: Annotated[int, Field(ge=1)] | None = None
+    max_measurements: Measurements | None = None
 
 
 class PlannerConfig(_Strict):
     enabled: bool = True
     cost: Literal["pcrlb", "mre"] = "pcrlb"
     criterion: Literal["b_k", "trace", "det_pos", "heading", "range", "doppler", "bearing"] = "b_k"
-    horizon: Annotated[int, Field(ge=1, le=10)] = 1
+    horizon: Horizon = 1
     search: Literal["grid", "quadrant", "sector", "evolution", "cautious"] = "quadrant"
-    grid_size: Annotated[int, Field(ge=3)] = 101
-    quadrant_divisions: Annotated[int, Field(ge=1)] = 6
-    quadrant_patience: Annotated[int, Field(ge=1)] = 6
-    sector_levels: Annotated[int, Field(ge=1)] = 3
+    grid_size: GridSize = 101
+    quadrant_divisions: Divisions = 6
+    quadrant_patience: Divisions = 6
+    sector_levels: SectorLevels = 3
     mode: Literal["renewal", "open_loop"] = "renewal"
-    mc_samples: Annotated[int, Field(ge=1)] = 1000
-    max_sensor_iterations: Annotated[int, Field(ge=1)] = 10
+    mc_samples: Samples = 1000
+    max_sensor_iterations: SensorIterations = 10
     selection: SelectionConfig = SelectionConfig()
     cautious: CautiousConfig = CautiousConfig()
+
+
+# Per-stage candidates of the searches (activetrack.planning.searches) for the size rules.
+_GRID_CHUNK = 2048  # grid_search scores at most this many points per problem and call
+_EVOLUTION_POPSIZE = 15  # SearchSettings.evolution_popsize (scipy: popsize x dimensions)
+
+
+def _search_size(cfg: PlannerConfig) -> tuple[int, int]:
+    """(cost evaluations of one search stage, candidates scored per call) for a DP search."""
+    if cfg.search == "grid":
+        return cfg.grid_size**2, min(cfg.grid_size**2, _GRID_CHUNK)
+    if cfg.search == "quadrant":
+        return 9 + 5 * (cfg.quadrant_divisions - 1), 9
+    return 16 + 12 * (cfg.sector_levels - 1) + 1, 16  # sector
 
 
 # --- the whole scenario ------------------------------------------------------------------------
 
 
 class Scenario(_Strict):
-    name: str = Field(min_length=1)
-    description: str = ""
-    seed: Annotated[int, Field(ge=0)] = 0
-    dt: PositiveFloat  # s between measurement / decision epochs (T)
-    steps: Annotated[int, Field(ge=1)]  # epochs k = 1..steps
+    name: str
+    description: str = Field(default="", max_length=MAX_DESCRIPTION_LENGTH)
+    seed: Seed = 0
+    dt: Dt  # s between measurement / decision epochs (T)
+    steps: Steps  # epochs k = 1..steps
     target: TargetConfig
-    platforms: list[PlatformConfig] = Field(min_length=1)
+    platforms: list[PlatformConfig] = Field(min_length=1, max_length=MAX_PLATFORMS)
     tracker: TrackerConfig = TrackerConfig()
     planner: PlannerConfig = PlannerConfig()
+
+    @field_validator("name")
+    @classmethod
+    def _name(cls, value):
+        return _identifier("the name (it names the run folder)", value, MAX_NAME_LENGTH)
 
     @field_validator("platforms")
     @classmethod
@@ -289,19 +494,327 @@ class Scenario(_Strict):
             dupes = sorted({v for v in values if values.count(v) > 1})
             if dupes:
                 raise ValueError(f"{what} ids must be unique, repeated: {dupes}")
+        if len(sensor_ids) > MAX_SENSORS:
+            raise ValueError(
+                f"at most {MAX_SENSORS} sensors in total (activetrack.limits), "
+                f"got {len(sensor_ids)}"
+            )
         return platforms
 
     @model_validator(mode="after")
-    def _selection_refs(self):
-        sel = self.planner.selection
-        if sel.enabled and sel.strategy == "fixed":
-            ids = [s.id for p in self.platforms for s in p.sensors]
-            if sel.fixed_sensor not in ids:
-                raise ValueError(
-                    f"planner.selection.fixed_sensor must be one of {ids}, got {sel.fixed_sensor!r}"
-                )
+    def _cross_field_rules(self):
+        """Rules across sections, each one the cores would otherwise break on when built or
+        in the first epochs. All violations are reported, one ``field: message`` per line."""
+        problems = _cross_field_problems(self)
+        if problems:
+            raise ValueError("\n".join(f"{field}: {message}" for field, message in problems))
         return self
 
     @property
     def duration(self) -> float:
         return self.dt * self.steps
+
+
+def _cross_field_problems(s: Scenario) -> list[tuple[str, str]]:
+    """``(field, message)`` for every violated cross-field rule (empty: none)."""
+    out = []
+    if s.dt * s.steps > MAX_DURATION:
+        out.append(
+            (
+                "steps",
+                f"dt * steps must be <= {MAX_DURATION:g} s (ROS stamps hold int32 seconds), "
+                f"got {s.dt:g} * {s.steps} = {s.dt * s.steps:.3g} s",
+            )
+        )
+    target_model = s.target.motion.model
+    # The filter starts from the target's prior, so it must estimate the same state.
+    tracker_model = s.tracker.motion.model if s.tracker.motion is not None else target_model
+    if MOTION_STATE[tracker_model] != MOTION_STATE[target_model]:
+        same = [m for m, names in MOTION_STATE.items() if names == MOTION_STATE[target_model]]
+        out.append(
+            (
+                "tracker.motion.model",
+                f"must estimate the target's state {MOTION_STATE[target_model]} (the prior is "
+                f"given in it): one of {same} for target.motion.model {target_model!r}, "
+                f"got {tracker_model!r}",
+            )
+        )
+    # Range 0 at epoch 0: bearings (and their Jacobians in the EKF and the MRE) are undefined.
+    starts = [("target.prior.mean", s.target.prior.mean)]
+    if s.target.initial_state is not None:
+        starts.append(("target.initial_state", s.target.initial_state))
+    for i, p in enumerate(s.platforms):
+        blind = [sensor.id for sensor in p.sensors if sensor.r_min == 0.0]
+        here = (p.initial_state[0], p.initial_state[2])
+        for label, state in starts:
+            if blind and _position(state, target_model) == here:
+                out.append(
+                    (
+                        f"platforms.{i}.initial_state",
+                        f"the platform starts on the target's position ({label}), where "
+                        f"bearings are undefined (range 0): move it, or give its sensors "
+                        f"{blind} an r_min > 0",
+                    )
+                )
+    if s.planner.enabled:
+        out += _planner_problems(s)
+    return out
+
+
+def _planner_problems(s: Scenario) -> list[tuple[str, str]]:
+    from activetrack.planning.costs import CRITERIA as PCRLB_CRITERIA
+    from activetrack.planning.selection import POSITIONING_SEARCHES
+
+    cfg = s.planner
+    sel = cfg.selection
+    out = []
+    robots = [(i, p) for i, p in enumerate(s.platforms) if p.controllable]
+    sensor_ids = [sensor.id for p in s.platforms for sensor in p.sensors]
+    target_model = s.target.motion.model
+    if cfg.search == "cautious":
+        out += _cautious_problems(s, robots)
+        uses_track = True
+    else:
+        if cfg.cost == "mre" and cfg.search not in POSITIONING_SEARCHES:
+            out.append(
+                (
+                    "planner.search",
+                    f"must be one of {POSITIONING_SEARCHES} with cost 'mre', got {cfg.search!r}",
+                )
+            )
+        if cfg.cost == "mre" and cfg.horizon != 1:
+            out.append(
+                (
+                    "planner.horizon",
+                    f"must be 1 with cost 'mre' (MRE positioning looks one epoch ahead), "
+                    f"got {cfg.horizon}",
+                )
+            )
+        if (robots or sel.enabled) and target_model not in PV_MODELS:
+            out.append(
+                (
+                    "target.motion.model",
+                    f"planning and sensor selection need linear pv dynamics, one of {PV_MODELS}, "
+                    f"got {target_model!r} (or set planner.enabled: false)",
+                )
+            )
+        if robots and cfg.cost == "pcrlb":
+            out += _pcrlb_problems(s, robots, tuple(PCRLB_CRITERIA))
+        uses_track = (bool(robots) or sel.enabled) and cfg.mode == "renewal"
+    if sel.enabled:
+        if sel.count > len(sensor_ids):
+            out.append(
+                (
+                    "planner.selection.count",
+                    f"must be <= {len(sensor_ids)} (the number of sensors), got {sel.count}",
+                )
+            )
+        if sel.strategy == "fixed":
+            if sel.fixed_sensor not in sensor_ids:
+                out.append(
+                    (
+                        "planner.selection.fixed_sensor",
+                        f"must be one of {sensor_ids} with strategy 'fixed', "
+                        f"got {sel.fixed_sensor!r}",
+                    )
+                )
+            if sel.count != 1:
+                out.append(
+                    (
+                        "planner.selection.count",
+                        f"must be 1 with strategy 'fixed', got {sel.count}",
+                    )
+                )
+    # Criteria of the MRE (Ramdaras eq. 25-26) evaluated at the predicted target state.
+    criteria = []
+    if sel.enabled and cfg.search != "cautious":
+        criteria.append(("planner.selection.criterion", sel.criterion))
+    if cfg.cost == "mre" and robots and cfg.search != "cautious":
+        criteria.append(("planner.criterion", cfg.criterion))
+    if criteria and target_model in PV_MODELS:
+        out += _criterion_problems(s, criteria)
+    if uses_track and s.tracker.filter == "pf" and s.tracker.particles < MIN_PARTICLES_FOR_PLANNING:
+        out.append(
+            (
+                "tracker.particles",
+                f"must be >= {MIN_PARTICLES_FOR_PLANNING} with filter 'pf' when the planner "
+                f"works from the track (its covariance must stay invertible), "
+                f"got {s.tracker.particles}",
+            )
+        )
+    return out
+
+
+def _cautious_problems(s: Scenario, robots) -> list[tuple[str, str]]:
+    """Vander Hook's beta-cautious planner (closed_loop.cautious, planning.cautious)."""
+    from activetrack.planning.cautious import caution_gamma, sigma_beta
+
+    cfg = s.planner
+    c = cfg.cautious
+    out = []
+    names = [p.id for _, p in robots]
+    if len(robots) != 1:
+        out.append(
+            (
+                "planner.search",
+                f"'cautious' needs exactly one controllable platform (the robot), got "
+                f"{len(robots)}: {names}",
+            )
+        )
+    if cfg.cost != "pcrlb":
+        out.append(("planner.cost", "must be left at 'pcrlb' with search 'cautious', got 'mre'"))
+    if cfg.horizon != 1:
+        out.append(
+            (
+                "planner.horizon",
+                f"must be 1 with search 'cautious' (Algorithm 1 is greedy), got {cfg.horizon}",
+            )
+        )
+    if cfg.mode != "renewal":
+        out.append(
+            (
+                "planner.mode",
+                "must be 'renewal' with search 'cautious' (it plans from the track), "
+                f"got {cfg.mode!r}",
+            )
+        )
+    if cfg.selection.enabled:
+        out.append(
+            (
+                "planner.selection.enabled",
+                "sensor selection is not available with search 'cautious'",
+            )
+        )
+    if s.target.motion.model not in PV_MODELS:
+        out.append(
+            (
+                "target.motion.model",
+                f"search 'cautious' needs a pv motion model, one of {PV_MODELS}, "
+                f"got {s.target.motion.model!r}",
+            )
+        )
+    if c.tail == "one_sided" and c.beta > 0.5:
+        out.append(
+            ("planner.cautious.beta", f"must be in (0, 0.5] with tail 'one_sided', got {c.beta}")
+        )
+        return out
+    if len(robots) != 1:
+        return out
+    i, robot = robots[0]
+    kinds = [sensor.kind for sensor in robot.sensors]
+    if len(kinds) != 1 or kinds[0] not in BEARING_KINDS:
+        out.append(
+            (
+                f"platforms.{i}.sensors",
+                f"search 'cautious' needs exactly one sensor of kind {BEARING_KINDS} on the "
+                f"robot, got {kinds}",
+            )
+        )
+        return out
+    sigma = robot.sensors[0].sigma
+    sb = sigma_beta(c.beta, c.tail)
+    if not sb > sigma:
+        out.append(
+            (
+                f"platforms.{i}.sensors.0.sigma",
+                f"must be < sigma_beta(beta={c.beta}, {c.tail}) = {sb:.6g} rad for a "
+                f"beta-cautious strategy to exist (Vander Hook sec. III), got {sigma}",
+            )
+        )
+    elif math.isinf(caution_gamma(c.beta, sigma, c.tail)) and c.r_min <= 0.0:
+        out.append(
+            (
+                "planner.cautious.r_min",
+                "must be > 0 when sigma_beta is infinite (tail 'one_sided', beta 0.5)",
+            )
+        )
+    return out
+
+
+def _pcrlb_problems(s: Scenario, robots, criteria) -> list[tuple[str, str]]:
+    """PCRLB manoeuvre planning (planning.planner, planning.horizons)."""
+    cfg = s.planner
+    out = []
+    if cfg.criterion not in criteria:
+        out.append(
+            (
+                "planner.criterion",
+                f"must be one of {criteria} with cost 'pcrlb', got {cfg.criterion!r}",
+            )
+        )
+    for i, p in robots:
+        if math.hypot(p.initial_state[1], p.initial_state[3]) == 0.0:
+            out.append(
+                (
+                    f"platforms.{i}.initial_state",
+                    "a platform steered by PCRLB planning needs a nonzero initial velocity "
+                    "(its heading)",
+                )
+            )
+        if p.limits.v_min <= 0.0:
+            out.append(
+                (
+                    f"platforms.{i}.limits.v_min",
+                    "must be > 0 for a platform steered by PCRLB planning (at rest it would "
+                    f"have no heading), got {p.limits.v_min}",
+                )
+            )
+    R = cfg.horizon
+    if cfg.search == "evolution":
+        batch = _EVOLUTION_POPSIZE * 2 * R
+    else:
+        per_stage, per_call = _search_size(cfg)
+        if per_stage**R > MAX_SEARCH_EVALUATIONS:
+            out.append(
+                (
+                    "planner.horizon",
+                    f"search {cfg.search!r} with horizon {R} costs {per_stage}^{R} = "
+                    f"{float(per_stage**R):.3g} cost evaluations per platform and decision; "
+                    f"at most {MAX_SEARCH_EVALUATIONS:.0e} (activetrack.limits): lower the "
+                    f"horizon or the search's size",
+                )
+            )
+            return out
+        batch = per_call**R
+    pf_renewal = s.tracker.filter == "pf" and cfg.mode == "renewal"
+    samples = min(s.tracker.planner_samples, s.tracker.particles) if pf_renewal else cfg.mc_samples
+    field = "tracker.planner_samples" if pf_renewal else "planner.mc_samples"
+    if batch * samples > MAX_PLANNER_BATCH:
+        out.append(
+            (
+                field,
+                f"{samples} samples x {batch} candidates scored together (search "
+                f"{cfg.search!r}, horizon {R}) exceeds {MAX_PLANNER_BATCH:.1e} "
+                f"(about 1 GB, activetrack.limits): use at most {MAX_PLANNER_BATCH // batch} "
+                f"samples",
+            )
+        )
+    return out
+
+
+def _criterion_problems(s: Scenario, criteria) -> list[tuple[str, str]]:
+    """Heading needs a moving target; range, Doppler and bearing are taken from the origin
+    (Ramdaras eq. 26) and need the target away from it. Checked at the first prediction."""
+    from activetrack.scenarios.build import build_motion_model
+
+    F = build_motion_model(s.target.motion).transition_matrix(s.dt)
+    x = F @ np.asarray(s.target.prior.mean, dtype=float)
+    out = []
+    for field, criterion in criteria:
+        if criterion == "heading" and math.hypot(x[1], x[3]) == 0.0:
+            out.append(
+                (
+                    field,
+                    "'heading' needs a moving target, but the velocity of target.prior.mean "
+                    "is zero",
+                )
+            )
+        elif criterion in ("range", "doppler", "bearing") and math.hypot(x[0], x[2]) == 0.0:
+            out.append(
+                (
+                    field,
+                    f"{criterion!r} is taken from the origin (Ramdaras eq. 26), where the "
+                    "target's predicted position (target.prior.mean) lies",
+                )
+            )
+    return out
