@@ -1,21 +1,19 @@
-"""Bad input on every topic is rejected, counted and logged; a dying planner is survived."""
-
-import math
+"""The graph on a busy domain: writers outside it change nothing and are all counted; the
+graph's own failures stop the run at once instead of stalling it; a dying planner is survived.
+"""
 
 import numpy as np
 import pytest
-from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, Vector3
-from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_msgs.msg import Header
 
-from activetrack_bringup.runner import run_graph
-from activetrack_ros import graph as topics
-from activetrack_ros.graph import qos_for
+from activetrack.scenarios import load_scenario
+from activetrack_bringup.adversary import CATEGORIES, READERS, ForeignNode, uncounted
+from activetrack_bringup.runner import RunIncomplete, run_graph
+from activetrack_ros.trust import GraphKey
 from msgs_defs.msg import (
     BearingMeasurement,
     ManoeuvreCommand,
+    PlanReport,
     PlatformState,
     PolarMeasurement,
     SensorSelection,
@@ -24,124 +22,8 @@ from msgs_defs.msg import (
 from planner_node.planner_node import PlannerNode
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
+DT = load_scenario(SCENARIO).dt
 pytestmark = pytest.mark.ros
-
-
-def _header(seconds: float) -> Header:
-    return Header(stamp=Time(sec=int(seconds), nanosec=round((seconds % 1) * 1e9)))
-
-
-def _bearing(epoch, stamp=None, sensor_id="s1", bearing=0.5, position=(0.0, 0.0)):
-    return BearingMeasurement(
-        header=_header(epoch * 5.0 if stamp is None else stamp),
-        platform_id="p1",
-        sensor_id=sensor_id,
-        epoch=epoch,
-        epoch_measurement_count=2,
-        sensor_position=Point(x=position[0], y=position[1]),
-        sensor_velocity=Vector3(),
-        bearing=bearing,
-        sigma=0.01,
-        detected=True,
-    )
-
-
-def _bad_messages(epoch: int) -> list:
-    """One message per kind of bad input, aimed at the epoch after ``epoch``."""
-    nxt = epoch + 1
-    bad_cov = TrackEstimate(
-        header=_header(0.0),
-        target_id="t1",
-        epoch=999,
-        filter_kind="pf",
-        state_names=["x", "xdot", "y", "ydot"],
-        state=[0.0, 0.0, 0.0, 0.0],
-        covariance=[
-            1.0,
-            2.0,
-            0.0,
-            0.0,
-            2.0,
-            1.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-        ],  # eigenvalues -1, 3, 1, 1
-    )
-    return [
-        ("tracker", "non_finite", _bearing(nxt, bearing=math.nan)),
-        ("tracker", "non_finite", _bearing(nxt, position=(math.inf, 0.0))),
-        ("tracker", "unknown_sensor", _bearing(nxt, sensor_id="s9")),
-        ("tracker", "out_of_order", _bearing(epoch)),
-        ("tracker", "bad_stamp", _bearing(nxt, stamp=999.0)),
-        ("tracker", "future_epoch", _bearing(nxt + 3)),
-        (
-            "tracker",
-            "wrong_sensor_kind",
-            PolarMeasurement(
-                header=_header(nxt * 5.0),
-                sensor_id="s1",
-                epoch=nxt,
-                range=10.0,
-                covariance=[1.0, 0.0, 0.0, 1.0],
-                detected=True,
-            ),
-        ),
-        ("sim", "stale_epoch", ManoeuvreCommand(platform_id="p1", epoch=0, heading_change=0.1)),
-        ("sim", "future_epoch", ManoeuvreCommand(platform_id="p1", epoch=50)),
-        ("sim", "unknown_platform", ManoeuvreCommand(platform_id="p9", epoch=epoch)),
-        (
-            "sim",
-            "non_finite",
-            ManoeuvreCommand(platform_id="p2", epoch=epoch, heading_change=math.inf),
-        ),
-        ("sim", "unknown_sensor", SensorSelection(epoch=epoch, selected_sensor_ids=["s9"])),
-        ("planner", "bad_covariance", bad_cov),
-        ("planner", "unknown_platform", PlatformState(platform_id="p9", epoch=epoch)),
-        (
-            "planner",
-            "non_finite",
-            PlatformState(platform_id="p1", epoch=nxt, position=Point(x=math.nan)),
-        ),
-    ]
-
-
-class Injector(Node):
-    """Publishes every bad message once the track of epoch 2 is out."""
-
-    def __init__(self, **kwargs):
-        super().__init__("injector", **kwargs)
-        self.sent = []
-        self.pubs = {}
-        self.create_subscription(TrackEstimate, topics.TRACK, self.on_track, 10)
-
-    def _pub(self, msg):
-        kind = type(msg)
-        topic = {
-            BearingMeasurement: topics.BEARING_MEASUREMENTS,
-            PolarMeasurement: topics.POLAR_MEASUREMENTS,
-            ManoeuvreCommand: topics.MANOEUVRE_COMMANDS,
-            SensorSelection: topics.SENSOR_SELECTION,
-            TrackEstimate: topics.TRACK,
-            PlatformState: topics.PLATFORM_STATES,
-        }[kind]
-        if kind not in self.pubs:
-            # The graph's per-epoch topics are transient-local: publishers into them offer it.
-            self.pubs[kind] = self.create_publisher(kind, topic, qos_for(topic))
-        self.pubs[kind].publish(msg)
-
-    def on_track(self, msg):
-        if msg.epoch == 2 and not self.sent:
-            self.sent = _bad_messages(2)
-            for _, _, bad in self.sent:
-                self._pub(bad)
 
 
 @pytest.fixture(scope="module")
@@ -149,35 +31,113 @@ def clean_run(tmp_path_factory):
     return run_graph(SCENARIO, run_dir=tmp_path_factory.mktemp("clean"), record=False, plots=False)
 
 
-def test_bad_input_is_rejected_counted_and_the_run_unchanged(clean_run, tmp_path):
-    injectors = []
+def assert_same_run(a, b):
+    """Bit for bit: truth, platform paths, tracks and the planner's predicted costs."""
+    ra, rb = a.summary.records[0], b.summary.records[0]
+    for field in ("truth", "platform_paths", "estimate", "estimate_cov", "measured"):
+        np.testing.assert_array_equal(getattr(ra, field), getattr(rb, field), err_msg=field)
+    assert [d.predicted_costs for d in ra.decisions] == [d.predicted_costs for d in rb.decisions]
 
-    def add_injector(graph):
-        injectors.append(graph.add(Injector(context=graph.context)))
 
-    result = run_graph(
-        SCENARIO, run_dir=tmp_path, record=False, plots=False, before_spin=add_injector
+def assert_every_message_counted(run, clean, foreign):
+    """Each reader in the graph received every message the foreign node sent on its topics
+    (none lost uncounted: DDS reported no loss either), counted exactly the unsigned ones as
+    foreign, and raised nothing."""
+    checked = 0
+    for node, counts in run.diagnostics.items():
+        base = clean.diagnostics[node]
+        assert not {k: v for k, v in counts.items() if k.startswith(("errors.", "dropped."))}
+        for type_name in _inputs(node):
+            sent = foreign.sent[type_name]
+            # The genuine count may differ by a late history delivery; the foreign one may not.
+            got = counts.get(f"received.{type_name}", 0) - base.get(f"received.{type_name}", 0)
+            assert got >= sent, f"{node} received {got} of {sent} {type_name}"
+            unsigned = sent - foreign.sent_signed[type_name]
+            assert counts.get(f"foreign.{type_name}", 0) == unsigned, (node, type_name)
+            checked += sent
+    assert checked > 0
+    assert uncounted(run.diagnostics, foreign.sent, foreign.sent_signed) == 0
+
+
+def _inputs(node: str) -> list[str]:
+    return [name for name, readers in READERS.items() if node in readers]
+
+
+def _run_with(tmp_path, **foreign_kwargs):
+    nodes = []
+
+    def add(graph):
+        nodes.append(graph.add(ForeignNode(dt=DT, context=graph.context, **foreign_kwargs)))
+
+    result = run_graph(SCENARIO, run_dir=tmp_path, record=False, plots=False, before_spin=add)
+    return result, nodes[0]
+
+
+def test_inputs_table_matches_the_nodes(clean_run):
+    for node, counts in clean_run.diagnostics.items():
+        received = {k.removeprefix("received.") for k in counts if k.startswith("received.")}
+        assert received <= set(_inputs(node)), node
+
+
+def test_outsiders_change_nothing_and_every_message_is_counted(clean_run, tmp_path):
+    """Every category of hostile traffic (malformed, plausible forgeries, a posing diagnostics
+    status, raw garbage, a flood of random messages) from a writer without the key, plus
+    replays of the graph's own messages (valid tags): the run is the clean run bit for bit."""
+    floods = {t: 200 for t in (BearingMeasurement, PlatformState, TrackEstimate, ManoeuvreCommand)}
+    result, foreign = _run_with(
+        tmp_path,
+        categories=[c.name for c in CATEGORIES],
+        floods={**floods, PolarMeasurement: 50, SensorSelection: 50, PlanReport: 50},
+        garbage=10,
+        replay=True,
+        seed=7,
     )
-    sent = injectors[0].sent
-    assert len(sent) == 15
-    expected = {}
-    for node, reason, _ in sent:
-        expected.setdefault(node, {}).setdefault(reason, 0)
-        expected[node][reason] += 1
-    for node, reasons in expected.items():
-        for reason, n in reasons.items():
-            got = result.diagnostics[node].get(f"rejected.{reason}", 0)
-            assert got >= n, f"{node} counted {got} rejected.{reason}, expected {n}"
-    # The tracker reads platform states too (epochs without measurements) and rejects the same.
-    assert result.diagnostics["tracker"].get("rejected.unknown_platform", 0) >= 1
-    assert result.diagnostics["tracker"].get("rejected.non_finite", 0) >= 3
-    a, b = result.summary.records[0], clean_run.summary.records[0]
-    np.testing.assert_array_equal(a.estimate, b.estimate)
-    np.testing.assert_array_equal(a.platform_paths, b.platform_paths)
-    np.testing.assert_array_equal(a.truth, b.truth)
+    assert foreign.fired and sum(foreign.sent.values()) > 1000
+    assert foreign.sent_signed["PlatformState"] > 0  # the replays carried genuine tags
+    assert_same_run(result, clean_run)
+    assert_every_message_counted(result, clean_run, foreign)
+    unsigned = foreign.sent - foreign.sent_signed
+    assert result.foreign["evaluator"] == sum(unsigned[t] for t in _inputs("evaluator")) > 800
+    # Replays are recognised as what they are: history, duplicates, stale epochs.
+    ev = result.diagnostics["evaluator"]
+    assert ev["rejected.duplicate"] >= foreign.sent_signed["GroundTruth"]
+
+
+def test_plausible_forgeries_alone_change_nothing(clean_run, tmp_path):
+    plausible = [c.name for c in CATEGORIES if c.plausible]
+    assert len(plausible) >= 7
+    result, foreign = _run_with(tmp_path, categories=plausible, at_epoch=3)
+    assert sum(foreign.sent.values()) >= len(plausible) + 100  # a stream of 119 is one
+    assert_same_run(result, clean_run)
+    assert_every_message_counted(result, clean_run, foreign)
+
+
+def test_a_diverged_filter_stops_the_run_at_once(tmp_path, monkeypatch):
+    """The graph's own track turns non-finite at epoch 4: the evaluator refuses it like any
+    invalid track, and the runner reports a graph fault instead of waiting for the timeout."""
+    from activetrack.closed_loop import tracker as tracker_module
+
+    real_step = tracker_module.TrackerCore.step
+
+    def diverging(self, epoch, t, measurements):
+        snap = real_step(self, epoch, t, measurements)
+        if epoch == 4:
+            snap.mean[:] = np.nan
+        return snap
+
+    monkeypatch.setattr(tracker_module.TrackerCore, "step", diverging)
+    with pytest.raises(RunIncomplete) as info:
+        run_graph(SCENARIO, run_dir=tmp_path, record=False, plots=False, timeout=60)
+    result = info.value.result
+    assert result.status == "graph_fault" and info.value.exit_code == 1
+    assert "TrackEstimate epoch 4" in result.detail and "non_finite" in result.detail
+    assert result.wall_time_s < 10
+    assert result.epochs_completed == 3  # the summary covers epochs 0..3
+    assert len(result.summary.rmse_x_t) == 3
 
 
 def test_planner_death_holds_course_then_a_new_planner_resumes(tmp_path):
+    key = GraphKey.generate()
     state = {"killed": False, "revived": None}
 
     def chaos(graph):
@@ -192,7 +152,7 @@ def test_planner_death_holds_course_then_a_new_planner_resumes(tmp_path):
         elif state["killed"] and state["revived"] is None and sim.sim.epoch >= 5:
             params = [Parameter("scenario", value=SCENARIO)]
             state["revived"] = graph.add(
-                PlannerNode(context=graph.context, parameter_overrides=params)
+                PlannerNode(context=graph.context, parameter_overrides=params, graph_key=key)
             )
 
     result = run_graph(
@@ -203,6 +163,7 @@ def test_planner_death_holds_course_then_a_new_planner_resumes(tmp_path):
         sim_params={"command_timeout": 0.3},
         during_spin=chaos,
         timeout=60,
+        graph_key=key,
     )
     sim = result.diagnostics["sim"]
     assert state["killed"] and state["revived"] is not None
@@ -214,3 +175,19 @@ def test_planner_death_holds_course_then_a_new_planner_resumes(tmp_path):
     np.testing.assert_allclose(paths[k + 1][:, [1, 3]], paths[k][:, [1, 3]], atol=1e-12)
     assert not np.allclose(paths[k][:, [1, 3]], paths[k - 1][:, [1, 3]])  # it did turn before
     assert len(result.summary.records[0].estimate) == 9  # the run completed, epochs 0..8
+
+
+def test_a_planner_without_the_key_is_not_obeyed(tmp_path):
+    """A second planner on the domain (another user's, started by hand) has no key: its
+    commands are foreign to the sim, and the run equals the clean one."""
+    extra = []
+
+    def add(graph):
+        params = [Parameter("scenario", value=SCENARIO)]
+        extra.append(graph.add(PlannerNode(context=graph.context, parameter_overrides=params)))
+
+    clean = run_graph(SCENARIO, run_dir=tmp_path / "a", record=False, plots=False)
+    result = run_graph(SCENARIO, run_dir=tmp_path / "b", record=False, plots=False, before_spin=add)
+    assert extra[0].graph_key is None and extra[0].counters.counts["decisions"] >= 1
+    assert result.diagnostics["sim"]["foreign.ManoeuvreCommand"] >= 2
+    assert_same_run(result, clean)

@@ -1,8 +1,22 @@
-"""Record and replay graph topics as standard rosbag2 directories (rosbags; no rosbag2 on PyPI).
+"""Record and replay graph topics as standard rosbag2 directories (no rosbag2 on PyPI).
 
 Recording writes raw CDR bytes as received (``raw=True`` subscriptions) into MCAP storage with
-the message definitions embedded, so plain ``rosbags``, Foxglove and ``ros2 bag info`` read the
-bag without this package. Replay republishes the stored bytes unchanged.
+the message definitions and RIHS01 hashes embedded, as rosbag2 does, so plain ``rosbags``,
+Foxglove, ``mcap`` + ``mcap_ros2`` and ``ros2 bag info`` read the bag without this package.
+The bag stays readable while it grows and after the recorder is killed (``bag_io``,
+``mcap_writer``): chunks of at most 64 KiB or 0.5 s reach the OS whole, each with its CRC, and
+``metadata.yaml`` is rewritten (atomically) at most once a second. Replay republishes the stored
+bytes unchanged.
+
+Reading checks every CRC (``mcap_reader``). A damaged bag is handled so:
+
+* ``bag info`` shows what is readable, then one ``warning:`` line per problem (file, offset,
+  what was lost), and exits 2 unless the bag is intact;
+* ``play`` plays an incomplete bag (a killed recording: every complete chunk) with a warning,
+  but refuses one with lost data (a corrupt chunk, an unreadable stretch) unless
+  ``--skip-damaged``; a topic whose type cannot be published here is skipped with a warning;
+* ``bag retrack`` refuses lost data (a replay with holes would not be comparable);
+* ``bag recover`` rewrites a readable bag from whatever verifies.
 """
 
 from __future__ import annotations
@@ -11,6 +25,7 @@ import hashlib
 import importlib
 import json
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -24,11 +39,13 @@ from rosbags.interfaces import (
     QosReliability,
     QosTime,
 )
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2.metadata import dump_qos_v9
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, check_rate, open_bag
 from activetrack_ros import graph as topics
 from activetrack_ros.graph import GRAPH_TOPICS, LATCHED_TOPICS, reader_qos, writer_qos
+from activetrack_ros.trust import is_signed_type
 
 
 def _msgs_defs_files() -> list[Path]:
@@ -88,94 +105,212 @@ def message_class(msgtype: str):
     return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
-def _bag_qos(topic: str) -> list[Qos]:
-    """Offered QoS written to metadata.yaml, so that a real `ros2 bag play` matches ours."""
+def installed_type_hash(msgtype: str) -> str | None:
+    """The RIHS01 hash of the installed definition of ``msgtype`` (rosidl's type description
+    file), or None when it cannot be found."""
+    package, _, name = msgtype.partition("/msg/")
+    try:
+        share = Path(get_package_share_directory(package))
+    except (OSError, LookupError, ValueError):
+        share = Path(sys.prefix) / "share" / package
+    try:
+        hashes = json.loads((share / "msg" / f"{name}.json").read_text())["type_hashes"]
+        return next(h["hash_string"] for h in hashes if h["type_name"] == msgtype)
+    except (OSError, ValueError, KeyError, TypeError, StopIteration):
+        return None
+
+
+def _bag_qos(topic: str) -> list[dict]:
+    """Offered QoS written to the bag, so that a real `ros2 bag play` matches ours."""
     latched = topic in LATCHED_TOPICS
-    return [
-        Qos(
-            history=QosHistory.KEEP_LAST,
-            depth=topics.LATCHED_DEPTH if latched else topics.STREAM_DEPTH,
-            reliability=QosReliability.RELIABLE,
-            durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
-            deadline=QosTime(0, 0),
-            lifespan=QosTime(0, 0),
-            liveliness=QosLiveliness.AUTOMATIC,
-            liveliness_lease_duration=QosTime(0, 0),
-            avoid_ros_namespace_conventions=False,
-        )
-    ]
+    return dump_qos_v9(
+        [
+            Qos(
+                history=QosHistory.KEEP_LAST,
+                depth=topics.LATCHED_DEPTH if latched else topics.STREAM_DEPTH,
+                reliability=QosReliability.RELIABLE,
+                durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+                deadline=QosTime(0, 0),
+                lifespan=QosTime(0, 0),
+                liveliness=QosLiveliness.AUTOMATIC,
+                liveliness_lease_duration=QosTime(0, 0),
+                avoid_ros_namespace_conventions=False,
+            )
+        ]
+    )
 
 
 class BagRecorder(Node):
-    """Subscribes to topics (raw CDR) and writes them to a rosbag2 directory (MCAP)."""
+    """Subscribes to topics (raw CDR) and writes them to a rosbag2 directory (MCAP) that stays
+    readable while it grows; ``close()`` finishes it (summary, final metadata.yaml).
 
-    def __init__(self, path: str | Path, topic_types: dict[str, str] | None = None, **kwargs):
-        super().__init__("activetrack_recorder", **kwargs)
+    With ``graph_key`` (activetrack_ros.trust), messages of the signed (msgs_defs) types whose
+    trailer does not verify come from outside the graph: they are dropped and counted in
+    ``foreign``, not recorded.
+    """
+
+    TICK_S = 0.25  # timer period: closes chunks older than 0.5 s, rewrites metadata.yaml (1 s)
+
+    def __init__(
+        self,
+        path: str | Path,
+        topic_types: dict[str, str] | None = None,
+        *,
+        graph_key=None,
+        **kwargs,
+    ):
         self.path = Path(path)
         self.topic_types = dict(topic_types or GRAPH_TOPICS)
         schemas = graph_schemas(self.topic_types.values())
-        self.writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
-        self.writer.open()
-        self.connections = {}
+        specs = [
+            TopicSpec(topic, msgtype, *schemas[msgtype], qos=_bag_qos(topic))
+            for topic, msgtype in self.topic_types.items()
+        ]
+        self.writer = Rosbag2Writer(self.path, specs)  # BagError if the path exists
+        super().__init__("activetrack_recorder", **kwargs)
         self.count = 0
+        self.foreign = 0
+        self.failed: str | None = None
+        self._lock = threading.Lock()
+        self._channel = dict(self.writer.channel_ids)
         for topic, msgtype in self.topic_types.items():
-            msgdef, rihs01 = schemas[msgtype]
-            self.connections[topic] = self.writer.add_connection(
-                topic, msgtype, msgdef=msgdef, rihs01=rihs01, offered_qos_profiles=_bag_qos(topic)
-            )
-            self.create_subscription(
-                message_class(msgtype),
-                topic,
-                lambda data, t=topic: self._write(t, data),
-                reader_qos(topic),
-                raw=True,
-            )
+            cls = message_class(msgtype)
+            if graph_key is not None and is_signed_type(cls):
+                callback = self._verifier(graph_key, topic)
+            else:
+                callback = lambda data, t=topic: self._write(t, data)  # noqa: E731
+            self.create_subscription(cls, topic, callback, reader_qos(topic), raw=True)
+        self.create_timer(self.TICK_S, self._tick)
+
+    def _verifier(self, key, topic: str):
+        def on_raw(data: bytes) -> None:
+            if key.verify(data):
+                self._write(topic, data)
+            else:
+                self.foreign += 1
+
+        return on_raw
 
     def _write(self, topic: str, data: bytes) -> None:
-        self.writer.write(self.connections[topic], time.time_ns(), data)
-        self.count += 1
+        with self._lock:
+            if self.writer is None or self.failed:
+                return
+            try:
+                self.writer.write(self._channel[topic], time.time_ns(), data)
+            except OSError as exc:  # a full disk must not stop the graph: stop recording
+                self._fail(exc)
+                return
+            self.count += 1
+
+    def _tick(self) -> None:
+        with self._lock:
+            if self.writer is None or self.failed:
+                return
+            try:
+                self.writer.tick()
+            except OSError as exc:
+                self._fail(exc)
+
+    def _fail(self, exc: OSError) -> None:
+        self.failed = f"recording to {self.path} stopped: {exc.strerror or exc}"
+        self.get_logger().error(self.failed)
 
     def close(self) -> None:
-        if self.writer is not None:
-            self.writer.close()
-            self.writer = None
+        """Finish the bag (summary, final metadata.yaml); idempotent."""
+        with self._lock:
+            writer, self.writer = self.writer, None
+        if writer is None:
+            return
+        if self.failed:  # the file is as a killed recorder leaves it: `bag recover` reads it
+            writer.abandon()
+        else:
+            writer.close()
+
+    def destroy_node(self):
+        self.close()  # a graph torn down without close() still leaves a finished bag
+        return super().destroy_node()
 
 
 def bag_info(path: str | Path) -> dict:
-    """Topics, types and message counts of a bag (what `ros2 bag info` shows)."""
-    with Reader(path) as reader:
+    """Topics, types, message counts and duration of a bag (what `ros2 bag info` shows), and
+    its damage (CRC-checked). Raises BagError when nothing of the bag is readable."""
+    with open_bag(path) as bag:
+        notes = list(bag.notes)
+        for t in bag.topics.values():
+            problem = None if t.problem else _type_problem(t)
+            if problem:
+                notes.append(f"{path}: topic {t.topic} ({t.count} messages): {problem}")
         return {
-            "duration_s": reader.duration * 1e-9,
-            "messages": reader.message_count,
+            "duration_s": bag.duration_ns * 1e-9,
+            "messages": bag.message_count,
             "topics": {
-                c.topic: {"type": c.msgtype, "count": c.msgcount} for c in reader.connections
+                t.topic: {"type": t.msgtype, "count": t.count}
+                | ({"skipped": t.problem} if t.problem else {})
+                for t in bag.topics.values()
             },
+            "intact": bag.intact,
+            "damage": [{"kind": d.kind, "what": d.text} for d in bag.damage],
+            "notes": notes,
         }
 
 
 class BagPlayer(Node):
-    """Republishes a bag's raw messages with their recorded timing (scaled by ``rate``)."""
+    """Republishes a bag's raw messages with their recorded timing (scaled by ``rate``).
 
-    def __init__(self, path: str | Path, topics_filter=None, rate: float = 1.0, **kwargs):
-        if not rate > 0:
-            raise ValueError(f"rate must be > 0, got {rate!r}")
-        reader = Reader(path)
-        reader.open()
-        conns = [c for c in reader.connections if not topics_filter or c.topic in topics_filter]
-        missing = set(topics_filter or ()) - {c.topic for c in conns}
-        if missing:
-            reader.close()
-            raise ValueError(f"topics not in the bag: {sorted(missing)}")
+    ``warnings`` lists what was skipped (one line each). A bag with lost data (corrupt chunks)
+    is refused unless ``skip_damaged``; the messages of verified chunks are played then.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        topics_filter=None,
+        rate: float = 1.0,
+        *,
+        skip_damaged: bool = False,
+        **kwargs,
+    ):
+        rate = check_rate(rate)
+        bag = open_bag(path)
+        try:
+            self.warnings = [str(d) for d in bag.damage] + list(bag.notes)
+            lost = bag.lost
+            if lost and not skip_damaged:
+                raise BagError(
+                    f"{lost[0]} ({len(lost)} problem(s) with lost data: `--skip-damaged` plays "
+                    f"the rest, `activetrack bag recover {path}` rewrites the bag)"
+                )
+            wanted = list(topics_filter) if topics_filter else None
+            missing = sorted(set(wanted or ()) - set(bag.topics))
+            if missing:
+                raise BagError(f"topics not in the bag: {missing}")
+            classes = {}
+            for name in wanted or bag.usable_topics:  # unusable ones are in bag.notes already
+                topic = bag.topics[name]
+                problem = topic.problem or _type_problem(topic)
+                if problem is None:
+                    classes[name] = message_class(topic.msgtype)
+                elif wanted:
+                    raise BagError(f"{path}: topic {name} cannot be played: {problem}")
+                else:
+                    text = f"{path}: topic {name} ({topic.count} messages): {problem}"
+                    self.warnings.append(text)
+            if not classes:
+                raise BagError(f"{path}: no playable topic")
+        except BaseException:
+            bag.close()
+            raise
         super().__init__("activetrack_player", **kwargs)
         self.rate = rate
-        self.reader = reader
+        self.bag = bag
         self.pubs = {
-            c.id: self.create_publisher(message_class(c.msgtype), c.topic, writer_qos(c.topic))
-            for c in conns
+            name: self.create_publisher(cls, name, writer_qos(name))
+            for name, cls in classes.items()
         }
-        self.messages = self.reader.messages(connections=conns)
+        self.messages = bag.messages(list(classes))
         self.published = 0
         self.done = False
+        self._next = None
         self._t0_bag = None
         self._t0_wall = None
 
@@ -186,19 +321,43 @@ class BagPlayer(Node):
             return
         now = time.monotonic()
         for _ in range(max_burst):
-            if getattr(self, "_next", None) is None:
+            if self._next is None:
                 try:
                     self._next = next(self.messages)
                 except StopIteration:
                     self.done = True
-                    self.reader.close()
+                    self.bag.close()
                     return
-            conn, stamp, data = self._next
+            topic, stamp, data = self._next
             if self._t0_bag is None:
                 self._t0_bag, self._t0_wall = stamp, now
             due = self._t0_wall + (stamp - self._t0_bag) * 1e-9 / self.rate
             if due > now:
                 return
-            self.pubs[conn.id].publish(bytes(data))
+            self.pubs[topic].publish(data)
             self.published += 1
             self._next = None
+
+    def destroy_node(self):
+        self.messages.close()
+        self.bag.close()
+        return super().destroy_node()
+
+
+def _type_problem(topic) -> str | None:
+    """Why the bag's messages of ``topic`` cannot be published here: a type that is not
+    installed, or whose installed definition is not the recorded one (play skips the topic)."""
+    try:
+        message_class(topic.msgtype)
+    except (ImportError, AttributeError, ValueError):
+        return f"type {topic.msgtype} is not installed here (play skips it)"
+    if not topic.rihs01:
+        return None
+    installed = installed_type_hash(topic.msgtype)
+    if installed is not None and installed != topic.rihs01:
+        return (
+            f"the bag's {topic.msgtype} ({topic.rihs01[:15]}...) is not the installed "
+            f"definition ({installed[:15]}...): recorded with another version of the type "
+            "(play skips it)"
+        )
+    return None

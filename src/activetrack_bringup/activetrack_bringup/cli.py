@@ -6,9 +6,12 @@ activetrack batch SCENARIO [--runs N] [--json PATH]
                                         the same closed loop without ROS (the reference)
 activetrack record BAG [--topics T ...] [--duration S]
                                         record graph topics to a rosbag2 directory (MCAP)
-activetrack play BAG [--topics T ...] [--rate R]
+activetrack play BAG [--topics T ...] [--rate R] [--skip-damaged]
                                         republish a bag
-activetrack info BAG                    topics, types and counts of a bag
+activetrack bag info BAG                topics, types, counts and damage of a bag (CRC-checked)
+activetrack bag retrack BAG --scenario S
+                                        replay a run's measurements into a fresh tracker
+activetrack bag recover BAG             rebuild a readable bag from a damaged/unfinished one
 activetrack reproduce NAME [ARGS...]    reproduce a paper's tables (hernandez, ...)
 """
 
@@ -17,8 +20,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import os
 import sys
 from pathlib import Path
+
+from activetrack_bringup import cli_types
 
 EXPERIMENTS = ("hernandez", "ramdaras", "valverde", "vanderhook")
 
@@ -41,7 +47,7 @@ def _write_json(path: str, data: dict) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from activetrack.scenarios import ScenarioError
-    from activetrack_bringup.runner import run_graph
+    from activetrack_bringup.runner import RunIncomplete, run_graph
 
     try:
         result = run_graph(
@@ -54,23 +60,42 @@ def _cmd_run(args: argparse.Namespace) -> int:
             plots=not args.no_plots,
             timeout=args.timeout,
         )
+        code = 0
     except (ScenarioError, FileExistsError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    _print_summary(result.summary)
-    print(f"  decisions  {len(result.summary.records[0].decisions)}")
+    except RunIncomplete as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        result, code = exc.result, exc.exit_code
+    mode = "processes" if args.processes else "one process"
+    if result.summary is not None:
+        _print_summary(result.summary)
+        print(f"  decisions  {len(result.summary.records[0].decisions)}")
+    if not result.complete:
+        print(
+            f"  INCOMPLETE {result.status} ({result.detail}) after epoch {result.epochs_completed}"
+        )
     print(
         f"  wall time  {result.wall_time_s:.2f} s, real-time factor "
-        f"{result.real_time_factor:.1f}x ({'processes' if args.processes else 'one process'})"
+        f"{result.real_time_factor:.1f}x ({mode})"
     )
     for node, counts in result.diagnostics.items():
-        rejected = {k: v for k, v in counts.items() if k.startswith("rejected.")}
-        if rejected:
-            print(f"  {node}: {rejected}")
+        notable = {
+            k: v
+            for k, v in counts.items()
+            if k.split(".")[0] in ("rejected", "errors", "dropped", "incompatible_writers")
+        }
+        if notable:
+            print(f"  {node}: {notable}")
+    foreign = sum(result.foreign.values())
+    if foreign:
+        print(f"  foreign    {foreign} messages from writers outside the graph dropped")
+    if result.restarts:
+        print(f"  restarts   {result.restarts}")
     print(f"  run folder {result.run_dir}")
     if args.json:
         _write_json(args.json, result.to_json())
-    return 0
+    return code
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
@@ -90,10 +115,22 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     return 0
 
 
+def _error(exc) -> int:
+    """A bag command's failure: one ``error:`` line on stderr, exit code 2."""
+    print(f"error: {exc}", file=sys.stderr)
+    return 2
+
+
+def _warn(lines) -> None:
+    for line in lines:
+        print(f"warning: {line}", file=sys.stderr)
+
+
 def _cmd_record(args: argparse.Namespace) -> int:
     import time
 
     from activetrack_bringup.bag import BagRecorder
+    from activetrack_bringup.bag_io import BagError
     from activetrack_bringup.inprocess import InProcessGraph
     from activetrack_ros.graph import GRAPH_TOPICS
 
@@ -101,19 +138,25 @@ def _cmd_record(args: argparse.Namespace) -> int:
     if args.topics:
         unknown = [t for t in args.topics if t not in GRAPH_TOPICS]
         if unknown:
-            print(f"error: --topics must be among {sorted(GRAPH_TOPICS)}; got {unknown}")
-            return 2
+            return _error(f"--topics must be among {sorted(GRAPH_TOPICS)}; got {unknown}")
         topic_types = {t: GRAPH_TOPICS[t] for t in args.topics}
-    with InProcessGraph() as graph:
-        recorder = graph.add(BagRecorder(args.bag, topic_types, context=graph.context))
-        print(f"recording {len(topic_types)} topics to {args.bag} (Ctrl-C to stop)")
-        end = time.monotonic() + (args.duration if args.duration else float("inf"))
-        try:
-            graph.spin_until(lambda: time.monotonic() > end, timeout=float("inf"))
-        except KeyboardInterrupt:
-            pass
-        finally:
-            recorder.close()
+    if Path(args.bag).exists():
+        return _error(f"{args.bag} exists already: record into a new path")
+    try:
+        with InProcessGraph() as graph:
+            recorder = graph.add(BagRecorder(args.bag, topic_types, context=graph.context))
+            print(f"recording {len(topic_types)} topics to {args.bag} (Ctrl-C to stop)")
+            end = time.monotonic() + (args.duration if args.duration else float("inf"))
+            try:
+                graph.spin_until(lambda: time.monotonic() > end, timeout=float("inf"))
+            except KeyboardInterrupt:
+                pass
+            finally:
+                recorder.close()
+    except BagError as exc:
+        return _error(exc)
+    if recorder.failed:
+        return _error(recorder.failed)
     print(f"recorded {recorder.count} messages")
     return 0
 
@@ -122,32 +165,60 @@ def _cmd_play(args: argparse.Namespace) -> int:
     from activetrack_bringup.bag import BagPlayer
     from activetrack_bringup.inprocess import InProcessGraph
 
-    with InProcessGraph() as graph:
-        player = graph.add(BagPlayer(args.bag, args.topics, args.rate, context=graph.context))
-        graph.spin_until(
-            lambda: (player.play_step(), player.done)[1], timeout=float("inf"), step=0.001
-        )
-        graph.spin_until(lambda: False, timeout=0.2)  # let reliable deliveries finish
+    try:
+        with InProcessGraph() as graph:
+            player = graph.add(
+                BagPlayer(
+                    args.bag,
+                    args.topics,
+                    args.rate,
+                    skip_damaged=getattr(args, "skip_damaged", False),
+                    context=graph.context,
+                )
+            )
+            _warn(player.warnings)
+            graph.spin_until(
+                lambda: (player.play_step(), player.done)[1], timeout=float("inf"), step=0.001
+            )
+            graph.spin_until(lambda: False, timeout=0.2)  # let reliable deliveries finish
+    except ValueError as exc:  # BagError, a bad rate
+        return _error(exc)
     print(f"published {player.published} messages from {args.bag}")
     return 0
 
 
 def _cmd_bag_info(args: argparse.Namespace) -> int:
     from activetrack_bringup.bag import bag_info
+    from activetrack_bringup.bag_io import BagError
 
-    info = bag_info(args.bag)
+    try:
+        info = bag_info(args.bag)
+    except BagError as exc:
+        return _error(exc)
     print(f"bag {args.bag}: {info['messages']} messages, {info['duration_s']:.2f} s")
     for topic, t in sorted(info["topics"].items()):
-        print(f"  {topic:<40} {t['type']:<45} {t['count']}")
+        skipped = f"  (skipped: {t['skipped']})" if "skipped" in t else ""
+        print(f"  {topic:<40} {t['type']:<45} {t['count']}{skipped}")
+    _warn(d["what"] for d in info["damage"])
+    _warn(info["notes"])
     if args.json:
         _write_json(args.json, info)
+    if not info["intact"]:
+        return _error(
+            f"{args.bag} is not intact ({len(info['damage'])} problem(s) above): "
+            f"`activetrack bag recover {args.bag}` rewrites it from what verifies"
+        )
     return 0
 
 
 def _cmd_bag_retrack(args: argparse.Namespace) -> int:
     from activetrack_bringup.retrack import retrack
 
-    r = retrack(args.bag, args.scenario, filter_kind=args.filter, run=args.run)
+    try:
+        r = retrack(args.bag, args.scenario, filter_kind=args.filter, run=args.run)
+    except (ValueError, OSError) as exc:  # BagError/RetrackError, ScenarioError
+        return _error(exc)
+    _warn(r.warnings)
     print(f"replayed {r.epochs} epochs of {args.bag} into a fresh {r.replayed_filter} tracker")
     print(f"  max |state difference| vs recorded track      {r.max_state_difference:.3g}")
     print(f"  max |covariance difference| vs recorded track {r.max_covariance_difference:.3g}")
@@ -159,6 +230,29 @@ def _cmd_bag_retrack(args: argparse.Namespace) -> int:
         f"                 replayed ({r.replayed_filter}): x {r.replayed_rmse[0]:.3f} "
         f"y {r.replayed_rmse[1]:.3f} m"
     )
+    if args.json:
+        _write_json(args.json, r.to_json())
+    return 0
+
+
+def _cmd_bag_recover(args: argparse.Namespace) -> int:
+    from activetrack_bringup.bag_io import BagError
+    from activetrack_bringup.bag_recover import recover
+
+    try:
+        r = recover(args.bag)
+    except (BagError, OSError) as exc:
+        return _error(exc)
+    if not r.changed:
+        print(f"bag {args.bag} is intact ({r.messages} messages): nothing to recover")
+    else:
+        print(f"recovered {args.bag}: kept {r.messages} messages on {len(r.kept)} topics")
+        for topic, n in sorted(r.kept.items()):
+            print(f"  {topic:<40} {r.types[topic]:<45} {n}")
+        for path in r.backups:
+            print(f"  original kept as {path}")
+        for line in r.lost:
+            print(f"  lost: {line}")
     if args.json:
         _write_json(args.json, r.to_json())
     return 0
@@ -179,30 +273,39 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", help="scenario YAML file")
     run.add_argument("--processes", action="store_true", help="one OS process per node (DDS)")
     run.add_argument("--mode", choices=("lockstep", "free"), default="lockstep")
-    run.add_argument("--run", type=int, default=None, help="Monte Carlo run index (seeding)")
+    run.add_argument(
+        "--run", type=cli_types.run_index, default=None, help="Monte Carlo run index (seeding)"
+    )
     run.add_argument("--out", help="run folder (default runs/<scenario>-<timestamp>)")
     run.add_argument("--no-bag", action="store_true", help="do not record the bag")
     run.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
-    run.add_argument("--timeout", type=float, default=600.0, help="wall seconds (default 600)")
+    run.add_argument(
+        "--timeout", type=cli_types.timeout, default=600.0, help="wall seconds (default 600)"
+    )
     run.add_argument("--json", help="also write the summary to this JSON file")
     run.set_defaults(func=_cmd_run)
 
     batch = sub.add_parser("batch", help="run a scenario closed loop without ROS")
     batch.add_argument("scenario", help="scenario YAML file")
-    batch.add_argument("--runs", type=int, default=1, help="seeded Monte Carlo runs")
+    batch.add_argument("--runs", type=cli_types.runs, default=1, help="seeded Monte Carlo runs")
     batch.add_argument("--json", help="write the summary to this JSON file")
     batch.set_defaults(func=_cmd_batch)
 
     rec = sub.add_parser("record", help="record graph topics to a rosbag2 directory")
     rec.add_argument("bag", help="output directory (must not exist)")
     rec.add_argument("--topics", nargs="+", help="topics (default: every graph topic)")
-    rec.add_argument("--duration", type=float, help="seconds (default: until Ctrl-C)")
+    rec.add_argument("--duration", type=cli_types.duration, help="seconds (default: until Ctrl-C)")
     rec.set_defaults(func=_cmd_record)
 
     play = sub.add_parser("play", help="republish a recorded bag")
     play.add_argument("bag")
     play.add_argument("--topics", nargs="+", help="only these topics")
-    play.add_argument("--rate", type=float, default=1.0, help="speed factor (default 1)")
+    play.add_argument("--rate", type=cli_types.rate, default=1.0, help="speed factor (default 1)")
+    play.add_argument(
+        "--skip-damaged",
+        action="store_true",
+        help="play the verified chunks of a bag with corrupt ones (default: refuse)",
+    )
     play.set_defaults(func=_cmd_play)
 
     bag = sub.add_parser("bag", help="inspect bags and replay them into a tracker")
@@ -215,9 +318,17 @@ def build_parser() -> argparse.ArgumentParser:
     rt.add_argument("bag")
     rt.add_argument("--scenario", required=True, help="the scenario the run used")
     rt.add_argument("--filter", choices=("ekf", "pf"), help="another filter (default: as run)")
-    rt.add_argument("--run", type=int, default=None, help="Monte Carlo run index of the run")
+    rt.add_argument(
+        "--run", type=cli_types.run_index, default=None, help="Monte Carlo run index of the run"
+    )
     rt.add_argument("--json", help="write the report to this JSON file")
     rt.set_defaults(func=_cmd_bag_retrack)
+    rec_b = bag_sub.add_parser(
+        "recover", help="rebuild a readable bag from a damaged or unfinished one"
+    )
+    rec_b.add_argument("bag")
+    rec_b.add_argument("--json", help="write the report to this JSON file")
+    rec_b.set_defaults(func=_cmd_bag_recover)
 
     rep = sub.add_parser("reproduce", help="reproduce a paper's tables and figures")
     rep.add_argument("name", choices=EXPERIMENTS)
@@ -227,8 +338,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from activetrack_bringup import interrupts
+
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        with interrupts.raising():
+            return args.func(args)
+    except BrokenPipeError:  # `activetrack bag info BAG | head`: the reader left, fine
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit
+        return 0
+    except (KeyboardInterrupt, interrupts.Terminated) as exc:
+        code = interrupts.exit_code(exc)
+        print(
+            f"activetrack: interrupted ({'SIGINT' if code == 130 else 'SIGTERM'})", file=sys.stderr
+        )
+        return code
 
 
 if __name__ == "__main__":

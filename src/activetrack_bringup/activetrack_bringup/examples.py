@@ -49,7 +49,16 @@ def _header(seconds: int = 5) -> Header:
 
 
 def example_messages() -> list:
-    """Return one populated instance of every msgs_defs message type, in MESSAGE_TYPES order."""
+    """Return one populated instance of every msgs_defs message type, in MESSAGE_TYPES order.
+
+    The ``graph_auth`` trailer holds a fixed pattern (not a valid tag under any key)."""
+    messages = _examples()
+    for m in messages:
+        m.graph_auth = [(17 * i + 5) % 256 for i in range(16)]
+    return messages
+
+
+def _examples() -> list:
     sensor_pos = Point(x=1800.0, y=2000.0, z=-3.5)
     sensor_vel = Vector3(x=-40.0, y=-40.0, z=0.25)
     return [

@@ -29,6 +29,7 @@ class InProcessGraph:
         rclpy.init(**init_kwargs)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.nodes: list[Node] = []
+        self.supervisor = None  # the node processes' supervisor, when the runner spawned them
 
     def add(self, node: Node) -> Node:
         self.nodes.append(node)

@@ -2,7 +2,7 @@
 
 Publishes /clock, ground truth (evaluators only), platform states and bearing / polar
 measurements; obeys ManoeuvreCommand (clamped to each platform's limits, logged and counted)
-and SensorSelection.
+and SensorSelection from the graph's planner (activetrack_ros.trust).
 
 Modes (parameter ``mode``):
 - ``lockstep`` (default): epoch k+1 is simulated only when every controllable platform's
@@ -15,22 +15,20 @@ Modes (parameter ``mode``):
 import math
 import time
 
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Vector3
-from rclpy.executors import ExternalShutdownException
-from rclpy.node import Node
-from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import ColorRGBA, Header
+from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.counters import NodeCounters
 from activetrack.closed_loop.data import Command
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics
+from activetrack_ros.convert import BEARING_KINDS, MAX_SPEED, check_epoch_stamp, finite, header
+from activetrack_ros.node_base import GraphNode, Rejected
+from activetrack_ros.spin import spin_node
 from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
@@ -41,16 +39,10 @@ from msgs_defs.msg import (
     TrackEstimate,
 )
 
-LATCHED = topics.writer_qos(topics.TRACK)
-
-BEARING_KINDS = ("bearing", "ambiguous_bearing")
+PATH_CHUNK = 64  # points per path marker: each epoch republishes only the newest chunk
 
 
-def _stamp(seconds: float) -> Header:
-    return Header(stamp=Time(seconds=seconds).to_msg(), frame_id="world")
-
-
-class SimNode(Node):
+class SimNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("sim_node", **kwargs)
         self.declare_parameter("scenario", "")
@@ -71,28 +63,28 @@ class SimNode(Node):
         if not (math.isfinite(self.rate) and self.rate > 0):
             raise ValueError(f"parameter 'rate' must be > 0, got {self.rate!r}")
         self.timeout = float(self.get_parameter("command_timeout").value)
+        if not (math.isfinite(self.timeout) and self.timeout > 0):
+            raise ValueError(f"parameter 'command_timeout' must be > 0 s, got {self.timeout!r}")
+        tick = float(self.get_parameter("tick").value)
+        if not (math.isfinite(tick) and 0 < tick <= 1):
+            raise ValueError(f"parameter 'tick' must be in (0, 1] s, got {tick!r}")
+        self.exit_when_done = bool(self.get_parameter("exit_when_done").value)
         run = int(self.get_parameter("run").value)
         rng = component_rngs(self.scenario.seed, None if run < 0 else run)[0]
         self.sim = Simulator(self.scenario, rng)
-        self.counters = NodeCounters()
 
-        self.clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
-        self.truth_pub = self.create_publisher(GroundTruth, topics.GROUND_TRUTH, LATCHED)
-        self.platform_pub = self.create_publisher(PlatformState, topics.PLATFORM_STATES, LATCHED)
-        self.bearing_pub = self.create_publisher(
-            BearingMeasurement, topics.BEARING_MEASUREMENTS, LATCHED
-        )
-        self.polar_pub = self.create_publisher(PolarMeasurement, topics.POLAR_MEASUREMENTS, LATCHED)
-        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        self.marker_pub = self.create_publisher(MarkerArray, topics.MARKERS, 10)
+        self.clock_pub = self.publisher(Clock, topics.CLOCK)
+        self.truth_pub = self.publisher(GroundTruth, topics.GROUND_TRUTH)
+        self.platform_pub = self.publisher(PlatformState, topics.PLATFORM_STATES)
+        self.bearing_pub = self.publisher(BearingMeasurement, topics.BEARING_MEASUREMENTS)
+        self.polar_pub = self.publisher(PolarMeasurement, topics.POLAR_MEASUREMENTS)
+        self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
+        self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.paths: dict[str, list[Point]] = {pid: [] for pid in self.sim.platforms}
-        self.create_subscription(
-            ManoeuvreCommand, topics.MANOEUVRE_COMMANDS, self.on_command, LATCHED
-        )
-        self.create_subscription(
-            SensorSelection, topics.SENSOR_SELECTION, self.on_selection, LATCHED
-        )
-        self.create_subscription(TrackEstimate, topics.TRACK, self.on_track, LATCHED)
+        self.path_chunk = dict.fromkeys(self.sim.platforms, 0)
+        self.subscribe(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS, self.on_command)
+        self.subscribe(SensorSelection, topics.SENSOR_SELECTION, self.on_selection)
+        self.subscribe(TrackEstimate, topics.TRACK, self.on_track)
 
         self.pending: dict[str, Command] = {}
         self.selection: tuple[str, ...] | None = None
@@ -105,29 +97,34 @@ class SimNode(Node):
         self.epoch_started = time.monotonic()
         self.wall_start = time.monotonic()
         self.publish_epoch([])
-        self.timer = self.create_timer(float(self.get_parameter("tick").value), self.on_tick)
+        self.guarded_timer(tick, self.on_tick)
 
     # --- inputs --------------------------------------------------------------------------
 
-    def _reject(self, reason: str, detail: str) -> None:
-        self.counters.rejected(reason)
-        self.get_logger().warning(f"rejected {reason}: {detail}")
+    def _check_epoch(self, epoch: int, what: str) -> None:
+        if self.mode != "lockstep":
+            return
+        if epoch < self.sim.epoch:
+            raise Rejected("stale_epoch", f"{what} for epoch {epoch} < {self.sim.epoch}")
+        if epoch > self.sim.epoch:
+            raise Rejected("future_epoch", f"{what} for epoch {epoch} > {self.sim.epoch}")
 
     def on_command(self, msg: ManoeuvreCommand) -> None:
-        self.counters.received("ManoeuvreCommand")
-        values = (msg.heading_change, msg.speed_change)
-        if not all(math.isfinite(v) for v in values):
-            return self._reject("non_finite", f"command for {msg.platform_id!r}: {values}")
+        what = f"command for {msg.platform_id!r}"
         if msg.platform_id not in self.sim.controllable_ids:
-            return self._reject(
+            raise Rejected(
                 "unknown_platform",
                 f"{msg.platform_id!r} is not one of {list(self.sim.controllable_ids)}",
             )
-        if self.mode == "lockstep":
-            if msg.epoch < self.sim.epoch:
-                return self._reject("stale_epoch", f"epoch {msg.epoch} < {self.sim.epoch}")
-            if msg.epoch > self.sim.epoch:
-                return self._reject("future_epoch", f"epoch {msg.epoch} > {self.sim.epoch}")
+        check_epoch_stamp(msg, self.scenario, what)
+        # A heading change beyond half a turn or a speed change beyond the platform's whole
+        # speed range is not a command to clamp but garbage: reject it.
+        finite((msg.heading_change,), f"{what} heading_change", math.pi + 1e-9)
+        v_max = self.scenario_platform(msg.platform_id).limits.v_max
+        finite((msg.speed_change,), f"{what} speed_change", min(v_max, MAX_SPEED))
+        self._check_epoch(msg.epoch, what)
+        if self.mode == "lockstep" and msg.platform_id in self.pending:
+            raise Rejected("duplicate", f"second {what} at epoch {msg.epoch}")
         cmd = Command(
             msg.platform_id,
             self.sim.epoch,
@@ -142,18 +139,33 @@ class SimNode(Node):
             if self.ready():
                 self.on_tick()  # the last command of the epoch: step now, not at the next tick
 
+    def scenario_platform(self, platform_id: str):
+        return next(p for p in self.scenario.platforms if p.id == platform_id)
+
     def on_selection(self, msg: SensorSelection) -> None:
-        self.counters.received("SensorSelection")
-        unknown = [s for s in msg.selected_sensor_ids if s not in self.sim.sensors]
+        if not self.expects_selection:
+            raise Rejected("unexpected_selection", "the scenario does not select sensors")
+        check_epoch_stamp(msg, self.scenario, "selection")
+        ids = list(msg.selected_sensor_ids)
+        unknown = [s for s in ids if s not in self.sim.sensors]
         if unknown:
-            return self._reject("unknown_sensor", f"selection names {unknown}")
-        if self.mode == "lockstep" and msg.epoch != self.sim.epoch:
-            return self._reject("stale_epoch", f"selection for epoch {msg.epoch}")
-        self.selection = tuple(msg.selected_sensor_ids)
+            raise Rejected("unknown_sensor", f"selection names {unknown[:5]}")
+        count = self.scenario.planner.selection.count
+        if len(set(ids)) != len(ids) or not 1 <= len(ids) <= count:
+            raise Rejected("bad_selection", f"selection must name 1..{count} distinct sensors")
+        self._check_epoch(msg.epoch, "selection")
+        if self.mode == "lockstep" and self.selection_epoch == msg.epoch:
+            raise Rejected("duplicate", f"second selection at epoch {msg.epoch}")
+        self.selection = tuple(ids)
         self.selection_epoch = msg.epoch
+        if self.mode == "lockstep" and self.ready():
+            self.on_tick()
 
     def on_track(self, msg: TrackEstimate) -> None:
         # Only a lockstep signal when no platform is commanded: the sim never reads the estimate.
+        check_epoch_stamp(msg, self.scenario, "track")
+        if msg.epoch > self.sim.epoch:
+            raise Rejected("future_epoch", f"track of epoch {msg.epoch} > sim {self.sim.epoch}")
         self.last_track_epoch = max(self.last_track_epoch, msg.epoch)
         if self.mode == "lockstep" and not self.sim.controllable_ids and self.ready():
             self.on_tick()
@@ -165,7 +177,9 @@ class SimNode(Node):
         self.counters.count("commands_applied")
         if result.clamped:
             self.counters.count("commands_clamped")
-            self.get_logger().warning(f"command for {cmd.platform_id!r} clamped: {result.message}")
+            self.log_limited(
+                "warning", "clamped", f"command for {cmd.platform_id!r} clamped: {result.message}"
+            )
 
     def ready(self) -> bool:
         k = self.sim.epoch
@@ -185,7 +199,7 @@ class SimNode(Node):
             return
         if self.mode == "free":
             sim_time = (time.monotonic() - self.wall_start) * self.rate
-            self.clock_pub.publish(Clock(clock=Time(seconds=sim_time).to_msg()))
+            self.clock_pub.publish(Clock(clock=header(sim_time).stamp))
             if sim_time >= self.sim.time + self.sim.dt:
                 self.step()
             return
@@ -217,11 +231,11 @@ class SimNode(Node):
     def publish_epoch(self, measurements) -> None:
         t = self.sim.time
         k = self.sim.epoch
-        self.clock_pub.publish(Clock(clock=Time(seconds=t).to_msg()))
+        self.clock_pub.publish(Clock(clock=header(t).stamp))
         pv = self.sim.truth_pv()
         self.truth_pub.publish(
             GroundTruth(
-                header=_stamp(t),
+                header=header(t),
                 target_id=self.scenario.target.id,
                 epoch=k,
                 state_names=list(self.sim.model.state_names),
@@ -235,7 +249,7 @@ class SimNode(Node):
         for s in self.sim.platform_snapshots():
             self.platform_pub.publish(
                 PlatformState(
-                    header=_stamp(t),
+                    header=header(t),
                     platform_id=s.platform_id,
                     epoch=k,
                     sensor_id=",".join(s.sensor_ids),
@@ -255,7 +269,7 @@ class SimNode(Node):
         platform_id = self.sim.sensors[m.sensor_id][0]
         s = m.sensor_state
         common = dict(
-            header=_stamp(t),
+            header=header(t),
             platform_id=platform_id,
             sensor_id=m.sensor_id,
             epoch=epoch,
@@ -291,47 +305,41 @@ class SimNode(Node):
             self.counters.count("missed_detections")
 
     def publish_markers(self, t: float) -> None:
-        """Each platform's path so far as a line strip (namespace ``platforms``)."""
+        """Each platform's path as line strips of PATH_CHUNK points (namespace
+        ``platforms/<id>``, marker id = chunk index): only the newest chunk is republished, so
+        a long run costs linear, not quadratic, bytes; chunks share their end points."""
         array = MarkerArray()
-        for i, (pid, p) in enumerate(self.sim.platforms.items()):
-            self.paths[pid].append(Point(x=float(p.pv[0]), y=float(p.pv[2])))
-            m = Marker(header=_stamp(t), ns="platforms", id=i, type=Marker.LINE_STRIP)
+        for pid, p in self.sim.platforms.items():
+            path = self.paths[pid]
+            if len(path) == PATH_CHUNK:  # chunk full: the next one starts where it ended
+                self.path_chunk[pid] += 1
+                del path[:-1]
+            path.append(Point(x=float(p.pv[0]), y=float(p.pv[2])))
+            m = Marker(
+                header=header(t),
+                ns=f"platforms/{pid}",
+                id=self.path_chunk[pid],
+                type=Marker.LINE_STRIP,
+            )
             m.action = Marker.ADD
             m.pose.orientation.w = 1.0
             m.scale.x = 20.0  # line width, m
             m.color = ColorRGBA(r=0.1, g=0.4, b=0.9, a=1.0)
-            m.points = list(self.paths[pid])
+            m.points = list(path)
             array.markers.append(m)
         self.marker_pub.publish(array)
 
     def publish_diagnostics(self, finished: bool = False) -> None:
-        status = DiagnosticStatus(
-            level=DiagnosticStatus.WARN if self.counters.total_rejected else DiagnosticStatus.OK,
-            name="activetrack/sim_node",
-            hardware_id=self.scenario.name,
-            message="finished" if finished else f"epoch {self.sim.epoch}/{self.scenario.steps}",
-            values=[KeyValue(key=k, value=v) for k, v in self.counters.as_pairs()],
+        message = "finished" if finished else f"epoch {self.sim.epoch}/{self.scenario.steps}"
+        self.diag_pub.publish(
+            self.diagnostics_array(
+                header(self.sim.time), "activetrack/sim_node", self.scenario.name, message
+            )
         )
-        self.diag_pub.publish(DiagnosticArray(header=_stamp(self.sim.time), status=[status]))
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    try:
-        node = SimNode()
-    except ValueError as exc:  # a bad scenario or parameter fails before anything starts
-        print(f"sim_node: {exc}")
-        rclpy.try_shutdown()
-        raise SystemExit(2) from None
-    try:
-        exit_when_done = bool(node.get_parameter("exit_when_done").value)
-        while rclpy.ok() and not (exit_when_done and node.done):
-            rclpy.spin_once(node, timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_node(SimNode, args, done=lambda node: node.exit_when_done and node.done)
 
 
 if __name__ == "__main__":

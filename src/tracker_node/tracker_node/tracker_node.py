@@ -1,45 +1,56 @@
 """tracker_node: EKF or particle filter on bearing and polar measurements
 (activetrack.closed_loop.TrackerCore).
 
-Collects the measurements of an epoch (``epoch_measurement_count`` of them), updates the
-filter once per epoch and publishes the track; an epoch without measurements (a stop-and-measure
-robot on the move, a gated sensor) is announced by the platform states and only predicts, as in
-the batch loop. Outputs: ``TrackEstimate`` (with the planner's posterior
-samples for a PF), ``geometry_msgs/PoseWithCovarianceStamped`` and a subsampled particle cloud
-(``geometry_msgs/PoseArray``) for standard tools. Bad messages (non-finite values, unknown
-sensors, out-of-order or future epochs and stamps, a covariance that is not positive definite)
-are rejected, counted and logged; the node keeps running.
+An epoch k is announced by the simulator's platform states of epoch k (one per platform, each
+saying how many measurements the sim published at k); the tracker updates once it holds them
+all, sorted in scenario order, and publishes the track. Each measurement must agree with its
+platform's announced position. An epoch that stays incomplete for ``epoch_timeout`` seconds is
+closed with what arrived (warned and counted), like a missing command in the simulator, so
+nothing can stall the tracker. In lockstep mode only epoch last + 1 is accepted. Outputs:
+``TrackEstimate`` (with the planner's posterior samples for a PF),
+``geometry_msgs/PoseWithCovarianceStamped`` and a subsampled particle cloud
+(``geometry_msgs/PoseArray``) for standard tools. Bad messages are rejected, counted and logged
+(activetrack_ros.node_base); the node keeps running.
 """
 
 import array
 import math
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovarianceStamped
-from rclpy.executors import ExternalShutdownException
-from rclpy.node import Node
-from rclpy.time import Time
-from std_msgs.msg import ColorRGBA, Header
+from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.counters import NodeCounters
+from activetrack.closed_loop.data import PlatformSnapshot
 from activetrack.closed_loop.tracker import TrackerCore, pose_of
 from activetrack.filters.measurement import Measurement
 from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_scenario, with_tracker_overrides
 from activetrack_ros import graph as topics
+from activetrack_ros.convert import MeasurementChecker, header, platform_from_msg
+from activetrack_ros.node_base import GraphNode, Rejected
+from activetrack_ros.spin import spin_node
 from msgs_defs.msg import BearingMeasurement, PlatformState, PolarMeasurement, TrackEstimate
 
-LATCHED = topics.writer_qos(topics.TRACK)
-
-BEARING_KINDS = ("bearing", "ambiguous_bearing")
-STAMP_TOLERANCE = 1e-6  # s between a stamp and its epoch time k T
+FREE_WINDOW = 64  # free mode: epochs ahead of the last update that may be collected at once
+POSITION_TOLERANCE = 1e-6  # m between a measurement's sensor position and its platform state
 
 
-class TrackerNode(Node):
+@dataclass
+class OpenEpoch:
+    """What has arrived for one epoch that is not processed yet."""
+
+    opened: float  # time.monotonic() of the first message
+    measurements: dict[str, Measurement] = field(default_factory=dict)
+    states: dict[str, PlatformSnapshot] = field(default_factory=dict)
+    announced: dict[str, int] = field(default_factory=dict)  # platform id -> measurement count
+
+
+class TrackerNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("tracker_node", **kwargs)
         self.declare_parameter("scenario", "")
@@ -48,6 +59,7 @@ class TrackerNode(Node):
         self.declare_parameter("cloud_size", 100)  # particles in the published cloud
         self.declare_parameter("filter", "")  # ekf | pf; empty: the scenario's
         self.declare_parameter("particles", 0)  # 0: the scenario's
+        self.declare_parameter("epoch_timeout", 5.0)  # s before an incomplete epoch is closed
         path = self.get_parameter("scenario").value
         if not path:
             raise ValueError("parameter 'scenario' must name a scenario YAML file")
@@ -59,168 +71,139 @@ class TrackerNode(Node):
         self.mode = self.get_parameter("mode").value
         if self.mode not in ("lockstep", "free"):
             raise ValueError(f"parameter 'mode' must be 'lockstep' or 'free', got {self.mode!r}")
+        self.epoch_timeout = float(self.get_parameter("epoch_timeout").value)
+        if not (math.isfinite(self.epoch_timeout) and self.epoch_timeout > 0):
+            raise ValueError(f"parameter 'epoch_timeout' must be > 0 s, got {self.epoch_timeout}")
+        self.cloud_size = int(self.get_parameter("cloud_size").value)
+        if not 0 <= self.cloud_size <= 100_000:
+            raise ValueError(
+                f"parameter 'cloud_size' must be in [0, 100000], got {self.cloud_size}"
+            )
         run = int(self.get_parameter("run").value)
         rng = component_rngs(self.scenario.seed, None if run < 0 else run)[1]
         self.core = TrackerCore(self.scenario, rng)
-        self.cloud_size = int(self.get_parameter("cloud_size").value)
         # Scenario order of the sensors: measurements of an epoch are applied in this order.
         self.sensor_order = {sid: i for i, sid in enumerate(self.core.sensors)}
         self.platform_ids = {p.id for p in self.scenario.platforms}
-        self.counters = NodeCounters()
-        self.buffer: dict[int, list[Measurement]] = {}
-        self.expected: dict[int, int] = {}
-        self.quiet: dict[int, set[str]] = {}  # platforms whose state says epoch k had nothing
+        owner = {s.id: p.id for p in self.scenario.platforms for s in p.sensors}
+        self.check = MeasurementChecker(self.scenario, self.core.sensors, owner)
+        self.owner = owner
+        self.epochs: dict[int, OpenEpoch] = {}
         self.last_epoch = 0
 
-        self.track_pub = self.create_publisher(TrackEstimate, topics.TRACK, LATCHED)
-        self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, topics.TRACK_POSE, 10)
-        self.cloud_pub = self.create_publisher(PoseArray, topics.PARTICLES, 10)
-        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        self.marker_pub = self.create_publisher(MarkerArray, topics.MARKERS, 10)
-        self.create_subscription(
-            BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing, LATCHED
-        )
-        self.create_subscription(
-            PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar, LATCHED
-        )
-        self.create_subscription(PlatformState, topics.PLATFORM_STATES, self.on_platform, LATCHED)
+        self.track_pub = self.publisher(TrackEstimate, topics.TRACK)
+        self.pose_pub = self.publisher(PoseWithCovarianceStamped, topics.TRACK_POSE)
+        self.cloud_pub = self.publisher(PoseArray, topics.PARTICLES)
+        self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
+        self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
+        self.subscribe(BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing)
+        self.subscribe(PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar)
+        self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
+        self.guarded_timer(0.05, self.on_tick)
         self.publish_track(self.core.snapshot())  # epoch 0: the prior
 
-    # --- validation and conversion -------------------------------------------------------
-
-    def _reject(self, reason: str, detail: str) -> None:
-        self.counters.rejected(reason)
-        self.get_logger().warning(f"rejected {reason}: {detail}")
-
-    def _check_common(self, msg, kinds) -> str | None:
-        """Reason to reject a measurement message, or None."""
-        sensor = self.core.sensors.get(msg.sensor_id)
-        if sensor is None:
-            return "unknown_sensor"
-        if sensor.kind not in kinds:
-            return "wrong_sensor_kind"
-        pos = (msg.sensor_position.x, msg.sensor_position.y)
-        vel = (msg.sensor_velocity.x, msg.sensor_velocity.y)
-        if not all(math.isfinite(v) for v in (*pos, *vel)):
-            return "non_finite"
-        if msg.epoch <= self.last_epoch:
-            return "out_of_order"
-        if msg.epoch > self.scenario.steps or (
-            self.mode == "lockstep" and msg.epoch > self.last_epoch + 1
-        ):
-            return "future_epoch"
-        stamp = Time.from_msg(msg.header.stamp).nanoseconds * 1e-9
-        if abs(stamp - msg.epoch * self.scenario.dt) > STAMP_TOLERANCE:
-            return "bad_stamp"
-        return None
-
-    def _measurement(self, msg, z) -> Measurement:
-        s = msg.sensor_position, msg.sensor_velocity
-        return Measurement(
-            self.core.sensors[msg.sensor_id],
-            np.array([s[0].x, s[1].x, s[0].y, s[1].y]),
-            z,
-            msg.epoch * self.scenario.dt,  # exact k T, as in the batch loop
-            msg.sensor_id,
-        )
+    # --- inputs --------------------------------------------------------------------------
 
     def on_bearing(self, msg: BearingMeasurement) -> None:
-        self.counters.received("BearingMeasurement")
-        reason = self._check_common(msg, BEARING_KINDS)
-        if reason is None and msg.detected and not math.isfinite(msg.bearing):
-            reason = "non_finite"
-        if reason is not None:
-            return self._reject(reason, f"bearing from {msg.sensor_id!r} epoch {msg.epoch}")
-        z = [msg.bearing] if msg.detected else None
-        self.accept(msg, self._measurement(msg, z))
+        self.add_measurement(msg.epoch, self.check.bearing(msg))
 
     def on_polar(self, msg: PolarMeasurement) -> None:
-        self.counters.received("PolarMeasurement")
-        reason = self._check_common(msg, ("range_bearing", "range_rate_bearing"))
-        if reason is None:
-            sensor = self.core.sensors[msg.sensor_id]
-            values = {"range": msg.range, "range_rate": msg.range_rate, "bearing": msg.bearing}
-            z = [values[c] for c in sensor.components]
-            n = sensor.dim_z
-            if msg.has_range_rate != ("range_rate" in sensor.components):
-                reason = "wrong_sensor_kind"
-            elif msg.detected and not all(math.isfinite(v) for v in z):
-                reason = "non_finite"
-            elif len(msg.covariance) != n * n:
-                reason = "bad_covariance"
-            else:
-                R = np.array(msg.covariance, dtype=float).reshape(n, n)
-                if not (np.all(np.isfinite(R)) and np.allclose(R, R.T)):
-                    reason = "bad_covariance"
-                elif np.any(np.linalg.eigvalsh(R) <= 0):
-                    reason = "bad_covariance"
-        if reason is not None:
-            return self._reject(reason, f"polar from {msg.sensor_id!r} epoch {msg.epoch}")
-        self.accept(msg, self._measurement(msg, z if msg.detected else None))
+        self.add_measurement(msg.epoch, self.check.polar(msg))
 
     def on_platform(self, msg: PlatformState) -> None:
-        """An epoch with no measurements at all is only seen here: once every platform's state
-        of epoch k says the sim published nothing at k, predict through it."""
-        self.counters.received("PlatformState")
-        if msg.platform_id not in self.platform_ids:
-            return self._reject("unknown_platform", f"platform state of {msg.platform_id!r}")
-        values = (msg.position.x, msg.position.y, msg.velocity.x, msg.velocity.y)
-        if not all(math.isfinite(v) for v in values):
-            return self._reject("non_finite", f"platform state of {msg.platform_id!r}")
-        k = msg.epoch
-        if msg.epoch_measurement_count > 0 or k <= self.last_epoch or k in self.buffer:
-            return  # measurements will drive the epoch, or it is done already
-        if k > self.scenario.steps or (self.mode == "lockstep" and k > self.last_epoch + 1):
-            return self._reject("future_epoch", f"platform state of {msg.platform_id!r} at {k}")
-        quiet = self.quiet.setdefault(k, set())
-        quiet.add(msg.platform_id)
-        if quiet != self.platform_ids:
-            return
-        self.flush_before(k)
-        self.buffer[k] = []
-        self.counters.count("epochs_without_measurements")
-        self.process(k)
+        snap = platform_from_msg(msg, self.scenario, self.platform_ids)
+        if snap.epoch <= self.last_epoch:
+            return self.ignore("old_epoch")  # epoch 0, or history replayed to a late joiner
+        epoch = self.open_epoch(snap.epoch, "platform state")
+        if snap.platform_id in epoch.states:
+            raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
+        epoch.states[snap.platform_id] = snap
+        epoch.announced[snap.platform_id] = msg.epoch_measurement_count
+        self.close_ready()
+
+    def add_measurement(self, k: int, m: Measurement) -> None:
+        epoch = self.open_epoch(k, f"measurement of {m.sensor_id!r}")
+        if m.sensor_id in epoch.measurements:
+            raise Rejected("duplicate", f"second measurement of {m.sensor_id!r} at {k}")
+        epoch.measurements[m.sensor_id] = m
+        self.close_ready()
+
+    def open_epoch(self, k: int, what: str) -> OpenEpoch:
+        if k <= self.last_epoch:
+            raise Rejected("out_of_order", f"{what} for epoch {k} <= last update {self.last_epoch}")
+        ahead = 1 if self.mode == "lockstep" else FREE_WINDOW
+        if k > self.last_epoch + ahead:
+            raise Rejected("future_epoch", f"{what} for epoch {k} > {self.last_epoch} + {ahead}")
+        if k not in self.epochs:
+            self.epochs[k] = OpenEpoch(time.monotonic())
+        return self.epochs[k]
 
     # --- epochs --------------------------------------------------------------------------
 
-    def accept(self, msg, measurement: Measurement) -> None:
-        k = msg.epoch
-        if any(m.sensor_id == measurement.sensor_id for m in self.buffer.get(k, [])):
-            return self._reject("duplicate", f"second measurement of {msg.sensor_id!r} at {k}")
-        self.buffer.setdefault(k, []).append(measurement)
-        self.expected[k] = msg.epoch_measurement_count
-        self.flush_before(k)
-        count = self.expected[k]
-        if count == 0 or len(self.buffer[k]) >= count:
-            self.process(k)
+    def complete(self, epoch: OpenEpoch) -> bool:
+        """Every platform announced the epoch and every announced measurement is here."""
+        if epoch.states.keys() != self.platform_ids:
+            return False
+        return len(epoch.measurements) >= max(epoch.announced.values())
 
-    def flush_before(self, k: int) -> None:
-        """Earlier incomplete epochs are processed when a later one starts (free mode only)."""
-        for e in sorted(e for e in self.buffer if e < k):
+    def close_ready(self) -> None:
+        """Process complete epochs in order; in free mode a complete later epoch also closes
+        the incomplete ones before it (their missing messages are late or lost)."""
+        while self.epochs:
+            complete = [k for k in sorted(self.epochs) if self.complete(self.epochs[k])]
+            if not complete:
+                return
+            for k in sorted(e for e in self.epochs if e < complete[0]):
+                self.process(k, complete=False)
+            self.process(complete[0], complete=True)
+
+    def on_tick(self) -> None:
+        """An epoch incomplete for epoch_timeout seconds is closed with what arrived."""
+        if not self.epochs:
+            return
+        k = min(self.epochs)
+        waited = time.monotonic() - self.epochs[k].opened
+        if waited >= self.epoch_timeout:
+            self.process(k, complete=False)
+            self.close_ready()
+
+    def process(self, k: int, complete: bool) -> None:
+        epoch = self.epochs.pop(k)
+        if not complete:
             self.counters.count("incomplete_epochs")
-            self.process(e)
-
-    def process(self, epoch: int) -> None:
-        measurements = sorted(self.buffer.pop(epoch), key=lambda m: self.sensor_order[m.sensor_id])
-        self.expected.pop(epoch, None)
-        for e in [e for e in self.quiet if e <= epoch]:
-            del self.quiet[e]
-        snapshot = self.core.step(epoch, epoch * self.scenario.dt, measurements)
-        self.last_epoch = epoch
+            self.log_limited(
+                "warning",
+                "incomplete",
+                f"epoch {k} closed incomplete after {time.monotonic() - epoch.opened:.2f} s: "
+                f"{len(epoch.measurements)} measurements, states of {sorted(epoch.states)}",
+            )
+        used = []
+        for m in sorted(epoch.measurements.values(), key=lambda m: self.sensor_order[m.sensor_id]):
+            state = epoch.states.get(self.owner[m.sensor_id])
+            if state is not None and not np.allclose(
+                m.sensor_state, state.pv, rtol=0, atol=POSITION_TOLERANCE
+            ):
+                self.reject("inconsistent", f"{m.sensor_id!r} at {k} is not where its platform is")
+                continue
+            used.append(m)
+        snapshot = self.core.step(k, k * self.scenario.dt, used)
+        self.last_epoch = k
+        for e in [e for e in self.epochs if e <= k]:
+            del self.epochs[e]
         self.counters.count("updates")
-        self.counters.count("missed_detections", sum(m.z is None for m in measurements))
+        self.counters.count("missed_detections", sum(m.z is None for m in used))
+        if not used:
+            self.counters.count("epochs_without_measurements")
         self.publish_track(snapshot)
 
     # --- outputs -------------------------------------------------------------------------
 
     def publish_track(self, snap) -> None:
-        header = Header(
-            stamp=Time(seconds=snap.epoch * self.scenario.dt).to_msg(), frame_id="world"
-        )
+        hdr = header(snap.epoch * self.scenario.dt)
         samples = snap.samples
         self.track_pub.publish(
             TrackEstimate(
-                header=header,
+                header=hdr,
                 target_id=self.scenario.target.id,
                 epoch=snap.epoch,
                 filter_kind=snap.filter_kind,
@@ -241,7 +224,7 @@ class TrackerNode(Node):
             )
         )
         x, y, course, P_xy = pose_of(snap, self.core.model)
-        pose = PoseWithCovarianceStamped(header=header)
+        pose = PoseWithCovarianceStamped(header=hdr)
         pose.pose.pose.position.x, pose.pose.pose.position.y = x, y
         pose.pose.pose.orientation.z = math.sin(course / 2)
         pose.pose.pose.orientation.w = math.cos(course / 2)
@@ -249,7 +232,7 @@ class TrackerNode(Node):
         cov6[0], cov6[1], cov6[6], cov6[7] = (float(v) for v in P_xy.ravel())
         pose.pose.covariance = cov6
         self.pose_pub.publish(pose)
-        ellipse = Marker(header=header, ns="track", id=0, type=Marker.LINE_STRIP)
+        ellipse = Marker(header=hdr, ns="track", id=0, type=Marker.LINE_STRIP)
         ellipse.action = Marker.ADD
         ellipse.pose.orientation.w = 1.0
         ellipse.scale.x = 5.0  # line width, m
@@ -261,37 +244,20 @@ class TrackerNode(Node):
         self.marker_pub.publish(MarkerArray(markers=[ellipse]))
         if samples is not None and self.cloud_size > 0:
             step = max(1, len(samples) // self.cloud_size)
-            cloud = PoseArray(header=header)
+            cloud = PoseArray(header=hdr)
             for x in self.core.model.kinematics(samples[::step]):
                 p = Pose()
                 p.position.x, p.position.y = float(x[0]), float(x[2])
                 cloud.poses.append(p)
             self.cloud_pub.publish(cloud)
-        status = DiagnosticStatus(
-            level=DiagnosticStatus.WARN if self.counters.total_rejected else DiagnosticStatus.OK,
-            name="activetrack/tracker_node",
-            hardware_id=self.scenario.name,
-            message=f"epoch {snap.epoch} {snap.filter_kind}: ESS {snap.ess:.0f} NIS {snap.nis:.2f}",
-            values=[KeyValue(key=k, value=v) for k, v in self.counters.as_pairs()],
+        message = f"epoch {snap.epoch} {snap.filter_kind}: ESS {snap.ess:.0f} NIS {snap.nis:.2f}"
+        self.diag_pub.publish(
+            self.diagnostics_array(hdr, "activetrack/tracker_node", self.scenario.name, message)
         )
-        self.diag_pub.publish(DiagnosticArray(header=header, status=[status]))
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    try:
-        node = TrackerNode()
-    except ValueError as exc:
-        print(f"tracker_node: {exc}")
-        rclpy.try_shutdown()
-        raise SystemExit(2) from None
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_node(TrackerNode, args)
 
 
 if __name__ == "__main__":

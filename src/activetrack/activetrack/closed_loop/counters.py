@@ -21,9 +21,13 @@ class NodeCounters:
     def count(self, what: str, n: int = 1) -> None:
         self.counts[what] += n
 
+    def total(self, prefix: str) -> int:
+        """Sum of the counters whose name starts with ``prefix`` (e.g. ``"foreign."``)."""
+        return sum(v for k, v in self.counts.items() if k.startswith(prefix))
+
     @property
     def total_rejected(self) -> int:
-        return sum(v for k, v in self.counts.items() if k.startswith("rejected."))
+        return self.total("rejected.")
 
     def as_pairs(self) -> list[tuple[str, str]]:
         return [(k, str(v)) for k, v in sorted(self.counts.items())]

@@ -1,0 +1,450 @@
+"""Traffic from outside the graph, for the robustness tests and the foreign-traffic benchmark.
+
+A :class:`ForeignNode` joins a running graph like any other node on the domain would: it
+listens to the graph's topics (as a sniffer would, to make plausible messages from genuine
+ones), and when the track of a chosen epoch appears it publishes categories of hostile
+traffic (:data:`CATEGORIES`): malformed fields, plausible forgeries, replays of genuine
+messages, raw garbage bytes and floods. With ``sign=`` it signs its messages with the graph's
+key, i.e. plays a buggy member of the graph: then validation, not authentication, must stop
+the invalid categories. It counts what it sent per message type, so a test can check that
+the graph's counters account for every message.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import random
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message, serialize_message
+
+from activetrack_ros import graph as topics
+from activetrack_ros.trust import GraphKey, is_signed_type
+from msgs_defs.msg import (
+    BearingMeasurement,
+    GroundTruth,
+    ManoeuvreCommand,
+    PlanReport,
+    PlatformState,
+    PolarMeasurement,
+    SensorSelection,
+    TrackEstimate,
+)
+
+TOPIC_OF = {
+    BearingMeasurement: topics.BEARING_MEASUREMENTS,
+    PolarMeasurement: topics.POLAR_MEASUREMENTS,
+    PlatformState: topics.PLATFORM_STATES,
+    TrackEstimate: topics.TRACK,
+    ManoeuvreCommand: topics.MANOEUVRE_COMMANDS,
+    SensorSelection: topics.SENSOR_SELECTION,
+    PlanReport: topics.PLAN_REPORT,
+    GroundTruth: topics.GROUND_TRUTH,
+    DiagnosticArray: topics.DIAGNOSTICS,
+}
+
+# Which of the graph's readers take each type (the runner's evaluator included; the recorder,
+# which only stores bytes, not): what a foreign message on that type's topic must be counted by.
+READERS = {
+    "BearingMeasurement": ("tracker", "evaluator"),
+    "PolarMeasurement": ("tracker", "evaluator"),
+    "PlatformState": ("tracker", "planner", "evaluator"),
+    "TrackEstimate": ("sim", "planner", "evaluator"),
+    "ManoeuvreCommand": ("sim",),
+    "SensorSelection": ("sim",),
+    "PlanReport": ("evaluator",),
+    "GroundTruth": ("evaluator",),
+    "DiagnosticArray": ("evaluator",),
+}
+
+
+def uncounted(diagnostics: dict, sent: Counter, sent_signed: Counter) -> int:
+    """Foreign messages some reader did not count (as foreign, or as lost by DDS): must be 0."""
+    missing = 0
+    for name, readers in READERS.items():
+        unsigned = sent[name] - sent_signed[name]
+        for node in readers:
+            counts = diagnostics.get(node, {})
+            seen = counts.get(f"foreign.{name}", 0) + counts.get(f"dropped.{name}", 0)
+            missing += max(0, unsigned - seen)
+    return missing
+
+
+@dataclass
+class Context:
+    """What a category builds from: the genuine messages seen last, per type, and the epoch."""
+
+    epoch: int
+    dt: float
+    latest: dict  # message type -> the last genuine message of it
+    seen: dict  # message type -> every genuine raw message (replays)
+    rng: random.Random
+
+    def like(self, msg_type, **changes):
+        """A copy of the latest genuine message of a type with some fields changed."""
+        msg = copy.deepcopy(self.latest[msg_type])
+        for path, value in changes.items():
+            target = msg
+            *parents, name = path.split("__")
+            for p in parents:
+                target = getattr(target, p)
+            setattr(target, name, value)
+        return msg
+
+    def stamp(self, epoch: int):
+        t = epoch * self.dt
+        return {"header__stamp__sec": int(t), "header__stamp__nanosec": round((t % 1) * 1e9)}
+
+
+@dataclass(frozen=True)
+class Category:
+    name: str
+    msg_type: type
+    build: Callable[[Context, type], list]  # -> messages (or raw bytes, published as such)
+    plausible: bool = False  # well-formed: only authentication can tell it from the graph's
+
+
+def _next(**changes):
+    """The latest genuine message of the type, moved to the next epoch (stamp too), changed."""
+
+    def build(c: Context, t) -> list:
+        k = c.epoch + 1
+        return [c.like(t, **{"epoch": k, **c.stamp(k), **changes})]
+
+    return build
+
+
+def _at(epoch: int, **changes):
+    """The latest genuine message of the type at another epoch (stamp too), changed."""
+
+    def build(c: Context, t) -> list:
+        return [c.like(t, **{"epoch": epoch, **c.stamp(epoch), **changes})]
+
+    return build
+
+
+def _same(**changes):
+    """The latest genuine message of the type with only these fields changed."""
+    return lambda c, t: [c.like(t, **changes)]
+
+
+def _new(make: Callable[[Context], object]):
+    return lambda c, t: [make(c)]
+
+
+def _diag(name: str, message: str = "", values=()) -> DiagnosticArray:
+    status = DiagnosticStatus(name=name, message=message, values=list(values))
+    return DiagnosticArray(status=[status])
+
+
+NAN, INF = math.nan, math.inf
+NOT_PD = [1.0, 2.0, 0, 0, 2.0, 1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0]  # eigenvalues -1, 3, 1, 1
+B, P, S, T = BearingMeasurement, PolarMeasurement, PlatformState, TrackEstimate
+C, L, R, G, D = ManoeuvreCommand, SensorSelection, PlanReport, GroundTruth, DiagnosticArray
+
+CATEGORIES: list[Category] = [
+    # --- measurements (tracker, evaluator) ---------------------------------------------------
+    Category("bearing_nan", B, _next(bearing=NAN)),
+    Category("bearing_inf_position", B, _next(sensor_position__x=INF)),
+    Category("bearing_1e300", B, _next(bearing=1e300)),
+    Category("bearing_unknown_sensor", B, _next(sensor_id="s9")),
+    Category("bearing_wrong_platform", B, _next(platform_id="p9")),
+    Category("bearing_negative_stamp", B, _next(header__stamp__sec=-1)),
+    Category("bearing_bad_nanosec", B, _next(header__stamp__nanosec=2_000_000_000)),
+    Category("bearing_stamp_mismatch", B, _next(header__stamp__sec=999)),
+    Category("bearing_far_future", B, _at(4_000_000_000, header__stamp__sec=0)),
+    Category("bearing_epoch_zero", B, _at(0)),
+    Category("bearing_old_epoch", B, _at(1)),
+    Category("bearing_wrong_sigma", B, _next(sigma=1.0)),
+    Category("bearing_ambiguous_flag", B, _next(ambiguous=True)),
+    Category("bearing_huge_string", B, _next(sensor_id="s" * 1_000_000)),
+    Category("polar_for_bearing_sensor", P, _new(lambda c: P(
+        sensor_id=c.latest[B].sensor_id, platform_id=c.latest[B].platform_id,
+        epoch=c.epoch + 1, header=c.latest[B].header, range=10.0,
+        covariance=[1.0, 0.0, 0.0, 1.0], detected=True,
+    ))),
+    Category("polar_nan_covariance", P, _new(lambda c: P(
+        sensor_id="s1", epoch=c.epoch + 1, covariance=[NAN] * 4, detected=True
+    ))),
+    Category("bearing_plausible_next_epoch", B, _next(bearing=0.1), plausible=True),
+    Category("bearing_stream_ahead", B, lambda c, t: [  # drives a trusting tracker ahead
+        c.like(t, epoch=k, bearing=0.1, **c.stamp(k)) for k in range(c.epoch + 1, c.epoch + 120)
+    ], plausible=True),
+    # --- platform states (tracker, planner, evaluator) ---------------------------------------
+    Category("state_unknown_platform", S, _same(platform_id="p9")),
+    Category("state_nan_position", S, _next(position__x=NAN)),
+    Category("state_1e300_velocity", S, _next(velocity__y=1e300)),
+    Category("state_negative_stamp", S, _next(header__stamp__sec=-1)),
+    Category("state_far_future", S, _at(1_000_000)),
+    Category("state_announces_three", S, _next(epoch_measurement_count=3), plausible=True),
+    # --- tracks (planner, sim, evaluator) ---------------------------------------------------
+    Category("track_wrong_dimension", T, _next(
+        state_names=["a", "b", "c"], state=[0.0] * 3, covariance=list(np.eye(3).ravel()),
+        particle_samples=[], sample_count=0,
+    )),
+    Category("track_not_pd", T, _next(covariance=NOT_PD)),
+    Category("track_nan_state", T, _next(state=[NAN] * 4)),
+    Category("track_1e300_state", T, _next(state=[1e300] * 4)),
+    Category("track_sample_mismatch", T, _next(sample_count=7)),
+    Category("track_huge_sample_claim", T, _next(sample_count=4_000_000_000)),
+    Category("track_negative_stamp", T, _next(header__stamp__sec=-1)),
+    Category("track_future_epoch", T, _at(10_000)),
+    Category("track_bad_filter_kind", T, _next(filter_kind="ukf")),
+    Category("track_plausible_next", T, _next(state=[1000.0, 1.0, 1000.0, 1.0]), plausible=True),
+    # --- commands and selections (sim) --------------------------------------------------------
+    Category("command_unknown_platform", C, _same(platform_id="p9")),
+    Category("command_nan", C, _next(heading_change=NAN)),
+    Category("command_1e300_heading", C, _next(heading_change=1e300)),
+    Category("command_1e300_speed", C, _next(speed_change=1e300)),
+    Category("command_stale_epoch", C, _at(0)),
+    Category("command_future_epoch", C, _at(50)),
+    Category("command_negative_stamp", C, _next(header__stamp__sec=-1)),
+    Category("command_plausible_next", C, _next(heading_change=0.2), plausible=True),
+    Category("selection_empty", L, _new(lambda c: L(epoch=c.epoch + 1)), plausible=True),
+    Category("selection_unknown_sensor", L, _new(lambda c: L(selected_sensor_ids=["s9"]))),
+    # --- evaluator inputs ---------------------------------------------------------------------
+    Category("report_nan_costs", R, _next(predicted_costs=[NAN] * 4, cost_names=list("abcd"))),
+    Category("report_length_mismatch", R, _next(cost_names=["x"])),
+    Category("truth_nan", G, _next(position__x=NAN)),
+    Category("truth_plausible_next", G, _next(), plausible=True),
+    Category("diagnostics_temperature", D, _new(lambda c: _diag(
+        "thermal_monitor", "ok", [KeyValue(key="activetrack", value="41.5 C")]
+    ))),
+    Category("diagnostics_posing_as_sim", D, _new(lambda c: _diag(
+        "activetrack/sim_node", "finished",
+        [KeyValue(key="updates", value="-1"), KeyValue(key="graph_auth", value="00")],
+    )), plausible=True),
+    Category("diagnostics_many_statuses", D, _new(lambda c: DiagnosticArray(
+        status=[DiagnosticStatus(name=f"activetrack/n{i}") for i in range(5000)]
+    ))),
+]  # fmt: skip
+
+
+def random_message(msg_type, rng: random.Random, depth: int = 0):
+    """A message of ``msg_type`` with every field random, extremes included (NaN, inf, huge,
+    negative stamps, long strings and sequences). ``rng``: a seeded ``random.Random``."""
+    msg = msg_type()
+    for name, kind in msg_type.get_fields_and_field_types().items():
+        setattr(msg, name, _random_value(kind, getattr(msg, name), rng, depth))
+    return msg
+
+
+_FLOATS = (0.0, -0.0, 1.0, -1.0, 1e300, -1e300, math.inf, -math.inf, math.nan, 5e-324)
+_UINTS = (0, 1, 2, 3, 2**32 - 1)
+_INTS = (-1, 0, 5, 2**31 - 1, -(2**31))
+_STRINGS = ("", "s1", "p1", "t1", "pf", "ekf", "activetrack/sim_node")
+
+
+def _random_value(kind: str, current, rng: random.Random, depth: int):
+    if kind == "double":
+        return rng.choice(_FLOATS) if rng.random() < 0.3 else rng.gauss(0.0, 1e4)
+    if kind == "uint32":
+        return rng.choice(_UINTS) if rng.random() < 0.5 else rng.getrandbits(32)
+    if kind == "int32":
+        return rng.choice(_INTS)
+    if kind == "boolean":
+        return rng.random() < 0.5
+    if kind == "octet":
+        return bytes([rng.getrandbits(8)])
+    if kind == "string":
+        return rng.choice(_STRINGS) if rng.random() < 0.8 else "x" * rng.randrange(300)
+    if kind == "uint8[16]":
+        return list(rng.randbytes(16))
+    if kind.startswith("sequence<"):
+        inner = kind[len("sequence<") : -1]
+        if "/" in inner:  # messages: a few, and fewer inside nested messages
+            n = rng.choice((0, 1, 4, 16, 64)) if depth == 0 else rng.randrange(3)
+            cls = type(current[0]) if len(current) else _message_class(inner)
+            return [random_message(cls, rng, depth + 1) for _ in range(n)]
+        n = rng.choice((0, 1, 4, 16, 1000)) if depth == 0 else rng.randrange(3)
+        return [_random_value(inner, None, rng, depth + 1) for _ in range(n)]
+    if "/" in kind:
+        return random_message(type(current), rng, depth + 1)
+    raise ValueError(f"no random value for field type {kind!r}")
+
+
+def _message_class(name: str):
+    import importlib
+
+    package, msg = name.split("/")
+    return getattr(importlib.import_module(f"{package}.msg"), msg)
+
+
+class ForeignNode(Node):
+    """Publishes categories of traffic when the graph's track of ``at_epoch`` appears.
+
+    ``categories``: names from CATEGORIES; ``floods``: {message type: count} of random messages
+    (:func:`random_message`); ``garbage``: raw random bytes per graph topic; ``replay``: every
+    genuine per-epoch message seen so far, published again unchanged (valid tags); ``sign``:
+    the graph's key (a buggy insider) or None (an outsider).
+    """
+
+    def __init__(
+        self,
+        *,
+        dt: float,
+        at_epoch: int = 2,
+        categories=(),
+        floods: dict | None = None,
+        garbage: int = 0,
+        replay: bool = False,
+        sign: GraphKey | None = None,
+        seed: int = 0,
+        **kwargs,
+    ):
+        super().__init__("foreign_node", **kwargs)
+        self.dt = dt
+        self.at_epoch = at_epoch
+        self.categories = [c for c in CATEGORIES if c.name in set(categories)]
+        unknown = set(categories) - {c.name for c in self.categories}
+        if unknown:
+            raise ValueError(f"unknown categories {sorted(unknown)}")
+        self.floods = dict(floods or {})
+        self.garbage = garbage
+        self.replay = replay
+        self.key = sign
+        self.rng = random.Random(seed)
+        # Random messages and garbage made now, serialised: firing must not hold the
+        # executor (in one process it is the graph's too) for longer than publishing takes.
+        self.pools: dict = {}
+        for msg_type, n in self.floods.items():
+            self.pools[msg_type] = [
+                serialize_message(random_message(msg_type, self.rng)) for _ in range(n)
+            ]
+        for msg_type in TOPIC_OF if garbage else ():
+            pool = self.pools.setdefault(msg_type, [])
+            pool.extend(self.rng.randbytes(self.rng.randrange(512)) for _ in range(garbage))
+        self.sent: Counter[str] = Counter()  # message type name -> messages published
+        self.sent_signed: Counter[str] = Counter()  # of which carry a valid tag
+        self.fired = False
+        self.latest: dict = {}
+        self.seen: dict = {}
+        self.pubs = {
+            t: self.create_publisher(t, topic, topics.writer_qos(topic))
+            for t, topic in TOPIC_OF.items()
+        }
+        for msg_type, topic in TOPIC_OF.items():
+            self.create_subscription(
+                msg_type,
+                topic,
+                lambda data, t=msg_type: self._sniff(t, data),
+                topics.reader_qos(topic),
+                raw=True,
+            )
+
+    def _sniff(self, msg_type, data: bytes) -> None:
+        if self.fired:
+            return  # everything after firing may be our own traffic
+        self.seen.setdefault(msg_type, []).append(bytes(data))
+        msg = deserialize_message(data, msg_type)
+        self.latest[msg_type] = msg
+        if msg_type is TrackEstimate and msg.epoch == self.at_epoch:
+            self.fire(msg.epoch)
+
+    def publish(self, msg_type, msg) -> None:
+        pub = self.pubs[msg_type]
+        if isinstance(msg, bytes):
+            pub.publish(msg)
+            self.sent[msg_type.__name__] += 1
+            return
+        if self.key is not None and is_signed_type(msg_type):
+            pub.publish(self.key.sign(serialize_message(msg)))
+            self.sent_signed[msg_type.__name__] += 1
+        elif self.key is not None and msg_type is DiagnosticArray and msg.status:
+            pub.publish(self.key.sign_diagnostics(msg))
+            self.sent_signed[msg_type.__name__] += 1
+        else:
+            pub.publish(msg)
+        self.sent[msg_type.__name__] += 1
+
+    def fire(self, epoch: int) -> None:
+        self.fired = True
+        ctx = Context(epoch, self.dt, self.latest, self.seen, self.rng)
+        for cat in self.categories:
+            for msg in cat.build(ctx, cat.msg_type):
+                self.publish(cat.msg_type, msg)
+        for msg_type, pool in self.pools.items():
+            for data in pool:
+                self.publish(msg_type, data)
+        if self.replay:
+            for msg_type, raws in self.seen.items():
+                for raw in raws:
+                    self.pubs[msg_type].publish(raw)
+                    self.sent[msg_type.__name__] += 1
+                    self.sent_signed[msg_type.__name__] += 1  # genuine tags (diagnostics too)
+
+
+def flood(
+    rate: float,
+    duration: float,
+    readers: dict[str, int],
+    seed: int = 0,
+    wait: float = 30.0,
+) -> Counter:
+    """Publish random messages (no key) round-robin on ``readers``' topics at ``rate`` per
+    second for ``duration`` seconds, once each topic has its expected number of matched
+    readers (``{topic: n}``); returns what was sent per message type."""
+    import rclpy
+
+    rclpy.init()
+    node = rclpy.create_node("foreign_flooder")
+    types = {topic: t for t, topic in TOPIC_OF.items() if topic in readers}
+    pubs = {
+        topic: node.create_publisher(t, topic, topics.writer_qos(topic))
+        for topic, t in types.items()
+    }
+    deadline = time.monotonic() + wait
+    while any(pubs[tp].get_subscription_count() < n for tp, n in readers.items()):
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"readers not matched within {wait} s: {readers}")
+        time.sleep(0.01)
+    rng = random.Random(seed)
+    # A pool of random messages per topic, serialised once: the flood is then as fast as DDS.
+    pool = {
+        tp: [serialize_message(random_message(t, rng)) for _ in range(64)]
+        for tp, t in types.items()
+    }
+    sent: Counter[str] = Counter()
+    order = list(pubs)
+    start = time.monotonic()
+    i = 0
+    while (now := time.monotonic()) - start < duration:
+        due = int((now - start) * rate)
+        while i < due:
+            topic = order[i % len(order)]
+            pubs[topic].publish(pool[topic][(i // len(order)) % 64])
+            sent[types[topic].__name__] += 1
+            i += 1
+        time.sleep(0.001)
+    time.sleep(0.5)  # reliable delivery of the tail
+    node.destroy_node()
+    rclpy.shutdown()
+    return sent
+
+
+def main(argv=None) -> int:
+    """python -m activetrack_bringup.adversary --rate R --duration S TOPIC=READERS ..."""
+    import argparse
+    import json
+
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument("--rate", type=float, default=2000.0, help="messages per second")
+    parser.add_argument("--duration", type=float, default=10.0, help="seconds")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("readers", nargs="+", help="TOPIC=N: flood TOPIC once N readers match")
+    args = parser.parse_args(argv)
+    readers = {k: int(v) for k, v in (item.split("=") for item in args.readers)}
+    sent = flood(args.rate, args.duration, readers, args.seed)
+    print(json.dumps(dict(sent)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

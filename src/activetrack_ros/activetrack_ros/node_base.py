@@ -1,0 +1,196 @@
+"""The base of every activetrack node: trusted writers only, callbacks that never raise, exact
+counters and rate-limited logs.
+
+Every message a subscription takes ends in exactly one counter:
+- ``foreign.<Type>``: from a writer outside the graph (``activetrack_ros.trust``), dropped
+  before deserialisation;
+- ``rejected.<reason>``: from the graph or, without a key, from anyone, but invalid (the node's
+  callback raised :class:`Rejected`);
+- ``ignored.<reason>``: valid but not needed (e.g. history replayed to a late joiner);
+- otherwise it was used. ``received.<Type>`` counts them all. DDS reports samples it lost
+  (``dropped.<Type>``, from the message-lost event) and writers it could not match
+  (``incompatible_writers.<Type>``); an unexpected exception in a callback is counted as
+  ``errors.<callback>`` and logged with its traceback, and the node keeps running.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from collections.abc import Callable
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message, serialize_message
+from std_msgs.msg import Header
+
+from activetrack.closed_loop.counters import NodeCounters
+from activetrack_ros import graph
+from activetrack_ros.trust import GraphKey, is_signed_type
+
+
+class Rejected(Exception):
+    """Raised by a callback for invalid input: counted as ``rejected.<reason>``."""
+
+    def __init__(self, reason: str, detail: str = ""):
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+        self.detail = detail
+
+
+class RateLimitedLog:
+    """At most one line per key and ``interval`` seconds; the lines say how many were held back.
+
+    The counters stay exact; only the log is thinned (a flood must not become a log flood).
+    """
+
+    def __init__(self, logger, interval: float = 1.0):
+        self.logger = logger
+        self.interval = interval
+        self._last: dict[str, float] = {}
+        self._held: dict[str, int] = {}
+
+    def __call__(self, level: str, key: str, text: str) -> None:
+        now = time.monotonic()
+        if now - self._last.get(key, -float("inf")) < self.interval:
+            self._held[key] = self._held.get(key, 0) + 1
+            return
+        held = self._held.pop(key, 0)
+        self._last[key] = now
+        suffix = f" (and {held} more like it in the last {self.interval:g} s)" if held else ""
+        # One call site per severity: rclpy's logger refuses a severity change at one site.
+        if level == "error":
+            self.logger.error(text + suffix)
+        else:
+            self.logger.warning(text + suffix)
+
+
+class GraphPublisher:
+    """A publisher that signs msgs_defs messages with the graph's key (if it has one)."""
+
+    def __init__(self, node: Node, msg_type, topic: str, key: GraphKey | None):
+        self.publisher = node.create_publisher(msg_type, topic, graph.writer_qos(topic))
+        self.key = key if is_signed_type(msg_type) else None
+        self.is_diagnostics = msg_type is DiagnosticArray
+        self.graph_key = key
+
+    def publish(self, msg) -> None:
+        if self.key is not None:
+            self.publisher.publish(self.key.sign(serialize_message(msg)))
+            return
+        if self.is_diagnostics and self.graph_key is not None:
+            self.graph_key.sign_diagnostics(msg)
+        self.publisher.publish(msg)
+
+
+class GraphNode(Node):
+    """rclpy Node with the graph's trust filter, guarded callbacks and exact counters.
+
+    ``graph_key``: the run's key; None takes ``ACTIVETRACK_GRAPH_KEY`` from the environment, and
+    with neither the node trusts every writer (a node started on its own, for a user's tools).
+    """
+
+    def __init__(self, node_name: str, *, graph_key: GraphKey | None = None, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.graph_key = graph_key if graph_key is not None else GraphKey.from_environment()
+        self.counters = NodeCounters()
+        self.log_limited = RateLimitedLog(self.get_logger())
+        self.inputs: dict[str, str] = {}  # message type name -> topic subscribed
+
+    # --- inputs --------------------------------------------------------------------------
+
+    def subscribe(self, msg_type, topic: str, callback: Callable) -> None:
+        """Subscribe with the graph's reader QoS; ``callback(msg)`` may raise Rejected."""
+        name = msg_type.__name__
+        self.inputs[name] = topic
+        signed = self.graph_key is not None and is_signed_type(msg_type)
+        diagnostics = self.graph_key is not None and msg_type is DiagnosticArray
+
+        def on_raw(data: bytes) -> None:
+            self.counters.received(name)
+            if signed and not self.graph_key.verify(data):
+                return self._foreign(name, topic)
+            try:
+                msg = deserialize_message(data, msg_type)
+            except Exception:  # a raw writer can send any bytes
+                if diagnostics:  # no tag can be read from it: not the graph's
+                    return self._foreign(name, topic)
+                return self.reject("undecodable", f"{name} on {topic}")
+            if diagnostics and not self.graph_key.verify_diagnostics(msg):
+                return self._foreign(name, topic)
+            self.guarded(callback, msg)
+
+        events = SubscriptionEventCallbacks(
+            message_lost=lambda info: self._lost(name, info),
+            incompatible_qos=lambda info: self._incompatible(name, topic, info),
+        )
+        self.create_subscription(
+            msg_type, topic, on_raw, graph.reader_qos(topic), raw=True, event_callbacks=events
+        )
+
+    def _foreign(self, name: str, topic: str) -> None:
+        self.counters.count(f"foreign.{name}")
+        self.log_limited(
+            "warning",
+            f"foreign.{name}",
+            f"dropped {name} on {topic} from a writer outside the graph",
+        )
+
+    def _lost(self, name: str, info) -> None:
+        self.counters.count(f"dropped.{name}", info.total_count_change)
+        self.log_limited("warning", f"dropped.{name}", f"DDS lost {name} samples")
+
+    def _incompatible(self, name: str, topic: str, info) -> None:
+        self.counters.count(f"incompatible_writers.{name}", info.total_count_change)
+        self.log_limited(
+            "warning",
+            f"incompatible.{name}",
+            f"a writer on {topic} offers QoS this graph cannot accept (policy id "
+            f"{info.last_policy_kind}); its messages never reach this node",
+        )
+
+    def guarded(self, callback: Callable, *args) -> None:
+        """Run a callback at the boundary: Rejected is counted, anything else too, never raised."""
+        try:
+            callback(*args)
+        except Rejected as r:
+            self.reject(r.reason, r.detail)
+        except Exception as exc:
+            if not self.context.ok():  # shutting down (SIGTERM): publishing fails, as it may
+                return
+            where = getattr(callback, "__name__", "callback")
+            self.counters.count(f"errors.{where}")
+            self.log_limited(
+                "error",
+                f"errors.{where}",
+                f"unexpected {type(exc).__name__} in {where} (counted, node keeps running):\n"
+                + traceback.format_exc(),
+            )
+
+    def reject(self, reason: str, detail: str) -> None:
+        self.counters.rejected(reason)
+        self.log_limited("warning", f"rejected.{reason}", f"rejected {reason}: {detail}")
+
+    def ignore(self, reason: str) -> None:
+        self.counters.count(f"ignored.{reason}")
+
+    def guarded_timer(self, period: float, callback: Callable):
+        return self.create_timer(period, lambda: self.guarded(callback))
+
+    # --- outputs -------------------------------------------------------------------------
+
+    def publisher(self, msg_type, topic: str) -> GraphPublisher:
+        return GraphPublisher(self, msg_type, topic, self.graph_key)
+
+    def diagnostics_array(self, header: Header, name: str, hardware_id: str, message: str):
+        """This node's counters as one DiagnosticStatus (WARN once anything was rejected)."""
+        warn = self.counters.total_rejected or self.counters.total("errors.")
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK,
+            name=name,
+            hardware_id=hardware_id,
+            message=message,
+            values=[KeyValue(key=k, value=v) for k, v in self.counters.as_pairs()],
+        )
+        return DiagnosticArray(header=header, status=[status])

@@ -1,0 +1,135 @@
+"""Which writers count: the graph's own, recognised by a per-run key.
+
+Threat model (README, "Trust"): a DDS domain is shared with other robots, tools, bag players and
+other activetrack graphs, and anyone on it may publish on our topics. rclpy does not hand a
+subscription callback the writer's identity (its MessageInfo has no publisher GID) and the
+Fast DDS of the PyPI wheels has no security plugins, so the graph recognises its own messages
+itself: every per-epoch message (the msgs_defs types) ends with ``graph_auth``, a 16-byte keyed
+BLAKE2b hash of the serialised bytes before it, under a key made fresh for each run and handed
+to the graph's nodes out of band (constructor argument in one process, the
+``ACTIVETRACK_GRAPH_KEY`` environment variable for child processes; never a ROS parameter,
+which other nodes could read). A message whose hash does not verify comes from outside the
+graph: it is counted and dropped before it is even deserialised. This stops accidental
+cross-talk and malformed or forged data from writers that do not hold the key; it does not hide
+the topics (they are readable by anyone on the domain) and does not stop a flood from costing
+CPU. Writers who can read the key's process memory are out of scope: use DDS Security (SROS2)
+on a ROS install built with it.
+
+``/diagnostics`` (a standard type) carries the same hash in a ``graph_auth`` key-value pair.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import json
+import os
+import secrets
+
+from diagnostic_msgs.msg import DiagnosticArray, KeyValue
+
+AUTH_FIELD = "graph_auth"
+AUTH_SIZE = 16  # bytes of the trailer: uint8[16] graph_auth, last in every msgs_defs type
+KEY_ENV = "ACTIVETRACK_GRAPH_KEY"
+KEY_BYTES = 32
+
+
+class GraphKey:
+    """A run's key: signs and verifies serialised messages (BLAKE2b, keyed, 128-bit tag)."""
+
+    def __init__(self, key: bytes):
+        if not isinstance(key, bytes) or not 16 <= len(key) <= 64:
+            raise ValueError("a graph key must be 16..64 bytes")
+        self._key = key
+
+    @classmethod
+    def generate(cls) -> GraphKey:
+        return cls(secrets.token_bytes(KEY_BYTES))
+
+    @classmethod
+    def from_environment(cls, environ=None) -> GraphKey | None:
+        """The key in ``ACTIVETRACK_GRAPH_KEY`` (hex), or None when it is unset or empty."""
+        value = (os.environ if environ is None else environ).get(KEY_ENV, "")
+        if not value:
+            return None
+        try:
+            return cls(bytes.fromhex(value))
+        except ValueError:
+            raise ValueError(
+                f"{KEY_ENV} must be {2 * KEY_BYTES} hex digits (16..64 bytes), got {len(value)} "
+                "characters"
+            ) from None
+
+    def hex(self) -> str:
+        return self._key.hex()
+
+    def tag(self, data: bytes | memoryview) -> bytes:
+        return hashlib.blake2b(data, key=self._key, digest_size=AUTH_SIZE).digest()
+
+    def sign(self, serialized: bytes) -> bytes:
+        """The message bytes with its trailer replaced by the tag of everything before it."""
+        body = serialized[:-AUTH_SIZE]
+        return body + self.tag(body)
+
+    def verify(self, serialized: bytes) -> bool:
+        """True if the message was signed with this key. Between processes DDS pads a payload
+        to a multiple of 4 bytes (without saying so in the encapsulation options), so the
+        trailer may end up to 3 bytes before the end."""
+        view = memoryview(serialized)
+        for pad in range(4):
+            end = len(view) - pad
+            if end <= AUTH_SIZE + 4:  # 4: the CDR encapsulation header
+                return False
+            if hmac.compare_digest(
+                self.tag(view[: end - AUTH_SIZE]), bytes(view[end - AUTH_SIZE : end])
+            ):
+                return True
+        return False
+
+    # --- diagnostics (standard type: the tag travels in a KeyValue) -------------------------
+
+    def _diagnostics_tag(self, array: DiagnosticArray) -> str:
+        """Tag of a canonical text of the array (CDR is not canonical: its padding bytes are
+        whatever the serialiser's buffer held), the ``graph_auth`` value left out."""
+        h = array.header
+        text = json.dumps(
+            [
+                h.stamp.sec,
+                h.stamp.nanosec,
+                h.frame_id,
+                [
+                    [
+                        bytes(s.level).hex(),
+                        s.name,
+                        s.message,
+                        s.hardware_id,
+                        [[kv.key, kv.value] for kv in s.values if kv.key != AUTH_FIELD],
+                    ]
+                    for s in array.status
+                ],
+            ]
+        )
+        return self.tag(text.encode()).hex()
+
+    def sign_diagnostics(self, array: DiagnosticArray) -> DiagnosticArray:
+        """Append (or refresh) a ``graph_auth`` value on the array's first status."""
+        if not array.status:
+            return array
+        values = [kv for kv in array.status[0].values if kv.key != AUTH_FIELD]
+        values.append(KeyValue(key=AUTH_FIELD, value=self._diagnostics_tag(array)))
+        array.status[0].values = values
+        return array
+
+    def verify_diagnostics(self, array: DiagnosticArray) -> bool:
+        if not array.status or not array.status[0].values:
+            return False
+        last = array.status[0].values[-1]
+        if last.key != AUTH_FIELD:
+            return False
+        return hmac.compare_digest(self._diagnostics_tag(array), last.value)
+
+
+def is_signed_type(msg_type) -> bool:
+    """True for message types that end with the ``graph_auth`` trailer (the msgs_defs types)."""
+    fields = msg_type.get_fields_and_field_types()
+    return list(fields)[-1:] == [AUTH_FIELD] and fields[AUTH_FIELD] == f"uint8[{AUTH_SIZE}]"

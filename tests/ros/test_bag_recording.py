@@ -1,0 +1,443 @@
+"""The recorder's bags: what independent readers see, a recorder killed with SIGKILL (read
+directly and after `bag recover`), argument errors of play/record, and `bag retrack` failing
+fast (one line, exit code 2, no hang) when the scenario does not match the bag."""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from mcap.reader import make_reader
+from mcap.stream_reader import StreamReader
+from mcap_ros2.decoder import DecoderFactory
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_typestore
+from rosgraph_msgs.msg import Clock
+
+from activetrack_bringup import bag as bagmod
+from activetrack_bringup import mcap_writer
+from activetrack_bringup import retrack as retrack_mod
+from activetrack_bringup.bag import BagPlayer, bag_info, graph_schemas
+from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, open_bag
+from activetrack_bringup.cli import main as cli_main
+from activetrack_bringup.inprocess import InProcessGraph
+from activetrack_bringup.mcap_writer import CHUNK_SIZE
+from activetrack_bringup.retrack import RetrackError, read_topic, retrack
+from activetrack_bringup.runner import run_graph
+from activetrack_ros import graph as topics
+from activetrack_ros.graph import GRAPH_TOPICS
+from msgs_defs.msg import BearingMeasurement, TrackEstimate
+
+SCENARIO = "tests/ros/data/short_two_sensors.yaml"
+pytestmark = pytest.mark.ros
+
+
+@pytest.fixture(scope="module")
+def run_bag(tmp_path_factory):
+    """One recorded closed-loop run, shared by the tests of this module (read-only)."""
+    return run_graph(SCENARIO, run_dir=tmp_path_factory.mktemp("rec"), plots=False).bag
+
+
+def cli(capsys, *argv):
+    """Run the command line; (rc, stdout, stderr). Never a traceback, errors in one line."""
+    try:
+        rc = cli_main([str(a) for a in argv])
+    except SystemExit as exc:  # argparse's own checks
+        rc = exc.code
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err
+    assert rc in (0, 2), (rc, out, err)
+    if rc == 2 and "usage:" not in err:
+        errors = [line for line in err.splitlines() if line.startswith("error: ")]
+        assert len(errors) == 1, err
+    return rc, out, err
+
+
+# --- what the recorder writes -----------------------------------------------------------
+
+
+def test_independent_mcap_reader_decodes_the_bag(run_bag):
+    """mcap + mcap_ros2 (not rosbags, not this package) read and decode every message, with
+    chunk and data-section CRCs checked; schemas, hashes and QoS are as rosbag2 writes them."""
+    mcap_file = run_bag / "bag.mcap"
+    schemas = graph_schemas()
+    rclpy_tracks = {m.epoch: m for m in read_topic(run_bag, topics.TRACK, TrackEstimate)}
+    counts = Counter()
+    with open(mcap_file, "rb") as f:
+        reader = make_reader(f, validate_crcs=True, decoder_factories=[DecoderFactory()])
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+        for channel in summary.channels.values():
+            schema = summary.schemas[channel.schema_id]
+            assert channel.message_encoding == "cdr" and schema.encoding == "ros2msg"
+            msgdef, rihs01 = schemas[GRAPH_TOPICS[channel.topic]]
+            assert schema.name == GRAPH_TOPICS[channel.topic]
+            assert schema.data.decode() == msgdef
+            assert channel.metadata["topic_type_hash"] == rihs01
+            qos = yaml.safe_load(channel.metadata["offered_qos_profiles"])
+            latched = channel.topic in topics.LATCHED_TOPICS
+            assert qos[0]["durability"] == ("transient_local" if latched else "volatile")
+            assert qos[0]["reliability"] == "reliable"
+        for _, channel, _, decoded in reader.iter_decoded_messages():
+            counts[channel.topic] += 1
+            if channel.topic == topics.TRACK:
+                ref = rclpy_tracks[decoded.epoch]
+                np.testing.assert_array_equal(decoded.state, ref.state)
+                np.testing.assert_array_equal(decoded.covariance, ref.covariance)
+                assert decoded.filter_kind == ref.filter_kind
+        chunks = summary.chunk_indexes
+    info = bag_info(run_bag)
+    assert info["intact"] and not info["damage"]
+    assert dict(counts) == {t: v["count"] for t, v in info["topics"].items() if v["count"]}
+    # Every chunk has its CRC; the first one holds the definitions only; chunks stay small.
+    biggest = max(len(m) for m in (rclpy_tracks[0].particle_samples,)) * 8 + 2000
+    with open(mcap_file, "rb") as f:
+        records = list(StreamReader(f, validate_crcs=True, emit_chunks=True).records)
+    chunk_records = [r for r in records if type(r).__name__ == "Chunk"]
+    assert len(chunk_records) == len(chunks) >= 2
+    assert all(c.uncompressed_crc for c in chunk_records)
+    assert chunks[0].message_index_offsets == {}
+    assert all(c.uncompressed_size < CHUNK_SIZE + biggest for c in chunk_records)
+    data_end = next(r for r in records if type(r).__name__ == "DataEnd")
+    assert data_end.data_section_crc != 0
+
+
+def test_metadata_yaml_is_rosbag2_version_9(run_bag):
+    meta = yaml.safe_load((run_bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["version"] == 9 and meta["storage_identifier"] == "mcap"
+    assert meta["ros_distro"] == "jazzy"
+    assert meta["relative_file_paths"] == ["bag.mcap"]
+    assert meta["custom_data"] == {"activetrack_state": "closed"}
+    schemas = graph_schemas()
+    listed = {t["topic_metadata"]["name"]: t for t in meta["topics_with_message_count"]}
+    assert set(listed) == set(GRAPH_TOPICS)
+    info = bag_info(run_bag)
+    for name, entry in listed.items():
+        assert entry["message_count"] == info["topics"][name]["count"]
+        tm = entry["topic_metadata"]
+        assert tm["type_description_hash"] == schemas[tm["type"]][1]
+        assert tm["serialization_format"] == "cdr"
+    assert meta["message_count"] == info["messages"]
+    with Reader(run_bag) as reader:  # rosbags: metadata and storage agree
+        assert reader.message_count == info["messages"]
+        assert {c.topic: c.msgcount for c in reader.connections} == {
+            t: v["count"] for t, v in info["topics"].items()
+        }
+
+
+# --- a recorder killed with SIGKILL -----------------------------------------------------
+
+CHILD = """
+import sys, time
+from rclpy.node import Node
+from activetrack_bringup.bag import BagRecorder
+from activetrack_bringup.inprocess import InProcessGraph
+from activetrack_ros import graph as topics
+from msgs_defs.msg import BearingMeasurement
+from rosgraph_msgs.msg import Clock
+
+kept = (topics.BEARING_MEASUREMENTS, topics.CLOCK)
+quiet = {"start_parameter_services": False}
+with InProcessGraph() as g:
+    rec = g.add(BagRecorder(sys.argv[1], {t: topics.GRAPH_TOPICS[t] for t in kept},
+                            context=g.context, **quiet))
+    node = g.add(Node("kill_test_publisher", context=g.context, **quiet))
+    pub = node.create_publisher(BearingMeasurement, topics.BEARING_MEASUREMENTS,
+                                topics.writer_qos(topics.BEARING_MEASUREMENTS))
+    clock = node.create_publisher(Clock, topics.CLOCK, topics.writer_qos(topics.CLOCK))
+    k = 0
+    while True:
+        k += 1
+        pub.publish(BearingMeasurement(epoch=k, sensor_id="s1", bearing=1e-3 * k))
+        clock.publish(Clock())
+        g.spin_until(lambda: rec.count >= 2 * k, timeout=1.0, step=0.001)
+        time.sleep(0.003)
+"""
+
+
+def _metadata_count(bag: Path) -> int:
+    try:
+        meta = yaml.safe_load((bag / "metadata.yaml").read_text())
+        return meta["rosbag2_bagfile_information"]["message_count"]
+    except (OSError, TypeError, KeyError, yaml.YAMLError):
+        return -1
+
+
+def test_kill_9_mid_recording_loses_at_most_the_last_chunk(tmp_path, capsys):
+    bag = tmp_path / "killed"
+    env = dict(os.environ)
+    env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
+    env["ROS_DOMAIN_ID"] = str(150 + os.getpid() % 50)  # private; in-process traffic only
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "OFF"
+    child = subprocess.Popen([sys.executable, "-c", CHILD, str(bag)], env=env)
+    try:
+        deadline = time.monotonic() + 60
+        while _metadata_count(bag) < 150:  # some chunks and a metadata rewrite on disk
+            assert child.poll() is None, "the recording child died"
+            assert time.monotonic() < deadline, "the child recorded nothing"
+            time.sleep(0.05)
+        time.sleep(0.3)  # mid-chunk
+        child.send_signal(signal.SIGKILL)
+        killed_ns = time.time_ns()
+    finally:
+        child.kill()
+        child.wait()
+    listed = _metadata_count(bag)  # metadata.yaml of the killed run: current within ~1 s
+
+    rc, out, err = cli(capsys, "bag", "info", bag, "--json", tmp_path / "info.json")
+    assert rc == 2 and "no summary: the writer did not finish" in err  # read directly
+    assert f"bag {bag}:" in out and topics.BEARING_MEASUREMENTS in out
+    info = json.loads((tmp_path / "info.json").read_text())
+    n = info["topics"][topics.BEARING_MEASUREMENTS]["count"]
+    assert n >= 100 and info["messages"] >= listed > 0
+    with open_bag(bag) as b:
+        assert not b.lost  # incomplete, nothing lost before the cut
+        epochs = [
+            deserialize_message(d, BearingMeasurement).epoch
+            for _, _, d in b.messages([topics.BEARING_MEASUREMENTS])
+        ]
+        end_ns = b.end_time
+    assert epochs == list(range(1, n + 1))  # a gapless prefix of what was published
+    # mcap's own stream reader (CRCs on) reads the same messages before it stops at the cut.
+    seen = 0
+    with open(bag / "killed.mcap", "rb") as f:
+        try:
+            for record in StreamReader(f, validate_crcs=True).records:
+                seen += type(record).__name__ == "Message"
+        except Exception:  # its error at the cut, whatever it is
+            pass
+    assert seen == info["messages"]
+    lost_s = (killed_ns - end_ns) * 1e-9
+    assert lost_s < 1.5, f"the last {lost_s:.2f} s were lost"  # chunks close within 0.5 s
+
+    rc, out, err = cli(capsys, "bag", "recover", bag)
+    assert rc == 0 and f"kept {info['messages']} messages" in out
+    assert (bag / "killed.mcap.damaged").exists() and (bag / "metadata.yaml.old").exists()
+    rc, out, err = cli(capsys, "bag", "info", bag)
+    assert rc == 0 and not err
+    with AnyReader([bag], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        got = [
+            reader.deserialize(d, c.msgtype).epoch
+            for c, _, d in reader.messages()
+            if c.topic == topics.BEARING_MEASUREMENTS
+        ]
+    assert got == epochs
+    # rosbags reads the killed run's own metadata.yaml (next to the recovered file).
+    twin = tmp_path / "twin"
+    twin.mkdir()
+    shutil.copy(bag / "metadata.yaml.old", twin / "metadata.yaml")
+    shutil.copy(bag / "killed.mcap", twin / "killed.mcap")
+    with Reader(twin) as reader:
+        assert reader.message_count == listed
+        assert {c.topic for c in reader.connections} == {topics.BEARING_MEASUREMENTS, topics.CLOCK}
+
+
+def test_recorder_metadata_tracks_the_disk_while_recording(tmp_path):
+    """metadata.yaml says 'recording', counts only flushed messages, and the bag reads as
+    incomplete (not damaged) before close; intact after."""
+    bag = tmp_path / "live"
+    with InProcessGraph() as g:
+        clock_only = {topics.CLOCK: GRAPH_TOPICS[topics.CLOCK]}
+        rec = g.add(bagmod.BagRecorder(bag, clock_only, context=g.context))
+        node = g.add(Node("pub", context=g.context))
+        pub = node.create_publisher(Clock, topics.CLOCK, topics.writer_qos(topics.CLOCK))
+        meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        assert meta["message_count"] == 0
+        assert meta["custom_data"]["activetrack_state"] == "recording"
+        for _ in range(20):
+            pub.publish(Clock())
+        g.spin_until(lambda: rec.count == 20, timeout=5)
+        g.spin_until(lambda: _metadata_count(bag) == 20, timeout=3)  # timer: chunk + metadata
+        assert _metadata_count(bag) == 20
+        with open_bag(bag) as b:
+            assert b.message_count == 20 and not b.lost and not b.intact
+        rec.close()
+    assert bag_info(bag)["intact"]
+
+
+# --- argument errors --------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("rate", [0, -1.0, float("nan"), float("inf"), "fast"])
+def test_player_rejects_bad_rates(run_bag, rate):
+    with pytest.raises(ValueError, match="rate must be a positive"):
+        BagPlayer(run_bag, rate=rate)
+
+
+def test_play_and_record_errors_are_one_line(run_bag, tmp_path, capsys):
+    for rate in ("0", "-2", "nan", "inf"):
+        rc, _, err = cli(capsys, "play", run_bag, "--rate", rate)
+        assert rc == 2 and "rate" in err
+    rc, _, err = cli(capsys, "play", run_bag, "--topics", "/nope", "--rate", "100")
+    assert rc == 2 and "topics not in the bag: ['/nope']" in err
+    rc, out, err = cli(capsys, "play", run_bag, "--topics", topics.PLAN_REPORT, "--rate", "100")
+    assert rc == 0 and "published 8 messages" in out and not err
+    rc, _, err = cli(capsys, "record", run_bag)  # an existing path
+    assert rc == 2 and "exists already" in err
+    rc, _, err = cli(capsys, "play", tmp_path / "missing")
+    assert rc == 2 and "no such bag" in err
+
+
+# --- retrack: fails fast on a scenario that does not match ------------------------------
+
+
+def _variant(tmp_path, name, edit):
+    doc = yaml.safe_load(Path(SCENARIO).read_text())
+    doc["name"] = "variant"
+    edit(doc)
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def _sensor_ids(doc):
+    doc["platforms"][0]["sensors"][0]["id"] = "x1"
+
+
+def _platform_ids(doc):
+    doc["platforms"][1]["id"] = "q2"
+
+
+def _dt(doc):
+    doc["dt"] = 4.0
+
+
+def _fewer_steps(doc):
+    doc["steps"] = 5
+
+
+def _more_steps(doc):
+    doc["steps"] = 12
+
+
+def _state(doc):
+    doc["target"]["motion"] = {"model": "circular", "sigma_omega": 1e-4, "sigma_v": 1e-3}
+    doc["target"]["prior"] = {"mean": [0.0, 1000.0, 1000.0, 0.0, 50.0], "var": [0.01] * 5}
+    doc["planner"] = {"enabled": False}
+
+
+def _target(doc):
+    doc["target"]["id"] = "t9"
+
+
+def _sensor_kind(doc):
+    s = doc["platforms"][0]["sensors"][0]
+    doc["platforms"][0]["sensors"][0] = {
+        "id": s["id"],
+        "kind": "range_bearing",
+        "sigma_r": 1.0,
+        "sigma_b": 0.01,
+    }
+
+
+@pytest.mark.parametrize(
+    "edit, expect",
+    [
+        (_sensor_ids, "sensors ['s1'] that scenario"),
+        (_platform_ids, "platforms ['p2'] that scenario"),
+        (_dt, "scenario variant has dt = 4 s"),
+        (_fewer_steps, "the recorded run has 8 steps (its simulator's diagnostics), scenario"),
+        (_more_steps, "the recorded run has 8 steps (its simulator's diagnostics), scenario"),
+        (_state, "the recorded track's state is (x, xdot, y, ydot)"),
+        (_target, "the recorded track is of target 't1'"),
+        (_sensor_kind, "is a range_bearing sensor in scenario"),
+    ],
+    ids=["sensor", "platform", "dt", "fewer-steps", "more-steps", "state", "target", "kind"],
+)
+def test_retrack_fails_fast_when_the_scenario_does_not_match(
+    run_bag, tmp_path, capsys, edit, expect
+):
+    scenario = _variant(tmp_path, "variant", edit)
+    start = time.monotonic()
+    rc, _, err = cli(capsys, "bag", "retrack", run_bag, "--scenario", scenario)
+    assert rc == 2 and expect in err, err
+    assert "wrong --scenario?" in err and "(the run used scenario 'short_two_sensors')" in err
+    assert time.monotonic() - start < 5.0
+
+
+def _bag_of(tmp_path, name, messages: dict[str, list]) -> Path:
+    """A bag written with the project's writer from (topic -> [serialized message])."""
+    schemas = graph_schemas()
+    specs = [TopicSpec(t, GRAPH_TOPICS[t], *schemas[GRAPH_TOPICS[t]]) for t in messages]
+    writer = Rosbag2Writer(tmp_path / name, specs, state="closed")
+    t = 1
+    for topic, items in messages.items():
+        for data in items:
+            writer.write(writer.channel_ids[topic], t, data)
+            t += 1
+    writer.close()
+    return tmp_path / name
+
+
+def test_retrack_says_when_there_is_nothing_to_retrack(run_bag, tmp_path, capsys):
+    with open_bag(run_bag) as b:
+        clock = [d for _, _, d in b.messages([topics.CLOCK])]
+        tracks = [d for _, _, d in b.messages([topics.TRACK])]
+    no_meas = _bag_of(tmp_path, "no_meas", {topics.CLOCK: clock, topics.TRACK: tracks})
+    rc, _, err = cli(capsys, "bag", "retrack", no_meas, "--scenario", SCENARIO)
+    assert rc == 2 and "holds no measurements" in err
+    rc, _, err = cli(capsys, "bag", "retrack", tmp_path / "nope", "--scenario", SCENARIO)
+    assert rc == 2 and "no such bag" in err
+    rc, _, err = cli(capsys, "bag", "retrack", run_bag, "--scenario", tmp_path / "none.yaml")
+    assert rc == 2
+
+
+def test_retrack_wait_is_bounded_when_the_tracker_stops(run_bag, monkeypatch):
+    class StuckTracker(retrack_mod.TrackerNode):
+        def publish_track(self, snap):  # publishes the prior, then falls silent
+            if snap.epoch == 0:
+                super().publish_track(snap)
+
+    monkeypatch.setattr(retrack_mod, "TrackerNode", StuckTracker)
+    start = time.monotonic()
+    with pytest.raises(RetrackError, match="stopped at epoch 0: no track for epoch 1 within"):
+        retrack(run_bag, SCENARIO, stall_timeout=0.5)
+    assert time.monotonic() - start < 5.0
+
+
+def test_retrack_refuses_a_bag_with_lost_data(run_bag, tmp_path):
+    bag = tmp_path / "damaged"
+    shutil.copytree(run_bag, bag)
+    data = bytearray((bag / "bag.mcap").read_bytes())
+    data[len(data) // 3] ^= 0xFF  # inside a message chunk
+    (bag / "bag.mcap").write_bytes(data)
+    with pytest.raises(BagError, match=r"bag.mcap: corrupt chunk at offset \d+ \(CRC mismatch"):
+        retrack(bag, SCENARIO)
+
+
+def test_a_full_disk_stops_the_recording_not_the_graph(tmp_path, monkeypatch, capsys):
+    bag = tmp_path / "full"
+    with InProcessGraph() as g:
+        clock_only = {topics.CLOCK: GRAPH_TOPICS[topics.CLOCK]}
+        rec = g.add(bagmod.BagRecorder(bag, clock_only, context=g.context))
+        node = g.add(Node("pub", context=g.context))
+        pub = node.create_publisher(Clock, topics.CLOCK, topics.writer_qos(topics.CLOCK))
+        for _ in range(5):
+            pub.publish(Clock())
+        assert g.spin_until(lambda: _metadata_count(bag) == 5, timeout=5)  # on disk
+
+        def full(fd, parts):
+            raise OSError(28, "No space left on device")
+
+        monkeypatch.setattr(mcap_writer.os, "writev", full)
+        for _ in range(5):
+            pub.publish(Clock())
+        assert g.spin_until(lambda: rec.failed is not None, timeout=5)  # the chunk's age
+        assert "No space left on device" in rec.failed
+        monkeypatch.undo()
+        pub.publish(Clock())
+        g.spin_until(lambda: False, timeout=0.1)  # the graph goes on; nothing more recorded
+    assert rec.count == 10
+    rc, out, _ = cli(capsys, "bag", "recover", bag)
+    assert rc == 0 and "kept 5 messages" in out
