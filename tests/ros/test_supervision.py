@@ -39,18 +39,17 @@ def _kill_at(node_name: str, epoch: int, log: dict):
     return hook
 
 
+def _processes(scenario, run_dir, **kwargs):
+    """A run with one OS process per node, no bag, no plots."""
+    return run_graph(
+        scenario, processes=True, run_dir=run_dir, record=False, plots=False, timeout=120, **kwargs
+    )
+
+
 def test_a_killed_tracker_fails_the_run_at_once_and_says_which(tmp_path):
     log = {}
     with pytest.raises(RunIncomplete) as info:
-        run_graph(
-            SHORT,
-            processes=True,
-            run_dir=tmp_path,
-            record=False,
-            plots=False,
-            timeout=120,
-            during_spin=_kill_at("tracker_node", 0, log),  # before its first update
-        )
+        _processes(SHORT, tmp_path, during_spin=_kill_at("tracker_node", 0, log))
     noticed = time.monotonic() - log["killed_at"]
     result = info.value.result
     assert info.value.exit_code == 1 and result.status == "node_died"
@@ -64,13 +63,9 @@ def test_a_killed_tracker_fails_the_run_at_once_and_says_which(tmp_path):
 
 def test_a_killed_planner_is_restarted_and_the_run_completes(tmp_path):
     log = {}
-    result = run_graph(
+    result = _processes(
         SHORT,
-        processes=True,
-        run_dir=tmp_path,
-        record=False,
-        plots=False,
-        timeout=120,
+        tmp_path,
         sim_params={"command_timeout": 2.0},
         during_spin=_kill_at("planner_node", 1, log),
     )
@@ -79,18 +74,20 @@ def test_a_killed_planner_is_restarted_and_the_run_completes(tmp_path):
     assert len(result.summary.records[0].estimate) == 9
 
 
+def test_a_scenario_can_make_the_planner_essential(tmp_path):
+    essential = tmp_path / "essential.yaml"
+    essential.write_text(Path(SHORT).read_text() + "graph: {restartable: []}\n")
+    log = {}
+    with pytest.raises(RunIncomplete) as info:
+        _processes(essential, tmp_path / "run", during_spin=_kill_at("planner_node", 1, log))
+    assert "planner_node was killed by SIGKILL" in info.value.result.detail
+
+
 def test_a_node_that_fails_at_start_up_is_reported_at_once(tmp_path):
     start = time.monotonic()
     with pytest.raises(RunIncomplete) as info:
-        run_graph(
-            SHORT,
-            processes=True,
-            run_dir=tmp_path,
-            record=False,
-            plots=False,
-            timeout=120,
-            sim_params={"tick": 0.0},  # refused by the sim: exit 2 before it publishes
-        )
+        # tick 0 is refused by the sim: it exits 2 before it publishes anything.
+        _processes(SHORT, tmp_path, sim_params={"tick": 0.0})
     assert "sim_node exited with status 2" in info.value.result.detail
     assert time.monotonic() - start < 15
 

@@ -25,6 +25,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 
+from activetrack_bringup import examples
 from activetrack_ros import graph as topics
 from activetrack_ros.trust import GraphKey, is_signed_type
 from msgs_defs.msg import (
@@ -38,17 +39,8 @@ from msgs_defs.msg import (
     TrackEstimate,
 )
 
-TOPIC_OF = {
-    BearingMeasurement: topics.BEARING_MEASUREMENTS,
-    PolarMeasurement: topics.POLAR_MEASUREMENTS,
-    PlatformState: topics.PLATFORM_STATES,
-    TrackEstimate: topics.TRACK,
-    ManoeuvreCommand: topics.MANOEUVRE_COMMANDS,
-    SensorSelection: topics.SENSOR_SELECTION,
-    PlanReport: topics.PLAN_REPORT,
-    GroundTruth: topics.GROUND_TRUTH,
-    DiagnosticArray: topics.DIAGNOSTICS,
-}
+# Every topic the graph reads: the msgs_defs ones and /diagnostics.
+TOPIC_OF = {**examples.TOPIC_OF, DiagnosticArray: topics.DIAGNOSTICS}
 
 # Which of the graph's readers take each type (the runner's evaluator included; the recorder,
 # which only stores bytes, not): what a foreign message on that type's topic must be counted by.

@@ -4,7 +4,6 @@ arrays sized by the scenario once, never messages, so its memory does not grow w
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -19,6 +18,7 @@ from activetrack_ros.convert import (
     check_epoch_stamp,
     finite,
     platform_from_msg,
+    report_from_msg,
 )
 from activetrack_ros.node_base import GraphNode, Rejected
 from msgs_defs.msg import (
@@ -131,26 +131,10 @@ class EvaluatorNode(GraphNode):
         self.platforms.put(s.epoch, s.pv, what, slot=self.platform_index[s.platform_id])
 
     def on_report(self, msg: PlanReport) -> None:
-        if msg.epoch >= self.scenario.steps:
-            raise Rejected("future_epoch", f"plan report of epoch {msg.epoch}")
-        check_epoch_stamp(msg, self.scenario, "plan report")
-        costs = finite(msg.predicted_costs, "predicted_costs", math.inf)
-        if len(costs) != len(msg.cost_names):
-            raise Rejected("wrong_dimension", "predicted_costs and cost_names differ in length")
-        finite((msg.planning_wall_time,), "planning_wall_time", 1e9)
-        if msg.epoch in self.reports:
-            raise Rejected("duplicate", f"second plan report of epoch {msg.epoch}")
-        self.reports[msg.epoch] = PlanReportData(
-            epoch=msg.epoch,
-            cost_kind=msg.cost_kind,
-            criterion=msg.criterion,
-            search=msg.search,
-            horizon=msg.horizon,
-            cost_names=tuple(msg.cost_names),
-            predicted_costs=tuple(float(c) for c in costs),
-            evaluations=msg.evaluations,
-            wall_time_s=msg.planning_wall_time,
-        )
+        report = report_from_msg(msg, self.scenario)
+        if report.epoch in self.reports:
+            raise Rejected("duplicate", f"second plan report of epoch {report.epoch}")
+        self.reports[report.epoch] = report
 
     def on_measurement(self, msg) -> None:
         i = self.sensor_index.get(msg.sensor_id)

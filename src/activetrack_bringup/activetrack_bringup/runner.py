@@ -151,8 +151,7 @@ def run_graph(
     """
     scenario = load_scenario(scenario_path)  # fails before anything starts
     if restartable is None:
-        graph_cfg = getattr(scenario, "graph", None)
-        restartable = tuple(graph_cfg.restartable) if graph_cfg is not None else ("planner",)
+        restartable = tuple(scenario.graph.restartable)
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name)
     bag_path = run_dir / "bag" if record else None
     if bag_path is not None and bag_path.exists():
@@ -189,7 +188,9 @@ def run_graph(
                 recorder = graph.add(BagRecorder(bag_path, graph_key=key, **quiet))
             params = _node_params(scenario_path, run, mode)
             if processes:
-                supervisor = _start_processes(params, sim_params, key, ros_env, restartable)
+                supervisor = _start_processes(
+                    params, sim_params, key, ros_env, restartable, scenario.graph.max_restarts
+                )
                 graph.supervisor = supervisor  # for during_spin hooks (fault-injection tests)
             else:
 
@@ -328,13 +329,17 @@ def _domain_id() -> int:
     return int(os.environ.get("ROS_DOMAIN_ID", str(100 + os.getpid() % 100)))
 
 
-def _start_processes(params, sim_params, key: GraphKey, ros_env, restartable) -> Supervisor:
+def _start_processes(
+    params, sim_params, key: GraphKey, ros_env, restartable, max_restarts: int
+) -> Supervisor:
     """Each node as its own OS process (its console entry point), talking over DDS."""
     env = dict(os.environ)
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
     env.update(ros_env)
     env[KEY_ENV] = key.hex()  # the environment, not a parameter: parameters are readable
-    supervisor = Supervisor(env, log=lambda text: print(f"activetrack: {text}", file=sys.stderr))
+    supervisor = Supervisor(
+        env, max_restarts, log=lambda text: print(f"activetrack: {text}", file=sys.stderr)
+    )
     for name, extra in (("tracker", {}), ("planner", {}), ("sim", sim_params or {})):
         supervisor.add(f"{name}_node", {**params, **extra}, restartable=name in restartable)
     supervisor.start()

@@ -8,17 +8,19 @@ one message is judged the same way everywhere.
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from std_msgs.msg import Header
 
 from activetrack import limits
-from activetrack.closed_loop.data import PlatformSnapshot, TrackSnapshot
+from activetrack.closed_loop.data import PlanReportData, PlatformSnapshot, TrackSnapshot
 from activetrack.filters.measurement import Measurement
 from activetrack.scenarios.build import build_motion_model
 from activetrack.scenarios.schema import Scenario
 from activetrack_ros.node_base import Rejected
+from msgs_defs.msg import PlanReport
 
 # Plausibility limits for values arriving on topics (a sensor 1e300 m away is not a sensor):
 # the scenario files' limits, so nothing a valid scenario produces is ever refused.
@@ -228,3 +230,42 @@ class MeasurementChecker:
                 raise Rejected("out_of_range", f"{what}: range must be >= 0")
             finite((msg.range_rate,), f"{what} range_rate", MAX_SPEED)
         return Measurement(sensor, pv, z, msg.epoch * self.scenario.dt, msg.sensor_id)
+
+
+def report_msg(r: PlanReportData, hdr: Header) -> PlanReport:
+    """The planner's report of a decision as a PlanReport message."""
+    return PlanReport(
+        header=hdr,
+        epoch=r.epoch,
+        cost_kind=r.cost_kind,
+        criterion=r.criterion,
+        search=r.search,
+        horizon=r.horizon,
+        cost_names=list(r.cost_names),
+        predicted_costs=[float(v) for v in r.predicted_costs],
+        evaluations=r.evaluations,
+        planning_wall_time=r.wall_time_s,
+    )
+
+
+def report_from_msg(msg: PlanReport, scenario: Scenario) -> PlanReportData:
+    """A PlanReport as PlanReportData (epoch < steps, finite costs, one per cost name). Its
+    repeated strings are interned: a run's record keeps one report per epoch."""
+    if msg.epoch >= scenario.steps:
+        raise Rejected("future_epoch", f"plan report of epoch {msg.epoch}")
+    check_epoch_stamp(msg, scenario, "plan report")
+    costs = finite(msg.predicted_costs, "predicted_costs", math.inf)
+    if len(costs) != len(msg.cost_names):
+        raise Rejected("wrong_dimension", "predicted_costs and cost_names differ in length")
+    finite((msg.planning_wall_time,), "planning_wall_time", 1e9)
+    return PlanReportData(
+        epoch=msg.epoch,
+        cost_kind=sys.intern(msg.cost_kind),
+        criterion=sys.intern(msg.criterion),
+        search=sys.intern(msg.search),
+        horizon=msg.horizon,
+        cost_names=tuple(sys.intern(n) for n in msg.cost_names),
+        predicted_costs=tuple(costs.tolist()),
+        evaluations=msg.evaluations,
+        wall_time_s=msg.planning_wall_time,
+    )

@@ -15,7 +15,7 @@ from activetrack.closed_loop.data import PlatformSnapshot, TrackSnapshot
 from activetrack.closed_loop.planner import PlannerCore
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics
-from activetrack_ros.convert import TrackChecker, header, platform_from_msg
+from activetrack_ros.convert import TrackChecker, header, platform_from_msg, report_msg
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import (
@@ -122,22 +122,8 @@ class PlannerNode(GraphNode):
                     criterion=decision.selection_criterion,
                 )
             )
-        r = decision.report
-        if r is not None:
-            self.report_pub.publish(
-                PlanReport(
-                    header=hdr,
-                    epoch=k,
-                    cost_kind=r.cost_kind,
-                    criterion=r.criterion,
-                    search=r.search,
-                    horizon=r.horizon,
-                    cost_names=list(r.cost_names),
-                    predicted_costs=[float(v) for v in r.predicted_costs],
-                    evaluations=r.evaluations,
-                    planning_wall_time=r.wall_time_s,
-                )
-            )
+        if decision.report is not None:
+            self.report_pub.publish(report_msg(decision.report, hdr))
         self.counters.count("decisions")
         self.diag_pub.publish(
             self.diagnostics_array(

@@ -63,7 +63,7 @@ class TrackSnapshot:
     particle_count: int = 0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)  # one per epoch is kept for a run's record: small
 class PlanReportData:
     epoch: int
     cost_kind: str

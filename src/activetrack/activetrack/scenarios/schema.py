@@ -469,6 +469,18 @@ def _search_size(cfg: PlannerConfig) -> tuple[int, int]:
 # --- the whole scenario ------------------------------------------------------------------------
 
 
+class GraphConfig(_Strict):
+    """How the ROS graph runner treats node processes (``activetrack run --processes``).
+
+    A restartable node whose process dies is started again (at most ``max_restarts`` times);
+    the death of any other node fails the run. Only the planner can be restarted: it keeps no
+    state a new one could not rebuild from the latched track and platform states, whereas a
+    restarted tracker or simulator would lose the run."""
+
+    restartable: list[Literal["planner"]] = ["planner"]
+    max_restarts: Annotated[int, Field(ge=0, le=10)] = 3
+
+
 class Scenario(_Strict):
     name: str
     description: str = Field(default="", max_length=MAX_DESCRIPTION_LENGTH)
@@ -479,6 +491,7 @@ class Scenario(_Strict):
     platforms: list[PlatformConfig] = Field(min_length=1, max_length=MAX_PLATFORMS)
     tracker: TrackerConfig = TrackerConfig()
     planner: PlannerConfig = PlannerConfig()
+    graph: GraphConfig = GraphConfig()
 
     @field_validator("name")
     @classmethod
