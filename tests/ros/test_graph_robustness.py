@@ -4,7 +4,10 @@ graph's own failures stop the run at once instead of stalling it; a dying planne
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from rclpy.parameter import Parameter
+from strategies import message
 
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.adversary import CATEGORIES, READERS, ForeignNode, uncounted
@@ -191,3 +194,31 @@ def test_a_planner_without_the_key_is_not_obeyed(tmp_path):
     assert extra[0].graph_key is None and extra[0].counters.counts["decisions"] >= 1
     assert result.diagnostics["sim"]["foreign.ManoeuvreCommand"] >= 2
     assert_same_run(result, clean)
+
+
+SIGNED_TYPES = [BearingMeasurement, PlatformState, TrackEstimate, ManoeuvreCommand, SensorSelection]
+
+
+@settings(
+    max_examples=4,
+    derandomize=True,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(
+    drawn=st.lists(
+        st.sampled_from(SIGNED_TYPES).flatmap(lambda t: message(t).map(lambda m: (t, m))),
+        min_size=1,
+        max_size=25,
+    )
+)
+def test_property_any_foreign_messages_during_a_run_change_nothing(drawn, clean_run, tmp_path):
+    """Property: whatever messages an outsider publishes on the graph's topics during a run
+    (hypothesis draws them: any field values, any mix of types), the run is the clean run and
+    each of them is counted by each of its readers."""
+    run_dir = tmp_path / f"h{len(list(tmp_path.iterdir()))}"
+    result, foreign = _run_with(run_dir, messages=drawn)
+    assert sum(foreign.sent.values()) == len(drawn)
+    assert_same_run(result, clean_run)
+    assert_every_message_counted(result, clean_run, foreign)

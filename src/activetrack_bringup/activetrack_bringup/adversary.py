@@ -274,7 +274,8 @@ class ForeignNode(Node):
 
     ``categories``: names from CATEGORIES; ``floods``: {message type: count} of random messages
     (:func:`random_message`); ``garbage``: raw random bytes per graph topic; ``replay``: every
-    genuine per-epoch message seen so far, published again unchanged (valid tags); ``sign``:
+    genuine per-epoch message seen so far, published again unchanged (valid tags);
+    ``messages``: (type, message) pairs given by the caller (e.g. drawn by hypothesis); ``sign``:
     the graph's key (a buggy insider) or None (an outsider).
     """
 
@@ -287,6 +288,7 @@ class ForeignNode(Node):
         floods: dict | None = None,
         garbage: int = 0,
         replay: bool = False,
+        messages=(),
         sign: GraphKey | None = None,
         seed: int = 0,
         **kwargs,
@@ -301,6 +303,7 @@ class ForeignNode(Node):
         self.floods = dict(floods or {})
         self.garbage = garbage
         self.replay = replay
+        self.messages = list(messages)  # (message type, message) pairs published as they are
         self.key = sign
         self.rng = random.Random(seed)
         # Random messages and garbage made now, serialised: firing must not hold the
@@ -365,6 +368,8 @@ class ForeignNode(Node):
         for msg_type, pool in self.pools.items():
             for data in pool:
                 self.publish(msg_type, data)
+        for msg_type, msg in self.messages:
+            self.publish(msg_type, msg)
         if self.replay:
             for msg_type, raws in self.seen.items():
                 for raw in raws:
