@@ -103,5 +103,5 @@ fi
 STEP="check"
 # Also fills the bag-schema cache (.venv/share/activetrack), so the first recording is fast.
 env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c 'import rclpy, activetrack, msgs_defs.msg
-from activetrack_bringup.bag import graph_schemas; graph_schemas()'
+from activetrack_bringup.bag import graph_schemas; graph_schemas(write_cache=True)'
 echo "setup: done ($VENV)"

@@ -21,6 +21,7 @@ from activetrack.models.motion import (
     NearlyConstantVelocity,
     NearlyConstantVelocityDiscrete,
 )
+from activetrack.models.base import GaussianSensor
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,
@@ -30,7 +31,7 @@ from activetrack.models.sensors import (
 
 
 @dataclass(frozen=True)
-class LinearPositionSensor:
+class LinearPositionSensor(GaussianSensor):
     """Test-only linear sensor: z = (x_t - x_s, y_t - y_s) + v, v ~ N(0, sigma^2 I)."""
 
     sigma: float
@@ -67,13 +68,18 @@ class LinearPositionSensor:
         return h + self.sigma * rng.standard_normal(h.shape)
 
 
-# Subclasses take the EKF's generic path (model/sensor methods) instead of its inline formulas.
+# The built-in sensors with GaussianSensor's generic members instead of their inline formulas
+# (a plain subclass keeps the inline ones).
 class GenericBearing(BearingSensor):
-    pass
+    linearize = GaussianSensor.linearize
+    log_likelihood = GaussianSensor.log_likelihood
+    log_miss_likelihood = GaussianSensor.log_miss_likelihood
 
 
 class GenericRangeBearing(RangeBearingSensor):
-    pass
+    linearize = GaussianSensor.linearize
+    log_likelihood = GaussianSensor.log_likelihood
+    log_miss_likelihood = GaussianSensor.log_miss_likelihood
 
 
 T = 5.0

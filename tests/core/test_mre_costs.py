@@ -8,12 +8,10 @@ import pytest
 
 from activetrack.angles import wrap_angle
 from activetrack.bounds import (
-    COSTS,
     covariance_bound,
     criterion_jacobian,
     criterion_variance,
     determinant_cost,
-    evaluate_cost,
     mre_predict,
     mre_recursion,
     mre_step,
@@ -25,6 +23,7 @@ from activetrack.bounds import (
 from activetrack.filters import ExtendedKalmanFilter, Measurement
 from activetrack.models.motion import NearlyConstantVelocityDiscrete
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
+from activetrack.planning.criteria import criterion_names, get_criterion
 
 T = 1.0
 MODEL = NearlyConstantVelocityDiscrete(sigma_x=2.0, sigma_y=2.0)  # Ramdaras eq. 3-4
@@ -225,19 +224,32 @@ def test_criterion_variance_values():
     # Heading along +y at 10 m/s: the cross-track velocity variance 1 over v^2.
     assert criterion_variance("heading", P, x) == pytest.approx(1.0 / 100.0)
     batch = np.stack([P, 2 * P, 3 * P])
-    np.testing.assert_allclose(evaluate_cost("range", batch, x), [s2, 2 * s2, 3 * s2])
+    range_criterion = get_criterion("range")
+    np.testing.assert_allclose(range_criterion.of_covariance(batch, x), [s2, 2 * s2, 3 * s2])
 
 
-def test_evaluate_cost_dispatch_and_errors():
+def test_criterion_registry_names_and_errors():
     P = np.diag([4.0, 1.0, 9.0, 1.0])
     x = np.array([300.0, 1.0, 400.0, 1.0])
-    assert evaluate_cost("rmse_bound", P) == 3.0
-    assert evaluate_cost("position_determinant", P) == 36.0
-    assert set(COSTS) >= {"trace", "determinant", "heading", "range", "doppler", "bearing"}
-    with pytest.raises(ValueError, match="cost name"):
-        evaluate_cost("nope", P)
+    assert get_criterion("b_k").of_covariance(P) == 3.0  # Hernandez eq. 10
+    assert get_criterion("det_pos").of_covariance(P) == 36.0  # Ramdaras eq. 24
+    assert get_criterion("trace").of_information(np.linalg.inv(P)) == pytest.approx(15.0)
+    assert criterion_names() == (
+        "b_k", "trace", "det_pos", "heading", "range", "doppler", "bearing"
+    )  # fmt: skip
+    assert criterion_names("pcrlb") == ("b_k", "trace", "det_pos")
+    assert criterion_names("selection") == ("det_pos", "heading", "range", "doppler", "bearing")
+    # One vocabulary: the old aliases are gone.
+    for old in ("rmse_bound", "position_determinant", "determinant", "nope"):
+        with pytest.raises(ValueError, match="criterion must be one of"):
+            get_criterion(old)
+    with pytest.raises(ValueError, match="for PCRLB planning"):
+        get_criterion("heading", "pcrlb")
     with pytest.raises(ValueError, match="x"):
-        evaluate_cost("bearing", P)
+        get_criterion("bearing").of_covariance(P)
+    assert get_criterion("bearing").of_covariance(P, x) == pytest.approx(
+        criterion_variance("bearing", P, x)
+    )
     with pytest.raises(ValueError, match="x"):
         criterion_jacobian("heading", np.array([1.0, 0.0, 2.0, 0.0]))
     with pytest.raises(ValueError, match="x"):

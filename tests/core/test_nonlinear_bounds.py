@@ -16,6 +16,7 @@ from activetrack.bounds import (
     tichavsky_pcrlb,
 )
 from activetrack.models.motion import CircularMotion, ConstantTurn, NearlyConstantVelocity
+from activetrack.models.base import jacobian_information
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor
 
 DT = 1.0
@@ -175,6 +176,9 @@ def test_taylor_crlb_constant_velocity_analytic():
 
         def in_range(self, target_pv, sensor_pv):
             return np.ones(np.broadcast_shapes(np.shape(target_pv), np.shape(sensor_pv))[:-1], bool)
+
+        # The PCRLB's hook: the Jacobian form of Hernandez eq. 8 (models.base).
+        fisher_information = jacobian_information
 
     J = taylor_crlb(
         NearlyConstantVelocity(q=0.0), UnitPosition(), np.zeros((2, 4)), np.ones(4), 2, T

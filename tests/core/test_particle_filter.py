@@ -24,6 +24,7 @@ from activetrack.models.motion import (
     NearlyConstantVelocity,
     NearlyConstantVelocityDiscrete,
 )
+from activetrack.models.base import GaussianSensor
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,
@@ -33,7 +34,7 @@ from activetrack.models.sensors import (
 
 
 @dataclass(frozen=True)
-class LinearPositionSensor:
+class LinearPositionSensor(GaussianSensor):
     """Test-only linear sensor: z = (x_t - x_s, y_t - y_s) + v, v ~ N(0, sigma^2 I)."""
 
     sigma: float
@@ -70,13 +71,18 @@ class LinearPositionSensor:
         return h + self.sigma * rng.standard_normal(h.shape)
 
 
-# Subclasses take the PF's generic likelihood path (sensor.measure / residual / in_range).
+# The built-in sensors with GaussianSensor's generic members instead of their inline formulas
+# (a plain subclass keeps the inline ones).
 class GenericBearing(BearingSensor):
-    pass
+    linearize = GaussianSensor.linearize
+    log_likelihood = GaussianSensor.log_likelihood
+    log_miss_likelihood = GaussianSensor.log_miss_likelihood
 
 
 class GenericRangeBearing(RangeBearingSensor):
-    pass
+    linearize = GaussianSensor.linearize
+    log_likelihood = GaussianSensor.log_likelihood
+    log_miss_likelihood = GaussianSensor.log_miss_likelihood
 
 
 X0 = np.array([100.0, 2.0, -50.0, 1.0])

@@ -6,7 +6,13 @@ import math
 import numpy as np
 import pytest
 
-from activetrack.bounds import covariance_bound, pcrlb_trajectory, propagate_samples, rmse_bound
+from activetrack.bounds import (
+    covariance_bound,
+    pcrlb_trajectory,
+    propagate_samples,
+    rmse_bound,
+    rmse_bound_of_information,
+)
 from activetrack.models.motion import NearlyConstantVelocity
 from activetrack.models.sensors import BearingSensor
 from activetrack.planning import (
@@ -21,7 +27,6 @@ from activetrack.planning import (
     speed_interval,
     unit_to_manoeuvre,
 )
-from activetrack.planning.costs import rmse_bound_of_information
 
 DT = 5.0
 MODEL = NearlyConstantVelocity(q=1e-8)

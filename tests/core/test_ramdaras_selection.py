@@ -19,10 +19,15 @@ from activetrack.models.sensors import (
     RangeRateBearingSensor,
 )
 from activetrack.planning.manoeuvre import PlatformLimits, step_platform
+from activetrack.planning.planner import PlannerPlatform
 from activetrack.planning.selection import (
+    TargetPrediction,
     expected_update,
     position_platform,
-    select_sensors,
+    select_by_criterion,
+    select_by_trace,
+    select_fixed,
+    select_random,
     sensor_costs,
 )
 
@@ -49,19 +54,18 @@ GEOM_A = np.array([[1000.0, 0, 0, 0]] * 3)
 GEOM_B = np.array([[1000.0, 0, 0, 0], [1000.0, 0, 0, 0], [5000.0, 0, -4000.0, 0]])
 # C: s1 1 km from the target, s2 and s3 4 km.
 GEOM_C = np.array([[4000.0, 0, 0, 0], [1000.0, 0, 0, 0], [1000.0, 0, 0, 0]])
+PREDICTION = TargetPrediction(X_PRED, P_PRED, F, Q)
 
 
 def choice(criterion, geometry, sensors=None):
-    sel = select_sensors(
-        "mre", P_PRED, F, Q, X_PRED, sensors or paper_sensors(), geometry, criterion=criterion
-    )
+    sel = select_by_criterion(PREDICTION, sensors or paper_sensors(), geometry, criterion=criterion)
     return sel.selected[0] + 1, sel.costs
 
 
 def test_costs_are_eq23_written_out():
     sensors = paper_sensors(pd=(1.0, 0.8, 0.6))
     pvs = GEOM_B
-    costs, P_hat = sensor_costs(P_PRED, F, Q, X_PRED, sensors, pvs, "det_pos")
+    costs, P_hat = sensor_costs(PREDICTION, sensors, pvs, "det_pos")
     for j, (s, pv) in enumerate(zip(sensors, pvs, strict=True)):
         H = s.jacobian(X_PRED, pv)
         S = H @ P_PRED @ H.T + s.R
@@ -75,12 +79,12 @@ def test_costs_are_eq23_written_out():
 def test_co_located_s2_dominates_s1_and_the_choice_alternates_with_s3():
     sensors = paper_sensors()
     # s2 = s1 plus a range: strictly better under eq. 24 wherever they share a position.
-    costs, _ = sensor_costs(P_PRED, F, Q, X_PRED, sensors, GEOM_A, "det_pos")
+    costs, _ = sensor_costs(PREDICTION, sensors, GEOM_A, "det_pos")
     assert costs[1] < costs[0]
     # Selecting with the Kalman update of the pick, epoch after epoch, alternates s2 / s3.
     P, x, picks = P_PRED, X_PRED, []
     for _ in range(8):
-        j = select_sensors("mre", P, F, Q, x, sensors, GEOM_A).selected[0]
+        j = select_by_criterion(TargetPrediction(x, P, F, Q), sensors, GEOM_A).selected[0]
         picks.append(j + 1)
         P = F @ expected_update(P, x, [sensors[j]], GEOM_A[j]) @ F.T + Q
         x = F @ x
@@ -122,8 +126,8 @@ def test_trace_baseline_ignores_pd_and_mre_does_not():
     # s3 detects one time in ten: the trace of the Kalman update still prefers it, eq. 23 not.
     sensors = paper_sensors(pd=(1.0, 1.0, 0.1))
     geom = np.array([[1000.0, 0, 0, 0], [1000.0, 0, 0, 0], [4990.0, 0, 0, 0]])
-    trace = select_sensors("trace", P_PRED, F, Q, X_PRED, sensors, geom)
-    mre = select_sensors("mre", P_PRED, F, Q, X_PRED, sensors, geom, criterion="trace")
+    trace = select_by_trace(PREDICTION, sensors, geom)
+    mre = select_by_criterion(PREDICTION, sensors, geom, criterion="trace")
     assert trace.selected == (2,) and mre.selected != (2,)
     upd = expected_update(P_PRED, X_PRED, [sensors[2]], geom[2], use_pd=False)
     assert trace.costs[2] == pytest.approx(float(trace_cost(upd)))
@@ -132,29 +136,30 @@ def test_trace_baseline_ignores_pd_and_mre_does_not():
 def test_random_and_fixed_baselines():
     sensors = paper_sensors()
     draws = [
-        select_sensors(
-            "random", P_PRED, F, Q, X_PRED, sensors, GEOM_A, rng=np.random.default_rng(s)
-        ).selected[0]
+        select_random(PREDICTION, sensors, GEOM_A, np.random.default_rng(s)).selected[0]
         for s in range(60)
     ]
     assert set(draws) == {0, 1, 2}
-    again = select_sensors(
-        "random", P_PRED, F, Q, X_PRED, sensors, GEOM_A, rng=np.random.default_rng(0)
-    )
+    again = select_random(PREDICTION, sensors, GEOM_A, np.random.default_rng(0))
     assert again.selected[0] == draws[0]
-    fixed = select_sensors("fixed", P_PRED, F, Q, X_PRED, sensors, GEOM_A, fixed=0)
+    fixed = select_fixed(PREDICTION, sensors, GEOM_A, 0)
     assert fixed.selected == (0,)
+    # Both report the MRE costs of every candidate for the record.
+    mre_costs = sensor_costs(PREDICTION, sensors, GEOM_A, "det_pos")[0]
+    np.testing.assert_array_equal(fixed.costs, mre_costs)
     with pytest.raises(ValueError, match="rng"):
-        select_sensors("random", P_PRED, F, Q, X_PRED, sensors, GEOM_A)
-    with pytest.raises(ValueError, match="strategy"):
-        select_sensors("best", P_PRED, F, Q, X_PRED, sensors, GEOM_A)
+        select_random(PREDICTION, sensors, GEOM_A, None)
+    with pytest.raises(ValueError, match="index"):
+        select_fixed(PREDICTION, sensors, GEOM_A, 3)
     with pytest.raises(ValueError, match="count"):
-        select_sensors("mre", P_PRED, F, Q, X_PRED, sensors, GEOM_A, count=4)
+        select_by_criterion(PREDICTION, sensors, GEOM_A, count=4)
+    with pytest.raises(ValueError, match="criterion must be one of"):
+        select_by_criterion(PREDICTION, sensors, GEOM_A, criterion="rmse_bound")
 
 
 def test_greedy_count_two_takes_the_best_pair():
     sensors = paper_sensors()
-    sel = select_sensors("mre", P_PRED, F, Q, X_PRED, sensors, GEOM_C, count=2)
+    sel = select_by_criterion(PREDICTION, sensors, GEOM_C, count=2)
     assert len(set(sel.selected)) == 2
     pair_cost = {}
     for a in range(3):
@@ -174,12 +179,13 @@ def test_sector_positioning_moves_a_bearing_sensor_towards_the_target():
     pv = np.array([4000.0, 0.0, 3000.0, 75.0])  # heading +y, away from the target
     heading, speed = math.pi / 2, 75.0
     s1 = paper_sensors()[0]
-    res = position_platform(pv, heading, speed, limits, [s1], P_PRED, F, Q, X_PRED, 1.0, levels=5)
+    platform = PlannerPlatform("p1", pv, (s1,), limits, heading=heading, speed=speed)
+    res = position_platform(platform, PREDICTION, 1.0)  # sector search, d_max = 5
     assert res.evaluations == 16 + 12 * 4 + 1
     dpsi, v = res.manoeuvre
     assert abs(dpsi) <= limits.dpsi_max + 1e-12 and 65.0 - 1e-9 <= v <= 85.0 + 1e-9
     hold, _ = step_platform(pv, heading, np.array([0.0, speed]), 1.0)
-    hold_cost, _ = sensor_costs(P_PRED, F, Q, X_PRED, [s1], hold, "det_pos")
+    hold_cost, _ = sensor_costs(PREDICTION, [s1], hold, "det_pos")
     assert res.cost <= hold_cost[0]
     # Flying away from the target, it turns towards it (clockwise, dpsi < 0) at the slowest
     # reachable speed: the full turn and v_lo = 65 m/s lose the least range in one step.

@@ -16,3 +16,10 @@ def graph():
     finally:
         g.close()
     assert not g.context.ok()
+
+
+@pytest.fixture
+def localhost_discovery(monkeypatch):
+    """For tests with node processes: DDS discovery between processes on this host
+    (tests/conftest.py switches it off for everything else). The domain stays private."""
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

@@ -166,11 +166,18 @@ def test_play_republishes_with_recorded_timing(graph_run):
 
 
 @pytest.mark.slow
-def test_processes_mode_reproduces_the_batch_run(batch, tmp_path):
+def test_processes_mode_reproduces_the_batch_run(batch, tmp_path, localhost_discovery):
     result = run_graph(
         SCENARIO, processes=True, run_dir=tmp_path, record=False, plots=False, timeout=120
     )
     _assert_parity(result, batch)
+
+
+def test_processes_mode_refuses_when_discovery_is_off(tmp_path, capsys):
+    # tests/conftest.py switches discovery off: node processes could never find each other.
+    assert cli_main(["run", SCENARIO, "--processes", "--out", str(tmp_path / "r")]) == 2
+    assert "ROS_AUTOMATIC_DISCOVERY_RANGE is OFF" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
 
 
 def test_malformed_scenario_fails_before_anything_starts(tmp_path, capsys):

@@ -31,9 +31,7 @@ TYPE_OF = {
 }
 
 
-def test_a_flood_from_another_process_is_counted_and_changes_nothing(tmp_path, monkeypatch):
-    # This test needs DDS between processes on this host (tests/conftest.py switches it off).
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+def test_a_flood_from_another_process_is_counted_and_changes_nothing(tmp_path, localhost_discovery):
     clean = run_graph(SCENARIO, run_dir=tmp_path / "clean", record=False, plots=False)
     env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
     readers = [f"{t}={len(r)}" for t, r in READERS.items()]

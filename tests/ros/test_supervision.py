@@ -19,7 +19,7 @@ from activetrack_bringup.runner import RunIncomplete, run_graph
 
 SHORT = "tests/ros/data/short_two_sensors.yaml"
 LONG = "scenarios/hernandez_3sensor_two.yaml"  # ~10 s in one process: time to interrupt it
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.usefixtures("localhost_discovery")]
 
 
 def _evaluator(graph):

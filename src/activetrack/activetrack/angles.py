@@ -6,14 +6,18 @@ Vander Hook et al. (003, sec. II) only knows the bearing modulo pi, wrapped to
 ``[-pi/2, pi/2)``.
 """
 
+from __future__ import annotations
+
 import numpy as np
+
+from activetrack.arraytypes import ArrayLike, FloatArray
 
 __all__ = ["angle_diff", "wrap_angle", "wrap_half_angle"]
 
 TWO_PI = 2.0 * np.pi
 
 
-def wrap_angle(a):
+def wrap_angle(a: ArrayLike) -> FloatArray:
     """Wrap angles (any shape) to ``[-pi, pi)``; returns a float array (0-d for a scalar)."""
     a = np.asarray(a, dtype=float)
     wrapped = np.mod(a + np.pi, TWO_PI) - np.pi
@@ -21,7 +25,7 @@ def wrap_angle(a):
     return np.where(wrapped >= np.pi, wrapped - TWO_PI, wrapped)
 
 
-def wrap_half_angle(a):
+def wrap_half_angle(a: ArrayLike) -> FloatArray:
     """Wrap angles modulo pi to ``[-pi/2, pi/2)`` (an undirected line's orientation)."""
     a = np.asarray(a, dtype=float)
     half = 0.5 * np.pi
@@ -29,6 +33,6 @@ def wrap_half_angle(a):
     return np.where(wrapped >= half, wrapped - np.pi, wrapped)
 
 
-def angle_diff(a, b):
+def angle_diff(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """Shortest signed difference ``a - b`` wrapped to ``[-pi, pi)``."""
     return wrap_angle(np.asarray(a, dtype=float) - np.asarray(b, dtype=float))

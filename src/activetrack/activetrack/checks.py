@@ -5,9 +5,14 @@ allowed range, as the interface contract requires.  The checks return the valida
 (as a float or a float array) so callers can write ``q = require_positive("q", q)``.
 """
 
+from __future__ import annotations
+
 import math
+from typing import Any
 
 import numpy as np
+
+from activetrack.arraytypes import ArrayLike, FloatArray
 
 __all__ = [
     "require_finite",
@@ -20,14 +25,14 @@ __all__ = [
 ]
 
 
-def _as_float(name, value):
+def _as_float(name: str, value: Any) -> float:
     try:
         return float(value)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a real number, got {value!r}") from None
 
 
-def require_finite(name, array):
+def require_finite(name: str, array: ArrayLike) -> FloatArray:
     """Return ``array`` as a float ndarray; raise if any entry is NaN or infinite."""
     try:
         arr = np.asarray(array, dtype=float)
@@ -38,7 +43,7 @@ def require_finite(name, array):
     return arr
 
 
-def require_positive(name, value):
+def require_positive(name: str, value: Any) -> float:
     """Return ``value`` as a float; it must satisfy 0 < value < inf."""
     v = _as_float(name, value)
     if not (math.isfinite(v) and v > 0.0):
@@ -46,7 +51,7 @@ def require_positive(name, value):
     return v
 
 
-def require_nonnegative(name, value):
+def require_nonnegative(name: str, value: Any) -> float:
     """Return ``value`` as a float; it must satisfy 0 <= value < inf."""
     v = _as_float(name, value)
     if not (math.isfinite(v) and v >= 0.0):
@@ -54,7 +59,15 @@ def require_nonnegative(name, value):
     return v
 
 
-def require_in_range(name, value, lo, hi, *, lo_inclusive=True, hi_inclusive=True):
+def require_in_range(
+    name: str,
+    value: Any,
+    lo: float,
+    hi: float,
+    *,
+    lo_inclusive: bool = True,
+    hi_inclusive: bool = True,
+) -> float:
     """Return ``value`` as a float inside the interval from ``lo`` to ``hi``.
 
     The bounds are inclusive unless ``lo_inclusive`` / ``hi_inclusive`` is False; ``hi`` may be
@@ -70,13 +83,13 @@ def require_in_range(name, value, lo, hi, *, lo_inclusive=True, hi_inclusive=Tru
     return v
 
 
-def symmetrize(P):
+def symmetrize(P: ArrayLike) -> FloatArray:
     """Return ``(P + P^T) / 2`` over the last two axes (removes round-off asymmetry)."""
     P = np.asarray(P, dtype=float)
     return 0.5 * (P + np.swapaxes(P, -1, -2))
 
 
-def _require_square_symmetric(name, matrix, rtol):
+def _require_square_symmetric(name: str, matrix: ArrayLike, rtol: float) -> FloatArray:
     M = require_finite(name, matrix)
     if M.ndim < 2 or M.shape[-1] != M.shape[-2]:
         raise ValueError(f"{name} must be a square matrix (..., n, n), got shape {M.shape}")
@@ -87,7 +100,7 @@ def _require_square_symmetric(name, matrix, rtol):
     return symmetrize(M)
 
 
-def require_spd(name, matrix, rtol=1e-9):
+def require_spd(name: str, matrix: ArrayLike, rtol: float = 1e-9) -> FloatArray:
     """Return the symmetrised ``matrix``; raise unless it is symmetric positive definite.
 
     Symmetry is checked to ``rtol`` relative to the largest entry; definiteness by a
@@ -101,7 +114,7 @@ def require_spd(name, matrix, rtol=1e-9):
     return M
 
 
-def require_psd(name, matrix, rtol=1e-9):
+def require_psd(name: str, matrix: ArrayLike, rtol: float = 1e-9) -> FloatArray:
     """Like :func:`require_spd` but allows zero eigenvalues (down to ``-rtol * max|eig|``)."""
     M = _require_square_symmetric(name, matrix, rtol)
     eig = np.linalg.eigvalsh(M)

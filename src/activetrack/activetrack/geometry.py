@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike, FloatArray
 
-def covariance_ellipse(centre, P_xy, scale: float = 1.0, n_points: int = 60) -> np.ndarray:
+
+def covariance_ellipse(
+    centre: ArrayLike, P_xy: ArrayLike, scale: float = 1.0, n_points: int = 60
+) -> FloatArray:
     """Outline of the ``scale``-sigma ellipse of a 2x2 position covariance: ``(n_points, 2)``.
 
     The ellipse {c + scale * V sqrt(L) u : |u| = 1} with P_xy = V L V^T; closed (the last point

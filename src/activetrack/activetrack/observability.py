@@ -14,12 +14,16 @@ the knob for "numerically unobservable": Valverde's Table I-II "dt -> 0" rows ar
 where O tends to stacked copies of H_k0 and all but rank(H) singular values vanish.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_in_range
 from activetrack.models._common import check_dt, check_state
+from activetrack.models.base import MotionModel, SensorModel
 from activetrack.models.sensors import state_jacobian
 
 __all__ = ["ObservabilityResult", "observability_matrix", "observability_rank"]
@@ -31,17 +35,17 @@ class ObservabilityResult:
     ``(K * dim_z, n)`` and the noise-free trajectory ``(K, n)``."""
 
     rank: int
-    singular_values: np.ndarray
+    singular_values: FloatArray
     tol: float
-    matrix: np.ndarray
-    trajectory: np.ndarray
+    matrix: FloatArray
+    trajectory: FloatArray
 
     @property
-    def observable(self):
+    def observable(self) -> bool:
         return self.rank == self.matrix.shape[1]
 
 
-def _sensor_track(sensor_pv, n_steps):
+def _sensor_track(sensor_pv: ArrayLike, n_steps: int | None) -> FloatArray:
     s = check_state("sensor_pv", sensor_pv, 4)
     if s.ndim == 1:
         if n_steps is None:
@@ -55,7 +59,14 @@ def _sensor_track(sensor_pv, n_steps):
     return s
 
 
-def observability_matrix(model, sensor, x0, sensor_pv, dt, n_steps=None):
+def observability_matrix(
+    model: MotionModel,
+    sensor: SensorModel,
+    x0: ArrayLike,
+    sensor_pv: ArrayLike,
+    dt: float,
+    n_steps: int | None = None,
+) -> tuple[FloatArray, FloatArray]:
     """Build eq. 38 along the noise-free trajectory from ``x0`` ``(n,)``.
 
     ``sensor_pv`` is the sensor pv at each epoch ``(K, 4)``, or one stationary ``(4,)`` state
@@ -77,7 +88,15 @@ def observability_matrix(model, sensor, x0, sensor_pv, dt, n_steps=None):
     return np.concatenate(blocks, axis=0), np.array(trajectory)
 
 
-def observability_rank(model, sensor, x0, sensor_pv, dt, n_steps=None, rtol=1e-9):
+def observability_rank(
+    model: MotionModel,
+    sensor: SensorModel,
+    x0: ArrayLike,
+    sensor_pv: ArrayLike,
+    dt: float,
+    n_steps: int | None = None,
+    rtol: float = 1e-9,
+) -> ObservabilityResult:
     """Rank of the eq. 38 observability matrix: singular values above ``rtol * s_max``.
 
     Arguments as for :func:`observability_matrix`; returns an :class:`ObservabilityResult`.

@@ -1,24 +1,29 @@
-"""PNG plots of closed-loop runs (matplotlib, Agg backend)."""
+"""PNG plots of closed-loop runs (matplotlib figures drawn with the Agg canvas: no pyplot, so
+the caller's backend and pyplot state are left alone)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+if TYPE_CHECKING:
+    from activetrack.closed_loop.batch import BatchSummary
 
 
-def plot_run(summary, out_dir: str | Path) -> list[Path]:
+def plot_run(summary: BatchSummary, out_dir: str | Path) -> list[Path]:
     """Trajectories of one run, and RMSE vs the PCRLB over time. Returns the files written."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rec = summary.records[0]
     files = []
 
-    fig, ax = plt.subplots(figsize=(6, 6))
+    fig = Figure(figsize=(6, 6))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
     ax.plot(rec.truth[:, 0], rec.truth[:, 2], "k-", label="target (truth)")
     ax.plot(rec.estimate[:, 0], rec.estimate[:, 2], "r--", label="estimate")
     for j, pid in enumerate(rec.platform_ids):
@@ -31,10 +36,11 @@ def plot_run(summary, out_dir: str | Path) -> list[Path]:
     ax.set_title(summary.scenario)
     files.append(out / "trajectories.png")
     fig.savefig(files[-1], dpi=110, bbox_inches="tight")
-    plt.close(fig)
 
     k = np.arange(1, summary.steps + 1)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    fig = Figure(figsize=(10, 4))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 2, sharey=True)
     for ax, coord, rmse, bound in (
         (axes[0], "x", summary.rmse_x_t, summary.bound_x_t),
         (axes[1], "y", summary.rmse_y_t, summary.bound_y_t),
@@ -48,5 +54,4 @@ def plot_run(summary, out_dir: str | Path) -> list[Path]:
     axes[0].set_ylabel("m")
     files.append(out / "rmse_vs_bound.png")
     fig.savefig(files[-1], dpi=110, bbox_inches="tight")
-    plt.close(fig)
     return files

@@ -66,14 +66,18 @@ def graph_typestore():
     return store
 
 
-# Schemas (message definition text and RIHS01 hash) of the graph's types, computed once per
-# install: building the typestore and hashing 13 types costs ~0.4 s per recorder otherwise.
+# Schemas (message definition text and RIHS01 hash) of the graph's types: building the
+# typestore and hashing 13 types costs ~0.4 s, so set-up writes them to a file in the install
+# (tools/setup.sh), and a process computes them at most once when that file is missing or
+# stale. Nothing is written at run time.
 SCHEMA_CACHE = Path(sys.prefix) / "share" / "activetrack" / "bag_schemas.json"
+_schemas_in_memory: dict[str, dict] = {}
 
 
-def graph_schemas(msgtypes=None) -> dict[str, tuple[str, str]]:
+def graph_schemas(msgtypes=None, *, write_cache: bool = False) -> dict[str, tuple[str, str]]:
     """``{msgtype: (msgdef, rihs01)}`` for the graph's types (default: every graph topic's),
-    from a cache keyed by the rosbags version and the installed msgs_defs files."""
+    from the install's cache if it matches the rosbags version and the installed msgs_defs
+    files; ``write_cache`` (set-up only) refreshes that file."""
     from importlib.metadata import version
 
     msgtypes = sorted(set(msgtypes or GRAPH_TOPICS.values()))
@@ -81,22 +85,25 @@ def graph_schemas(msgtypes=None) -> dict[str, tuple[str, str]]:
     for path in _msgs_defs_files():
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     key = digest.hexdigest()
-    try:
-        cached = json.loads(SCHEMA_CACHE.read_text())
-        if cached.get("key") == key and all(t in cached["schemas"] for t in msgtypes):
-            return {t: tuple(cached["schemas"][t]) for t in msgtypes}
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
-    store = graph_typestore()
-    schemas = {
-        t: (store.generate_msgdef(t, ros_version=2)[0], store.hash_rihs01(t)) for t in msgtypes
-    }
-    try:
+    known = _schemas_in_memory.get(key)
+    if known is None and not write_cache:
+        try:
+            cached = json.loads(SCHEMA_CACHE.read_text())
+            if cached.get("key") == key:
+                known = cached["schemas"]
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+    if known is None or not all(t in known for t in msgtypes):
+        store = graph_typestore()
+        every = sorted(set(GRAPH_TOPICS.values()) | set(msgtypes))
+        known = {
+            t: (store.generate_msgdef(t, ros_version=2)[0], store.hash_rihs01(t)) for t in every
+        }
+    if write_cache:
         SCHEMA_CACHE.parent.mkdir(parents=True, exist_ok=True)
-        SCHEMA_CACHE.write_text(json.dumps({"key": key, "schemas": schemas}))
-    except OSError:  # a read-only install: compute each time
-        pass
-    return schemas
+        SCHEMA_CACHE.write_text(json.dumps({"key": key, "schemas": known}))
+    _schemas_in_memory[key] = known
+    return {t: tuple(known[t]) for t in msgtypes}
 
 
 def message_class(msgtype: str):

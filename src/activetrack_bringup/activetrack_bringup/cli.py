@@ -47,7 +47,7 @@ def _write_json(path: str, data: dict) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from activetrack.scenarios import ScenarioError
-    from activetrack_bringup.runner import RunIncomplete, run_graph
+    from activetrack_bringup.runner import GraphSetupError, RunIncomplete, run_graph
 
     try:
         result = run_graph(
@@ -61,7 +61,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             timeout=args.timeout,
         )
         code = 0
-    except (ScenarioError, FileExistsError) as exc:
+    except (ScenarioError, FileExistsError, GraphSetupError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except RunIncomplete as exc:
@@ -338,9 +338,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from activetrack.allocator import tune_allocator
     from activetrack_bringup import interrupts
 
     args = build_parser().parse_args(argv)
+    tune_allocator()  # a command-line process: numpy temporaries stay on the heap (faster)
     try:
         with interrupts.raising():
             return args.func(args)

@@ -18,7 +18,6 @@ import math
 import os
 import sys
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,6 +35,10 @@ from activetrack_ros.trust import KEY_ENV, GraphKey
 from planner_node.planner_node import PlannerNode
 from sim_node.sim_node import SimNode
 from tracker_node.tracker_node import TrackerNode
+
+
+class GraphSetupError(ValueError):
+    """The run cannot start as asked (e.g. node processes that could not discover each other)."""
 
 
 class GraphFault(RuntimeError):
@@ -110,211 +113,221 @@ def default_run_dir(scenario_name: str) -> Path:
     return run_dir_for(scenario_name)
 
 
-@contextmanager
-def _environment(**values: str):
-    """Set environment variables for the block only (rclpy reads them at context init)."""
-    saved = {k: os.environ.get(k) for k in values}
-    os.environ.update(values)
-    try:
-        yield
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+@dataclass
+class RunOptions:
+    """How run_graph runs a scenario (see its docstring)."""
+
+    run: int | None = None
+    mode: str = "lockstep"
+    processes: bool = False
+    record: bool = True
+    plots: bool = True
+    timeout: float = 600.0
+    sim_params: dict | None = None
+    before_spin: object = None
+    during_spin: object = None
+    restartable: tuple[str, ...] | None = None
 
 
 def run_graph(
     scenario_path: str | Path,
     *,
-    run: int | None = None,
-    mode: str = "lockstep",
-    processes: bool = False,
     run_dir: str | Path | None = None,
-    record: bool = True,
-    plots: bool = True,
-    timeout: float = 600.0,
-    sim_params: dict | None = None,
-    before_spin=None,
-    during_spin=None,
-    restartable: tuple[str, ...] | None = None,
     graph_key: GraphKey | None = None,
+    **options,
 ) -> GraphRun:
     """Bring the graph up on a scenario, run it to the end, summarise and save the run folder.
 
-    ``before_spin(graph)`` may add nodes to the in-process graph before it runs, and
-    ``during_spin(graph)`` is called between executor steps (fault-injection tests).
-    ``restartable``: node names ("planner") that may be restarted when their process dies
-    (default: the scenario's ``graph.restartable``). Raises RunIncomplete when the run stops
-    early, ScenarioError / FileExistsError before anything starts.
+    Options (RunOptions): ``run`` (Monte Carlo index), ``mode`` (lockstep | free),
+    ``processes`` (one OS process per node), ``record`` (the bag), ``plots``, ``timeout`` (s),
+    ``sim_params`` (sim node parameters), ``before_spin(graph)`` (may add nodes to the
+    in-process graph before it runs), ``during_spin(graph)`` (called between executor steps:
+    fault-injection tests), ``restartable`` (node names, default the scenario's
+    ``graph.restartable``). Raises RunIncomplete when the run stops early, ScenarioError,
+    FileExistsError or GraphSetupError before anything starts.
     """
+    opts = RunOptions(**options)
     scenario = load_scenario(scenario_path)  # fails before anything starts
-    if restartable is None:
-        restartable = tuple(scenario.graph.restartable)
+    if opts.processes and os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").upper() == "OFF":
+        raise GraphSetupError(
+            "--processes needs DDS discovery between processes on this host, but "
+            "ROS_AUTOMATIC_DISCOVERY_RANGE is OFF: set it to LOCALHOST (or unset it)"
+        )
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name)
-    bag_path = run_dir / "bag" if record else None
+    bag_path = run_dir / "bag" if opts.record else None
     if bag_path is not None and bag_path.exists():
         raise FileExistsError(f"{bag_path} exists already: choose another run folder (--out)")
     run_dir.mkdir(parents=True, exist_ok=True)
-    key = graph_key or GraphKey.generate()
-    start = time.monotonic()
-    supervisor = None
-    status, detail, exit_code = "complete", "", 0
-    ros_env = {}
-    if processes:
-        # Same domain as the node processes, with discovery on this host (tests switch it off).
-        ros_env = {
-            "ROS_DOMAIN_ID": str(_domain_id()),
-            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-        }
-    with _environment(**ros_env):
-        graph = InProcessGraph()
-    recorder = None
-    nodes = {}
-    with interrupts.raising(), graph:
-        ctx = graph.context
-        # No parameter services in one process: nobody can call them, and they cost imports at
-        # start and entities in every executor wait.
-        quiet = {"context": ctx, "start_parameter_services": False}
-        evaluator = graph.add(EvaluatorNode(scenario, graph_key=key, **quiet))
-
-        def progress() -> int:
-            counted = sum(n.counters.total("received.") for n in (evaluator, *nodes.values()))
-            return counted + (recorder.count if recorder is not None else 0)
-
-        try:
-            if record:  # the run's record: only the graph's own per-epoch messages
-                recorder = graph.add(BagRecorder(bag_path, graph_key=key, **quiet))
-            params = _node_params(scenario_path, run, mode)
-            if processes:
-                supervisor = _start_processes(
-                    params, sim_params, key, ros_env, restartable, scenario.graph.max_restarts
-                )
-                graph.supervisor = supervisor  # for during_spin hooks (fault-injection tests)
-            else:
-
-                def options(p):
-                    return {
-                        **quiet,
-                        "graph_key": key,
-                        "parameter_overrides": [Parameter(k, value=v) for k, v in p.items()],
-                    }
-
-                nodes["tracker"] = graph.add(TrackerNode(**options(params)))
-                nodes["planner"] = graph.add(PlannerNode(**options(params)))
-                nodes["sim"] = graph.add(SimNode(**options({**params, **(sim_params or {})})))
-            if before_spin is not None:
-                before_spin(graph)
-
-            def finished() -> bool:
-                if supervisor is not None:
-                    supervisor.poll()
-                if evaluator.faults:
-                    raise GraphFault("; ".join(evaluator.faults[:3]))
-                if during_spin is not None:
-                    during_spin(graph)
-                return evaluator.complete
-
-            if not graph.spin_until(finished, timeout=timeout):
-                status, exit_code = "timeout", 1
-                detail = f"did not complete within {timeout} s: {evaluator.missing()}"
-            else:  # let the last messages be recorded and counted: the counters are final
-                graph.spin_until_quiet(progress)
-        except (KeyboardInterrupt, interrupts.Terminated) as exc:
-            status, exit_code = "interrupted", interrupts.exit_code(exc)
-            detail = "SIGINT" if exit_code == 130 else "SIGTERM"
-        except NodeDied as exc:
-            status, detail, exit_code = "node_died", str(exc), 1
-        except GraphFault as exc:
-            status, detail, exit_code = "graph_fault", f"the graph published invalid {exc}", 1
-        finally:
-            with interrupts.deferred():  # a second Ctrl-C must not leave the bag open
-                if status != "complete":  # take in what was delivered: a fuller partial run
-                    graph.spin_until_quiet(progress, quiet=0.05, timeout=0.3)
-                if supervisor is not None:
-                    supervisor.stop()
-                if recorder is not None:
-                    recorder.close()
+    runner = _GraphRunner(scenario, str(scenario_path), opts, graph_key or GraphKey.generate())
+    with interrupts.raising(), runner.graph:
+        runner.run(bag_path)
         with interrupts.deferred():
-            result = _conclude(
-                scenario,
-                evaluator,
-                recorder=recorder,
-                nodes=nodes,
-                supervisor=supervisor,
-                status=status,
-                detail=detail,
-                wall=time.monotonic() - start,
-                run_dir=run_dir,
-                bag_path=bag_path,
-                plots=plots and status == "complete",
-            )
-    if exit_code == 0 and result.status != "complete":
-        exit_code = 1  # the run finished, but not well (non-finite metrics, node errors)
-    if exit_code:
+            result = runner.conclude(run_dir, bag_path)
+    if runner.exit_code == 0 and result.status != "complete":
+        runner.exit_code = 1  # the run finished, but not well (non-finite metrics, node errors)
+    if runner.exit_code:
         raise RunIncomplete(
-            f"scenario {scenario.name}: {result.status}: {result.detail}", result, exit_code
+            f"scenario {scenario.name}: {result.status}: {result.detail}",
+            result,
+            runner.exit_code,
         )
     return result
 
 
-def _conclude(
-    scenario,
-    evaluator,
-    *,
-    recorder,
-    nodes,
-    supervisor,
-    status,
-    detail,
-    wall,
-    run_dir,
-    bag_path,
-    plots,
-) -> GraphRun:
-    """Summarise what the evaluator holds (the completed epochs of an incomplete run) and
-    write summary.json (and the plots of a complete run)."""
-    # Counters straight from the nodes in one process, else their last /diagnostics.
-    diagnostics = {name: dict(node.counters.counts) for name, node in nodes.items()}
-    diagnostics = diagnostics or dict(evaluator.diagnostics)
-    diagnostics["evaluator"] = dict(evaluator.counters.counts)
-    if recorder is not None:
-        diagnostics["recorder"] = {"recorded": recorder.count, "foreign": recorder.foreign}
-    complete = status == "complete"
-    last = scenario.steps if complete else evaluator.completed_epochs()
-    partial = scenario if complete else scenario.model_copy(update={"steps": max(last, 0)})
-    summary = summarize(partial, [evaluator.record(wall, last)], wall) if last >= 1 else None
-    result = GraphRun(
-        summary=summary,
-        run_dir=run_dir,
-        bag=bag_path,
-        wall_time_s=wall,
-        real_time_factor=partial.duration / wall,
-        diagnostics=diagnostics,
-        complete=complete,
-        status=status,
-        detail=detail,
-        epochs_completed=max(last, 0),
-        foreign={
-            n: sum(v for k, v in c.items() if k.startswith("foreign."))
-            for n, c in diagnostics.items()
-        },
-        restarts=supervisor.restarts if supervisor is not None else {},
-    )
-    errors = sum(v for c in diagnostics.values() for k, v in c.items() if k.startswith("errors."))
-    if complete and errors:
+class _GraphRunner:
+    """One run: the in-process graph (evaluator, recorder and, unless processes, the nodes),
+    the supervised node processes, and how the run ended."""
+
+    def __init__(self, scenario, scenario_path: str, opts: RunOptions, key: GraphKey):
+        self.scenario = scenario
+        self.opts = opts
+        self.key = key
+        self.params = _node_params(scenario_path, opts.run, opts.mode)
+        # The node processes' domain; in one process the context needs no domain of its own.
+        self.domain = _domain_id() if opts.processes else None
+        self.graph = InProcessGraph(domain_id=self.domain)
+        # No parameter services in one process: nobody can call them, and they cost imports at
+        # start and entities in every executor wait.
+        self.quiet = {"context": self.graph.context, "start_parameter_services": False}
+        self.evaluator = self.graph.add(EvaluatorNode(scenario, graph_key=key, **self.quiet))
+        self.recorder: BagRecorder | None = None
+        self.nodes: dict = {}
+        self.supervisor: Supervisor | None = None
+        self.status, self.detail, self.exit_code = "complete", "", 0
+        self.start = time.monotonic()
+
+    def progress(self) -> int:
+        """Messages taken so far (for waiting until the graph is quiet)."""
+        nodes = (self.evaluator, *self.nodes.values())
+        counted = sum(n.counters.total("received.") for n in nodes)
+        return counted + (self.recorder.count if self.recorder is not None else 0)
+
+    def run(self, bag_path: Path | None) -> None:
+        """Start, spin to the end (or a failure, a signal), stop; the outcome in status."""
+        try:
+            self._start(bag_path)
+            self._spin()
+        except (KeyboardInterrupt, interrupts.Terminated) as exc:
+            self._end("interrupted", "", interrupts.exit_code(exc))
+            self.detail = "SIGINT" if self.exit_code == 130 else "SIGTERM"
+        except NodeDied as exc:
+            self._end("node_died", str(exc), 1)
+        except GraphFault as exc:
+            self._end("graph_fault", f"the graph published invalid {exc}", 1)
+        finally:
+            with interrupts.deferred():  # a second Ctrl-C must not leave the bag open
+                self._stop()
+
+    def _end(self, status: str, detail: str, exit_code: int) -> None:
+        self.status, self.detail, self.exit_code = status, detail, exit_code
+
+    def _start(self, bag_path: Path | None) -> None:
+        o, graph = self.opts, self.graph
+        if bag_path is not None:  # the run's record: only the graph's own per-epoch messages
+            self.recorder = graph.add(BagRecorder(bag_path, graph_key=self.key, **self.quiet))
+        if o.processes:
+            restartable = o.restartable or tuple(self.scenario.graph.restartable)
+            self.supervisor = _start_processes(
+                self.params, o.sim_params, self.key, self.domain, restartable,
+                self.scenario.graph.max_restarts,
+            )  # fmt: skip
+            graph.supervisor = self.supervisor  # for during_spin hooks (fault-injection tests)
+        else:
+            for name, node_class in (("tracker", TrackerNode), ("planner", PlannerNode)):
+                self.nodes[name] = graph.add(node_class(**self._node_options(self.params)))
+            sim = {**self.params, **(o.sim_params or {})}
+            self.nodes["sim"] = graph.add(SimNode(**self._node_options(sim)))
+        if o.before_spin is not None:
+            o.before_spin(graph)
+
+    def _node_options(self, params: dict) -> dict:
+        overrides = [Parameter(k, value=v) for k, v in params.items()]
+        return {**self.quiet, "graph_key": self.key, "parameter_overrides": overrides}
+
+    def _finished(self) -> bool:
+        if self.supervisor is not None:
+            self.supervisor.poll()
+        if self.evaluator.faults:
+            raise GraphFault("; ".join(self.evaluator.faults[:3]))
+        if self.opts.during_spin is not None:
+            self.opts.during_spin(self.graph)
+        return self.evaluator.complete
+
+    def _spin(self) -> None:
+        timeout = self.opts.timeout
+        if not self.graph.spin_until(self._finished, timeout=timeout):
+            missing = self.evaluator.missing()
+            self._end("timeout", f"did not complete within {timeout} s: {missing}", 1)
+        else:  # let the last messages be recorded and counted: the counters are final
+            self.graph.spin_until_quiet(self.progress)
+
+    def _stop(self) -> None:
+        if self.status != "complete":  # take in what was delivered: a fuller partial run
+            self.graph.spin_until_quiet(self.progress, quiet=0.05, timeout=0.3)
+        if self.supervisor is not None:
+            self.supervisor.stop()
+        if self.recorder is not None:
+            self.recorder.close()
+
+    def diagnostics(self) -> dict:
+        """Counters straight from the nodes in one process, else their last /diagnostics."""
+        diagnostics = {name: dict(node.counters.counts) for name, node in self.nodes.items()}
+        diagnostics = diagnostics or dict(self.evaluator.diagnostics)
+        diagnostics["evaluator"] = dict(self.evaluator.counters.counts)
+        if self.recorder is not None:
+            r = self.recorder
+            diagnostics["recorder"] = {"recorded": r.count, "foreign": r.foreign}
+        return diagnostics
+
+    def conclude(self, run_dir: Path, bag_path: Path | None) -> GraphRun:
+        """Summarise what the evaluator holds (the completed epochs of an incomplete run) and
+        write summary.json (and the plots of a complete run)."""
+        wall = time.monotonic() - self.start
+        scenario, evaluator = self.scenario, self.evaluator
+        complete = self.status == "complete"
+        last = scenario.steps if complete else evaluator.completed_epochs()
+        partial = scenario if complete else scenario.model_copy(update={"steps": max(last, 0)})
+        summary = summarize(partial, [evaluator.record(wall, last)], wall) if last >= 1 else None
+        diagnostics = self.diagnostics()
+        result = GraphRun(
+            summary=summary,
+            run_dir=run_dir,
+            bag=bag_path,
+            wall_time_s=wall,
+            real_time_factor=partial.duration / wall,
+            diagnostics=diagnostics,
+            complete=complete,
+            status=self.status,
+            detail=self.detail,
+            epochs_completed=max(last, 0),
+            foreign={n: _total(c, "foreign.") for n, c in diagnostics.items()},
+            restarts=self.supervisor.restarts if self.supervisor is not None else {},
+        )
+        _judge(result)
+        if self.opts.plots and result.status == "complete" and summary is not None:
+            from activetrack.plots import plot_run  # matplotlib: 0.7 s of imports
+
+            result.files = plot_run(summary, run_dir)
+        (run_dir / "summary.json").write_text(json.dumps(result.to_json(), indent=2))
+        return result
+
+
+def _total(counts: dict, prefix: str) -> int:
+    return sum(v for k, v in counts.items() if k.startswith(prefix))
+
+
+def _judge(result: GraphRun) -> None:
+    """A run that completed can still have failed: exceptions in node callbacks, or a
+    non-finite metric."""
+    if not result.complete:
+        return
+    errors = sum(_total(c, "errors.") for c in result.diagnostics.values())
+    if errors:
         result.status = "node_errors"
         result.detail = f"{errors} unexpected exceptions in node callbacks (logged, counted)"
-    if complete and summary is not None and not _finite_metrics(summary):
+    elif result.summary is not None and not _finite_metrics(result.summary):
         result.status = "non_finite"
         result.detail = "a metric is not finite: the track diverged or was corrupted"
-    if plots and complete and summary is not None:
-        from activetrack.plots import plot_run  # matplotlib: 0.7 s of imports, only for plots
-
-        result.files = plot_run(summary, run_dir)
-    (run_dir / "summary.json").write_text(json.dumps(result.to_json(), indent=2))
-    return result
 
 
 def _finite_metrics(summary) -> bool:
@@ -330,12 +343,13 @@ def _domain_id() -> int:
 
 
 def _start_processes(
-    params, sim_params, key: GraphKey, ros_env, restartable, max_restarts: int
+    params, sim_params, key: GraphKey, domain: int, restartable, max_restarts: int
 ) -> Supervisor:
-    """Each node as its own OS process (its console entry point), talking over DDS."""
+    """Each node as its own OS process (its console entry point), talking over DDS on this
+    host in the runner's domain; the caller's environment is not changed."""
     env = dict(os.environ)
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
-    env.update(ros_env)
+    env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     env[KEY_ENV] = key.hex()  # the environment, not a parameter: parameters are readable
     supervisor = Supervisor(
         env, max_restarts, log=lambda text: print(f"activetrack: {text}", file=sys.stderr)

@@ -9,12 +9,14 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
+from activetrack.allocator import tune_allocator
 from activetrack.scenarios import ScenarioError
 
 
 def spin_node(node_class, args=None, done: Callable[[object], bool] | None = None) -> None:
     """Run one node until shutdown (Ctrl-C, SIGTERM) or ``done(node)``; exit 2 on bad
     parameters, before anything is published."""
+    tune_allocator()  # a node process: numpy temporaries stay on the heap (faster)
     rclpy.init(args=args)
     try:
         node = node_class()

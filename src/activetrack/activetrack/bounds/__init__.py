@@ -6,18 +6,17 @@
 - ``taylor_crlb``: CRLB without process noise along a nominal path (Valverde eq. 44-51).
 - ``mre``: modified Riccati equation with detection probability (Ramdaras eq. 23).
 - ``costs``: b_k (Hernandez eq. 10), trace, determinant, position determinant (Ramdaras eq. 24)
-  and heading / range / Doppler / bearing variance (Ramdaras eq. 25-26).
+  and heading / range / Doppler / bearing variance (Ramdaras eq. 25-26). The planner criteria
+  built on them are registered in :mod:`activetrack.planning.criteria`.
 """
 
 from activetrack.bounds.costs import (
-    COSTS,
-    CRITERIA,
     criterion_jacobian,
     criterion_variance,
     determinant_cost,
-    evaluate_cost,
     position_determinant,
     rmse_bound,
+    rmse_bound_of_information,
     trace_cost,
 )
 from activetrack.bounds.mre import mre_predict, mre_recursion, mre_step, mre_update
@@ -33,13 +32,10 @@ from activetrack.bounds.taylor_crlb import nominal_path, taylor_crlb, taylor_inf
 from activetrack.bounds.tichavsky import tichavsky_pcrlb, tichavsky_step
 
 __all__ = [
-    "COSTS",
-    "CRITERIA",
     "covariance_bound",
     "criterion_jacobian",
     "criterion_variance",
     "determinant_cost",
-    "evaluate_cost",
     "gaussian_samples",
     "measurement_information",
     "mre_predict",
@@ -52,6 +48,7 @@ __all__ = [
     "position_determinant",
     "propagate_samples",
     "rmse_bound",
+    "rmse_bound_of_information",
     "taylor_crlb",
     "taylor_information_initial",
     "tichavsky_pcrlb",

@@ -2,36 +2,41 @@
 
 All costs take covariance batches ``P`` ``(..., n, n)`` (a PCRLB J^{-1} or an MRE prediction) and
 return ``(...)``. Positions are the pv entries x (index 0) and y (index 2) unless
-``position_indices`` says otherwise.
+``position_indices`` says otherwise. Which of them a planner may use, and under which name, is
+the criterion registry's business (:mod:`activetrack.planning.criteria`); this module only
+computes.
 
 - ``rmse_bound``: Hernandez eq. 10, b_k = max(sqrt(P(1,1)), sqrt(P(3,3))), the largest
-  position RMSE bound (1-based indices as in the paper).
+  position RMSE bound (1-based indices as in the paper); ``rmse_bound_of_information``: the
+  same straight from information matrices J (one solve, no inverse).
 - ``trace_cost``, ``determinant_cost``: trace / determinant criteria on the whole matrix.
 - ``position_determinant``: Ramdaras eq. 24, det of the (x, y) block.
 - ``criterion_variance``: Ramdaras eq. 25, C = H^c P H^c^T with H^c of eq. 26 for heading,
-  range, Doppler (range rate) or bearing.
+  range, Doppler (range rate) or bearing (``EQ26_ROWS``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike
+
 __all__ = [
-    "COSTS",
-    "CRITERIA",
+    "EQ26_ROWS",
     "criterion_jacobian",
     "criterion_variance",
     "determinant_cost",
-    "evaluate_cost",
     "position_determinant",
     "rmse_bound",
+    "rmse_bound_of_information",
     "trace_cost",
 ]
 
-CRITERIA = ("heading", "range", "doppler", "bearing")
+# The rows H^c of Ramdaras eq. 26 (the quantity whose variance eq. 25 takes).
+EQ26_ROWS = ("heading", "range", "doppler", "bearing")
 
 
-def _cov(P) -> np.ndarray:
+def _cov(P: ArrayLike) -> np.ndarray:
     P = np.asarray(P, dtype=float)
     if P.ndim < 2 or P.shape[-1] != P.shape[-2]:
         raise ValueError(f"P must be a batch of square matrices (..., n, n); got {P.shape}")
@@ -40,7 +45,7 @@ def _cov(P) -> np.ndarray:
     return P
 
 
-def rmse_bound(P, position_indices: tuple[int, int] = (0, 2)) -> np.ndarray:
+def rmse_bound(P: ArrayLike, position_indices: tuple[int, int] = (0, 2)) -> np.ndarray:
     """Hernandez eq. 10: b_k = max(sqrt(P[x, x]), sqrt(P[y, y])), ``(..., n, n) -> (...)``.
 
     P is the bound J_k^{-1}; b_k is the larger of the x and y RMSE bounds.
@@ -53,24 +58,42 @@ def rmse_bound(P, position_indices: tuple[int, int] = (0, 2)) -> np.ndarray:
     return np.sqrt(var.max(axis=-1))
 
 
-def trace_cost(P) -> np.ndarray:
+_POSITION_COLUMNS = np.eye(4)[:, [0, 2]]
+
+
+def rmse_bound_of_information(J: np.ndarray) -> np.ndarray:
+    """Hernandez eq. 10 straight from pv information matrices ``(..., 4, 4) -> (...)``: the two
+    position variances of J^{-1} from one solve J V = [e_x, e_y], no full inverse."""
+    try:
+        V = np.linalg.solve(J, _POSITION_COLUMNS)  # (..., 4, 2) = columns x, y of J^{-1}
+    except np.linalg.LinAlgError:
+        raise ValueError("J must be symmetric positive definite (it is singular)") from None
+    var = np.maximum(V[..., 0, 0], V[..., 2, 1])
+    if not np.all(var > 0.0):
+        raise ValueError("J must be symmetric positive definite (non-positive variance)")
+    return np.sqrt(var)
+
+
+def trace_cost(P: ArrayLike) -> np.ndarray:
     """Trace criterion tr(P), ``(..., n, n) -> (...)``."""
     return np.trace(_cov(P), axis1=-2, axis2=-1)
 
 
-def determinant_cost(P) -> np.ndarray:
+def determinant_cost(P: ArrayLike) -> np.ndarray:
     """Determinant criterion det(P), ``(..., n, n) -> (...)``."""
     return np.linalg.det(_cov(P))
 
 
-def position_determinant(P, position_indices: tuple[int, int] = (0, 2)) -> np.ndarray:
+def position_determinant(P: ArrayLike, position_indices: tuple[int, int] = (0, 2)) -> np.ndarray:
     """Ramdaras eq. 24: det [[P(1,1), P(1,3)], [P(3,1), P(3,3)]] = s_xx s_yy - s_xy^2."""
     P = _cov(P)
     ix, iy = position_indices
     return P[..., ix, ix] * P[..., iy, iy] - P[..., ix, iy] * P[..., iy, ix]
 
 
-def criterion_jacobian(criterion: str, x, sensor_state=None) -> np.ndarray:
+def criterion_jacobian(
+    criterion: str, x: ArrayLike, sensor_state: ArrayLike | None = None
+) -> np.ndarray:
     """H^c of Ramdaras eq. 26 at the predicted pv state x ``(..., 4) -> (..., 4)``.
 
     Geometry is relative to ``sensor_state`` (pv, default the origin as in the paper), with
@@ -98,8 +121,8 @@ def criterion_jacobian(criterion: str, x, sensor_state=None) -> np.ndarray:
         if np.any(v2 == 0):
             raise ValueError("x: the heading criterion needs a nonzero target speed")
         return np.stack([zero, -x[..., 3] / v2, zero, x[..., 1] / v2], axis=-1)
-    if criterion not in CRITERIA:
-        raise ValueError(f"criterion must be one of {CRITERIA} (got {criterion!r})")
+    if criterion not in EQ26_ROWS:
+        raise ValueError(f"criterion must be one of {EQ26_ROWS} (got {criterion!r})")
     r2 = dx * dx + dy * dy
     if np.any(r2 == 0):
         raise ValueError("x: zero range between target and sensor_state")
@@ -112,36 +135,12 @@ def criterion_jacobian(criterion: str, x, sensor_state=None) -> np.ndarray:
     return np.stack([dvx / r - dx * rdot / r2, dx / r, dvy / r - dy * rdot / r2, dy / r], axis=-1)
 
 
-def criterion_variance(criterion: str, P, x, sensor_state=None) -> np.ndarray:
+def criterion_variance(
+    criterion: str, P: ArrayLike, x: ArrayLike, sensor_state: ArrayLike | None = None
+) -> np.ndarray:
     """Ramdaras eq. 25: C = H^c(x) P H^c(x)^T for a pv covariance ``(..., 4, 4) -> (...)``."""
     P = _cov(P)
     if P.shape[-1] != 4:
         raise ValueError(f"P must be a pv covariance (..., 4, 4); got {P.shape}")
     h = criterion_jacobian(criterion, x, sensor_state)
     return np.einsum("...i,...ij,...j->...", h, P, h)
-
-
-def _criterion(name: str):
-    def cost(P, x=None, sensor_state=None):
-        if x is None:
-            raise ValueError(f"x (the predicted target pv state) is required for the {name} cost")
-        return criterion_variance(name, P, x, sensor_state)
-
-    return cost
-
-
-# Costs by name (planner configuration): each is cost(P, x=None, sensor_state=None) -> (...).
-COSTS = {
-    "rmse_bound": lambda P, x=None, sensor_state=None: rmse_bound(P),
-    "trace": lambda P, x=None, sensor_state=None: trace_cost(P),
-    "determinant": lambda P, x=None, sensor_state=None: determinant_cost(P),
-    "position_determinant": lambda P, x=None, sensor_state=None: position_determinant(P),
-    **{name: _criterion(name) for name in CRITERIA},
-}
-
-
-def evaluate_cost(name: str, P, x=None, sensor_state=None) -> np.ndarray:
-    """Cost ``name`` (a key of ``COSTS``) of covariances ``(..., n, n)``, returning ``(...)``."""
-    if name not in COSTS:
-        raise ValueError(f"cost name must be one of {tuple(COSTS)} (got {name!r})")
-    return COSTS[name](P, x, sensor_state)

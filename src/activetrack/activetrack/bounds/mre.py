@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from activetrack.bounds.pcrlb import _as_sensor_batch, _cholesky
+from activetrack.arraytypes import ArrayLike
+from activetrack.bounds.pcrlb import Sensors, _as_sensor_batch, _cholesky
 from activetrack.checks import require_finite, symmetrize
 
 __all__ = ["mre_predict", "mre_recursion", "mre_step", "mre_update"]
 
 
-def mre_update(P: np.ndarray, H: np.ndarray, R: np.ndarray, pd=1.0) -> np.ndarray:
+def mre_update(P: ArrayLike, H: ArrayLike, R: ArrayLike, pd: ArrayLike = 1.0) -> np.ndarray:
     """Expected covariance after one possible detection: (1 - pd) P + pd P_{k|k}.
 
     ``P`` ``(..., n, n)`` predicted covariance, ``H`` ``(..., m, n)``, ``R`` ``(m, m)``,
@@ -52,7 +53,7 @@ def mre_update(P: np.ndarray, H: np.ndarray, R: np.ndarray, pd=1.0) -> np.ndarra
 
 
 def mre_step(
-    P: np.ndarray, F: np.ndarray, Q: np.ndarray, H: np.ndarray, R: np.ndarray, pd=1.0
+    P: ArrayLike, F: ArrayLike, Q: ArrayLike, H: ArrayLike, R: ArrayLike, pd: ArrayLike = 1.0
 ) -> np.ndarray:
     """Ramdaras eq. 23: P_{k+1|k} from P_{k|k-1} ``(..., n, n)``, batched over ``H`` and pd."""
     P = np.asarray(P, dtype=float)
@@ -64,7 +65,13 @@ def mre_step(
     return symmetrize(F @ mre_update(P, H, R, pd) @ F.T + Q)
 
 
-def _sensor_update(P, sensors, sensor_states, x_pred, kinematics_jacobian):
+def _sensor_update(
+    P: np.ndarray,
+    sensors: Sensors,
+    sensor_states: ArrayLike,
+    x_pred: np.ndarray,
+    kinematics_jacobian: np.ndarray | None,
+) -> np.ndarray:
     """Apply mre_update for each sensor in turn (sequential updates; exact for pd = 1)."""
     sensors, states = _as_sensor_batch(sensors, sensor_states, "sensor_states")
     for j, sensor in enumerate(sensors):
@@ -79,12 +86,12 @@ def _sensor_update(P, sensors, sensor_states, x_pred, kinematics_jacobian):
 
 
 def mre_predict(
-    P_pred: np.ndarray,
-    F: np.ndarray,
-    Q: np.ndarray,
-    sensors,
-    x_pred: np.ndarray,
-    sensor_states: np.ndarray,
+    P_pred: ArrayLike,
+    F: ArrayLike,
+    Q: ArrayLike,
+    sensors: Sensors,
+    x_pred: ArrayLike,
+    sensor_states: ArrayLike,
     *,
     kinematics_jacobian: np.ndarray | None = None,
 ) -> np.ndarray:
@@ -111,12 +118,12 @@ def mre_predict(
 
 
 def mre_recursion(
-    P_pred0: np.ndarray,
-    F: np.ndarray,
-    Q: np.ndarray,
-    sensors,
-    x_pred0: np.ndarray,
-    sensor_paths: np.ndarray,
+    P_pred0: ArrayLike,
+    F: ArrayLike,
+    Q: ArrayLike,
+    sensors: Sensors,
+    x_pred0: ArrayLike,
+    sensor_paths: ArrayLike,
 ) -> np.ndarray:
     """Iterate eq. 23 along sensor paths ``(K, ..., S, 4)`` for pv states and linear F.
 

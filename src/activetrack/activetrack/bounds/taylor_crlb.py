@@ -21,18 +21,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.bounds.pcrlb import (
+    Sensors,
     _as_sensor_batch,
-    _spd_inverse,
     measurement_information,
     pcrlb_step,
 )
 from activetrack.checks import require_finite, symmetrize
+from activetrack.linalg import spd_inverse
+from activetrack.models.base import MotionModel
 
 __all__ = ["nominal_path", "taylor_crlb", "taylor_information_initial"]
 
 
-def nominal_path(model, x0: np.ndarray, n_steps: int, dt: float) -> np.ndarray:
+def nominal_path(model: MotionModel, x0: ArrayLike, n_steps: int, dt: float) -> FloatArray:
     """Noise-free path x_k = f(x_{k-1}) for k = 0..n_steps: ``(n_steps + 1, n)``."""
     x = np.asarray(x0, dtype=float)
     require_finite("x0", x)
@@ -49,7 +52,7 @@ def nominal_path(model, x0: np.ndarray, n_steps: int, dt: float) -> np.ndarray:
     return np.stack(path)
 
 
-def _check_paths(sensors, sensor_paths, n_steps: int) -> np.ndarray:
+def _check_paths(sensors: Sensors, sensor_paths: ArrayLike, n_steps: int) -> FloatArray:
     paths = np.asarray(sensor_paths, dtype=float)
     if paths.ndim < 2 or paths.shape[0] != int(n_steps):
         raise ValueError(
@@ -61,7 +64,9 @@ def _check_paths(sensors, sensor_paths, n_steps: int) -> np.ndarray:
     return paths
 
 
-def _nominal_information(model, sensors, sensor_state, x) -> np.ndarray:
+def _nominal_information(
+    model: MotionModel, sensors: Sensors, sensor_state: FloatArray, x: FloatArray
+) -> FloatArray:
     """pd * I_r * H^T R^{-1} H at one nominal state x ``(n,)``: ``(..., n, n)`` (eq. 47-48)."""
     return measurement_information(
         sensors,
@@ -72,20 +77,20 @@ def _nominal_information(model, sensors, sensor_state, x) -> np.ndarray:
 
 
 def taylor_crlb(
-    model,
-    sensors,
-    sensor_paths: np.ndarray,
-    x0: np.ndarray,
+    model: MotionModel,
+    sensors: Sensors,
+    sensor_paths: ArrayLike,
+    x0: ArrayLike,
     n_steps: int,
     dt: float,
     *,
-    P0: np.ndarray | None = None,
+    P0: ArrayLike | None = None,
     process_noise: bool = False,
-) -> np.ndarray:
+) -> FloatArray:
     """Fisher information J_k about x_k, k = 1..n_steps, along the nominal path (eq. 50-51).
 
     Args:
-        model: motion model (contract ``activetrack.models.motion``).
+        model: motion model (contract ``activetrack.models.base.MotionModel``).
         sensors: one sensor or a sequence of S sensors.
         sensor_paths: sensor pv states at epochs 1..n_steps, ``(n_steps, ..., S, 4)``.
         x0: nominal initial state ``(n,)``.
@@ -98,18 +103,19 @@ def taylor_crlb(
     path = nominal_path(model, x0, n_steps, dt)
     paths = _check_paths(sensors, sensor_paths, n_steps)
     n = path.shape[-1]
+    J: FloatArray
     if P0 is None:
         if process_noise:
             raise ValueError("P0 is required when process_noise=True (eq. 65 needs J_0^{-1})")
         J = np.zeros((n, n))
     else:
-        J = _spd_inverse("P0", np.asarray(P0, dtype=float))
+        J = spd_inverse("P0", np.asarray(P0, dtype=float))
     Q = np.asarray(model.process_noise(dt), dtype=float) if process_noise else None
     out = []
     for k in range(1, int(n_steps) + 1):
         Phi = np.asarray(model.jacobian(path[k - 1], dt), dtype=float)
         J_Z = _nominal_information(model, sensors, paths[k - 1], path[k])
-        if process_noise:
+        if Q is not None:
             J = pcrlb_step(J, Phi, Q, J_Z)  # Valverde eq. 65
         else:
             B = np.linalg.solve(Phi.T, J)  # Phi^{-T} J
@@ -119,15 +125,15 @@ def taylor_crlb(
 
 
 def taylor_information_initial(
-    model,
-    sensors,
-    sensor_paths: np.ndarray,
-    x0: np.ndarray,
+    model: MotionModel,
+    sensors: Sensors,
+    sensor_paths: ArrayLike,
+    x0: ArrayLike,
     n_steps: int,
     dt: float,
     *,
-    P0: np.ndarray | None = None,
-) -> np.ndarray:
+    P0: ArrayLike | None = None,
+) -> FloatArray:
     """Information about the initial state x_0 after epochs 1..k (Valverde eq. 46-48).
 
     J_k(x_0) = S_0^{-1} + sum_{i<=k} Phi_{i,0}^T H_i^T R^{-1} H_i Phi_{i,0}, with the state
@@ -137,7 +143,7 @@ def taylor_information_initial(
     path = nominal_path(model, x0, n_steps, dt)
     paths = _check_paths(sensors, sensor_paths, n_steps)
     n = path.shape[-1]
-    J = np.zeros((n, n)) if P0 is None else _spd_inverse("P0", np.asarray(P0, dtype=float))
+    J = np.zeros((n, n)) if P0 is None else spd_inverse("P0", np.asarray(P0, dtype=float))
     Phi_k0 = np.eye(n)
     out = []
     for k in range(1, int(n_steps) + 1):

@@ -15,49 +15,128 @@ chain rule H_state = H_pv @ d pv / d x (contract ``state_jacobian``), with pd an
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.bounds.pcrlb import (
+    Sensors,
     _as_sensor_batch,
-    _cholesky,
-    _spd_inverse,
     gaussian_samples,
     measurement_information,
 )
 from activetrack.checks import require_finite, symmetrize
+from activetrack.linalg import cholesky, spd_inverse
+from activetrack.models.base import MotionModel
 
 __all__ = ["tichavsky_pcrlb", "tichavsky_step"]
 
 
-def tichavsky_step(J: np.ndarray, D11: np.ndarray, D12: np.ndarray, D22: np.ndarray) -> np.ndarray:
+def tichavsky_step(J: ArrayLike, D11: FloatArray, D12: FloatArray, D22: FloatArray) -> FloatArray:
     """Valverde eq. 56: J_{k+1} = D22 - D21 (J_k + D11)^{-1} D12, batched ``(..., n, n)``.
 
     With L L^T = J_k + D11 and Y = L^{-1} D12, the subtracted term is Y^T Y (symmetric).
     """
-    L = _cholesky("J + D11", np.asarray(J, dtype=float) + D11)
+    L = cholesky("J + D11", np.asarray(J, dtype=float) + D11)
     Y = np.linalg.solve(L, D12)
     return symmetrize(D22 - np.swapaxes(Y, -1, -2) @ Y)
 
 
+def _check_setup(
+    model: MotionModel,
+    sensors: Sensors,
+    sensor_paths: ArrayLike,
+    x0: ArrayLike,
+    P0: ArrayLike,
+    n_steps: int,
+    dt: float,
+    q_floor: float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Checked ``(x0, J_0 = P0^{-1}, sensor paths)`` of :func:`tichavsky_pcrlb`."""
+    x0 = np.asarray(x0, dtype=float)
+    P0 = np.asarray(P0, dtype=float)
+    require_finite("x0", x0)
+    n = int(model.dim)
+    if x0.shape != (n,) or P0.shape != (n, n):
+        raise ValueError(f"x0 must be ({n},) and P0 ({n}, {n}); got {x0.shape}, {P0.shape}")
+    J0 = spd_inverse("P0", P0)
+    if int(n_steps) < 1:
+        raise ValueError(f"n_steps must be >= 1 (got {n_steps})")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be finite and > 0 (got {dt})")
+    if not (np.isfinite(q_floor) and q_floor >= 0):
+        raise ValueError(f"q_floor must be finite and >= 0 (got {q_floor})")
+    paths = np.asarray(sensor_paths, dtype=float)
+    if paths.ndim < 2 or paths.shape[0] != int(n_steps):
+        raise ValueError(
+            f"sensor_paths must have shape (n_steps={n_steps}, ..., S, 4); got {paths.shape}"
+        )
+    _as_sensor_batch(sensors, paths[0], "sensor_paths")  # shape and finiteness check
+    if not np.isfinite(paths).all():
+        raise ValueError("sensor_paths must be finite (sensor positions/velocities)")
+    return x0, J0, paths
+
+
+def _noise_information(model: MotionModel, dt: float, q_floor: float) -> FloatArray:
+    """Q^{-1} of Valverde eq. 60-64 (with ``q_floor`` added to the diagonal of Q)."""
+    n = int(model.dim)
+    Q = np.asarray(model.process_noise(dt), dtype=float)
+    if Q.shape != (n, n):
+        raise ValueError(f"model.process_noise(dt) must be a constant ({n}, {n}) matrix")
+    try:
+        return spd_inverse("Q", Q + q_floor * np.eye(n))
+    except ValueError:
+        raise ValueError(
+            "q_floor: the model's process noise Q is singular; pass q_floor > 0 "
+            "(Valverde eq. 60-64 need Q^{-1})"
+        ) from None
+
+
+def _initial_states(
+    x0: FloatArray,
+    P0: ArrayLike,
+    n_steps: int,
+    n_mc: int,
+    rng: np.random.Generator | None,
+    trajectories: ArrayLike | None,
+) -> tuple[FloatArray, FloatArray | None]:
+    """The true states at epoch 0 ``(M, n)``, and the checked ``trajectories`` if given."""
+    if trajectories is None:
+        if int(n_mc) < 1:
+            raise ValueError(f"n_mc must be >= 1 (got {n_mc})")
+        if rng is None:
+            raise ValueError("rng must be a numpy Generator when trajectories is not given")
+        return gaussian_samples(x0, P0, int(n_mc), rng), None
+    T = np.asarray(trajectories, dtype=float)
+    n = x0.shape[0]
+    if T.ndim != 3 or T.shape[0] != int(n_steps) + 1:
+        raise ValueError(
+            f"trajectories must have shape (n_steps + 1 = {int(n_steps) + 1}, M, {n}); "
+            f"got {T.shape}"
+        )
+    require_finite("trajectories", T)
+    return T[0], T
+
+
 def tichavsky_pcrlb(
-    model,
-    sensors,
-    sensor_paths: np.ndarray,
-    x0: np.ndarray,
-    P0: np.ndarray,
+    model: MotionModel,
+    sensors: Sensors,
+    sensor_paths: ArrayLike,
+    x0: ArrayLike,
+    P0: ArrayLike,
     n_steps: int,
     dt: float,
     n_mc: int,
     rng: np.random.Generator | None,
     *,
     q_floor: float = 0.0,
-    trajectories: np.ndarray | None = None,
-) -> np.ndarray:
+    trajectories: ArrayLike | None = None,
+) -> FloatArray:
     """Fisher information J_k, k = 1..n_steps, of a nonlinear model (Valverde eq. 56-64).
 
     Args:
-        model: a motion model (contract ``activetrack.models.motion``: ``jacobian``,
-            ``sample``, ``process_noise``, ``kinematics``, ``kinematics_jacobian``), e.g.
+        model: a motion model (contract ``activetrack.models.base.MotionModel``), e.g.
             ``ConstantTurn`` or ``CircularMotion``; Q must not depend on the state.
         sensors: one sensor or a sequence of S sensors.
         sensor_paths: sensor pv states at epochs 1..n_steps, ``(n_steps, ..., S, 4)``
@@ -76,55 +155,9 @@ def tichavsky_pcrlb(
     Returns:
         J ``(n_steps, ..., n, n)``; the bound is ``covariance_bound(J)``.
     """
-    x0 = np.asarray(x0, dtype=float)
-    P0 = np.asarray(P0, dtype=float)
-    require_finite("x0", x0)
-    n = int(model.dim)
-    if x0.shape != (n,) or P0.shape != (n, n):
-        raise ValueError(f"x0 must be ({n},) and P0 ({n}, {n}); got {x0.shape}, {P0.shape}")
-    J0 = _spd_inverse("P0", P0)
-    if int(n_steps) < 1:
-        raise ValueError(f"n_steps must be >= 1 (got {n_steps})")
-    if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be finite and > 0 (got {dt})")
-    if not (np.isfinite(q_floor) and q_floor >= 0):
-        raise ValueError(f"q_floor must be finite and >= 0 (got {q_floor})")
-    paths = np.asarray(sensor_paths, dtype=float)
-    if paths.ndim < 2 or paths.shape[0] != int(n_steps):
-        raise ValueError(
-            f"sensor_paths must have shape (n_steps={n_steps}, ..., S, 4); got {paths.shape}"
-        )
-    _as_sensor_batch(sensors, paths[0], "sensor_paths")  # shape and finiteness check
-    if not np.isfinite(paths).all():
-        raise ValueError("sensor_paths must be finite (sensor positions/velocities)")
-
-    Q = np.asarray(model.process_noise(dt), dtype=float)
-    if Q.shape != (n, n):
-        raise ValueError(f"model.process_noise(dt) must be a constant ({n}, {n}) matrix")
-    try:
-        W = _spd_inverse("Q", Q + q_floor * np.eye(n))  # Q^{-1} of eq. 60
-    except ValueError:
-        raise ValueError(
-            "q_floor: the model's process noise Q is singular; pass q_floor > 0 "
-            "(Valverde eq. 60-64 need Q^{-1})"
-        ) from None
-
-    if trajectories is None:
-        if int(n_mc) < 1:
-            raise ValueError(f"n_mc must be >= 1 (got {n_mc})")
-        if rng is None:
-            raise ValueError("rng must be a numpy Generator when trajectories is not given")
-        X = gaussian_samples(x0, P0, int(n_mc), rng)
-    else:
-        trajectories = np.asarray(trajectories, dtype=float)
-        if trajectories.ndim != 3 or trajectories.shape[0] != int(n_steps) + 1:
-            raise ValueError(
-                f"trajectories must have shape (n_steps + 1 = {int(n_steps) + 1}, M, {n}); "
-                f"got {trajectories.shape}"
-            )
-        require_finite("trajectories", trajectories)
-        X = trajectories[0]
-
+    x0, J0, paths = _check_setup(model, sensors, sensor_paths, x0, P0, n_steps, dt, q_floor)
+    W = _noise_information(model, dt, q_floor)  # Q^{-1} of eq. 60
+    X, given = _initial_states(x0, P0, n_steps, n_mc, rng, trajectories)
     J = J0
     out = []
     for k in range(int(n_steps)):
@@ -132,7 +165,10 @@ def tichavsky_pcrlb(
         FtW = np.swapaxes(F, -1, -2) @ W
         D11 = symmetrize(np.mean(FtW @ F, axis=0))  # eq. 62
         D12 = -np.mean(FtW, axis=0)  # eq. 63
-        X = model.sample(X, dt, rng) if trajectories is None else trajectories[k + 1]
+        if given is None:
+            X = model.sample(X, dt, cast(np.random.Generator, rng))
+        else:
+            X = given[k + 1]
         J_Z = measurement_information(
             sensors,
             paths[k],

@@ -12,9 +12,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from activetrack.bounds.pcrlb import covariance_bound, gaussian_samples, pcrlb_trajectory
+from activetrack.closed_loop.data import Decision, TrackSnapshot
 from activetrack.closed_loop.planner import PlannerCore
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
+from activetrack.models.base import SensorModel, as_linear
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.schema import Scenario
 
@@ -37,7 +39,7 @@ class RunRecord:
     estimate_cov: np.ndarray  # (K+1, n, n)
     platform_paths: np.ndarray  # (K+1, P, 4)
     platform_ids: tuple[str, ...]
-    decisions: list = field(default_factory=list)
+    decisions: list[Decision] = field(default_factory=list)
     # (K, S) which sensors looked at epochs 1..K (selection and stop-and-measure gating);
     # None: all of them, every epoch.
     measured: np.ndarray | None = None
@@ -58,12 +60,16 @@ def run_once(scenario: Scenario, run: int | None = None) -> RunRecord:
     planner = PlannerCore(scenario, plan_rng)
     ids = tuple(sim.platforms)
     track = tracker.snapshot()
-    truth, est, est_cov, paths, decisions = [], [], [], [], []
+    truth: list[np.ndarray] = []
+    est: list[np.ndarray] = []
+    est_cov: list[np.ndarray] = []
+    paths: list[np.ndarray] = []
+    decisions: list[Decision] = []
     clamps = 0
     evaluations = 0
     planning = 0.0
 
-    def record(track):
+    def record(track: TrackSnapshot) -> None:
         truth.append(sim.truth_pv())
         est.append(track.mean)
         est_cov.append(track.cov)
@@ -71,7 +77,8 @@ def run_once(scenario: Scenario, run: int | None = None) -> RunRecord:
 
     record(track)
     sensor_ids = list(sim.sensors)
-    measured, detected = [], []
+    measured: list[list[bool]] = []
+    detected: list[list[bool]] = []
     for k in range(scenario.steps + 1):
         if k > 0:
             measurements = sim.advance()
@@ -116,17 +123,19 @@ def path_bound(scenario: Scenario, record: RunRecord, rng: np.random.Generator) 
     """
     model = build_motion_model(scenario.target.motion)
     K = scenario.steps
-    if not getattr(model, "is_linear", False):
+    if not model.is_linear:
         return np.full((K, 4, 4), math.nan)
+    linear = as_linear(model)
     prior = scenario.target.prior
     C0 = prior.covariance()
-    sensors, columns = [], []
+    sensors: list[SensorModel] = []
+    columns: list[int] = []
     for j, p in enumerate(scenario.platforms):
         for s in p.sensors:
             sensors.append(build_sensor(s))
             columns.append(j)
     paths = record.platform_paths[1:, columns, :]  # (K, S, 4)
-    F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
+    F, Q = linear.transition_matrix(scenario.dt), linear.process_noise(scenario.dt)
     X0 = gaussian_samples(np.array(prior.mean), C0, BOUND_SAMPLES, rng)
     J = pcrlb_trajectory(np.linalg.inv(C0), F, Q, X0, sensors, paths, rng, active=record.measured)
     return covariance_bound(J)

@@ -13,6 +13,7 @@ import numpy as np
 
 from activetrack.angles import wrap_angle
 from activetrack.closed_loop.data import Command, PlatformSnapshot, TrackSnapshot
+from activetrack.models.sensors import AmbiguousBearingSensor, BearingSensor
 from activetrack.planning.cautious import CautiousPlanner
 from activetrack.scenarios.build import build_sensor
 from activetrack.scenarios.schema import Scenario
@@ -29,15 +30,18 @@ class CautiousController:
             raise ValueError("planner.search 'cautious' needs exactly one controllable platform")
         robot = robots[0]
         sensors = [build_sensor(s) for s in robot.sensors]
-        if len(sensors) != 1 or sensors[0].kind not in ("ambiguous_bearing", "bearing"):
+        sensor = sensors[0] if len(sensors) == 1 else None
+        if not isinstance(sensor, BearingSensor | AmbiguousBearingSensor):
             raise ValueError("planner.search 'cautious' needs one bearing sensor on the robot")
+        if robot.limits is None:
+            raise ValueError(f"platform {robot.id!r} is controllable but has no limits")
         cfg = scenario.planner.cautious
         self.robot_id = robot.id
         self.dt = scenario.dt
         self.v_max = robot.limits.v_max
-        self.dwell_epochs = max(1, math.ceil(cfg.t_m / scenario.dt))
+        self.dwell_epochs = max(1, math.ceil(float(cfg.t_m) / scenario.dt))
         self.planner = CautiousPlanner(
-            sigma_s=sensors[0].sigma,
+            sigma_s=sensor.sigma,
             prior_cov=scenario.target.prior.covariance(),
             beta=cfg.beta,
             c_d=cfg.c_d,
@@ -77,7 +81,10 @@ class CautiousController:
         self.awaiting = take
         return self._command(epoch, robot, robot.heading, 0.0, take=take)
 
-    def _command(self, epoch, robot, heading, speed, take: bool) -> Command:
+    def _command(
+        self, epoch: int, robot: PlatformSnapshot, heading: float, speed: float, take: bool
+    ) -> Command:
+        w = self.waypoint
         return Command(
             self.robot_id,
             epoch,
@@ -86,5 +93,5 @@ class CautiousController:
             heading,
             speed,
             take_measurement=take,
-            waypoint=None if self.waypoint is None else tuple(float(v) for v in self.waypoint),
+            waypoint=None if w is None else (float(w[0]), float(w[1])),
         )

@@ -9,7 +9,7 @@ from collections import Counter
 
 
 class NodeCounters:
-    def __init__(self):
+    def __init__(self) -> None:
         self.counts: Counter[str] = Counter()
 
     def received(self, what: str) -> None:

@@ -8,7 +8,9 @@ platform's limits are clamped and the clamp is reported, never silent.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,7 +18,10 @@ from activetrack.angles import wrap_angle
 from activetrack.closed_loop.data import Command, PlatformSnapshot, heading_speed
 from activetrack.filters.measurement import Measurement
 from activetrack.scenarios.build import build_motion_model, build_sensor
-from activetrack.scenarios.schema import Scenario
+from activetrack.scenarios.schema import ManoeuvreLimits, Scenario
+
+if TYPE_CHECKING:
+    from activetrack.models.base import SensorModel
 
 # Excess over a limit below this (relative) is float round-off, not a clamp worth reporting.
 _CLAMP_SLACK = 1e-9
@@ -27,7 +32,7 @@ class _Platform:
     id: str
     pv: np.ndarray
     controllable: bool
-    limits: object | None
+    limits: ManoeuvreLimits | None
     sensor_ids: tuple[str, ...]
 
 
@@ -55,7 +60,8 @@ class Simulator:
             L = np.linalg.cholesky(tgt.prior.covariance())
             self.truth = np.array(tgt.prior.mean) + L @ rng.standard_normal(len(tgt.prior.mean))
         self.platforms: dict[str, _Platform] = {}
-        self.sensors: dict[str, tuple[str, object]] = {}  # sensor id -> (platform id, model)
+        # sensor id -> (platform id, model)
+        self.sensors: dict[str, tuple[str, SensorModel]] = {}
         for p in scenario.platforms:
             self.platforms[p.id] = _Platform(
                 p.id,
@@ -130,7 +136,7 @@ class Simulator:
             raise ValueError(
                 f"platform_id must be one of {sorted(self.platforms)}, got {cmd.platform_id!r}"
             )
-        if not p.controllable:
+        if not p.controllable or p.limits is None:
             raise ValueError(f"platform_id {cmd.platform_id!r} is not controllable")
         if cmd.epoch != self.epoch:
             raise ValueError(f"epoch must be the current epoch {self.epoch}, got {cmd.epoch}")
@@ -167,7 +173,7 @@ class Simulator:
         )
         return ApplyResult(applied, bool(notes), "; ".join(notes))
 
-    def apply_selection(self, sensor_ids) -> None:
+    def apply_selection(self, sensor_ids: Sequence[str] | None) -> None:
         """Only these sensors measure from the next epoch on (None: all of them)."""
         if sensor_ids is None:
             self.selected = None

@@ -7,6 +7,7 @@ import numpy as np
 from activetrack.closed_loop.data import TrackSnapshot
 from activetrack.filters import make_filter
 from activetrack.filters.measurement import Measurement
+from activetrack.filters.particle import ParticleFilter
 from activetrack.filters.resampling import systematic_resample
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.schema import Scenario
@@ -44,6 +45,7 @@ class TrackerCore:
         self.missed = 0
         self.last_nis = float("nan")
         self.last_ess = float("nan")
+        self._samples = self._draw_samples()
 
     def step(self, epoch: int, t: float, measurements: list[Measurement]) -> TrackSnapshot:
         """Predict to ``t``, update with the epoch's measurements, return the posterior."""
@@ -53,17 +55,24 @@ class TrackerCore:
         self.missed += info.n_missed
         self.last_nis = info.nis
         self.last_ess = info.ess
+        self._samples = self._draw_samples()
         return self.snapshot()
 
+    def _draw_samples(self) -> np.ndarray | None:
+        """The planner's equally weighted posterior samples (PF), drawn once per update: a
+        systematic resample thinned to ``planner_samples``."""
+        if not isinstance(self.filter, ParticleFilter):
+            return None
+        count = len(self.filter.weights)
+        idx = systematic_resample(self.filter.weights, self.rng)
+        take = np.linspace(0, count - 1, min(self.planner_samples, count)).astype(int)
+        return self.filter.particles[idx[take]]
+
     def snapshot(self) -> TrackSnapshot:
-        samples = None
-        count = 0
-        if self.kind == "pf":
-            count = len(self.filter.weights)
-            idx = systematic_resample(self.filter.weights, self.rng)
-            # Thin the equally weighted resample to the planner's sample count.
-            take = np.linspace(0, count - 1, min(self.planner_samples, count)).astype(int)
-            samples = self.filter.particles[idx[take]]
+        """The posterior after the last update. Pure: it draws nothing, so looking at the
+        track (a notebook, a second caller) never changes a later result."""
+        samples = self._samples
+        count = len(self.filter.weights) if isinstance(self.filter, ParticleFilter) else 0
         return TrackSnapshot(
             epoch=self.epoch,
             time=self.filter.time,

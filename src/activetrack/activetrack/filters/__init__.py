@@ -5,6 +5,9 @@ Both offer ``predict(t)``, ``update(measurements) -> UpdateInfo``, ``step(t, mea
 so the tracker node can switch with a parameter.
 """
 
+from typing import Any
+
+from activetrack.arraytypes import ArrayLike
 from activetrack.filters.ekf import ExtendedKalmanFilter
 from activetrack.filters.measurement import Measurement, TrackingFilter, UpdateInfo
 from activetrack.filters.particle import FilterCollapseError, ParticleFilter
@@ -14,6 +17,7 @@ from activetrack.filters.resampling import (
     systematic_indices,
     systematic_resample,
 )
+from activetrack.models.base import MotionModel
 
 __all__ = [
     "FILTER_KINDS",
@@ -30,10 +34,15 @@ __all__ = [
     "systematic_resample",
 ]
 
-FILTER_KINDS = {"ekf": ExtendedKalmanFilter, "pf": ParticleFilter}
+FILTER_KINDS: dict[str, type[ExtendedKalmanFilter] | type[ParticleFilter]] = {
+    "ekf": ExtendedKalmanFilter,
+    "pf": ParticleFilter,
+}
 
 
-def make_filter(kind: str, model, x0, P0, **options) -> TrackingFilter:
+def make_filter(
+    kind: str, model: MotionModel, x0: ArrayLike, P0: ArrayLike, **options: Any
+) -> TrackingFilter:
     """Build ``"ekf"`` or ``"pf"`` with ``model``, ``x0``, ``P0`` and filter ``options``.
 
     Options are passed on: ``t0`` for both; ``n_particles``, ``rng``, ``resample``,

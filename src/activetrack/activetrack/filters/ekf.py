@@ -13,8 +13,9 @@ Update, one detection at a time (Ramdaras eq. 16-22, Valverde eq. 5-9)::
     x  = x + K nu                                                    (eq. 21)
     P  = (I - K H) P (I - K H)^T + K R K^T    Joseph form            (eq. 22)
 
-with H the measurement Jacobian with respect to the model state,
-``models.sensors.state_jacobian``. These are the equations of filterpy's
+with h, H and nu from the sensor's own ``linearize`` at the state's pv (the built-in bearing
+and range-bearing sensors do it in plain floats), H chained with the model's
+``kinematics_jacobian`` unless ``model.state_is_pv`` (``models.sensors.state_jacobian``). These are the equations of filterpy's
 ``ExtendedKalmanFilter.predict`` / ``update`` (the tests check equality to 1e-9), computed here
 with plain numpy on small matrices to keep the per-step overhead low.
 
@@ -37,6 +38,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite, require_spd
 from activetrack.filters.measurement import (
     Measurement,
@@ -44,65 +46,26 @@ from activetrack.filters.measurement import (
     check_measurement_times,
     check_predict_time,
 )
-from activetrack.models.sensors import BearingSensor, RangeBearingSensor, state_jacobian
+from activetrack.models.base import MotionModel, as_linear
 
 __all__ = ["ExtendedKalmanFilter"]
 
 _LOG_2PI = math.log(2.0 * math.pi)
-_TWO_PI = 2.0 * math.pi
-PV_NAMES = ("x", "xdot", "y", "ydot")
 _S_NOT_SPD = (
     "measurements: innovation covariance S = H P H^T + R is not positive definite for "
     "sensor {!r} (check the sensor's R)"
 )
 
 
-def _wrap(a: float) -> float:
-    """Scalar angle wrap to [-pi, pi) (the convention of ``angles.wrap_angle``)."""
-    return (a + math.pi) % _TWO_PI - math.pi
-
-
-def _fast_h_H_nu(sensor, x, s, z):
-    """(h(x), dh/dpv, wrapped residual) in plain floats for the two common sensors.
-
-    Same formulas as ``BearingSensor`` (Hernandez eq. 5, 9) and ``RangeBearingSensor``
-    (Valverde eq. 10-13) for a pv state, without the per-call validation of the batched
-    sensor methods (a few microseconds instead of ~100 per update). Returns None for any
-    other sensor type (exact type match, so subclasses take the generic path).
-    """
-    cls = type(sensor)
-    if cls is not BearingSensor and cls is not RangeBearingSensor:
-        return None
-    dx, dy = float(x[0] - s[0]), float(x[2] - s[2])
-    r2 = dx * dx + dy * dy
-    if r2 == 0.0:
-        raise ValueError("measurements: target and sensor coincide (range 0); range must be > 0")
-    bearing = _wrap(math.atan2(dy, dx))
-    row_b = [-dy / r2, 0.0, dx / r2, 0.0]
-    if cls is BearingSensor:
-        return (
-            np.array([bearing]),
-            np.array([row_b]),
-            np.array([_wrap(float(z[0]) - bearing)]),
-        )
-    r = math.sqrt(r2)
-    return (
-        np.array([r, bearing]),
-        np.array([[dx / r, 0.0, dy / r, 0.0], row_b]),
-        np.array([float(z[0]) - r, _wrap(float(z[1]) - bearing)]),
-    )
-
-
 class ExtendedKalmanFilter:
     """EKF over ``model`` (any :mod:`activetrack.models.motion` model).
 
-    model: motion model (``dim``, ``propagate``, ``jacobian``, ``process_noise``,
-        ``kinematics``, ``kinematics_jacobian``).
+    model: motion model (``activetrack.models.base.MotionModel``).
     x0: initial mean, shape ``(n,)``; P0: initial covariance ``(n, n)``, SPD.
     t0: time of ``x0`` in seconds.
     """
 
-    def __init__(self, model, x0, P0, t0: float = 0.0):
+    def __init__(self, model: MotionModel, x0: ArrayLike, P0: ArrayLike, t0: float = 0.0):
         n = int(model.dim)
         x = require_finite("x0", x0)
         if x.shape != (n,):
@@ -119,8 +82,8 @@ class ExtendedKalmanFilter:
         self._t = t0
         self._I = np.eye(n)
         # The pv-state models need no kinematics map (pv = x, d pv / dx = I).
-        self._pv_state = tuple(model.state_names) == PV_NAMES
-        self._linear_cache: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._pv_state = bool(model.state_is_pv)
+        self._linear_cache: tuple[float, FloatArray, FloatArray] | None = None
         self.last_info: UpdateInfo | None = None
 
     @property
@@ -148,7 +111,8 @@ class ExtendedKalmanFilter:
                 # Constant F and Q for a given dt: reuse them across steps of the same length.
                 cache = self._linear_cache
                 if cache is None or cache[0] != dt:
-                    cache = (dt, model.transition_matrix(dt), model.process_noise(dt))
+                    F = as_linear(model).transition_matrix(dt)
+                    cache = (dt, F, model.process_noise(dt))
                     self._linear_cache = cache
                 _, F, Q = cache
                 self._x = F @ x
@@ -180,13 +144,11 @@ class ExtendedKalmanFilter:
                 nis_each.append(math.nan)
                 continue
             sensor, s = m.sensor, m.sensor_state
-            fast = _fast_h_H_nu(sensor, x, s, m.z) if self._pv_state else None
-            if fast is not None:
-                _, H, nu = fast
-            else:
-                zhat = sensor.measure(model.kinematics(x), s)
-                nu = np.asarray(sensor.residual(m.z, zhat), dtype=float).reshape(-1)
-                H = np.asarray(state_jacobian(sensor, model, x, s), dtype=float)
+            if self._pv_state:
+                _, H, nu = sensor.linearize(x, s, m.z)
+            else:  # chain rule to the model state (contract state_jacobian)
+                _, H_pv, nu = sensor.linearize(model.kinematics(x), s, m.z)
+                H = np.asarray(H_pv @ model.kinematics_jacobian(x), dtype=float)
             R = sensor.R
             PHT = P @ H.T
             S = H @ PHT + R

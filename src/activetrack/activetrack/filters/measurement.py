@@ -13,9 +13,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
+
+from activetrack.arraytypes import FloatArray
+from activetrack.models.base import SensorModel
 
 __all__ = [
     "Measurement",
@@ -33,8 +36,7 @@ TIME_TOLERANCE = 1e-9
 class Measurement:
     """One sensor report.
 
-    sensor: a sensor model from :mod:`activetrack.models.sensors` (``measure``, ``jacobian``,
-        ``residual``, ``R``, ``dim_z``, ``pd``, ``in_range``).
+    sensor: a sensor (contract :class:`activetrack.models.base.SensorModel`).
     sensor_state: the platform's pv vector ``(x, xdot, y, ydot)``, shape ``(4,)``.
     z: the measurement, shape ``(sensor.dim_z,)`` (a scalar is accepted for ``dim_z == 1``),
         or ``None`` for "looked, no detection".
@@ -46,13 +48,13 @@ class Measurement:
     ``z`` and ``sensor_state`` are stored as read-only float arrays.
     """
 
-    sensor: Any
-    sensor_state: np.ndarray
-    z: np.ndarray | None
+    sensor: SensorModel
+    sensor_state: FloatArray
+    z: FloatArray | None
     time: float
     sensor_id: str = ""
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         s = np.array(self.sensor_state, dtype=float)
         if s.shape != (4,) or not np.all(np.isfinite(s)):
             raise ValueError(
@@ -137,7 +139,7 @@ class TrackingFilter(Protocol):
     def step(self, t: float, measurements: Sequence[Measurement]) -> UpdateInfo: ...
 
 
-def check_predict_time(t, current: float) -> float:
+def check_predict_time(t: float, current: float) -> float:
     """Return ``t`` as a float; raise unless it is finite and not before ``current``."""
     t = float(t)
     if not math.isfinite(t) or t < current - TIME_TOLERANCE * max(1.0, abs(current)):

@@ -21,18 +21,22 @@ up to ``r_max``). ``min_range`` picks how the filter uses this:
   pd I_r(x) N(z; h(x), R); a non-detection by P(no detection | x) = 1 - pd I_r(x), so it moves
   mass towards "inside r_min or outside r_max".
 
-Bearing residuals are wrapped (``sensor.residual``; for ``BearingSensor`` and
-``RangeBearingSensor`` the likelihood is computed inline from the particle kinematics, see
-``_fast_log_gauss``, with the same result, checked in the tests).
+The likelihoods are the sensors' own (``sensor.log_likelihood`` for a detection,
+``sensor.log_miss_likelihood`` for a look without one; contract
+``activetrack.models.base.SensorModel``): angle residuals wrapped, and for the built-in
+bearing and range-bearing sensors computed inline from the particle offsets.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from functools import partial
+from typing import Any
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite, require_in_range, require_spd
 from activetrack.filters.measurement import (
     Measurement,
@@ -41,71 +45,96 @@ from activetrack.filters.measurement import (
     check_predict_time,
 )
 from activetrack.filters.resampling import roughen, systematic_resample
-from activetrack.models.sensors import BearingSensor, RangeBearingSensor
+from activetrack.models.base import MotionModel
 
 __all__ = ["FilterCollapseError", "ParticleFilter"]
 
 DEFAULT_PARTICLES = 10_000
-_LOG_2PI = math.log(2.0 * math.pi)
 _RESAMPLE_MODES = ("always", "ess")
 _MIN_RANGE_MODES = ("ignore", "negative")
 _COLLAPSE_MODES = ("reset", "raise")
-PV_NAMES = ("x", "xdot", "y", "ydot")
-# Sensors whose likelihood is computed inline (exact type: subclasses take the generic path).
-_FAST_SENSORS = (BearingSensor, RangeBearingSensor)
 
 
 class FilterCollapseError(RuntimeError):
     """Every particle weight vanished: no particle explains the measurements."""
 
 
-def _log_gauss_whitener(R: np.ndarray) -> tuple[np.ndarray, float]:
-    """``(L^-1)^T`` and ``-0.5 log det(2 pi R)`` for R = L L^T (cached per sensor)."""
-    L = np.linalg.cholesky(R)
-    dim_z = R.shape[0]
-    Linv_T = np.linalg.solve(L, np.eye(dim_z)).T
-    return Linv_T, -float(np.sum(np.log(np.diag(L)))) - 0.5 * dim_z * _LOG_2PI
+def _check_modes(resample: str, min_range: str, on_collapse: str) -> None:
+    """Raise unless the mode names are known."""
+    if resample not in _RESAMPLE_MODES:
+        raise ValueError(f"resample must be one of {_RESAMPLE_MODES}, got {resample!r}")
+    if min_range not in _MIN_RANGE_MODES:
+        raise ValueError(f"min_range must be one of {_MIN_RANGE_MODES}, got {min_range!r}")
+    if on_collapse not in _COLLAPSE_MODES:
+        raise ValueError(f"on_collapse must be one of {_COLLAPSE_MODES}, got {on_collapse!r}")
 
 
-def _offsets(pv: np.ndarray, s: np.ndarray):
-    """Particle-minus-sensor position (dx, dy) and range r, each ``(N,)``."""
-    dx = pv[:, 0] - s[0]
-    dy = pv[:, 2] - s[2]
-    return dx, dy, np.sqrt(dx * dx + dy * dy)
+def _check_count(n_particles: object) -> int | None:
+    """``n_particles`` as an int >= 1, or None."""
+    if n_particles is None:
+        return None
+    if (
+        isinstance(n_particles, bool)
+        or not isinstance(n_particles, int | np.integer)
+        or n_particles < 1
+    ):
+        raise ValueError(f"n_particles must be an integer >= 1, got {n_particles!r}")
+    return int(n_particles)
 
 
-def _fast_log_gauss(sensor, dx, dy, r, z) -> np.ndarray:
-    """-0.5 nu^T R^-1 nu per particle for ``BearingSensor`` / ``RangeBearingSensor``.
+def _given_particles(
+    particles: ArrayLike, x0: object, P0: object, n: int, n_particles: int | None
+) -> FloatArray:
+    """A copy of a given particle set ``(N, n)``, checked."""
+    if x0 is not None or P0 is not None:
+        raise ValueError("particles: give either particles or (x0, P0), not both")
+    X = require_finite("particles", particles)
+    if X.ndim != 2 or X.shape[1] != n or X.shape[0] < 1:
+        raise ValueError(f"particles must have shape (N >= 1, {n}), got {X.shape}")
+    if n_particles is not None and n_particles != X.shape[0]:
+        raise ValueError(f"n_particles must equal len(particles) = {X.shape[0]}, got {n_particles}")
+    return X.copy()
 
-    The wrapped bearing residual e = wrap(z_b - atan2(dy, dx)) comes from
-    r sin(e) = dx sin z_b - dy cos z_b and r cos(e) = dx cos z_b + dy sin z_b:
-    |e| = asin(|r sin e| / r) when cos e >= 0, else pi - asin(...). Only e^2 enters, and
-    arcsin costs a fraction of arctan2 on large arrays. (|e| near pi/2 loses ~1e-8 rad to
-    the arcsin's slope, immaterial for a likelihood that far in the tail.)
-    """
-    zb = float(z[-1])
-    cz, sz = math.cos(zb), math.sin(zb)
-    a = dx * sz
-    a -= dy * cz
-    np.abs(a, out=a)
-    a /= r  # |sin e|; NaN for a particle on the sensor (weight 0 downstream)
-    np.minimum(a, 1.0, out=a)
-    np.arcsin(a, out=a)
-    behind = dx * cz + dy * sz < 0.0  # cos e < 0: |e| > pi/2
-    np.subtract(math.pi, a, out=a, where=behind)
-    if type(sensor) is BearingSensor:
-        a *= a
-        a *= -0.5 / sensor.sigma**2
-        return a
-    a /= sensor.sigma_b
-    e_r = (float(z[0]) - r) / sensor.sigma_r
-    return -0.5 * (a * a + e_r * e_r)
+
+def _drawn_particles(
+    x0: ArrayLike | None,
+    P0: ArrayLike | None,
+    weights: object,
+    n: int,
+    n_particles: int | None,
+    rng: np.random.Generator,
+) -> FloatArray:
+    """N draws from N(x0, P0), ``(N, n)``."""
+    if x0 is None or P0 is None:
+        raise ValueError("x0 and P0 are required unless particles are given")
+    if weights is not None:
+        raise ValueError("weights can only be given together with particles")
+    mean = require_finite("x0", x0)
+    if mean.shape != (n,):
+        raise ValueError(f"x0 must have shape ({n},) for this model, got {mean.shape}")
+    cov = require_spd("P0", P0)
+    if cov.shape != (n, n):
+        raise ValueError(f"P0 must have shape ({n}, {n}) for this model, got {cov.shape}")
+    N = DEFAULT_PARTICLES if n_particles is None else n_particles
+    return mean + rng.standard_normal((N, n)) @ np.linalg.cholesky(cov).T
+
+
+def _initial_weights(weights: ArrayLike | None, N: int) -> FloatArray:
+    """Normalised weights ``(N,)``: uniform, or the given ones checked."""
+    if weights is None:
+        return np.full(N, 1.0 / N)
+    w = require_finite("weights", weights)
+    if w.shape != (N,) or np.any(w < 0.0) or not w.sum() > 0.0:
+        raise ValueError(
+            f"weights must be ({N},), non-negative, with a positive sum; got shape {w.shape}"
+        )
+    return w / w.sum()
 
 
 class ParticleFilter:
     """SIR particle filter over any motion model.
 
-    model: motion model (``dim``, ``sample``, ``kinematics``).
+    model: motion model (``activetrack.models.base.MotionModel``).
     x0, P0: Gaussian to draw the initial particles from, ``(n,)`` and ``(n, n)`` SPD; or
         give ``particles`` ``(N, n)`` (and optionally ``weights`` ``(N,)``) instead, e.g. a
         set handed over by a planner.
@@ -124,27 +153,22 @@ class ParticleFilter:
 
     def __init__(
         self,
-        model,
-        x0=None,
-        P0=None,
+        model: MotionModel,
+        x0: ArrayLike | None = None,
+        P0: ArrayLike | None = None,
         n_particles: int | None = None,
-        rng=None,
+        rng: np.random.Generator | int | None = None,
         resample: str = "always",
         ess_threshold: float = 0.5,
         roughening: float = 0.0,
         min_range: str = "ignore",
         t0: float = 0.0,
-        particles=None,
-        weights=None,
+        particles: ArrayLike | None = None,
+        weights: ArrayLike | None = None,
         on_collapse: str = "reset",
     ):
         n = int(model.dim)
-        if resample not in _RESAMPLE_MODES:
-            raise ValueError(f"resample must be one of {_RESAMPLE_MODES}, got {resample!r}")
-        if min_range not in _MIN_RANGE_MODES:
-            raise ValueError(f"min_range must be one of {_MIN_RANGE_MODES}, got {min_range!r}")
-        if on_collapse not in _COLLAPSE_MODES:
-            raise ValueError(f"on_collapse must be one of {_COLLAPSE_MODES}, got {on_collapse!r}")
+        _check_modes(resample, min_range, on_collapse)
         self.ess_threshold = require_in_range("ess_threshold", ess_threshold, 0.0, 1.0)
         self.roughening = require_in_range(
             "roughening", roughening, 0.0, math.inf, hi_inclusive=False
@@ -152,52 +176,13 @@ class ParticleFilter:
         t0 = float(t0)
         if not math.isfinite(t0):
             raise ValueError(f"t0 must be finite, got {t0!r}")
-        if n_particles is not None:
-            if (
-                isinstance(n_particles, bool)
-                or not isinstance(n_particles, int | np.integer)
-                or n_particles < 1
-            ):
-                raise ValueError(f"n_particles must be an integer >= 1, got {n_particles!r}")
-            n_particles = int(n_particles)
+        count = _check_count(n_particles)
         self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-
         if particles is not None:
-            if x0 is not None or P0 is not None:
-                raise ValueError("particles: give either particles or (x0, P0), not both")
-            X = require_finite("particles", particles)
-            if X.ndim != 2 or X.shape[1] != n or X.shape[0] < 1:
-                raise ValueError(f"particles must have shape (N >= 1, {n}), got {X.shape}")
-            if n_particles is not None and n_particles != X.shape[0]:
-                raise ValueError(
-                    f"n_particles must equal len(particles) = {X.shape[0]}, got {n_particles}"
-                )
-            X = X.copy()
+            X = _given_particles(particles, x0, P0, n, count)
         else:
-            if x0 is None or P0 is None:
-                raise ValueError("x0 and P0 are required unless particles are given")
-            if weights is not None:
-                raise ValueError("weights can only be given together with particles")
-            x0 = require_finite("x0", x0)
-            if x0.shape != (n,):
-                raise ValueError(f"x0 must have shape ({n},) for this model, got {x0.shape}")
-            P0 = require_spd("P0", P0)
-            if P0.shape != (n, n):
-                raise ValueError(f"P0 must have shape ({n}, {n}) for this model, got {P0.shape}")
-            N = DEFAULT_PARTICLES if n_particles is None else n_particles
-            X = x0 + self.rng.standard_normal((N, n)) @ np.linalg.cholesky(P0).T
-        N = X.shape[0]
-
-        if weights is None:
-            w = np.full(N, 1.0 / N)
-        else:
-            w = require_finite("weights", weights)
-            if w.shape != (N,) or np.any(w < 0.0) or not w.sum() > 0.0:
-                raise ValueError(
-                    f"weights must be ({N},), non-negative, with a positive sum; got shape "
-                    f"{w.shape}"
-                )
-            w = w / w.sum()
+            X = _drawn_particles(x0, P0, weights, n, count, self.rng)
+        w = _initial_weights(weights, X.shape[0])
         self.model = model
         self.resample = resample
         self.min_range = min_range
@@ -205,19 +190,25 @@ class ParticleFilter:
         self._X = X
         self._w = w
         # Log weights; None stands for uniform weights (after resampling) to save a pass.
-        if weights is None:
-            self._logw = None
-        else:
+        self._logw: FloatArray | None = None
+        if weights is not None:
             with np.errstate(divide="ignore"):
                 self._logw = np.log(w)
         # The pv-state models need no kinematics map (pv = x).
-        self._pv_state = tuple(model.state_names) == PV_NAMES
+        self._pv_state = bool(model.state_is_pv)
         self._t = t0
-        self._moments: tuple[np.ndarray, np.ndarray] | None = None
+        self._moments: tuple[FloatArray, FloatArray] | None = None
         self.last_info: UpdateInfo | None = None
 
     @classmethod
-    def from_particles(cls, model, particles, weights=None, t0: float = 0.0, **options):
+    def from_particles(
+        cls,
+        model: MotionModel,
+        particles: ArrayLike,
+        weights: ArrayLike | None = None,
+        t0: float = 0.0,
+        **options: Any,
+    ) -> ParticleFilter:
         """Start from a given particle set ``(N, n)`` and optional weights ``(N,)``."""
         return cls(model, particles=particles, weights=weights, t0=t0, **options)
 
@@ -281,7 +272,9 @@ class ParticleFilter:
             self._moments = None
         self._t = t
 
-    def _log_likelihood(self, measurements: Sequence[Measurement]):
+    def _log_likelihood(
+        self, measurements: Sequence[Measurement]
+    ) -> tuple[FloatArray | None, float, int]:
         """Sum over measurements of log p(z_j | x^i) per particle, plus a shared constant.
 
         Returns ``(ell, const, n_missed)``: ell ``(N,)``, or None when no measurement carries
@@ -300,28 +293,15 @@ class ParticleFilter:
             sensor, s = m.sensor, m.sensor_state
             if pv is None:
                 pv = self._X if self._pv_state else self.model.kinematics(self._X)
-            fast = type(sensor) in _FAST_SENSORS
-            if fast:
-                dx, dy, r = _offsets(pv, s)
-            if negative:
-                inside = (r >= sensor.r_min) & (r <= sensor.r_max) if fast else None
-                if inside is None:
-                    inside = sensor.in_range(pv, s)
             if m.z is None:
                 # P(no detection | x) = 1 - pd I_r(x): 1 outside the detection ranges.
-                pd = float(sensor.pd)
-                term = np.where(inside, math.log(1.0 - pd) if pd < 1.0 else -math.inf, 0.0)
+                term = sensor.log_miss_likelihood(pv, s)
             else:
-                Linv_T, log_norm = _whitener(sensor)
+                # "negative": pd I_r(x) N(z; h(x), R), the I_r part in the term.
+                term, log_norm = sensor.log_likelihood(m.z, pv, s, gate=negative)
                 const += log_norm
-                if fast:
-                    term = _fast_log_gauss(sensor, dx, dy, r, m.z)
-                else:
-                    e = sensor.residual(m.z, sensor.measure(pv, s)) @ Linv_T  # (N, dim_z)
-                    term = -0.5 * np.einsum("ij,ij->i", e, e)
                 if negative:
                     const += math.log(float(sensor.pd))  # the sensors require pd > 0
-                    term = np.where(inside, term, -math.inf)
             ell = term if ell is None else ell + term
         return ell, const, n_missed
 
@@ -336,9 +316,11 @@ class ParticleFilter:
             ell, const, n_missed = self._log_likelihood(measurements)
         ids = tuple(m.sensor_id for m in measurements)
         n_det = len(measurements) - n_missed
-        common = dict(time=self._t, n_detections=n_det, n_missed=n_missed, sensor_ids=ids)
+        common = partial(
+            UpdateInfo, time=self._t, n_detections=n_det, n_missed=n_missed, sensor_ids=ids
+        )
         if ell is None:  # nothing informative: weights unchanged, no resampling
-            info = UpdateInfo(ess=self.ess, **common)
+            info = common(ess=self.ess)
             self.last_info = info
             return info
 
@@ -355,12 +337,11 @@ class ParticleFilter:
             )
             if self.on_collapse == "raise":
                 raise FilterCollapseError(message)
-            info = UpdateInfo(
+            info = common(
                 ess=self.ess,
                 collapsed=True,
                 log_likelihood=-math.inf,
                 message=message + "; update discarded, predicted particles kept",
-                **common,
             )
             self.last_info = info
             return info
@@ -386,7 +367,7 @@ class ParticleFilter:
             logw -= log_norm
             self._logw = logw
         self._moments = None
-        info = UpdateInfo(ess=ess, resampled=resampled, log_likelihood=log_lik, **common)
+        info = common(ess=ess, resampled=resampled, log_likelihood=log_lik)
         self.last_info = info
         return info
 
@@ -394,19 +375,3 @@ class ParticleFilter:
         """``predict(t)`` then ``update(measurements)``."""
         self.predict(t)
         return self.update(measurements)
-
-
-_WHITENERS: dict[int, tuple[object, tuple[np.ndarray, float]]] = {}
-
-
-def _whitener(sensor) -> tuple[np.ndarray, float]:
-    """Cached ``_log_gauss_whitener(sensor.R)`` (sensors are frozen, so R does not change)."""
-    key = id(sensor)
-    hit = _WHITENERS.get(key)
-    if hit is not None and hit[0] is sensor:  # the stored reference keeps the id unique
-        return hit[1]
-    value = _log_gauss_whitener(np.asarray(sensor.R, dtype=float))
-    if len(_WHITENERS) > 256:
-        _WHITENERS.clear()
-    _WHITENERS[key] = (sensor, value)
-    return value

@@ -11,12 +11,18 @@ For |theta| < SMALL the Taylor series (truncation error below 1e-16 relative) re
 closed forms, whose cancellation would otherwise lose digits or divide by zero.
 """
 
+from __future__ import annotations
+
 import numpy as np
+
+from activetrack.arraytypes import ArrayLike, FloatArray
 
 SMALL = 0.05
 
 
-def turn_terms(omega, T):
+def turn_terms(
+    omega: ArrayLike, T: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """Return ``(s1, c1, c2, d3, ds1, dc1)`` for array ``omega`` and scalar ``T``."""
     omega = np.asarray(omega, dtype=float)
     theta = omega * T

@@ -24,17 +24,22 @@ The known-omega variant (eq. 29) drops omega from the state: (psi, px, py, v).
 psi is not wrapped by ``propagate``: it evolves continuously, so particle means stay valid.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite, require_nonnegative
 from activetrack.models._common import add_gaussian_noise, check_dt, check_rng, check_state
 from activetrack.models._turn_terms import turn_terms
 
 
-def _circular_step(psi, px, py, omega, v, T):
+def _circular_step(
+    psi: FloatArray, px: FloatArray, py: FloatArray, omega: ArrayLike, v: FloatArray, T: float
+) -> tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
     """Eq. 24 without noise plus the partial derivatives of (px', py') (module docstring)."""
     s1, c1, _, _, ds1, dc1 = turn_terms(omega, T)
     cos, sin = np.cos(psi), np.sin(psi)
@@ -45,11 +50,13 @@ def _circular_step(psi, px, py, omega, v, T):
     return (px + v * A, py + v * B), (A, B, dA_domega, dB_domega)
 
 
-def _pv_from_heading(psi, px, py, v):
+def _pv_from_heading(psi: FloatArray, px: FloatArray, py: FloatArray, v: FloatArray) -> FloatArray:
     return np.stack([px, v * np.cos(psi), py, v * np.sin(psi)], axis=-1)
 
 
-def _pv_jacobian_rows(psi, v):
+def _pv_jacobian_rows(
+    psi: FloatArray, v: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """d pv / d (psi, px, py, v) as four (..., 4) rows."""
     z, one = np.zeros_like(psi), np.ones_like(psi)
     cos, sin = np.cos(psi), np.sin(psi)
@@ -71,14 +78,15 @@ class CircularMotion:
     dim: ClassVar[int] = 5
     state_names: ClassVar[tuple[str, ...]] = ("psi", "px", "py", "omega", "v")
     is_linear: ClassVar[bool] = False
+    state_is_pv: ClassVar[bool] = False
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(
             self, "sigma_omega", require_nonnegative("sigma_omega", self.sigma_omega)
         )
         object.__setattr__(self, "sigma_v", require_nonnegative("sigma_v", self.sigma_v))
 
-    def propagate(self, x, dt):
+    def propagate(self, x: ArrayLike, dt: float) -> FloatArray:
         """Noise-free eq. 24, ``(..., 5) -> (..., 5)``."""
         x = check_state("x", x, 5)
         T = check_dt(dt)
@@ -86,7 +94,7 @@ class CircularMotion:
         (px1, py1), _ = _circular_step(psi, px, py, omega, v, T)
         return np.stack([psi + omega * T, px1, py1, omega, v], axis=-1)
 
-    def jacobian(self, x, dt):
+    def jacobian(self, x: ArrayLike, dt: float) -> FloatArray:
         """d f / d x of eq. 24 (replaces the damaged eq. 26-28), ``(..., 5, 5)``."""
         x = check_state("x", x, 5)
         T = check_dt(dt)
@@ -99,23 +107,23 @@ class CircularMotion:
         F[..., 2, 0], F[..., 2, 3], F[..., 2, 4] = v * A, v * dB, B
         return F
 
-    def process_noise(self, dt, x=None):
+    def process_noise(self, dt: float, x: ArrayLike | None = None) -> FloatArray:
         """Q = blkdiag(0_3, T diag(sigma_omega^2, sigma_v^2)) (eq. 25), (5, 5)."""
         T = check_dt(dt)
         return np.diag([0.0, 0.0, 0.0, T * self.sigma_omega**2, T * self.sigma_v**2])
 
-    def sample(self, x, dt, rng):
+    def sample(self, x: ArrayLike, dt: float, rng: np.random.Generator) -> FloatArray:
         """f(x) + sqrt(T) B eta (eq. 24), batched over ``(..., 5)``."""
         check_rng(rng)
         return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
 
-    def kinematics(self, x):
+    def kinematics(self, x: ArrayLike) -> FloatArray:
         """pv = (px, v cos psi, py, v sin psi), ``(..., 4)``."""
         x = check_state("x", x, 5)
         psi, px, py, _, v = np.moveaxis(x, -1, 0)
         return _pv_from_heading(psi, px, py, v)
 
-    def kinematics_jacobian(self, x):
+    def kinematics_jacobian(self, x: ArrayLike) -> FloatArray:
         """d pv / d x, ``(..., 4, 5)`` (zero column for omega)."""
         x = check_state("x", x, 5)
         psi, v = x[..., 0], x[..., 4]
@@ -136,12 +144,13 @@ class CircularMotionKnownOmega:
     dim: ClassVar[int] = 4
     state_names: ClassVar[tuple[str, ...]] = ("psi", "px", "py", "v")
     is_linear: ClassVar[bool] = False
+    state_is_pv: ClassVar[bool] = False
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "omega", float(require_finite("omega", self.omega)))
         object.__setattr__(self, "sigma_v", require_nonnegative("sigma_v", self.sigma_v))
 
-    def propagate(self, x, dt):
+    def propagate(self, x: ArrayLike, dt: float) -> FloatArray:
         """Noise-free eq. 29 (eq. 24 with omega fixed), ``(..., 4) -> (..., 4)``."""
         x = check_state("x", x, 4)
         T = check_dt(dt)
@@ -149,7 +158,7 @@ class CircularMotionKnownOmega:
         (px1, py1), _ = _circular_step(psi, px, py, self.omega, v, T)
         return np.stack([psi + self.omega * T, px1, py1, v], axis=-1)
 
-    def jacobian(self, x, dt):
+    def jacobian(self, x: ArrayLike, dt: float) -> FloatArray:
         """Eq. 26-28 with the omega row and column deleted, ``(..., 4, 4)``."""
         x = check_state("x", x, 4)
         T = check_dt(dt)
@@ -161,23 +170,23 @@ class CircularMotionKnownOmega:
         F[..., 2, 0], F[..., 2, 3] = v * A, B
         return F
 
-    def process_noise(self, dt, x=None):
+    def process_noise(self, dt: float, x: ArrayLike | None = None) -> FloatArray:
         """Q = diag(0, 0, 0, T sigma_v^2), (4, 4)."""
         T = check_dt(dt)
         return np.diag([0.0, 0.0, 0.0, T * self.sigma_v**2])
 
-    def sample(self, x, dt, rng):
+    def sample(self, x: ArrayLike, dt: float, rng: np.random.Generator) -> FloatArray:
         """f(x) + w, w ~ N(0, Q), batched over ``(..., 4)``."""
         check_rng(rng)
         return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
 
-    def kinematics(self, x):
+    def kinematics(self, x: ArrayLike) -> FloatArray:
         """pv = (px, v cos psi, py, v sin psi), ``(..., 4)``."""
         x = check_state("x", x, 4)
         psi, px, py, v = np.moveaxis(x, -1, 0)
         return _pv_from_heading(psi, px, py, v)
 
-    def kinematics_jacobian(self, x):
+    def kinematics_jacobian(self, x: ArrayLike) -> FloatArray:
         """d pv / d x, ``(..., 4, 4)``."""
         x = check_state("x", x, 4)
         return np.stack(_pv_jacobian_rows(x[..., 0], x[..., 3]), axis=-2)

@@ -12,51 +12,64 @@ Two noise conventions, both with the transition of Ramdaras eq. 4:
   G = [[T^2/2 sigma_x, 0], [T sigma_x, 0], [0, T^2/2 sigma_y], [0, T sigma_y]].
 """
 
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_nonnegative
 from activetrack.models._common import add_gaussian_noise, check_dt, check_rng, check_state
 
 PV_NAMES = ("x", "xdot", "y", "ydot")
 
 
-def cv_transition(dt):
+def cv_transition(dt: float) -> FloatArray:
     """Ramdaras eq. 4 F for pv states, shape (4, 4)."""
     F = np.eye(4)
     F[0, 1] = F[2, 3] = dt
     return F
 
 
-class _LinearPV:
-    """Members shared by the linear models whose state is pv itself."""
+class _LinearPV(ABC):
+    """Members shared by the linear models whose state is pv itself (``state_is_pv``)."""
 
     dim: ClassVar[int] = 4
     state_names: ClassVar[tuple[str, ...]] = PV_NAMES
     is_linear: ClassVar[bool] = True
+    state_is_pv: ClassVar[bool] = True
 
-    def propagate(self, x, dt):
+    @abstractmethod
+    def transition_matrix(self, dt: float) -> FloatArray:
+        """The constant F, (4, 4)."""
+
+    @abstractmethod
+    def process_noise(self, dt: float, x: ArrayLike | None = None) -> FloatArray:
+        """Q, (4, 4)."""
+
+    def propagate(self, x: ArrayLike, dt: float) -> FloatArray:
         """Noise-free f(x) = F x, ``(..., 4) -> (..., 4)``."""
         x = check_state("x", x, 4)
         return x @ self.transition_matrix(dt).T
 
-    def jacobian(self, x, dt):
+    def jacobian(self, x: ArrayLike, dt: float) -> FloatArray:
         """df/dx = F broadcast to ``(..., 4, 4)``."""
         x = check_state("x", x, 4)
         return np.broadcast_to(self.transition_matrix(dt), (*x.shape[:-1], 4, 4)).copy()
 
-    def sample(self, x, dt, rng):
+    def sample(self, x: ArrayLike, dt: float, rng: np.random.Generator) -> FloatArray:
         """f(x) + w, w ~ N(0, Q), independently for each state of the batch ``(..., 4)``."""
         check_rng(rng)
         return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
 
-    def kinematics(self, x):
+    def kinematics(self, x: ArrayLike) -> FloatArray:
         """The state is already pv: returns a copy, ``(..., 4)``."""
         return np.array(check_state("x", x, 4), dtype=float)
 
-    def kinematics_jacobian(self, x):
+    def kinematics_jacobian(self, x: ArrayLike) -> FloatArray:
         """d pv / dx = I, ``(..., 4, 4)``."""
         x = check_state("x", x, 4)
         return np.broadcast_to(np.eye(4), (*x.shape[:-1], 4, 4)).copy()
@@ -71,14 +84,14 @@ class NearlyConstantVelocity(_LinearPV):
 
     q: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "q", require_nonnegative("q", self.q))
 
-    def transition_matrix(self, dt):
+    def transition_matrix(self, dt: float) -> FloatArray:
         """F of Ramdaras eq. 4, (4, 4)."""
         return cv_transition(check_dt(dt))
 
-    def process_noise(self, dt, x=None):
+    def process_noise(self, dt: float, x: ArrayLike | None = None) -> FloatArray:
         """Q = q * blkdiag(Q1, Q1), Q1 = [[T^3/3, T^2/2], [T^2/2, T]], shape (4, 4)."""
         T = check_dt(dt)
         Q1 = self.q * np.array([[T**3 / 3, T**2 / 2], [T**2 / 2, T]])
@@ -94,15 +107,15 @@ class NearlyConstantVelocityDiscrete(_LinearPV):
     sigma_x: float
     sigma_y: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "sigma_x", require_nonnegative("sigma_x", self.sigma_x))
         object.__setattr__(self, "sigma_y", require_nonnegative("sigma_y", self.sigma_y))
 
-    def transition_matrix(self, dt):
+    def transition_matrix(self, dt: float) -> FloatArray:
         """F of Ramdaras eq. 4, (4, 4)."""
         return cv_transition(check_dt(dt))
 
-    def noise_gain(self, dt):
+    def noise_gain(self, dt: float) -> FloatArray:
         """G of Ramdaras eq. 4, (4, 2): the noise enters as G u with u ~ N(0, I_2)."""
         T = check_dt(dt)
         G = np.zeros((4, 2))
@@ -110,7 +123,7 @@ class NearlyConstantVelocityDiscrete(_LinearPV):
         G[2, 1], G[3, 1] = 0.5 * T**2 * self.sigma_y, T * self.sigma_y
         return G
 
-    def process_noise(self, dt, x=None):
+    def process_noise(self, dt: float, x: ArrayLike | None = None) -> FloatArray:
         """Q = G G^T (Ramdaras eq. 3-4), shape (4, 4)."""
         G = self.noise_gain(dt)
         return G @ G.T

@@ -17,10 +17,13 @@ with c2 = (1 - cos theta)/omega^2 and d3 = (theta - sin theta)/omega^3 (see _tur
 As omega -> 0 this tends to the NCV Q (2 d3 -> T^3/3, c2 -> T^2/2, omega d3 -> 0).
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite, require_nonnegative
 from activetrack.models._common import check_dt
 from activetrack.models._turn_terms import turn_terms
@@ -34,12 +37,12 @@ class ConstantTurn(_LinearPV):
     omega: float
     q: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         omega = float(require_finite("omega", self.omega))
         object.__setattr__(self, "omega", omega)
         object.__setattr__(self, "q", require_nonnegative("q", self.q))
 
-    def transition_matrix(self, dt):
+    def transition_matrix(self, dt: float) -> FloatArray:
         """Phi of Valverde eq. 35, (4, 4); reduces to the CV matrix at omega = 0."""
         T = check_dt(dt)
         s1, c1, _, _, _, _ = turn_terms(self.omega, T)
@@ -53,11 +56,11 @@ class ConstantTurn(_LinearPV):
             ]
         )
 
-    def process_noise(self, dt, x=None):
+    def process_noise(self, dt: float, x: ArrayLike | None = None) -> FloatArray:
         """Q of Valverde eq. 37 in closed form (module docstring), (4, 4), symmetric PSD."""
         T = check_dt(dt)
-        _, _, c2, d3, _, _ = turn_terms(self.omega, T)
-        c2, d3 = float(c2), float(d3)
+        terms = turn_terms(self.omega, T)
+        c2, d3 = float(terms[2]), float(terms[3])
         wd3 = self.omega * d3
         Q = np.array(
             [

@@ -3,10 +3,19 @@
 ``plan(platforms, belief, settings, F=..., Q=..., dt=...)`` is the entry point; see
 :mod:`activetrack.planning.planner`. Building blocks: the manoeuvre model (``manoeuvre``),
 batched PCRLB costs (``costs``), the searches (``searches``), the horizons (``horizons``) and
-the multi-platform iteration (``multisensor``).
+the multi-platform iteration (``multisensor``). The criteria of every planner (PCRLB planning,
+MRE positioning and selection) live in one registry, ``criteria``; MRE positioning and
+selection (Ramdaras) in ``selection``.
 """
 
-from activetrack.planning.costs import CRITERIA, HorizonModel, criterion_cost, platform_information
+from activetrack.planning.costs import HorizonModel, criterion_cost, platform_information
+from activetrack.planning.criteria import (
+    Criterion,
+    criterion_names,
+    get_criterion,
+    register_criterion,
+    unregister_criterion,
+)
 from activetrack.planning.horizons import SearchSettings, optimise_platform
 from activetrack.planning.manoeuvre import (
     PlatformLimits,
@@ -39,9 +48,9 @@ from activetrack.planning.searches import (
 )
 
 __all__ = [
-    "CRITERIA",
     "SEARCHES",
     "Coordination",
+    "Criterion",
     "HorizonModel",
     "PlanReport",
     "PlanResult",
@@ -55,7 +64,9 @@ __all__ = [
     "advance_belief",
     "coordinate_platforms",
     "criterion_cost",
+    "criterion_names",
     "evolution_search",
+    "get_criterion",
     "grid_search",
     "hold_course",
     "manoeuvre_to_unit",
@@ -64,9 +75,11 @@ __all__ = [
     "platform_information",
     "platforms_from_scenario",
     "quadrant_search",
+    "register_criterion",
     "rollout",
     "sector_search",
     "speed_interval",
     "step_platform",
     "unit_to_manoeuvre",
+    "unregister_criterion",
 ]

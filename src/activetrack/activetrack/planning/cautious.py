@@ -24,6 +24,7 @@ from statistics import NormalDist
 import numpy as np
 
 from activetrack.angles import wrap_angle, wrap_half_angle
+from activetrack.arraytypes import ArrayLike
 from activetrack.checks import (
     require_finite,
     require_in_range,
@@ -52,7 +53,7 @@ __all__ = [
 TAILS = ("two_sided", "one_sided")
 
 
-def sigma_beta(beta, tail="two_sided"):
+def sigma_beta(beta: float, tail: str = "two_sided") -> float:
     """Largest innovation standard deviation that is beta-cautious (line after eq. 3).
 
     ``tail="two_sided"`` (the printed formula): sigma_beta = pi / (2 Phi^-1(1 - beta / 2)), so a
@@ -74,7 +75,7 @@ def sigma_beta(beta, tail="two_sided"):
     raise ValueError(f"tail must be one of {TAILS}, got {tail!r}")
 
 
-def caution_gamma(beta, sigma_s, tail="two_sided"):
+def caution_gamma(beta: float, sigma_s: float, tail: str = "two_sided") -> float:
     """gamma = sigma_beta^2 / sigma_s^2 (Lemma 4): the variance reduction of one cautious step
     (may be inf: one-sided beta = 0.5 puts no bound on the range).
 
@@ -91,7 +92,7 @@ def caution_gamma(beta, sigma_s, tail="two_sided"):
     return (sb / sigma_s) ** 2
 
 
-def principal_axes(P):
+def principal_axes(P: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Eigen-decomposition of ``P (..., 2, 2)`` sorted largest first.
 
     Returns ``(variances (..., 2), major (..., 2))``: sigma^2(1) >= sigma^2(2) and the unit
@@ -101,7 +102,9 @@ def principal_axes(P):
     return w[..., ::-1], V[..., :, 1]
 
 
-def cautious_range(P, alpha, beta, sigma_s, tail="two_sided"):
+def cautious_range(
+    P: ArrayLike, alpha: ArrayLike, beta: float, sigma_s: float, tail: str = "two_sided"
+) -> np.ndarray:
     """Smallest beta-cautious range (eq. 3), ``(...)``.
 
     r >= sqrt((sigma^2(1) sin^2 alpha + sigma^2(2) cos^2 alpha) / (sigma_beta^2 - sigma_s^2)),
@@ -118,7 +121,9 @@ def cautious_range(P, alpha, beta, sigma_s, tail="two_sided"):
     return np.sqrt(across / (float(sigma_s) ** 2 * (gamma - 1.0)))
 
 
-def measurement_waypoint(x_hat, P, robot, r, tie_rtol=1e-9):
+def measurement_waypoint(
+    x_hat: ArrayLike, P: ArrayLike, robot: ArrayLike, r: ArrayLike, tie_rtol: float = 1e-9
+) -> np.ndarray:
     """Next sensing location s_i (Algorithm 1, lines 5-7), ``(..., 2)``.
 
     The two cautious points lie at range r from x_hat on the line through x_hat perpendicular
@@ -160,7 +165,9 @@ class AmbiguousUpdate:
     bearing: np.ndarray
 
 
-def ambiguous_bearing_update(x_hat, P, z, sensor, sigma_s):
+def ambiguous_bearing_update(
+    x_hat: ArrayLike, P: ArrayLike, z: ArrayLike, sensor: ArrayLike, sigma_s: float
+) -> AmbiguousUpdate:
     """EKF update of a stationary 2-D target with an ambiguous bearing (003 sec. II-III).
 
     h(x, s) = atan2(x_y - s_y, x_x - s_x); H = [-dy, dx] / r^2 = [-sin a, cos a] / r;
@@ -195,7 +202,7 @@ def ambiguous_bearing_update(x_hat, P, z, sensor, sigma_s):
     )
 
 
-def reduction_reached(P, P0, c_d):
+def reduction_reached(P: ArrayLike, P0: ArrayLike, c_d: float) -> np.ndarray:
     """Stopping rule of Algorithm 1 (negation of line 4), bool ``(...)``.
 
     True once sigma(1) < c_d sigma_0(1) and sigma(2) < c_d sigma_0(2), the standard deviations
@@ -207,7 +214,7 @@ def reduction_reached(P, P0, c_d):
     return np.all(var < c_d**2 * var0, axis=-1)
 
 
-def position_estimate(mean, cov):
+def position_estimate(mean: ArrayLike, cov: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """The (x, y) block of an estimate given either as position (2,) or as pv (4,).
 
     pv is (x, xdot, y, ydot) (core contract), so the position entries are 0 and 2.
@@ -260,7 +267,7 @@ class CautiousPlanner:
     tail: str = "two_sided"
     _P0: np.ndarray = field(init=False, repr=False, compare=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         # Validates beta, sigma_s, tail and sigma_beta > sigma_s.
         gamma = caution_gamma(self.beta, self.sigma_s, self.tail)
         require_in_range("c_d", self.c_d, 0.0, 1.0, lo_inclusive=False, hi_inclusive=False)
@@ -281,7 +288,7 @@ class CautiousPlanner:
     def gamma(self) -> float:
         return caution_gamma(self.beta, self.sigma_s, self.tail)
 
-    def is_done(self, cov, n_measurements: int = 0) -> bool:
+    def is_done(self, cov: ArrayLike, n_measurements: int = 0) -> bool:
         """Stopping rule (Algorithm 1 line 4, and ``max_measurements``)."""
         if self.max_measurements is not None and n_measurements >= self.max_measurements:
             return True
@@ -292,7 +299,9 @@ class CautiousPlanner:
             raise ValueError(f"cov must be (2, 2) or pv (4, 4), got {P.shape}")
         return bool(reduction_reached(P, self._P0, self.c_d))
 
-    def next_action(self, mean, cov, robot_position, n_measurements: int = 0) -> CautiousAction:
+    def next_action(
+        self, mean: ArrayLike, cov: ArrayLike, robot_position: ArrayLike, n_measurements: int = 0
+    ) -> CautiousAction:
         """Algorithm 1 lines 4-7 for the current estimate.
 
         mean/cov: the target estimate, position (2,)/(2, 2) or pv (4,)/(4, 4);
@@ -306,13 +315,15 @@ class CautiousPlanner:
             raise ValueError(f"robot_position must be (2,) or pv (4,), got {robot.shape}")
         if self.is_done(P, n_measurements):
             return CautiousAction(True, None, 0.0, 0.0, 0.0)
-        r = cautious_range(P, 0.5 * math.pi, self.beta, self.sigma_s, self.tail)
-        r = max(float(r), self.r_min)
+        r_cautious = cautious_range(P, 0.5 * math.pi, self.beta, self.sigma_s, self.tail)
+        r = max(float(r_cautious), self.r_min)
         waypoint = measurement_waypoint(x_hat, P, robot, r)
         travel = float(np.linalg.norm(waypoint - robot))
         return CautiousAction(False, waypoint, r, travel, float(self.t_m))
 
-    def update(self, mean, cov, z, sensor_position) -> AmbiguousUpdate:
+    def update(
+        self, mean: ArrayLike, cov: ArrayLike, z: ArrayLike, sensor_position: ArrayLike
+    ) -> AmbiguousUpdate:
         """EKF update of the position estimate with an ambiguous bearing z measured at
         sensor_position ((2,) or pv (4,)); see :func:`ambiguous_bearing_update`."""
         x_hat, P = position_estimate(mean, cov)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike
 from activetrack.checks import (
     require_finite,
     require_in_range,
@@ -43,17 +44,19 @@ __all__ = [
 ]
 
 
-def _c_d(c_d):
+def _c_d(c_d: float) -> float:
     return require_in_range("c_d", c_d, 0.0, 1.0, lo_inclusive=False, hi_inclusive=False)
 
 
-def lemma4_measurements(beta, sigma_s, c_d, tail="two_sided") -> int:
+def lemma4_measurements(beta: float, sigma_s: float, c_d: float, tail: str = "two_sided") -> int:
     """N_z = ceil(4 log_gamma(1 / c_d)), gamma = sigma_beta^2 / sigma_s^2 (Lemma 4)."""
     gamma = caution_gamma(beta, sigma_s, tail)
     return math.ceil(4.0 * math.log(1.0 / _c_d(c_d)) / math.log(gamma) - 1e-12)
 
 
-def alternating_measurements(beta, sigma_s, c_d, tail="two_sided") -> int:
+def alternating_measurements(
+    beta: float, sigma_s: float, c_d: float, tail: str = "two_sided"
+) -> int:
     """Measurements Algorithm 1 takes from a circular prior: 2 ceil(2 log_gamma(1 / c_d)).
 
     Each cautious step divides the current major variance by gamma (eq. 1 with line 6:
@@ -67,7 +70,7 @@ def alternating_measurements(beta, sigma_s, c_d, tail="two_sided") -> int:
     return 2 * math.ceil(2.0 * math.log(1.0 / _c_d(c_d)) / math.log(gamma) - 1e-12)
 
 
-def measurement_bound(beta, sigma_s, c_d, tail="two_sided") -> int:
+def measurement_bound(beta: float, sigma_s: float, c_d: float, tail: str = "two_sided") -> int:
     """N_z used in the time bound: the larger of Lemma 4 and the exact alternating count."""
     return max(
         lemma4_measurements(beta, sigma_s, c_d, tail),
@@ -75,7 +78,14 @@ def measurement_bound(beta, sigma_s, c_d, tail="two_sided") -> int:
     )
 
 
-def distance_bound(sigma0, beta, sigma_s, c_d, d01, tail="two_sided"):
+def distance_bound(
+    sigma0: float,
+    beta: float,
+    sigma_s: float,
+    c_d: float,
+    d01: ArrayLike,
+    tail: str = "two_sided",
+) -> np.ndarray:
     """D_A, Lemma 5 eq. 4, for a circular prior with standard deviation sigma0 (m):
 
     D_A = d(s0, s1) + 2 sigma0 (1 - c_d) / (sqrt(gamma) - 1)
@@ -96,14 +106,16 @@ def distance_bound(sigma0, beta, sigma_s, c_d, d01, tail="two_sided"):
     return d01 + 2.0 * sigma0 * (1.0 - c_d) / (g - 1.0) * shape
 
 
-def time_upper_bound(n_measurements, t_m, D_A):
+def time_upper_bound(n_measurements: float, t_m: float, D_A: ArrayLike) -> np.ndarray:
     """T_ALG <= N_z t_m + D_A (Theorem 1, eq. 5), seconds at 1 m/s."""
     n = require_nonnegative("n_measurements", n_measurements)
     t_m = require_nonnegative("t_m", t_m)
     return n * t_m + require_finite("D_A", D_A)
 
 
-def time_lower_bound(r0_true, sigma_max, t_m, c_d, sigma_s):
+def time_lower_bound(
+    r0_true: ArrayLike, sigma_max: float, t_m: float, c_d: float, sigma_s: float
+) -> np.ndarray:
     """T_LB (Theorem 2, eq. 6), ``r0_true``'s shape:
 
     T_LB = max(r0* - sigma_max^2 / (2 t_m (1/c^2 - 1) sigma_s^2) + t_m, t_m),
@@ -140,7 +152,7 @@ class CautiousSchedule:
     def n_measurements(self) -> int:
         return len(self.ranges)
 
-    def travel_bound(self, d01):
+    def travel_bound(self, d01: ArrayLike) -> np.ndarray:
         """Upper bound on the distance travelled (m), Lemma 5's argument term by term:
 
         D <= d(s0, s1) + sum_{i=1}^{N-1} (sqrt(r_i^2 + r_{i+1}^2) + shift_i).
@@ -156,7 +168,13 @@ class CautiousSchedule:
 
 
 def cautious_schedule(
-    P0, beta, sigma_s, c_d, tail="two_sided", r_min=0.0, max_measurements=1000
+    P0: ArrayLike,
+    beta: float,
+    sigma_s: float,
+    c_d: float,
+    tail: str = "two_sided",
+    r_min: float = 0.0,
+    max_measurements: int = 1000,
 ) -> CautiousSchedule:
     """Ranges and covariances of Algorithm 1 from the prior P0 (2, 2) (eq. 1, 3, Lemma 1-3).
 
@@ -176,7 +194,9 @@ def cautious_schedule(
         raise ValueError("r_min must be > 0 when sigma_beta is infinite")
     s2 = float(sigma_s) ** 2
     target = c_d**2 * var
-    ranges, major, shifts = [], [], []
+    ranges: list[float] = []
+    major: list[float] = []
+    shifts: list[float] = []
     # The two entries keep their axis; the larger one is reduced at every step.
     while not np.all(var < target):
         if len(ranges) >= max_measurements:

@@ -8,43 +8,40 @@ optimised is then one batched PCRLB step (Hernandez eq. 3 with eq. 8-9)::
 
     J_{k+r} = (Q + F J_{k+r-1}^{-1} F^T)^{-1} + J_Z^fixed(k+r) + J_Z^platform(k+r; candidates)
 
-and a criterion of J^{-1}: ``"b_k"`` (eq. 10), ``"trace"`` or ``"det_pos"`` (Ramdaras eq. 24).
+and a criterion of J^{-1} that applies to PCRLB planning (:mod:`activetrack.planning.criteria`:
+``"b_k"``, eq. 10, ``"trace"``, ``"det_pos"``, Ramdaras eq. 24, or a registered one).
 Every candidate J computed counts as one cost evaluation.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from activetrack.bounds.costs import position_determinant, rmse_bound, trace_cost
+from activetrack.arraytypes import ArrayLike
 from activetrack.bounds.pcrlb import (
     check_dynamics,
-    covariance_bound,
     measurement_information,
     predicted_information,
 )
+from activetrack.planning.criteria import PCRLB, get_criterion
 
-__all__ = ["CRITERIA", "HorizonModel", "criterion_cost", "platform_information"]
+if TYPE_CHECKING:
+    from activetrack.models.base import SensorModel
 
-CRITERIA = {
-    "b_k": rmse_bound,  # Hernandez eq. 10: max(sqrt(P(1,1)), sqrt(P(3,3)))
-    "trace": trace_cost,
-    "det_pos": position_determinant,  # Ramdaras eq. 24
-}
+__all__ = ["HorizonModel", "criterion_cost", "platform_information"]
 
 
 def criterion_cost(criterion: str, J: np.ndarray) -> np.ndarray:
     """Criterion ``criterion`` of the bound J^{-1} for information matrices ``(..., 4, 4)``."""
-    if criterion not in CRITERIA:
-        raise ValueError(f"criterion must be one of {tuple(CRITERIA)}, got {criterion!r}")
-    if criterion == "b_k":  # two variances of J^{-1} are enough: one solve, no inverse
-        return rmse_bound_of_information(J)
-    return CRITERIA[criterion](covariance_bound(J))
+    return get_criterion(criterion, PCRLB).of_information(J)
 
 
-def platform_information(sensors: Sequence, pv: np.ndarray, samples: np.ndarray) -> np.ndarray:
+def platform_information(
+    sensors: Sequence[SensorModel], pv: np.ndarray, samples: np.ndarray
+) -> np.ndarray:
     """J_Z (Hernandez eq. 8-9) of one platform's sensors at pv states ``(..., 4)`` for target
     samples ``(M, 4)``: ``(..., 4, 4)``. All sensors of a platform sit at its pv."""
     pv = np.asarray(pv, dtype=float)
@@ -62,9 +59,16 @@ class HorizonModel:
     sensors: the optimised platform's sensors. ``evaluations`` counts candidate PCRLB steps.
     """
 
-    def __init__(self, F, Q, samples, fixed_information, sensors, criterion: str = "b_k"):
-        if criterion not in CRITERIA:
-            raise ValueError(f"criterion must be one of {tuple(CRITERIA)}, got {criterion!r}")
+    def __init__(
+        self,
+        F: np.ndarray,
+        Q: np.ndarray,
+        samples: np.ndarray,
+        fixed_information: ArrayLike,
+        sensors: Sequence[SensorModel],
+        criterion: str = "b_k",
+    ):
+        self._criterion = get_criterion(criterion, PCRLB)
         self.F, self.Q = check_dynamics(F, Q, 4)  # once: the steps below trust them
         self.samples = np.asarray(samples, dtype=float)
         self.fixed = np.asarray(fixed_information, dtype=float)
@@ -96,20 +100,4 @@ class HorizonModel:
 
     def cost(self, J: np.ndarray) -> np.ndarray:
         """The criterion of J^{-1}, ``(..., 4, 4) -> (...)``."""
-        return criterion_cost(self.criterion, J)
-
-
-_POSITION_COLUMNS = np.eye(4)[:, [0, 2]]
-
-
-def rmse_bound_of_information(J: np.ndarray) -> np.ndarray:
-    """Hernandez eq. 10 straight from information matrices ``(..., 4, 4) -> (...)``: the two
-    position variances of J^{-1} from one solve J V = [e_x, e_y], no full inverse."""
-    try:
-        V = np.linalg.solve(J, _POSITION_COLUMNS)  # (..., 4, 2) = columns x, y of J^{-1}
-    except np.linalg.LinAlgError:
-        raise ValueError("J must be symmetric positive definite (it is singular)") from None
-    var = np.maximum(V[..., 0, 0], V[..., 2, 1])
-    if not np.all(var > 0.0):
-        raise ValueError("J must be symmetric positive definite (non-positive variance)")
-    return np.sqrt(var)
+        return self._criterion.of_information(J)

@@ -13,8 +13,10 @@ Manoeuvres are returned physically, ``(R, 2)`` rows of (dpsi, v'); only the firs
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
+from typing import Any
 
 import numpy as np
 
@@ -28,6 +30,7 @@ from activetrack.planning.manoeuvre import (
 )
 from activetrack.planning.searches import (
     SEARCHES,
+    SearchResult,
     evolution_search,
     grid_search,
     quadrant_search,
@@ -35,6 +38,9 @@ from activetrack.planning.searches import (
 )
 
 __all__ = ["SearchSettings", "optimise_platform"]
+
+# A batched search: (cost_fn, n_problems) -> SearchResult (activetrack.planning.searches).
+LockstepSearch = Callable[..., SearchResult]
 
 
 @dataclass(frozen=True)
@@ -50,7 +56,7 @@ class SearchSettings:
     evolution_maxiter: int = 100
     evolution_tol: float = 1e-6
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.search not in SEARCHES:
             raise ValueError(f"search must be one of {SEARCHES}, got {self.search!r}")
         for name, lo in (
@@ -69,7 +75,21 @@ class SearchSettings:
         if not (np.isfinite(self.evolution_tol) and self.evolution_tol >= 0):
             raise ValueError(f"evolution_tol must be finite and >= 0, got {self.evolution_tol!r}")
 
-    def lockstep_search(self):
+    @classmethod
+    def from_config(cls, cfg: Any, **overrides: Any) -> SearchSettings:
+        """From a scenario ``PlannerConfig`` (search, grid_size, quadrant_divisions,
+        quadrant_patience, sector_levels); keyword ``overrides`` replace any field."""
+        fields: dict[str, Any] = {
+            "search": cfg.search,
+            "grid_size": cfg.grid_size,
+            "quadrant_divisions": cfg.quadrant_divisions,
+            "quadrant_patience": cfg.quadrant_patience,
+            "sector_levels": cfg.sector_levels,
+        }
+        fields.update(overrides)
+        return cls(**fields)
+
+    def lockstep_search(self) -> LockstepSearch:
         """The batched search function ``(cost_fn, n_problems) -> SearchResult``."""
         if self.search == "grid":
             return partial(grid_search, size=self.grid_size)
@@ -84,7 +104,17 @@ class SearchSettings:
         raise ValueError(f"search {self.search!r} has no lockstep form")
 
 
-def _dynamic_programme(model, level, J_prev, pv, heading, speed, limits, dt, search):
+def _dynamic_programme(
+    model: HorizonModel,
+    level: int,
+    J_prev: np.ndarray,
+    pv: np.ndarray,
+    heading: np.ndarray,
+    speed: np.ndarray,
+    limits: PlatformLimits,
+    dt: float,
+    search: LockstepSearch,
+) -> tuple[np.ndarray, np.ndarray]:
     """Best manoeuvres for epochs k+level..k+R-1 of B problems, and their summed cost.
 
     J_prev ``(B, 4, 4)``, pv ``(B, 4)``, heading and speed ``(B,)`` at epoch k+level.
@@ -93,7 +123,7 @@ def _dynamic_programme(model, level, J_prev, pv, heading, speed, limits, dt, sea
     R = model.horizon
     J_pred = model.predict(J_prev)  # (B, 4, 4): the same for every stage of the search
 
-    def cost_fn(rows, u):
+    def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         man = unit_to_manoeuvre(u, speed[rows, None], limits)  # (b, C, 2)
         pv1, h1 = step_platform(pv[rows, None, :], heading[rows, None], man, dt)
         J1 = model.update(J_pred[rows, None], level, pv1)  # (b, C, 4, 4)
@@ -117,14 +147,24 @@ def _dynamic_programme(model, level, J_prev, pv, heading, speed, limits, dt, sea
         return costs, plan
 
     result = search(cost_fn, len(speed))
-    return result.aux, result.cost
+    return result.payload(), result.cost
 
 
-def _evolution(model, J0, pv, heading, speed, limits, dt, settings, rng):
+def _evolution(
+    model: HorizonModel,
+    J0: np.ndarray,
+    pv: np.ndarray,
+    heading: float,
+    speed: float,
+    limits: PlatformLimits,
+    dt: float,
+    settings: SearchSettings,
+    rng: np.random.Generator | None,
+) -> tuple[np.ndarray, float]:
     """All R manoeuvres at once by differential evolution (eq. 16)."""
     R = model.horizon
 
-    def cost_fn(rows, u):
+    def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         u = u[0].reshape(-1, R, 2)  # (P, R, 2)
         P = u.shape[0]
         p, h, v = np.broadcast_to(pv, (P, 4)), np.full(P, heading), np.full(P, speed)
@@ -150,7 +190,7 @@ def _evolution(model, J0, pv, heading, speed, limits, dt, settings, rng):
         tol=settings.evolution_tol,
         x0=x0,
     )
-    return result.aux[0], float(result.cost[0])
+    return result.payload()[0], float(result.cost[0])
 
 
 def optimise_platform(

@@ -18,10 +18,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from activetrack.angles import wrap_angle
+from activetrack.arraytypes import ArrayLike, FloatArray
+
+if TYPE_CHECKING:
+    from activetrack.scenarios.schema import ManoeuvreLimits
 
 __all__ = [
     "PlatformLimits",
@@ -43,7 +48,7 @@ class PlatformLimits:
     v_min: float
     v_max: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("dpsi_max", "dv_max", "v_min", "v_max"):
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0.0:
@@ -58,13 +63,13 @@ class PlatformLimits:
             )
 
     @classmethod
-    def from_config(cls, cfg, dt: float) -> PlatformLimits:
+    def from_config(cls, cfg: ManoeuvreLimits, dt: float) -> PlatformLimits:
         """From a scenario ``ManoeuvreLimits`` (either limit pair) for decisions dt apart."""
         dpsi_max, dv_max = cfg.per_epoch(dt)
         return cls(min(float(dpsi_max), math.pi), float(dv_max), cfg.v_min, cfg.v_max)
 
 
-def speed_interval(speed, limits: PlatformLimits) -> tuple[np.ndarray, np.ndarray]:
+def speed_interval(speed: ArrayLike, limits: PlatformLimits) -> tuple[FloatArray, FloatArray]:
     """Reachable new speeds [v_lo, v_hi] from ``speed`` ``(...)``.
 
     v_lo = max(v_min, v - dv_max), v_hi = min(v_max, v + dv_max); a speed outside
@@ -76,7 +81,7 @@ def speed_interval(speed, limits: PlatformLimits) -> tuple[np.ndarray, np.ndarra
     return lo, hi
 
 
-def unit_to_manoeuvre(u, speed, limits: PlatformLimits) -> np.ndarray:
+def unit_to_manoeuvre(u: ArrayLike, speed: ArrayLike, limits: PlatformLimits) -> FloatArray:
     """Map unit-square points ``u`` ``(..., 2)`` to manoeuvres (dpsi, v') ``(..., 2)``.
 
     ``speed`` ``(...)`` is the platform speed before the manoeuvre (broadcasts against u).
@@ -88,7 +93,7 @@ def unit_to_manoeuvre(u, speed, limits: PlatformLimits) -> np.ndarray:
     return np.stack(np.broadcast_arrays(dpsi, v), axis=-1)
 
 
-def manoeuvre_to_unit(manoeuvre, speed, limits: PlatformLimits) -> np.ndarray:
+def manoeuvre_to_unit(manoeuvre: ArrayLike, speed: ArrayLike, limits: PlatformLimits) -> FloatArray:
     """Inverse of :func:`unit_to_manoeuvre` (a degenerate speed interval maps to u_v = 0.5)."""
     m = np.asarray(manoeuvre, dtype=float)
     lo, hi = speed_interval(speed, limits)
@@ -98,7 +103,9 @@ def manoeuvre_to_unit(manoeuvre, speed, limits: PlatformLimits) -> np.ndarray:
     return np.stack(np.broadcast_arrays(u_psi, u_v), axis=-1)
 
 
-def step_platform(pv, heading, manoeuvre, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def step_platform(
+    pv: ArrayLike, heading: ArrayLike, manoeuvre: ArrayLike, dt: float
+) -> tuple[FloatArray, FloatArray]:
     """Apply manoeuvres (dpsi, v') at epoch k and fly the constant-velocity leg to k+1.
 
     pv ``(..., 4)``, heading ``(...)`` and manoeuvre ``(..., 2)`` broadcast together.
@@ -114,7 +121,9 @@ def step_platform(pv, heading, manoeuvre, dt: float) -> tuple[np.ndarray, np.nda
     return np.stack(np.broadcast_arrays(x, vx, y, vy), axis=-1), psi
 
 
-def rollout(pv, heading, manoeuvres, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def rollout(
+    pv: ArrayLike, heading: ArrayLike, manoeuvres: ArrayLike, dt: float
+) -> tuple[FloatArray, FloatArray]:
     """Platform pv and heading at epochs k+1..k+R for manoeuvre sequences ``(..., R, 2)``.
 
     Returns pv ``(..., R, 4)`` and headings ``(..., R)``.
@@ -129,7 +138,7 @@ def rollout(pv, heading, manoeuvres, dt: float) -> tuple[np.ndarray, np.ndarray]
     return np.stack(pvs, axis=-2), np.stack(headings, axis=-1)
 
 
-def hold_course(speed: float, limits: PlatformLimits, steps: int) -> np.ndarray:
+def hold_course(speed: float, limits: PlatformLimits, steps: int) -> FloatArray:
     """The manoeuvre sequence "keep heading and speed" ``(steps, 2)`` (speed clipped into the
     reachable interval when it lies outside [v_min, v_max])."""
     lo, hi = speed_interval(speed, limits)

@@ -9,14 +9,20 @@ controllable and hold course.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike
 from activetrack.bounds.pcrlb import pcrlb_step
 from activetrack.planning.costs import HorizonModel, criterion_cost, platform_information
 from activetrack.planning.horizons import SearchSettings, optimise_platform
 from activetrack.planning.manoeuvre import hold_course, rollout
+
+if TYPE_CHECKING:
+    from activetrack.planning.planner import PlannerPlatform
 
 __all__ = ["Coordination", "coordinate_platforms", "horizon_information"]
 
@@ -30,7 +36,7 @@ class Coordination:
     the horizon objective with everybody's plans, J at k+1..k+R ``(R, 4, 4)``, cost
     evaluations, passes, convergence."""
 
-    plans: list
+    plans: list[np.ndarray | None]
     objective: float
     J: np.ndarray
     evaluations: int
@@ -38,17 +44,19 @@ class Coordination:
     converged: bool
 
 
-def horizon_information(J0, F, Q, contributions) -> np.ndarray:
+def horizon_information(
+    J0: np.ndarray, F: np.ndarray, Q: np.ndarray, contributions: ArrayLike
+) -> np.ndarray:
     """J at epochs k+1..k+R from J0 and the summed J_Z of each epoch ``(R, 4, 4)`` (eq. 3)."""
     out, J = [], np.asarray(J0, dtype=float)
-    for J_Z in contributions:
+    for J_Z in np.asarray(contributions, dtype=float):
         J = pcrlb_step(J, F, Q, J_Z)
         out.append(J)
     return np.stack(out)
 
 
 def coordinate_platforms(
-    platforms,
+    platforms: Sequence[PlannerPlatform],
     J0: np.ndarray,
     samples: np.ndarray,
     F: np.ndarray,
@@ -66,39 +74,42 @@ def coordinate_platforms(
     """
     R = samples.shape[0]
     n = len(platforms)
-    plans = [hold_course(p.speed, p.limits, R) if p.limits else None for p in platforms]
+    plans: list[np.ndarray | None] = [
+        hold_course(p.heading_and_speed[1], p.limits, R) if p.limits else None for p in platforms
+    ]
 
-    def info_of(i):
-        p = platforms[i]
-        if plans[i] is None:  # not controllable: constant velocity legs
+    def info_of(i: int) -> np.ndarray:
+        p, plan_i = platforms[i], plans[i]
+        if plan_i is None:  # not controllable: constant velocity legs
             path = p.pv + np.outer(np.arange(1, R + 1) * dt, [p.pv[1], 0.0, p.pv[3], 0.0])
         else:
-            path, _ = rollout(p.pv, p.heading, plans[i], dt)
+            path, _ = rollout(p.pv, p.heading_and_speed[0], plan_i, dt)
         return np.stack([platform_information(p.sensors, path[r], samples[r]) for r in range(R)])
 
     info = [info_of(i) for i in range(n)]
-    controllable = [i for i in range(n) if platforms[i].limits is not None]
+    controllable = [(i, p.limits) for i, p in enumerate(platforms) if p.limits is not None]
     # Bookkeeping to skip re-optimising a platform when nobody else changed since its last
     # optimisation (a deterministic search would return the same plan).
-    clock, changed_at, optimised_at = 0, [0] * n, [None] * n
+    clock, changed_at = 0, [0] * n
+    optimised_at: list[int | None] = [None] * n
     evaluations, iterations, converged = 0, 0, False
     for _ in range(int(max_iterations)):
         iterations += 1
         any_change = False
-        for j in controllable:
+        for j, limits in controllable:
             last = optimised_at[j]
             if last is not None and all(changed_at[i] <= last for i in range(n) if i != j):
                 continue
             fixed = sum(info[i] for i in range(n) if i != j) if n > 1 else np.zeros_like(info[j])
             p = platforms[j]
+            heading, speed = p.heading_and_speed
             model = HorizonModel(F, Q, samples, fixed, p.sensors, criterion)
-            plan, _ = optimise_platform(
-                model, J0, p.pv, p.heading, p.speed, p.limits, dt, settings, rng
-            )
+            plan, _ = optimise_platform(model, J0, p.pv, heading, speed, limits, dt, settings, rng)
             evaluations += model.evaluations
             clock += 1
             optimised_at[j] = clock
-            if not np.allclose(plan, plans[j], rtol=0.0, atol=_SAME_PLAN_ATOL):
+            current = plans[j]  # hold course or the last plan: never None when controllable
+            if current is None or not np.allclose(plan, current, rtol=0.0, atol=_SAME_PLAN_ATOL):
                 plans[j] = plan
                 info[j] = info_of(j)
                 changed_at[j] = clock

@@ -21,12 +21,14 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from activetrack.angles import wrap_angle
+from activetrack.arraytypes import ArrayLike
 from activetrack.bounds.costs import position_determinant, trace_cost
 from activetrack.bounds.pcrlb import (
     covariance_bound,
@@ -35,10 +37,15 @@ from activetrack.bounds.pcrlb import (
     propagate_samples,
 )
 from activetrack.checks import require_finite, require_positive, require_psd, require_spd
-from activetrack.planning.costs import CRITERIA, platform_information
+from activetrack.planning.costs import platform_information
+from activetrack.planning.criteria import PCRLB, get_criterion
 from activetrack.planning.horizons import SearchSettings
 from activetrack.planning.manoeuvre import PlatformLimits
 from activetrack.planning.multisensor import coordinate_platforms
+
+if TYPE_CHECKING:
+    from activetrack.models.base import SensorModel
+    from activetrack.scenarios.schema import PlannerConfig, Scenario
 
 __all__ = [
     "PlanReport",
@@ -52,9 +59,6 @@ __all__ = [
     "platforms_from_scenario",
 ]
 
-# Schema criterion names (PlannerConfig.criterion) this planner supports.
-SUPPORTED_CRITERIA = tuple(CRITERIA)
-
 
 @dataclass(frozen=True)
 class PlannerPlatform:
@@ -66,12 +70,12 @@ class PlannerPlatform:
 
     platform_id: str
     pv: np.ndarray
-    sensors: tuple
+    sensors: tuple[SensorModel, ...]
     limits: PlatformLimits | None = None
     heading: float | None = None
     speed: float | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         pv = require_finite("platforms.pv", self.pv)
         if pv.shape != (4,):
             raise ValueError(f"platforms.pv must be a pv vector of shape (4,), got {pv.shape}")
@@ -104,6 +108,11 @@ class PlannerPlatform:
     def controllable(self) -> bool:
         return self.limits is not None
 
+    @property
+    def heading_and_speed(self) -> tuple[float, float]:
+        """(heading, speed) as resolved on construction (never None)."""
+        return cast(float, self.heading), cast(float, self.speed)
+
 
 @dataclass(frozen=True)
 class TargetBelief:
@@ -113,7 +122,7 @@ class TargetBelief:
     J: np.ndarray
     samples: np.ndarray
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         J = require_spd("belief.J", self.J)
         if J.shape != (4, 4):
             raise ValueError(f"belief.J must be (4, 4) (pv information), got {J.shape}")
@@ -124,7 +133,9 @@ class TargetBelief:
         object.__setattr__(self, "samples", X)
 
     @classmethod
-    def from_gaussian(cls, mean, cov, n_samples: int, rng: np.random.Generator) -> TargetBelief:
+    def from_gaussian(
+        cls, mean: ArrayLike, cov: ArrayLike, n_samples: int, rng: np.random.Generator
+    ) -> TargetBelief:
         """J = cov^{-1} (eq. 4) and ``n_samples`` draws from N(mean, cov): the prior (open loop)
         or an EKF posterior (renewal)."""
         cov = require_spd("cov", cov)
@@ -132,7 +143,11 @@ class TargetBelief:
 
     @classmethod
     def from_particles(
-        cls, particles, weights=None, n_samples: int | None = None, rng=None
+        cls,
+        particles: ArrayLike,
+        weights: ArrayLike | None = None,
+        n_samples: int | None = None,
+        rng: np.random.Generator | int | None = None,
     ) -> TargetBelief:
         """Renewal from a PF posterior: J = (weighted particle covariance)^{-1} and
         ``n_samples`` particles drawn by weight (all particles if None and unweighted)."""
@@ -162,7 +177,8 @@ class TargetBelief:
 
 @dataclass(frozen=True)
 class PlanSettings:
-    """criterion: ``"b_k"`` (eq. 10), ``"trace"`` or ``"det_pos"``; horizon R >= 1;
+    """criterion: one that applies to PCRLB planning (:mod:`activetrack.planning.criteria`:
+    ``"b_k"``, eq. 10, ``"trace"``, ``"det_pos"`` or a registered one); horizon R >= 1;
     search: see :class:`SearchSettings`; max_sensor_iterations: sec. 4.1 footnote 4."""
 
     criterion: str = "b_k"
@@ -170,11 +186,8 @@ class PlanSettings:
     search: SearchSettings = field(default_factory=SearchSettings)
     max_sensor_iterations: int = 10
 
-    def __post_init__(self):
-        if self.criterion not in CRITERIA:
-            raise ValueError(
-                f"settings.criterion must be one of {SUPPORTED_CRITERIA}, got {self.criterion!r}"
-            )
+    def __post_init__(self) -> None:
+        get_criterion(self.criterion, PCRLB, what="settings.criterion")
         for name in ("horizon", "max_sensor_iterations"):
             value = getattr(self, name)
             if isinstance(value, bool) or int(value) != value or value < 1:
@@ -183,20 +196,14 @@ class PlanSettings:
             raise ValueError("settings.search must be a SearchSettings")
 
     @classmethod
-    def from_config(cls, cfg, **overrides) -> PlanSettings:
+    def from_config(cls, cfg: PlannerConfig, **overrides: Any) -> PlanSettings:
         """From a scenario ``PlannerConfig``; keyword ``overrides`` replace fields of this class
         or of :class:`SearchSettings` (e.g. ``horizon=2``, ``search="grid"``, ``grid_size=21``)."""
         if getattr(cfg, "cost", "pcrlb") != "pcrlb":
             raise ValueError(f"planner.cost must be 'pcrlb' for this planner, got {cfg.cost!r}")
         search_fields = set(SearchSettings.__dataclass_fields__)
-        search = {
-            "search": cfg.search,
-            "grid_size": cfg.grid_size,
-            "quadrant_divisions": cfg.quadrant_divisions,
-            "quadrant_patience": cfg.quadrant_patience,
-            "sector_levels": cfg.sector_levels,
-        }
-        top = {
+        search: dict[str, Any] = {}
+        top: dict[str, Any] = {
             "criterion": cfg.criterion,
             "horizon": cfg.horizon,
             "max_sensor_iterations": cfg.max_sensor_iterations,
@@ -208,7 +215,7 @@ class PlanSettings:
                 top[key] = value
             else:
                 raise ValueError(f"overrides: unknown setting {key!r}")
-        return cls(search=SearchSettings(**search), **top)
+        return cls(search=SearchSettings.from_config(cfg, **search), **top)
 
 
 @dataclass(frozen=True)
@@ -235,7 +242,7 @@ class PlanReport:
     search: str
     horizon: int
     objective: float
-    predicted: dict
+    predicted: dict[str, float]
     evaluations: int
     iterations: int
     converged: bool
@@ -266,7 +273,7 @@ class PlanResult:
         raise ValueError(f"platform_id {platform_id!r} has no planned manoeuvre")
 
 
-def _check_dynamics(F, Q, dt):
+def _check_dynamics(F: ArrayLike, Q: ArrayLike, dt: float) -> tuple[np.ndarray, np.ndarray, float]:
     F = require_finite("F", F)
     if F.shape != (4, 4):
         raise ValueError(f"F must be (4, 4) (linear pv dynamics, eq. 2), got {F.shape}")
@@ -276,7 +283,7 @@ def _check_dynamics(F, Q, dt):
     return F, Q, require_positive("dt", dt)
 
 
-def _predicted_costs(J: np.ndarray) -> dict:
+def _predicted_costs(J: np.ndarray) -> dict[str, float]:
     P = covariance_bound(J)
     bx, by = math.sqrt(P[0, 0]), math.sqrt(P[2, 2])
     return {
@@ -286,6 +293,31 @@ def _predicted_costs(J: np.ndarray) -> dict:
         "trace": float(trace_cost(P)),
         "det_pos": float(position_determinant(P)),
     }
+
+
+def _manoeuvres(
+    platforms: Sequence[PlannerPlatform], plans: Sequence[np.ndarray | None], dt: float
+) -> tuple[PlannedManoeuvre, ...]:
+    """The first manoeuvre of each controllable platform's plan, flown for one leg."""
+    manoeuvres = []
+    for p, pl in zip(platforms, plans, strict=True):
+        if pl is None:
+            continue
+        dpsi, v = float(pl[0, 0]), float(pl[0, 1])
+        heading0, speed0 = p.heading_and_speed
+        heading = float(wrap_angle(heading0 + dpsi))
+        next_pv = np.array(
+            [
+                p.pv[0] + v * math.cos(heading) * dt,
+                v * math.cos(heading),
+                p.pv[2] + v * math.sin(heading) * dt,
+                v * math.sin(heading),
+            ]
+        )
+        manoeuvres.append(
+            PlannedManoeuvre(p.platform_id, dpsi, v - speed0, heading, v, next_pv, pl)
+        )
+    return tuple(manoeuvres)
 
 
 def plan(
@@ -338,23 +370,7 @@ def plan(
         settings.max_sensor_iterations,
         rng,
     )
-    manoeuvres = []
-    for p, pl in zip(platforms, result.plans, strict=True):
-        if pl is None:
-            continue
-        dpsi, v = float(pl[0, 0]), float(pl[0, 1])
-        heading = float(wrap_angle(p.heading + dpsi))
-        next_pv = np.array(
-            [
-                p.pv[0] + v * math.cos(heading) * dt,
-                v * math.cos(heading),
-                p.pv[2] + v * math.sin(heading) * dt,
-                v * math.sin(heading),
-            ]
-        )
-        manoeuvres.append(
-            PlannedManoeuvre(p.platform_id, dpsi, v - p.speed, heading, v, next_pv, pl)
-        )
+    manoeuvres = _manoeuvres(platforms, result.plans, dt)
     report = PlanReport(
         criterion=settings.criterion,
         search=settings.search.search,
@@ -366,7 +382,7 @@ def plan(
         converged=result.converged,
         wall_time_s=time.perf_counter() - start,
     )
-    return PlanResult(tuple(manoeuvres), report, result.J[0])
+    return PlanResult(manoeuvres, report, result.J[0])
 
 
 def advance_belief(
@@ -384,7 +400,9 @@ def advance_belief(
     return TargetBelief(pcrlb_step(belief.J, F, Q, J_Z), X)
 
 
-def platforms_from_scenario(scenario, states: dict | None = None) -> list[PlannerPlatform]:
+def platforms_from_scenario(
+    scenario: Scenario, states: Mapping[str, ArrayLike] | None = None
+) -> list[PlannerPlatform]:
     """PlannerPlatforms from a scenario's platforms (limits per epoch of ``scenario.dt``);
     ``states`` maps platform id to a pv overriding the initial state."""
     from activetrack.scenarios.build import build_sensor

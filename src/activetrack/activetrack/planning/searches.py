@@ -40,6 +40,10 @@ __all__ = [
 ]
 
 
+# cost_fn(rows (b,), u (b, C, D)) -> costs (b, C), or (costs, aux (b, C, ...)).
+CostFn = Callable[[np.ndarray, np.ndarray], np.ndarray | tuple[np.ndarray, np.ndarray]]
+
+
 @dataclass(frozen=True)
 class SearchResult:
     """Best point per problem: ``u`` ``(B, D)``, ``cost`` ``(B,)``, ``aux`` ``(B, ...)`` or None,
@@ -50,8 +54,14 @@ class SearchResult:
     aux: np.ndarray | None
     evaluations: int
 
+    def payload(self) -> np.ndarray:
+        """``aux``, for a cost function that returns one (else ValueError)."""
+        if self.aux is None:
+            raise ValueError("the cost function returned no payload (aux)")
+        return self.aux
 
-def _call(cost_fn, rows, u):
+
+def _call(cost_fn: CostFn, rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     out = cost_fn(rows, u)
     costs, aux = out if isinstance(out, tuple) else (out, None)
     costs = np.asarray(costs, dtype=float)
@@ -66,19 +76,21 @@ class _Best:
     def __init__(self, n_problems: int, dim: int = 2):
         self.u = np.full((n_problems, dim), np.nan)
         self.cost = np.full(n_problems, np.inf)
-        self.aux = None
+        self.aux: np.ndarray | None = None
 
-    def offer(self, rows, u, costs, aux) -> np.ndarray:
+    def offer(
+        self, rows: np.ndarray, u: np.ndarray, costs: np.ndarray, aux: np.ndarray | None
+    ) -> np.ndarray:
         """Take each row's lowest candidate if it beats the stored one; returns improved (b,)."""
         i = np.argmin(costs, axis=1)
         c = costs[np.arange(len(rows)), i]
         better = c < self.cost[rows]
-        if self.aux is None and aux is not None:
-            self.aux = np.zeros((self.cost.shape[0], *aux.shape[2:]))
         take = rows[better]
         self.cost[take] = c[better]
         self.u[take] = u[better, i[better]]
         if aux is not None:
+            if self.aux is None:
+                self.aux = np.zeros((self.cost.shape[0], *aux.shape[2:]))
             self.aux[take] = aux[better, i[better]]
         return better
 
@@ -86,14 +98,14 @@ class _Best:
         return SearchResult(self.u, self.cost, self.aux, int(evaluations))
 
 
-def _check_problems(n_problems) -> int:
+def _check_problems(n_problems: int) -> int:
     if isinstance(n_problems, bool) or int(n_problems) != n_problems or n_problems < 1:
         raise ValueError(f"n_problems must be an integer >= 1, got {n_problems!r}")
     return int(n_problems)
 
 
 def grid_search(
-    cost_fn: Callable, n_problems: int = 1, size: int = 101, chunk: int = 2048
+    cost_fn: CostFn, n_problems: int = 1, size: int = 101, chunk: int = 2048
 ) -> SearchResult:
     """Enumerative search on a ``size`` x ``size`` grid over the unit square (Hernandez
     sec. 4.2), evaluated in chunks of at most ``chunk`` points per problem per call."""
@@ -114,7 +126,7 @@ def grid_search(
 
 
 def quadrant_search(
-    cost_fn: Callable, n_problems: int = 1, divisions: int = 6, patience: int | None = None
+    cost_fn: CostFn, n_problems: int = 1, divisions: int = 6, patience: int | None = None
 ) -> SearchResult:
     """Hernandez's efficient search (sec. 4.1, Fig. 1), B problems in lockstep.
 
@@ -132,7 +144,7 @@ def quadrant_search(
     origin = np.zeros((B, 2))
     side = np.ones(B)
     values = np.full((B, 3, 3), np.nan)  # costs of the 3 x 3 points of each square
-    payload = None
+    payload: np.ndarray | None = None
     stale = np.zeros(B, dtype=int)  # divisions without improvement
     best = _Best(B)
     rows = np.arange(B)
@@ -177,7 +189,7 @@ def quadrant_search(
     return best.result(evaluations)
 
 
-def sector_search(cost_fn: Callable, n_problems: int = 1, levels: int = 3) -> SearchResult:
+def sector_search(cost_fn: CostFn, n_problems: int = 1, levels: int = 3) -> SearchResult:
     """Ramdaras' nine-sector search (sec. 4, Fig. 4), B problems in lockstep.
 
     Level 1 evaluates the 4 x 4 corners of nine sectors; each further level the 12 corners that
@@ -220,7 +232,7 @@ def sector_search(cost_fn: Callable, n_problems: int = 1, levels: int = 3) -> Se
 
 
 def evolution_search(
-    cost_fn: Callable,
+    cost_fn: CostFn,
     dim: int,
     rng: np.random.Generator | int | None = None,
     *,
@@ -246,7 +258,7 @@ def evolution_search(
     best = _Best(1, int(dim))
     count = [0]
 
-    def f(x):
+    def f(x: np.ndarray) -> np.ndarray:
         u = np.atleast_2d(np.asarray(x, dtype=float).T)[None]  # (1, P, dim)
         costs, aux = _call(cost_fn, rows, u)
         count[0] += costs.size

@@ -6,87 +6,121 @@ Ramdaras eq. 23 (:func:`activetrack.bounds.mre.mre_predict`)::
     P^(j)_{k+1|k} = F [(1 - pd_j) P_{k|k-1} + pd_j P^(j)_{k|k}] F^T + Q
 
 with P_{k|k-1} the predicted covariance of the epoch being planned and H_j (eq. 13) at the
-predicted target state x_{k|k-1} and the sensor's planned position, and by a criterion on it:
-the position determinant (eq. 24) or H^c P H^c^T for heading, range, Doppler or bearing
-(eq. 25-26, geometry relative to the origin as printed in eq. 26).
+predicted target state x_{k|k-1} and the sensor's planned position (a :class:`TargetPrediction`
+holds both and F, Q), and by a criterion on it (:mod:`activetrack.planning.criteria`, those
+that apply to MRE positioning or selection): the position determinant (eq. 24) or H^c P H^c^T
+for heading, range, Doppler or bearing (eq. 25-26, geometry relative to the origin as printed
+in eq. 26).
 
-- Positioning (sec. 4, Fig. 4-6): each controllable platform independently searches its
-  reachable envelope (the unit square of :mod:`activetrack.planning.manoeuvre`) with the
-  nine-sector search (``d_max`` = levels); the cost of a candidate position is the criterion of
-  eq. 23 with all of the platform's sensors there.
-- Selection (sec. 3, eq. 27): j = argmin_j C^(j) over every sensor at its planned position.
-  Baselines (Ramdaras and Absil 2007a): random (the caller's generator), fixed, and trace of
-  the Kalman-updated covariance P^(j)_{k|k} (eq. 22, pd ignored: the classic covariance-control
+- Positioning (sec. 4, Fig. 4-6): :func:`position_platform`: each controllable platform
+  independently searches its reachable envelope (the unit square of
+  :mod:`activetrack.planning.manoeuvre`) with the nine-sector search (``d_max`` = levels); the
+  cost of a candidate position is the criterion of eq. 23 with all of the platform's sensors
+  there.
+- Selection (sec. 3, eq. 27): :func:`select_by_criterion`, j = argmin_j C^(j) over every sensor
+  at its planned position. Baselines (Ramdaras and Absil 2007a): :func:`select_random` (the
+  caller's generator), :func:`select_fixed`, and :func:`select_by_trace`, the trace of the
+  Kalman-updated covariance P^(j)_{k|k} (eq. 22, pd ignored: the classic covariance-control
   rule that the MRE improves on when pd < 1). ``count`` > 1 selects greedily: each pick is
-  folded into P_{k|k-1} by the pd-weighted update before scoring the rest.
+  folded into P_{k|k-1} (pd-weighted for eq. 27) before scoring the rest.
 
 Shapes: pv states ``(4,)``, covariances ``(4, 4)``; candidates are batched ``(..., 4)``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from activetrack.bounds.costs import (
-    CRITERIA,
-    criterion_variance,
-    position_determinant,
-    rmse_bound,
-    trace_cost,
-)
+from activetrack.arraytypes import ArrayLike
+from activetrack.bounds.costs import trace_cost
 from activetrack.bounds.mre import mre_predict, mre_update
 from activetrack.checks import require_finite, require_spd
+from activetrack.planning.criteria import POSITIONING, SELECTION, Criterion, get_criterion
 from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlatformLimits, step_platform, unit_to_manoeuvre
+from activetrack.planning.manoeuvre import step_platform, unit_to_manoeuvre
+from activetrack.planning.planner import PlannerPlatform
+
+if TYPE_CHECKING:
+    from activetrack.models.base import SensorModel
 
 __all__ = [
-    "MRE_CRITERIA",
-    "STRATEGIES",
+    "DEFAULT_POSITIONING_SEARCH",
+    "POSITIONING_SEARCHES",
     "PositioningResult",
     "SelectionResult",
+    "TargetPrediction",
     "expected_update",
-    "mre_criterion",
     "position_platform",
-    "select_sensors",
+    "select_by_criterion",
+    "select_by_trace",
+    "select_fixed",
+    "select_random",
     "sensor_costs",
+    "trace_costs",
 ]
 
-MRE_CRITERIA = ("det_pos", "trace", "b_k", *CRITERIA)
-STRATEGIES = ("mre", "random", "fixed", "trace")
 POSITIONING_SEARCHES = ("sector", "quadrant", "grid")
+# Ramdaras sec. 4-5: the nine-sector search to d_max = 5 levels.
+DEFAULT_POSITIONING_SEARCH = SearchSettings(search="sector", grid_size=21, sector_levels=5)
 
 
-def mre_criterion(name: str, P, x_pred) -> np.ndarray:
-    """Cost ``name`` of covariances ``P`` ``(..., 4, 4) -> (...)``.
-
-    det_pos: eq. 24; heading / range / doppler / bearing: eq. 25 with H^c of eq. 26 at the
-    predicted target pv ``x_pred`` ``(4,)``; trace and b_k (Hernandez eq. 10) for comparison.
-    """
-    if name == "det_pos":
-        return position_determinant(P)
-    if name == "trace":
-        return trace_cost(P)
-    if name == "b_k":
-        return rmse_bound(P)
-    if name in CRITERIA:
-        return criterion_variance(name, P, x_pred)
-    raise ValueError(f"criterion must be one of {MRE_CRITERIA}, got {name!r}")
+def _check_inputs(P_pred: ArrayLike, x_pred: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    P = require_spd("P_pred", P_pred)
+    x = require_finite("x_pred", x_pred)
+    if P.shape != (4, 4) or x.shape != (4,):
+        raise ValueError(f"P_pred must be (4, 4) and x_pred (4,) (pv), got {P.shape}, {x.shape}")
+    return P, x
 
 
-def _check_inputs(P_pred, x_pred):
-    P_pred = require_spd("P_pred", P_pred)
-    x_pred = require_finite("x_pred", x_pred)
-    if P_pred.shape != (4, 4) or x_pred.shape != (4,):
-        raise ValueError(
-            f"P_pred must be (4, 4) and x_pred (4,) (pv), got {P_pred.shape}, {x_pred.shape}"
-        )
-    return P_pred, x_pred
+def _mre_criterion(name: str) -> Criterion:
+    return get_criterion(name, POSITIONING, SELECTION)
 
 
-def expected_update(P_pred, x_pred, sensors: Sequence, sensor_pvs, *, use_pd: bool = True):
+@dataclass(frozen=True)
+class TargetPrediction:
+    """The epoch being planned for: x_{k+1|k} ``x`` ``(4,)`` and P_{k+1|k} ``P`` ``(4, 4)``
+    (symmetric positive definite), and the target dynamics ``F``, ``Q`` ``(4, 4)`` over one
+    interval, with which eq. 23 looks one interval further."""
+
+    x: np.ndarray
+    P: np.ndarray
+    F: np.ndarray
+    Q: np.ndarray
+
+    def __post_init__(self) -> None:
+        P, x = _check_inputs(self.P, self.x)
+        F = require_finite("F", self.F)
+        Q = require_finite("Q", self.Q)
+        if F.shape != (4, 4) or Q.shape != (4, 4):
+            raise ValueError(f"F and Q must be (4, 4) (pv), got {F.shape}, {Q.shape}")
+        for name, value in (("x", x), ("P", P), ("F", F), ("Q", Q)):
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def from_posterior(
+        cls, x: ArrayLike, P: ArrayLike, F: np.ndarray, Q: np.ndarray
+    ) -> TargetPrediction:
+        """x_{k+1|k} = F x, P_{k+1|k} = F P F^T + Q from the posterior (x, P) at epoch k."""
+        P_pred = F @ np.asarray(P, dtype=float) @ F.T + Q
+        return cls(F @ np.asarray(x, dtype=float), 0.5 * (P_pred + P_pred.T), F, Q)
+
+    def with_covariance(self, P: np.ndarray) -> TargetPrediction:
+        """The same epoch with another P_{k+1|k} (e.g. with the sensors picked so far)."""
+        return replace(self, P=P)
+
+
+def expected_update(
+    P_pred: ArrayLike,
+    x_pred: ArrayLike,
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    *,
+    use_pd: bool = True,
+) -> np.ndarray:
     """Expected updated covariance after sensors ``(S,)`` at pvs ``(S, 4)``, applied in turn:
     (1 - pd) P + pd P_{k|k} (the bracket of eq. 23); ``use_pd=False``: the Kalman update, eq. 22.
 
@@ -103,20 +137,45 @@ def expected_update(P_pred, x_pred, sensors: Sequence, sensor_pvs, *, use_pd: bo
     return P
 
 
-def sensor_costs(P_pred, F, Q, x_pred, sensors: Sequence, sensor_pvs, criterion: str):
+def _sensor_rows(sensors: Sequence[SensorModel], sensor_pvs: ArrayLike) -> np.ndarray:
+    pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
+    if len(pvs) != len(sensors):
+        raise ValueError(f"sensor_pvs must hold {len(sensors)} pv rows, got {len(pvs)}")
+    return pvs
+
+
+def sensor_costs(
+    prediction: TargetPrediction,
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    criterion: str,
+) -> tuple[np.ndarray, np.ndarray]:
     """C^(j) for each sensor at its pv: ``(costs (S,), expected covariances (S, 4, 4))``.
 
     MRE eq. 23 then the criterion (eq. 24-26). Sensors differ in dim_z, so this loops over the
     S sensors (a handful), each call batched over nothing more.
     """
-    P_pred, x_pred = _check_inputs(P_pred, x_pred)
-    pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
-    if len(pvs) != len(sensors):
-        raise ValueError(f"sensor_pvs must hold {len(sensors)} pv rows, got {len(pvs)}")
+    crit = _mre_criterion(criterion)
+    pvs = _sensor_rows(sensors, sensor_pvs)
+    p = prediction
     P_hat = np.stack(
-        [mre_predict(P_pred, F, Q, s, x_pred, pv) for s, pv in zip(sensors, pvs, strict=True)]
+        [mre_predict(p.P, p.F, p.Q, s, p.x, pv) for s, pv in zip(sensors, pvs, strict=True)]
     )
-    return mre_criterion(criterion, P_hat, x_pred), P_hat
+    return crit.of_covariance(P_hat, p.x), P_hat
+
+
+def trace_costs(
+    prediction: TargetPrediction, sensors: Sequence[SensorModel], sensor_pvs: ArrayLike
+) -> np.ndarray:
+    """tr(P^(j)_{k|k}) of the Kalman update (eq. 22, pd ignored) for each sensor ``(S,)``."""
+    pvs = _sensor_rows(sensors, sensor_pvs)
+    upd = np.stack(
+        [
+            expected_update(prediction.P, prediction.x, [s], pv, use_pd=False)
+            for s, pv in zip(sensors, pvs, strict=True)
+        ]
+    )
+    return trace_cost(upd)
 
 
 @dataclass(frozen=True)
@@ -130,80 +189,115 @@ class SelectionResult:
     evaluations: int
 
 
-def select_sensors(
-    strategy: str,
-    P_pred,
-    F,
-    Q,
-    x_pred,
-    sensors: Sequence,
-    sensor_pvs,
+def _check_count(count: int, n_sensors: int) -> int:
+    if isinstance(count, bool) or int(count) != count or not 1 <= count <= n_sensors:
+        raise ValueError(f"count must be an integer in [1, {n_sensors}], got {count!r}")
+    return int(count)
+
+
+# Scores of the remaining sensors given the covariance with the picks so far folded in.
+_RestCosts = Callable[[TargetPrediction, list[int]], np.ndarray]
+
+
+def _greedy(
+    prediction: TargetPrediction,
+    sensors: Sequence[SensorModel],
+    pvs: np.ndarray,
+    costs: np.ndarray,
+    count: int,
+    use_pd: bool,
+    rest_costs: _RestCosts,
+) -> tuple[tuple[int, ...], int]:
+    """argmin of ``costs``, then (count > 1) each further pick the argmin of ``rest_costs`` with
+    the picks folded into the prediction. Returns the picks and the evaluations spent."""
+    picks = [int(np.argmin(costs))]
+    remaining = [i for i in range(len(sensors)) if i != picks[0]]
+    evaluations = len(sensors)
+    while len(picks) < count:
+        P_sel = expected_update(
+            prediction.P, prediction.x, [sensors[i] for i in picks], pvs[picks], use_pd=use_pd
+        )
+        c = rest_costs(prediction.with_covariance(P_sel), remaining)
+        evaluations += len(remaining)
+        picks.append(remaining.pop(int(np.argmin(c))))
+    return tuple(picks), evaluations
+
+
+def select_by_criterion(
+    prediction: TargetPrediction,
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
     *,
     criterion: str = "det_pos",
     count: int = 1,
-    fixed: int | None = None,
-    rng: np.random.Generator | None = None,
 ) -> SelectionResult:
-    """Ramdaras eq. 27 (``"mre"``) or a baseline (``"random"``, ``"fixed"``, ``"trace"``).
+    """Ramdaras eq. 27: the sensor(s) minimising ``criterion`` of eq. 23, ``(S, 4)`` pvs.
 
-    ``P_pred`` ``(4, 4)`` and ``x_pred`` ``(4,)``: predicted covariance and state for the epoch
-    being selected for; sensors at ``sensor_pvs`` ``(S, 4)``. ``fixed`` is the sensor index for
-    the fixed strategy; ``rng`` draws the random one. Random and fixed still report the MRE
-    costs (for the record); ties go to the lower index.
+    Ties go to the lower index; ``count`` > 1 picks greedily, folding each pick in with its pd.
     """
-    if strategy not in STRATEGIES:
-        raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
+    count = _check_count(count, len(sensors))
+    pvs = _sensor_rows(sensors, sensor_pvs)
+    costs, _ = sensor_costs(prediction, sensors, pvs, criterion)
+
+    def rest(p: TargetPrediction, remaining: list[int]) -> np.ndarray:
+        return sensor_costs(p, [sensors[i] for i in remaining], pvs[remaining], criterion)[0]
+
+    picks, evaluations = _greedy(prediction, sensors, pvs, costs, count, True, rest)
+    return SelectionResult(picks, np.asarray(costs, dtype=float), criterion, evaluations)
+
+
+def select_by_trace(
+    prediction: TargetPrediction,
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    *,
+    count: int = 1,
+) -> SelectionResult:
+    """The trace baseline: argmin tr(P_{k|k}) of the Kalman update (eq. 22, pd ignored)."""
+    count = _check_count(count, len(sensors))
+    pvs = _sensor_rows(sensors, sensor_pvs)
+    costs = trace_costs(prediction, sensors, pvs)
+
+    def rest(p: TargetPrediction, remaining: list[int]) -> np.ndarray:
+        return trace_costs(p, [sensors[i] for i in remaining], pvs[remaining])
+
+    picks, evaluations = _greedy(prediction, sensors, pvs, costs, count, False, rest)
+    return SelectionResult(picks, np.asarray(costs, dtype=float), "trace", evaluations)
+
+
+def select_random(
+    prediction: TargetPrediction,
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    rng: np.random.Generator,
+    *,
+    criterion: str = "det_pos",
+    count: int = 1,
+) -> SelectionResult:
+    """The random baseline: ``count`` distinct sensors drawn uniformly by ``rng`` (one
+    ``rng.choice`` per call); the MRE costs under ``criterion`` are reported for the record."""
+    count = _check_count(count, len(sensors))
+    costs, _ = sensor_costs(prediction, sensors, sensor_pvs, criterion)
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError("rng must be a numpy Generator for random selection")
+    picks = tuple(int(i) for i in rng.choice(len(sensors), size=count, replace=False))
+    return SelectionResult(picks, np.asarray(costs, dtype=float), criterion, len(sensors))
+
+
+def select_fixed(
+    prediction: TargetPrediction,
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    index: int,
+    *,
+    criterion: str = "det_pos",
+) -> SelectionResult:
+    """The fixed baseline: always sensor ``index``; the MRE costs are reported for the record."""
     S = len(sensors)
-    if isinstance(count, bool) or int(count) != count or not 1 <= count <= S:
-        raise ValueError(f"count must be an integer in [1, {S}], got {count!r}")
-    pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
-    P, x = _check_inputs(P_pred, x_pred)
-    if strategy == "trace":
-        upd = np.stack(
-            [
-                expected_update(P, x, [s], pv, use_pd=False)
-                for s, pv in zip(sensors, pvs, strict=True)
-            ]
-        )
-        costs = trace_cost(upd)
-        cost_name = "trace"
-    else:
-        costs, _ = sensor_costs(P, F, Q, x, sensors, pvs, criterion)
-        cost_name = criterion
-    evaluations = S
-    if strategy == "random":
-        if not isinstance(rng, np.random.Generator):
-            raise ValueError("rng must be a numpy Generator for random selection")
-        picks = tuple(int(i) for i in rng.choice(S, size=int(count), replace=False))
-    elif strategy == "fixed":
-        if fixed is None or not 0 <= int(fixed) < S:
-            raise ValueError(f"fixed must be a sensor index in [0, {S}), got {fixed!r}")
-        picks = (int(fixed),)
-    else:
-        picks = [int(np.argmin(costs))]
-        remaining = [i for i in range(S) if i != picks[0]]
-        while len(picks) < count:
-            # Fold the picks into the prediction (pd-weighted for MRE) and score the rest.
-            P_sel = expected_update(
-                P, x, [sensors[i] for i in picks], pvs[picks], use_pd=strategy == "mre"
-            )
-            if strategy == "mre":
-                c, _ = sensor_costs(
-                    P_sel, F, Q, x, [sensors[i] for i in remaining], pvs[remaining], criterion
-                )
-            else:
-                c = trace_cost(
-                    np.stack(
-                        [
-                            expected_update(P_sel, x, [sensors[i]], pvs[i], use_pd=False)
-                            for i in remaining
-                        ]
-                    )
-                )
-            evaluations += len(remaining)
-            picks.append(remaining.pop(int(np.argmin(c))))
-        picks = tuple(picks)
-    return SelectionResult(picks, np.asarray(costs, dtype=float), cost_name, evaluations)
+    if isinstance(index, bool) or not isinstance(index, int | np.integer) or not 0 <= index < S:
+        raise ValueError(f"index must be a sensor index in [0, {S}), got {index!r}")
+    costs, _ = sensor_costs(prediction, sensors, sensor_pvs, criterion)
+    return SelectionResult((int(index),), np.asarray(costs, dtype=float), criterion, S)
 
 
 @dataclass(frozen=True)
@@ -219,47 +313,40 @@ class PositioningResult:
 
 
 def position_platform(
-    pv,
-    heading: float,
-    speed: float,
-    limits: PlatformLimits,
-    sensors: Sequence,
-    P_pred,
-    F,
-    Q,
-    x_pred,
+    platform: PlannerPlatform,
+    prediction: TargetPrediction,
     dt: float,
     *,
     criterion: str = "det_pos",
-    search: str = "sector",
-    levels: int = 5,
-    grid_size: int = 21,
-    divisions: int = 6,
-    patience: int | None = None,
+    search: SearchSettings = DEFAULT_POSITIONING_SEARCH,
 ) -> PositioningResult:
-    """Ramdaras sec. 4: the platform's next position minimising the MRE criterion.
+    """Ramdaras sec. 4: the controllable ``platform``'s next position minimising the MRE
+    criterion.
 
-    The reachable envelope (heading change +-dpsi_max, speed in [v_lo, v_hi]) is searched by
-    ``search`` (``"sector"``: nine sectors, ``levels`` = d_max; ``"quadrant"``, ``"grid"`` for
-    comparison). A candidate's cost is eq. 23 with all ``sensors`` of the platform at the
-    candidate pv (sequential updates), then ``criterion``. Candidates of a stage are scored in
-    one batched :func:`activetrack.bounds.mre.mre_update` call per sensor.
+    The reachable envelope (heading change +-dpsi_max, speed in [v_lo, v_hi], from the
+    platform's heading, speed and limits) is searched by ``search`` (``"sector"``: nine sectors,
+    ``sector_levels`` = d_max; ``"quadrant"``, ``"grid"`` for comparison). A candidate's cost is
+    eq. 23 with all the platform's sensors at the candidate pv (sequential updates), then
+    ``criterion``. Candidates of a stage are scored in one batched
+    :func:`activetrack.bounds.mre.mre_update` call per sensor.
     """
-    P_pred, x_pred = _check_inputs(P_pred, x_pred)
-    F = require_finite("F", F)
-    Q = require_finite("Q", Q)
-    pv = require_finite("pv", pv)
-    if search not in POSITIONING_SEARCHES:
-        raise ValueError(f"search must be one of {POSITIONING_SEARCHES}, got {search!r}")
-    mre_criterion(criterion, P_pred, x_pred)  # validates the name early
-    sensors = tuple(sensors)
+    limits = platform.limits
+    if limits is None:
+        raise ValueError(f"platform {platform.platform_id!r} must be controllable (have limits)")
+    if search.search not in POSITIONING_SEARCHES:
+        raise ValueError(f"search must be one of {POSITIONING_SEARCHES}, got {search.search!r}")
+    crit = _mre_criterion(criterion)
+    P_pred, x_pred, F, Q = prediction.P, prediction.x, prediction.F, prediction.Q
+    crit.of_covariance(P_pred, x_pred)  # fails early where the criterion is undefined
+    pv, sensors = platform.pv, platform.sensors
+    heading, speed = platform.heading_and_speed
 
-    def candidates(u):
+    def candidates(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         m = unit_to_manoeuvre(u, speed, limits)
         nxt, psi = step_platform(pv, heading, m, dt)
         return m, nxt, psi
 
-    def cost_fn(rows, u):
+    def cost_fn(rows: np.ndarray, u: np.ndarray) -> np.ndarray:
         _, nxt, _ = candidates(u)  # (b, C, 4)
         # Eq. 23 with the platform's sensors applied in turn (mre_predict without re-checking
         # the inputs at every stage of the search).
@@ -267,15 +354,8 @@ def position_platform(
         for sensor in sensors:
             pd = float(sensor.pd) * sensor.in_range(x_pred, nxt)
             P = mre_update(P, sensor.jacobian(x_pred, nxt), sensor.R, pd)
-        return mre_criterion(criterion, F @ P @ F.T + Q, x_pred)
+        return crit.of_covariance(F @ P @ F.T + Q, x_pred)
 
-    settings = SearchSettings(
-        search=search,
-        grid_size=grid_size,
-        quadrant_divisions=divisions,
-        quadrant_patience=patience,
-        sector_levels=levels,
-    )
-    result = settings.lockstep_search()(cost_fn, 1)
+    result = search.lockstep_search()(cost_fn, 1)
     m, nxt, psi = candidates(result.u[0])
     return PositioningResult(m, nxt, float(psi), float(result.cost[0]), result.evaluations)

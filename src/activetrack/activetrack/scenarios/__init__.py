@@ -1,4 +1,5 @@
-"""Scenario files: schema, loading with clear errors, and builders for the core objects."""
+"""Scenario files: schema, loading with clear errors, the sensor-kind registry and builders for
+the core objects."""
 
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.load import (
@@ -7,14 +8,27 @@ from activetrack.scenarios.load import (
     parse_scenario,
     with_tracker_overrides,
 )
-from activetrack.scenarios.schema import Scenario
+from activetrack.scenarios.registry import (
+    SensorKind,
+    register_sensor,
+    registered_kinds,
+    sensor_kind,
+    unregister_sensor,
+)
+from activetrack.scenarios.schema import Scenario, SensorConfigBase
 
 __all__ = [
     "Scenario",
     "ScenarioError",
+    "SensorConfigBase",
+    "SensorKind",
     "build_motion_model",
     "build_sensor",
     "load_scenario",
     "parse_scenario",
+    "register_sensor",
+    "registered_kinds",
+    "sensor_kind",
+    "unregister_sensor",
     "with_tracker_overrides",
 ]

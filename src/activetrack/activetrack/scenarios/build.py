@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from activetrack.models.base import MotionModel
 from activetrack.models.motion import (
     CircularMotion,
     CircularMotionKnownOmega,
@@ -9,43 +10,30 @@ from activetrack.models.motion import (
     NearlyConstantVelocity,
     NearlyConstantVelocityDiscrete,
 )
-from activetrack.models.sensors import (
-    AmbiguousBearingSensor,
-    BearingSensor,
-    RangeBearingSensor,
-    RangeRateBearingSensor,
+from activetrack.scenarios.registry import build_sensor
+from activetrack.scenarios.schema import (
+    CircularKnownOmegaMotion,
+    CircularMotionConfig,
+    ConstantTurnMotion,
+    MotionConfig,
+    NcvDiscreteMotion,
+    NcvMotion,
 )
-from activetrack.scenarios.schema import MotionConfig, SensorConfig
+
+__all__ = ["build_motion_model", "build_sensor"]
 
 
-def build_motion_model(cfg: MotionConfig):
+def build_motion_model(cfg: MotionConfig) -> MotionModel:
     """The motion model object a ``motion:`` block describes."""
-    match cfg.model:
-        case "ncv":
+    match cfg:
+        case NcvMotion():
             return NearlyConstantVelocity(q=cfg.q)
-        case "ncv_discrete":
+        case NcvDiscreteMotion():
             return NearlyConstantVelocityDiscrete(sigma_x=cfg.sigma_x, sigma_y=cfg.sigma_y)
-        case "constant_turn":
+        case ConstantTurnMotion():
             return ConstantTurn(omega=cfg.omega, q=cfg.q)
-        case "circular":
+        case CircularMotionConfig():
             return CircularMotion(sigma_omega=cfg.sigma_omega, sigma_v=cfg.sigma_v)
-        case "circular_known_omega":
+        case CircularKnownOmegaMotion():
             return CircularMotionKnownOmega(omega=cfg.omega, sigma_v=cfg.sigma_v)
     raise ValueError(f"motion.model: unknown {cfg.model!r}")
-
-
-def build_sensor(cfg: SensorConfig):
-    """The sensor object a ``sensors:`` entry describes."""
-    common = {"pd": cfg.pd, "r_min": cfg.r_min, "r_max": cfg.r_max}
-    match cfg.kind:
-        case "bearing":
-            return BearingSensor(sigma=cfg.sigma, **common)
-        case "ambiguous_bearing":
-            return AmbiguousBearingSensor(sigma=cfg.sigma, **common)
-        case "range_bearing":
-            return RangeBearingSensor(sigma_r=cfg.sigma_r, sigma_b=cfg.sigma_b, **common)
-        case "range_rate_bearing":
-            return RangeRateBearingSensor(
-                sigma_r=cfg.sigma_r, sigma_rr=cfg.sigma_rr, sigma_b=cfg.sigma_b, **common
-            )
-    raise ValueError(f"sensors.kind: unknown {cfg.kind!r}")

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import yaml
 from pydantic import ValidationError
+from pydantic_core import ErrorDetails
 
 from activetrack.scenarios.schema import Scenario
 
@@ -29,12 +30,12 @@ class ScenarioError(ValueError):
     """A scenario file that cannot be used; the message lists every offending field."""
 
 
-def _shown(value) -> str:
+def _shown(value: object) -> str:
     text = repr(value)
     return text if len(text) <= _SHOW_INPUT else text[:_SHOW_INPUT] + "..."
 
 
-def _describe(err: dict) -> list[str]:
+def _describe(err: ErrorDetails) -> list[str]:
     """Lines ``  field: message`` for one pydantic error."""
     loc = [str(p) for p in err["loc"]]
     msg = err["msg"]
@@ -58,7 +59,7 @@ def _describe(err: dict) -> list[str]:
     return [f"  {'.'.join(loc) or '(top level)'}: {msg}"]
 
 
-def parse_scenario(data: dict, source: str = "<dict>") -> Scenario:
+def parse_scenario(data: object, source: str = "<dict>") -> Scenario:
     """Validate a scenario given as a dict (already parsed YAML)."""
     if not isinstance(data, dict):
         raise ScenarioError(
@@ -183,7 +184,7 @@ def load_scenario(path: str | Path) -> Scenario:
     return parse_scenario(data, str(path))
 
 
-def with_tracker_overrides(scenario: Scenario, **overrides) -> Scenario:
+def with_tracker_overrides(scenario: Scenario, **overrides: object) -> Scenario:
     """The scenario with tracker settings replaced (None values are ignored), re-validated."""
     changes = {k: v for k, v in overrides.items() if v is not None}
     if not changes:

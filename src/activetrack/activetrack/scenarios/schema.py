@@ -14,10 +14,18 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Self
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    GetCoreSchemaHandler,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import core_schema
 
 from activetrack.limits import (
     MAX_ACCELERATION,
@@ -56,49 +64,68 @@ from activetrack.limits import (
     MIN_PRIOR_VARIANCE,
     MIN_SIGMA,
 )
+from activetrack.models.sensors import (
+    AmbiguousBearingSensor,
+    BearingSensor,
+    RangeBearingSensor,
+    RangeRateBearingSensor,
+)
+from activetrack.scenarios.registry import (
+    on_registry_change,
+    register_sensor,
+    sensor_config_union,
+)
 
 
-def _range(lo=None, hi=None, *, gt=None, lt=None):
-    """A finite float type with the given bounds."""
-    return Annotated[float, Field(ge=lo, le=hi, gt=gt, lt=lt, allow_inf_nan=False)]
+def _range(
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    gt: float | None = None,
+    lt: float | None = None,
+) -> Any:
+    """The bounds of a finite float field (``Annotated[float, _range(...)]``)."""
+    return Field(ge=lo, le=hi, gt=gt, lt=lt, allow_inf_nan=False)
 
 
-FiniteFloat = _range()
+FiniteFloat = Annotated[float, _range()]
 # Magnitudes (activetrack.limits).
-Speed = _range(0, MAX_SPEED)  # m/s
-PositiveSpeed = _range(gt=0, hi=MAX_SPEED)
-Acceleration = _range(0, MAX_ACCELERATION)  # m/s^2
-NoisePsd = _range(0, MAX_Q)  # m^2/s^3
-TurnRate = _range(-MAX_TURN_RATE, MAX_TURN_RATE)  # rad/s
-TurnRateStd = _range(0, MAX_TURN_RATE)
-PositiveTurnRate = _range(gt=0, hi=MAX_TURN_RATE)
-HeadingChange = _range(gt=0, hi=math.pi)  # rad; a turn beyond pi is one the other way
-RangeM = _range(0, MAX_RANGE)  # m
-BearingSigma = _range(MIN_SIGMA, MAX_BEARING_SIGMA)  # rad
-RangeSigma = _range(MIN_SIGMA, MAX_RANGE)  # m
-RateSigma = _range(MIN_SIGMA, MAX_SPEED)  # m/s
-Variance = _range(0, MAX_PRIOR_VARIANCE)
-Covariance = _range(-MAX_PRIOR_VARIANCE, MAX_PRIOR_VARIANCE)
-Dt = _range(MIN_DT, MAX_DT)  # s
-Dwell = _range(0, MAX_DWELL)  # s
-Roughening = _range(0, MAX_ROUGHENING)
+Speed = Annotated[float, _range(0, MAX_SPEED)]  # m/s
+PositiveSpeed = Annotated[float, _range(gt=0, hi=MAX_SPEED)]
+Acceleration = Annotated[float, _range(0, MAX_ACCELERATION)]  # m/s^2
+NoisePsd = Annotated[float, _range(0, MAX_Q)]  # m^2/s^3
+TurnRate = Annotated[float, _range(-MAX_TURN_RATE, MAX_TURN_RATE)]  # rad/s
+TurnRateStd = Annotated[float, _range(0, MAX_TURN_RATE)]
+PositiveTurnRate = Annotated[float, _range(gt=0, hi=MAX_TURN_RATE)]
+# rad; a turn beyond pi is one the other way
+HeadingChange = Annotated[float, _range(gt=0, hi=math.pi)]
+RangeM = Annotated[float, _range(0, MAX_RANGE)]  # m
+BearingSigma = Annotated[float, _range(MIN_SIGMA, MAX_BEARING_SIGMA)]  # rad
+RangeSigma = Annotated[float, _range(MIN_SIGMA, MAX_RANGE)]  # m
+RateSigma = Annotated[float, _range(MIN_SIGMA, MAX_SPEED)]  # m/s
+Variance = Annotated[float, _range(0, MAX_PRIOR_VARIANCE)]
+Covariance = Annotated[float, _range(-MAX_PRIOR_VARIANCE, MAX_PRIOR_VARIANCE)]
+Dt = Annotated[float, _range(MIN_DT, MAX_DT)]  # s
+Dwell = Annotated[float, _range(0, MAX_DWELL)]  # s
+Roughening = Annotated[float, _range(0, MAX_ROUGHENING)]
 
 
-def _count(lo: int, hi: int):
-    return Annotated[int, Field(ge=lo, le=hi)]
+def _count(lo: int, hi: int) -> Any:
+    """The bounds of an integer field (``Annotated[int, _count(lo, hi)]``)."""
+    return Field(ge=lo, le=hi)
 
 
-Particles = _count(1, MAX_PARTICLES)
-Samples = _count(1, MAX_SAMPLES)
-SensorCount = _count(1, MAX_SENSORS)
-Horizon = _count(1, MAX_HORIZON)
-GridSize = _count(3, MAX_GRID_SIZE)
-Divisions = _count(1, MAX_QUADRANT_DIVISIONS)
-SectorLevels = _count(1, MAX_SECTOR_LEVELS)
-SensorIterations = _count(1, MAX_SENSOR_ITERATIONS)
-Measurements = _count(1, MAX_MEASUREMENTS)
-Seed = _count(0, MAX_SEED)
-Steps = _count(1, MAX_STEPS)
+Particles = Annotated[int, _count(1, MAX_PARTICLES)]
+Samples = Annotated[int, _count(1, MAX_SAMPLES)]
+SensorCount = Annotated[int, _count(1, MAX_SENSORS)]
+Horizon = Annotated[int, _count(1, MAX_HORIZON)]
+GridSize = Annotated[int, _count(3, MAX_GRID_SIZE)]
+Divisions = Annotated[int, _count(1, MAX_QUADRANT_DIVISIONS)]
+SectorLevels = Annotated[int, _count(1, MAX_SECTOR_LEVELS)]
+SensorIterations = Annotated[int, _count(1, MAX_SENSOR_ITERATIONS)]
+Measurements = Annotated[int, _count(1, MAX_MEASUREMENTS)]
+Seed = Annotated[int, _count(0, MAX_SEED)]
+Steps = Annotated[int, _count(1, MAX_STEPS)]
 
 
 # Scenario names become folder names (runs/<name>-<time>), ids go into messages and plots.
@@ -213,19 +240,29 @@ def _position(values, model: str) -> tuple[float, float]:
 # --- sensors -----------------------------------------------------------------------------------
 
 
-class _SensorCommon(_Strict):
+class SensorConfigBase(_Strict):
+    """Fields of every sensor kind: its id and detection model (pd inside [r_min, r_max],
+    Hernandez sec. 2.3, Ramdaras eq. 14-22). A kind's config derives from this, adds
+    ``kind: Literal["<kind>"]`` and its own fields, and is registered with its sensor class
+    (:func:`activetrack.scenarios.registry.register_sensor`)."""
+
     id: str
     pd: Annotated[float, Field(gt=0, le=1)] = 1.0
     r_min: RangeM = 0.0
     r_max: Annotated[float, Field(gt=0)] = math.inf  # inf: no maximum range
+    if TYPE_CHECKING:
+        kind: str  # a field of every subclass, as Literal["<kind>"]
+
+        # The kind's own fields (sigma, sigma_r, ...): the registry decides which at run time.
+        def __getattr__(self, name: str) -> Any: ...
 
     @field_validator("id")
     @classmethod
-    def _id(cls, value):
+    def _id(cls, value: str) -> str:
         return _identifier("a sensor id", value, MAX_ID_LENGTH)
 
     @model_validator(mode="after")
-    def _ranges(self):
+    def _ranges(self) -> Self:
         if math.isfinite(self.r_max) and self.r_max > MAX_RANGE:
             raise ValueError(
                 f"r_max: must be <= {MAX_RANGE:g} m or .inf (no maximum), got {self.r_max!r}"
@@ -235,28 +272,56 @@ class _SensorCommon(_Strict):
         return self
 
 
-class BearingSensorConfig(_SensorCommon):
-    kind: Literal["bearing", "ambiguous_bearing"]
+class BearingSensorConfig(SensorConfigBase):
+    kind: Literal["bearing"]
     sigma: BearingSigma  # rad
 
 
-class RangeBearingSensorConfig(_SensorCommon):
+class AmbiguousBearingSensorConfig(SensorConfigBase):
+    kind: Literal["ambiguous_bearing"]
+    sigma: BearingSigma  # rad
+
+
+class RangeBearingSensorConfig(SensorConfigBase):
     kind: Literal["range_bearing"]
     sigma_r: RangeSigma  # m
     sigma_b: BearingSigma  # rad
 
 
-class RangeRateBearingSensorConfig(_SensorCommon):
+class RangeRateBearingSensorConfig(SensorConfigBase):
     kind: Literal["range_rate_bearing"]
     sigma_r: RangeSigma  # m
     sigma_rr: RateSigma  # m/s
     sigma_b: BearingSigma  # rad
 
 
-SensorConfig = Annotated[
-    BearingSensorConfig | RangeBearingSensorConfig | RangeRateBearingSensorConfig,
-    Field(discriminator="kind"),
-]
+# The built-in kinds, registered like any other (the order is that of the error messages).
+register_sensor(BearingSensor, BearingSensorConfig)
+register_sensor(AmbiguousBearingSensor, AmbiguousBearingSensorConfig)
+register_sensor(RangeBearingSensor, RangeBearingSensorConfig)
+register_sensor(RangeRateBearingSensor, RangeRateBearingSensorConfig)
+
+
+class _RegisteredSensors:
+    """A ``sensors:`` entry validates as the discriminated union of the registered configs
+    (``registry.sensor_config_union``), looked up whenever the schema is (re)built."""
+
+    def __get_pydantic_core_schema__(
+        self, source: Any, handler: GetCoreSchemaHandler
+    ) -> core_schema.CoreSchema:
+        return handler.generate_schema(sensor_config_union())
+
+
+SensorConfig = Annotated[SensorConfigBase, _RegisteredSensors()]
+
+
+def _rebuild_sensor_models() -> None:
+    """Rebuild the models holding sensor entries after a kind was (un)registered."""
+    PlatformConfig.model_rebuild(force=True)
+    Scenario.model_rebuild(force=True)
+
+
+on_registry_change(_rebuild_sensor_models)
 BEARING_KINDS = ("bearing", "ambiguous_bearing")
 
 # --- platforms ---------------------------------------------------------------------------------
@@ -289,8 +354,9 @@ class ManoeuvreLimits(_Strict):
 
     def per_epoch(self, dt: float) -> tuple[float, float]:
         """(dpsi_max, dv_max) for one decision interval of dt seconds."""
-        if self.dpsi_max is not None:
+        if self.dpsi_max is not None and self.dv_max is not None:
             return self.dpsi_max, self.dv_max
+        assert self.psi_rate_max is not None and self.a_max is not None  # the validator's rule
         return self.psi_rate_max * dt, self.a_max * dt
 
 
@@ -344,7 +410,7 @@ class PriorConfig(_Strict):
                     f"cov: must be {n}x{n} to match mean, got rows of lengths "
                     f"{[len(row) for row in self.cov]}"
                 )
-        elif len(self.var) != n:
+        elif self.var is not None and len(self.var) != n:
             raise ValueError(f"var: must have {n} entries to match mean, got {len(self.var)}")
         try:  # the filters' own check: symmetric to 1e-9 relative, Cholesky succeeds
             P = require_spd("the covariance", self.covariance())
@@ -414,14 +480,36 @@ class TrackerConfig(_Strict):
     planner_samples: Samples = 1000
 
 
+def _one_of(names: tuple[str, ...]) -> str:
+    """``'a', 'b' or 'c'``: the allowed values as pydantic lists a Literal's."""
+    shown = [repr(n) for n in names]
+    return shown[0] if len(shown) == 1 else f"{', '.join(shown[:-1])} or {shown[-1]}"
+
+
+def _registered_criterion(value: object, *uses: str) -> str:
+    """A planner criterion that applies to one of ``uses`` (the registry,
+    activetrack.planning.criteria, decides: a registered criterion is accepted at once)."""
+    from activetrack.planning.criteria import criterion_names
+
+    names = criterion_names(*uses)
+    if not isinstance(value, str) or value not in names:
+        raise ValueError(f"must be one of {_one_of(names)}")
+    return value
+
+
 class SelectionConfig(_Strict):
     """Sensor selection (Ramdaras eq. 27): which sensors measure at each epoch."""
 
     enabled: bool = False
     strategy: Literal["mre", "random", "fixed", "trace"] = "mre"
-    criterion: Literal["det_pos", "heading", "range", "doppler", "bearing"] = "det_pos"
+    criterion: str = "det_pos"  # a criterion for MRE selection (planning.criteria)
     fixed_sensor: str | None = None
     count: SensorCount = 1
+
+    @field_validator("criterion", mode="before")
+    @classmethod
+    def _criterion(cls, value: object) -> str:
+        return _registered_criterion(value, "selection")
 
 
 class CautiousConfig(_Strict):
@@ -438,7 +526,8 @@ class CautiousConfig(_Strict):
 class PlannerConfig(_Strict):
     enabled: bool = True
     cost: Literal["pcrlb", "mre"] = "pcrlb"
-    criterion: Literal["b_k", "trace", "det_pos", "heading", "range", "doppler", "bearing"] = "b_k"
+    # A criterion for PCRLB planning (cost pcrlb) or MRE positioning (cost mre), planning.criteria.
+    criterion: str = "b_k"
     horizon: Horizon = 1
     search: Literal["grid", "quadrant", "sector", "evolution", "cautious"] = "quadrant"
     grid_size: GridSize = 101
@@ -450,6 +539,11 @@ class PlannerConfig(_Strict):
     max_sensor_iterations: SensorIterations = 10
     selection: SelectionConfig = SelectionConfig()
     cautious: CautiousConfig = CautiousConfig()
+
+    @field_validator("criterion", mode="before")
+    @classmethod
+    def _criterion(cls, value: object) -> str:
+        return _registered_criterion(value, "pcrlb", "positioning")
 
 
 # Per-stage candidates of the searches (activetrack.planning.searches) for the size rules.
@@ -575,70 +669,20 @@ def _cross_field_problems(s: Scenario) -> list[tuple[str, str]]:
 
 
 def _planner_problems(s: Scenario) -> list[tuple[str, str]]:
-    from activetrack.planning.costs import CRITERIA as PCRLB_CRITERIA
-    from activetrack.planning.selection import POSITIONING_SEARCHES
-
     cfg = s.planner
     sel = cfg.selection
     out = []
     robots = [(i, p) for i, p in enumerate(s.platforms) if p.controllable]
-    sensor_ids = [sensor.id for p in s.platforms for sensor in p.sensors]
     target_model = s.target.motion.model
     if cfg.search == "cautious":
         out += _cautious_problems(s, robots)
         uses_track = True
     else:
-        if cfg.cost == "mre" and cfg.search not in POSITIONING_SEARCHES:
-            out.append(
-                (
-                    "planner.search",
-                    f"must be one of {POSITIONING_SEARCHES} with cost 'mre', got {cfg.search!r}",
-                )
-            )
-        if cfg.cost == "mre" and cfg.horizon != 1:
-            out.append(
-                (
-                    "planner.horizon",
-                    f"must be 1 with cost 'mre' (MRE positioning looks one epoch ahead), "
-                    f"got {cfg.horizon}",
-                )
-            )
-        if (robots or sel.enabled) and target_model not in PV_MODELS:
-            out.append(
-                (
-                    "target.motion.model",
-                    f"planning and sensor selection need linear pv dynamics, one of {PV_MODELS}, "
-                    f"got {target_model!r} (or set planner.enabled: false)",
-                )
-            )
-        if robots and cfg.cost == "pcrlb":
-            out += _pcrlb_problems(s, robots, tuple(PCRLB_CRITERIA))
+        out += _steering_problems(s, robots)
         uses_track = (bool(robots) or sel.enabled) and cfg.mode == "renewal"
     if sel.enabled:
-        if sel.count > len(sensor_ids):
-            out.append(
-                (
-                    "planner.selection.count",
-                    f"must be <= {len(sensor_ids)} (the number of sensors), got {sel.count}",
-                )
-            )
-        if sel.strategy == "fixed":
-            if sel.fixed_sensor not in sensor_ids:
-                out.append(
-                    (
-                        "planner.selection.fixed_sensor",
-                        f"must be one of {sensor_ids} with strategy 'fixed', "
-                        f"got {sel.fixed_sensor!r}",
-                    )
-                )
-            if sel.count != 1:
-                out.append(
-                    (
-                        "planner.selection.count",
-                        f"must be 1 with strategy 'fixed', got {sel.count}",
-                    )
-                )
-    # Criteria of the MRE (Ramdaras eq. 25-26) evaluated at the predicted target state.
+        out += _selection_problems(s)
+    # Criteria of the MRE (e.g. Ramdaras eq. 25-26) evaluated at the predicted target state.
     criteria = []
     if sel.enabled and cfg.search != "cautious":
         criteria.append(("planner.selection.criterion", sel.criterion))
@@ -658,10 +702,86 @@ def _planner_problems(s: Scenario) -> list[tuple[str, str]]:
     return out
 
 
-def _cautious_problems(s: Scenario, robots) -> list[tuple[str, str]]:
-    """Vander Hook's beta-cautious planner (closed_loop.cautious, planning.cautious)."""
-    from activetrack.planning.cautious import caution_gamma, sigma_beta
+def _steering_problems(
+    s: Scenario, robots: list[tuple[int, PlatformConfig]]
+) -> list[tuple[str, str]]:
+    """PCRLB planning or MRE positioning of the controllable platforms (not cautious)."""
+    from activetrack.planning.criteria import PCRLB, POSITIONING, criterion_names
+    from activetrack.planning.selection import POSITIONING_SEARCHES
 
+    cfg = s.planner
+    target_model = s.target.motion.model
+    out = []
+    if cfg.cost == "mre" and cfg.search not in POSITIONING_SEARCHES:
+        out.append(
+            (
+                "planner.search",
+                f"must be one of {POSITIONING_SEARCHES} with cost 'mre', got {cfg.search!r}",
+            )
+        )
+    positioning = criterion_names(POSITIONING)
+    if cfg.cost == "mre" and robots and cfg.criterion not in positioning:
+        out.append(
+            (
+                "planner.criterion",
+                f"must be one of {positioning} with cost 'mre', got {cfg.criterion!r}",
+            )
+        )
+    if cfg.cost == "mre" and cfg.horizon != 1:
+        out.append(
+            (
+                "planner.horizon",
+                f"must be 1 with cost 'mre' (MRE positioning looks one epoch ahead), "
+                f"got {cfg.horizon}",
+            )
+        )
+    if (robots or cfg.selection.enabled) and target_model not in PV_MODELS:
+        out.append(
+            (
+                "target.motion.model",
+                f"planning and sensor selection need linear pv dynamics, one of {PV_MODELS}, "
+                f"got {target_model!r} (or set planner.enabled: false)",
+            )
+        )
+    if robots and cfg.cost == "pcrlb":
+        out += _pcrlb_problems(s, robots, criterion_names(PCRLB))
+    return out
+
+
+def _selection_problems(s: Scenario) -> list[tuple[str, str]]:
+    """Sensor selection (Ramdaras eq. 27) among the scenario's sensors."""
+    sel = s.planner.selection
+    sensor_ids = [sensor.id for p in s.platforms for sensor in p.sensors]
+    out = []
+    if sel.count > len(sensor_ids):
+        out.append(
+            (
+                "planner.selection.count",
+                f"must be <= {len(sensor_ids)} (the number of sensors), got {sel.count}",
+            )
+        )
+    if sel.strategy == "fixed":
+        if sel.fixed_sensor not in sensor_ids:
+            out.append(
+                (
+                    "planner.selection.fixed_sensor",
+                    f"must be one of {sensor_ids} with strategy 'fixed', got {sel.fixed_sensor!r}",
+                )
+            )
+        if sel.count != 1:
+            out.append(
+                (
+                    "planner.selection.count",
+                    f"must be 1 with strategy 'fixed', got {sel.count}",
+                )
+            )
+    return out
+
+
+def _cautious_problems(
+    s: Scenario, robots: list[tuple[int, PlatformConfig]]
+) -> list[tuple[str, str]]:
+    """Vander Hook's beta-cautious planner (closed_loop.cautious, planning.cautious)."""
     cfg = s.planner
     c = cfg.cautious
     out = []
@@ -711,9 +831,18 @@ def _cautious_problems(s: Scenario, robots) -> list[tuple[str, str]]:
             ("planner.cautious.beta", f"must be in (0, 0.5] with tail 'one_sided', got {c.beta}")
         )
         return out
-    if len(robots) != 1:
-        return out
-    i, robot = robots[0]
+    if len(robots) == 1:
+        out += _cautious_robot_problems(c, *robots[0])
+    return out
+
+
+def _cautious_robot_problems(
+    c: CautiousConfig, i: int, robot: PlatformConfig
+) -> list[tuple[str, str]]:
+    """The robot's one bearing sensor and the beta-cautious strategy's existence for it."""
+    from activetrack.planning.cautious import caution_gamma, sigma_beta
+
+    out = []
     kinds = [sensor.kind for sensor in robot.sensors]
     if len(kinds) != 1 or kinds[0] not in BEARING_KINDS:
         out.append(
@@ -744,7 +873,9 @@ def _cautious_problems(s: Scenario, robots) -> list[tuple[str, str]]:
     return out
 
 
-def _pcrlb_problems(s: Scenario, robots, criteria) -> list[tuple[str, str]]:
+def _pcrlb_problems(
+    s: Scenario, robots: list[tuple[int, PlatformConfig]], criteria: tuple[str, ...]
+) -> list[tuple[str, str]]:
     """PCRLB manoeuvre planning (planning.planner, planning.horizons)."""
     cfg = s.planner
     out = []
@@ -764,12 +895,13 @@ def _pcrlb_problems(s: Scenario, robots, criteria) -> list[tuple[str, str]]:
                     "(its heading)",
                 )
             )
-        if p.limits.v_min <= 0.0:
+        v_min = p.limits.v_min if p.limits is not None else 0.0  # limits: given when controllable
+        if v_min <= 0.0:
             out.append(
                 (
                     f"platforms.{i}.limits.v_min",
                     "must be > 0 for a platform steered by PCRLB planning (at rest it would "
-                    f"have no heading), got {p.limits.v_min}",
+                    f"have no heading), got {v_min}",
                 )
             )
     R = cfg.horizon
@@ -805,29 +937,20 @@ def _pcrlb_problems(s: Scenario, robots, criteria) -> list[tuple[str, str]]:
     return out
 
 
-def _criterion_problems(s: Scenario, criteria) -> list[tuple[str, str]]:
-    """Heading needs a moving target; range, Doppler and bearing are taken from the origin
-    (Ramdaras eq. 26) and need the target away from it. Checked at the first prediction."""
+def _criterion_problems(s: Scenario, criteria: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    """Criteria undefined at the predicted target state (the registry's ``state_problem``:
+    heading of a target at rest; range, Doppler and bearing taken from the origin, Ramdaras
+    eq. 26, with the target there). Checked at the first prediction."""
+    from activetrack.models.base import as_linear
+    from activetrack.planning.criteria import get_criterion
     from activetrack.scenarios.build import build_motion_model
 
-    F = build_motion_model(s.target.motion).transition_matrix(s.dt)
+    F = as_linear(build_motion_model(s.target.motion)).transition_matrix(s.dt)
     x = F @ np.asarray(s.target.prior.mean, dtype=float)
     out = []
-    for field, criterion in criteria:
-        if criterion == "heading" and math.hypot(x[1], x[3]) == 0.0:
-            out.append(
-                (
-                    field,
-                    "'heading' needs a moving target, but the velocity of target.prior.mean "
-                    "is zero",
-                )
-            )
-        elif criterion in ("range", "doppler", "bearing") and math.hypot(x[0], x[2]) == 0.0:
-            out.append(
-                (
-                    field,
-                    f"{criterion!r} is taken from the origin (Ramdaras eq. 26), where the "
-                    "target's predicted position (target.prior.mean) lies",
-                )
-            )
+    for field, name in criteria:
+        problem = get_criterion(name).state_problem
+        reason = problem(x) if problem is not None else None
+        if reason:
+            out.append((field, f"{name!r} {reason} (target.prior.mean)"))
     return out

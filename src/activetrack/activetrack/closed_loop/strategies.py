@@ -1,0 +1,549 @@
+"""Planner strategies: the small objects a closed-loop decision is composed of.
+
+Every strategy implements :class:`PlannerStrategy`, one method: ``decide(context) ->
+DecisionPart``. :class:`activetrack.closed_loop.planner.PlannerCore` runs the strategies the
+scenario asks for (``build_strategies`` there) in order; each sees the epoch's inputs and what
+the strategies before it decided (``context.so_far``: planned positions, the MRE prediction,
+the selection) and adds its part: commands, planned platform positions at k+1, a selection, a
+plan report, cost evaluations, extra data.
+
+- :class:`HoldCourse`: hold course and speed (planner off);
+- :class:`PcrlbPlanning`: manoeuvres minimising a PCRLB criterion (Hernandez sec. 3-4);
+- :class:`CautiousLocalisation`: stop-and-measure waypoints (Vander Hook et al., Alg. 1);
+- :class:`MrePrediction`: x_{k+1|k}, P_{k+1|k} for the MRE strategies after it (Ramdaras
+  Fig. 5);
+- :class:`MrePositioning`: each controllable platform's next position (Ramdaras sec. 4);
+- :class:`MreSelection`: the sensors minimising the criterion of eq. 23 (Ramdaras eq. 27);
+  baselines :class:`TraceSelection`, :class:`RandomSelection`, :class:`FixedSelection`
+  (Ramdaras and Absil 2007a);
+- :class:`MreOutlook`: the MRE plan report, eq. 23 with the chosen sensors.
+
+Criteria are looked up in :mod:`activetrack.planning.criteria`. Only :class:`PcrlbPlanning`
+and :class:`RandomSelection` draw random numbers, from the planner's generator, in that order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, Protocol
+
+import numpy as np
+
+from activetrack.bounds.costs import position_determinant, trace_cost
+from activetrack.bounds.pcrlb import covariance_bound
+from activetrack.closed_loop.cautious import CautiousController
+from activetrack.closed_loop.data import (
+    Command,
+    Decision,
+    PlanReportData,
+    PlatformSnapshot,
+    TrackSnapshot,
+)
+from activetrack.models.base import SensorModel, as_linear
+from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
+from activetrack.planning.horizons import SearchSettings
+from activetrack.planning.manoeuvre import PlatformLimits
+from activetrack.planning.planner import (
+    PlannerPlatform,
+    PlanSettings,
+    TargetBelief,
+    advance_belief,
+    plan,
+    platforms_from_scenario,
+)
+from activetrack.planning.selection import (
+    POSITIONING_SEARCHES,
+    SelectionResult,
+    TargetPrediction,
+    expected_update,
+    position_platform,
+    select_by_criterion,
+    select_by_trace,
+    select_fixed,
+    select_random,
+)
+from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.schema import Scenario
+
+__all__ = [
+    "MRE_REPORT_COSTS",
+    "CautiousLocalisation",
+    "DecisionContext",
+    "DecisionPart",
+    "FixedSelection",
+    "HoldCourse",
+    "LinearDynamics",
+    "MreOutlook",
+    "MrePositioning",
+    "MrePrediction",
+    "MreSelection",
+    "PcrlbPlanning",
+    "PlannerStrategy",
+    "RandomSelection",
+    "SensorChoice",
+    "SensorEntry",
+    "TraceSelection",
+    "sensor_entries",
+]
+
+# Cost names of the plan report in MRE mode (predicted for the epoch decided for, k+1).
+MRE_REPORT_COSTS = ("objective", "det_pos", "trace", "det_pos_updated", "trace_updated")
+
+
+# --- what strategies exchange ----------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SensorEntry:
+    """One sensor of the scenario: its id, the platform carrying it and its model."""
+
+    sensor_id: str
+    platform_id: str
+    model: SensorModel
+
+
+def sensor_entries(scenario: Scenario) -> tuple[SensorEntry, ...]:
+    """Every sensor of the scenario, in scenario order (the order of selections and costs)."""
+    return tuple(
+        SensorEntry(s.id, p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors
+    )
+
+
+@dataclass(frozen=True)
+class SensorChoice:
+    """A sensor selection for epoch k+1: the chosen sensors (indices into the scenario's
+    sensors, ascending, and their ids), every candidate's id and cost, and the label
+    ``"<strategy>/<cost name>"``."""
+
+    indices: tuple[int, ...]
+    sensor_ids: tuple[str, ...]
+    candidate_ids: tuple[str, ...]
+    costs: tuple[float, ...]
+    label: str
+
+
+@dataclass(frozen=True)
+class DecisionPart:
+    """What one strategy (or all of them so far, merged by :meth:`then`) decided."""
+
+    commands: tuple[Command, ...] = ()
+    planned_pv: Mapping[str, np.ndarray] = field(default_factory=dict)  # platform pv at k+1
+    prediction: TargetPrediction | None = None
+    selection: SensorChoice | None = None
+    report: PlanReportData | None = None
+    evaluations: int = 0
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    def then(self, later: DecisionPart) -> DecisionPart:
+        """This part followed by ``later``: commands appended, evaluations summed, mappings
+        merged; a later prediction, selection or report replaces an earlier one."""
+        return DecisionPart(
+            commands=self.commands + later.commands,
+            planned_pv={**self.planned_pv, **later.planned_pv},
+            prediction=later.prediction if later.prediction is not None else self.prediction,
+            selection=later.selection if later.selection is not None else self.selection,
+            report=later.report if later.report is not None else self.report,
+            evaluations=self.evaluations + later.evaluations,
+            extra={**self.extra, **later.extra},
+        )
+
+    def decision(self, epoch: int, wall_time_s: float) -> Decision:
+        """The :class:`Decision`; the report counts the evaluations of every part."""
+        report = self.report
+        if report is not None:
+            report = replace(report, evaluations=self.evaluations, wall_time_s=wall_time_s)
+        sel = self.selection
+        chosen: dict[str, Any] = {}
+        if sel is not None:
+            chosen = dict(
+                selected_sensor_ids=sel.sensor_ids,
+                candidate_sensor_ids=sel.candidate_ids,
+                selection_costs=sel.costs,
+                selection_criterion=sel.label,
+            )
+        return Decision(epoch, self.commands, report=report, extra=dict(self.extra), **chosen)
+
+
+@dataclass(frozen=True)
+class DecisionContext:
+    """The inputs of one decision at ``epoch``: the track, every platform's snapshot by id,
+    the interval dt, and what the strategies before this one decided (``so_far``)."""
+
+    epoch: int
+    track: TrackSnapshot
+    platforms: Mapping[str, PlatformSnapshot]
+    dt: float
+    so_far: DecisionPart = DecisionPart()
+
+    def next_pv(self, platform_id: str) -> np.ndarray:
+        """The platform's pv at k+1: as planned so far, else coasting at its velocity."""
+        planned = self.so_far.planned_pv.get(platform_id)
+        if planned is not None:
+            return np.asarray(planned, dtype=float)
+        pv = np.asarray(self.platforms[platform_id].pv, dtype=float)
+        return pv + self.dt * np.array([pv[1], 0.0, pv[3], 0.0])
+
+    @property
+    def prediction(self) -> TargetPrediction:
+        """The MRE prediction for k+1 (an :class:`MrePrediction` must run first)."""
+        if self.so_far.prediction is None:
+            raise RuntimeError("planner: an MRE strategy ran without MrePrediction before it")
+        return self.so_far.prediction
+
+
+class PlannerStrategy(Protocol):
+    """A part of the planner: reads the context, returns its part of the decision."""
+
+    def decide(self, context: DecisionContext) -> DecisionPart: ...
+
+
+@dataclass(frozen=True)
+class LinearDynamics:
+    """The target's linear pv dynamics over one interval dt: F, Q ``(4, 4)`` (Hernandez
+    eq. 2, Ramdaras eq. 3-4), which PCRLB planning and the MRE need."""
+
+    F: np.ndarray
+    Q: np.ndarray
+    dt: float
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> LinearDynamics:
+        model = build_motion_model(scenario.target.motion)
+        if not model.is_linear:
+            raise ValueError(
+                f"planner: PCRLB / MRE planning needs linear target dynamics (ncv, ncv_discrete, "
+                f"constant_turn), got motion {scenario.target.motion.model!r}"
+            )
+        linear, dt = as_linear(model), scenario.dt
+        return cls(linear.transition_matrix(dt), linear.process_noise(dt), dt)
+
+
+def _require_pv(track: TrackSnapshot) -> None:
+    if track.mean.shape != (4,):
+        raise ValueError(
+            f"track: renewal planning needs a pv track (x, xdot, y, ydot), got {track.state_names}"
+        )
+
+
+# --- steering ----------------------------------------------------------------------------------
+
+
+class HoldCourse:
+    """Hold course and speed: the commands of a planner that is off."""
+
+    def __init__(self, platform_ids: Sequence[str]):
+        self.platform_ids = tuple(platform_ids)
+
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        return DecisionPart(tuple(Command(p, context.epoch, 0.0, 0.0) for p in self.platform_ids))
+
+
+class PcrlbPlanning:
+    """PCRLB manoeuvre planning (Hernandez sec. 3-4) of every controllable platform by
+    :func:`activetrack.planning.planner.plan`: renewal (each decision from the track's
+    posterior, footnote 2) or open loop (from the prior and the known dynamics, sec. 3.2)."""
+
+    def __init__(self, scenario: Scenario, dynamics: LinearDynamics, rng: np.random.Generator):
+        self.scenario = scenario
+        self.settings = PlanSettings.from_config(scenario.planner)
+        self.open_loop = scenario.planner.mode == "open_loop"
+        self.mc_samples = scenario.planner.mc_samples
+        self.dynamics = dynamics
+        self.rng = rng
+        self._open_loop_belief: TargetBelief | None = None
+
+    def _belief(
+        self, epoch: int, track: TrackSnapshot, platforms: list[PlannerPlatform]
+    ) -> TargetBelief:
+        d = self.dynamics
+        if self.open_loop:
+            if self._open_loop_belief is None:
+                prior = self.scenario.target.prior
+                self._open_loop_belief = TargetBelief.from_gaussian(
+                    np.array(prior.mean), prior.covariance(), self.mc_samples, self.rng
+                )
+            elif epoch > 0:
+                self._open_loop_belief = advance_belief(
+                    self._open_loop_belief, platforms, d.F, d.Q, self.rng
+                )
+            return self._open_loop_belief
+        _require_pv(track)
+        if track.samples is not None:
+            return TargetBelief(covariance_bound(track.cov), track.samples)
+        return TargetBelief.from_gaussian(track.mean, track.cov, self.mc_samples, self.rng)
+
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        states = {pid: snap.pv for pid, snap in context.platforms.items()}
+        platforms = platforms_from_scenario(self.scenario, states)
+        belief = self._belief(context.epoch, context.track, platforms)
+        d = self.dynamics
+        result = plan(platforms, belief, self.settings, F=d.F, Q=d.Q, dt=d.dt, rng=self.rng)
+        epoch, r = context.epoch, result.report
+        report = PlanReportData(
+            epoch=epoch,
+            cost_kind="pcrlb",
+            criterion=r.criterion,
+            search=r.search,
+            horizon=r.horizon,
+            cost_names=r.cost_names,
+            predicted_costs=tuple(float(c) for c in r.predicted_costs),
+        )
+        return DecisionPart(
+            commands=tuple(
+                Command(m.platform_id, epoch, m.heading_change, m.speed_change, m.heading, m.speed)
+                for m in result.manoeuvres
+            ),
+            planned_pv={m.platform_id: m.next_pv for m in result.manoeuvres},
+            report=report,
+            evaluations=r.evaluations,
+        )
+
+
+class CautiousLocalisation:
+    """Stop-and-measure localisation of a target by one robot (Vander Hook et al., Alg. 1)
+    through :class:`activetrack.closed_loop.cautious.CautiousController`."""
+
+    def __init__(self, scenario: Scenario):
+        self.controller = CautiousController(scenario)
+
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        c = self.controller
+        command = c.decide(context.epoch, context.track, context.platforms[c.robot_id])
+        report = PlanReportData(
+            epoch=context.epoch,
+            cost_kind="cautious",
+            criterion="eigenvalues",
+            search="cautious",
+            horizon=1,
+            cost_names=("measurements", "done"),
+            predicted_costs=(float(c.measurements), float(c.done)),
+        )
+        return DecisionPart(commands=(command,), report=report)
+
+
+# --- Ramdaras: MRE prediction, positioning, selection, outlook ----------------------------------
+
+
+class MrePrediction:
+    """x_{k+1|k} = F x, P_{k+1|k} = F P F^T + Q for the MRE strategies after it.
+
+    Renewal: (x, P) is the track's posterior (Ramdaras Fig. 5). Open loop: the planner's own
+    recursion from the prior, P_{k+1|k+1} = (1 - pd) P_{k+1|k} + pd P^(j)_{k+1|k+1} for the
+    chosen sensors, which :class:`MreOutlook` feeds back through :meth:`commit`."""
+
+    def __init__(self, scenario: Scenario, dynamics: LinearDynamics):
+        self.open_loop = scenario.planner.mode == "open_loop"
+        self.prior = scenario.target.prior
+        self.dynamics = dynamics
+        self._posterior: tuple[np.ndarray, np.ndarray] | None = None
+
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        if self.open_loop:
+            if self._posterior is None:
+                self._posterior = (np.array(self.prior.mean, dtype=float), self.prior.covariance())
+            x, P = self._posterior
+        else:
+            _require_pv(context.track)
+            x, P = context.track.mean, context.track.cov
+        d = self.dynamics
+        return DecisionPart(prediction=TargetPrediction.from_posterior(x, P, d.F, d.Q))
+
+    def commit(self, x: np.ndarray, P_updated: np.ndarray) -> None:
+        """Open loop: the expected posterior at k+1 the next decision predicts from."""
+        if self.open_loop:
+            self._posterior = (x, P_updated)
+
+
+class MrePositioning:
+    """Ramdaras sec. 4: each controllable platform on its own to the position minimising the
+    criterion of eq. 23 with all its sensors there (:func:`position_platform`)."""
+
+    def __init__(self, scenario: Scenario, sensors: Sequence[SensorEntry], dt: float):
+        cfg = scenario.planner
+        self.criterion = get_criterion(cfg.criterion, POSITIONING, what="planner.criterion").name
+        self.search = SearchSettings.from_config(cfg)
+        if self.search.search not in POSITIONING_SEARCHES:
+            raise ValueError(
+                f"planner.search must be one of {POSITIONING_SEARCHES} with cost 'mre', "
+                f"got {cfg.search!r}"
+            )
+        self.dt = dt
+        self.platforms = tuple(
+            (
+                p.id,
+                PlatformLimits.from_config(p.limits, dt),
+                tuple(s.model for s in sensors if s.platform_id == p.id),
+            )
+            for p in scenario.platforms
+            if p.controllable and p.limits is not None
+        )
+
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        commands, planned, costs, evaluations = [], {}, {}, 0
+        for pid, limits, models in self.platforms:
+            snap = context.platforms[pid]
+            platform = PlannerPlatform(
+                pid, snap.pv, models, limits, heading=snap.heading, speed=snap.speed
+            )
+            pos = position_platform(
+                platform, context.prediction, self.dt, criterion=self.criterion, search=self.search
+            )
+            dpsi, v = float(pos.manoeuvre[0]), float(pos.manoeuvre[1])
+            commands.append(Command(pid, context.epoch, dpsi, v - snap.speed, pos.heading, v))
+            planned[pid] = pos.next_pv
+            costs[pid] = pos.cost
+            evaluations += pos.evaluations
+        return DecisionPart(
+            tuple(commands), planned, evaluations=evaluations, extra={"positioning_costs": costs}
+        )
+
+
+class _Selection:
+    """Common part of the selection strategies (Ramdaras sec. 3): every sensor at its
+    platform's pv at k+1 is a candidate; ``count`` of them measure at k+1."""
+
+    name = ""
+
+    def __init__(self, sensors: Sequence[SensorEntry], count: int):
+        self.sensors = tuple(sensors)
+        self.models = [s.model for s in self.sensors]
+        if not 1 <= count <= len(self.sensors):
+            raise ValueError(
+                f"planner.selection.count must be <= {len(self.sensors)} sensors, got {count}"
+            )
+        self.count = count
+
+    def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
+        raise NotImplementedError
+
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        pvs = np.stack([context.next_pv(s.platform_id) for s in self.sensors])
+        result = self.select(context.prediction, pvs)
+        chosen = tuple(sorted(result.selected))
+        choice = SensorChoice(
+            indices=chosen,
+            sensor_ids=tuple(self.sensors[i].sensor_id for i in chosen),
+            candidate_ids=tuple(s.sensor_id for s in self.sensors),
+            costs=tuple(float(c) for c in result.costs),
+            label=f"{self.name}/{result.cost_name}",
+        )
+        return DecisionPart(selection=choice, evaluations=result.evaluations)
+
+
+def _selection_criterion(name: str) -> str:
+    return get_criterion(name, SELECTION, what="planner.selection.criterion").name
+
+
+class MreSelection(_Selection):
+    """Ramdaras eq. 27: argmin of the criterion of eq. 23 (greedy for count > 1)."""
+
+    name = "mre"
+
+    def __init__(self, sensors: Sequence[SensorEntry], criterion: str, count: int = 1):
+        super().__init__(sensors, count)
+        self.criterion = _selection_criterion(criterion)
+
+    def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
+        return select_by_criterion(
+            prediction, self.models, pvs, criterion=self.criterion, count=self.count
+        )
+
+
+class TraceSelection(_Selection):
+    """Baseline: argmin of tr(P_{k|k}) of the Kalman update (eq. 22, pd ignored)."""
+
+    name = "trace"
+
+    def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
+        return select_by_trace(prediction, self.models, pvs, count=self.count)
+
+
+class RandomSelection(_Selection):
+    """Baseline: ``count`` sensors drawn uniformly from the planner's generator."""
+
+    name = "random"
+
+    def __init__(
+        self,
+        sensors: Sequence[SensorEntry],
+        criterion: str,
+        count: int,
+        rng: np.random.Generator,
+    ):
+        super().__init__(sensors, count)
+        self.criterion = _selection_criterion(criterion)
+        self.rng = rng
+
+    def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
+        return select_random(
+            prediction, self.models, pvs, self.rng, criterion=self.criterion, count=self.count
+        )
+
+
+class FixedSelection(_Selection):
+    """Baseline: always the sensor ``sensor_id``."""
+
+    name = "fixed"
+
+    def __init__(self, sensors: Sequence[SensorEntry], criterion: str, sensor_id: str | None):
+        super().__init__(sensors, 1)
+        self.criterion = _selection_criterion(criterion)
+        ids = [s.sensor_id for s in self.sensors]
+        if sensor_id not in ids:
+            raise ValueError(f"planner.selection.fixed_sensor must be one of {ids}")
+        self.index = ids.index(sensor_id)
+
+    def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
+        return select_fixed(prediction, self.models, pvs, self.index, criterion=self.criterion)
+
+
+class MreOutlook:
+    """The MRE plan report: eq. 23 with the chosen sensors (all of them without a selection)
+    at their planned positions, the criterion of the result as the objective, and the open-loop
+    recursion's next posterior (:meth:`MrePrediction.commit`).
+
+    Report costs ``MRE_REPORT_COSTS``; ``extra``: ``mre_cov`` (P_{k+2|k+1}),
+    ``mre_updated_cov`` (the expected P_{k+1|k+1}) and ``planned_pv`` (every platform)."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        sensors: Sequence[SensorEntry],
+        predictor: MrePrediction,
+        criterion: str,
+        search: str,
+    ):
+        self.platform_ids = tuple(p.id for p in scenario.platforms)
+        self.sensors = tuple(sensors)
+        self.predictor = predictor
+        self.criterion = get_criterion(criterion, POSITIONING, SELECTION)
+        self.search = search
+
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        p = context.prediction
+        selection = context.so_far.selection
+        chosen = list(selection.indices if selection else range(len(self.sensors)))
+        pvs = np.stack([context.next_pv(s.platform_id) for s in self.sensors])
+        P_upd = expected_update(p.P, p.x, [self.sensors[i].model for i in chosen], pvs[chosen])
+        P_hat = p.F @ P_upd @ p.F.T + p.Q
+        P_hat = 0.5 * (P_hat + P_hat.T)
+        self.predictor.commit(p.x, P_upd)
+        report = PlanReportData(
+            epoch=context.epoch,
+            cost_kind="mre",
+            criterion=self.criterion.name,
+            search=self.search,
+            horizon=1,
+            cost_names=MRE_REPORT_COSTS,
+            predicted_costs=(
+                float(self.criterion.of_covariance(P_hat, p.x)),
+                float(position_determinant(P_hat)),
+                float(trace_cost(P_hat)),
+                float(position_determinant(P_upd)),
+                float(trace_cost(P_upd)),
+            ),
+        )
+        planned = {pid: context.next_pv(pid) for pid in self.platform_ids}
+        extra = {"mre_cov": P_hat, "mre_updated_cov": P_upd, "planned_pv": planned}
+        return DecisionPart(report=report, extra=extra)

@@ -1,0 +1,188 @@
+"""Sensor kinds that scenario files can name: each registered once, with its class and config.
+
+A kind is the sensor class (contract :class:`activetrack.models.base.SensorModel`; its class
+attribute ``kind`` is the name) together with its scenario configuration: a pydantic model
+deriving from :class:`activetrack.scenarios.schema.SensorConfigBase` (id, pd, r_min, r_max)
+with ``kind: Literal["<kind>"]`` and the sensor's own fields, validated on load::
+
+    class RangeSensorConfig(SensorConfigBase):
+        kind: Literal["range"]
+        sigma_r: Annotated[float, Field(gt=0, le=1e6)]
+
+    register_sensor(RangeSensor, RangeSensorConfig)
+
+From then on a ``sensors:`` entry of that kind loads (the schema's sensor entries are the
+discriminated union, on ``kind``, of the registered configs; an unknown kind's error lists the
+registered ones) and :func:`build_sensor` makes the sensor: by default
+``RangeSensor(**fields)`` with every config field but ``id`` and ``kind``, or ``build(config)``
+when one is given. The built-in kinds register the same way (``scenarios.schema``).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Union, get_args, get_origin
+
+from pydantic import BaseModel, Field
+
+from activetrack.models.base import SensorModel
+
+if TYPE_CHECKING:
+    from activetrack.scenarios.schema import SensorConfigBase
+
+__all__ = [
+    "SensorKind",
+    "build_sensor",
+    "on_registry_change",
+    "register_sensor",
+    "registered_kinds",
+    "sensor_config_union",
+    "sensor_kind",
+    "unregister_sensor",
+]
+
+_KIND_NAME = re.compile(r"[a-z][a-z0-9_]*")
+# What a sensor class must offer (SensorModel's members that exist on the class itself; pd,
+# r_min and r_max are dataclass fields, guaranteed by the config's base class).
+_CLASS_MEMBERS = (
+    "components",
+    "R",
+    "dim_z",
+    "measure",
+    "jacobian",
+    "residual",
+    "in_range",
+    "detect",
+    "sample",
+    "linearize",
+    "log_likelihood",
+    "log_miss_likelihood",
+    "fisher_information",
+)
+
+
+@dataclass(frozen=True)
+class SensorKind:
+    """One registered kind: its sensor class, its config model and how to build the sensor."""
+
+    kind: str
+    sensor_class: type
+    config_class: type[BaseModel]
+    build: Callable[[Any], SensorModel]
+
+
+_KINDS: dict[str, SensorKind] = {}
+_LISTENERS: list[Callable[[], None]] = []
+
+
+def _default_build(sensor_class: type) -> Callable[[Any], SensorModel]:
+    def build(cfg: BaseModel) -> SensorModel:
+        fields = {k: getattr(cfg, k) for k in type(cfg).model_fields if k not in ("id", "kind")}
+        sensor: SensorModel = sensor_class(**fields)
+        return sensor
+
+    return build
+
+
+def _check_config(kind: str, config_class: type) -> None:
+    from activetrack.scenarios.schema import SensorConfigBase
+
+    if not (isinstance(config_class, type) and issubclass(config_class, SensorConfigBase)):
+        raise ValueError(
+            f"config_class must be a subclass of activetrack.scenarios.schema.SensorConfigBase, "
+            f"got {config_class!r}"
+        )
+    field = config_class.model_fields.get("kind")
+    tags = get_args(field.annotation) if field is not None else ()
+    if field is None or get_origin(field.annotation) is not Literal or tags != (kind,):
+        raise ValueError(
+            f"config_class {config_class.__name__} must declare kind: Literal[{kind!r}], "
+            f"got {field.annotation if field is not None else 'no kind field'}"
+        )
+
+
+def register_sensor(
+    sensor_class: type,
+    config_class: type[SensorConfigBase],
+    *,
+    build: Callable[[Any], SensorModel] | None = None,
+) -> SensorKind:
+    """Make the sensor kind ``sensor_class.kind`` available to scenario files (module docstring).
+
+    Raises ValueError for a kind that is not a lower-case identifier, a sensor class missing a
+    member of the contract, a config class that does not derive from ``SensorConfigBase`` or
+    whose ``kind`` is not ``Literal[kind]``, or a kind registered before with other classes
+    (registering the same classes again is a no-op).
+    """
+    kind = getattr(sensor_class, "kind", None)
+    if not (isinstance(kind, str) and _KIND_NAME.fullmatch(kind)):
+        raise ValueError(
+            f"sensor_class.kind must be a lower-case identifier ([a-z][a-z0-9_]*), got {kind!r}"
+        )
+    missing = [m for m in _CLASS_MEMBERS if not hasattr(sensor_class, m)]
+    if missing:
+        raise ValueError(
+            f"sensor_class {sensor_class.__name__} lacks {missing} of the SensorModel contract "
+            "(derive from activetrack.models.GaussianSensor for generic versions)"
+        )
+    _check_config(kind, config_class)
+    old = _KINDS.get(kind)
+    if old is not None:
+        if (old.sensor_class, old.config_class) == (sensor_class, config_class):
+            return old
+        raise ValueError(
+            f"sensor kind {kind!r} is registered already (with {old.sensor_class.__name__}); "
+            "unregister_sensor it first"
+        )
+    entry = SensorKind(kind, sensor_class, config_class, build or _default_build(sensor_class))
+    _KINDS[kind] = entry
+    _changed()
+    return entry
+
+
+def unregister_sensor(kind: str) -> None:
+    """Remove a registered kind (e.g. a test's); scenario files naming it no longer load."""
+    if _KINDS.pop(kind, None) is None:
+        raise ValueError(f"sensor kind must be one of {registered_kinds()}, got {kind!r}")
+    _changed()
+
+
+def registered_kinds() -> tuple[str, ...]:
+    """The registered sensor kinds, in registration order."""
+    return tuple(_KINDS)
+
+
+def sensor_kind(kind: str) -> SensorKind:
+    """The registration of ``kind``; ValueError listing the registered kinds otherwise."""
+    try:
+        return _KINDS[kind]
+    except (KeyError, TypeError):
+        raise ValueError(
+            f"sensors.kind: must be one of {registered_kinds()}, got {kind!r}"
+        ) from None
+
+
+def build_sensor(cfg: SensorConfigBase) -> SensorModel:
+    """The sensor object a validated ``sensors:`` entry describes."""
+    return sensor_kind(cfg.kind).build(cfg)
+
+
+def sensor_config_union() -> Any:
+    """The type of a ``sensors:`` entry: the registered configs, discriminated on ``kind``."""
+    configs = tuple(entry.config_class for entry in _KINDS.values())
+    if len(configs) == 1:
+        return configs[0]
+    return Annotated[Union[configs], Field(discriminator="kind")]  # noqa: UP007
+
+
+def on_registry_change(callback: Callable[[], None]) -> None:
+    """Call ``callback()`` after every registration or removal (the schema rebuilds the models
+    that hold sensor entries)."""
+    _LISTENERS.append(callback)
+
+
+def _changed() -> None:
+    for callback in _LISTENERS:
+        callback()
