@@ -14,6 +14,7 @@ from activetrack.filters import (
     UpdateInfo,
     make_filter,
 )
+from activetrack.models.base import GaussianSensor
 from activetrack.models.motion import (
     CircularMotion,
     CircularMotionKnownOmega,
@@ -21,7 +22,6 @@ from activetrack.models.motion import (
     NearlyConstantVelocity,
     NearlyConstantVelocityDiscrete,
 )
-from activetrack.models.base import GaussianSensor
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,

@@ -10,7 +10,6 @@ file, with nothing in the library special-casing it.
 from __future__ import annotations
 
 import math
-import textwrap
 from dataclasses import dataclass
 from typing import Annotated, ClassVar, Literal
 
@@ -25,8 +24,8 @@ from activetrack.filters import ExtendedKalmanFilter, Measurement, ParticleFilte
 from activetrack.models import GaussianSensor, NearlyConstantVelocity
 from activetrack.models._common import relative_geometry
 from activetrack.planning import (
-    PlanSettings,
     PlannerPlatform,
+    PlanSettings,
     PlatformLimits,
     SearchSettings,
     TargetBelief,

@@ -15,8 +15,8 @@ from activetrack.bounds import (
     taylor_information_initial,
     tichavsky_pcrlb,
 )
-from activetrack.models.motion import CircularMotion, ConstantTurn, NearlyConstantVelocity
 from activetrack.models.base import jacobian_information
+from activetrack.models.motion import CircularMotion, ConstantTurn, NearlyConstantVelocity
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor
 
 DT = 1.0

@@ -17,6 +17,7 @@ from activetrack.filters import (
     roughen,
     systematic_indices,
 )
+from activetrack.models.base import GaussianSensor
 from activetrack.models.motion import (
     CircularMotion,
     CircularMotionKnownOmega,
@@ -24,7 +25,6 @@ from activetrack.models.motion import (
     NearlyConstantVelocity,
     NearlyConstantVelocityDiscrete,
 )
-from activetrack.models.base import GaussianSensor
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,

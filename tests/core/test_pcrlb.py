@@ -16,8 +16,8 @@ from activetrack.bounds import (
     pcrlb_trajectory,
     propagate_samples,
 )
-from activetrack.models.motion import NearlyConstantVelocity
 from activetrack.models.base import GaussianSensor
+from activetrack.models.motion import NearlyConstantVelocity
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,

@@ -41,8 +41,8 @@ from activetrack.models._common import check_rng, relative_geometry
 
 __all__ = [
     "GaussianSensor",
-    "Linearization",
     "LinearMotionModel",
+    "Linearization",
     "MotionModel",
     "SensorModel",
     "as_linear",

@@ -32,11 +32,16 @@ from typing import ClassVar
 import numpy as np
 
 from activetrack.angles import wrap_angle, wrap_half_angle
-from activetrack.arraytypes import ArrayLike, BoolArray, FloatArray
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_positive
 from activetrack.models._common import relative_geometry
-from activetrack.models.base import GaussianSensor, Linearization, MotionModel, SensorModel
-from activetrack.models.base import _miss_term
+from activetrack.models.base import (
+    GaussianSensor,
+    Linearization,
+    MotionModel,
+    SensorModel,
+    _miss_term,
+)
 
 __all__ = [
     "AmbiguousBearingSensor",
