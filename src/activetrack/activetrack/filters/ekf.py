@@ -16,8 +16,9 @@ Update, one detection at a time (Ramdaras eq. 16-22, Valverde eq. 5-9)::
 with h, H and nu from the sensor's own ``linearize`` at the state's pv (the built-in bearing
 and range-bearing sensors do it in plain floats), H chained with the model's
 ``kinematics_jacobian`` unless ``model.state_is_pv`` (``models.sensors.state_jacobian``).
-These are the equations of filterpy's ``ExtendedKalmanFilter.predict`` / ``update`` (the tests check equality to 1e-9), computed here
-with plain numpy on small matrices to keep the per-step overhead low.
+These are the equations of filterpy's ``ExtendedKalmanFilter.predict`` / ``update`` (the tests
+check equality to 1e-9), computed here with plain numpy on small matrices to keep the per-step
+overhead low.
 
 Several sensors per step are processed **sequentially** in the order given: each detection
 is linearised at the state updated by the ones before it. For a linear measurement model this
