@@ -38,6 +38,7 @@ from datetime import datetime, timedelta
 
 import numpy as np
 
+from activetrack.allocator import tune_allocator
 from activetrack.angles import wrap_angle
 from activetrack.bounds.pcrlb import measurement_information, pcrlb_step
 from activetrack.filters import ExtendedKalmanFilter, Measurement, ParticleFilter
@@ -511,4 +512,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
+    # As the command line and the nodes do: the timings are those users get.
+    tune_allocator()
     sys.exit(main())

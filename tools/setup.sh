@@ -81,7 +81,7 @@ fi
 
 # --- 5. the project's Python packages, editable ---------------------------------------------
 step editable-packages "installing the project's packages in editable mode"
-PKGS=(activetrack activetrack_ros sim_node tracker_node planner_node activetrack_bringup)
+PKGS=(activetrack activetrack_experiments activetrack_ros sim_node tracker_node planner_node activetrack_bringup)
 meta=()
 for p in "${PKGS[@]}"; do
     for f in pyproject.toml setup.py setup.cfg package.xml; do

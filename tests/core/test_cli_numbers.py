@@ -12,10 +12,10 @@ import argparse
 import pytest
 
 from activetrack.argtypes import float_in_range, int_in_range
-from activetrack.experiments import hernandez
 from activetrack_bringup import cli_types
 from activetrack_bringup.cli import build_parser
 from activetrack_bringup.cli import main as cli_main
+from activetrack_experiments import hernandez
 
 S = "scenarios/default.yaml"
 # (argv, the option named in the error, text of the allowed range that must appear)
@@ -70,6 +70,7 @@ BAD = [
     (["reproduce", "valverde", "--runs", "0"], "--runs", "got '0'"),
     (["reproduce", "valverde", "--steps", "0"], "--steps", "[1, 1000000], got '0'"),
     (["reproduce", "valverde", "--seed", "-1"], "--seed", "got '-1'"),
+    (["reproduce", "valverde", "--jobs", "0"], "--jobs", "[1, 256], got '0'"),
     (
         ["reproduce", "valverde", "--runs", "100000", "--steps", "1000"],
         "--runs x --steps",
@@ -77,6 +78,7 @@ BAD = [
     ),
     (["reproduce", "vanderhook", "--runs", "0"], "--runs", "[1, 100000], got '0'"),
     (["reproduce", "vanderhook", "--seed", "-3"], "--seed", "got '-3'"),
+    (["reproduce", "vanderhook", "--jobs", "-1"], "--jobs", "[1, 256], got '-1'"),
 ]
 
 
@@ -124,6 +126,19 @@ def test_hernandez_keeps_runs_zero_for_the_bounds_only():
     # --runs 0 is Hernandez's documented "planning bounds only, no PF runs" mode.
     args = hernandez._parse(["--runs", "0", "--no-comparison"])
     assert args.runs == 0
+    assert (args.sensor_counts, args.horizon_list) == ([1, 2, 3], [1, 2])
+
+
+def test_hernandez_options_are_checked_without_argparse():
+    # The same checks back reproduce(...) (ValueError) and the command line (usage error).
+    assert hernandez.check_options(sensors=["3", "1"], horizons=[2]) == ([1, 3], [2])
+    with pytest.raises(ValueError, match="--sensors must be among 1,2,3"):
+        hernandez.check_options(sensors=[4])
+    with pytest.raises(ValueError, match="comma-separated integers"):
+        hernandez.check_options(horizons=["x"])
+    with pytest.raises(ValueError, match="scores 2.05e\\+08 sample-candidate pairs"):
+        hernandez.check_options(mc_samples=100000)
+    assert hernandez.check_options(mc_samples=100000, comparison=False)[0] == [1, 2, 3]
 
 
 def test_type_functions_check_both_ends_and_say_what_is_allowed():

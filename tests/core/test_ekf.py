@@ -28,6 +28,7 @@ from activetrack.models.sensors import (
     RangeBearingSensor,
     RangeRateBearingSensor,
 )
+from activetrack.scenarios.schema import TrackerConfig
 
 
 @dataclass(frozen=True)
@@ -379,17 +380,20 @@ def test_every_model_and_sensor_runs_and_stays_spd(model, x0, P, sensor):
 
 def test_make_filter_and_shared_interface():
     model = NearlyConstantVelocity(0.1)
-    ekf = make_filter("ekf", model=model, x0=X0, P0=P0, t0=2.0)
-    pf = make_filter("pf", model=model, x0=X0, P0=P0, n_particles=500, rng=0, t0=2.0)
+    config = TrackerConfig(filter="pf", particles=500)  # the scenario's tracker block
+    rng = np.random.default_rng(0)
+    ekf = make_filter("ekf", model, X0, P0, config, rng)
+    pf = make_filter("pf", model, X0, P0, config, rng)
     assert isinstance(ekf, ExtendedKalmanFilter) and isinstance(pf, ParticleFilter)
+    assert pf.particles.shape == (500, 4)
     m = Measurement(BearingSensor(0.01), SENSOR_A, [0.6], 7.0)
     for f in (ekf, pf):
-        assert f.time == 2.0
+        assert f.time == 0.0
         info = f.step(7.0, [m])
         assert isinstance(info, UpdateInfo) and f.time == 7.0 and info.time == 7.0
         assert f.mean.shape == (4,) and f.cov.shape == (4, 4)
-    with pytest.raises(ValueError, match="kind"):
-        make_filter("ukf", model=model, x0=X0, P0=P0)
+    with pytest.raises(ValueError, match="tracker.filter: must be one of 'ekf' or 'pf'"):
+        make_filter("ukf", model, X0, P0, config, rng)
 
 
 def test_bad_inputs_raise_value_error_naming_the_argument():

@@ -38,7 +38,7 @@ def largest_position_eigenvalue(P: np.ndarray, x: np.ndarray | None = None) -> n
 
 
 LAMBDA_MAX = Criterion(
-    NAME,
+    "lambda_max_pos",
     largest_position_eigenvalue,
     frozenset({"pcrlb", "positioning", "selection"}),
     "largest eigenvalue of the position block of P",

@@ -22,7 +22,6 @@ from activetrack.bounds import covariance_bound, measurement_information, pcrlb_
 from activetrack.closed_loop.batch import run_batch
 from activetrack.filters import ExtendedKalmanFilter, Measurement, ParticleFilter
 from activetrack.models import GaussianSensor, NearlyConstantVelocity
-from activetrack.models._common import relative_geometry
 from activetrack.planning import (
     PlannerPlatform,
     PlanSettings,
@@ -38,6 +37,7 @@ from activetrack.scenarios import (
     load_scenario,
     register_sensor,
     registered_kinds,
+    sensor_kind,
     unregister_sensor,
 )
 
@@ -64,13 +64,14 @@ class RangeSensor(GaussianSensor):
         return np.array([[self.sigma_r**2]])
 
     def measure(self, target_pv, sensor_pv):
-        *_, r2 = relative_geometry(target_pv, sensor_pv)
-        return np.sqrt(r2)[..., None]
+        d = np.asarray(target_pv, dtype=float) - np.asarray(sensor_pv, dtype=float)
+        return np.hypot(d[..., 0], d[..., 2])[..., None]
 
     def jacobian(self, target_pv, sensor_pv):
         """d r / d (x, xdot, y, ydot) = (dx, 0, dy, 0) / r (Valverde eq. 13, first row)."""
-        dx, _, dy, _, r2 = relative_geometry(target_pv, sensor_pv)
-        r = np.sqrt(r2)
+        d = np.asarray(target_pv, dtype=float) - np.asarray(sensor_pv, dtype=float)
+        dx, dy = d[..., 0], d[..., 2]
+        r = np.hypot(dx, dy)
         zero = np.zeros_like(r)
         return np.stack([dx / r, zero, dy / r, zero], axis=-1)[..., None, :]
 
@@ -82,9 +83,10 @@ class RangeSensorConfig(SensorConfigBase):
 
 @pytest.fixture(scope="module", autouse=True)
 def range_kind():
-    """Register the kind once for this module (and take it away afterwards)."""
-    entry = register_sensor(RangeSensor, RangeSensorConfig)
-    yield entry
+    """Register the kind once for this module (and take it away afterwards): what the plugin
+    module of docs/extending.md ("A sensor") does when a scenario names it."""
+    register_sensor(RangeSensor, RangeSensorConfig)
+    yield sensor_kind("range")
     unregister_sensor("range")
 
 

@@ -1,8 +1,8 @@
 """Ramdaras et al. (2010) cases through the closed-loop cores (docs/ramdaras.md).
 
-Seeded runs of 100 epochs as in the paper: one per case and strategy, four for the Pd < 1
-cases (their det(P_pos) is heavy-tailed over the detection draws); the experiment prints the
-same numbers over more runs.
+Seeded runs of 100 epochs as in the paper, through ``ramdaras.reproduce``: one per case and
+strategy, four for the Pd < 1 cases (their det(P_pos) is heavy-tailed over the detection
+draws); the experiment prints the same numbers over more runs.
 """
 
 import json
@@ -12,8 +12,8 @@ import pytest
 
 from activetrack.bounds.costs import position_determinant
 from activetrack.closed_loop.batch import run_once
-from activetrack.experiments import ramdaras
-from activetrack.experiments.ramdaras import (
+from activetrack_experiments import ramdaras
+from activetrack_experiments.ramdaras import (
     BASELINES,
     bound_check,
     load_case,
@@ -24,16 +24,29 @@ from activetrack.experiments.ramdaras import (
 )
 
 CASES = [c for c, _, _ in ramdaras.CASES]
+PD_CASES = list(ramdaras.PD_CASES)
+MRE_CASE1_3_9_RUN0 = (
+    5180.526731199665  # time-averaged det(P_pos) of run 0 of case1_3_9 under MRE selection
+)
 
 
 @pytest.fixture(scope="module")
-def results():
-    out = {}
-    for case in CASES:
-        runs = 4 if case.endswith("_pd") else 1
-        for strategy in ("mre", *BASELINES):
-            out[(case, strategy)] = run_case(case, strategy, runs=runs, jobs=2)
-    return out
+def reproduced():
+    """The pd = 1 cases, one run each (with the criteria study on case2), and the Pd < 1
+    cases, four runs each (with their bound checks over four open-loop runs)."""
+    strategies = ("mre", *BASELINES)
+    full = [c for c in CASES if c not in PD_CASES]
+    return (
+        ramdaras.reproduce(runs=1, cases=full, strategies=strategies, jobs=2),
+        ramdaras.reproduce(
+            runs=4, cases=PD_CASES, strategies=strategies, bound_runs=4, draws=20000, jobs=2
+        ),
+    )
+
+
+@pytest.fixture(scope="module")
+def results(reproduced):
+    return {(r.case, r.strategy): r for res in reproduced for r in res.cases}
 
 
 @pytest.mark.parametrize("case", ["case1_0_0", "case1_3_9", "case1_10_8"])
@@ -83,11 +96,12 @@ def test_pd_below_one_missed_detections_are_counted(results):
     assert results[("case1_3_9", "mre")].missed == 0
 
 
-@pytest.mark.parametrize("case", ["case2_pd", "case3_pd"])
-def test_mre_bounds_the_filter_covariance_with_pd_below_one(case):
-    steps, runs = (100, 4) if case == "case2_pd" else (30, 3)
-    c = bound_check(case, runs=runs, draws=20000, steps=steps, jobs=2)
-    assert c.missed > 0 and c.tracker_missed == c.missed
+@pytest.mark.parametrize("case", PD_CASES)
+def test_mre_bounds_the_filter_covariance_with_pd_below_one(reproduced, case):
+    c = next(c for c in reproduced[1].checks if c.case == case)
+    assert (c.runs, c.draws, len(c.filter_det_t)) == (4, 20000, 100)
+    assert c.missed == {"case2_pd": 69, "case3_pd": 67}[case]
+    assert c.tracker_missed == c.missed
     # Exact over detection draws (Jensen; Monte Carlo error ~0.2 %): E[P] <= P_MRE.
     assert c.max_draw_ratio < 1.005
     assert c.min_eig_gap > -5e-3
@@ -106,11 +120,10 @@ def test_pd_one_mre_equals_the_riccati_recursion():
 
 
 def test_criteria_change_the_selection_in_closed_loop():
-    counts = {
-        crit: run_case("case2", "mre", runs=2, criterion=crit, jobs=2).selection_counts
-        for crit in ("det_pos", "heading", "range", "doppler", "bearing")
-    }
-    counts = {c: {s: n / 2 for s, n in v.items()} for c, v in counts.items()}
+    res = ramdaras.reproduce(runs=2, cases=["case2"], strategies=["mre"], jobs=2)
+    counts = {r.criterion: {s: n / 2 for s, n in r.selection_counts.items()} for r in res.criteria}
+    assert list(counts) == list(ramdaras.CRITERIA)
+    assert counts["det_pos"] == {s: n / 2 for s, n in res.get("case2").selection_counts.items()}
     # s3 has the accurate range and the only Doppler; s1 / s2 the accurate bearings.
     assert counts["range"]["s3"] > counts["det_pos"]["s3"] + 10
     assert counts["doppler"]["s3"] > counts["det_pos"]["s3"] + 10
@@ -167,3 +180,75 @@ def test_reproduce_main_writes_the_json(tmp_path, capsys):
     assert mre["selection_counts"]["s1"] == 0
     text = capsys.readouterr().out
     assert "s1 selected 0 times" in text and "MRE better" in text
+    assert doc["runs"] == 1 and doc["figures"] == [] and doc["criteria"] == []
+    assert mre["mean_det_pos"] == pytest.approx(MRE_CASE1_3_9_RUN0, rel=1e-9)
+
+
+def test_jobs_do_not_change_the_results():
+    kw = dict(
+        runs=2,
+        cases=["case2", "case2_pd"],
+        strategies=["mre", "random"],
+        steps=15,
+        bound_runs=2,
+        draws=500,
+    )
+    one, two = ramdaras.reproduce(jobs=1, **kw), ramdaras.reproduce(jobs=2, **kw)
+    a, b = one.to_json(wall_time_s=0.0), two.to_json(wall_time_s=0.0)
+    assert a == b
+    assert [len(a[k]) for k in ("cases", "criteria", "bound_checks", "margins")] == [4, 5, 1, 2]
+    for r, s in zip(one.cases + one.criteria, two.cases + two.criteria, strict=True):
+        np.testing.assert_array_equal(r.det_t, s.det_t)
+        for t, u in zip(r.traces, s.traces, strict=True):
+            np.testing.assert_array_equal(t.cov, u.cov)
+            np.testing.assert_array_equal(t.measured, u.measured)
+    # The pieces alone give the same numbers.
+    assert bound_check("case2_pd", runs=2, steps=15, draws=500).to_json() == a["bound_checks"][0]
+    assert run_case("case2_pd", "random", runs=2, steps=15).to_json() == a["cases"][3]
+
+
+def test_seed_replaces_the_scenario_seed():
+    kw = dict(runs=2, steps=10)
+    base = run_case("case2", "random", **kw)
+    same = run_case("case2", "random", seed=load_case("case2").seed, **kw)
+    other = run_case("case2", "random", seed=7, **kw)
+    assert same.to_json() == base.to_json()
+    assert other.selection_counts != base.selection_counts
+
+
+def test_table_has_one_flat_row_per_case_strategy_and_criterion(reproduced):
+    res = reproduced[0]
+    rows = res.table()
+    assert len(rows) == len(res.cases) + len(res.criteria) == 5 * 5 + 5
+    assert [r["section"] for r in rows] == ["cases"] * 25 + ["criteria"] * 5
+    assert set(rows[0]) == {
+        "section",
+        "case",
+        "strategy",
+        "criterion",
+        "runs",
+        "count_s1",
+        "count_s2",
+        "count_s3",
+        "count_per_run_s1",
+        "count_per_run_s2",
+        "count_per_run_s3",
+        "mean_det_pos",
+        "std_det_pos",
+        "mre_bound_mean_det_pos",
+        "missed_detections",
+        "tracker_missed_detections",
+        "measurements",
+        "switch_rate",
+    }
+    for row, r in zip(rows, res.cases + res.criteria, strict=True):
+        assert row["runs"] == r.runs == len(r.traces) == 1
+        assert (row["case"], row["strategy"], row["criterion"]) == (r.case, r.strategy, r.criterion)
+        assert row["mean_det_pos"] == r.det_t.mean(axis=1).mean()
+        assert row["mre_bound_mean_det_pos"] == r.bound_det_t.mean()
+        assert [row[f"count_{s}"] for s in r.sensor_ids] == [
+            int(r.traces[0].measured[:, j].sum()) for j in range(3)
+        ]
+    row = rows[[(r["case"], r["strategy"]) for r in rows].index(("case1_3_9", "mre"))]
+    assert row["mean_det_pos"] == pytest.approx(MRE_CASE1_3_9_RUN0, rel=1e-9)
+    assert all(isinstance(v, (str, int, float)) for r in rows for v in r.values())

@@ -11,7 +11,6 @@ from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.planner import PlannerCore
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
-from activetrack.experiments.ramdaras import load_case, variant
 from activetrack.models.motion import NearlyConstantVelocityDiscrete
 from activetrack.models.sensors import (
     BearingSensor,
@@ -30,6 +29,7 @@ from activetrack.planning.selection import (
     select_random,
     sensor_costs,
 )
+from activetrack_experiments.ramdaras import load_case, variant
 
 SIGMA_B = math.sqrt(2.47e-6)  # Ramdaras sec. 5
 

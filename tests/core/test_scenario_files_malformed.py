@@ -148,6 +148,23 @@ CASES = [
     ("seed-huge", "short", _set("seed", 2**64), "  seed: Input should be less than or equal"),
     ("description-huge", "default", _set("description", "d" * 20_000), "  description: "),
     ("unknown-key", "default", _set("stepz", 3), "  stepz: unknown field"),
+    (
+        "plugins-not-a-list",
+        "short",
+        _set("plugins", "my_sensors"),
+        "plugins: must be a list of Python module names, got str 'my_sensors'",
+    ),
+    ("plugins-path", "default", _set("plugins", ["../x.py"]), "plugins[0]: must be a Python modu"),
+    ("plugins-relative", "short", _set("plugins", ["json", ".x"]), "plugins[1]: must be a Python"),
+    ("plugins-keyword", "default", _set("plugins", ["my.class"]), "plugins[0]: must be a Python"),
+    (
+        "plugins-not-importable",
+        "short",
+        _set("plugins", ["json", "no_such_activetrack_plugin.sensors"]),
+        "plugins[1]: cannot import module 'no_such_activetrack_plugin.sensors' "
+        "(ModuleNotFoundError: No module named 'no_such_activetrack_plugin'); it must be "
+        "importable in every process",
+    ),
     ("top-level-typo-nested", "short", _set("tracker.particels", 10), "  tracker.particels:"),
     # --- target ---
     ("motion-unknown", "default", _set("target.motion.model", "sonar"), "  target.motion: must be"),

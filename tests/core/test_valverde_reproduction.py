@@ -2,6 +2,7 @@
 
 import itertools
 import json
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -11,33 +12,98 @@ from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import taylor_crlb
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
-from activetrack.experiments import valverde as vv
 from activetrack.filters import ExtendedKalmanFilter, Measurement
 from activetrack.models.motion import CircularMotionKnownOmega
 from activetrack.scenarios import load_scenario
+from activetrack_experiments import scenario_path
+from activetrack_experiments import valverde as vv
 
 SETUP = replace(vv.ValverdeSetup(), steps=126)  # one lap
 # Low, middle and high noise of Table III (sigma_r [m], sigma_b [deg]).
 PAIRS = (vv.NOISE_PAIRS[0], vv.NOISE_PAIRS[3], vv.NOISE_PAIRS[6], vv.NOISE_PAIRS[10])
 RUNS = 60
-SCENARIOS = ("scenarios/valverde_circular.yaml", "scenarios/valverde_constant_turn.yaml")
+SCENARIOS = ("valverde_circular", "valverde_constant_turn")
 
 
 @pytest.fixture(scope="module")
 def results():
-    return {
-        (c, m): vv.run_case(SETUP, c, m, RUNS, seed=3, noise_pairs=PAIRS)
-        for c in vv.CASES
-        for m in vv.MODELS
+    return vv.reproduce(runs=RUNS, seed=3, steps=SETUP.steps, noise_pairs=PAIRS, jobs=2)
+
+
+def test_reproduce_rows_and_pinned_numbers(results):
+    assert (results.runs, results.seed, results.setup.steps) == (RUNS, 3, 126)
+    assert [(r.case, r.model) for r in results.rows] == [
+        (c, m) for c in vv.CASES for m in vv.MODELS for _ in PAIRS
+    ]
+    # The (1 m, 2 deg) row of each (case, model), seed 3: MSE and bound of (px, py) [m^2].
+    pinned = {
+        ("crlb", "circular"): (
+            (0.10369129732427, 0.13239093165767),
+            (0.09646834127700, 0.12700240460466),
+        ),
+        ("crlb", "constant_turn"): (
+            (0.07144905413467, 0.11203238910196),
+            (0.06927950021497, 0.10561762747797),
+        ),
+        ("pcrb", "circular"): (
+            (0.12388992424620, 0.16948847965974),
+            (0.12038117146207, 0.15108188852134),
+        ),
+        ("pcrb", "constant_turn"): (
+            (0.10808681097586, 0.14714092492670),
+            (0.10269483626593, 0.13809775784985),
+        ),
     }
+    for (case, model), (mse, bound) in pinned.items():
+        row = results.get(case, model)[1]
+        assert (row.sigma_r, row.sigma_b_deg) == (1.0, 2.0)
+        np.testing.assert_allclose(row.mse, mse, rtol=1e-9)
+        np.testing.assert_allclose(row.bound, bound, rtol=1e-9)
+        assert row.mse_t.shape == row.bound_t.shape == (126, 2)
+        np.testing.assert_allclose(row.mse_t.mean(axis=0), row.mse, rtol=1e-12)
+    np.testing.assert_allclose(
+        results.get("pcrb", "constant_turn")[1].bound_mc, (0.10159328, 0.13723439), rtol=1e-6
+    )
 
 
-def _all_rows(results):
-    return [r for rows in results.values() for r in rows]
+def test_jobs_do_not_change_the_results():
+    kw = dict(runs=4, steps=10, seed=7, noise_pairs=PAIRS[:2])
+    one, two = vv.reproduce(jobs=1, **kw), vv.reproduce(jobs=2, **kw)
+    assert one.to_json() == two.to_json()
+    for a, b in zip(one.rows, two.rows, strict=True):
+        assert np.array_equal(a.mse_t, b.mse_t) and np.array_equal(a.bound_t, b.bound_t)
+    with pytest.raises(ValueError, match="jobs"):
+        vv.reproduce(jobs=0, **kw)
+    with pytest.raises(ValueError, match="runs"):
+        vv.reproduce(runs=1, steps=10)
+
+
+def test_table_has_one_flat_row_per_monte_carlo_row(results):
+    table = results.table()
+    assert len(table) == len(results.rows) == 2 * 2 * len(PAIRS)
+    columns = set(table[0])
+    assert {"case", "model", "sigma_r_m", "sigma_b_deg", "mse_x", "mse_y", "bound_x"} <= columns
+    assert {"mse_se_x", "bound_mc_x", "bound_mc_y", "diverged_runs"} <= columns
+    for row, r in zip(table, results.rows, strict=True):
+        assert set(row) == columns
+        assert (row["case"], row["model"]) == (r.case, r.model)
+        assert (row["sigma_r_m"], row["sigma_b_deg"]) == (r.sigma_r, r.sigma_b_deg)
+        assert (row["mse_x"], row["mse_y"]) == tuple(r.mse)
+        assert (row["mse_se_x"], row["mse_se_y"]) == tuple(r.se)
+        assert (row["bound_x"], row["bound_y"]) == tuple(r.bound)
+        if r.bound_mc is None:
+            assert math.isnan(row["bound_mc_x"]) and math.isnan(row["bound_mc_y"])
+        else:
+            assert (row["bound_mc_x"], row["bound_mc_y"]) == tuple(r.bound_mc)
+    ranks = results.table("observability")
+    assert len(ranks) == len(vv.RANK_CONDITIONS)
+    assert ranks == results.to_json()["observability"]
+    with pytest.raises(ValueError, match="section"):
+        results.table("nope")
 
 
 def test_every_mse_row_is_at_or_above_its_bound(results):
-    for r in _all_rows(results):
+    for r in results.rows:
         assert r.diverged == 0
         assert np.all(r.se > 0)
         # At or above the bound within 3 Monte Carlo standard errors ...
@@ -49,7 +115,7 @@ def test_every_mse_row_is_at_or_above_its_bound(results):
 
 
 def test_errors_and_bounds_grow_with_noise(results):
-    for rows in results.values():
+    for rows in (results.get(c, m) for c in vv.CASES for m in vv.MODELS):
         mse = np.array([r.mse for r in rows])
         bound = np.array([r.bound for r in rows])
         assert np.all(np.diff(mse, axis=0) > 0)
@@ -113,7 +179,9 @@ def test_known_rate_crlb_matches_reparametrised_model_and_is_below_circular():
 
 
 def test_rank_table_known_answers():
-    rows = {label: (rc, rt) for label, rc, rt, _ in vv.observability_table(SETUP)}
+    rows = {
+        r.condition: (r.rank_circular, r.rank_constant_turn) for r in vv.observability_table(SETUP)
+    }
     # v = 0: heading and turn rate leave no trace in the measurements; px, py, v remain.
     assert rows["v = 0 (omega = 0.1 rad/s)"] == (3, 4)
     # dt -> 0: O tends to stacked copies of H (rank 2).
@@ -154,9 +222,9 @@ def test_batched_ekf_equals_the_library_ekf(model_name):
             np.testing.assert_allclose(covs[k, r], ekf.cov, rtol=1e-9, atol=1e-12)
 
 
-@pytest.mark.parametrize("path", SCENARIOS)
-def test_scenario_runs_closed_loop_with_a_consistent_ekf(path):
-    scenario = load_scenario(path)
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_scenario_runs_closed_loop_with_a_consistent_ekf(name):
+    scenario = load_scenario(scenario_path(name))
     assert scenario.tracker.filter == "ekf" and not scenario.planner.enabled
     assert scenario.platforms[0].sensors[0].kind == "range_bearing"
     assert not scenario.platforms[0].controllable
@@ -180,9 +248,8 @@ def test_scenario_runs_closed_loop_with_a_consistent_ekf(path):
 
 def test_main_prints_tables_and_writes_json_and_figures(tmp_path, capsys):
     out = tmp_path / "figs"
-    rc = vv.main(
-        ["--runs", "3", "--steps", "12", "--json", str(tmp_path / "rows.json"), "--out", str(out)]
-    )
+    argv = ["--runs", "3", "--steps", "12", "--jobs", "1"]
+    rc = vv.main([*argv, "--json", str(tmp_path / "rows.json"), "--out", str(out)])
     assert rc == 0
     text = capsys.readouterr().out
     for title in ("TABLE III.", "TABLE IV.", "TABLE V.", "TABLES I-II."):
@@ -192,3 +259,6 @@ def test_main_prints_tables_and_writes_json_and_figures(tmp_path, capsys):
     assert {r["case"] for r in data["rows"]} == {"crlb", "pcrb"}
     assert len(data["observability"]) == len(vv.RANK_CONDITIONS)
     assert len(list(out.glob("fig*.png"))) == 7
+    res = vv.reproduce(runs=3, steps=12)
+    assert data == json.loads(json.dumps(res.to_json()))  # the CLI writes reproduce's JSON
+    assert text.startswith(vv.format_report(res))

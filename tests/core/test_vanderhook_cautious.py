@@ -6,7 +6,6 @@ from statistics import NormalDist
 import numpy as np
 import pytest
 
-from activetrack.experiments.vanderhook_sim import simulate_localisation
 from activetrack.filters import ExtendedKalmanFilter, Measurement
 from activetrack.models.motion import NearlyConstantVelocity
 from activetrack.models.sensors import AmbiguousBearingSensor
@@ -28,6 +27,7 @@ from activetrack.planning.cautious_bounds import (
     time_lower_bound,
     time_upper_bound,
 )
+from activetrack_experiments.vanderhook_sim import simulate_localisation
 
 SIGMA_S = math.radians(15.0)
 PHI = NormalDist().cdf
@@ -219,3 +219,30 @@ def test_simulation_respects_schedule_and_travel_bound(beta, tail):
     d01 = runs.first_leg[0]
     assert np.allclose(runs.first_leg, d01)
     assert np.all(runs.distance <= sched.travel_bound(d01) + 1e-9)
+
+
+@pytest.mark.parametrize("seed,beta,tail", [(4, 0.1, "two_sided"), (9, 0.01, "one_sided")])
+def test_batched_simulation_equals_the_planner_api_run_by_run(seed, beta, tail):
+    # vanderhook_sim advances a whole batch with masks; one run of it is Algorithm 1 driven
+    # through CautiousPlanner (the API of the ROS planner node) with the same noise draws.
+    P0 = 3600.0 * np.eye(2)
+    x_true = np.array([23.0, -41.0])
+    batch = simulate_localisation(
+        1, np.random.default_rng(seed), beta=beta, c_d=0.1, tail=tail, r_min=1.0, x_true=[x_true]
+    )
+    rng = np.random.default_rng(seed)
+    planner = CautiousPlanner(
+        sigma_s=SIGMA_S, prior_cov=P0, beta=beta, c_d=0.1, r_min=1.0, max_measurements=60, tail=tail
+    )
+    mean, cov, robot, n, distance = np.zeros(2), P0, np.array([100.0, 0.0]), 0, 0.0
+    while not (action := planner.next_action(mean, cov, robot, n)).done:
+        distance += action.travel
+        robot = action.waypoint
+        d = x_true - robot
+        z = math.atan2(d[1], d[0]) + SIGMA_S * rng.standard_normal(1)[0]
+        upd = planner.update(mean, cov, z, robot)
+        mean, cov, n = upd.mean, upd.cov, n + 1
+    assert batch.n_measurements[0] == n >= 4
+    assert batch.distance[0] == pytest.approx(distance, rel=1e-12)
+    assert batch.final_error[0] == pytest.approx(np.linalg.norm(mean - x_true), rel=1e-9)
+    assert batch.converged[0]

@@ -2,19 +2,74 @@
 with reduced Monte Carlo sizes (the full run is ``activetrack reproduce vanderhook``)."""
 
 import json
-from pathlib import Path
+from dataclasses import asdict
 
 import numpy as np
 import pytest
 
-from activetrack.experiments import vanderhook
-from activetrack.experiments.vanderhook_sim import simulate_localisation
 from activetrack.scenarios import load_scenario
+from activetrack_experiments import scenario_path, vanderhook
+from activetrack_experiments.vanderhook_sim import simulate_localisation
 
 
 @pytest.fixture(scope="module")
 def rows():
-    return vanderhook.table1(runs=1500, seed=0)
+    return vanderhook.table1(runs=1500, seed=0, jobs=2)
+
+
+@pytest.fixture(scope="module")
+def small():
+    return vanderhook.reproduce(runs=100, quick=True, jobs=2)
+
+
+def test_table1_pinned_numbers(rows):
+    # seed 0, 1500 runs: (simulated ratio, our upper bound, two-sided ratio).
+    pinned = {
+        ("r0_hat", 20.0): (2.931855447945688, 5.560876728003039, 3.3130032766946402),
+        ("r0_hat", 200.0): (1.9132480658430437, 3.2258343761538466, 1.9892951007027293),
+        ("c_d", 0.25): (1.4885156483032886, 2.5698086299431617, 2.8271873920647606),
+    }
+    got = {(r.sweep, r.value): r for r in rows}
+    for key, (ratio, ub, two) in pinned.items():
+        r = got[key]
+        assert (r.simulated_ratio, r.upper_bound) == pytest.approx((ratio, ub), rel=1e-9)
+        assert r.simulated_ratio_two_sided == pytest.approx(two, rel=1e-9)
+    # The base setting appears three times (c_d = 0.1, t_m = 60, beta = 0.1): one batch.
+    base = [got[("c_d", 0.1)], got[("t_m", 60.0)], got[("beta", 0.1)]]
+    assert len({(r.simulated_ratio, r.upper_bound, r.distance) for r in base}) == 1
+
+
+def test_reproduce_is_independent_of_jobs(small):
+    one = vanderhook.reproduce(runs=100, quick=True, jobs=1)
+    assert one.to_json() == small.to_json()
+    assert (small.runs, small.seed) == (100, 0)
+    assert [f.beta for f in small.failures] == [*vanderhook.QUICK_BETAS, None]
+    assert [f.beta for f in small.failures_two_sided] == [*vanderhook.TWO_SIDED_BETAS, None]
+    row = small.failures[1]  # beta = 0.1, one-sided, 100 runs
+    assert (row.final_wrong_side_rate, row.wrong_side_rate, row.first_wrong_side_rate) == (
+        0.25,
+        0.39,
+        0.18,
+    )
+    assert row.median_error == pytest.approx(30.799139840003946, rel=1e-9)
+    assert row.mean_time == pytest.approx(409.9597654196769, rel=1e-9)
+    with pytest.raises(ValueError, match="jobs"):
+        vanderhook.reproduce(runs=10, jobs=0)
+
+
+def test_tables_are_flat_rows_equal_to_the_results(small):
+    table = small.table()
+    assert len(table) == len(small.table1) == 12
+    assert set(table[0]) == {*asdict(small.table1[0]), "deviation"}
+    for row, r in zip(table, small.table1, strict=True):
+        assert row == {**asdict(r), "deviation": r.deviation}
+    failures = small.table("failures")
+    assert len(failures) == len(small.failures) + len(small.failures_two_sided) == 7
+    assert [f["tail"] for f in failures] == ["one_sided"] * 4 + ["two_sided"] * 3
+    for row, f in zip(failures, small.failures + small.failures_two_sided, strict=True):
+        assert {k: v for k, v in row.items() if k != "tail"} == asdict(f)
+    with pytest.raises(ValueError, match="section"):
+        small.table("nope")
 
 
 def test_worked_example_gives_four_measurements():
@@ -68,10 +123,14 @@ def test_cautious_ends_on_wrong_side_less_often_than_greedy():
     assert np.median(many.final_error) < np.median(few.final_error)
 
 
-def test_main_writes_json(tmp_path):
+def test_main_writes_json(tmp_path, capsys):
     path = tmp_path / "vh.json"
-    assert vanderhook.main(["--quick", "--out", str(tmp_path / "out"), "--json", str(path)]) == 0
+    argv = ["--quick", "--runs", "7", "--jobs", "2", "--out", str(tmp_path / "out")]
+    assert vanderhook.main([*argv, "--json", str(path)]) == 0
     data = json.loads(path.read_text())
+    assert data["runs"] == 400  # --quick sets the runs
+    assert (tmp_path / "out" / "results.json").read_text() == path.read_text()
+    assert capsys.readouterr().out.startswith("Worked example (sec. V)")
     assert data["n_measurements"] == 4
     assert len(data["table1"]) == 12
     assert {"sweep", "value", "simulated_ratio", "upper_bound"} <= set(data["table1"][0])
@@ -79,7 +138,7 @@ def test_main_writes_json(tmp_path):
 
 
 def test_scenario_file_loads():
-    s = load_scenario(Path(__file__).parents[2] / "scenarios" / "vanderhook_cautious.yaml")
+    s = load_scenario(scenario_path("vanderhook_cautious"))
     assert s.planner.search == "cautious"
     assert s.target.motion.model == "ncv" and s.target.motion.q == 0.0
     assert s.platforms[0].controllable

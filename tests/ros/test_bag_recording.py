@@ -391,6 +391,9 @@ def test_retrack_says_when_there_is_nothing_to_retrack(run_bag, tmp_path, capsys
     assert rc == 2 and "no such bag" in err
     rc, _, err = cli(capsys, "bag", "retrack", run_bag, "--scenario", tmp_path / "none.yaml")
     assert rc == 2
+    # A filter nobody registered (the scenario's plugins would register theirs first).
+    rc, _, err = cli(capsys, "bag", "retrack", run_bag, "--scenario", SCENARIO, "--filter", "ukf")
+    assert rc == 2 and "--filter: " in err and "'ekf' or 'pf'" in err and "'ukf'" in err
 
 
 def test_retrack_wait_is_bounded_when_the_tracker_stops(run_bag, monkeypatch):

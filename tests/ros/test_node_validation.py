@@ -20,6 +20,7 @@ from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
     ManoeuvreCommand,
+    Measurement,
     PlanReport,
     PlatformState,
     PolarMeasurement,
@@ -53,6 +54,8 @@ bearing_ambiguous_flag     tracker=wrong_sensor_kind evaluator=-
 bearing_huge_string        tracker=unknown_sensor evaluator=bad_field
 polar_for_bearing_sensor   tracker=wrong_sensor_kind evaluator=-
 polar_nan_covariance       tracker=wrong_sensor_kind evaluator=-
+measurement_for_bearing_sensor tracker=wrong_sensor_kind evaluator=-
+measurement_nan_z          tracker=wrong_sensor_kind evaluator=-
 state_unknown_platform     tracker,planner,evaluator=unknown_platform
 state_nan_position         tracker,planner,evaluator=non_finite
 state_1e300_velocity       tracker,planner,evaluator=out_of_range
@@ -96,13 +99,14 @@ CALLBACKS = {  # node -> message type -> method name
     },
     "tracker": {
         BearingMeasurement: "on_bearing", PolarMeasurement: "on_polar",
-        PlatformState: "on_platform",
+        Measurement: "on_measurement", PlatformState: "on_platform",
     },
     "planner": {TrackEstimate: "on_track", PlatformState: "on_platform"},
     "evaluator": {
         GroundTruth: "on_truth", TrackEstimate: "on_track", PlatformState: "on_platform",
         PlanReport: "on_report", BearingMeasurement: "on_measurement",
-        PolarMeasurement: "on_measurement", D: "on_diagnostics",
+        PolarMeasurement: "on_measurement", Measurement: "on_measurement",
+        D: "on_diagnostics",
     },
 }  # fmt: skip
 

@@ -10,10 +10,10 @@ import pytest
 import yaml
 
 from activetrack.closed_loop.batch import run_batch
-from activetrack.experiments.ramdaras import load_case, variant
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.retrack import read_topic
 from activetrack_bringup.runner import run_graph
+from activetrack_experiments.ramdaras import load_case, variant
 from activetrack_ros import graph as topics
 from msgs_defs.msg import BearingMeasurement, PolarMeasurement, SensorSelection
 

@@ -4,14 +4,47 @@ the caller's backend and pyplot state are left alone)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 if TYPE_CHECKING:
+    from collections.abc import Callable, Iterable
+
     from activetrack.closed_loop.batch import BatchSummary
+
+
+def new_figure(**kwargs: Any) -> Figure:
+    """A matplotlib Figure on its own Agg canvas (``Figure(**kwargs)``), outside pyplot."""
+    fig = Figure(**kwargs)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def write_figures(
+    figures: Iterable[tuple[str, Callable[[], Figure | None]]],
+    out: str | Path,
+    *,
+    dpi: int = 110,
+    tight_layout: bool = True,
+    bbox_inches: str | None = None,
+) -> list[Path]:
+    """Draw each ``(file name, draw)`` of ``figures`` and write it as a PNG into ``out``; a
+    ``draw`` returning None writes nothing. Returns the files written, in order."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    for name, draw in figures:
+        fig = draw()
+        if fig is None:
+            continue
+        if tight_layout:
+            fig.tight_layout()
+        files.append(out / name)
+        fig.savefig(files[-1], dpi=dpi, bbox_inches=bbox_inches)
+    return files
 
 
 def plot_run(summary: BatchSummary, out_dir: str | Path) -> list[Path]:

@@ -32,6 +32,7 @@ from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
     ManoeuvreCommand,
+    Measurement,
     PlanReport,
     PlatformState,
     PolarMeasurement,
@@ -47,6 +48,7 @@ TOPIC_OF = {**examples.TOPIC_OF, DiagnosticArray: topics.DIAGNOSTICS}
 READERS = {
     "BearingMeasurement": ("tracker", "evaluator"),
     "PolarMeasurement": ("tracker", "evaluator"),
+    "Measurement": ("tracker", "evaluator"),
     "PlatformState": ("tracker", "planner", "evaluator"),
     "TrackEstimate": ("sim", "planner", "evaluator"),
     "ManoeuvreCommand": ("sim",),
@@ -139,6 +141,7 @@ def _diag(name: str, message: str = "", values=()) -> DiagnosticArray:
 NAN, INF = math.nan, math.inf
 NOT_PD = [1.0, 2.0, 0, 0, 2.0, 1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0]  # eigenvalues -1, 3, 1, 1
 B, P, S, T = BearingMeasurement, PolarMeasurement, PlatformState, TrackEstimate
+M = Measurement  # generic: the kinds without a typed message (docs/extending.md)
 C, L, R, G, D = ManoeuvreCommand, SensorSelection, PlanReport, GroundTruth, DiagnosticArray
 
 CATEGORIES: list[Category] = [
@@ -164,6 +167,15 @@ CATEGORIES: list[Category] = [
     ))),
     Category("polar_nan_covariance", P, _new(lambda c: P(
         sensor_id="s1", epoch=c.epoch + 1, covariance=[NAN] * 4, detected=True
+    ))),
+    Category("measurement_for_bearing_sensor", M, _new(lambda c: M(
+        sensor_id=c.latest[B].sensor_id, platform_id=c.latest[B].platform_id,
+        sensor_kind="bearing", epoch=c.epoch + 1, header=c.latest[B].header,
+        sensor_position=c.latest[B].sensor_position, z=[0.1], covariance=[1e-4], detected=True,
+    ))),
+    Category("measurement_nan_z", M, _new(lambda c: M(
+        sensor_id="s1", sensor_kind="range", epoch=c.epoch + 1, z=[NAN], covariance=[NAN],
+        detected=True,
     ))),
     Category("bearing_plausible_next_epoch", B, _next(bearing=0.1), plausible=True),
     Category("bearing_stream_ahead", B, lambda c, t: [  # drives a trusting tracker ahead

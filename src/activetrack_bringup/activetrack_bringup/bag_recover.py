@@ -138,36 +138,50 @@ def recover(path: str | Path) -> RecoverReport:
                 raise
             writer.close(state="recovered")
             mcap_damaged = bool(scan.damage)
-        if old_meta is not None:
-            listed = {
-                e["topic_metadata"]["name"]: e["message_count"]
-                for e in old_meta["topics_with_message_count"]
-            }
-            short = [
-                f"{topic} {n} (kept {report.kept.get(topic, 0)})"
-                for topic, n in sorted(listed.items())
-                if n > report.kept.get(topic, 0)
-            ]
-            if short:
-                report.lost.append(f"{bag_dir}/metadata.yaml listed more: {', '.join(short)}")
-        elif meta_problem:
-            report.lost.append(f"{meta_problem} (rebuilt from the .mcap file)")
-        # Install: the originals keep their data under new names, nothing is deleted.
-        if mcap_damaged:
-            backup = _backup_name(mcap_path, ".damaged")
-            os.replace(mcap_path, backup)
-            report.backups.append(backup)
-            os.replace(tmp / mcap_path.name, mcap_path)
-        meta_path = bag_dir / "metadata.yaml"
-        if meta_path.exists():
-            backup = _backup_name(meta_path, ".old")
-            os.replace(meta_path, backup)
-            report.backups.append(backup)
-        os.replace(tmp / "metadata.yaml", meta_path)
+        _note_metadata_losses(bag_dir, old_meta, meta_problem, report)
+        _install(bag_dir, tmp, mcap_path, mcap_damaged, report)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
     return report
+
+
+def _note_metadata_losses(
+    bag_dir: Path, old_meta: dict | None, meta_problem: str | None, report: RecoverReport
+) -> None:
+    """Add to ``report.lost`` what the old metadata.yaml listed beyond what was kept."""
+    if old_meta is not None:
+        listed = {
+            e["topic_metadata"]["name"]: e["message_count"]
+            for e in old_meta["topics_with_message_count"]
+        }
+        short = [
+            f"{topic} {n} (kept {report.kept.get(topic, 0)})"
+            for topic, n in sorted(listed.items())
+            if n > report.kept.get(topic, 0)
+        ]
+        if short:
+            report.lost.append(f"{bag_dir}/metadata.yaml listed more: {', '.join(short)}")
+    elif meta_problem:
+        report.lost.append(f"{meta_problem} (rebuilt from the .mcap file)")
+
+
+def _install(
+    bag_dir: Path, tmp: Path, mcap_path: Path, mcap_damaged: bool, report: RecoverReport
+) -> None:
+    """Move the rebuilt files from ``tmp`` into the bag; the originals keep their data under
+    new names (listed in ``report.backups``), nothing is deleted."""
+    if mcap_damaged:
+        backup = _backup_name(mcap_path, ".damaged")
+        os.replace(mcap_path, backup)
+        report.backups.append(backup)
+        os.replace(tmp / mcap_path.name, mcap_path)
+    meta_path = bag_dir / "metadata.yaml"
+    if meta_path.exists():
+        backup = _backup_name(meta_path, ".old")
+        os.replace(meta_path, backup)
+        report.backups.append(backup)
+    os.replace(tmp / "metadata.yaml", meta_path)
 
 
 def _topics(scan: McapScan, old_meta: dict | None, report: RecoverReport):

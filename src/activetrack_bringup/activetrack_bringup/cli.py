@@ -107,7 +107,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    s = run_batch(scenario, runs=args.runs)
+    s = run_batch(scenario, runs=args.runs, jobs=args.jobs)
     _print_summary(s)
     print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
     if args.json:
@@ -259,8 +259,35 @@ def _cmd_bag_recover(args: argparse.Namespace) -> int:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
-    module = importlib.import_module(f"activetrack.experiments.{args.name}")
+    module = importlib.import_module(f"activetrack_experiments.{args.name}")
     return int(module.main(args.rest) or 0)
+
+
+def _add_bag_parser(sub) -> None:
+    """``activetrack bag info | retrack | recover``."""
+    bag = sub.add_parser("bag", help="inspect bags and replay them into a tracker")
+    bag_sub = bag.add_subparsers(dest="bag_command", required=True)
+    info = bag_sub.add_parser("info", help="topics, types, counts and duration of a bag")
+    info.add_argument("bag")
+    info.add_argument("--json", help="write the information to this JSON file")
+    info.set_defaults(func=_cmd_bag_info)
+    rt = bag_sub.add_parser("retrack", help="replay a run's measurements into a fresh tracker")
+    rt.add_argument("bag")
+    rt.add_argument("--scenario", required=True, help="the scenario the run used")
+    rt.add_argument(
+        "--filter", help="another registered filter: ekf, pf or a plugin's (default: as run)"
+    )
+    rt.add_argument(
+        "--run", type=cli_types.run_index, default=None, help="Monte Carlo run index of the run"
+    )
+    rt.add_argument("--json", help="write the report to this JSON file")
+    rt.set_defaults(func=_cmd_bag_retrack)
+    rec_b = bag_sub.add_parser(
+        "recover", help="rebuild a readable bag from a damaged or unfinished one"
+    )
+    rec_b.add_argument("bag")
+    rec_b.add_argument("--json", help="write the report to this JSON file")
+    rec_b.set_defaults(func=_cmd_bag_recover)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -288,6 +315,12 @@ def build_parser() -> argparse.ArgumentParser:
     batch = sub.add_parser("batch", help="run a scenario closed loop without ROS")
     batch.add_argument("scenario", help="scenario YAML file")
     batch.add_argument("--runs", type=cli_types.runs, default=1, help="seeded Monte Carlo runs")
+    batch.add_argument(
+        "--jobs",
+        type=cli_types.jobs,
+        default=1,
+        help="worker processes (the results do not depend on it)",
+    )
     batch.add_argument("--json", help="write the summary to this JSON file")
     batch.set_defaults(func=_cmd_batch)
 
@@ -308,27 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     play.set_defaults(func=_cmd_play)
 
-    bag = sub.add_parser("bag", help="inspect bags and replay them into a tracker")
-    bag_sub = bag.add_subparsers(dest="bag_command", required=True)
-    info = bag_sub.add_parser("info", help="topics, types, counts and duration of a bag")
-    info.add_argument("bag")
-    info.add_argument("--json", help="write the information to this JSON file")
-    info.set_defaults(func=_cmd_bag_info)
-    rt = bag_sub.add_parser("retrack", help="replay a run's measurements into a fresh tracker")
-    rt.add_argument("bag")
-    rt.add_argument("--scenario", required=True, help="the scenario the run used")
-    rt.add_argument("--filter", choices=("ekf", "pf"), help="another filter (default: as run)")
-    rt.add_argument(
-        "--run", type=cli_types.run_index, default=None, help="Monte Carlo run index of the run"
-    )
-    rt.add_argument("--json", help="write the report to this JSON file")
-    rt.set_defaults(func=_cmd_bag_retrack)
-    rec_b = bag_sub.add_parser(
-        "recover", help="rebuild a readable bag from a damaged or unfinished one"
-    )
-    rec_b.add_argument("bag")
-    rec_b.add_argument("--json", help="write the report to this JSON file")
-    rec_b.set_defaults(func=_cmd_bag_recover)
+    _add_bag_parser(sub)
 
     rep = sub.add_parser("reproduce", help="reproduce a paper's tables and figures")
     rep.add_argument("name", choices=EXPERIMENTS)

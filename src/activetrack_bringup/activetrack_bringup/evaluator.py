@@ -24,6 +24,7 @@ from activetrack_ros.node_base import GraphNode, Rejected
 from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
+    Measurement,
     PlanReport,
     PlatformState,
     PolarMeasurement,
@@ -95,6 +96,7 @@ class EvaluatorNode(GraphNode):
             self.subscribe(msg_type, topic, lambda m, cb=callback: self._result_input(cb, m))
         self.subscribe(BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_measurement)
         self.subscribe(PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_measurement)
+        self.subscribe(Measurement, topics.MEASUREMENTS, self.on_measurement)
 
     @property
     def tracks(self) -> EpochTable:

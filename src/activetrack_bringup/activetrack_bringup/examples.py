@@ -14,6 +14,7 @@ from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
     ManoeuvreCommand,
+    Measurement,
     PlanReport,
     PlatformState,
     PolarMeasurement,
@@ -24,6 +25,7 @@ from msgs_defs.msg import (
 MESSAGE_TYPES = (
     BearingMeasurement,
     PolarMeasurement,
+    Measurement,
     PlatformState,
     TrackEstimate,
     ManoeuvreCommand,
@@ -35,6 +37,7 @@ MESSAGE_TYPES = (
 TOPIC_OF = {
     BearingMeasurement: topics.BEARING_MEASUREMENTS,
     PolarMeasurement: topics.POLAR_MEASUREMENTS,
+    Measurement: topics.MEASUREMENTS,
     PlatformState: topics.PLATFORM_STATES,
     TrackEstimate: topics.TRACK,
     ManoeuvreCommand: topics.MANOEUVRE_COMMANDS,
@@ -88,6 +91,19 @@ def _examples() -> list:
             has_range_rate=True,
             range_rate=-12.5,
             covariance=[100.0, 0.0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0, 1e-4],
+            detected=True,
+        ),
+        Measurement(
+            header=_header(),
+            platform_id="p3",
+            sensor_id="s4",
+            sensor_kind="range",
+            epoch=3,
+            epoch_measurement_count=3,
+            sensor_position=sensor_pos,
+            sensor_velocity=sensor_vel,
+            z=[1234.5],
+            covariance=[4.0],
             detected=True,
         ),
         PlatformState(

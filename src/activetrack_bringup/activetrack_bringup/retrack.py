@@ -27,36 +27,38 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
 
+from activetrack.filters import registry as filter_kinds
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.build import build_motion_model
 from activetrack_bringup.bag import installed_type_hash
 from activetrack_bringup.bag_io import BagError, open_bag
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_ros import graph as topics
+from activetrack_ros.convert import measurement_topic
 from activetrack_ros.graph import GRAPH_TOPICS, writer_qos
 from activetrack_ros.node_base import GraphNode
 from activetrack_ros.trust import GraphKey, is_signed_type
 from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
+    Measurement,
     PlatformState,
     PolarMeasurement,
     TrackEstimate,
 )
 from tracker_node.tracker_node import TrackerNode
 
-MEASUREMENT_TOPICS = (topics.BEARING_MEASUREMENTS, topics.POLAR_MEASUREMENTS)
+MEASUREMENT_TOPICS = (topics.BEARING_MEASUREMENTS, topics.POLAR_MEASUREMENTS, topics.MEASUREMENTS)
 REPLAYED_TOPICS = (*MEASUREMENT_TOPICS, topics.PLATFORM_STATES)
 STAMP_TOLERANCE = 1e-6  # s between a stamp and its epoch time k T (the tracker's own check)
 STALL_TIMEOUT = 10.0  # s without progress (a new track or a replayed message) ends the replay
-BEARING_KINDS = ("bearing", "ambiguous_bearing")
-POLAR_KINDS = ("range_bearing", "range_rate_bearing")
 # Tracker counters that mean the replay is not the recorded run.
 _TROUBLE = ("rejected.", "foreign.", "errors.", "dropped.", "incomplete_epochs")
 
 _CLASSES = {
     topics.BEARING_MEASUREMENTS: BearingMeasurement,
     topics.POLAR_MEASUREMENTS: PolarMeasurement,
+    topics.MEASUREMENTS: Measurement,
     topics.PLATFORM_STATES: PlatformState,
     topics.TRACK: TrackEstimate,
     topics.GROUND_TRUTH: GroundTruth,
@@ -163,17 +165,25 @@ def check_run(scenario, run: RunData, bag) -> int:
     """Check the bag against the scenario; return the last epoch to replay. RetrackError (one
     line) at the first mismatch."""
     meas = [m for t in MEASUREMENT_TOPICS for m in run.messages[t]]
-    states = run.messages[topics.PLATFORM_STATES]
     tracks = run.messages[topics.TRACK]
-    name = scenario.name
     used = run.scenario_name
-    hint = f" (the run used scenario {used!r})" if used and used != name else ""
+    hint = f" (the run used scenario {used!r})" if used and used != scenario.name else ""
     if not meas:
         raise RetrackError(
             f"{bag} holds no measurements ({', '.join(MEASUREMENT_TOPICS)}): nothing to retrack"
         )
     if not tracks:
         raise RetrackError(f"{bag} holds no recorded track ({topics.TRACK}): nothing to compare")
+    _check_sensors(scenario, run, meas, hint)
+    _check_track(scenario, tracks[0], hint)
+    top = _check_timing(scenario, run, meas, hint)
+    return _last_replayable(scenario, run, meas, top, hint, bag)
+
+
+def _check_sensors(scenario, run: RunData, meas: list, hint: str) -> None:
+    """The bag's sensors, their kinds and platforms are the scenario's."""
+    name = scenario.name
+    states = run.messages[topics.PLATFORM_STATES]
     kinds = {s.id: s.kind for p in scenario.platforms for s in p.sensors}
     owner = {s.id: p.id for p in scenario.platforms for s in p.sensors}
     platforms = {p.id for p in scenario.platforms}
@@ -183,12 +193,9 @@ def check_run(scenario, run: RunData, bag) -> int:
             f"the bag's measurements come from sensors {sorted(sensors - kinds.keys())} that "
             f"scenario {name} does not have (it has {sorted(kinds)}): wrong --scenario?{hint}"
         )
-    for topic, allowed in (
-        (topics.BEARING_MEASUREMENTS, BEARING_KINDS),
-        (topics.POLAR_MEASUREMENTS, POLAR_KINDS),
-    ):
+    for topic in MEASUREMENT_TOPICS:
         for m in run.messages[topic]:
-            if kinds[m.sensor_id] not in allowed:
+            if measurement_topic(kinds[m.sensor_id]) != topic:
                 raise RetrackError(
                     f"sensor {m.sensor_id!r} measures on {topic} in the bag but is a "
                     f"{kinds[m.sensor_id]} sensor in scenario {name}: wrong --scenario?{hint}"
@@ -211,9 +218,13 @@ def check_run(scenario, run: RunData, bag) -> int:
                 f"sensor {m.sensor_id!r} is on platform {m.platform_id!r} in the bag, on "
                 f"{owner[m.sensor_id]!r} in scenario {name}: wrong --scenario?{hint}"
             )
+
+
+def _check_track(scenario, track, hint: str) -> None:
+    """The recorded track has the scenario's state and target."""
+    name = scenario.name
     motion = scenario.tracker.motion or scenario.target.motion
     names = tuple(build_motion_model(motion).state_names)
-    track = tracks[0]
     if tuple(track.state_names) != names or len(track.state) != len(names):
         raise RetrackError(
             f"the recorded track's state is ({', '.join(track.state_names)}), "
@@ -225,7 +236,13 @@ def check_run(scenario, run: RunData, bag) -> int:
             f"the recorded track is of target {track.target_id!r}, scenario {name} tracks "
             f"{scenario.target.id!r}: wrong --scenario?{hint}"
         )
-    steps, dt = scenario.steps, scenario.dt
+
+
+def _check_timing(scenario, run: RunData, meas: list, hint: str) -> int:
+    """Steps, epochs and stamps fit the scenario's; returns the bag's last epoch."""
+    name, steps, dt = scenario.name, scenario.steps, scenario.dt
+    states = run.messages[topics.PLATFORM_STATES]
+    tracks = run.messages[topics.TRACK]
     if run.steps is not None and run.steps != steps:
         raise RetrackError(
             f"the recorded run has {run.steps} steps (its simulator's diagnostics), scenario "
@@ -243,9 +260,16 @@ def check_run(scenario, run: RunData, bag) -> int:
                 f"the bag's stamps imply {implied} (epoch {m.epoch} at {_stamp(m):g} s), "
                 f"scenario {name} has dt = {dt:g} s: wrong --scenario?{hint}"
             )
-    # Every epoch must be replayable: all platforms' states and the announced measurements.
+    return top
+
+
+def _last_replayable(scenario, run: RunData, meas: list, top: int, hint: str, bag) -> int:
+    """The last epoch with all platforms' states and the announced measurements; a warning in
+    ``run.warnings`` when that is not the scenario's last."""
+    name, steps = scenario.name, scenario.steps
+    platforms = {p.id for p in scenario.platforms}
     per_epoch: dict[int, list] = {}
-    for s in states:
+    for s in run.messages[topics.PLATFORM_STATES]:
         per_epoch.setdefault(s.epoch, []).append(s)
     counts: dict[int, int] = {}
     for m in meas:
@@ -357,7 +381,12 @@ def retrack(
     timeout: float = 300.0,
     stall_timeout: float = STALL_TIMEOUT,
 ) -> RetrackReport:
-    scenario = load_scenario(scenario_path)
+    scenario = load_scenario(scenario_path)  # imports the scenario's plugins (filters too)
+    if filter_kind is not None:
+        try:
+            filter_kinds.filter_kind(filter_kind)
+        except ValueError as exc:
+            raise RetrackError(f"--filter: {exc}") from None
     data = read_run(bag)
     last = check_run(scenario, data, bag)
     recorded = {m.epoch: m for m in data.messages[topics.TRACK]}

@@ -17,8 +17,10 @@ from std_msgs.msg import Header
 from activetrack import limits
 from activetrack.closed_loop.data import PlanReportData, PlatformSnapshot, TrackSnapshot
 from activetrack.filters.measurement import Measurement
+from activetrack.filters.registry import filter_names
 from activetrack.scenarios.build import build_motion_model
 from activetrack.scenarios.schema import Scenario
+from activetrack_ros import graph as topics
 from activetrack_ros.node_base import Rejected
 from msgs_defs.msg import PlanReport
 
@@ -29,8 +31,19 @@ MAX_SPEED = limits.MAX_SPEED  # m/s, velocities, range rates
 MAX_STATE_VALUE = 1e12  # any track or truth state entry (estimates may overshoot positions)
 STAMP_TOLERANCE = 1e-6  # s between a stamp and its epoch time k T
 FRAME_ID = "world"
+# Sensor kinds with a typed message; every other kind (a registered one, docs/extending.md)
+# travels as the generic Measurement on its own topic.
 BEARING_KINDS = ("bearing", "ambiguous_bearing")
 POLAR_KINDS = ("range_bearing", "range_rate_bearing")
+
+
+def measurement_topic(kind: str) -> str:
+    """The topic that measurements of a sensor kind travel on."""
+    if kind in BEARING_KINDS:
+        return topics.BEARING_MEASUREMENTS
+    if kind in POLAR_KINDS:
+        return topics.POLAR_MEASUREMENTS
+    return topics.MEASUREMENTS
 
 
 def header(seconds: float) -> Header:
@@ -129,8 +142,10 @@ class TrackChecker:
             )
         if len(msg.covariance) != n * n:
             raise Rejected("wrong_dimension", f"{what}: covariance must have {n * n} values")
-        if msg.filter_kind not in ("ekf", "pf"):
-            raise Rejected("bad_field", f"{what}: filter_kind must be ekf or pf")
+        if msg.filter_kind not in filter_names():  # the registry: plugins' filters too
+            raise Rejected(
+                "bad_field", f"{what}: filter_kind must be one of {list(filter_names())}"
+            )
         if msg.sample_count > self.max_samples or len(msg.particle_samples) != msg.sample_count * n:
             raise Rejected(
                 "wrong_dimension",
@@ -164,22 +179,27 @@ class TrackChecker:
 
 
 class MeasurementChecker:
-    """Validates Bearing/PolarMeasurement messages against the scenario's sensors."""
+    """Validates BearingMeasurement, PolarMeasurement and (generic) Measurement messages
+    against the scenario's sensors: each sensor's measurements must arrive on the topic of its
+    kind (:func:`measurement_topic`)."""
 
     def __init__(self, scenario: Scenario, sensors: dict, sensor_platform: dict[str, str]):
         self.scenario = scenario
         self.sensors = sensors  # sensor id -> sensor model
         self.sensor_platform = sensor_platform  # sensor id -> platform id
 
-    def _common(self, msg, kinds) -> tuple:
+    def _common(self, msg, topic: str) -> tuple:
         sensor = self.sensors.get(msg.sensor_id)
         what = f"measurement of {msg.sensor_id!r} epoch {msg.epoch}"
         if sensor is None:
             raise Rejected(
                 "unknown_sensor", f"{msg.sensor_id!r} is not one of {sorted(self.sensors)}"
             )
-        if sensor.kind not in kinds:
-            raise Rejected("wrong_sensor_kind", f"{what}: sensor is {sensor.kind}")
+        if measurement_topic(sensor.kind) != topic:
+            raise Rejected(
+                "wrong_sensor_kind",
+                f"{what}: sensor is {sensor.kind}, measured on {measurement_topic(sensor.kind)}",
+            )
         if msg.platform_id != self.sensor_platform[msg.sensor_id]:
             raise Rejected(
                 "inconsistent",
@@ -193,7 +213,7 @@ class MeasurementChecker:
         return sensor, pv, what
 
     def bearing(self, msg) -> Measurement:
-        sensor, pv, what = self._common(msg, BEARING_KINDS)
+        sensor, pv, what = self._common(msg, topics.BEARING_MEASUREMENTS)
         if msg.ambiguous != (sensor.kind == "ambiguous_bearing"):
             raise Rejected(
                 "wrong_sensor_kind", f"{what}: ambiguous flag does not match {sensor.kind}"
@@ -209,7 +229,7 @@ class MeasurementChecker:
         return Measurement(sensor, pv, z, msg.epoch * self.scenario.dt, msg.sensor_id)
 
     def polar(self, msg) -> Measurement:
-        sensor, pv, what = self._common(msg, POLAR_KINDS)
+        sensor, pv, what = self._common(msg, topics.POLAR_MEASUREMENTS)
         if msg.has_range_rate != ("range_rate" in sensor.components):
             raise Rejected(
                 "wrong_sensor_kind", f"{what}: has_range_rate does not match {sensor.kind}"
@@ -229,6 +249,35 @@ class MeasurementChecker:
             if msg.range < 0:
                 raise Rejected("out_of_range", f"{what}: range must be >= 0")
             finite((msg.range_rate,), f"{what} range_rate", MAX_SPEED)
+        return Measurement(sensor, pv, z, msg.epoch * self.scenario.dt, msg.sensor_id)
+
+    def generic(self, msg) -> Measurement:
+        """A Measurement of a sensor without a typed message: its kind as in the scenario, R
+        equal to the sensor's, ``z`` with one finite value per component when detected (what
+        a value means is the sensor's: only a generic bound, MAX_STATE_VALUE, applies), empty
+        otherwise."""
+        sensor, pv, what = self._common(msg, topics.MEASUREMENTS)
+        if msg.sensor_kind != sensor.kind:
+            shown = msg.sensor_kind if len(msg.sensor_kind) <= 40 else msg.sensor_kind[:40] + "..."
+            raise Rejected(
+                "wrong_sensor_kind", f"{what}: sensor_kind {shown!r} is not {sensor.kind!r}"
+            )
+        n = sensor.dim_z
+        if len(msg.covariance) != n * n:
+            raise Rejected("bad_covariance", f"{what}: covariance must have {n * n} values")
+        R = spd(finite(msg.covariance, f"{what} covariance", math.inf).reshape(n, n), what)
+        if not np.allclose(R, sensor.R, rtol=1e-9, atol=0.0):
+            raise Rejected("sensor_mismatch", f"{what}: covariance differs from the scenario's R")
+        z = None
+        if msg.detected:
+            if len(msg.z) != n:
+                raise Rejected(
+                    "wrong_dimension",
+                    f"{what}: z must have {n} values {list(sensor.components)}, got {len(msg.z)}",
+                )
+            z = finite(msg.z, f"{what} z", MAX_STATE_VALUE)
+        elif len(msg.z):
+            raise Rejected("wrong_dimension", f"{what}: z must be empty when detected is false")
         return Measurement(sensor, pv, z, msg.epoch * self.scenario.dt, msg.sensor_id)
 
 

@@ -18,6 +18,8 @@ CLOCK = "/clock"
 PLATFORM_STATES = "/activetrack/platform_states"
 BEARING_MEASUREMENTS = "/activetrack/bearing_measurements"
 POLAR_MEASUREMENTS = "/activetrack/polar_measurements"
+# Generic measurements (msgs_defs/Measurement): every sensor kind without a typed topic.
+MEASUREMENTS = "/activetrack/measurements"
 GROUND_TRUTH = "/activetrack/ground_truth"  # evaluators only: tracker and planner never read it
 TRACK = "/activetrack/track"
 MANOEUVRE_COMMANDS = "/activetrack/manoeuvre_commands"
@@ -35,6 +37,7 @@ GRAPH_TOPICS = {
     PLATFORM_STATES: "msgs_defs/msg/PlatformState",
     BEARING_MEASUREMENTS: "msgs_defs/msg/BearingMeasurement",
     POLAR_MEASUREMENTS: "msgs_defs/msg/PolarMeasurement",
+    MEASUREMENTS: "msgs_defs/msg/Measurement",
     TRACK: "msgs_defs/msg/TrackEstimate",
     TRACK_POSE: "geometry_msgs/msg/PoseWithCovarianceStamped",
     PARTICLES: "geometry_msgs/msg/PoseArray",
@@ -50,6 +53,7 @@ LATCHED_TOPICS = frozenset(
     {
         BEARING_MEASUREMENTS,
         POLAR_MEASUREMENTS,
+        MEASUREMENTS,
         PLAN_REPORT,
         GROUND_TRUTH,
         PLATFORM_STATES,

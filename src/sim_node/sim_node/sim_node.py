@@ -1,7 +1,8 @@
 """sim_node: simulated target and sensor platforms (activetrack.closed_loop.Simulator).
 
-Publishes /clock, ground truth (evaluators only), platform states and bearing / polar
-measurements; obeys ManoeuvreCommand (clamped to each platform's limits, logged and counted)
+Publishes /clock, ground truth (evaluators only), platform states and measurements: bearing and
+polar ones typed, those of any other sensor kind (a plugin's, docs/extending.md) as the generic
+``Measurement``; obeys ManoeuvreCommand (clamped to each platform's limits, logged and counted)
 and SensorSelection from the graph's planner (activetrack_ros.trust).
 
 Modes (parameter ``mode``):
@@ -26,13 +27,20 @@ from activetrack.closed_loop.data import Command
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics
-from activetrack_ros.convert import BEARING_KINDS, MAX_SPEED, check_epoch_stamp, finite, header
+from activetrack_ros.convert import (
+    MAX_SPEED,
+    check_epoch_stamp,
+    finite,
+    header,
+    measurement_topic,
+)
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
     ManoeuvreCommand,
+    Measurement,
     PlatformState,
     PolarMeasurement,
     SensorSelection,
@@ -78,6 +86,7 @@ class SimNode(GraphNode):
         self.platform_pub = self.publisher(PlatformState, topics.PLATFORM_STATES)
         self.bearing_pub = self.publisher(BearingMeasurement, topics.BEARING_MEASUREMENTS)
         self.polar_pub = self.publisher(PolarMeasurement, topics.POLAR_MEASUREMENTS)
+        self.generic_pub = self.publisher(Measurement, topics.MEASUREMENTS)
         self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.paths: dict[str, list[Point]] = {pid: [] for pid in self.sim.platforms}
@@ -280,7 +289,8 @@ class SimNode(GraphNode):
         )
         sensor = m.sensor
         z = dict(zip(sensor.components, m.z, strict=True)) if m.z is not None else {}
-        if sensor.kind in BEARING_KINDS:
+        topic = measurement_topic(sensor.kind)
+        if topic == topics.BEARING_MEASUREMENTS:
             self.bearing_pub.publish(
                 BearingMeasurement(
                     **common,
@@ -289,7 +299,7 @@ class SimNode(GraphNode):
                     ambiguous=sensor.kind == "ambiguous_bearing",
                 )
             )
-        else:
+        elif topic == topics.POLAR_MEASUREMENTS:
             self.polar_pub.publish(
                 PolarMeasurement(
                     **common,
@@ -297,6 +307,15 @@ class SimNode(GraphNode):
                     bearing=float(z.get("bearing", 0.0)),
                     has_range_rate="range_rate" in sensor.components,
                     range_rate=float(z.get("range_rate", 0.0)),
+                    covariance=[float(v) for v in sensor.R.ravel()],
+                )
+            )
+        else:  # any other kind: z in the order of sensor.components
+            self.generic_pub.publish(
+                Measurement(
+                    **common,
+                    sensor_kind=sensor.kind,
+                    z=[] if m.z is None else [float(v) for v in m.z],
                     covariance=[float(v) for v in sensor.R.ravel()],
                 )
             )

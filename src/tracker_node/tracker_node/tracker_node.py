@@ -1,5 +1,5 @@
-"""tracker_node: EKF or particle filter on bearing and polar measurements
-(activetrack.closed_loop.TrackerCore).
+"""tracker_node: the scenario's filter (EKF, particle filter or a registered one) on the
+bearing, polar and generic measurements (activetrack.closed_loop.TrackerCore).
 
 An epoch k is announced by the simulator's platform states of epoch k (one per platform, each
 saying how many measurements the sim published at k); the tracker updates once it holds them
@@ -27,6 +27,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.data import PlatformSnapshot
 from activetrack.closed_loop.tracker import TrackerCore, pose_of
+from activetrack.filters import filter_names
 from activetrack.filters.measurement import Measurement
 from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_scenario, with_tracker_overrides
@@ -34,7 +35,15 @@ from activetrack_ros import graph as topics
 from activetrack_ros.convert import MeasurementChecker, header, platform_from_msg
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.spin import spin_node
-from msgs_defs.msg import BearingMeasurement, PlatformState, PolarMeasurement, TrackEstimate
+from msgs_defs.msg import (
+    BearingMeasurement,
+    PlatformState,
+    PolarMeasurement,
+    TrackEstimate,
+)
+from msgs_defs.msg import (
+    Measurement as MeasurementMsg,
+)
 
 FREE_WINDOW = 64  # free mode: epochs ahead of the last update that may be collected at once
 POSITION_TOLERANCE = 1e-6  # m between a measurement's sensor position and its platform state
@@ -57,15 +66,22 @@ class TrackerNode(GraphNode):
         self.declare_parameter("run", -1)
         self.declare_parameter("mode", "lockstep")  # lockstep: only epoch k+1 follows epoch k
         self.declare_parameter("cloud_size", 100)  # particles in the published cloud
-        self.declare_parameter("filter", "")  # ekf | pf; empty: the scenario's
+        self.declare_parameter("filter", "")  # a registered filter name; empty: the scenario's
         self.declare_parameter("particles", 0)  # 0: the scenario's
         self.declare_parameter("epoch_timeout", 5.0)  # s before an incomplete epoch is closed
         path = self.get_parameter("scenario").value
         if not path:
             raise ValueError("parameter 'scenario' must name a scenario YAML file")
+        scenario = load_scenario(path)  # imports its plugins: their filters are registered
+        filter_name = self.get_parameter("filter").value
+        if filter_name and filter_name not in filter_names():
+            raise ValueError(
+                f"parameter 'filter' must be one of {list(filter_names())} (or empty: the "
+                f"scenario's), got {filter_name!r}"
+            )
         self.scenario = with_tracker_overrides(
-            load_scenario(path),
-            filter=self.get_parameter("filter").value or None,
+            scenario,
+            filter=filter_name or None,
             particles=self.get_parameter("particles").value or None,
         )
         self.mode = self.get_parameter("mode").value
@@ -98,6 +114,7 @@ class TrackerNode(GraphNode):
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.subscribe(BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing)
         self.subscribe(PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar)
+        self.subscribe(MeasurementMsg, topics.MEASUREMENTS, self.on_measurement)
         self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
         self.guarded_timer(0.05, self.on_tick)
         self.publish_track(self.core.snapshot())  # epoch 0: the prior
@@ -109,6 +126,9 @@ class TrackerNode(GraphNode):
 
     def on_polar(self, msg: PolarMeasurement) -> None:
         self.add_measurement(msg.epoch, self.check.polar(msg))
+
+    def on_measurement(self, msg: MeasurementMsg) -> None:
+        self.add_measurement(msg.epoch, self.check.generic(msg))
 
     def on_platform(self, msg: PlatformState) -> None:
         snap = platform_from_msg(msg, self.scenario, self.platform_ids)

@@ -5,9 +5,11 @@
 
 from __future__ import annotations
 
+import csv
 import math
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -17,6 +19,7 @@ from activetrack.closed_loop.planner import PlannerCore
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
 from activetrack.models.base import SensorModel, as_linear
+from activetrack.montecarlo import parallel_map
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.schema import Scenario
 
@@ -158,19 +161,94 @@ class BatchSummary:
     evaluations_per_decision: float
     decision_time_s: float
     wall_time_s: float
+    dt: float = 1.0
     records: list[RunRecord] = field(default_factory=list, repr=False)
+    # (R, K, 4) target pv at epochs 1..K of each run: truth and the estimate's kinematics.
+    truth_pv: np.ndarray = field(default_factory=lambda: np.empty((0, 0, 4)), repr=False)
+    estimate_pv: np.ndarray = field(default_factory=lambda: np.empty((0, 0, 4)), repr=False)
 
     def to_json(self) -> dict:
-        d = {k: v for k, v in self.__dict__.items() if k != "records"}
+        arrays = ("records", "truth_pv", "estimate_pv")
+        d = {k: v for k, v in self.__dict__.items() if k not in arrays}
         return d
 
+    @property
+    def time(self) -> np.ndarray:
+        """Epoch times t_1..t_K (K,) [s] of the per-epoch series."""
+        return self.dt * np.arange(1, self.steps + 1)
 
-def run_batch(scenario: Scenario, runs: int = 1) -> BatchSummary:
-    """``runs`` seeded closed-loop runs, summarised by :func:`summarize`."""
-    if runs < 1:
-        raise ValueError(f"runs must be >= 1, got {runs}")
+    @property
+    def rmse_t(self) -> np.ndarray:
+        """RMSE over runs per epoch, (K, 2) [m] in x and y."""
+        return np.column_stack([self.rmse_x_t, self.rmse_y_t])
+
+    @property
+    def bound_t(self) -> np.ndarray:
+        """The PCRLB along the flown paths per epoch, (K, 2) [m] in x and y."""
+        return np.column_stack([self.bound_x_t, self.bound_y_t])
+
+    def table(self) -> list[dict[str, float | int | str]]:
+        """A tidy table: one row per epoch (``pandas.DataFrame(s.table())``, or csv)."""
+        rows: list[dict[str, float | int | str]] = []
+        for k in range(self.steps):
+            rows.append(
+                {
+                    "scenario": self.scenario,
+                    "epoch": k + 1,
+                    "time_s": float(self.time[k]),
+                    "rmse_x_m": self.rmse_x_t[k],
+                    "rmse_y_m": self.rmse_y_t[k],
+                    "bound_x_m": self.bound_x_t[k],
+                    "bound_y_m": self.bound_y_t[k],
+                }
+            )
+        return rows
+
+    def run_table(self) -> list[dict[str, float | int | str]]:
+        """A tidy table of the runs: one row per run and epoch 1..K, with the target's true and
+        estimated position (the filter's state mapped to position/velocity by its model)."""
+        rows: list[dict[str, float | int | str]] = []
+        for r in range(self.runs):
+            truth, est = self.truth_pv[r], self.estimate_pv[r]
+            for k in range(self.steps):
+                rows.append(
+                    {
+                        "scenario": self.scenario,
+                        "run": r,
+                        "epoch": k + 1,
+                        "time_s": float(self.time[k]),
+                        "x_m": float(truth[k, 0]),
+                        "y_m": float(truth[k, 2]),
+                        "x_hat_m": float(est[k, 0]),
+                        "y_hat_m": float(est[k, 2]),
+                    }
+                )
+        return rows
+
+    def to_csv(self, path: str | Path, runs: bool = False) -> Path:
+        """Write :meth:`table` (or :meth:`run_table` with ``runs=True``) as csv."""
+        rows = self.run_table() if runs else self.table()
+        path = Path(path)
+        with path.open("w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+        return path
+
+
+def _run_task(task: tuple[Scenario, int | None]) -> RunRecord:
+    return run_once(*task)
+
+
+def run_batch(scenario: Scenario, runs: int = 1, jobs: int = 1) -> BatchSummary:
+    """``runs`` seeded closed-loop runs on ``jobs`` worker processes, summarised by
+    :func:`summarize`. Run r draws from its own generators (:func:`component_rngs`), so the
+    result is the same for every ``jobs``."""
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise ValueError(f"runs: must be an integer >= 1, got {runs!r}")
     start = time.perf_counter()
-    records = [run_once(scenario, r if runs > 1 else None) for r in range(runs)]
+    tasks = [(scenario, r if runs > 1 else None) for r in range(runs)]
+    records = parallel_map(_run_task, tasks, jobs)
     return summarize(scenario, records, time.perf_counter() - start)
 
 
@@ -184,7 +262,8 @@ def summarize(scenario: Scenario, records: list[RunRecord], wall_time_s: float) 
     est = np.stack([r.estimate[1:] for r in records])  # (R, K, n)
     truth = np.stack([r.truth[1:] for r in records])  # (R, K, 4)
     model = build_motion_model(scenario.tracker.motion or scenario.target.motion)
-    sq = (model.kinematics(est) - truth) ** 2
+    est_pv = model.kinematics(est)
+    sq = (est_pv - truth) ** 2
     rmse_x_t = np.sqrt(sq[..., 0].mean(axis=0))
     rmse_y_t = np.sqrt(sq[..., 2].mean(axis=0))
     B = np.stack(
@@ -212,5 +291,8 @@ def summarize(scenario: Scenario, records: list[RunRecord], wall_time_s: float) 
         evaluations_per_decision=sum(r.evaluations for r in records) / max(decisions, 1),
         decision_time_s=sum(r.planning_time_s for r in records) / max(decisions, 1),
         wall_time_s=wall_time_s,
+        dt=scenario.dt,
         records=records,
+        truth_pv=truth,
+        estimate_pv=est_pv,
     )

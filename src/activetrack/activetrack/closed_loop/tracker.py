@@ -1,13 +1,16 @@
-"""The tracker: the scenario's filter (EKF or PF) fed with the simulator's measurements."""
+"""The tracker: the scenario's filter (any registered one, activetrack.filters.registry) fed
+with the simulator's measurements."""
 
 from __future__ import annotations
+
+from typing import cast
 
 import numpy as np
 
 from activetrack.closed_loop.data import TrackSnapshot
-from activetrack.filters import make_filter
+from activetrack.filters import filter_kind, make_filter
 from activetrack.filters.measurement import Measurement
-from activetrack.filters.particle import ParticleFilter
+from activetrack.filters.registry import ParticlePosterior
 from activetrack.filters.resampling import systematic_resample
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.schema import Scenario
@@ -27,18 +30,11 @@ class TrackerCore:
         # Sensor models by id: messages name a sensor, the scenario says what it is.
         self.sensors = {s.id: build_sensor(s) for p in scenario.platforms for s in p.sensors}
         prior = scenario.target.prior
-        options = {}
-        if self.kind == "pf":
-            options = dict(
-                n_particles=cfg.particles,
-                rng=rng,
-                resample=cfg.resample,
-                ess_threshold=cfg.ess_threshold,
-                roughening=cfg.roughening,
-                min_range=cfg.min_range,
-            )
+        # The registered factory reads its own options from the tracker block (the PF its
+        # particles, ...) and draws only from this tracker's rng.
+        self.particle_based = filter_kind(self.kind).particle_based
         self.filter = make_filter(
-            self.kind, self.model, np.array(prior.mean), prior.covariance(), **options
+            self.kind, self.model, np.array(prior.mean), prior.covariance(), cfg, rng
         )
         self.epoch = 0
         self.update_count = 0
@@ -58,21 +54,28 @@ class TrackerCore:
         self._samples = self._draw_samples()
         return self.snapshot()
 
+    def _particles(self) -> ParticlePosterior | None:
+        """The filter's particle set, for a ``particle_based`` filter (the registry's flag)."""
+        return cast(ParticlePosterior, self.filter) if self.particle_based else None
+
     def _draw_samples(self) -> np.ndarray | None:
-        """The planner's equally weighted posterior samples (PF), drawn once per update: a
-        systematic resample thinned to ``planner_samples``."""
-        if not isinstance(self.filter, ParticleFilter):
+        """The planner's equally weighted posterior samples (particle-based filters), drawn
+        once per update: a systematic resample thinned to ``planner_samples``."""
+        posterior = self._particles()
+        if posterior is None:
             return None
-        count = len(self.filter.weights)
-        idx = systematic_resample(self.filter.weights, self.rng)
+        weights = posterior.weights
+        count = len(weights)
+        idx = systematic_resample(weights, self.rng)
         take = np.linspace(0, count - 1, min(self.planner_samples, count)).astype(int)
-        return self.filter.particles[idx[take]]
+        return posterior.particles[idx[take]]
 
     def snapshot(self) -> TrackSnapshot:
         """The posterior after the last update. Pure: it draws nothing, so looking at the
         track (a notebook, a second caller) never changes a later result."""
         samples = self._samples
-        count = len(self.filter.weights) if isinstance(self.filter, ParticleFilter) else 0
+        posterior = self._particles()
+        count = len(posterior.weights) if posterior is not None else 0
         return TrackSnapshot(
             epoch=self.epoch,
             time=self.filter.time,

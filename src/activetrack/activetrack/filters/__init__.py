@@ -1,16 +1,31 @@
 """Target-state filters: an EKF and a bootstrap SIR particle filter with one interface.
 
 Both offer ``predict(t)``, ``update(measurements) -> UpdateInfo``, ``step(t, measurements)``,
-``mean``, ``cov`` and ``time`` (:class:`TrackingFilter`); :func:`make_filter` picks one by name
-so the tracker node can switch with a parameter.
+``mean``, ``cov`` and ``time`` (:class:`TrackingFilter`). Scenario files name a filter
+(``tracker.filter``) from a registry (:mod:`activetrack.filters.registry`): the built-in
+``"ekf"`` and ``"pf"`` are registered below like any other, and :func:`register_filter` adds
+one (docs/extending.md, "A filter"); :func:`make_filter` builds one by name.
 """
 
 from typing import Any
 
-from activetrack.arraytypes import ArrayLike
+import numpy as np
+
+from activetrack.arraytypes import FloatArray
 from activetrack.filters.ekf import ExtendedKalmanFilter
 from activetrack.filters.measurement import Measurement, TrackingFilter, UpdateInfo
 from activetrack.filters.particle import FilterCollapseError, ParticleFilter
+from activetrack.filters.registry import (
+    FilterFactory,
+    FilterKind,
+    ParticlePosterior,
+    _register_built_in,
+    filter_kind,
+    filter_names,
+    make_filter,
+    register_filter,
+    unregister_filter,
+)
 from activetrack.filters.resampling import (
     effective_sample_size,
     roughen,
@@ -20,37 +35,54 @@ from activetrack.filters.resampling import (
 from activetrack.models.base import MotionModel
 
 __all__ = [
-    "FILTER_KINDS",
     "ExtendedKalmanFilter",
     "FilterCollapseError",
+    "FilterFactory",
+    "FilterKind",
     "Measurement",
     "ParticleFilter",
+    "ParticlePosterior",
     "TrackingFilter",
     "UpdateInfo",
     "effective_sample_size",
+    "filter_kind",
+    "filter_names",
     "make_filter",
+    "register_filter",
     "roughen",
     "systematic_indices",
     "systematic_resample",
+    "unregister_filter",
 ]
 
-FILTER_KINDS: dict[str, type[ExtendedKalmanFilter] | type[ParticleFilter]] = {
-    "ekf": ExtendedKalmanFilter,
-    "pf": ParticleFilter,
-}
 
-
-def make_filter(
-    kind: str, model: MotionModel, x0: ArrayLike, P0: ArrayLike, **options: Any
+def _ekf(
+    model: MotionModel, x0: FloatArray, P0: FloatArray, config: Any, rng: np.random.Generator
 ) -> TrackingFilter:
-    """Build ``"ekf"`` or ``"pf"`` with ``model``, ``x0``, ``P0`` and filter ``options``.
+    return ExtendedKalmanFilter(model, x0, P0)
 
-    Options are passed on: ``t0`` for both; ``n_particles``, ``rng``, ``resample``,
-    ``ess_threshold``, ``roughening``, ``min_range``, ``on_collapse`` for the PF. An option the
-    chosen filter does not take raises ``TypeError``.
-    """
-    try:
-        cls = FILTER_KINDS[kind]
-    except (KeyError, TypeError):
-        raise ValueError(f"kind must be one of {tuple(FILTER_KINDS)}, got {kind!r}") from None
-    return cls(model, x0, P0, **options)
+
+def _pf(
+    model: MotionModel, x0: FloatArray, P0: FloatArray, config: Any, rng: np.random.Generator
+) -> TrackingFilter:
+    """The particle options of the scenario's tracker block (TrackerConfig)."""
+    return ParticleFilter(
+        model,
+        x0,
+        P0,
+        n_particles=config.particles,
+        rng=rng,
+        resample=config.resample,
+        ess_threshold=config.ess_threshold,
+        roughening=config.roughening,
+        min_range=config.min_range,
+    )
+
+
+_register_built_in("ekf", _ekf, description="extended Kalman filter (ExtendedKalmanFilter)")
+_register_built_in(
+    "pf",
+    _pf,
+    particle_based=True,
+    description="bootstrap SIR particle filter (ParticleFilter)",
+)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 from typing import ClassVar
 
 import numpy as np
@@ -85,15 +86,36 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % _TWO_PI - math.pi
 
 
-def _scalar_offsets(target_pv: ArrayLike, sensor_pv: ArrayLike) -> tuple[float, float, float]:
-    """dx, dy and r^2 of one pv state ``(4,)`` as floats (no per-call validation: the EKF's
-    state and the measurement's sensor state are checked where they are made)."""
-    x, s = np.asarray(target_pv, dtype=float), np.asarray(sensor_pv, dtype=float)
-    dx, dy = float(x[0] - s[0]), float(x[2] - s[2])
+def _scalar_geometry(
+    target_pv: ArrayLike, sensor_pv: ArrayLike, z: ArrayLike
+) -> tuple[float, float, float, list[float]]:
+    """dx, dy, r^2 of one pv state ``(4,)`` and the entries of ``z``, as Python floats.
+
+    No per-call validation (the EKF's state and the measurement are checked where they are
+    made) and one ``tolist`` per array: this is the inner loop of every EKF update, where numpy
+    scalar indexing would cost more than the maths.
+    """
+    nd = np.ndarray
+    x = target_pv.tolist() if type(target_pv) is nd and target_pv.ndim == 1 else None
+    s = sensor_pv.tolist() if type(sensor_pv) is nd and sensor_pv.ndim == 1 else None
+    x = _scalar_entries(target_pv) if x is None else x
+    s = _scalar_entries(sensor_pv) if s is None else s
+    zs = z.tolist() if type(z) is nd and z.ndim == 1 else _scalar_entries(z)
+    dx, dy = x[0] - s[0], x[2] - s[2]
     r2 = dx * dx + dy * dy
     if r2 == 0.0:
         raise ValueError("measurements: target and sensor coincide (range 0); range must be > 0")
-    return dx, dy, r2
+    return dx, dy, r2, zs
+
+
+def _scalar_entries(a: ArrayLike) -> list[float]:
+    """The entries of an array or nested sequence, flattened, as Python floats."""
+    return [float(v) for v in np.asarray(a, dtype=float).reshape(-1)]
+
+
+# Linearization(...) without the NamedTuple's Python-level __new__ (a third of a microsecond
+# per EKF update).
+_linearization = partial(tuple.__new__, Linearization)
 
 
 def _offsets(
@@ -244,13 +266,14 @@ class BearingSensor(_BearingFamily):
     def linearize(self, target_pv: ArrayLike, sensor_pv: ArrayLike, z: ArrayLike) -> Linearization:
         """Eq. 5 and 9 at one pv state in plain floats (a few microseconds per EKF update
         instead of ~100 for the batched, validating methods)."""
-        dx, dy, r2 = _scalar_offsets(target_pv, sensor_pv)
+        dx, dy, r2, zs = _scalar_geometry(target_pv, sensor_pv, z)
         bearing = _wrap(math.atan2(dy, dx))
-        zb = float(np.asarray(z, dtype=float).reshape(-1)[0])
-        return Linearization(
-            np.array([bearing]),
-            np.array([[-dy / r2, 0.0, dx / r2, 0.0]]),
-            np.array([_wrap(zb - bearing)]),
+        return _linearization(
+            (
+                np.array([bearing]),
+                np.array([[-dy / r2, 0.0, dx / r2, 0.0]]),
+                np.array([_wrap(zs[0] - bearing)]),
+            )
         )
 
     def log_likelihood(
@@ -320,14 +343,15 @@ class RangeBearingSensor(_PlanarSensor):
 
     def linearize(self, target_pv: ArrayLike, sensor_pv: ArrayLike, z: ArrayLike) -> Linearization:
         """Valverde eq. 10-13 at one pv state in plain floats (see ``BearingSensor``)."""
-        dx, dy, r2 = _scalar_offsets(target_pv, sensor_pv)
+        dx, dy, r2, zs = _scalar_geometry(target_pv, sensor_pv, z)
         bearing = _wrap(math.atan2(dy, dx))
         r = math.sqrt(r2)
-        zr, zb = (float(v) for v in np.asarray(z, dtype=float).reshape(-1)[:2])
-        return Linearization(
-            np.array([r, bearing]),
-            np.array([[dx / r, 0.0, dy / r, 0.0], [-dy / r2, 0.0, dx / r2, 0.0]]),
-            np.array([zr - r, _wrap(zb - bearing)]),
+        return _linearization(
+            (
+                np.array([r, bearing]),
+                np.array([[dx / r, 0.0, dy / r, 0.0], [-dy / r2, 0.0, dx / r2, 0.0]]),
+                np.array([zs[0] - r, _wrap(zs[1] - bearing)]),
+            )
         )
 
     def log_likelihood(
@@ -337,7 +361,7 @@ class RangeBearingSensor(_PlanarSensor):
         arcsin-wrapped (``GaussianSensor`` for the contract)."""
         dx, dy, r = _offsets(target_pv, sensor_pv)
         log_norm = self._likelihood_whitener[1]
-        zr, zb = (float(v) for v in np.asarray(z, dtype=float).reshape(-1)[:2])
+        zr, zb = _scalar_entries(z)[:2]
         a = _abs_bearing_error(dx, dy, r, zb)
         a /= self.sigma_b
         e_r = (zr - r) / self.sigma_r

@@ -2,7 +2,12 @@
 
 Whatever a file holds, :func:`load_scenario` returns a valid :class:`Scenario` or raises
 :class:`ScenarioError` with a short reason: unreadable, too large, not UTF-8, not YAML, nested
-too deeply, an alias bomb, not a mapping, or the list of invalid fields.
+too deeply, an alias bomb, not a mapping, a ``plugins`` entry that cannot be imported, or the
+list of invalid fields.
+
+The modules of a file's ``plugins:`` list are imported before its other fields are validated
+(:mod:`activetrack.scenarios.plugins`): importing runs their code, so a scenario file that names
+plugins is as trusted as a Python script (docs/extending.md).
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ import yaml
 from pydantic import ValidationError
 from pydantic_core import ErrorDetails
 
+from activetrack.scenarios.plugins import PluginError, import_plugins
 from activetrack.scenarios.schema import Scenario
 
 # A scenario file is a few kB; these bound what a malformed or hostile one can cost.
@@ -60,12 +66,18 @@ def _describe(err: ErrorDetails) -> list[str]:
 
 
 def parse_scenario(data: object, source: str = "<dict>") -> Scenario:
-    """Validate a scenario given as a dict (already parsed YAML)."""
+    """Validate a scenario given as a dict (already parsed YAML). Its ``plugins`` are imported
+    first (they may register the sensor kinds, filters and criteria the rest names)."""
     if not isinstance(data, dict):
         raise ScenarioError(
             f"{source}: a scenario must be a mapping of fields (name:, dt:, ...), "
             f"got {type(data).__name__}"
         )
+    if "plugins" in data:
+        try:
+            import_plugins(data["plugins"])
+        except PluginError as exc:
+            raise ScenarioError(f"{source}: {exc}") from None
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
@@ -154,8 +166,9 @@ def _check_structure(text: str) -> None:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a YAML scenario file. Raises ScenarioError before anything runs,
-    and no other exception, whatever the file holds."""
+    """Read and validate a YAML scenario file. Raises ScenarioError before anything runs
+    (but the file's ``plugins``, imported first), and no other exception, whatever the file
+    holds."""
     try:
         path = Path(path)
     except TypeError:

@@ -70,6 +70,7 @@ from activetrack.models.sensors import (
     RangeBearingSensor,
     RangeRateBearingSensor,
 )
+from activetrack.scenarios.plugins import MAX_PLUGINS, check_plugin_names
 from activetrack.scenarios.registry import (
     on_registry_change,
     register_sensor,
@@ -467,8 +468,24 @@ class TargetConfig(_Strict):
 # --- tracker and planner -----------------------------------------------------------------------
 
 
+def _one_of(names: tuple[str, ...]) -> str:
+    """``'a', 'b' or 'c'``: the allowed values as pydantic lists a Literal's."""
+    shown = [repr(n) for n in names]
+    return shown[0] if len(shown) == 1 else f"{', '.join(shown[:-1])} or {shown[-1]}"
+
+
+def _particle_based(name: str) -> bool:
+    """Whether the registered filter ``name`` is a particle filter (its posterior a weighted
+    particle set: the particle options and rules below apply)."""
+    from activetrack.filters.registry import filter_kind
+
+    return filter_kind(name).particle_based
+
+
 class TrackerConfig(_Strict):
-    filter: Literal["ekf", "pf"] = "pf"
+    # A registered filter (activetrack.filters.registry): "ekf", "pf" or one of a plugin's.
+    filter: str = "pf"
+    # Options of particle-based filters (the built-in "pf"); other filters ignore them.
     particles: Particles = 10000
     resample: Literal["always", "ess"] = "always"
     ess_threshold: Annotated[float, Field(gt=0, le=1)] = 0.5
@@ -476,14 +493,20 @@ class TrackerConfig(_Strict):
     min_range: Literal["ignore", "negative"] = "ignore"
     # Motion model the filter assumes; None: the target's own.
     motion: MotionConfig | None = None
-    # Equally weighted posterior samples handed to the planner for renewal (PF only).
+    # Equally weighted posterior samples handed to the planner for renewal (particle-based
+    # filters only).
     planner_samples: Samples = 1000
 
+    @field_validator("filter", mode="before")
+    @classmethod
+    def _filter(cls, value: object) -> str:
+        from activetrack.filters.registry import filter_names
 
-def _one_of(names: tuple[str, ...]) -> str:
-    """``'a', 'b' or 'c'``: the allowed values as pydantic lists a Literal's."""
-    shown = [repr(n) for n in names]
-    return shown[0] if len(shown) == 1 else f"{', '.join(shown[:-1])} or {shown[-1]}"
+        names = filter_names()
+        if not isinstance(value, str) or value not in names:
+            shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
+            raise ValueError(f"must be one of {_one_of(names)}, got {shown}")
+        return value
 
 
 def _registered_criterion(value: object, *uses: str) -> str:
@@ -578,6 +601,9 @@ class GraphConfig(_Strict):
 class Scenario(_Strict):
     name: str
     description: str = Field(default="", max_length=MAX_DESCRIPTION_LENGTH)
+    # Python modules imported before the rest of the file is validated (they register sensor
+    # kinds, filters, criteria): scenarios.plugins. A file naming plugins runs their code.
+    plugins: list[str] = Field(default=[], max_length=MAX_PLUGINS)
     seed: Seed = 0
     dt: Dt  # s between measurement / decision epochs (T)
     steps: Steps  # epochs k = 1..steps
@@ -591,6 +617,11 @@ class Scenario(_Strict):
     @classmethod
     def _name(cls, value):
         return _identifier("the name (it names the run folder)", value, MAX_NAME_LENGTH)
+
+    @field_validator("plugins")
+    @classmethod
+    def _plugins(cls, value: list[str]) -> list[str]:
+        return check_plugin_names(value)  # names only: scenarios.load imports them
 
     @field_validator("platforms")
     @classmethod
@@ -690,13 +721,14 @@ def _planner_problems(s: Scenario) -> list[tuple[str, str]]:
         criteria.append(("planner.criterion", cfg.criterion))
     if criteria and target_model in PV_MODELS:
         out += _criterion_problems(s, criteria)
-    if uses_track and s.tracker.filter == "pf" and s.tracker.particles < MIN_PARTICLES_FOR_PLANNING:
+    particles = _particle_based(s.tracker.filter)
+    if uses_track and particles and s.tracker.particles < MIN_PARTICLES_FOR_PLANNING:
         out.append(
             (
                 "tracker.particles",
-                f"must be >= {MIN_PARTICLES_FOR_PLANNING} with filter 'pf' when the planner "
-                f"works from the track (its covariance must stay invertible), "
-                f"got {s.tracker.particles}",
+                f"must be >= {MIN_PARTICLES_FOR_PLANNING} with filter {s.tracker.filter!r} "
+                f"when the planner works from the track (its covariance must stay "
+                f"invertible), got {s.tracker.particles}",
             )
         )
     return out
@@ -921,7 +953,7 @@ def _pcrlb_problems(
             )
             return out
         batch = per_call**R
-    pf_renewal = s.tracker.filter == "pf" and cfg.mode == "renewal"
+    pf_renewal = _particle_based(s.tracker.filter) and cfg.mode == "renewal"
     samples = min(s.tracker.planner_samples, s.tracker.particles) if pf_renewal else cfg.mc_samples
     field = "tracker.planner_samples" if pf_renewal else "planner.mc_samples"
     if batch * samples > MAX_PLANNER_BATCH:

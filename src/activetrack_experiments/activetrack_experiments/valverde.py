@@ -1,6 +1,4 @@
-"""Reproduce Valverde (USBL range/bearing tracking) Tables I-V and Figs. 3-8.
-
-``activetrack reproduce valverde`` / ``python -m activetrack.experiments.valverde``.
+"""Reproduce Valverde (USBL range/bearing tracking) Tables I-V and Figs. 2-8.
 
 A vehicle circles at constant speed and turn rate in view of a stationary USBL-style
 range+bearing sensor (Valverde sec. III, eq. 10-14). Two EKFs (eq. 2-9) track it:
@@ -19,21 +17,34 @@ cases, and the time-averaged square errors of px and py are compared with a boun
   linearised along the nominal path, as in the paper. For the linear constant-turn dynamics the
   Monte Carlo Tichavsky recursion (eq. 56-64) on the same truth trajectories is reported too.
 
-The Monte Carlo EKF runs all trajectories at once (batched numpy, eq. 2-9 with the Joseph
-form), the same equations as ``filters.ExtendedKalmanFilter``; the tests check the two agree.
-Tables I-II are the rank of the eq. 38 observability matrix (``observability.observability_rank``).
-The scenario choices (Fig. 2 is lost) are in :class:`ValverdeSetup` and docs/valverde.md.
+The motion and sensor models, bounds and observability rank are the core's. The Monte Carlo
+EKF runs all trajectories of a row at once (:func:`batched_ekf`, batched numpy, the equations
+of ``filters.ExtendedKalmanFilter``; the tests check the two agree); the rows are the tasks of
+one :func:`activetrack.montecarlo.parallel_map`. Tables I-II are the rank of the eq. 38
+observability matrix (``observability.observability_rank``). The scenario choices (Fig. 2 is
+lost) are in :class:`ValverdeSetup` and docs/valverde.md.
 
-    python -m activetrack.experiments.valverde [--runs N] [--json PATH] [--out DIR] [--quick]
+In a notebook::
+
+    from activetrack_experiments import valverde
+    res = valverde.reproduce(runs=50, quick=True, jobs=2)
+    res.table()  # one flat row per case, model and noise pair
+
+On the command line (``python -m activetrack_experiments.valverde`` is the same)::
+
+    activetrack reproduce valverde [--runs N] [--steps K] [--seed S] [--jobs J] [--json PATH]
+        [--out DIR] [--quick] [--no-plots]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -44,10 +55,12 @@ from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import nominal_path, taylor_crlb
 from activetrack.bounds.tichavsky import tichavsky_pcrlb
 from activetrack.checks import symmetrize
-from activetrack.limits import MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
+from activetrack.limits import MAX_JOBS, MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
 from activetrack.models.motion import CircularMotion, ConstantTurn
 from activetrack.models.sensors import RangeBearingSensor, state_jacobian
+from activetrack.montecarlo import available_jobs, check_jobs, parallel_map
 from activetrack.observability import observability_rank
+from activetrack.plots import new_figure, write_figures
 
 MODELS = ("circular", "constant_turn")
 CASES = ("crlb", "pcrb")
@@ -212,20 +225,47 @@ class RowResult:
             out["bound_mc_x"], out["bound_mc_y"] = map(float, self.bound_mc)
         return out
 
+    def row(self) -> dict:
+        """:meth:`to_json` with the noise standard deviations and, so that every row has the
+        same columns, ``bound_mc_x``/``bound_mc_y`` NaN where there is no Monte Carlo PCRB."""
+        out = {"sigma_r_m": self.sigma_r, "sigma_b_deg": self.sigma_b_deg, **self.to_json()}
+        out.setdefault("bound_mc_x", math.nan)
+        out.setdefault("bound_mc_y", math.nan)
+        return out
 
-def batched_ekf(model, sensor, sensor_pv, x_hat0, P0, z, dt):
+
+@dataclass(frozen=True)
+class RankRow:
+    """One condition of Tables I-II: rank of O (eq. 38) for each model, and the paper's."""
+
+    condition: str
+    rank_circular: int
+    rank_constant_turn: int
+    paper_circular: int | None
+    paper_constant_turn: int | None
+
+
+# --- the Monte Carlo ---------------------------------------------------------------------------
+
+
+def batched_ekf(model, sensor, sensor_pv, x_hat0, P0, z, dt, keep_cov: bool = True):
     """EKF (Valverde eq. 2-9, Joseph-form covariance) over M runs at once.
 
     x_hat0 ``(M, n)`` prior means, P0 ``(n, n)``, z ``(K, M, 2)`` measurements at t = dt..K dt
     from the stationary ``sensor_pv`` ``(4,)``. Returns the updated means ``(K, M, n)`` and
-    covariances ``(K, M, n, n)``.
+    covariances ``(K, M, n, n)`` (None unless ``keep_cov``).
+
+    The same equations as ``activetrack.filters.ExtendedKalmanFilter`` (the tests check the two
+    agree to 1e-9): the library EKF run once per Monte Carlo run prints the same tables, but
+    is about 14 times slower (a Python step per run and epoch instead of one numpy step per
+    epoch for all runs; docs/valverde.md).
     """
     x = np.array(x_hat0, dtype=float)
     M, n = x.shape
     P = np.broadcast_to(P0, (M, n, n)).copy()
     Q, R, eye = model.process_noise(dt), sensor.R, np.eye(n)
     means = np.empty((len(z), M, n))
-    covs = np.empty((len(z), M, n, n))
+    covs = np.empty((len(z), M, n, n)) if keep_cov else None
     for k, zk in enumerate(z):
         F = model.jacobian(x, dt)  # eq. 4, at the previous estimate
         x = model.propagate(x, dt)  # eq. 2
@@ -238,7 +278,9 @@ def batched_ekf(model, sensor, sensor_pv, x_hat0, P0, z, dt):
         x = x + (K @ nu[..., None])[..., 0]  # eq. 5
         I_KH = eye - K @ H
         P = symmetrize(I_KH @ P @ np.swapaxes(I_KH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2))
-        means[k], covs[k] = x, P
+        means[k] = x
+        if covs is not None:
+            covs[k] = P
     return means, covs
 
 
@@ -249,7 +291,7 @@ def _gaussian(mean, P, shape, rng):
 
 def simulate_truth(model, x0, P0, steps, dt, runs, rng, random_start):
     """True states for epochs 0..steps, ``(steps + 1, runs, n)``: the nominal path repeated,
-    or x_0 ~ N(x0, P0) followed by the model's noisy dynamics."""
+    or x_0 ~ N(x0, P0) followed by the model's noisy dynamics (``model.sample``)."""
     if not random_start:
         path = nominal_path(model, x0, steps, dt)
         return np.repeat(path[:, None, :], runs, axis=1)
@@ -287,19 +329,22 @@ def bound_series(setup: ValverdeSetup, model_name: str, sensor, process_noise: b
     return covariance_bound(J[:, 0])
 
 
-def run_case(
-    setup: ValverdeSetup,
-    case: str,
-    model_name: str,
-    runs: int,
-    seed: int,
-    noise_pairs=None,
-    divergence_m: float = 1e3,
-) -> list[RowResult]:
-    """Monte Carlo EKF square errors and the bound for every noise pair of one (case, model)."""
+@dataclass(frozen=True)
+class CaseDraws:
+    """The random draws of one (case, model), shared by its noise rows (common random numbers):
+    true states ``(steps + 1, runs, n)``, prior means ``(runs, n)`` and the unit measurement
+    noise ``(steps, runs, 2)``."""
+
+    truth: np.ndarray
+    x_hat0: np.ndarray
+    unit_noise: np.ndarray
+
+
+def draw_case(setup: ValverdeSetup, case: str, model_name: str, runs: int, seed: int):
+    """The draws of (case, model) from SeedSequence([seed, case index, model index])."""
     process_noise = case == "pcrb"
     model = setup.model(model_name, process_noise)
-    x0, P0, s_pv = setup.x0(model_name), setup.P0(model_name), setup.sensor_pv
+    x0, P0 = setup.x0(model_name), setup.P0(model_name)
     ss = np.random.SeedSequence([seed, CASES.index(case), MODELS.index(model_name)])
     rng_truth, rng_init, rng_meas = (np.random.default_rng(s) for s in ss.spawn(3))
     truth = simulate_truth(model, x0, P0, setup.steps, setup.dt, runs, rng_truth, process_noise)
@@ -307,67 +352,85 @@ def run_case(
         x_hat0 = np.broadcast_to(x0, (runs, model.dim))
     else:  # the truth is fixed; the prior mean is drawn around it (eq. 44)
         x_hat0 = _gaussian(x0, P0, (runs,), rng_init)
-    unit_noise = rng_meas.standard_normal((setup.steps, runs, 2))
-    truth_pv = model.kinematics(truth[1:])
-    ix = list(POSITION_INDEX[model_name])
-    out = []
-    for sigma_r, sigma_b in noise_pairs or setup.noise_pairs:
-        sensor = setup.sensor(sigma_r, sigma_b)
-        z = measure(sensor, truth_pv, s_pv, unit_noise)
-        means, _ = batched_ekf(model, sensor, s_pv, x_hat0, P0, z, setup.dt)
-        err2 = (means[..., ix] - truth[1:, :, ix]) ** 2  # (K, M, 2)
-        ok = np.all(np.isfinite(err2) & (err2 < divergence_m**2), axis=(0, 2))
-        per_run = err2.mean(axis=0)  # time average (K, M, 2) -> (M, 2)
-        se = per_run.std(axis=0, ddof=1) / np.sqrt(runs) if runs > 1 else np.full(2, np.nan)
-        B = bound_series(setup, model_name, sensor, process_noise)[:, ix, ix]
-        bound_mc = None
-        if process_noise and model_name == "constant_turn":
-            J = tichavsky_pcrlb(
-                model,
-                sensor,
-                np.broadcast_to(s_pv, (setup.steps, 4)),
-                x0,
-                P0,
-                setup.steps,
-                setup.dt,
-                runs,
-                None,
-                trajectories=truth,
-            )
-            bound_mc = covariance_bound(J)[:, ix, ix].mean(axis=0)
-        out.append(
-            RowResult(
-                case,
-                model_name,
-                sigma_r,
-                sigma_b,
-                per_run.mean(axis=0),
-                se,
-                B.mean(axis=0),
-                err2.mean(axis=1),
-                B,
-                bound_mc,
-                int(runs - ok.sum()),
-            )
-        )
-    return out
+    return CaseDraws(truth, x_hat0, rng_meas.standard_normal((setup.steps, runs, 2)))
 
 
-def run_all(setup: ValverdeSetup, runs: int, seed: int = 0) -> dict:
-    """All (case, model) Monte Carlo rows: ``{(case, model): [RowResult per noise pair]}``."""
-    return {(c, m): run_case(setup, c, m, runs, seed) for c in CASES for m in MODELS}
+@dataclass(frozen=True)
+class RowTask:
+    """One table row for :func:`run_row`: the draws of its (case, model) and its noise pair."""
+
+    setup: ValverdeSetup
+    case: str
+    model: str
+    sigma_r: float
+    sigma_b_deg: float
+    draws: CaseDraws
+    divergence_m: float = 1e3
 
 
-def observability_table(setup: ValverdeSetup, n_steps: int = 10, rtol: float = 1e-9) -> list:
-    """Tables I-II (eq. 38): rank of O over ``n_steps`` epochs for each condition and model.
+def _monte_carlo_pcrb(task: RowTask, model, sensor) -> np.ndarray:
+    """Time-averaged Tichavsky PCRB of (px, py) over the row's true trajectories (eq. 56-64)."""
+    setup, truth = task.setup, task.draws.truth
+    J = tichavsky_pcrlb(
+        model,
+        sensor,
+        np.broadcast_to(setup.sensor_pv, (setup.steps, 4)),
+        setup.x0(task.model),
+        setup.P0(task.model),
+        setup.steps,
+        setup.dt,
+        truth.shape[1],
+        None,
+        trajectories=truth,
+    )
+    ix = list(POSITION_INDEX[task.model])
+    return covariance_bound(J)[:, ix, ix].mean(axis=0)
 
-    Returns rows ``(label, rank circular, rank constant_turn, paper ranks)``.
-    """
+
+def run_row(task: RowTask) -> RowResult:
+    """The batched EKF's square errors over the row's runs and the bound (a parallel task)."""
+    setup, truth = task.setup, task.draws.truth
+    process_noise = task.case == "pcrb"
+    model = setup.model(task.model, process_noise)
+    sensor = setup.sensor(task.sigma_r, task.sigma_b_deg)
+    z = measure(sensor, model.kinematics(truth[1:]), setup.sensor_pv, task.draws.unit_noise)
+    P0 = setup.P0(task.model)
+    means, _ = batched_ekf(
+        model, sensor, setup.sensor_pv, task.draws.x_hat0, P0, z, setup.dt, keep_cov=False
+    )
+    ix = list(POSITION_INDEX[task.model])
+    err2 = (means[..., ix] - truth[1:, :, ix]) ** 2  # (K, M, 2)
+    ok = np.all(np.isfinite(err2) & (err2 < task.divergence_m**2), axis=(0, 2))
+    per_run = err2.mean(axis=0)  # time average (K, M, 2) -> (M, 2)
+    runs = per_run.shape[0]
+    se = per_run.std(axis=0, ddof=1) / np.sqrt(runs) if runs > 1 else np.full(2, np.nan)
+    B = bound_series(setup, task.model, sensor, process_noise)[:, ix, ix]
+    bound_mc = None
+    if process_noise and task.model == "constant_turn":
+        bound_mc = _monte_carlo_pcrb(task, model, sensor)
+    return RowResult(
+        task.case,
+        task.model,
+        task.sigma_r,
+        task.sigma_b_deg,
+        per_run.mean(axis=0),
+        se,
+        B.mean(axis=0),
+        err2.mean(axis=1),
+        B,
+        bound_mc,
+        int(runs - ok.sum()),
+    )
+
+
+def observability_table(setup: ValverdeSetup, n_steps: int = 10, rtol: float = 1e-9):
+    """Tables I-II (eq. 38): rank of O over ``n_steps`` epochs for each condition and model,
+    as a list of :class:`RankRow`."""
     rows = []
-    for label, v, omega, dt, paper in RANK_CONDITIONS:
-        sensor = setup.sensor(1.0, 1.0)  # the rank does not depend on R
-        cx, cy = setup.centre
-        p0 = (cx, cy - setup.radius)
+    cx, cy = setup.centre
+    p0 = (cx, cy - setup.radius)
+    sensor = setup.sensor(1.0, 1.0)  # the rank does not depend on R
+    for label, v, omega, dt, (paper_circ, paper_ct) in RANK_CONDITIONS:
         circ = observability_rank(
             CircularMotion(0.0, 0.0),
             sensor,
@@ -386,8 +449,111 @@ def observability_table(setup: ValverdeSetup, n_steps: int = 10, rtol: float = 1
             n_steps,
             rtol=rtol,
         )
-        rows.append((label, circ.rank, ct.rank, paper))
+        rows.append(RankRow(label, circ.rank, ct.rank, paper_circ, paper_ct))
     return rows
+
+
+# --- the reproduction --------------------------------------------------------------------------
+
+
+@dataclass
+class ValverdeResults:
+    """What :func:`reproduce` computed: the Monte Carlo rows (``CASES`` x ``MODELS`` x noise
+    pairs, in that order) and the observability ranks of Tables I-II."""
+
+    setup: ValverdeSetup
+    runs: int
+    seed: int
+    rows: list[RowResult]
+    ranks: list[RankRow]
+    mc_time_s: float = 0.0  # the Monte Carlo and the bounds
+
+    def get(self, case: str, model: str) -> list[RowResult]:
+        """The rows of (case, model), one per noise pair."""
+        if case not in CASES or model not in MODELS:
+            raise KeyError(f"no rows for case {case!r}, model {model!r}")
+        return [r for r in self.rows if r.case == case and r.model == model]
+
+    def table(self, section: str = "rows") -> list[dict]:
+        """A flat dict per Monte Carlo row (``"rows"``, :meth:`RowResult.row`) or per
+        condition of Tables I-II (``"observability"``), for ``pandas.DataFrame``."""
+        if section == "rows":
+            return [r.row() for r in self.rows]
+        if section == "observability":
+            return [asdict(r) for r in self.ranks]
+        raise ValueError(f"section must be 'rows' or 'observability', got {section!r}")
+
+    def to_json(self) -> dict:
+        """The document ``--json`` writes."""
+        s = self.setup
+        return {
+            "setup": {
+                "sensor_xy": s.sensor_xy,
+                "centre": s.centre,
+                "radius": s.radius,
+                "speed": s.speed,
+                "omega": s.omega,
+                "dt": s.dt,
+                "steps": s.steps,
+                "sigma_omega": s.sigma_omega,
+                "sigma_v": s.sigma_v,
+                "q": s.q,
+                "prior_std": s.prior_std,
+                "runs": self.runs,
+                "seed": self.seed,
+            },
+            "observability": [asdict(r) for r in self.ranks],
+            "rows": [r.to_json() for r in self.rows],
+        }
+
+
+def _check(runs, steps, seed, jobs) -> None:
+    for name, value, lo, hi in (("runs", runs, 2, MAX_RUNS), ("steps", steps, 1, MAX_STEPS)):
+        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+            raise ValueError(f"{name}: must be an integer in [{lo}, {hi}], got {value!r}")
+    if runs * steps > MAX_RUN_EPOCHS:
+        raise ValueError(f"runs x steps must be <= {MAX_RUN_EPOCHS:.1e}, got {runs} x {steps}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"seed: must be an integer in [0, {MAX_SEED}], got {seed!r}")
+    check_jobs(jobs)
+
+
+def reproduce(
+    runs: int | None = None,
+    *,
+    seed: int = 0,
+    quick: bool = False,
+    jobs: int = 1,
+    steps: int | None = None,
+    setup: ValverdeSetup | None = None,
+    noise_pairs: Sequence[tuple[float, float]] | None = None,
+    divergence_m: float = 1e3,
+) -> ValverdeResults:
+    """Valverde Tables I-V: ``runs`` Monte Carlo runs (default 1000, 50 when ``quick``) of
+    ``steps`` epochs (default 252, two laps; 126 when ``quick``) for every case, model and noise
+    pair (default Table III's), and the observability ranks.
+
+    ``setup`` replaces :class:`ValverdeSetup` (its ``steps`` unless ``steps`` is given);
+    ``seed``: (case, model) draws from SeedSequence([seed, case, model]), shared by its noise
+    rows; ``jobs`` worker processes, one :func:`activetrack.montecarlo.parallel_map` over the
+    rows (the results do not depend on it); a run counts as diverged when a square error
+    exceeds ``divergence_m``^2.
+    """
+    if steps is None:
+        steps = setup.steps if setup is not None else 126 if quick else 252
+    runs = (50 if quick else 1000) if runs is None else runs
+    _check(runs, steps, seed, jobs)
+    setup = replace(setup or ValverdeSetup(), steps=steps)
+    pairs = tuple(noise_pairs or setup.noise_pairs)
+    start = time.perf_counter()
+    tasks = []
+    for case in CASES:
+        for model in MODELS:
+            draws = draw_case(setup, case, model, runs, seed)
+            tasks += [RowTask(setup, case, model, r, b, draws, divergence_m) for r, b in pairs]
+    rows = parallel_map(run_row, tasks, jobs)
+    mc_time = time.perf_counter() - start
+    return ValverdeResults(setup, runs, seed, rows, observability_table(setup), mc_time)
 
 
 # --- tables ------------------------------------------------------------------------------------
@@ -401,8 +567,8 @@ def _fmt(values):
     return " ".join(f"{v:9.3e}" for v in values)
 
 
-def format_table_iii(results: dict) -> str:
-    circ, ct = results[("pcrb", "circular")], results[("pcrb", "constant_turn")]
+def format_table_iii(res: ValverdeResults) -> str:
+    circ, ct = res.get("pcrb", "circular"), res.get("pcrb", "constant_turn")
     lines = [
         "TABLE III. Square mean error [m^2] of the EKFs (with process noise), ours vs paper",
         "Noise variance   |  Circular motion   | Const. turn, known rate |",
@@ -416,8 +582,8 @@ def format_table_iii(results: dict) -> str:
     return "\n".join(lines)
 
 
-def _format_bound_table(results, case, title, bound_name, paper_table) -> str:
-    circ, ct = results[(case, "circular")], results[(case, "constant_turn")]
+def _format_bound_table(res, case, title, bound_name, paper_table) -> str:
+    circ, ct = res.get(case, "circular"), res.get(case, "constant_turn")
     lines = [
         title,
         "Noise variance   |        Circular motion state model        |"
@@ -436,9 +602,9 @@ def _format_bound_table(results, case, title, bound_name, paper_table) -> str:
     return "\n".join(lines)
 
 
-def format_table_iv(results: dict) -> str:
+def format_table_iv(res: ValverdeResults) -> str:
     return _format_bound_table(
-        results,
+        res,
         "crlb",
         "TABLE IV. Square mean error [m^2] and CRLB without process noise (eq. 50-51)",
         "CRLB",
@@ -446,9 +612,9 @@ def format_table_iv(results: dict) -> str:
     )
 
 
-def format_table_v(results: dict) -> str:
+def format_table_v(res: ValverdeResults) -> str:
     return _format_bound_table(
-        results,
+        res,
         "pcrb",
         "TABLE V. Square mean error [m^2] and PCRB with process noise (eq. 65, nominal path)",
         "PCRB",
@@ -456,89 +622,92 @@ def format_table_v(results: dict) -> str:
     )
 
 
-def format_rank_tables(rows) -> str:
+def format_rank_tables(rows: list[RankRow]) -> str:
     lines = [
         "TABLES I-II. rank O(k0, kf) (eq. 38), 10 epochs, rtol 1e-9; full rank 5 / 4",
         f"{'Test condition':34} | circular (paper) | const. turn (paper)",
     ]
-    for label, rc, rt, (pc, pt) in rows:
-        pc_s = "-" if pc is None else str(pc)
-        pt_s = "-" if pt is None else str(pt)
-        lines.append(f"{label:34} | {rc:>8} ({pc_s:>4})  | {rt:>8} ({pt_s:>4})")
+    for r in rows:
+        pc = "-" if r.paper_circular is None else str(r.paper_circular)
+        pt = "-" if r.paper_constant_turn is None else str(r.paper_constant_turn)
+        lines.append(
+            f"{r.condition:34} | {r.rank_circular:>8} ({pc:>4})  | "
+            f"{r.rank_constant_turn:>8} ({pt:>4})"
+        )
     return "\n".join(lines)
+
+
+def format_report(res: ValverdeResults) -> str:
+    """The header and Tables I-V, as ``activetrack reproduce valverde`` prints them."""
+    s = res.setup
+    parts = [
+        f"Valverde USBL tracking: sensor at {s.sensor_xy}, circle centre {s.centre} m, "
+        f"radius {s.radius:g} m, speed {s.speed:g} m/s (omega {s.omega:g} rad/s), "
+        f"dt {s.dt:g} s, {s.steps} epochs, {res.runs} runs, seed {res.seed}\n"
+        "The paper's numbers scale linearly with the noise std (rows 1-2), i.e. they look like "
+        "RMS errors [m]; ours are mean square errors [m^2] (RMS in the JSON).",
+        format_rank_tables(res.ranks),
+        format_table_iii(res),
+        format_table_iv(res),
+        format_table_v(res),
+    ]
+    return "\n\n".join(parts) + "\n"
 
 
 # --- figures -----------------------------------------------------------------------------------
 
+NAMES = {"circular": "circular motion", "constant_turn": "constant turn (known rate)"}
 
-def save_figures(setup: ValverdeSetup, results: dict, out: Path, series_row: int = 3) -> list:
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out.mkdir(parents=True, exist_ok=True)
-    files = []
-    labels = [f"{r.sigma_r:g}/{r.sigma_b_deg:g}" for r in results[("crlb", "circular")]]
+def _fig_mse(res: ValverdeResults, case: str, axis: int, num: int):
+    """Fig. 3-6: MSE of x or y (2 standard errors) and the bound against the noise pair."""
+    labels = [f"{r.sigma_r:g}/{r.sigma_b_deg:g}" for r in res.get("crlb", "circular")]
     idx = np.arange(len(labels))
-    names = {"circular": "circular motion", "constant_turn": "constant turn (known rate)"}
-    figs = [("crlb", 0, 3), ("crlb", 1, 4), ("pcrb", 0, 5), ("pcrb", 1, 6)]
-    for case, axis, num in figs:
-        fig, ax = plt.subplots(figsize=(7, 4))
-        for m, colour in zip(MODELS, ("C0", "C1"), strict=True):
-            rows = results[(case, m)]
-            mse = np.array([r.mse[axis] for r in rows])
-            se = np.array([r.se[axis] for r in rows])
-            ax.errorbar(idx, mse, yerr=2 * se, color=colour, marker="o", label=f"EKF {names[m]}")
-            ax.plot(
-                idx,
-                [r.bound[axis] for r in rows],
-                color=colour,
-                ls="--",
-                label=f"{case.upper()} {names[m]}",
-            )
-        ax.set_yscale("log")
-        ax.set_xticks(idx, labels, rotation=45)
-        ax.set_xlabel("noise std: range [m] / bearing [deg]")
-        ax.set_ylabel(f"{'xy'[axis]} square error [m^2]")
-        ax.set_title(f"Fig. {num}: {'xy'[axis]} MSE and {case.upper()} vs noise")
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        path = out / f"fig{num}_mse_{'xy'[axis]}_{case}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        files.append(path)
-    for m, num in zip(MODELS, (7, 8), strict=True):
-        row = results[("pcrb", m)][series_row]
-        t = setup.dt * np.arange(1, setup.steps + 1)
-        fig, ax = plt.subplots(figsize=(7, 4))
-        for axis, colour in ((0, "C0"), (1, "C3")):
-            ax.plot(
-                t,
-                row.mse_t[:, axis],
-                color=colour,
-                alpha=0.4,
-                lw=0.8,
-                label=f"EKF {'xy'[axis]} MSE",
-            )
-            ax.plot(t, row.bound_t[:, axis], color=colour, lw=1.6, label=f"PCRB {'xy'[axis]}")
-        ax.set_yscale("log")
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("square error [m^2]")
-        ax.set_title(
-            f"Fig. {num}: {names[m]}, sigma_r = {row.sigma_r:g} m, "
-            f"sigma_b = {row.sigma_b_deg:g} deg"
-        )
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        path = out / f"fig{num}_time_{m}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        files.append(path)
-    fig, ax = plt.subplots(figsize=(5, 5))
-    path_xy = nominal_path(
-        setup.model("circular", False), setup.x0("circular"), setup.steps, setup.dt
-    )[:, 1:3]
+    fig = new_figure(figsize=(7, 4))
+    ax = fig.subplots()
+    for m, colour in zip(MODELS, ("C0", "C1"), strict=True):
+        rows = res.get(case, m)
+        mse = np.array([r.mse[axis] for r in rows])
+        se = np.array([r.se[axis] for r in rows])
+        ax.errorbar(idx, mse, yerr=2 * se, color=colour, marker="o", label=f"EKF {NAMES[m]}")
+        bound = [r.bound[axis] for r in rows]
+        ax.plot(idx, bound, color=colour, ls="--", label=f"{case.upper()} {NAMES[m]}")
+    ax.set_yscale("log")
+    ax.set_xticks(idx, labels, rotation=45)
+    ax.set_xlabel("noise std: range [m] / bearing [deg]")
+    ax.set_ylabel(f"{'xy'[axis]} square error [m^2]")
+    ax.set_title(f"Fig. {num}: {'xy'[axis]} MSE and {case.upper()} vs noise")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def _fig_time(res: ValverdeResults, model: str, num: int, series_row: int):
+    """Fig. 7-8: MSE and PCRB against time for one noise pair (with process noise)."""
+    row = res.get("pcrb", model)[series_row]
+    t = res.setup.dt * np.arange(1, res.setup.steps + 1)
+    fig = new_figure(figsize=(7, 4))
+    ax = fig.subplots()
+    for axis, colour in ((0, "C0"), (1, "C3")):
+        name = "xy"[axis]
+        ax.plot(t, row.mse_t[:, axis], color=colour, alpha=0.4, lw=0.8, label=f"EKF {name} MSE")
+        ax.plot(t, row.bound_t[:, axis], color=colour, lw=1.6, label=f"PCRB {name}")
+    ax.set_yscale("log")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("square error [m^2]")
+    ax.set_title(
+        f"Fig. {num}: {NAMES[model]}, sigma_r = {row.sigma_r:g} m, "
+        f"sigma_b = {row.sigma_b_deg:g} deg"
+    )
+    ax.legend(fontsize=8)
+    return fig
+
+
+def _fig_path(setup: ValverdeSetup):
+    """Fig. 2: the nominal path and the USBL."""
+    fig = new_figure(figsize=(5, 5))
+    ax = fig.subplots()
+    model = setup.model("circular", False)
+    path_xy = nominal_path(model, setup.x0("circular"), setup.steps, setup.dt)[:, 1:3]
     ax.plot(path_xy[:, 0], path_xy[:, 1], label="vehicle (nominal)")
     ax.plot(*setup.sensor_xy, "k^", label="USBL")
     ax.set_aspect("equal")
@@ -546,12 +715,27 @@ def save_figures(setup: ValverdeSetup, results: dict, out: Path, series_row: int
     ax.set_ylabel("y [m]")
     ax.set_title("Fig. 2: test path")
     ax.legend()
-    fig.tight_layout()
-    path = out / "fig2_path.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    files.append(path)
-    return files
+    return fig
+
+
+def save_figures(res: ValverdeResults, out: str | Path, series_row: int = 3) -> list[Path]:
+    """Fig. 3-6 (MSE and bound vs noise), 7-8 (against time, noise pair ``series_row``) and
+    2 (the path) as PNG files in ``out``; returns the files written."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    figures = [
+        (
+            f"fig{num}_mse_{'xy'[axis]}_{case}.png",
+            lambda c=case, a=axis, n=num: _fig_mse(res, c, a, n),
+        )
+        for case, axis, num in (("crlb", 0, 3), ("crlb", 1, 4), ("pcrb", 0, 5), ("pcrb", 1, 6))
+    ]
+    figures += [
+        (f"fig{num}_time_{m}.png", lambda m=m, n=num: _fig_time(res, m, n, series_row))
+        for m, num in zip(MODELS, (7, 8), strict=True)
+    ]
+    figures.append(("fig2_path.png", lambda: _fig_path(res.setup)))
+    return write_figures(figures, out, dpi=110)
 
 
 # --- command line ------------------------------------------------------------------------------
@@ -575,6 +759,12 @@ def _parse(argv):
         help="epochs (default 252, two laps)",
     )
     p.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0)
+    p.add_argument(
+        "--jobs",
+        type=int_in_range(1, MAX_JOBS),
+        default=available_jobs(),
+        help="worker processes (the numbers do not depend on it)",
+    )
     p.add_argument("--json", help="write the table rows to this JSON file")
     p.add_argument("--out", default="runs/reproduce-valverde", help="figure directory")
     p.add_argument("--quick", action="store_true", help="50 runs, one lap")
@@ -594,60 +784,15 @@ def _parse(argv):
 
 def main(argv: list[str] | None = None) -> int:
     args = _parse(sys.argv[1:] if argv is None else argv)
-    setup = replace(ValverdeSetup(), steps=args.steps)
-    t0 = time.perf_counter()
-    results = run_all(setup, args.runs, args.seed)
-    t_mc = time.perf_counter() - t0
-    ranks = observability_table(setup)
-    print(
-        f"Valverde USBL tracking: sensor at {setup.sensor_xy}, circle centre {setup.centre} m, "
-        f"radius {setup.radius:g} m, speed {setup.speed:g} m/s (omega {setup.omega:g} rad/s), "
-        f"dt {setup.dt:g} s, {setup.steps} epochs, {args.runs} runs, seed {args.seed}\n"
-        "The paper's numbers scale linearly with the noise std (rows 1-2), i.e. they look like "
-        "RMS errors [m]; ours are mean square errors [m^2] (RMS in the JSON).\n"
-    )
-    for text in (
-        format_rank_tables(ranks),
-        format_table_iii(results),
-        format_table_iv(results),
-        format_table_v(results),
-    ):
-        print(text + "\n")
-    print(f"Monte Carlo and bounds: {t_mc:.1f} s")
+    res = reproduce(args.runs, seed=args.seed, jobs=args.jobs, steps=args.steps)
+    print(format_report(res))
+    print(f"Monte Carlo and bounds: {res.mc_time_s:.1f} s")
     if not args.no_plots:
-        files = save_figures(setup, results, Path(args.out))
+        files = save_figures(res, args.out)
         print(f"figures in {args.out}: " + ", ".join(f.name for f in files))
     if args.json:
-        payload = {
-            "setup": {
-                "sensor_xy": setup.sensor_xy,
-                "centre": setup.centre,
-                "radius": setup.radius,
-                "speed": setup.speed,
-                "omega": setup.omega,
-                "dt": setup.dt,
-                "steps": setup.steps,
-                "sigma_omega": setup.sigma_omega,
-                "sigma_v": setup.sigma_v,
-                "q": setup.q,
-                "prior_std": setup.prior_std,
-                "runs": args.runs,
-                "seed": args.seed,
-            },
-            "observability": [
-                {
-                    "condition": c,
-                    "rank_circular": rc,
-                    "rank_constant_turn": rt,
-                    "paper_circular": pc,
-                    "paper_constant_turn": pt,
-                }
-                for c, rc, rt, (pc, pt) in ranks
-            ],
-            "rows": [r.to_json() for rows in results.values() for r in rows],
-        }
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(payload, indent=2))
+        Path(args.json).write_text(json.dumps(res.to_json(), indent=2))
         print(f"table rows in {args.json}")
     return 0
 

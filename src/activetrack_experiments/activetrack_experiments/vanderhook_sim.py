@@ -62,6 +62,76 @@ class LocalisationBatch:
         return self.wrong_side_events > 0
 
 
+@dataclass
+class _Runs:
+    """A batch of localisations in progress (arrays over runs, updated in place)."""
+
+    x_true: np.ndarray  # (M, 2)
+    r0_true: np.ndarray  # range from the start to the true target
+    robot: np.ndarray  # (M, 2)
+    x_hat: np.ndarray  # (M, 2)
+    P: np.ndarray  # (M, 2, 2)
+    n: np.ndarray  # measurements taken
+    distance: np.ndarray
+    first_leg: np.ndarray
+    wrong: np.ndarray  # wrong-side measurements
+    active: np.ndarray  # bool: still measuring
+
+    @classmethod
+    def start(cls, x_true: np.ndarray, r0_hat: float, P0: np.ndarray) -> _Runs:
+        M = len(x_true)
+        robot = np.tile([float(r0_hat), 0.0], (M, 1))
+        return cls(
+            x_true=x_true,
+            r0_true=np.linalg.norm(x_true - robot, axis=-1),
+            robot=robot,
+            x_hat=np.zeros((M, 2)),
+            P=np.tile(P0, (M, 1, 1)),
+            n=np.zeros(M, dtype=int),
+            distance=np.zeros(M),
+            first_leg=np.zeros(M),
+            wrong=np.zeros(M, dtype=int),
+            active=np.ones(M, dtype=bool),
+        )
+
+    def measure(self, r: np.ndarray, sigma_s: float, rng) -> None:
+        """The active runs drive to their next sensing location at range ``r`` (M,) from
+        x_hat, take one ambiguous bearing and update the estimate (Algorithm 1, lines 5-8)."""
+        active = self.active
+        waypoint = measurement_waypoint(self.x_hat, self.P, self.robot, r)
+        leg = np.linalg.norm(waypoint - self.robot, axis=-1)
+        self.first_leg = np.where(active & (self.n == 0), leg, self.first_leg)
+        self.distance += np.where(active, leg, 0.0)
+        self.robot = np.where(active[:, None], waypoint, self.robot)
+        d_true = self.x_true - self.robot
+        true_bearing = np.arctan2(d_true[:, 1], d_true[:, 0])
+        d_hat = self.x_hat - self.robot
+        predicted = np.arctan2(d_hat[:, 1], d_hat[:, 0])
+        self.wrong += active & (np.abs(wrap_angle(true_bearing - predicted)) > 0.5 * np.pi)
+        # Infinite-line sensor: bearing + noise, known only modulo pi (sec. II).
+        z = true_bearing + sigma_s * rng.standard_normal(len(active))
+        upd = ambiguous_bearing_update(self.x_hat, self.P, z, self.robot, sigma_s)
+        self.x_hat = np.where(active[:, None], upd.mean, self.x_hat)
+        self.P = np.where(active[:, None, None], upd.cov, self.P)
+        self.n += active
+
+    def result(self, P0: np.ndarray, c_d: float, t_m: float) -> LocalisationBatch:
+        # Ending on the wrong side: seen from the last sensing location, the final estimate and
+        # the true target are more than pi/2 apart (the last line was resolved the wrong way).
+        d_true, d_hat = self.x_true - self.robot, self.x_hat - self.robot
+        return LocalisationBatch(
+            n_measurements=self.n,
+            distance=self.distance,
+            first_leg=self.first_leg,
+            r0_true=self.r0_true,
+            final_error=np.linalg.norm(self.x_hat - self.x_true, axis=-1),
+            wrong_side_events=self.wrong,
+            converged=reduction_reached(self.P, P0, c_d),
+            final_wrong_side=np.sum(d_true * d_hat, axis=-1) < 0.0,
+            t_m=float(t_m),
+        )
+
+
 def simulate_localisation(
     n_runs,
     rng,
@@ -94,53 +164,14 @@ def simulate_localisation(
     P0 = sigma0**2 * np.eye(2)
     if x_true is None:
         x_true = sigma0 * rng.standard_normal((M, 2))
-    x_true = np.asarray(x_true, dtype=float)
-    robot = np.tile([float(r0_hat), 0.0], (M, 1))
-    r0_true = np.linalg.norm(x_true - robot, axis=-1)
-    x_hat = np.zeros((M, 2))
-    P = np.tile(P0, (M, 1, 1))
-    n = np.zeros(M, dtype=int)
-    distance = np.zeros(M)
-    first_leg = np.zeros(M)
-    wrong = np.zeros(M, dtype=int)
-    active = np.ones(M, dtype=bool)
+    runs = _Runs.start(np.asarray(x_true, dtype=float), r0_hat, P0)
     for _ in range(max_measurements):
-        active &= ~reduction_reached(P, P0, c_d)
-        if not active.any():
+        runs.active &= ~reduction_reached(runs.P, P0, c_d)
+        if not runs.active.any():
             break
         if strategy == "cautious":
-            r = np.maximum(cautious_range(P, 0.5 * np.pi, beta, sigma_s, tail), r_min)
+            r = np.maximum(cautious_range(runs.P, 0.5 * np.pi, beta, sigma_s, tail), r_min)
         else:
             r = np.full(M, greedy_range)
-        waypoint = measurement_waypoint(x_hat, P, robot, r)
-        leg = np.linalg.norm(waypoint - robot, axis=-1)
-        first_leg = np.where(active & (n == 0), leg, first_leg)
-        distance += np.where(active, leg, 0.0)
-        robot = np.where(active[:, None], waypoint, robot)
-        d_true = x_true - robot
-        true_bearing = np.arctan2(d_true[:, 1], d_true[:, 0])
-        d_hat = x_hat - robot
-        predicted = np.arctan2(d_hat[:, 1], d_hat[:, 0])
-        wrong += active & (np.abs(wrap_angle(true_bearing - predicted)) > 0.5 * np.pi)
-        # Infinite-line sensor: bearing + noise, known only modulo pi (sec. II).
-        z = true_bearing + sigma_s * rng.standard_normal(M)
-        upd = ambiguous_bearing_update(x_hat, P, z, robot, sigma_s)
-        x_hat = np.where(active[:, None], upd.mean, x_hat)
-        P = np.where(active[:, None, None], upd.cov, P)
-        n += active
-    converged = reduction_reached(P, P0, c_d)
-    # Ending on the wrong side: seen from the last sensing location, the final estimate and
-    # the true target are more than pi/2 apart (the last line was resolved the wrong way).
-    d_true, d_hat = x_true - robot, x_hat - robot
-    final_wrong = np.sum(d_true * d_hat, axis=-1) < 0.0
-    return LocalisationBatch(
-        n_measurements=n,
-        distance=distance,
-        first_leg=first_leg,
-        r0_true=r0_true,
-        final_error=np.linalg.norm(x_hat - x_true, axis=-1),
-        wrong_side_events=wrong,
-        converged=converged,
-        final_wrong_side=final_wrong,
-        t_m=float(t_m),
-    )
+        runs.measure(r, sigma_s, rng)
+    return runs.result(P0, c_d, t_m)

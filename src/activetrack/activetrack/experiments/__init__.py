@@ -1,1 +1,0 @@
-"""Experiment runners reproducing the papers' tables and figures."""

@@ -1,0 +1,172 @@
+"""Tracking filters that scenario files can name: each registered once, with a factory.
+
+A filter is registered under a name with a factory that builds it for one run::
+
+    def make_ukf(model, x0, P0, config, rng):
+        return UnscentedFilter(model, x0, P0)
+
+    register_filter("ukf", make_ukf, description="unscented Kalman filter (filterpy)")
+
+The factory gets the tracker's motion model, the prior mean ``x0`` ``(n,)`` and covariance
+``P0`` ``(n, n)``, the scenario's ``tracker:`` block (``config``,
+:class:`activetrack.scenarios.schema.TrackerConfig`: a filter reads the options it has, e.g.
+the PF its ``particles``) and the tracker's random generator ``rng`` (the filter's only source
+of randomness, so a run is reproducible), and returns an object with the members of
+:class:`~activetrack.filters.measurement.TrackingFilter`.
+
+From then on ``tracker: {filter: ukf}`` loads (the schema's allowed values are the registered
+names, listed in its error), ``TrackerCore`` builds the filter through :func:`make_filter`, and
+the ROS graph accepts tracks of it. ``particle_based=True`` declares a filter whose posterior is
+a weighted particle set (it has ``particles`` ``(N, n)`` and ``weights`` ``(N,)``, as the
+built-in ``pf``): the scenario's particle options and load-time rules apply to it, and the
+planner gets equally weighted posterior samples drawn from it. The built-in ``ekf`` and ``pf``
+register the same way (``activetrack.filters``). See docs/extending.md, "A filter".
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from activetrack.arraytypes import FloatArray
+from activetrack.filters.measurement import TrackingFilter
+from activetrack.models.base import MotionModel
+
+__all__ = [
+    "FilterFactory",
+    "FilterKind",
+    "ParticlePosterior",
+    "filter_kind",
+    "filter_names",
+    "make_filter",
+    "register_filter",
+    "unregister_filter",
+]
+
+# factory(model, x0 (n,), P0 (n, n), config (the scenario's tracker block), rng) -> filter
+FilterFactory = Callable[
+    [MotionModel, FloatArray, FloatArray, Any, np.random.Generator], TrackingFilter
+]
+
+_NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
+# What every built filter must offer (TrackingFilter's members).
+_MEMBERS = ("time", "mean", "cov", "predict", "update", "step")
+
+
+@runtime_checkable
+class ParticlePosterior(Protocol):
+    """A filter whose posterior is a weighted particle set (``particle_based`` filters)."""
+
+    @property
+    def particles(self) -> np.ndarray:
+        """The particles, ``(N, n)``."""
+        ...
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Their normalised weights, ``(N,)``."""
+        ...
+
+
+@dataclass(frozen=True)
+class FilterKind:
+    """One registered filter: its name, factory and what the scenario rules need to know."""
+
+    name: str
+    factory: FilterFactory
+    particle_based: bool = False
+    description: str = ""
+
+
+_FILTERS: dict[str, FilterKind] = {}
+_BUILT_IN: set[str] = set()
+
+
+def _one_of(names: tuple[str, ...]) -> str:
+    shown = [repr(n) for n in names]
+    return shown[0] if len(shown) == 1 else f"{', '.join(shown[:-1])} or {shown[-1]}"
+
+
+def register_filter(
+    name: str,
+    factory: FilterFactory,
+    *,
+    particle_based: bool = False,
+    description: str = "",
+    replace: bool = False,
+) -> FilterKind:
+    """Make the filter ``name`` available to scenario files (module docstring).
+
+    Raises ValueError for a name that is not 1-32 lower-case letters, digits and '_' starting
+    with a letter, a factory that is not callable, a built-in name, or a name registered
+    before (unless ``replace``; registering the same factory again is a no-op).
+    """
+    if not (isinstance(name, str) and _NAME.fullmatch(name)):
+        raise ValueError(
+            f"filter name must be 1-32 lower-case letters, digits and '_', starting with a "
+            f"letter, got {name!r}"
+        )
+    if not callable(factory):
+        raise ValueError(f"filter {name!r}: factory must be callable, got {factory!r}")
+    entry = FilterKind(name, factory, bool(particle_based), str(description))
+    old = _FILTERS.get(name)
+    if old is not None and old == entry:
+        return old
+    if name in _BUILT_IN or (old is not None and not replace):
+        raise ValueError(f"filter {name!r} is registered already; unregister_filter it first")
+    _FILTERS[name] = entry
+    return entry
+
+
+def unregister_filter(name: str) -> None:
+    """Remove a registered filter (not a built-in one); scenario files naming it no longer
+    load."""
+    if name in _BUILT_IN or name not in _FILTERS:
+        raise ValueError(f"filter {name!r} is not a registered, removable filter")
+    del _FILTERS[name]
+
+
+def filter_names() -> tuple[str, ...]:
+    """The registered filter names, in registration order."""
+    return tuple(_FILTERS)
+
+
+def filter_kind(name: str) -> FilterKind:
+    """The registration of ``name``; ValueError listing the registered names otherwise."""
+    found = _FILTERS.get(name) if isinstance(name, str) else None
+    if found is None:
+        raise ValueError(f"tracker.filter: must be one of {_one_of(filter_names())}, got {name!r}")
+    return found
+
+
+def make_filter(
+    name: str,
+    model: MotionModel,
+    x0: FloatArray,
+    P0: FloatArray,
+    config: Any,
+    rng: np.random.Generator,
+) -> TrackingFilter:
+    """Build the filter registered as ``name`` with its factory (module docstring) and check
+    that it offers the :class:`TrackingFilter` members (and, if ``particle_based``,
+    ``particles`` and ``weights``)."""
+    entry = filter_kind(name)
+    built = entry.factory(model, x0, P0, config, rng)
+    missing = [m for m in _MEMBERS if not hasattr(built, m)]
+    if entry.particle_based and not isinstance(built, ParticlePosterior):
+        missing += [m for m in ("particles", "weights") if not hasattr(built, m)]
+    if missing:
+        raise ValueError(
+            f"filter {name!r}: its factory returned a {type(built).__name__} without "
+            f"{missing} (the TrackingFilter members, activetrack.filters.measurement)"
+        )
+    return built
+
+
+def _register_built_in(name: str, factory: FilterFactory, **kwargs: Any) -> None:
+    register_filter(name, factory, **kwargs)
+    _BUILT_IN.add(name)

@@ -1,0 +1,880 @@
+"""Reproduce Hernandez (Fusion 2004) Tables 1-2 and Figs. 2-3 (``activetrack reproduce hernandez``).
+
+For 1, 2 and 3 sensors and single-step (eq. 11) / two-step (eq. 13-15) planning on the sec. 5.1
+scenario: plan the sensor paths open loop from the prior (sec. 3.2), average the PCRLB RMSE
+bounds sqrt(J_k^-1(1,1)), sqrt(J_k^-1(3,3)) over k = 1..30, then track the target along the
+planned paths with a 10,000-particle SIR filter (sec. 5.2) over seeded Monte Carlo runs and
+average the filter RMSEs the same way. Also compares the quadrant search with the 101 x 101
+grid on the 1-sensor single-step case (sec. 4.2, Fig. 2). See docs/hernandez.md.
+
+In a notebook::
+
+    from activetrack_experiments import hernandez
+    res = hernandez.reproduce(runs=4, particles=2000, jobs=2)
+    res.table()                     # one flat dict per case (pandas.DataFrame(res.table()))
+    print(hernandez.format_results(res))
+
+On the command line::
+
+    python -m activetrack_experiments.hernandez [--runs N] [--json PATH] [--out DIR] ...
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from activetrack.argtypes import int_in_range
+from activetrack.bounds.pcrlb import (
+    covariance_bound,
+    gaussian_samples,
+    pcrlb_step,
+    propagate_samples,
+)
+from activetrack.filters import Measurement, ParticleFilter
+from activetrack.geometry import covariance_ellipse
+from activetrack.limits import (
+    MAX_GRID_SIZE,
+    MAX_JOBS,
+    MAX_PARTICLES,
+    MAX_PLANNER_BATCH,
+    MAX_RUNS,
+    MAX_SAMPLES,
+    MAX_SEARCH_EVALUATIONS,
+    MAX_SEED,
+)
+from activetrack.montecarlo import available_jobs, check_jobs, parallel_map
+from activetrack.planning import (
+    PlannerPlatform,
+    PlanSettings,
+    TargetBelief,
+    plan,
+    platform_information,
+    platforms_from_scenario,
+)
+from activetrack.plots import new_figure
+from activetrack.scenarios import Scenario, build_motion_model, load_scenario
+from activetrack.scenarios.schema import PlannerConfig
+from activetrack_experiments.paths import find_scenarios_dir, scenario_path
+
+__all__ = [
+    "PAPER_TABLE1",
+    "PAPER_TABLE2",
+    "CaseResult",
+    "HernandezResults",
+    "PlannedCase",
+    "SearchComparison",
+    "check_options",
+    "format_progress",
+    "format_results",
+    "main",
+    "plan_case",
+    "prior_samples",
+    "reproduce",
+    "save_figures",
+    "track_case",
+]
+
+# Hernandez Table 1: (sensors, horizon) -> (bound_x, bound_y, pf_rmse_x, pf_rmse_y), metres.
+PAPER_TABLE1 = {
+    (1, 1): (12.3, 13.9, 13.9, 18.1),
+    (1, 2): (11.9, 10.1, 13.2, 10.7),
+    (2, 1): (7.1, 7.3, 7.6, 9.1),
+    (2, 2): (6.8, 6.7, 7.5, 7.1),
+    (3, 1): (5.9, 6.0, 6.9, 6.8),
+    (3, 2): (5.0, 5.1, 6.1, 7.0),
+}
+# Table 2: sensors -> (% bound x, % bound y, % pf x, % pf y) improvement of two-step.
+PAPER_TABLE2 = {
+    1: (3.6, 27.6, 4.5, 40.6),
+    2: (5.5, 8.1, 2.0, 21.7),
+    3: (15.1, 15.2, 11.1, -2.6),
+}
+HORIZON_NAMES = {1: "single", 2: "two"}
+SENSOR_COUNTS = (1, 2, 3)
+HORIZONS = (1, 2)
+SEARCHES = ("quadrant", "grid", "sector")
+TABLE2_KEYS = ("bound_x", "bound_y", "pf_rmse_x", "pf_rmse_y")
+FIGURE_SAMPLES = 1000  # prior samples drawn for Fig. 2(a)
+
+
+def scenario_name(sensors: int, horizon: int) -> str:
+    """The scenario file stem of a case: ``hernandez_2sensor_two``."""
+    return f"hernandez_{sensors}sensor_{HORIZON_NAMES[horizon]}"
+
+
+# ---------------------------------------------------------------------------------------------
+# Planning (sec. 3.2) and tracking along the planned paths (sec. 5.2)
+
+
+@dataclass
+class PlannedCase:
+    """Open-loop plan of one case: paths (K+1, P, 4), bounds (K, 2), bound covariances."""
+
+    sensors: int
+    horizon: int
+    search: str
+    platform_ids: list
+    paths: np.ndarray
+    bounds: np.ndarray
+    P: np.ndarray
+    target_mean: np.ndarray
+    evaluations: list = field(default_factory=list)
+    decision_times: list = field(default_factory=list)
+    iterations: list = field(default_factory=list)
+
+
+def _next_platforms(platforms: list[PlannerPlatform], result) -> list[PlannerPlatform]:
+    """The platforms after flying the leg of their planned manoeuvres."""
+    out = []
+    for p in platforms:
+        m = result.manoeuvre(p.platform_id)
+        out.append(
+            PlannerPlatform(
+                p.platform_id, m.next_pv, p.sensors, p.limits, heading=m.heading, speed=m.speed
+            )
+        )
+    return out
+
+
+def plan_case(
+    scenario: Scenario,
+    *,
+    search: str | None = None,
+    grid_size: int | None = None,
+    mc_samples: int | None = None,
+    seed: int | None = None,
+) -> PlannedCase:
+    """Plan the sensor paths open loop from the prior (Hernandez sec. 3.2) and record the PCRLB
+    along them: J_{k+1} by eq. 3 with J_Z (eq. 8-9) over the prior samples at k+1."""
+    model = build_motion_model(scenario.target.motion)
+    dt, K = scenario.dt, scenario.steps
+    F, Q = model.transition_matrix(dt), model.process_noise(dt)
+    overrides = {k: v for k, v in (("search", search), ("grid_size", grid_size)) if v is not None}
+    settings = PlanSettings.from_config(scenario.planner, **overrides)
+    rng = np.random.default_rng(scenario.seed if seed is None else seed)
+    M = scenario.planner.mc_samples if mc_samples is None else mc_samples
+    prior = scenario.target.prior
+    C0 = prior.covariance()
+    X0 = gaussian_samples(np.asarray(prior.mean), C0, M, rng)
+    samples = propagate_samples(X0, F, Q, K, rng)  # prior samples at k = 1..K (sec. 3.2)
+    platforms = platforms_from_scenario(scenario)
+    ids = [p.platform_id for p in platforms]
+    case = PlannedCase(len(platforms), settings.horizon, settings.search.search, ids, *[None] * 4)
+    J = covariance_bound(C0)  # eq. 4: J_0 = C_0^{-1}
+    X = X0
+    paths = [np.stack([p.pv for p in platforms])]
+    bounds, Ps = [], []
+    for k in range(K):
+        # The planner looks ahead noise-free from the prior samples at k (l = 1e-8 here).
+        result = plan(platforms, TargetBelief(J, X), settings, F=F, Q=Q, dt=dt)
+        case.evaluations.append(result.report.evaluations)
+        case.decision_times.append(result.report.wall_time_s)
+        case.iterations.append(result.report.iterations)
+        platforms = _next_platforms(platforms, result)
+        X = samples[k]
+        J_Z = sum(platform_information(p.sensors, p.pv, X) for p in platforms)
+        J = pcrlb_step(J, F, Q, J_Z)
+        P = covariance_bound(J)
+        Ps.append(P)
+        bounds.append([np.sqrt(P[0, 0]), np.sqrt(P[2, 2])])
+        paths.append(np.stack([p.pv for p in platforms]))
+    case.paths = np.stack(paths)
+    case.bounds = np.array(bounds)
+    case.P = np.stack(Ps)
+    mean0 = np.asarray(prior.mean, dtype=float)
+    case.target_mean = np.stack([np.linalg.matrix_power(F, k) @ mean0 for k in range(K + 1)])
+    return case
+
+
+@dataclass(frozen=True)
+class _RunTask:
+    """One Monte Carlo PF run along fixed paths; carries its own run id and seed."""
+
+    scenario: Scenario
+    paths: np.ndarray
+    run: int
+    particles: int
+    seed: int
+
+
+def _track_run(task: _RunTask) -> np.ndarray:
+    """Squared PF errors (K, 4) of run ``task.run``: truth/measurements and filter draw from
+    the two generators of ``SeedSequence([seed, run])``.
+
+    The core Simulator is not used: its ``detect`` draws a Bernoulli(pd) even at pd = 1 and it
+    flies its own legs instead of the fixed planned paths, so the numbers would change.
+    """
+    scenario, paths = task.scenario, task.paths
+    model = build_motion_model(scenario.target.motion)
+    dt, K = scenario.dt, scenario.steps
+    platforms = platforms_from_scenario(scenario)
+    prior = scenario.target.prior
+    mean0, C0 = np.asarray(prior.mean, dtype=float), prior.covariance()
+    sim_rng, pf_rng = (
+        np.random.default_rng(s) for s in np.random.SeedSequence([task.seed, task.run]).spawn(2)
+    )
+    truth = mean0 + np.linalg.cholesky(C0) @ sim_rng.standard_normal(4)
+    pf = ParticleFilter(model, mean0, C0, n_particles=task.particles, rng=pf_rng)
+    out = np.empty((K, 4))
+    for k in range(1, K + 1):
+        truth = model.sample(truth, dt, sim_rng)
+        ms = []
+        for i, p in enumerate(platforms):
+            s_pv = paths[k, i]
+            for sensor in p.sensors:
+                # No measurement inside the minimum detection range (sec. 2.3).
+                inside = sensor.in_range(truth, s_pv)
+                z = sensor.sample(truth, s_pv, sim_rng) if inside else None
+                ms.append(Measurement(sensor, s_pv, z, k * dt))
+        pf.step(k * dt, ms)
+        out[k - 1] = (pf.mean - truth) ** 2
+    return out
+
+
+def track_case(
+    scenario: Scenario, paths: np.ndarray, runs: int, particles: int, seed: int, jobs: int = 1
+) -> np.ndarray:
+    """PF RMSE per epoch (K, 2) in x and y over ``runs`` seeded runs (run r: SeedSequence
+    ([seed, r]) split into truth/measurement and filter generators), on ``jobs`` processes;
+    the result does not depend on ``jobs``."""
+    tasks = [_RunTask(scenario, paths, r, particles, seed) for r in range(runs)]
+    sq = np.stack(parallel_map(_track_run, tasks, jobs))
+    mse = sq.mean(axis=0)
+    return np.sqrt(mse[:, [0, 2]])
+
+
+def prior_samples(scenario: Scenario, count: int = FIGURE_SAMPLES) -> np.ndarray:
+    """Samples of the target prior at k = 0..K (K+1, count, 4), scenario seed (Fig. 2a)."""
+    model = build_motion_model(scenario.target.motion)
+    rng = np.random.default_rng(scenario.seed)
+    prior = scenario.target.prior
+    X0 = gaussian_samples(np.asarray(prior.mean), prior.covariance(), count, rng)
+    F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
+    return np.concatenate([X0[None], propagate_samples(X0, F, Q, scenario.steps, rng)])
+
+
+# ---------------------------------------------------------------------------------------------
+# Results
+
+
+def _mean(values) -> float:
+    return float(np.mean(values))
+
+
+@dataclass
+class CaseResult:
+    """One case of Table 1: the open-loop plan with its bounds and (runs > 0) PF RMSEs."""
+
+    plan: PlannedCase
+    planning_time_s: float
+    rmse: np.ndarray | None = None  # (K, 2) PF RMSE per epoch, x and y
+    runs: int = 0
+    particles: int = 0
+    tracking_time_s: float | None = None
+
+    @property
+    def key(self) -> tuple[int, int]:
+        return (self.plan.sensors, self.plan.horizon)
+
+    @property
+    def bound_x(self) -> float:
+        return float(self.plan.bounds[:, 0].mean())
+
+    @property
+    def bound_y(self) -> float:
+        return float(self.plan.bounds[:, 1].mean())
+
+    @property
+    def pf_rmse_x(self) -> float | None:
+        return None if self.rmse is None else float(self.rmse[:, 0].mean())
+
+    @property
+    def pf_rmse_y(self) -> float | None:
+        return None if self.rmse is None else float(self.rmse[:, 1].mean())
+
+    def summary(self) -> dict:
+        """The case's scalar numbers (a row of ``HernandezResults.table()``)."""
+        paper = PAPER_TABLE1[self.key]
+        return {
+            "sensors": self.plan.sensors,
+            "horizon": self.plan.horizon,
+            "search": self.plan.search,
+            "bound_x": self.bound_x,
+            "bound_y": self.bound_y,
+            "pf_rmse_x": self.pf_rmse_x,
+            "pf_rmse_y": self.pf_rmse_y,
+            "evaluations_per_decision": _mean(self.plan.evaluations),
+            "decision_time_s": _mean(self.plan.decision_times),
+            "sensor_iterations_per_decision": _mean(self.plan.iterations),
+            "planning_time_s": self.planning_time_s,
+            "paper_bound_x": paper[0],
+            "paper_bound_y": paper[1],
+            "paper_pf_rmse_x": paper[2],
+            "paper_pf_rmse_y": paper[3],
+        }
+
+    def to_json(self) -> dict:
+        """The case's entry of the JSON document."""
+        plan_ = self.plan
+        doc = self.summary()
+        doc["bound_x_by_epoch"] = plan_.bounds[:, 0].tolist()
+        doc["bound_y_by_epoch"] = plan_.bounds[:, 1].tolist()
+        doc["sensor_paths"] = {
+            pid: plan_.paths[:, i].tolist() for i, pid in enumerate(plan_.platform_ids)
+        }
+        if self.rmse is not None:
+            doc.update(
+                pf_rmse_x_by_epoch=self.rmse[:, 0].tolist(),
+                pf_rmse_y_by_epoch=self.rmse[:, 1].tolist(),
+                pf_runs=self.runs,
+                pf_particles=self.particles,
+                tracking_time_s=self.tracking_time_s,
+            )
+        return doc
+
+
+def _search_summary(case: PlannedCase) -> dict:
+    return {
+        "bound_x": float(case.bounds[:, 0].mean()),
+        "bound_y": float(case.bounds[:, 1].mean()),
+        "mean_b_k": float(case.bounds.max(axis=1).mean()),
+        "evaluations_per_decision": _mean(case.evaluations),
+        "decision_time_s": _mean(case.decision_times),
+    }
+
+
+@dataclass
+class SearchComparison:
+    """Quadrant search vs the grid on the 1-sensor single-step case (sec. 4.2, Fig. 2)."""
+
+    grid_size: int
+    quadrant: PlannedCase
+    grid: PlannedCase
+
+    @property
+    def separation(self) -> np.ndarray:
+        """Distance (K+1,) between the quadrant and the grid sensor positions, m."""
+        diff = self.quadrant.paths[:, 0, [0, 2]] - self.grid.paths[:, 0, [0, 2]]
+        return np.linalg.norm(diff, axis=1)
+
+    def to_json(self) -> dict:
+        gap = self.separation
+        return {
+            "sensors": 1,
+            "horizon": 1,
+            "grid_size": self.grid_size,
+            "quadrant": _search_summary(self.quadrant),
+            "grid": _search_summary(self.grid),
+            "path_separation_m": {"max": float(gap.max()), "final": float(gap[-1])},
+            "grid_path": self.grid.paths[:, 0].tolist(),
+            "quadrant_path": self.quadrant.paths[:, 0].tolist(),
+        }
+
+
+@dataclass
+class HernandezResults:
+    """Everything ``reproduce`` computed: the cases (sorted by sensors, horizon), the search
+    comparison, and what the figures need (epoch times, prior samples for Fig. 2a)."""
+
+    runs: int
+    particles: int
+    cases: list[CaseResult]
+    comparison: SearchComparison | None
+    times: np.ndarray  # (K,) epoch times k = 1..K, s
+    prior_samples: np.ndarray | None = None  # (K+1, 1000, 4), with the comparison only
+
+    def case(self, sensors: int, horizon: int) -> CaseResult | None:
+        return next((c for c in self.cases if c.key == (sensors, horizon)), None)
+
+    def improvements(self) -> dict[int, list[float | None]]:
+        """Table 2: % improvement of two-step over single-step per sensor count."""
+        out = {}
+        for n in SENSOR_COUNTS:
+            s, t = self.case(n, 1), self.case(n, 2)
+            if s is None or t is None:
+                continue
+            vals = []
+            for key in TABLE2_KEYS:
+                a, b = getattr(s, key), getattr(t, key)
+                vals.append(None if a is None or b is None else 100.0 * (a - b) / a)
+            out[n] = vals
+        return out
+
+    def to_json(self) -> dict:
+        """The JSON document of ``activetrack reproduce hernandez --json`` (without the list
+        of figure files the command line adds)."""
+        return {
+            "experiment": "hernandez2004",
+            "units": {"bounds": "m", "time": "s"},
+            "runs": self.runs,
+            "particles": self.particles,
+            "cases": [c.to_json() for c in self.cases],
+            "table2_improvement_percent": {
+                str(n): dict(zip(TABLE2_KEYS, v, strict=True))
+                for n, v in self.improvements().items()
+            },
+            "search_comparison": None if self.comparison is None else self.comparison.to_json(),
+        }
+
+    def table(self) -> list[dict]:
+        """Table 1 as a tidy table: one flat dict per case (with the paper's numbers and the
+        PF settings); ``pandas.DataFrame(res.table())``."""
+        rows = []
+        for c in self.cases:
+            row = c.summary()
+            row.update(pf_runs=c.runs, pf_particles=c.particles, tracking_time_s=c.tracking_time_s)
+            rows.append(row)
+        return rows
+
+
+# ---------------------------------------------------------------------------------------------
+# The experiment
+
+
+def _sorted_choice(values: Iterable[int], allowed: tuple[int, ...], option: str) -> list[int]:
+    try:
+        out = sorted({int(v) for v in values})
+    except (TypeError, ValueError):
+        raise ValueError("--sensors and --horizons take comma-separated integers") from None
+    if not out or not set(out) <= set(allowed):
+        raise ValueError(f"{option} must be among {','.join(map(str, allowed))}")
+    return out
+
+
+def check_options(
+    *,
+    sensors: Iterable[int] = SENSOR_COUNTS,
+    horizons: Iterable[int] = HORIZONS,
+    search: str | None = None,
+    grid_size: int = 101,
+    mc_samples: int | None = None,
+    comparison: bool = True,
+) -> tuple[list[int], list[int]]:
+    """The sorted sensor counts and horizons, or a ValueError naming the option at fault
+    (unknown counts, or a search too costly for the memory and time limits)."""
+    counts = _sorted_choice(sensors, SENSOR_COUNTS, "--sensors")
+    horizon_list = _sorted_choice(horizons, HORIZONS, "--horizons")
+    if search is not None and search not in SEARCHES:
+        raise ValueError(f"--search must be one of {', '.join(SEARCHES)}, got {search!r}")
+    # --search grid plans on the scenarios' grid (101 x 101): two steps nest two grids.
+    if search == "grid" and 2 in horizon_list:
+        per_decision = PlannerConfig().grid_size ** 4
+        if per_decision > MAX_SEARCH_EVALUATIONS:
+            raise ValueError(
+                f"--search grid with --horizons 2 costs {per_decision:.2e} cost evaluations per "
+                f"decision, at most {MAX_SEARCH_EVALUATIONS:.0e}: use --horizons 1"
+            )
+    # The grid comparison scores up to 2,048 grid points against every planner sample at once.
+    samples = 1000 if mc_samples is None else mc_samples
+    batch = min(grid_size**2, 2048) * samples
+    if comparison and 1 in counts and batch > MAX_PLANNER_BATCH:
+        raise ValueError(
+            f"--mc-samples {samples} with --grid-size {grid_size} scores {batch:.2e} "
+            f"sample-candidate pairs at once, at most {MAX_PLANNER_BATCH:.1e} (about 1 GB)"
+        )
+    return counts, horizon_list
+
+
+def _run_case(
+    scenario: Scenario, *, runs: int, particles: int, seed: int | None, jobs: int, **plan_kw
+) -> CaseResult:
+    """Plan one case, then track along its paths (runs > 0)."""
+    seed = scenario.seed if seed is None else seed
+    t0 = time.perf_counter()
+    case = plan_case(scenario, seed=seed, **plan_kw)
+    result = CaseResult(case, time.perf_counter() - t0)
+    if runs > 0:
+        t0 = time.perf_counter()
+        result.rmse = track_case(scenario, case.paths, runs, particles, seed, jobs)
+        result.runs, result.particles = runs, particles
+        result.tracking_time_s = time.perf_counter() - t0
+    return result
+
+
+def _compare_searches(
+    scenario: Scenario,
+    quadrant: PlannedCase | None,
+    grid_size: int,
+    mc_samples: int | None,
+    seed: int | None,
+) -> SearchComparison:
+    """The 1-sensor single-step case planned on the grid (and, unless given, the quadrant)."""
+    seed = scenario.seed if seed is None else seed
+    grid = plan_case(scenario, search="grid", grid_size=grid_size, mc_samples=mc_samples, seed=seed)
+    if quadrant is None:
+        quadrant = plan_case(scenario, search="quadrant", mc_samples=mc_samples, seed=seed)
+    return SearchComparison(grid_size, quadrant, grid)
+
+
+def reproduce(
+    *,
+    runs: int = 100,
+    particles: int = 10000,
+    seed: int | None = None,
+    jobs: int = 1,
+    comparison: bool = True,
+    scenarios_dir: str | Path | None = None,
+    sensors: Iterable[int] = SENSOR_COUNTS,
+    horizons: Iterable[int] = HORIZONS,
+    search: str | None = None,
+    grid_size: int = 101,
+    mc_samples: int | None = None,
+    progress: Callable[[CaseResult], None] | None = None,
+) -> HernandezResults:
+    """Tables 1-2 and the search comparison of Hernandez (2004).
+
+    Every case is planned open loop (``mc_samples`` planner samples, scenario: 1,000; the
+    scenarios' search unless ``search``), then ``runs`` PF runs of ``particles`` particles track
+    along the planned paths (0: the bounds only) on ``jobs`` processes; ``seed`` (default: the
+    scenarios' seed) fixes both. ``comparison`` re-plans the 1-sensor single-step case on a
+    ``grid_size`` x ``grid_size`` grid (with 1 among ``sensors``). ``progress`` is called with
+    each finished case. Scenario files come from ``scenarios_dir`` or the package data.
+    """
+    if runs < 0 or particles < 1:
+        raise ValueError(f"runs must be >= 0 and particles >= 1, got {runs} and {particles}")
+    check_jobs(jobs)
+    counts, horizon_list = check_options(
+        sensors=sensors,
+        horizons=horizons,
+        search=search,
+        grid_size=grid_size,
+        mc_samples=mc_samples,
+        comparison=comparison,
+    )
+    sdir = find_scenarios_dir(scenarios_dir, "hernandez_*.yaml")
+    files = {(n, R): scenario_path(scenario_name(n, R), sdir) for n in counts for R in horizon_list}
+    reference = load_scenario(scenario_path(scenario_name(1, 1), sdir))
+    run_kw = dict(runs=runs, particles=particles, seed=seed, jobs=jobs, mc_samples=mc_samples)
+    cases = []
+    for key in sorted(files):
+        cases.append(_run_case(load_scenario(files[key]), search=search, **run_kw))
+        if progress is not None:
+            progress(cases[-1])
+    times = reference.dt * np.arange(1, reference.steps + 1)
+    res = HernandezResults(runs, particles, cases, None, times)
+    if comparison and 1 in counts:
+        quad = res.case(1, 1)
+        quad_plan = None if quad is None else quad.plan
+        res.comparison = _compare_searches(reference, quad_plan, grid_size, mc_samples, seed)
+        res.prior_samples = prior_samples(reference)
+    return res
+
+
+# ---------------------------------------------------------------------------------------------
+# Printing
+
+
+def format_progress(case: CaseResult) -> str:
+    """The one-line progress report of a finished case."""
+    s = case.summary()
+    return (
+        f"[hernandez] {case.plan.sensors} sensor(s), {HORIZON_NAMES[case.plan.horizon]}-step: "
+        f"bound ({s['bound_x']:.2f}, {s['bound_y']:.2f}) m, "
+        f"{s['evaluations_per_decision']:.0f} evaluations/decision, "
+        f"{s['decision_time_s'] * 1e3:.1f} ms/decision"
+    )
+
+
+def _sensors_label(n: int) -> str:
+    return f"{n} sensor" + ("s" if n > 1 else "")
+
+
+def _table1_row(res: HernandezResults, axis: int) -> str:
+    name = ("x-coordinate", "y-coordinate")[axis]
+    row = f"{name:14s}"
+    for n in SENSOR_COUNTS:
+        for R in HORIZONS:
+            c = res.case(n, R)
+            if c is None:
+                row += f"{'-':^21s}"
+                continue
+            b = (c.bound_x, c.bound_y)[axis]
+            e = (c.pf_rmse_x, c.pf_rmse_y)[axis]
+            cell = f"{b:.1f} ({e:.1f})" if e is not None else f"{b:.1f}"
+            row += f"{cell:^21s}"
+    return row
+
+
+def _format_table1(res: HernandezResults) -> str:
+    lines = [
+        "Table 1: RMSE bounds averaged over k = 1..30 (PF RMSEs in brackets), metres",
+        "ours / paper",
+        f"{'':14s}" + "".join(f"{_sensors_label(n):^42s}" for n in SENSOR_COUNTS),
+        f"{'Direction':14s}" + "".join(f"{'Single-Step':^21s}{'Two-Step':^21s}" for _ in range(3)),
+    ]
+    for axis in (0, 1):
+        lines.append(_table1_row(res, axis))
+        row = f"{'  paper':14s}"
+        for n in SENSOR_COUNTS:
+            for R in HORIZONS:
+                p = PAPER_TABLE1[(n, R)]
+                row += f"{f'{p[axis]:.1f} ({p[2 + axis]:.1f})':^21s}"
+        lines.append(row)
+    return "\n".join(lines)
+
+
+def _fmt(v: float | None) -> str:
+    return "-" if v is None else f"{v:.1f}"
+
+
+def _format_table2(res: HernandezResults) -> str:
+    imp = res.improvements()
+    lines = [
+        "Table 2: % improvement of two-step over single-step (PF RMSEs in brackets)",
+        f"{'Direction':14s}" + "".join(f"{_sensors_label(n):^30s}" for n in SENSOR_COUNTS),
+    ]
+    for axis, name in ((0, "x-coordinate"), (1, "y-coordinate")):
+        row, prow = f"{name:14s}", f"{'  paper':14s}"
+        for n in SENSOR_COUNTS:
+            v = imp.get(n)
+            row += f"{(_fmt(v[axis]) + ' (' + _fmt(v[2 + axis]) + ')') if v else '-':^30s}"
+            p = PAPER_TABLE2[n]
+            prow += f"{f'{p[axis]:.1f} ({p[2 + axis]:.1f})':^30s}"
+        lines += [row, prow]
+    return "\n".join(lines)
+
+
+def _format_comparison(comp: SearchComparison) -> str:
+    doc = comp.to_json()
+    size = comp.grid_size
+    lines = ["Quadrant search vs 101x101 grid, 1 sensor single-step:"]
+    for name, d in (("quadrant", doc["quadrant"]), (f"grid {size}x{size}", doc["grid"])):
+        lines.append(
+            f"  {name:16s} bound ({d['bound_x']:.2f}, {d['bound_y']:.2f}) m, mean b_k "
+            f"{d['mean_b_k']:.2f} m, {d['evaluations_per_decision']:.0f} evaluations and "
+            f"{d['decision_time_s'] * 1e3:.1f} ms per decision"
+        )
+    gap = doc["path_separation_m"]
+    lines.append(f"  path separation: max {gap['max']:.0f} m, final {gap['final']:.0f} m")
+    return "\n".join(lines)
+
+
+def format_results(res: HernandezResults) -> str:
+    """Tables 1 and 2 against the paper's, and the search comparison, as printed."""
+    parts = [_format_table1(res), _format_table2(res)]
+    if res.comparison is not None:
+        parts.append(_format_comparison(res.comparison))
+    return "\n\n".join(parts)
+
+
+# ---------------------------------------------------------------------------------------------
+# Figures (matplotlib Figure + Agg canvas, no pyplot)
+
+
+def _new_figure(nrows: int, ncols: int, figsize: tuple[float, float]):
+    fig = new_figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols)
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def _ellipse(ax, centre, P, scale=10.0, **kw):
+    """Outline of the 1-sigma ellipse of the position block of P, magnified ``scale`` times."""
+    pts = covariance_ellipse(centre, P[np.ix_([0, 2], [0, 2])], scale)
+    ax.plot(pts[:, 0], pts[:, 1], **kw)
+
+
+def _plot_paths(ax, case: PlannedCase, title: str) -> None:
+    tm = case.target_mean
+    ax.plot(tm[:, 0], tm[:, 2], "k--", lw=1, label="target (prior mean)")
+    for i, pid in enumerate(case.platform_ids):
+        ax.plot(case.paths[:, i, 0], case.paths[:, i, 2], "-o", ms=2, label=f"sensor {pid}")
+    for k in range(1, len(case.P) + 1, 3):
+        _ellipse(ax, tm[k, [0, 2]], case.P[k - 1], color="tab:red", lw=0.7)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(fontsize=7)
+
+
+def _figure2(res: HernandezResults, out: Path) -> Path:
+    """Fig. 2: prior samples, quadrant and grid paths with 10x PCRLB ellipses, b_k."""
+    fig, axs = _new_figure(2, 2, (11, 9))
+    X = res.prior_samples
+    for k in range(0, X.shape[0], 2):
+        axs[0, 0].plot(X[k, :, 0], X[k, :, 2], ",", color="tab:blue", alpha=0.3)
+    axs[0, 0].set_title("(a) prior target samples, k = 0, 2, ..., 30", fontsize=9)
+    axs[0, 0].set_aspect("equal", adjustable="datalim")
+    quad = res.case(1, 1).plan
+    _plot_paths(axs[0, 1], quad, "(b) quadrant search, 10x PCRLB ellipses")
+    _plot_paths(axs[1, 0], res.comparison.grid, "(c) 101x101 grid search, 10x PCRLB ellipses")
+    for case, lab in ((quad, "quadrant"), (res.comparison.grid, "grid 101x101")):
+        axs[1, 1].plot(res.times, case.bounds.max(axis=1), label=lab)
+    axs[1, 1].set_xlabel("time (s)")
+    axs[1, 1].set_ylabel("b_k (m)")
+    axs[1, 1].set_title("(d) RMSE bound b_k (eq. 10)", fontsize=9)
+    axs[1, 1].legend()
+    return _save(fig, out / "fig2_1sensor_quadrant_vs_grid.png")
+
+
+def _figure3(res: HernandezResults, out: Path) -> Path:
+    """Fig. 3: 2-sensor paths single vs two-step, y bound and y PF RMSE."""
+    fig, axs = _new_figure(2, 2, (11, 9))
+    _plot_paths(axs[0, 0], res.case(2, 1).plan, "(a) 2 sensors, single-step")
+    _plot_paths(axs[0, 1], res.case(2, 2).plan, "(b) 2 sensors, two-step")
+    for R, lab in ((1, "single-step"), (2, "two-step")):
+        c = res.case(2, R)
+        axs[1, 0].plot(res.times, c.plan.bounds[:, 1], label=lab)
+        if c.rmse is not None:
+            axs[1, 1].plot(res.times, c.rmse[:, 1], label=lab)
+    axs[1, 0].set_title("(c) y RMSE bound", fontsize=9)
+    axs[1, 1].set_title("(d) y PF RMSE", fontsize=9)
+    for ax in axs[1]:
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("m")
+        ax.legend()
+    return _save(fig, out / "fig3_2sensors_single_vs_two.png")
+
+
+def _figure_all(res: HernandezResults, out: Path) -> Path:
+    """All cases: b_k and the max(x, y) PF RMSE against time."""
+    fig, axs = _new_figure(1, 2, (12, 4.5))
+    for c in res.cases:
+        lab = f"{c.plan.sensors} sensor(s), {HORIZON_NAMES[c.plan.horizon]}-step"
+        (line,) = axs[0].plot(res.times, c.plan.bounds.max(axis=1), label=lab)
+        if c.rmse is not None:
+            axs[1].plot(res.times, c.rmse.max(axis=1), color=line.get_color(), label=lab)
+    axs[0].set_title("b_k = max(x, y) RMSE bound")
+    axs[1].set_title("max(x, y) PF RMSE")
+    for ax in axs:
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("m")
+        ax.set_yscale("log")
+        ax.legend(fontsize=7)
+    return _save(fig, out / "bounds_and_rmse_all_cases.png")
+
+
+def save_figures(res: HernandezResults, out: str | Path) -> list[Path]:
+    """Write the PNG figures into ``out``: Fig. 2 (with the comparison and the 1-sensor
+    single-step case), Fig. 3 (with both 2-sensor cases) and all cases; returns the files."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    if res.comparison is not None and res.case(1, 1) is not None:
+        files.append(_figure2(res, out))
+    if res.case(2, 1) is not None and res.case(2, 2) is not None:
+        files.append(_figure3(res, out))
+    files.append(_figure_all(res, out))
+    return files
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="activetrack reproduce hernandez",
+        description="Reproduce Hernandez (2004) Tables 1-2 and Figs. 2-3.",
+    )
+    add = ap.add_argument
+    add(
+        "--runs",
+        type=int_in_range(0, MAX_RUNS, note="0: the bounds only"),
+        default=100,
+        help="Monte Carlo PF runs per case (100; 0: the bounds only)",
+    )
+    add(
+        "--particles",
+        type=int_in_range(1, MAX_PARTICLES),
+        default=10000,
+        help="PF particles (10,000)",
+    )
+    add(
+        "--mc-samples",
+        type=int_in_range(1, MAX_SAMPLES),
+        default=None,
+        help="planner Monte Carlo samples (scenario: 1000)",
+    )
+    add("--sensors", default="1,2,3", help="sensor counts, e.g. 1,2,3")
+    add("--horizons", default="1,2", help="planning horizons, 1 and/or 2")
+    add(
+        "--search", default=None, choices=SEARCHES, help="override the scenarios' search (quadrant)"
+    )
+    add(
+        "--grid-size",
+        type=int_in_range(2, MAX_GRID_SIZE),
+        default=101,
+        help="grid of the comparison (101)",
+    )
+    add("--no-comparison", action="store_true", help="skip the quadrant vs 101x101 grid comparison")
+    add("--seed", type=int_in_range(0, MAX_SEED), default=None, help="seed (scenario seed)")
+    add(
+        "--jobs",
+        type=int_in_range(1, MAX_JOBS),
+        default=available_jobs(),
+        help="PF worker processes",
+    )
+    add("--json", default=None, help="write the numbers to this JSON file")
+    add("--out", default="runs/reproduce-hernandez", help="figure directory")
+    add("--no-figures", action="store_true", help="do not write PNG figures")
+    add("--scenarios", default=None, help="directory with hernandez_*.yaml")
+    return ap
+
+
+def _parse(argv: list[str]) -> argparse.Namespace:
+    """Parsed options, with ``sensor_counts`` and ``horizon_list`` (usage error if invalid)."""
+    ap = _build_parser()
+    args = ap.parse_args(argv)
+    try:
+        args.sensor_counts, args.horizon_list = check_options(
+            sensors=args.sensors.split(","),
+            horizons=args.horizons.split(","),
+            search=args.search,
+            grid_size=args.grid_size,
+            mc_samples=args.mc_samples,
+            comparison=not args.no_comparison,
+        )
+    except ValueError as exc:
+        ap.error(str(exc))
+    return args
+
+
+def _print_progress(case: CaseResult) -> None:
+    print(format_progress(case), file=sys.stderr, flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``activetrack reproduce hernandez``."""
+    args = _parse(sys.argv[1:] if argv is None else argv)
+    res = reproduce(
+        runs=args.runs,
+        particles=args.particles,
+        seed=args.seed,
+        jobs=args.jobs,
+        comparison=not args.no_comparison,
+        scenarios_dir=args.scenarios,
+        sensors=args.sensor_counts,
+        horizons=args.horizon_list,
+        search=args.search,
+        grid_size=args.grid_size,
+        mc_samples=args.mc_samples,
+        progress=_print_progress,
+    )
+    print(format_results(res))
+    doc = res.to_json()
+    if not args.no_figures:
+        files = save_figures(res, args.out)
+        doc["figures"] = [str(f) for f in files]
+        print("\nfigures: " + ", ".join(str(f) for f in files))
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(doc, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
