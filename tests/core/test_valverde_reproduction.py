@@ -12,7 +12,7 @@ from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import taylor_crlb
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
-from activetrack.filters import ExtendedKalmanFilter, Measurement
+from activetrack.filters import ExtendedKalmanFilter, Measurement, ekf_over_runs
 from activetrack.models.motion import CircularMotionKnownOmega
 from activetrack.scenarios import load_scenario
 from activetrack_experiments import scenario_path
@@ -195,7 +195,7 @@ def test_rank_table_known_answers():
 
 
 @pytest.mark.parametrize("model_name", vv.MODELS)
-def test_batched_ekf_equals_the_library_ekf(model_name):
+def test_ekf_over_runs_equals_the_library_ekf(model_name):
     setup = replace(SETUP, steps=40)
     model = setup.model(model_name, True)
     sensor = setup.sensor(1.0, 2.0)
@@ -210,7 +210,7 @@ def test_batched_ekf_equals_the_library_ekf(model_name):
         rng.standard_normal((setup.steps, 3, 2)),
     )
     x_hat0 = np.broadcast_to(setup.x0(model_name), (3, model.dim))
-    means, covs = vv.batched_ekf(
+    means, covs = ekf_over_runs(
         model, sensor, setup.sensor_pv, x_hat0, setup.P0(model_name), z, setup.dt
     )
     for r in range(3):

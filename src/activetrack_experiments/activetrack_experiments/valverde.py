@@ -18,8 +18,8 @@ cases, and the time-averaged square errors of px and py are compared with a boun
   Monte Carlo Tichavsky recursion (eq. 56-64) on the same truth trajectories is reported too.
 
 The motion and sensor models, bounds and observability rank are the core's. The Monte Carlo
-EKF runs all trajectories of a row at once (:func:`batched_ekf`, batched numpy, the equations
-of ``filters.ExtendedKalmanFilter``; the tests check the two agree); the rows are the tasks of
+EKF runs all trajectories of a row at once (the core's :func:`activetrack.filters.ekf_over_runs`,
+the equations of ``filters.ExtendedKalmanFilter`` batched over runs); the rows are the tasks of
 one :func:`activetrack.montecarlo.parallel_map`. Tables I-II are the rank of the eq. 38
 observability matrix (``observability.observability_rank``). The scenario choices (Fig. 2 is
 lost) are in :class:`ValverdeSetup` and docs/valverde.md.
@@ -55,9 +55,10 @@ from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import nominal_path, taylor_crlb
 from activetrack.bounds.tichavsky import tichavsky_pcrlb
 from activetrack.checks import symmetrize
+from activetrack.filters import ekf_over_runs
 from activetrack.limits import MAX_JOBS, MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
 from activetrack.models.motion import CircularMotion, ConstantTurn
-from activetrack.models.sensors import RangeBearingSensor, state_jacobian
+from activetrack.models.sensors import RangeBearingSensor
 from activetrack.montecarlo import available_jobs, check_jobs, parallel_map
 from activetrack.observability import observability_rank
 from activetrack.plots import new_figure, write_figures
@@ -248,42 +249,6 @@ class RankRow:
 # --- the Monte Carlo ---------------------------------------------------------------------------
 
 
-def batched_ekf(model, sensor, sensor_pv, x_hat0, P0, z, dt, keep_cov: bool = True):
-    """EKF (Valverde eq. 2-9, Joseph-form covariance) over M runs at once.
-
-    x_hat0 ``(M, n)`` prior means, P0 ``(n, n)``, z ``(K, M, 2)`` measurements at t = dt..K dt
-    from the stationary ``sensor_pv`` ``(4,)``. Returns the updated means ``(K, M, n)`` and
-    covariances ``(K, M, n, n)`` (None unless ``keep_cov``).
-
-    The same equations as ``activetrack.filters.ExtendedKalmanFilter`` (the tests check the two
-    agree to 1e-9): the library EKF run once per Monte Carlo run prints the same tables, but
-    is about 14 times slower (a Python step per run and epoch instead of one numpy step per
-    epoch for all runs; docs/valverde.md).
-    """
-    x = np.array(x_hat0, dtype=float)
-    M, n = x.shape
-    P = np.broadcast_to(P0, (M, n, n)).copy()
-    Q, R, eye = model.process_noise(dt), sensor.R, np.eye(n)
-    means = np.empty((len(z), M, n))
-    covs = np.empty((len(z), M, n, n)) if keep_cov else None
-    for k, zk in enumerate(z):
-        F = model.jacobian(x, dt)  # eq. 4, at the previous estimate
-        x = model.propagate(x, dt)  # eq. 2
-        P = F @ P @ np.swapaxes(F, -1, -2) + Q  # eq. 3
-        nu = sensor.residual(zk, sensor.measure(model.kinematics(x), sensor_pv))  # eq. 9
-        H = state_jacobian(sensor, model, x, sensor_pv)  # (M, 2, n)
-        PHt = P @ np.swapaxes(H, -1, -2)
-        S = H @ PHt + R  # eq. 7
-        K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)  # P H^T S^-1
-        x = x + (K @ nu[..., None])[..., 0]  # eq. 5
-        I_KH = eye - K @ H
-        P = symmetrize(I_KH @ P @ np.swapaxes(I_KH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2))
-        means[k] = x
-        if covs is not None:
-            covs[k] = P
-    return means, covs
-
-
 def _gaussian(mean, P, shape, rng):
     L = np.linalg.cholesky(P)
     return mean + rng.standard_normal((*shape, len(mean))) @ L.T
@@ -395,7 +360,7 @@ def run_row(task: RowTask) -> RowResult:
     sensor = setup.sensor(task.sigma_r, task.sigma_b_deg)
     z = measure(sensor, model.kinematics(truth[1:]), setup.sensor_pv, task.draws.unit_noise)
     P0 = setup.P0(task.model)
-    means, _ = batched_ekf(
+    means, _ = ekf_over_runs(
         model, sensor, setup.sensor_pv, task.draws.x_hat0, P0, z, setup.dt, keep_cov=False
     )
     ix = list(POSITION_INDEX[task.model])

@@ -13,6 +13,7 @@ import numpy as np
 
 from activetrack.arraytypes import FloatArray
 from activetrack.filters.ekf import ExtendedKalmanFilter
+from activetrack.filters.ekf_runs import ekf_over_runs
 from activetrack.filters.measurement import Measurement, TrackingFilter, UpdateInfo
 from activetrack.filters.particle import FilterCollapseError, ParticleFilter
 from activetrack.filters.registry import (
@@ -45,6 +46,7 @@ __all__ = [
     "TrackingFilter",
     "UpdateInfo",
     "effective_sample_size",
+    "ekf_over_runs",
     "filter_kind",
     "filter_names",
     "make_filter",
