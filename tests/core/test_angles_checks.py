@@ -111,3 +111,12 @@ def test_require_spd_and_psd():
     np.testing.assert_array_equal(require_psd("Q", np.diag([1.0, 0.0])), np.diag([1.0, 0.0]))
     with pytest.raises(ValueError, match=r"Q.*semi-definite"):
         require_psd("Q", np.diag([1.0, -1e-3]))
+
+
+@pytest.mark.parametrize("bad", [0, 11, -1, 2.0, True, "3", None])
+def test_require_int_names_the_field_and_the_range(bad):
+    from activetrack.checks import require_int
+
+    assert require_int("runs", 10, 1, 10) == 10
+    with pytest.raises(ValueError, match=r"^runs: must be an integer in \[1, 10\], got "):
+        require_int("runs", bad, 1, 10)

@@ -83,6 +83,14 @@ def require_in_range(
     return v
 
 
+def require_int(name: str, value: Any, lo: int, hi: int) -> int:
+    """``value`` if it is an int (not a bool) in [lo, hi], else a ValueError naming ``name``
+    and the range."""
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise ValueError(f"{name}: must be an integer in [{lo}, {hi}], got {value!r}")
+    return value
+
+
 def symmetrize(P: ArrayLike) -> FloatArray:
     """Return ``(P + P^T) / 2`` over the last two axes (removes round-off asymmetry)."""
     P = np.asarray(P, dtype=float)

@@ -42,6 +42,7 @@ import numpy as np
 from activetrack.argtypes import int_in_range
 from activetrack.bounds.costs import position_determinant
 from activetrack.bounds.mre import mre_update
+from activetrack.checks import require_int
 from activetrack.closed_loop.batch import run_once
 from activetrack.limits import MAX_JOBS, MAX_RUNS
 from activetrack.montecarlo import available_jobs, check_jobs, parallel_map
@@ -606,8 +607,7 @@ class RamdarasResults:
 
 
 def _check_args(runs, jobs, cases, strategies) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= MAX_RUNS:
-        raise ValueError(f"runs: must be an integer in [1, {MAX_RUNS}], got {runs!r}")
+    require_int("runs", runs, 1, MAX_RUNS)
     check_jobs(jobs)
     keys = CASE_KEYS if cases is None else (cases,) if isinstance(cases, str) else tuple(cases)
     bad = [c for c in keys if c not in CASE_KEYS]

@@ -54,7 +54,7 @@ from activetrack.argtypes import int_in_range
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import nominal_path, taylor_crlb
 from activetrack.bounds.tichavsky import tichavsky_pcrlb
-from activetrack.checks import symmetrize
+from activetrack.checks import require_int, symmetrize
 from activetrack.filters import ekf_over_runs
 from activetrack.limits import MAX_JOBS, MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
 from activetrack.models.motion import CircularMotion, ConstantTurn
@@ -473,13 +473,11 @@ class ValverdeResults:
 
 
 def _check(runs, steps, seed, jobs) -> None:
-    for name, value, lo, hi in (("runs", runs, 2, MAX_RUNS), ("steps", steps, 1, MAX_STEPS)):
-        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-            raise ValueError(f"{name}: must be an integer in [{lo}, {hi}], got {value!r}")
+    require_int("runs", runs, 2, MAX_RUNS)
+    require_int("steps", steps, 1, MAX_STEPS)
     if runs * steps > MAX_RUN_EPOCHS:
         raise ValueError(f"runs x steps must be <= {MAX_RUN_EPOCHS:.1e}, got {runs} x {steps}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
-        raise ValueError(f"seed: must be an integer in [0, {MAX_SEED}], got {seed!r}")
+    require_int("seed", seed, 0, MAX_SEED)
     check_jobs(jobs)
 
 

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from activetrack.argtypes import int_in_range
+from activetrack.checks import require_int
 from activetrack.limits import MAX_JOBS, MAX_RUNS, MAX_SEED
 from activetrack.models.sensors import AmbiguousBearingSensor
 from activetrack.montecarlo import available_jobs, check_jobs, parallel_map
@@ -412,10 +413,8 @@ class VanderHookResults:
 
 
 def _check(runs, seed, jobs) -> None:
-    for name, value, hi in (("runs", runs, MAX_RUNS), ("seed", seed, MAX_SEED)):
-        lo = 1 if name == "runs" else 0
-        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-            raise ValueError(f"{name}: must be an integer in [{lo}, {hi}], got {value!r}")
+    require_int("runs", runs, 1, MAX_RUNS)
+    require_int("seed", seed, 0, MAX_SEED)
     check_jobs(jobs)
 
 

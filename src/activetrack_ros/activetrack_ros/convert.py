@@ -37,6 +37,17 @@ BEARING_KINDS = ("bearing", "ambiguous_bearing")
 POLAR_KINDS = ("range_bearing", "range_rate_bearing")
 
 
+def _check_covariance(msg, sensor, what: str) -> int:
+    """The message's ``covariance`` is the sensor's R (dim_z x dim_z, SPD); returns dim_z."""
+    n = sensor.dim_z
+    if len(msg.covariance) != n * n:
+        raise Rejected("bad_covariance", f"{what}: covariance must have {n * n} values")
+    R = spd(finite(msg.covariance, f"{what} covariance", math.inf).reshape(n, n), what)
+    if not np.allclose(R, sensor.R, rtol=1e-9, atol=0.0):
+        raise Rejected("sensor_mismatch", f"{what}: covariance differs from the scenario's R")
+    return n
+
+
 def measurement_topic(kind: str) -> str:
     """The topic that measurements of a sensor kind travel on."""
     if kind in BEARING_KINDS:
@@ -234,12 +245,7 @@ class MeasurementChecker:
             raise Rejected(
                 "wrong_sensor_kind", f"{what}: has_range_rate does not match {sensor.kind}"
             )
-        n = sensor.dim_z
-        if len(msg.covariance) != n * n:
-            raise Rejected("bad_covariance", f"{what}: covariance must have {n * n} values")
-        R = spd(finite(msg.covariance, f"{what} covariance", math.inf).reshape(n, n), what)
-        if not np.allclose(R, sensor.R, rtol=1e-9, atol=0.0):
-            raise Rejected("sensor_mismatch", f"{what}: covariance differs from the scenario's R")
+        _check_covariance(msg, sensor, what)
         z = None
         if msg.detected:
             values = {"range": msg.range, "range_rate": msg.range_rate, "bearing": msg.bearing}
@@ -262,12 +268,7 @@ class MeasurementChecker:
             raise Rejected(
                 "wrong_sensor_kind", f"{what}: sensor_kind {shown!r} is not {sensor.kind!r}"
             )
-        n = sensor.dim_z
-        if len(msg.covariance) != n * n:
-            raise Rejected("bad_covariance", f"{what}: covariance must have {n * n} values")
-        R = spd(finite(msg.covariance, f"{what} covariance", math.inf).reshape(n, n), what)
-        if not np.allclose(R, sensor.R, rtol=1e-9, atol=0.0):
-            raise Rejected("sensor_mismatch", f"{what}: covariance differs from the scenario's R")
+        n = _check_covariance(msg, sensor, what)
         z = None
         if msg.detected:
             if len(msg.z) != n:
