@@ -1,6 +1,6 @@
 """The core library type-checks: mypy (pinned in constraints.txt) with the configuration of the
-root pyproject.toml ([tool.mypy]: src/activetrack/activetrack without experiments/), so
-`make test` runs the type checker."""
+root pyproject.toml ([tool.mypy]: the whole of src/activetrack/activetrack), so `make test`
+runs the type checker."""
 
 import subprocess
 import sys

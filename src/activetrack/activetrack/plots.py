@@ -54,8 +54,7 @@ def plot_run(summary: BatchSummary, out_dir: str | Path) -> list[Path]:
     rec = summary.records[0]
     files = []
 
-    fig = Figure(figsize=(6, 6))
-    FigureCanvasAgg(fig)
+    fig = new_figure(figsize=(6, 6))
     ax = fig.subplots()
     ax.plot(rec.truth[:, 0], rec.truth[:, 2], "k-", label="target (truth)")
     ax.plot(rec.estimate[:, 0], rec.estimate[:, 2], "r--", label="estimate")
@@ -71,8 +70,7 @@ def plot_run(summary: BatchSummary, out_dir: str | Path) -> list[Path]:
     fig.savefig(files[-1], dpi=110, bbox_inches="tight")
 
     k = np.arange(1, summary.steps + 1)
-    fig = Figure(figsize=(10, 4))
-    FigureCanvasAgg(fig)
+    fig = new_figure(figsize=(10, 4))
     axes = fig.subplots(1, 2, sharey=True)
     for ax, coord, rmse, bound in (
         (axes[0], "x", summary.rmse_x_t, summary.bound_x_t),

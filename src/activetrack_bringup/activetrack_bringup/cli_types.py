@@ -8,12 +8,12 @@ core's (:mod:`activetrack.argtypes`, :mod:`activetrack.limits`), shared with the
 from __future__ import annotations
 
 from activetrack.argtypes import float_in_range, int_in_range
-from activetrack.limits import MAX_RATE, MAX_RUNS, MAX_SEED, MAX_WALL_SECONDS
+from activetrack.limits import MAX_JOBS, MAX_RATE, MAX_RUNS, MAX_SEED, MAX_WALL_SECONDS
 
 __all__ = ["duration", "jobs", "rate", "run_index", "runs", "timeout"]
 
 runs = int_in_range(1, MAX_RUNS)  # --runs: Monte Carlo runs
-jobs = int_in_range(1, 256)  # --jobs: worker processes
+jobs = int_in_range(1, MAX_JOBS)  # --jobs: worker processes
 run_index = int_in_range(0, MAX_SEED)  # --run: Monte Carlo run index (seeding)
 timeout = float_in_range(0.0, MAX_WALL_SECONDS, lo_inclusive=False)  # --timeout: wall seconds
 duration = float_in_range(0.0, MAX_WALL_SECONDS, lo_inclusive=False)  # --duration: seconds
