@@ -5,8 +5,9 @@ Runs the default scenario's geometry for 2,000 epochs in free mode (sim time run
 size every 100 epochs and prints the least-squares slope after the warm-up (KiB per epoch),
 with the bag's growth per epoch over the same span (linear growth: a constant per epoch).
 The evaluator keeps per-epoch arrays, not messages, and the path markers republish only their
-newest chunk, so the RSS slope should be a few KiB per epoch at most (the per-epoch results
-themselves: a few hundred bytes).
+newest chunk; what grows is the writers' transient-local history, sized to the run so that a
+late joiner gets all of it (about the size of one epoch's messages per epoch: the PF track with
+its planner samples dominates).
 
     .venv/bin/python benchmarks/memory_soak.py [--epochs 2000] [--rate 250]
 """

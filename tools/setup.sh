@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up the workspace: .venv with the pinned ROS 2 Jazzy wheels and Python packages, msgs_defs
-# built with cmake and installed into the venv, the project's packages installed editable.
+# and tf2_msgs (no wheel on PyPI) built with cmake and installed into the venv, the project's
+# packages installed editable.
 # Idempotent: each step keeps a stamp (a hash of its inputs) and is skipped when nothing changed.
 # A failing step stops the script with its name and leaves no stamp, so the next run redoes it.
 set -euo pipefail
@@ -49,7 +50,7 @@ fi
 step python-packages "pinned wheels from requirements.txt / constraints.txt"
 h=$(hash_of "$ROOT/requirements.txt" "$ROOT/constraints.txt" "$ROOT/tools/fix_ros_wheel_paths.py")
 if ! stamp_ok python-packages "$h"; then
-    rm -f "$STAMPS/python-packages" "$STAMPS/msgs_defs"
+    rm -f "$STAMPS/python-packages" "$STAMPS/msgs_defs" "$STAMPS/tf2_msgs"
     # The ROS wheels' bootstrap re-execs python once; never inherit it from another venv.
     env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -m pip install -qq --disable-pip-version-check \
         -r "$ROOT/requirements.txt" -c "$ROOT/constraints.txt"
@@ -59,27 +60,34 @@ else
     echo "setup: [$STEP] unchanged, skipped"
 fi
 
-# --- 4. msgs_defs (rosidl, cmake) installed into the venv prefix ----------------------------
-step msgs_defs "building the msgs_defs interface package with cmake"
-h=$(hash_of "$STAMPS/python-packages" "$ROOT"/src/msgs_defs/CMakeLists.txt \
-    "$ROOT"/src/msgs_defs/package.xml "$ROOT"/src/msgs_defs/msg/*.msg)
-if ! stamp_ok msgs_defs "$h" || ! "$PY" -c 'import msgs_defs.msg' 2>/dev/null; then
-    rm -f "$STAMPS/msgs_defs"
-    rm -rf "$BUILD/msgs_defs"; mkdir -p "$BUILD"
+# --- 4./5. interface packages (rosidl, cmake) installed into the venv prefix -------------------
+# build_interfaces NAME SOURCE_DIR CHECK: rebuilt when its inputs changed or CHECK fails.
+build_interfaces() {
+    local name="$1" src="$2" check="$3"
+    step "$name" "building the $name interface package with cmake"
+    h=$(hash_of "$STAMPS/python-packages" "$src/CMakeLists.txt" "$src/package.xml" "$src"/msg/*.msg)
+    if stamp_ok "$name" "$h" && "$PY" -c "import $name.msg" 2>/dev/null; then
+        echo "setup: [$STEP] unchanged, skipped"
+        return
+    fi
+    rm -f "$STAMPS/$name"
+    rm -rf "${BUILD:?}/$name"; mkdir -p "$BUILD"
     env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE AMENT_PREFIX_PATH="$VENV" \
-        cmake -S "$ROOT/src/msgs_defs" -B "$BUILD/msgs_defs" -G Ninja \
+        cmake -S "$src" -B "$BUILD/$name" -G Ninja \
         -DCMAKE_PREFIX_PATH="$VENV" -DCMAKE_INSTALL_PREFIX="$VENV" \
-        -DPython3_EXECUTABLE="$PY" -DBUILD_TESTING=OFF > "$BUILD/msgs_defs.configure.log" 2>&1 \
-        || { tail -n 40 "$BUILD/msgs_defs.configure.log"; false; }
-    cmake --build "$BUILD/msgs_defs" --target install > "$BUILD/msgs_defs.build.log" 2>&1 \
-        || { tail -n 40 "$BUILD/msgs_defs.build.log"; false; }
-    env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c 'from msgs_defs.msg import BearingMeasurement'
-    stamp_write msgs_defs "$h"
-else
-    echo "setup: [$STEP] unchanged, skipped"
-fi
+        -DPython3_EXECUTABLE="$PY" -DBUILD_TESTING=OFF > "$BUILD/$name.configure.log" 2>&1 \
+        || { tail -n 40 "$BUILD/$name.configure.log"; false; }
+    cmake --build "$BUILD/$name" --target install > "$BUILD/$name.build.log" 2>&1 \
+        || { tail -n 40 "$BUILD/$name.build.log"; false; }
+    env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c "$check"
+    stamp_write "$name" "$h"
+}
+build_interfaces msgs_defs "$ROOT/src/msgs_defs" 'from msgs_defs.msg import BearingMeasurement'
+# tf2_msgs has no ros-jazzy-tf2-msgs wheel on PyPI: TFMessage and TF2Error, wire-identical to
+# ROS 2 Jazzy's (for /tf), built like msgs_defs from interfaces/tf2_msgs.
+build_interfaces tf2_msgs "$ROOT/interfaces/tf2_msgs" 'from tf2_msgs.msg import TFMessage, TF2Error'
 
-# --- 5. the project's Python packages, editable ---------------------------------------------
+# --- 6. the project's Python packages, editable ---------------------------------------------
 step editable-packages "installing the project's packages in editable mode"
 PKGS=(activetrack activetrack_experiments activetrack_ros sim_node tracker_node planner_node activetrack_bringup)
 meta=()
@@ -102,6 +110,6 @@ fi
 
 STEP="check"
 # Also fills the bag-schema cache (.venv/share/activetrack), so the first recording is fast.
-env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c 'import rclpy, activetrack, msgs_defs.msg
+env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c 'import rclpy, activetrack, msgs_defs.msg, tf2_msgs.msg
 from activetrack_bringup.bag import graph_schemas; graph_schemas(write_cache=True)'
 echo "setup: done ($VENV)"

@@ -10,7 +10,10 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
     ],
-    install_requires=["setuptools"],
+    # The Python distributions the modules import (tests/setup/test_package_deps.py); the ROS
+    # packages are in package.xml (rosdep); versions in the workspace's constraints.txt.
+    install_requires=["activetrack", "numpy"],
+    extras_require={"test": ["pytest", "hypothesis"]},
     zip_safe=True,
     maintainer="activetrack developers",
     maintainer_email="dev@activetrack.invalid",

@@ -9,8 +9,9 @@ import signal
 import subprocess
 import sys
 import time
-from collections import Counter
+from collections import Counter, defaultdict
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -19,16 +20,17 @@ from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 
+from activetrack.scenarios import load_scenario
 from activetrack_bringup import bag as bagmod
 from activetrack_bringup import mcap_writer
 from activetrack_bringup import retrack as retrack_mod
-from activetrack_bringup.bag import BagPlayer, bag_info, graph_schemas
+from activetrack_bringup.bag import BagPlayer, BagRecorder, bag_info, graph_schemas
 from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, open_bag
 from activetrack_bringup.cli import main as cli_main
 from activetrack_bringup.inprocess import InProcessGraph
@@ -36,8 +38,10 @@ from activetrack_bringup.mcap_writer import CHUNK_SIZE
 from activetrack_bringup.retrack import RetrackError, read_topic, retrack
 from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
-from activetrack_ros.graph import GRAPH_TOPICS
-from msgs_defs.msg import BearingMeasurement, TrackEstimate
+from activetrack_ros.convert import header
+from activetrack_ros.graph import GRAPH_TOPICS, graph_topic_of
+from activetrack_ros.trust import GraphKey
+from msgs_defs.msg import BearingMeasurement, PlatformState, TrackEstimate
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
 pytestmark = pytest.mark.ros
@@ -67,6 +71,10 @@ def cli(capsys, *argv):
 # --- what the recorder writes -----------------------------------------------------------
 
 
+def _ns(stamp) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
 def test_independent_mcap_reader_decodes_the_bag(run_bag):
     """mcap + mcap_ros2 (not rosbags, not this package) read and decode every message, with
     chunk and data-section CRCs checked; schemas, hashes and QoS are as rosbag2 writes them."""
@@ -74,6 +82,7 @@ def test_independent_mcap_reader_decodes_the_bag(run_bag):
     schemas = graph_schemas()
     rclpy_tracks = {m.epoch: m for m in read_topic(run_bag, topics.TRACK, TrackEstimate)}
     counts = Counter()
+    log_times, stamps = defaultdict(list), []
     with open(mcap_file, "rb") as f:
         reader = make_reader(f, validate_crcs=True, decoder_factories=[DecoderFactory()])
         assert reader.get_header().profile == "ros2"
@@ -81,17 +90,25 @@ def test_independent_mcap_reader_decodes_the_bag(run_bag):
         for channel in summary.channels.values():
             schema = summary.schemas[channel.schema_id]
             assert channel.message_encoding == "cdr" and schema.encoding == "ros2msg"
-            msgdef, rihs01 = schemas[GRAPH_TOPICS[channel.topic]]
-            assert schema.name == GRAPH_TOPICS[channel.topic]
+            assert channel.topic.startswith("/")  # resolved names, as rosbag2 stores them
+            topic = graph_topic_of(channel.topic)
+            msgdef, rihs01 = schemas[GRAPH_TOPICS[topic]]
+            assert schema.name == GRAPH_TOPICS[topic]
             assert schema.data.decode() == msgdef
             assert channel.metadata["topic_type_hash"] == rihs01
             qos = yaml.safe_load(channel.metadata["offered_qos_profiles"])
-            latched = channel.topic in topics.LATCHED_TOPICS
+            latched = topic in topics.LATCHED_TOPICS or topic == topics.TF_STATIC
             assert qos[0]["durability"] == ("transient_local" if latched else "volatile")
             assert qos[0]["reliability"] == "reliable"
-        for _, channel, _, decoded in reader.iter_decoded_messages():
+            if topic in topics.LATCHED_TOPICS:  # the whole run for late joiners
+                assert qos[0]["history"] == "keep_last"
+                assert qos[0]["depth"] == topics.history_depth(load_scenario(SCENARIO))
+        for _, channel, message, decoded in reader.iter_decoded_messages():
             counts[channel.topic] += 1
-            if channel.topic == topics.TRACK:
+            log_times[graph_topic_of(channel.topic)].append(message.log_time)
+            if hasattr(decoded, "header"):
+                stamps.append((message.log_time, _ns(decoded.header.stamp)))
+            if graph_topic_of(channel.topic) == topics.TRACK:
                 ref = rclpy_tracks[decoded.epoch]
                 np.testing.assert_array_equal(decoded.state, ref.state)
                 np.testing.assert_array_equal(decoded.covariance, ref.covariance)
@@ -100,6 +117,15 @@ def test_independent_mcap_reader_decodes_the_bag(run_bag):
     info = bag_info(run_bag)
     assert info["intact"] and not info["damage"]
     assert dict(counts) == {t: v["count"] for t, v in info["topics"].items() if v["count"]}
+    # Log time is sim time (the graph's clock): the timeline spans the scenario, each
+    # message is logged within an epoch of its stamp, and the clock's own log times are its
+    # values.
+    sc = load_scenario(SCENARIO)
+    dt_ns = round(sc.dt * 1e9)
+    assert info["duration_s"] == pytest.approx(sc.steps * sc.dt, abs=sc.dt)
+    assert max(log_times[topics.CLOCK]) == sc.steps * dt_ns
+    assert len(stamps) > 100
+    assert all(abs(log - stamp) <= dt_ns for log, stamp in stamps)
     # Every chunk has its CRC; the first one holds the definitions only; chunks stay small.
     biggest = max(len(m) for m in (rclpy_tracks[0].particle_samples,)) * 8 + 2000
     with open(mcap_file, "rb") as f:
@@ -121,7 +147,7 @@ def test_metadata_yaml_is_rosbag2_version_9(run_bag):
     assert meta["custom_data"] == {"activetrack_state": "closed"}
     schemas = graph_schemas()
     listed = {t["topic_metadata"]["name"]: t for t in meta["topics_with_message_count"]}
-    assert set(listed) == set(GRAPH_TOPICS)
+    assert set(listed) == {"/" + t for t in GRAPH_TOPICS}
     info = bag_info(run_bag)
     for name, entry in listed.items():
         assert entry["message_count"] == info["topics"][name]["count"]
@@ -146,6 +172,7 @@ from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_ros import graph as topics
 from msgs_defs.msg import BearingMeasurement
 from rosgraph_msgs.msg import Clock
+from builtin_interfaces.msg import Time
 
 kept = (topics.BEARING_MEASUREMENTS, topics.CLOCK)
 quiet = {"start_parameter_services": False}
@@ -159,8 +186,9 @@ with InProcessGraph() as g:
     k = 0
     while True:
         k += 1
+        now = time.time_ns()  # the clock is wall time here: log times measure the loss
+        clock.publish(Clock(clock=Time(sec=now // 10**9, nanosec=now % 10**9)))
         pub.publish(BearingMeasurement(epoch=k, sensor_id="s1", bearing=1e-3 * k))
-        clock.publish(Clock())
         g.spin_until(lambda: rec.count >= 2 * k, timeout=1.0, step=0.001)
         time.sleep(0.003)
 """
@@ -199,13 +227,13 @@ def test_kill_9_mid_recording_loses_at_most_the_last_chunk(tmp_path, capsys):
     assert rc == 2 and "no summary: the writer did not finish" in err  # read directly
     assert f"bag {bag}:" in out and topics.BEARING_MEASUREMENTS in out
     info = json.loads((tmp_path / "info.json").read_text())
-    n = info["topics"][topics.BEARING_MEASUREMENTS]["count"]
+    n = info["topics"]["/" + topics.BEARING_MEASUREMENTS]["count"]
     assert n >= 100 and info["messages"] >= listed > 0
     with open_bag(bag) as b:
         assert not b.lost  # incomplete, nothing lost before the cut
         epochs = [
             deserialize_message(d, BearingMeasurement).epoch
-            for _, _, d in b.messages([topics.BEARING_MEASUREMENTS])
+            for _, _, d in b.messages(["/" + topics.BEARING_MEASUREMENTS])
         ]
         end_ns = b.end_time
     assert epochs == list(range(1, n + 1))  # a gapless prefix of what was published
@@ -230,7 +258,7 @@ def test_kill_9_mid_recording_loses_at_most_the_last_chunk(tmp_path, capsys):
         got = [
             reader.deserialize(d, c.msgtype).epoch
             for c, _, d in reader.messages()
-            if c.topic == topics.BEARING_MEASUREMENTS
+            if c.topic == "/" + topics.BEARING_MEASUREMENTS
         ]
     assert got == epochs
     # rosbags reads the killed run's own metadata.yaml (next to the recovered file).
@@ -240,7 +268,10 @@ def test_kill_9_mid_recording_loses_at_most_the_last_chunk(tmp_path, capsys):
     shutil.copy(bag / "killed.mcap", twin / "killed.mcap")
     with Reader(twin) as reader:
         assert reader.message_count == listed
-        assert {c.topic for c in reader.connections} == {topics.BEARING_MEASUREMENTS, topics.CLOCK}
+        assert {c.topic for c in reader.connections} == {
+            "/" + topics.BEARING_MEASUREMENTS,
+            "/" + topics.CLOCK,
+        }
 
 
 def test_recorder_metadata_tracks_the_disk_while_recording(tmp_path):
@@ -382,8 +413,8 @@ def _bag_of(tmp_path, name, messages: dict[str, list]) -> Path:
 
 def test_retrack_says_when_there_is_nothing_to_retrack(run_bag, tmp_path, capsys):
     with open_bag(run_bag) as b:
-        clock = [d for _, _, d in b.messages([topics.CLOCK])]
-        tracks = [d for _, _, d in b.messages([topics.TRACK])]
+        clock = [d for _, _, d in b.messages(["/" + topics.CLOCK])]
+        tracks = [d for _, _, d in b.messages(["/" + topics.TRACK])]
     no_meas = _bag_of(tmp_path, "no_meas", {topics.CLOCK: clock, topics.TRACK: tracks})
     rc, _, err = cli(capsys, "bag", "retrack", no_meas, "--scenario", SCENARIO)
     assert rc == 2 and "holds no measurements" in err
@@ -444,3 +475,62 @@ def test_a_full_disk_stops_the_recording_not_the_graph(tmp_path, monkeypatch, ca
     assert rec.count == 10
     rc, out, _ = cli(capsys, "bag", "recover", bag)
     assert rc == 0 and "kept 5 messages" in out
+
+
+def test_play_follows_the_recorded_sim_time(run_bag, monkeypatch):
+    """`play --rate R`: a message logged at sim time t goes out R times faster than t, i.e. at
+    wall time t / R after the first; the whole run takes its simulated duration / R."""
+    now = [1000.0]
+    monkeypatch.setattr(bagmod, "time", SimpleNamespace(monotonic=lambda: now[0]))
+    with open_bag(run_bag) as b:
+        log_times = sorted(t for _, t, _ in b.messages(list(b.usable_topics)))
+    sc = load_scenario(SCENARIO)
+    rate = 4.0
+    with InProcessGraph() as g:
+        player = g.add(BagPlayer(run_bag, rate=rate, context=g.context))
+        t0 = log_times[0]
+        player.play_step(max_burst=10**6)  # the first message starts the clock
+        assert player.published == log_times.count(t0) > 0
+        for k in range(1, sc.steps + 1):
+            due = (k * sc.dt * 1e9 - t0) * 1e-9 / rate
+            now[0] = 1000.0 + due - 1e-6
+            player.play_step(max_burst=10**6)
+            assert player.published == sum(t < k * sc.dt * 1e9 for t in log_times), k
+            now[0] = 1000.0 + due
+            player.play_step(max_burst=10**6)
+            assert player.published == sum(t <= k * sc.dt * 1e9 for t in log_times), k
+        player.play_step()
+        assert player.done and player.published == len(log_times)
+
+
+def test_a_foreign_clock_cannot_stretch_or_reorder_a_keyed_recording(tmp_path):
+    """`/clock` cannot be signed (a standard type): with the graph's key the recorder takes a
+    clock value as log time only within clock_lead after the newest stamp of the graph's own
+    messages, and never backwards; the others are recorded but counted, not used."""
+    key = GraphKey(bytes(range(32)))
+
+    def clock(seconds: float) -> bytes:
+        return serialize_message(Clock(clock=header(seconds).stamp))
+
+    def state(seconds: float, epoch: int) -> bytes:
+        return key.sign(serialize_message(PlatformState(header=header(seconds), epoch=epoch)))
+
+    kept = {t: GRAPH_TOPICS[t] for t in (topics.CLOCK, topics.PLATFORM_STATES)}
+    with InProcessGraph() as g:
+        rec = g.add(
+            BagRecorder(tmp_path / "b", kept, graph_key=key, clock_lead=10.0, context=g.context)
+        )
+        on_state = rec._verifier(key, topics.PLATFORM_STATES)
+        rec._on_clock(clock(0.0))
+        on_state(state(0.0, 0))
+        rec._on_clock(clock(5.0))  # the graph's next epoch: within the lead
+        rec._on_clock(clock(1e6))  # a foreign writer's far future: refused
+        on_state(state(5.0, 1))
+        rec._on_clock(clock(2.0))  # backwards: refused
+        on_state(state(5.0, 1))
+        rec.close()
+    assert rec.clock_refused == 2
+    with open_bag(tmp_path / "b") as b:
+        logged = [(graph_topic_of(n), t) for n, t, _ in b.messages(list(b.topics))]
+    assert [t for n, t in logged if n == topics.PLATFORM_STATES] == [0, 5 * 10**9, 5 * 10**9]
+    assert max(t for _, t in logged) == 5 * 10**9

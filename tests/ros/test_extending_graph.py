@@ -111,7 +111,7 @@ def test_the_graph_runs_a_plugin_sensor_as_the_batch_does(plugin_folder, filter_
         bad = [k for k in counts if k.startswith(("rejected.", "errors.", "foreign."))]
         assert not bad, (node, bad)
     # The bag holds them (schema embedded); detections as in the batch run, z = (range,).
-    assert bag_info(result.bag)["topics"][topics.MEASUREMENTS]["count"] == 2 * STEPS
+    assert bag_info(result.bag)["topics"]["/" + topics.MEASUREMENTS]["count"] == 2 * STEPS
     recorded = read_topic(result.bag, topics.MEASUREMENTS, Measurement)
     assert {(m.sensor_id, m.sensor_kind) for m in recorded} == {("r1", "range"), ("r2", "range")}
     assert all(len(m.z) == int(m.detected) and list(m.covariance) == [4.0] for m in recorded)

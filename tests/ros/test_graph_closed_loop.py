@@ -88,11 +88,11 @@ def test_run_folder_holds_summary_bag_and_plots(graph_run):
 def test_bag_info_counts(graph_run):
     info = bag_info(graph_run.bag)
     t = info["topics"]
-    assert t[topics.TRACK]["count"] == 9  # epochs 0..8
-    assert t[topics.BEARING_MEASUREMENTS]["count"] == 2 * 8
-    assert t[topics.MANOEUVRE_COMMANDS]["count"] == 2 * 8
-    assert t[topics.PLAN_REPORT]["count"] == 8
-    assert t[topics.TRACK]["type"] == "msgs_defs/msg/TrackEstimate"
+    assert t["/" + topics.TRACK]["count"] == 9  # epochs 0..8
+    assert t["/" + topics.BEARING_MEASUREMENTS]["count"] == 2 * 8
+    assert t["/" + topics.MANOEUVRE_COMMANDS]["count"] == 2 * 8
+    assert t["/" + topics.PLAN_REPORT]["count"] == 8
+    assert t["/" + topics.TRACK]["type"] == "msgs_defs/msg/TrackEstimate"
 
 
 def test_plain_rosbags_reads_every_custom_type(graph_run):
@@ -110,7 +110,7 @@ def test_plain_rosbags_reads_every_custom_type(graph_run):
         for conn, _, data in reader.messages():
             msg = store.deserialize_cdr(bytes(data), conn.msgtype)
             seen.add(conn.msgtype)
-            if conn.topic == topics.TRACK:
+            if conn.topic == "/" + topics.TRACK:
                 ref = rclpy_tracks[msg.epoch]
                 np.testing.assert_array_equal(msg.state, ref.state)
                 np.testing.assert_array_equal(msg.particle_samples, ref.particle_samples)
@@ -121,6 +121,7 @@ def test_plain_rosbags_reads_every_custom_type(graph_run):
         "msgs_defs/msg/ManoeuvreCommand",
         "msgs_defs/msg/PlanReport",
         "msgs_defs/msg/PlatformState",
+        "msgs_defs/msg/RunMetrics",
         "msgs_defs/msg/TrackEstimate",
     }
 
@@ -133,7 +134,7 @@ def test_bag_is_self_describing(graph_run):
         for conn, _, data in reader.messages():
             msg = reader.deserialize(data, conn.msgtype)
             counts[conn.msgtype] = counts.get(conn.msgtype, 0) + 1
-            if conn.topic == topics.TRACK:
+            if conn.topic == "/" + topics.TRACK:
                 np.testing.assert_array_equal(msg.covariance, rclpy_tracks[msg.epoch].covariance)
     assert counts["msgs_defs/msg/TrackEstimate"] == len(rclpy_tracks)
     assert len(counts) >= 10

@@ -4,20 +4,28 @@ Every task carries its own seed (run r of a batch draws from ``SeedSequence([see
 a result never depends on which process ran a task or how many there were: ``jobs=1`` and
 ``jobs=N`` give bit-identical results, in task order. ``run_batch`` and every reproduction of
 the experiments package go through :func:`parallel_map`.
+
+Progress: the library never prints. ``parallel_map(..., progress=f)`` calls ``f(done)`` in the
+calling process as tasks finish (1, 2, ..., N, in task order); :class:`TaskProgress` adds up
+several maps (and steps of other work) for one ``(done, total)`` callback. The command line
+draws its progress bars from these callbacks; the results never depend on them.
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import TypeVar
 
-__all__ = ["available_jobs", "check_jobs", "parallel_map"]
+__all__ = ["Progress", "TaskProgress", "available_jobs", "check_jobs", "parallel_map"]
 
 T = TypeVar("T")
 R = TypeVar("R")
+
+# Called with the number of tasks done so far (1, 2, ..., N).
+Progress = Callable[[int], None]
 
 
 def available_jobs() -> int:
@@ -32,21 +40,65 @@ def check_jobs(jobs: int) -> int:
     return jobs
 
 
-def parallel_map(fn: Callable[[T], R], tasks: Iterable[T], jobs: int = 1) -> list[R]:
+def parallel_map(
+    fn: Callable[[T], R], tasks: Iterable[T], jobs: int = 1, progress: Progress | None = None
+) -> list[R]:
     """``[fn(t) for t in tasks]``, on up to ``jobs`` worker processes, in task order.
 
     ``fn`` and the tasks must be picklable (a module-level function and plain data). Workers
     are forked, so they see what the parent registered (sensor kinds, criteria) before the
     call. With ``jobs=1`` or a single task everything runs in this process. An exception in a
-    task is raised here, with its traceback.
+    task is raised here, with its traceback. ``progress(done)``, if given, is called in this
+    process once per task as the results come in (done = 1, ..., len(tasks)); it is never
+    pickled and does not change the results.
     """
     check_jobs(jobs)
     items: Sequence[T] = list(tasks)
     workers = min(jobs, len(items))
     if workers <= 1:
-        return [fn(t) for t in items]
+        return _collect((fn(t) for t in items), progress)
     # Larger chunks cost less IPC; four chunks per worker still balance uneven tasks.
     chunksize = max(1, len(items) // (4 * workers))
     context = multiprocessing.get_context("fork")
     with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        return list(pool.map(fn, items, chunksize=chunksize))
+        return _collect(pool.map(fn, items, chunksize=chunksize), progress)
+
+
+def _collect(results: Iterator[R], progress: Progress | None) -> list[R]:
+    out: list[R] = []
+    for result in results:
+        out.append(result)
+        if progress is not None:
+            progress(len(out))
+    return out
+
+
+class TaskProgress:
+    """One ``report(done, total)`` callback over work done in parts: several
+    :func:`parallel_map` calls (:meth:`of_map`) and single steps (:meth:`advance`).
+
+    ``total`` is the count of all parts' tasks, known up front; ``report`` None: nothing is
+    reported (the methods stay usable, so callers need no branches).
+    """
+
+    def __init__(self, total: int, report: Callable[[int, int], None] | None) -> None:
+        self.total = total
+        self.done = 0
+        self._report = report
+
+    def advance(self, tasks: int = 1) -> None:
+        """``tasks`` more tasks are done."""
+        self.done += tasks
+        if self._report is not None:
+            self._report(self.done, self.total)
+
+    def of_map(self) -> Progress | None:
+        """The ``progress`` argument of one :func:`parallel_map` call that is part of the work."""
+        if self._report is None:
+            return None
+        start = self.done
+
+        def report(done: int) -> None:
+            self.advance(start + done - self.done)
+
+        return report

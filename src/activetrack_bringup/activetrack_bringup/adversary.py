@@ -51,7 +51,7 @@ READERS = {
     "Measurement": ("tracker", "evaluator"),
     "PlatformState": ("tracker", "planner", "evaluator"),
     "TrackEstimate": ("sim", "planner", "evaluator"),
-    "ManoeuvreCommand": ("sim",),
+    "ManoeuvreCommand": ("sim", "evaluator"),  # the evaluator draws the planned legs
     "SensorSelection": ("sim",),
     "PlanReport": ("evaluator",),
     "GroundTruth": ("evaluator",),

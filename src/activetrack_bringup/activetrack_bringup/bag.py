@@ -24,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import json
+import struct
 import sys
 import threading
 import time
@@ -31,6 +32,7 @@ from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy
 from rosbags.interfaces import (
     Qos,
     QosDurability,
@@ -41,10 +43,11 @@ from rosbags.interfaces import (
 )
 from rosbags.rosbag2.metadata import dump_qos_v9
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosgraph_msgs.msg import Clock
 
 from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, check_rate, open_bag
 from activetrack_ros import graph as topics
-from activetrack_ros.graph import GRAPH_TOPICS, LATCHED_TOPICS, reader_qos, writer_qos
+from activetrack_ros.graph import GRAPH_TOPICS, reader_qos, writer_qos
 from activetrack_ros.trust import is_signed_type
 
 
@@ -127,14 +130,15 @@ def installed_type_hash(msgtype: str) -> str | None:
         return None
 
 
-def _bag_qos(topic: str) -> list[dict]:
+def _bag_qos(topic: str, depth: int | None = None) -> list[dict]:
     """Offered QoS written to the bag, so that a real `ros2 bag play` matches ours."""
-    latched = topic in LATCHED_TOPICS
+    qos = writer_qos(topic, depth)
+    latched = qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
     return dump_qos_v9(
         [
             Qos(
                 history=QosHistory.KEEP_LAST,
-                depth=topics.LATCHED_DEPTH if latched else topics.STREAM_DEPTH,
+                depth=qos.depth,
                 reliability=QosReliability.RELIABLE,
                 durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
                 deadline=QosTime(0, 0),
@@ -147,13 +151,31 @@ def _bag_qos(topic: str) -> list[dict]:
     )
 
 
+def _stamp_ns(data: bytes) -> int:
+    """The first field's time (a Header's stamp, a Clock's clock) of a CDR message, in ns:
+    int32 sec and uint32 nanosec after the 4-byte encapsulation header."""
+    order = "<" if data[1] & 1 else ">"
+    sec, nanosec = struct.unpack_from(order + "iI", data, 4)
+    return sec * 1_000_000_000 + nanosec
+
+
 class BagRecorder(Node):
     """Subscribes to topics (raw CDR) and writes them to a rosbag2 directory (MCAP) that stays
     readable while it grows; ``close()`` finishes it (summary, final metadata.yaml).
 
+    Log time is simulated time, the latest ``clock`` the recorder received (what
+    ``ros2 bag record --use-sim-time`` does; 0 before the first), so a bag's timeline spans the
+    scenario's simulated duration and replays at sim speed. Topics are stored under their
+    resolved names (``/<namespace>/activetrack/track``).
+
     With ``graph_key`` (activetrack_ros.trust), messages of the signed (msgs_defs) types whose
     trailer does not verify come from outside the graph: they are dropped and counted in
-    ``foreign``, not recorded.
+    ``foreign``, not recorded. ``clock`` cannot be signed (a standard type): with a key, a
+    clock value is taken as the time only while it stays within ``clock_lead`` seconds after
+    the newest stamp of the graph's own signed messages and never goes back, so another
+    writer's clock can shift log times by less than an epoch, never reorder or stretch the
+    run (``clock_refused`` counts the values not taken). ``depth``: the history depth written
+    as the per-epoch topics' offered QoS (the run's, graph.history_depth).
     """
 
     TICK_S = 0.25  # timer period: closes chunks older than 0.5 s, rewrites metadata.yaml (1 s)
@@ -164,34 +186,67 @@ class BagRecorder(Node):
         topic_types: dict[str, str] | None = None,
         *,
         graph_key=None,
+        depth: int | None = None,
+        clock_lead: float = 3600.0,
         **kwargs,
     ):
+        super().__init__("activetrack_recorder", **kwargs)
         self.path = Path(path)
         self.topic_types = dict(topic_types or GRAPH_TOPICS)
         schemas = graph_schemas(self.topic_types.values())
+        names = {t: self.resolve_topic_name(t) for t in self.topic_types}
         specs = [
-            TopicSpec(topic, msgtype, *schemas[msgtype], qos=_bag_qos(topic))
+            TopicSpec(names[topic], msgtype, *schemas[msgtype], qos=_bag_qos(topic, depth))
             for topic, msgtype in self.topic_types.items()
         ]
-        self.writer = Rosbag2Writer(self.path, specs)  # BagError if the path exists
-        super().__init__("activetrack_recorder", **kwargs)
+        try:
+            self.writer = Rosbag2Writer(self.path, specs)  # BagError if the path exists
+        except BaseException:
+            super().destroy_node()
+            raise
         self.count = 0
         self.foreign = 0
+        self.clock_refused = 0
         self.failed: str | None = None
         self._lock = threading.Lock()
-        self._channel = dict(self.writer.channel_ids)
+        self._channel = {t: self.writer.channel_ids[names[t]] for t in self.topic_types}
+        self._key = graph_key
+        self._now_ns = 0  # log time: the graph's sim time
+        self._signed_ns = 0  # newest stamp of a verified graph message (with a key)
+        self._lead_ns = int(clock_lead * 1e9)
         for topic, msgtype in self.topic_types.items():
             cls = message_class(msgtype)
             if graph_key is not None and is_signed_type(cls):
                 callback = self._verifier(graph_key, topic)
+            elif topic == topics.CLOCK:
+                callback = self._on_clock
             else:
                 callback = lambda data, t=topic: self._write(t, data)  # noqa: E731
             self.create_subscription(cls, topic, callback, reader_qos(topic), raw=True)
+        if topics.CLOCK not in self.topic_types:  # the time source, recorded or not
+            self.create_subscription(
+                Clock, topics.CLOCK, self._on_clock, reader_qos(topics.CLOCK), raw=True
+            )
         self.create_timer(self.TICK_S, self._tick)
+
+    def _on_clock(self, data: bytes) -> None:
+        try:
+            t = _stamp_ns(data)
+        except (struct.error, IndexError):
+            t = None
+        if t is not None and self._key is None:
+            self._now_ns = max(t, 0)
+        elif t is not None and self._now_ns <= t <= self._signed_ns + self._lead_ns:
+            self._now_ns = t
+        else:
+            self.clock_refused += 1
+        if topics.CLOCK in self._channel:
+            self._write(topics.CLOCK, data)
 
     def _verifier(self, key, topic: str):
         def on_raw(data: bytes) -> None:
             if key.verify(data):
+                self._signed_ns = max(self._signed_ns, _stamp_ns(data))
                 self._write(topic, data)
             else:
                 self.foreign += 1
@@ -203,7 +258,7 @@ class BagRecorder(Node):
             if self.writer is None or self.failed:
                 return
             try:
-                self.writer.write(self._channel[topic], time.time_ns(), data)
+                self.writer.write(self._channel[topic], self._now_ns, data)
             except OSError as exc:  # a full disk must not stop the graph: stop recording
                 self._fail(exc)
                 return
@@ -287,7 +342,7 @@ class BagPlayer(Node):
                     f"{lost[0]} ({len(lost)} problem(s) with lost data: `--skip-damaged` plays "
                     f"the rest, `activetrack bag recover {path}` rewrites the bag)"
                 )
-            wanted = list(topics_filter) if topics_filter else None
+            wanted = [_bag_name(bag, t) for t in topics_filter] if topics_filter else None
             missing = sorted(set(wanted or ()) - set(bag.topics))
             if missing:
                 raise BagError(f"topics not in the bag: {missing}")
@@ -310,16 +365,21 @@ class BagPlayer(Node):
         super().__init__("activetrack_player", **kwargs)
         self.rate = rate
         self.bag = bag
-        self.pubs = {
-            name: self.create_publisher(cls, name, writer_qos(name))
-            for name, cls in classes.items()
-        }
+        self.pubs = {name: self._publisher(name, cls) for name, cls in classes.items()}
         self.messages = bag.messages(list(classes))
         self.published = 0
         self.done = False
         self._next = None
         self._t0_bag = None
         self._t0_wall = None
+
+    def _publisher(self, name: str, cls):
+        """Publish on the recorded (resolved) name with the graph's QoS for that topic; a
+        per-epoch topic keeps every message of the bag for late joiners."""
+        topic = topics.graph_topic_of(name)
+        if topic is None:
+            return self.create_publisher(cls, name, topics.STREAM_DEPTH)
+        return self.create_publisher(cls, name, writer_qos(topic, self.bag.topics[name].count))
 
     def play_step(self, max_burst: int = 64) -> None:
         """Publish the messages whose (scaled) time has come, at most ``max_burst`` per call so
@@ -349,6 +409,18 @@ class BagPlayer(Node):
         self.messages.close()
         self.bag.close()
         return super().destroy_node()
+
+
+def _bag_name(bag, name: str) -> str:
+    """A topic as the bag names it: ``name`` itself, or the graph topic ``name`` stands for
+    (``activetrack/track``) under the namespace it was recorded in."""
+    if name in bag.topics:
+        return name
+    topic = topics.graph_topic_of(name)
+    try:
+        return (topic and topics.find_topic(bag.topics, topic)) or name
+    except ValueError as exc:
+        raise BagError(f"--topics {name}: {exc}: name it with its namespace") from None
 
 
 def _type_problem(topic) -> str | None:

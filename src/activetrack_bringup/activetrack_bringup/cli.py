@@ -1,7 +1,9 @@
 """The ``activetrack`` command line.
 
 activetrack run SCENARIO [--processes] [--mode lockstep|free] [--json PATH]
+                [--foxglove [--port P] [--host H]]
                                         the ROS node graph, closed loop, with a run folder
+                                        (and a live view in Foxglove)
 activetrack batch SCENARIO [--runs N] [--json PATH]
                                         the same closed loop without ROS (the reference)
 activetrack record BAG [--topics T ...] [--duration S]
@@ -27,6 +29,7 @@ from pathlib import Path
 from activetrack_bringup import cli_types
 
 EXPERIMENTS = ("hernandez", "ramdaras", "valverde", "vanderhook")
+LAYOUT = "docs/foxglove-layout.json"  # the Foxglove layout of a live run and of a bag
 
 
 def _print_summary(s, wall_time_s: float | None = None) -> None:
@@ -47,8 +50,15 @@ def _write_json(path: str, data: dict) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from activetrack.scenarios import ScenarioError
+    from activetrack_bringup.progress import Bar, epoch_hook
     from activetrack_bringup.runner import GraphSetupError, RunIncomplete, run_graph
 
+    try:
+        live, view = _start_live_view(args)  # before the run: a port in use fails at once
+    except ValueError as exc:  # LiveViewError, a bad namespace
+        return _error(exc)
+    bar = Bar("run", unit="epoch")  # drawn on a terminal only
+    hook = {"during_spin": epoch_hook(bar)} if bar.shown else {}
     try:
         result = run_graph(
             args.scenario,
@@ -59,6 +69,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
             record=not args.no_bag,
             plots=not args.no_plots,
             timeout=args.timeout,
+            **hook,
+            **view,
+            namespace=args.namespace,
         )
         code = 0
     except (ScenarioError, FileExistsError, GraphSetupError) as exc:
@@ -67,6 +80,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except RunIncomplete as exc:
         print(f"error: {exc}", file=sys.stderr)
         result, code = exc.result, exc.exit_code
+    finally:
+        bar.close()
+        if live is not None:
+            live.stop()
     mode = "processes" if args.processes else "one process"
     if result.summary is not None:
         _print_summary(result.summary)
@@ -98,16 +115,71 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return code
 
 
+def _start_live_view(args: argparse.Namespace):
+    """``--foxglove``: the live view's server, listening already, and the run_graph options
+    that add its node to the graph (docs/live-view.md); (None, {}) without it."""
+    if not args.foxglove:
+        if args.port is not None or args.host is not None or args.foxglove_wait:
+            raise ValueError("--port, --host and --foxglove-wait need --foxglove")
+        return None, {}
+    from activetrack_bringup import live_view
+    from activetrack_bringup.runner import check_namespace
+    from activetrack_ros.trust import GraphKey
+
+    namespace = check_namespace(args.namespace)
+    host = live_view.DEFAULT_HOST if args.host is None else args.host
+    port = live_view.DEFAULT_PORT if args.port is None else args.port
+    server = live_view.LiveServer(host, port, namespace=namespace)
+    try:
+        print(f"  live view  {server.url}  (Foxglove: Open connection, layout {LAYOUT})")
+        if not live_view.is_loopback(host):
+            _warn([f"the live view is served beyond this machine ({host}): anyone who can "
+                   "reach the port can watch the run"])  # fmt: skip
+        if args.foxglove_wait:
+            print(f"  waiting up to {args.foxglove_wait:g} s for a Foxglove client", flush=True)
+            server.wait_for_subscriber(args.foxglove_wait)
+    except BaseException:  # Ctrl-C while waiting
+        server.stop()
+        raise
+    key = GraphKey.generate()  # the run's key: the view shows the graph's own messages only
+    return server, {"graph_key": key, "before_spin": live_view.attach(server, key, namespace)}
+
+
+def _add_live_view_args(run) -> None:
+    """``activetrack run ... --foxglove [--port P] [--host H] [--foxglove-wait S]``."""
+    from activetrack.argtypes import float_in_range, int_in_range
+    from activetrack.limits import MAX_WALL_SECONDS
+
+    run.add_argument(
+        "--foxglove",
+        action="store_true",
+        help=f"serve the run live to Foxglove on a WebSocket (layout: {LAYOUT})",
+    )
+    run.add_argument(
+        "--port", type=int_in_range(0, 65535), help="live view port (default 8765; 0: any free)"
+    )
+    run.add_argument("--host", help="live view address (default 127.0.0.1: this machine only)")
+    run.add_argument(
+        "--foxglove-wait",
+        type=float_in_range(0.0, MAX_WALL_SECONDS),
+        default=0.0,
+        metavar="S",
+        help="wait up to S seconds for a Foxglove client to subscribe before the run starts",
+    )
+
+
 def _cmd_batch(args: argparse.Namespace) -> int:
     from activetrack.closed_loop.batch import run_batch
     from activetrack.scenarios import ScenarioError, load_scenario
+    from activetrack_bringup.progress import Bar
 
     try:
         scenario = load_scenario(args.scenario)
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    s = run_batch(scenario, runs=args.runs, jobs=args.jobs)
+    with Bar("batch", total=args.runs) as bar:  # drawn on a terminal only
+        s = run_batch(scenario, runs=args.runs, jobs=args.jobs, progress=bar if bar.shown else None)
     _print_summary(s)
     print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
     if args.json:
@@ -132,19 +204,26 @@ def _cmd_record(args: argparse.Namespace) -> int:
     from activetrack_bringup.bag import BagRecorder
     from activetrack_bringup.bag_io import BagError
     from activetrack_bringup.inprocess import InProcessGraph
-    from activetrack_ros.graph import GRAPH_TOPICS
+    from activetrack_bringup.runner import GraphSetupError, check_namespace
+    from activetrack_ros.graph import GRAPH_TOPICS, graph_topic_of
 
     topic_types = GRAPH_TOPICS
-    if args.topics:
-        unknown = [t for t in args.topics if t not in GRAPH_TOPICS]
+    if args.topics:  # relative (activetrack/track) or absolute (/activetrack/track) names
+        unknown = [t for t in args.topics if graph_topic_of(t) is None]
         if unknown:
             return _error(f"--topics must be among {sorted(GRAPH_TOPICS)}; got {unknown}")
-        topic_types = {t: GRAPH_TOPICS[t] for t in args.topics}
+        topic_types = {graph_topic_of(t): GRAPH_TOPICS[graph_topic_of(t)] for t in args.topics}
     if Path(args.bag).exists():
         return _error(f"{args.bag} exists already: record into a new path")
     try:
+        namespace = check_namespace(args.namespace)
+    except GraphSetupError as exc:
+        return _error(exc)
+    node_options = {"context": None, "namespace": namespace} if namespace else {}
+    try:
         with InProcessGraph() as graph:
-            recorder = graph.add(BagRecorder(args.bag, topic_types, context=graph.context))
+            node_options["context"] = graph.context
+            recorder = graph.add(BagRecorder(args.bag, topic_types, **node_options))
             print(f"recording {len(topic_types)} topics to {args.bag} (Ctrl-C to stop)")
             end = time.monotonic() + (args.duration if args.duration else float("inf"))
             try:
@@ -259,8 +338,11 @@ def _cmd_bag_recover(args: argparse.Namespace) -> int:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from activetrack_bringup.progress import Bar
+
     module = importlib.import_module(f"activetrack_experiments.{args.name}")
-    return int(module.main(args.rest) or 0)
+    with Bar(f"reproduce {args.name}", unit="task") as bar:  # drawn on a terminal only
+        return int(module.main(args.rest, task_progress=bar if bar.shown else None) or 0)
 
 
 def _add_bag_parser(sub) -> None:
@@ -303,6 +385,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--run", type=cli_types.run_index, default=None, help="Monte Carlo run index (seeding)"
     )
+    run.add_argument(
+        "--namespace", default="", help="ROS namespace of the graph (several graphs per domain)"
+    )
     run.add_argument("--out", help="run folder (default runs/<scenario>-<timestamp>)")
     run.add_argument("--no-bag", action="store_true", help="do not record the bag")
     run.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
@@ -310,6 +395,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--timeout", type=cli_types.timeout, default=600.0, help="wall seconds (default 600)"
     )
     run.add_argument("--json", help="also write the summary to this JSON file")
+    _add_live_view_args(run)
     run.set_defaults(func=_cmd_run)
 
     batch = sub.add_parser("batch", help="run a scenario closed loop without ROS")
@@ -328,6 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("bag", help="output directory (must not exist)")
     rec.add_argument("--topics", nargs="+", help="topics (default: every graph topic)")
     rec.add_argument("--duration", type=cli_types.duration, help="seconds (default: until Ctrl-C)")
+    rec.add_argument("--namespace", default="", help="the graph's ROS namespace (default none)")
     rec.set_defaults(func=_cmd_record)
 
     play = sub.add_parser("play", help="republish a recorded bag")

@@ -1,22 +1,37 @@
 """The run's evaluator: the only reader of ground truth; rebuilds the run record from the
 graph's own outputs (the same trust filter and validation as the nodes) and keeps per-epoch
-arrays sized by the scenario once, never messages, so its memory does not grow with a run."""
+arrays sized by the scenario once, never messages, so its memory does not grow with a run.
+
+As each epoch closes it publishes the run's figures so far (``RunMetrics``: RMSE and the PCRLB
+along the flown paths, the summary's numbers) and markers of what only it knows or nobody
+draws (target truth and its path, the sensors that measured, each platform's planned next
+leg): what Foxglove shows live and from a bag (docs/live-view.md). Publishing reads nothing
+the result depends on."""
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Point
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
 
-from activetrack.closed_loop.batch import RunRecord
+from activetrack.closed_loop.batch import PathBound, RunRecord, component_rngs
 from activetrack.closed_loop.data import PlanReportData
+from activetrack.planning.manoeuvre import step_platform
+from activetrack.scenarios.build import build_motion_model
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import (
+    MAX_COORDINATE,
+    MAX_SPEED,
     MAX_STATE_VALUE,
     TrackChecker,
     check_epoch_stamp,
     finite,
+    header,
     platform_from_msg,
     report_from_msg,
 )
@@ -24,10 +39,12 @@ from activetrack_ros.node_base import GraphNode, Rejected
 from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
+    ManoeuvreCommand,
     Measurement,
     PlanReport,
     PlatformState,
     PolarMeasurement,
+    RunMetrics,
     TrackEstimate,
 )
 
@@ -63,6 +80,19 @@ class EpochTable:
         return self.values[: last + 1]
 
 
+def _marker(hdr, ns: str, id_: int, kind: int, rgba, size: float, points=()) -> Marker:
+    m = Marker(header=hdr, ns=ns, id=id_, type=kind, action=Marker.ADD)
+    m.pose.orientation.w = 1.0
+    m.color = ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+    m.points = [Point(x=float(x), y=float(y)) for x, y in points]
+    return m
+
+
+TRUTH_RGBA = (0.1, 0.75, 0.2, 1.0)
+LEG_RGBA = (1.0, 0.55, 0.0, 1.0)
+MEASURED_RGBA = (1.0, 0.85, 0.1, 0.45)
+
+
 class EvaluatorNode(GraphNode):
     """Collects truth, tracks, platform states and plan reports per epoch."""
 
@@ -86,6 +116,20 @@ class EvaluatorNode(GraphNode):
         self.diagnostics_order: dict[str, tuple] = {}
         self.sim_finished_at: float | None = None
         self.faults: list[str] = []  # the graph's own result messages that failed validation
+        # The live view's inputs (docs/live-view.md): per-epoch metrics and markers.
+        self.kinematics = build_motion_model(scenario.tracker.motion or scenario.target.motion)
+        # The summary's bound generator for one run (batch.summarize), drawn as it draws.
+        self.bound = PathBound(scenario, component_rngs(scenario.seed, None)[3])
+        self.announced = np.zeros(K + 1, dtype=int)  # measurements the sim announced per epoch
+        self.metrics_epoch = 1  # the next epoch to publish figures of
+        self.sums = np.zeros(4)  # rmse_x, rmse_y, bound_x, bound_y over epochs so far
+        self.last_metrics: RunMetrics | None = None
+        self.command_epoch: dict[str, int] = {}  # the latest command's epoch per platform
+        self.undrawn: dict[tuple, ManoeuvreCommand] = {}  # (platform, epoch): awaits its state
+        self.marker_size = _marker_size(scenario)
+        self.metrics_pub = self.publisher(RunMetrics, topics.METRICS)
+        self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
+        self.subscribe(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS, self.on_command)
         self.subscribe(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics)
         for msg_type, topic, callback in (
             (GroundTruth, topics.GROUND_TRUTH, self.on_truth),
@@ -119,6 +163,7 @@ class EvaluatorNode(GraphNode):
         check_epoch_stamp(msg, self.scenario, "truth")
         pv = [msg.position.x, msg.velocity.x, msg.position.y, msg.velocity.y]
         self.truth.put(msg.epoch, finite(pv, "truth", MAX_STATE_VALUE), f"truth of {msg.epoch}")
+        self._close_epochs()
 
     def on_track(self, msg: TrackEstimate) -> None:
         t = self.check_track(msg)
@@ -126,11 +171,16 @@ class EvaluatorNode(GraphNode):
             raise Rejected("duplicate", f"second track of epoch {t.epoch}")
         self.means.put(t.epoch, t.mean, "track")
         self.covs.put(t.epoch, t.cov, "track")
+        self._close_epochs()
 
     def on_platform(self, msg: PlatformState) -> None:
         s = platform_from_msg(msg, self.scenario, self.platform_index)
         what = f"state of {s.platform_id!r} at {s.epoch}"
         self.platforms.put(s.epoch, s.pv, what, slot=self.platform_index[s.platform_id])
+        self.announced[s.epoch] = max(self.announced[s.epoch], msg.epoch_measurement_count)
+        self._close_epochs()
+        if (s.platform_id, s.epoch) in self.undrawn:
+            self._draw_leg(self.undrawn.pop((s.platform_id, s.epoch)))
 
     def on_report(self, msg: PlanReport) -> None:
         report = report_from_msg(msg, self.scenario)
@@ -143,6 +193,21 @@ class EvaluatorNode(GraphNode):
         if i is None or not 1 <= msg.epoch <= self.scenario.steps:
             raise Rejected("bad_field", f"measurement of {msg.sensor_id!r} at {msg.epoch}")
         self.looked[msg.epoch, i] = True
+        self._close_epochs()
+
+    def on_command(self, msg: ManoeuvreCommand) -> None:
+        """A platform's planned next leg, drawn from its state at the command's epoch (now, or
+        when that state arrives)."""
+        what = f"command for {msg.platform_id!r}"
+        if msg.platform_id not in self.platform_index or not 0 <= msg.epoch <= self.scenario.steps:
+            raise Rejected("bad_field", f"{what} at {msg.epoch}")
+        finite((msg.commanded_heading,), f"{what} heading", 4 * math.pi)
+        finite((msg.commanded_speed,), f"{what} speed", MAX_SPEED)
+        finite((msg.waypoint.x, msg.waypoint.y), f"{what} waypoint", MAX_COORDINATE)
+        if self.command_epoch.get(msg.platform_id, -1) >= msg.epoch:
+            return self.ignore("stale_command")  # a replay or a late delivery: not news
+        self.command_epoch[msg.platform_id] = msg.epoch
+        self._draw_leg(msg)
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         """Counters of the graph's nodes (only the graph's own statuses arrive with a key)."""
@@ -161,6 +226,105 @@ class EvaluatorNode(GraphNode):
             self.diagnostics[node] = counts
             if node == "sim" and status.message == "finished" and self.sim_finished_at is None:
                 self.sim_finished_at = time.monotonic()
+
+    # --- what the live view shows (docs/live-view.md) --------------------------------------
+
+    def _epoch_closed(self, k: int) -> bool:
+        """Truth, track and every platform state of epoch k are in, and every measurement the
+        sim announced for it (or the tracker has moved on past it)."""
+        if k not in self.truth or k - 1 not in self.truth:  # k - 1: the path's last leg
+            return False
+        if k not in self.means or k not in self.platforms:
+            return False
+        return int(self.looked[k].sum()) >= self.announced[k] or k + 1 in self.means
+
+    def _close_epochs(self) -> None:
+        """Publish the figures and markers of each newly closed epoch, in order (the bound's
+        recursion runs epoch by epoch)."""
+        while self.metrics_epoch <= self.scenario.steps and self._epoch_closed(self.metrics_epoch):
+            k = self.metrics_epoch
+            self.metrics_epoch += 1
+            hdr = header(k * self.scenario.dt, self.frame_id)
+            self.last_metrics = self._metrics(k, hdr)
+            self.metrics_pub.publish(self.last_metrics)
+            self.marker_pub.publish(self._epoch_markers(k, hdr))
+
+    def _metrics(self, k: int, hdr) -> RunMetrics:
+        truth = self.truth.values[k]
+        est = self.kinematics.kinematics(self.means.values[k])
+        rmse = np.sqrt((est - truth) ** 2)[[0, 2]]  # summarize's RMSE of one run
+        try:
+            B = self.bound.step(self.platforms.values[k], self.looked[k])
+            bound = (math.sqrt(B[0, 0]), math.sqrt(B[2, 2]))  # std bound in x and y
+        except (ValueError, np.linalg.LinAlgError) as exc:  # e.g. an information not finite
+            self.counters.count("bound_unavailable")
+            self.log_limited("warning", "bound", f"no PCRLB at epoch {k}: {exc}")
+            bound = (math.nan, math.nan)
+        self.sums += (*rmse, *bound)
+        means = self.sums / k
+        return RunMetrics(
+            header=hdr,
+            epoch=k,
+            steps=self.scenario.steps,
+            truth_position=Point(x=float(truth[0]), y=float(truth[2])),
+            estimate_position=Point(x=float(est[0]), y=float(est[2])),
+            rmse_x=float(rmse[0]),
+            rmse_y=float(rmse[1]),
+            position_error=math.hypot(*rmse),
+            bound_x=bound[0],
+            bound_y=bound[1],
+            position_bound=math.hypot(*bound),
+            mean_rmse_x=float(means[0]),
+            mean_rmse_y=float(means[1]),
+            mean_bound_x=float(means[2]),
+            mean_bound_y=float(means[3]),
+            measured_sensor_ids=[s for s, i in self.sensor_index.items() if self.looked[k, i]],
+        )
+
+    def _epoch_markers(self, k: int, hdr) -> MarkerArray:
+        """The target's true position and path, and a disc under each platform whose sensors
+        measured at epoch k (the sensor selection's effect; removed when none did)."""
+        size = self.marker_size
+        now, before = self.truth.values[k][[0, 2]], self.truth.values[k - 1][[0, 2]]
+        truth = _marker(hdr, "truth", 0, Marker.SPHERE, TRUTH_RGBA, size)
+        truth.pose.position = Point(x=float(now[0]), y=float(now[1]))
+        truth.scale.x = truth.scale.y = truth.scale.z = 2.0 * size
+        path = _marker(hdr, "truth_path", k, Marker.LINE_STRIP, TRUTH_RGBA, size, (before, now))
+        path.scale.x = 0.5 * size  # line width
+        markers = [truth, path]
+        for j, p in enumerate(self.scenario.platforms):
+            disc = _marker(hdr, "measured", j, Marker.CYLINDER, MEASURED_RGBA, size)
+            if not any(self.looked[k, self.sensor_index[s.id]] for s in p.sensors):
+                disc.action = Marker.DELETE
+            pv = self.platforms.values[k, j]
+            disc.pose.position = Point(x=float(pv[0]), y=float(pv[2]))
+            disc.scale.x = disc.scale.y = 6.0 * size
+            disc.scale.z = 0.1 * size
+            markers.append(disc)
+        return MarkerArray(markers=markers)
+
+    def _draw_leg(self, msg: ManoeuvreCommand) -> None:
+        """The leg a command plans: from the platform's position at the command's epoch, at
+        the commanded heading and speed for one epoch (and its waypoint, if it has one)."""
+        j = self.platform_index[msg.platform_id]
+        if not self.platforms.filled[msg.epoch, j]:
+            self.undrawn[msg.platform_id, msg.epoch] = msg  # drawn when that state arrives
+            return
+        pv = self.platforms.values[msg.epoch, j]
+        end, _ = step_platform(
+            pv, msg.commanded_heading, (0.0, msg.commanded_speed), self.scenario.dt
+        )
+        hdr = header(msg.epoch * self.scenario.dt, self.frame_id)
+        size = self.marker_size
+        leg = _marker(hdr, "next_leg", j, Marker.ARROW, LEG_RGBA, size, (pv[[0, 2]], end[[0, 2]]))
+        leg.scale.x, leg.scale.y, leg.scale.z = 0.5 * size, 1.5 * size, 2.0 * size
+        markers = [leg]
+        if msg.has_waypoint:
+            wp = _marker(hdr, "waypoint", j, Marker.SPHERE, LEG_RGBA, size)
+            wp.pose.position = Point(x=msg.waypoint.x, y=msg.waypoint.y)
+            wp.scale.x = wp.scale.y = wp.scale.z = 1.5 * size
+            markers.append(wp)
+        self.marker_pub.publish(MarkerArray(markers=markers))
 
     # --- completion ---------------------------------------------------------------------------
 
@@ -223,6 +387,18 @@ class EvaluatorNode(GraphNode):
             planning_time_s=sum(r.wall_time_s for r in reports),
             evaluations=sum(r.evaluations for r in reports),
         )
+
+
+def _marker_size(scenario) -> float:
+    """A marker size for the scenario's scale: 1 % of the distance from the target's prior
+    mean to the farthest platform (Hernandez: ~20 m; Valverde: ~0.5 m), at least 0.1 m."""
+    model = build_motion_model(scenario.target.motion)
+    mean = model.kinematics(np.array(scenario.target.prior.mean))  # pv, whatever the state
+    far = max(
+        math.hypot(p.initial_state[0] - mean[0], p.initial_state[2] - mean[2])
+        for p in scenario.platforms
+    )
+    return max(0.01 * far, 0.1)
 
 
 def _ranges(ks: list[int]) -> str:

@@ -18,6 +18,7 @@ from msgs_defs.msg import (
     PlanReport,
     PlatformState,
     PolarMeasurement,
+    RunMetrics,
     SensorSelection,
     TrackEstimate,
 )
@@ -32,6 +33,7 @@ MESSAGE_TYPES = (
     SensorSelection,
     PlanReport,
     GroundTruth,
+    RunMetrics,  # the evaluator's output: no graph node reads it (not in TOPIC_OF)
 )
 
 TOPIC_OF = {
@@ -48,7 +50,7 @@ TOPIC_OF = {
 
 
 def _header(seconds: int = 5) -> Header:
-    return Header(stamp=Time(sec=seconds, nanosec=250_000_000), frame_id="world")
+    return Header(stamp=Time(sec=seconds, nanosec=250_000_000), frame_id=topics.FIXED_FRAME)
 
 
 def example_messages() -> list:
@@ -110,8 +112,8 @@ def _examples() -> list:
             header=_header(),
             platform_id="p1",
             epoch=3,
-            sensor_id="s1",
-            sensor_kind="bearing",
+            sensor_ids=["s1"],
+            sensor_kinds=["bearing"],
             position=sensor_pos,
             velocity=sensor_vel,
             heading=-2.356,
@@ -176,5 +178,23 @@ def _examples() -> list:
             state=[100.0, 8.0, -50.0, 6.0],
             position=Point(x=100.0, y=-50.0, z=-2.0),
             velocity=Vector3(x=8.0, y=6.0, z=0.5),
+        ),
+        RunMetrics(
+            header=_header(),
+            epoch=4,
+            steps=30,
+            truth_position=Point(x=100.0, y=-50.0, z=-2.0),
+            estimate_position=Point(x=103.0, y=-54.0, z=1.0),
+            rmse_x=3.0,
+            rmse_y=4.0,
+            position_error=5.0,
+            bound_x=6.0,
+            bound_y=8.0,
+            position_bound=10.0,
+            mean_rmse_x=2.5,
+            mean_rmse_y=3.5,
+            mean_bound_x=7.0,
+            mean_bound_y=9.0,
+            measured_sensor_ids=["s1", "s2"],
         ),
     ]

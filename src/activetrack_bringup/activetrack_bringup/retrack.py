@@ -35,7 +35,7 @@ from activetrack_bringup.bag_io import BagError, open_bag
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import measurement_topic
-from activetrack_ros.graph import GRAPH_TOPICS, writer_qos
+from activetrack_ros.graph import GRAPH_TOPICS, find_topic, writer_qos
 from activetrack_ros.node_base import GraphNode
 from activetrack_ros.trust import GraphKey, is_signed_type
 from msgs_defs.msg import (
@@ -70,11 +70,13 @@ class RetrackError(BagError):
 
 
 def read_topic(bag, topic: str, msg_type) -> list:
-    """Deserialize every message of one topic of a bag (rclpy, exact)."""
+    """Deserialize every message of one topic of a bag (rclpy, exact); ``topic`` as the bag
+    names it or a graph topic under any namespace."""
     with open_bag(bag) as b:
-        if topic not in b.topics:
+        name = topic if topic in b.topics else _bag_topic(b, topic, bag)
+        if name is None:
             return []
-        return [deserialize_message(d, msg_type) for _, _, d in b.messages([topic])]
+        return [deserialize_message(d, msg_type) for _, _, d in b.messages([name])]
 
 
 @dataclass
@@ -90,6 +92,14 @@ class RunData:
     warnings: list[str] = field(default_factory=list)
 
 
+def _bag_topic(b, topic: str, bag) -> str | None:
+    """The bag's name of graph topic ``topic`` (recorded under any namespace)."""
+    try:
+        return find_topic(b.topics, topic)
+    except ValueError as exc:
+        raise RetrackError(f"{bag}: {exc}: one run per bag") from None
+
+
 def read_run(bag) -> RunData:
     """The run's measurements, platform states, tracks and truth; RetrackError when the bag
     has lost data, or a needed topic is unreadable or of another type (version)."""
@@ -103,7 +113,8 @@ def read_run(bag) -> RunData:
         run = RunData(finished=all(s.finished for s in b.scans))
         run.warnings = [str(d) for d in b.damage]
         for topic, cls in _CLASSES.items():
-            t = b.topics.get(topic)
+            name = _bag_topic(b, topic, bag)
+            t = b.topics.get(name) if name else None
             run.messages[topic] = []
             if t is None or not t.count:
                 continue
@@ -120,7 +131,7 @@ def read_run(bag) -> RunData:
                     "another version of msgs_defs): the tracker cannot read it"
                 )
             msgs = run.messages[topic]
-            for _, log_time, data in b.messages([topic]):
+            for _, log_time, data in b.messages([name]):
                 try:
                     msg = deserialize_message(data, cls)
                 except Exception:
@@ -139,10 +150,11 @@ def read_run(bag) -> RunData:
 
 def _read_diagnostics(b, run: RunData) -> None:
     """Whether the simulator finished, and the scenario name the nodes reported (optional)."""
-    t = b.topics.get(topics.DIAGNOSTICS)
+    name = _bag_topic(b, topics.DIAGNOSTICS, "")
+    t = b.topics.get(name) if name else None
     if t is None or t.problem or t.msgtype != GRAPH_TOPICS[topics.DIAGNOSTICS]:
         return
-    for _, _, data in b.messages([topics.DIAGNOSTICS]):
+    for _, _, data in b.messages([name]):
         try:
             array = deserialize_message(data, DiagnosticArray)
         except Exception:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -31,6 +32,7 @@ from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_bringup.run_folder import run_dir_for
 from activetrack_bringup.supervisor import NodeDied, Supervisor
+from activetrack_ros.graph import history_depth
 from activetrack_ros.trust import KEY_ENV, GraphKey
 from planner_node.planner_node import PlannerNode
 from sim_node.sim_node import SimNode
@@ -103,10 +105,25 @@ def _json_safe(value):
     return value
 
 
-def _node_params(scenario_path: str, run: int | None, mode: str, extra: dict | None = None):
-    params = {"scenario": str(scenario_path), "run": -1 if run is None else int(run), "mode": mode}
-    params.update(extra or {})
-    return params
+def _node_params(scenario_path: str, run: int | None, mode: str) -> dict[str, dict]:
+    """Each node's parameters (the planner plans alike in both modes: it has no ``mode``)."""
+    common = {"scenario": str(scenario_path), "run": -1 if run is None else int(run)}
+    return {
+        "sim": {**common, "mode": mode},
+        "tracker": {**common, "mode": mode},
+        "planner": common,
+    }
+
+
+def check_namespace(namespace: str) -> str:
+    """'' (none) or a ROS namespace like ``g1`` or ``/fleet/g1``, returned absolute."""
+    ns = namespace.strip("/")
+    if ns and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*", ns):
+        raise GraphSetupError(
+            f"namespace {namespace!r} is not a ROS namespace: names of letters, digits and "
+            "underscores, not starting with a digit, separated by '/'"
+        )
+    return "/" + ns if ns else ""
 
 
 def default_run_dir(scenario_name: str) -> Path:
@@ -127,6 +144,7 @@ class RunOptions:
     before_spin: object = None
     during_spin: object = None
     restartable: tuple[str, ...] | None = None
+    namespace: str = ""
 
 
 def run_graph(
@@ -143,10 +161,12 @@ def run_graph(
     ``sim_params`` (sim node parameters), ``before_spin(graph)`` (may add nodes to the
     in-process graph before it runs), ``during_spin(graph)`` (called between executor steps:
     fault-injection tests), ``restartable`` (node names, default the scenario's
-    ``graph.restartable``). Raises RunIncomplete when the run stops early, ScenarioError,
+    ``graph.restartable``), ``namespace`` (every node, the evaluator and the recorder in it:
+    several graphs share a domain). Raises RunIncomplete when the run stops early, ScenarioError,
     FileExistsError or GraphSetupError before anything starts.
     """
     opts = RunOptions(**options)
+    opts.namespace = check_namespace(opts.namespace)
     scenario = load_scenario(scenario_path)  # fails before anything starts
     if opts.processes and os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").upper() == "OFF":
         raise GraphSetupError(
@@ -189,6 +209,8 @@ class _GraphRunner:
         # No parameter services in one process: nobody can call them, and they cost imports at
         # start and entities in every executor wait.
         self.quiet = {"context": self.graph.context, "start_parameter_services": False}
+        if opts.namespace:
+            self.quiet["namespace"] = opts.namespace
         self.evaluator = self.graph.add(EvaluatorNode(scenario, graph_key=key, **self.quiet))
         self.recorder: BagRecorder | None = None
         self.nodes: dict = {}
@@ -224,18 +246,23 @@ class _GraphRunner:
     def _start(self, bag_path: Path | None) -> None:
         o, graph = self.opts, self.graph
         if bag_path is not None:  # the run's record: only the graph's own per-epoch messages
-            self.recorder = graph.add(BagRecorder(bag_path, graph_key=self.key, **self.quiet))
+            self.recorder = graph.add(
+                BagRecorder(
+                    bag_path, graph_key=self.key, depth=history_depth(self.scenario),
+                    clock_lead=2 * self.scenario.dt, **self.quiet,
+                )
+            )  # fmt: skip
         if o.processes:
             restartable = o.restartable or tuple(self.scenario.graph.restartable)
             self.supervisor = _start_processes(
                 self.params, o.sim_params, self.key, self.domain, restartable,
-                self.scenario.graph.max_restarts,
+                self.scenario.graph.max_restarts, o.namespace,
             )  # fmt: skip
             graph.supervisor = self.supervisor  # for during_spin hooks (fault-injection tests)
         else:
             for name, node_class in (("tracker", TrackerNode), ("planner", PlannerNode)):
-                self.nodes[name] = graph.add(node_class(**self._node_options(self.params)))
-            sim = {**self.params, **(o.sim_params or {})}
+                self.nodes[name] = graph.add(node_class(**self._node_options(self.params[name])))
+            sim = {**self.params["sim"], **(o.sim_params or {})}
             self.nodes["sim"] = graph.add(SimNode(**self._node_options(sim)))
         if o.before_spin is not None:
             o.before_spin(graph)
@@ -343,7 +370,7 @@ def _domain_id() -> int:
 
 
 def _start_processes(
-    params, sim_params, key: GraphKey, domain: int, restartable, max_restarts: int
+    params, sim_params, key: GraphKey, domain: int, restartable, max_restarts: int, namespace
 ) -> Supervisor:
     """Each node as its own OS process (its console entry point), talking over DDS on this
     host in the runner's domain; the caller's environment is not changed."""
@@ -355,6 +382,9 @@ def _start_processes(
         env, max_restarts, log=lambda text: print(f"activetrack: {text}", file=sys.stderr)
     )
     for name, extra in (("tracker", {}), ("planner", {}), ("sim", sim_params or {})):
-        supervisor.add(f"{name}_node", {**params, **extra}, restartable=name in restartable)
+        supervisor.add(
+            f"{name}_node", {**params[name], **extra}, restartable=name in restartable,
+            namespace=namespace,
+        )  # fmt: skip
     supervisor.start()
     return supervisor

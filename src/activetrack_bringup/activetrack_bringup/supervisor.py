@@ -61,9 +61,9 @@ class Supervisor:
         self.nodes: list[NodeProcess] = []
         self.log = log
 
-    def add(self, name: str, params: dict, restartable: bool = False) -> None:
+    def add(self, name: str, params: dict, restartable: bool = False, namespace: str = "") -> None:
         exe = str(Path(sys.executable).parent / name)
-        argv = [exe, "--ros-args"]
+        argv = [exe, "--ros-args"] + (["-r", f"__ns:={namespace}"] if namespace else [])
         for k, v in params.items():
             argv += ["-p", f"{k}:={v}"]
         self.nodes.append(NodeProcess(name, argv, restartable))

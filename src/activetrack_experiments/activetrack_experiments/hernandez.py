@@ -50,7 +50,13 @@ from activetrack.limits import (
     MAX_SEARCH_EVALUATIONS,
     MAX_SEED,
 )
-from activetrack.montecarlo import available_jobs, check_jobs, parallel_map
+from activetrack.montecarlo import (
+    Progress,
+    TaskProgress,
+    available_jobs,
+    check_jobs,
+    parallel_map,
+)
 from activetrack.planning import (
     PlannerPlatform,
     PlanSettings,
@@ -240,13 +246,19 @@ def _track_run(task: _RunTask) -> np.ndarray:
 
 
 def track_case(
-    scenario: Scenario, paths: np.ndarray, runs: int, particles: int, seed: int, jobs: int = 1
+    scenario: Scenario,
+    paths: np.ndarray,
+    runs: int,
+    particles: int,
+    seed: int,
+    jobs: int = 1,
+    progress: Progress | None = None,
 ) -> np.ndarray:
     """PF RMSE per epoch (K, 2) in x and y over ``runs`` seeded runs (run r: SeedSequence
     ([seed, r]) split into truth/measurement and filter generators), on ``jobs`` processes;
-    the result does not depend on ``jobs``."""
+    the result does not depend on ``jobs`` (nor on ``progress``, called with the runs done)."""
     tasks = [_RunTask(scenario, paths, r, particles, seed) for r in range(runs)]
-    sq = np.stack(parallel_map(_track_run, tasks, jobs))
+    sq = np.stack(parallel_map(_track_run, tasks, jobs, progress))
     mse = sq.mean(axis=0)
     return np.sqrt(mse[:, [0, 2]])
 
@@ -484,16 +496,25 @@ def check_options(
 
 
 def _run_case(
-    scenario: Scenario, *, runs: int, particles: int, seed: int | None, jobs: int, **plan_kw
+    scenario: Scenario,
+    *,
+    runs: int,
+    particles: int,
+    seed: int | None,
+    jobs: int,
+    tasks: TaskProgress,
+    **plan_kw,
 ) -> CaseResult:
-    """Plan one case, then track along its paths (runs > 0)."""
+    """Plan one case (one task of ``tasks``), then track along its paths (runs > 0: ``runs``
+    tasks)."""
     seed = scenario.seed if seed is None else seed
     t0 = time.perf_counter()
     case = plan_case(scenario, seed=seed, **plan_kw)
     result = CaseResult(case, time.perf_counter() - t0)
+    tasks.advance()
     if runs > 0:
         t0 = time.perf_counter()
-        result.rmse = track_case(scenario, case.paths, runs, particles, seed, jobs)
+        result.rmse = track_case(scenario, case.paths, runs, particles, seed, jobs, tasks.of_map())
         result.runs, result.particles = runs, particles
         result.tracking_time_s = time.perf_counter() - t0
     return result
@@ -528,6 +549,7 @@ def reproduce(
     grid_size: int = 101,
     mc_samples: int | None = None,
     progress: Callable[[CaseResult], None] | None = None,
+    task_progress: Callable[[int, int], None] | None = None,
 ) -> HernandezResults:
     """Tables 1-2 and the search comparison of Hernandez (2004).
 
@@ -536,7 +558,9 @@ def reproduce(
     along the planned paths (0: the bounds only) on ``jobs`` processes; ``seed`` (default: the
     scenarios' seed) fixes both. ``comparison`` re-plans the 1-sensor single-step case on a
     ``grid_size`` x ``grid_size`` grid (with 1 among ``sensors``). ``progress`` is called with
-    each finished case. Scenario files come from ``scenarios_dir`` or the package data.
+    each finished case, ``task_progress(done, total)`` as tasks finish (a case's planning, each
+    of its PF runs, the comparison: the command line's progress bar); neither changes the
+    numbers. Scenario files come from ``scenarios_dir`` or the package data.
     """
     if runs < 0 or particles < 1:
         raise ValueError(f"runs must be >= 0 and particles >= 1, got {runs} and {particles}")
@@ -552,19 +576,22 @@ def reproduce(
     sdir = find_scenarios_dir(scenarios_dir, "hernandez_*.yaml")
     files = {(n, R): scenario_path(scenario_name(n, R), sdir) for n in counts for R in horizon_list}
     reference = load_scenario(scenario_path(scenario_name(1, 1), sdir))
+    compare = comparison and 1 in counts
+    tasks = TaskProgress(len(files) * (1 + runs) + int(compare), task_progress)
     run_kw = dict(runs=runs, particles=particles, seed=seed, jobs=jobs, mc_samples=mc_samples)
     cases = []
     for key in sorted(files):
-        cases.append(_run_case(load_scenario(files[key]), search=search, **run_kw))
+        cases.append(_run_case(load_scenario(files[key]), search=search, tasks=tasks, **run_kw))
         if progress is not None:
             progress(cases[-1])
     times = reference.dt * np.arange(1, reference.steps + 1)
     res = HernandezResults(runs, particles, cases, None, times)
-    if comparison and 1 in counts:
+    if compare:
         quad = res.case(1, 1)
         quad_plan = None if quad is None else quad.plan
         res.comparison = _compare_searches(reference, quad_plan, grid_size, mc_samples, seed)
         res.prior_samples = prior_samples(reference)
+        tasks.advance()
     return res
 
 
@@ -847,8 +874,11 @@ def _print_progress(case: CaseResult) -> None:
     print(format_progress(case), file=sys.stderr, flush=True)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``activetrack reproduce hernandez``."""
+def main(
+    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
+) -> int:
+    """Entry point of ``activetrack reproduce hernandez`` (``task_progress``: see
+    :func:`reproduce`; the command line's progress bar)."""
     args = _parse(sys.argv[1:] if argv is None else argv)
     res = reproduce(
         runs=args.runs,
@@ -863,6 +893,7 @@ def main(argv: list[str] | None = None) -> int:
         grid_size=args.grid_size,
         mc_samples=args.mc_samples,
         progress=_print_progress,
+        task_progress=task_progress,
     )
     print(format_results(res))
     doc = res.to_json()

@@ -33,7 +33,7 @@ import json
 import sys
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -45,7 +45,7 @@ from activetrack.bounds.mre import mre_update
 from activetrack.checks import require_int
 from activetrack.closed_loop.batch import run_once
 from activetrack.limits import MAX_JOBS, MAX_RUNS
-from activetrack.montecarlo import available_jobs, check_jobs, parallel_map
+from activetrack.montecarlo import Progress, TaskProgress, available_jobs, check_jobs, parallel_map
 from activetrack.planning.selection import expected_update
 from activetrack.plots import new_figure, write_figures
 from activetrack.scenarios import build_motion_model, load_scenario
@@ -210,15 +210,18 @@ def _run_task(args) -> RunTrace:
     return run_traced(Scenario.model_validate(scenario_dict), run)
 
 
-def run_groups(groups: Sequence[tuple[Scenario, int]], jobs: int = 1) -> list[list[RunTrace]]:
+def run_groups(
+    groups: Sequence[tuple[Scenario, int]], jobs: int = 1, progress: Progress | None = None
+) -> list[list[RunTrace]]:
     """For each ``(scenario, runs)``, its ``runs`` seeded runs (run r: SeedSequence([seed,
     r])); all of them in one :func:`activetrack.montecarlo.parallel_map` over ``jobs``
-    processes. The traces do not depend on ``jobs``."""
+    processes (``progress``: called with the runs done). The traces do not depend on
+    ``jobs``."""
     for _, runs in groups:
         if runs < 1:
             raise ValueError(f"runs must be >= 1, got {runs}")
     tasks = [(scenario.model_dump(), r) for scenario, runs in groups for r in range(runs)]
-    traces = parallel_map(_run_task, tasks, jobs)
+    traces = parallel_map(_run_task, tasks, jobs, progress)
     out, start = [], 0
     for _, runs in groups:
         out.append(traces[start : start + runs])
@@ -656,6 +659,7 @@ def reproduce(
     steps: int | None = None,
     bound_runs: int | None = None,
     draws: int = DRAWS,
+    task_progress: Callable[[int, int], None] | None = None,
 ) -> RamdarasResults:
     """Ramdaras et al. (2010) sec. 5-6: every case in ``cases`` (``CASE_KEYS``, default all)
     under every strategy (default ``STRATEGIES``, ``QUICK_STRATEGIES`` when ``quick``), the
@@ -667,6 +671,7 @@ def reproduce(
     shortens the runs (the paper: 100 epochs); ``jobs`` worker processes, one
     :func:`activetrack.montecarlo.parallel_map` over all runs (results do not depend on it);
     ``scenarios_dir`` holds ramdaras_*.yaml (default: the package's scenario files).
+    ``task_progress(done, total)`` is called as runs finish (the command line's progress bar).
     """
     start = time.perf_counter()
     runs = (3 if quick else 20) if runs is None else runs
@@ -677,7 +682,9 @@ def reproduce(
     kw = dict(steps=steps, seed=seed, scenarios_dir=scenarios_dir)
     case_specs, crit_specs, bound_specs = _specs(keys, strategies, runs, bound_runs, **kw)
     specs = case_specs + crit_specs + bound_specs
-    traced = run_groups([(s.scenario, s.runs) for s in specs], jobs)
+    groups = [(s.scenario, s.runs) for s in specs]
+    tasks = TaskProgress(sum(runs for _, runs in groups), task_progress)
+    traced = run_groups(groups, jobs, tasks.of_map())
     n_cases, n_crit = len(case_specs), len(crit_specs)
     results = [s.summarize(t) for s, t in zip(case_specs, traced[:n_cases], strict=True)]
     criteria = [
@@ -935,7 +942,9 @@ def _parse(argv):
     return args
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(
+    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
+) -> int:
     args = _parse(sys.argv[1:] if argv is None else argv)
     t0 = time.perf_counter()
     res = reproduce(
@@ -944,6 +953,7 @@ def main(argv: list[str] | None = None) -> int:
         quick=args.quick,
         cases=args.case_keys,
         scenarios_dir=args.scenarios,
+        task_progress=task_progress,
     )
     print(format_report(res))
     files = [] if args.no_figures else save_figures(res, args.out)

@@ -43,7 +43,7 @@ import json
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -59,7 +59,7 @@ from activetrack.filters import ekf_over_runs
 from activetrack.limits import MAX_JOBS, MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
 from activetrack.models.motion import CircularMotion, ConstantTurn
 from activetrack.models.sensors import RangeBearingSensor
-from activetrack.montecarlo import available_jobs, check_jobs, parallel_map
+from activetrack.montecarlo import TaskProgress, available_jobs, check_jobs, parallel_map
 from activetrack.observability import observability_rank
 from activetrack.plots import new_figure, write_figures
 
@@ -491,6 +491,7 @@ def reproduce(
     setup: ValverdeSetup | None = None,
     noise_pairs: Sequence[tuple[float, float]] | None = None,
     divergence_m: float = 1e3,
+    task_progress: Callable[[int, int], None] | None = None,
 ) -> ValverdeResults:
     """Valverde Tables I-V: ``runs`` Monte Carlo runs (default 1000, 50 when ``quick``) of
     ``steps`` epochs (default 252, two laps; 126 when ``quick``) for every case, model and noise
@@ -500,7 +501,8 @@ def reproduce(
     ``seed``: (case, model) draws from SeedSequence([seed, case, model]), shared by its noise
     rows; ``jobs`` worker processes, one :func:`activetrack.montecarlo.parallel_map` over the
     rows (the results do not depend on it); a run counts as diverged when a square error
-    exceeds ``divergence_m``^2.
+    exceeds ``divergence_m``^2. ``task_progress(done, total)`` is called as rows finish (the
+    command line's progress bar).
     """
     if steps is None:
         steps = setup.steps if setup is not None else 126 if quick else 252
@@ -514,7 +516,7 @@ def reproduce(
         for model in MODELS:
             draws = draw_case(setup, case, model, runs, seed)
             tasks += [RowTask(setup, case, model, r, b, draws, divergence_m) for r, b in pairs]
-    rows = parallel_map(run_row, tasks, jobs)
+    rows = parallel_map(run_row, tasks, jobs, TaskProgress(len(tasks), task_progress).of_map())
     mc_time = time.perf_counter() - start
     return ValverdeResults(setup, runs, seed, rows, observability_table(setup), mc_time)
 
@@ -745,9 +747,13 @@ def _parse(argv):
     return args
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(
+    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
+) -> int:
     args = _parse(sys.argv[1:] if argv is None else argv)
-    res = reproduce(args.runs, seed=args.seed, jobs=args.jobs, steps=args.steps)
+    res = reproduce(
+        args.runs, seed=args.seed, jobs=args.jobs, steps=args.steps, task_progress=task_progress
+    )
     print(format_report(res))
     print(f"Monte Carlo and bounds: {res.mc_time_s:.1f} s")
     if not args.no_plots:

@@ -32,7 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -43,7 +43,13 @@ from activetrack.argtypes import int_in_range
 from activetrack.checks import require_int
 from activetrack.limits import MAX_JOBS, MAX_RUNS, MAX_SEED
 from activetrack.models.sensors import AmbiguousBearingSensor
-from activetrack.montecarlo import available_jobs, check_jobs, parallel_map
+from activetrack.montecarlo import (
+    Progress,
+    TaskProgress,
+    available_jobs,
+    check_jobs,
+    parallel_map,
+)
 from activetrack.planning.cautious import CautiousPlanner, caution_gamma
 from activetrack.planning.cautious_bounds import (
     cautious_schedule,
@@ -128,11 +134,14 @@ def simulate_task(task: SimTask) -> LocalisationBatch:
     return simulate_localisation(task.runs, np.random.default_rng(task.seed), **dict(task.options))
 
 
-def simulate_all(tasks: Sequence[SimTask], jobs: int = 1) -> list[LocalisationBatch]:
+def simulate_all(
+    tasks: Sequence[SimTask], jobs: int = 1, progress: Progress | None = None
+) -> list[LocalisationBatch]:
     """The batches of ``tasks`` in task order, equal tasks run once, on ``jobs`` processes
-    (:func:`activetrack.montecarlo.parallel_map`; the results do not depend on ``jobs``)."""
+    (:func:`activetrack.montecarlo.parallel_map`; the results do not depend on ``jobs``);
+    ``progress`` is called with the count of distinct tasks done."""
     unique = list(dict.fromkeys(tasks))
-    done = dict(zip(unique, parallel_map(simulate_task, unique, jobs), strict=True))
+    done = dict(zip(unique, parallel_map(simulate_task, unique, jobs, progress), strict=True))
     return [done[t] for t in tasks]
 
 
@@ -425,13 +434,15 @@ def reproduce(
     quick: bool = False,
     jobs: int = 1,
     betas: Sequence[float] | None = None,
+    task_progress: Callable[[int, int], None] | None = None,
 ) -> VanderHookResults:
     """Vander Hook et al. (003): the worked example (min(runs, 1000) runs), Table I and the
     Fig. 5 failure rows (``betas``, default ``BETAS``, ``QUICK_BETAS`` when ``quick``; and
     ``TWO_SIDED_BETAS`` with the two-sided sigma_beta), ``runs`` localisations per batch
     (default 4000, 400 when ``quick``), each batch from ``default_rng(seed)``. ``jobs`` worker
     processes: one :func:`activetrack.montecarlo.parallel_map` over all batches (the results
-    do not depend on it). Fig. 4's single run always uses seed 1.
+    do not depend on it). Fig. 4's single run always uses seed 1. ``task_progress(done,
+    total)`` is called as batches finish (the command line's progress bar).
     """
     runs = (400 if quick else 4000) if runs is None else runs
     _check(runs, seed, jobs)
@@ -442,7 +453,9 @@ def reproduce(
         _failure_tasks(runs, betas, seed, "one_sided"),
         _failure_tasks(runs, TWO_SIDED_BETAS, seed, "two_sided"),
     ]
-    batches = simulate_all([t for g in groups for t in g], jobs)
+    every = [t for g in groups for t in g]
+    tasks = TaskProgress(len(set(every)), task_progress)
+    batches = simulate_all(every, jobs, tasks.of_map())
     ends = np.cumsum([len(g) for g in groups])
     ex, t1, fail, fail_two = (batches[e - len(g) : e] for g, e in zip(groups, ends, strict=True))
     return VanderHookResults(
@@ -615,10 +628,16 @@ def _parse(argv):
     return parser.parse_args(argv)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(
+    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
+) -> int:
     args = _parse(argv)
     res = reproduce(
-        None if args.quick else args.runs, seed=args.seed, quick=args.quick, jobs=args.jobs
+        None if args.quick else args.runs,
+        seed=args.seed,
+        quick=args.quick,
+        jobs=args.jobs,
+        task_progress=task_progress,
     )
     print(format_report(res))
     plots = save_figures(res, args.out)

@@ -30,7 +30,7 @@ MAX_COORDINATE = limits.MAX_POSITION  # m, positions
 MAX_SPEED = limits.MAX_SPEED  # m/s, velocities, range rates
 MAX_STATE_VALUE = 1e12  # any track or truth state entry (estimates may overshoot positions)
 STAMP_TOLERANCE = 1e-6  # s between a stamp and its epoch time k T
-FRAME_ID = "world"
+FRAME_ID = topics.FIXED_FRAME  # the default; each node takes its frame_id parameter
 # Sensor kinds with a typed message; every other kind (a registered one, docs/extending.md)
 # travels as the generic Measurement on its own topic.
 BEARING_KINDS = ("bearing", "ambiguous_bearing")
@@ -57,11 +57,11 @@ def measurement_topic(kind: str) -> str:
     return topics.MEASUREMENTS
 
 
-def header(seconds: float) -> Header:
-    """A header stamped with sim time ``seconds`` (>= 0) in the world frame."""
+def header(seconds: float, frame_id: str = FRAME_ID) -> Header:
+    """A header stamped with sim time ``seconds`` (>= 0) in the fixed frame ``frame_id``."""
     sec = math.floor(seconds)
     nanosec = min(round((seconds - sec) * 1e9), 999_999_999)
-    return Header(stamp=TimeMsg(sec=int(sec), nanosec=int(nanosec)), frame_id=FRAME_ID)
+    return Header(stamp=TimeMsg(sec=int(sec), nanosec=int(nanosec)), frame_id=frame_id)
 
 
 def stamp_seconds(stamp, what: str) -> float:
@@ -126,6 +126,13 @@ def platform_from_msg(msg, scenario: Scenario, platform_ids) -> PlatformSnapshot
             "unknown_platform", f"{msg.platform_id!r} is not one of {sorted(platform_ids)}"
         )
     t = check_epoch_stamp(msg, scenario, what)
+    platform = next(p for p in scenario.platforms if p.id == msg.platform_id)
+    if list(msg.sensor_ids) != [s.id for s in platform.sensors] or list(msg.sensor_kinds) != [
+        s.kind for s in platform.sensors
+    ]:
+        raise Rejected(
+            "sensor_mismatch", f"{what}: sensors {list(msg.sensor_ids)[:8]} are not the scenario's"
+        )
     pv = pv_of(msg.position, msg.velocity, what)
     finite((msg.heading,), f"{what} heading", 4 * math.pi)
     finite((msg.speed,), f"{what} speed", MAX_SPEED)

@@ -1,5 +1,11 @@
 """The activetrack node graph in one table: topic names, message types and QoS.
 
+Topic names are relative (``activetrack/track``, ``clock``, ``tf``): a node started in a
+namespace (``--ros-args -r __ns:=/g1``) uses ``/g1/activetrack/track``, ``/g1/clock`` and
+``/g1/tf``, so several graphs share a DDS domain, and any name can be remapped
+(``-r activetrack/track:=/fleet/track``). Bags store the resolved (absolute) names;
+:func:`find_topic` finds a graph topic among them whatever the namespace.
+
 Per-epoch topics (measurements, truth, platform states, tracks, commands, selections, plan
 reports) are reliable and transient-local with a deep history, so a node or recorder that joins
 late (another process still discovering, a restarted planner) still gets the run so far. Their
@@ -14,21 +20,28 @@ check before deserialisation).
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-CLOCK = "/clock"
-PLATFORM_STATES = "/activetrack/platform_states"
-BEARING_MEASUREMENTS = "/activetrack/bearing_measurements"
-POLAR_MEASUREMENTS = "/activetrack/polar_measurements"
+# The default fixed frame (every node's ``frame_id`` parameter); the frame tree: docs/frames.md.
+FIXED_FRAME = "world"
+
+CLOCK = "clock"
+PLATFORM_STATES = "activetrack/platform_states"
+BEARING_MEASUREMENTS = "activetrack/bearing_measurements"
+POLAR_MEASUREMENTS = "activetrack/polar_measurements"
 # Generic measurements (msgs_defs/Measurement): every sensor kind without a typed topic.
-MEASUREMENTS = "/activetrack/measurements"
-GROUND_TRUTH = "/activetrack/ground_truth"  # evaluators only: tracker and planner never read it
-TRACK = "/activetrack/track"
-MANOEUVRE_COMMANDS = "/activetrack/manoeuvre_commands"
-SENSOR_SELECTION = "/activetrack/sensor_selection"
-PLAN_REPORT = "/activetrack/plan_report"
-DIAGNOSTICS = "/diagnostics"
-TRACK_POSE = "/activetrack/track_pose"  # geometry_msgs/PoseWithCovarianceStamped
-PARTICLES = "/activetrack/particles"  # geometry_msgs/PoseArray, subsampled PF cloud
-MARKERS = "/activetrack/markers"  # visualization_msgs/MarkerArray
+MEASUREMENTS = "activetrack/measurements"
+GROUND_TRUTH = "activetrack/ground_truth"  # evaluators only: tracker and planner never read it
+TRACK = "activetrack/track"
+MANOEUVRE_COMMANDS = "activetrack/manoeuvre_commands"
+SENSOR_SELECTION = "activetrack/sensor_selection"
+PLAN_REPORT = "activetrack/plan_report"
+DIAGNOSTICS = "diagnostics"
+TRACK_POSE = "activetrack/track_pose"  # geometry_msgs/PoseWithCovarianceStamped
+PARTICLES = "activetrack/particles"  # geometry_msgs/PoseArray, subsampled PF cloud
+MARKERS = "activetrack/markers"  # visualization_msgs/MarkerArray
+# msgs_defs/RunMetrics: per-epoch RMSE and PCRLB from the runner's evaluator (live view, bags)
+METRICS = "activetrack/metrics"
+TF = "tf"  # tf2_msgs/TFMessage: platforms, target truth and estimate (docs/frames.md)
+TF_STATIC = "tf_static"  # sensors on their platforms, latched
 
 # Every topic of the graph with its type (what `activetrack record` records by default).
 GRAPH_TOPICS = {
@@ -46,6 +59,9 @@ GRAPH_TOPICS = {
     PLAN_REPORT: "msgs_defs/msg/PlanReport",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
     MARKERS: "visualization_msgs/msg/MarkerArray",
+    METRICS: "msgs_defs/msg/RunMetrics",
+    TF: "tf2_msgs/msg/TFMessage",
+    TF_STATIC: "tf2_msgs/msg/TFMessage",
 }
 
 # Transient-local per-epoch topics; their messages are authenticated (msgs_defs types).
@@ -60,19 +76,44 @@ LATCHED_TOPICS = frozenset(
         TRACK,
         MANOEUVRE_COMMANDS,
         SENSOR_SELECTION,
+        METRICS,
     }
 )
 
-# History depths of the writers: per-epoch topics keep the run for late joiners.
+# History depths of the writers. Per-epoch topics keep the whole run for late joiners: the
+# nodes size them from the scenario (history_depth); LATCHED_DEPTH is the depth of tools that
+# do not know the run. TF_STATIC keeps its one message (all static transforms in it).
 LATCHED_DEPTH = 1024
 STREAM_DEPTH = 256
+TF_STATIC_DEPTH = 1
+# Upper bound of a sized history: memory, not correctness (a node warns when it applies).
+MAX_HISTORY_DEPTH = 1_000_000
 
 
-def writer_qos(topic: str) -> QoSProfile:
-    """The QoS the graph's publishers offer on ``topic``."""
+def run_history(scenario) -> int:
+    """Depth that keeps every per-epoch message of a run: (steps + 1) epochs times the most
+    messages one topic carries per epoch (one per sensor or per platform)."""
+    sensors = sum(len(p.sensors) for p in scenario.platforms)
+    return (scenario.steps + 1) * max(1, sensors, len(scenario.platforms))
+
+
+def history_depth(scenario) -> int:
+    """The writers' depth for a run: run_history, at most MAX_HISTORY_DEPTH."""
+    return min(run_history(scenario), MAX_HISTORY_DEPTH)
+
+
+def writer_qos(topic: str, depth: int | None = None) -> QoSProfile:
+    """The QoS the graph's publishers offer on ``topic`` (``depth``: the per-epoch topics'
+    history, default LATCHED_DEPTH)."""
+    if topic == TF_STATIC:
+        return QoSProfile(
+            depth=TF_STATIC_DEPTH,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        )
     if topic in LATCHED_TOPICS:
         return QoSProfile(
-            depth=LATCHED_DEPTH,
+            depth=depth or LATCHED_DEPTH,
             reliability=ReliabilityPolicy.RELIABLE,
             durability=DurabilityPolicy.TRANSIENT_LOCAL,
         )
@@ -81,7 +122,7 @@ def writer_qos(topic: str) -> QoSProfile:
 
 def reader_qos(topic: str) -> QoSProfile:
     """The QoS the graph's subscriptions request on ``topic`` (KEEP_ALL, see above)."""
-    latched = topic in LATCHED_TOPICS
+    latched = topic in LATCHED_TOPICS or topic == TF_STATIC
     return QoSProfile(
         history=HistoryPolicy.KEEP_ALL,
         depth=0,
@@ -90,6 +131,24 @@ def reader_qos(topic: str) -> QoSProfile:
     )
 
 
-def qos_for(topic: str) -> QoSProfile:
+def qos_for(topic: str, depth: int | None = None) -> QoSProfile:
     """QoS for a tool that both reads and writes a topic like the graph does (player, tests)."""
-    return writer_qos(topic)
+    return writer_qos(topic, depth)
+
+
+def graph_topic_of(name: str) -> str | None:
+    """The graph topic (relative name) that a resolved name like ``/g1/activetrack/track``
+    stands for, or None."""
+    for topic in GRAPH_TOPICS:
+        if name == topic or name == "/" + topic or name.endswith("/" + topic):
+            return topic
+    return None
+
+
+def find_topic(names, topic: str) -> str | None:
+    """The one name among ``names`` (e.g. a bag's topics) that is graph topic ``topic`` under
+    some namespace; None if there is none. ValueError if several namespaces hold it."""
+    found = sorted(n for n in names if graph_topic_of(n) == topic)
+    if len(found) > 1:
+        raise ValueError(f"several namespaces hold {topic}: {found}")
+    return found[0] if found else None

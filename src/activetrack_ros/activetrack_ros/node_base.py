@@ -26,7 +26,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
 
 from activetrack.closed_loop.counters import NodeCounters
-from activetrack_ros import graph
+from activetrack_ros import graph, params
 from activetrack_ros.trust import GraphKey, is_signed_type
 
 
@@ -69,8 +69,8 @@ class RateLimitedLog:
 class GraphPublisher:
     """A publisher that signs msgs_defs messages with the graph's key (if it has one)."""
 
-    def __init__(self, node: Node, msg_type, topic: str, key: GraphKey | None):
-        self.publisher = node.create_publisher(msg_type, topic, graph.writer_qos(topic))
+    def __init__(self, node: Node, msg_type, topic: str, key: GraphKey | None, depth=None):
+        self.publisher = node.create_publisher(msg_type, topic, graph.writer_qos(topic, depth))
         self.key = key if is_signed_type(msg_type) else None
         self.is_diagnostics = msg_type is DiagnosticArray
         self.graph_key = key
@@ -97,6 +97,34 @@ class GraphNode(Node):
         self.counters = NodeCounters()
         self.log_limited = RateLimitedLog(self.get_logger())
         self.inputs: dict[str, str] = {}  # message type name -> topic subscribed
+        self.frame_id = graph.FIXED_FRAME
+        self.history_depth: int | None = None  # per-epoch writers' depth (size_history)
+
+    # --- parameters and run size -----------------------------------------------------------
+
+    def declare_params(
+        self, specs: tuple[params.ParamSpec, ...], apply=None, *, last: bool = True
+    ) -> dict:
+        """Declare the node's parameters (activetrack_ros.params); ``apply``: name ->
+        callable for those a running node can change. Returns the values (ValueError on a bad
+        one). ``last``: the node declares no more, so unknown overrides are reported now."""
+        values = params.declare(self, specs)
+        params.on_change(self, specs, {} if apply is None else apply)
+        if last:
+            params.warn_unknown(self)
+        self.frame_id = values.get("frame_id", self.frame_id)
+        return values
+
+    def size_history(self, scenario) -> None:
+        """Per-epoch writers keep the whole run for late joiners (graph.history_depth); a run
+        too long for that says so."""
+        self.history_depth = graph.history_depth(scenario)
+        if graph.run_history(scenario) > self.history_depth:
+            self.get_logger().warning(
+                f"the run has {graph.run_history(scenario)} per-epoch messages per topic at "
+                f"most; writers keep the last {self.history_depth}: a late joiner misses the "
+                "start"
+            )
 
     # --- inputs --------------------------------------------------------------------------
 
@@ -181,7 +209,7 @@ class GraphNode(Node):
     # --- outputs -------------------------------------------------------------------------
 
     def publisher(self, msg_type, topic: str) -> GraphPublisher:
-        return GraphPublisher(self, msg_type, topic, self.graph_key)
+        return GraphPublisher(self, msg_type, topic, self.graph_key, self.history_depth)
 
     def diagnostics_array(self, header: Header, name: str, hardware_id: str, message: str):
         """This node's counters as one DiagnosticStatus (WARN once anything was rejected)."""

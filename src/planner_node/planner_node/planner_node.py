@@ -17,6 +17,7 @@ from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import TrackChecker, header, platform_from_msg, report_msg
 from activetrack_ros.node_base import GraphNode, Rejected
+from activetrack_ros.params import FRAME_ID, RUN, SCENARIO
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import (
     ManoeuvreCommand,
@@ -33,14 +34,10 @@ STATE_WINDOW = 64
 class PlannerNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("planner_node", **kwargs)
-        self.declare_parameter("scenario", "")
-        self.declare_parameter("run", -1)
-        path = self.get_parameter("scenario").value
-        if not path:
-            raise ValueError("parameter 'scenario' must name a scenario YAML file")
-        self.scenario = load_scenario(path)
-        run = int(self.get_parameter("run").value)
-        rng = component_rngs(self.scenario.seed, None if run < 0 else run)[2]
+        p = self.declare_params((SCENARIO, RUN, FRAME_ID))  # no mode: it plans alike in both
+        self.scenario = load_scenario(p["scenario"])
+        self.size_history(self.scenario)
+        rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[2]
         self.core = PlannerCore(self.scenario, rng)
         self.platform_ids = {p.id for p in self.scenario.platforms}
         self.check_track = TrackChecker(self.scenario)
@@ -94,7 +91,7 @@ class PlannerNode(GraphNode):
         self.last_decided = k
         for e in [e for e in self.platforms if e <= k]:
             del self.platforms[e]
-        hdr = header(k * self.scenario.dt)
+        hdr = header(k * self.scenario.dt, self.frame_id)
         for c in decision.commands:
             msg = ManoeuvreCommand(
                 header=hdr,

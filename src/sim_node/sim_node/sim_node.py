@@ -20,6 +20,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Vector3
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import ColorRGBA
+from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from activetrack.closed_loop.batch import component_rngs
@@ -34,7 +35,9 @@ from activetrack_ros.convert import (
     header,
     measurement_topic,
 )
+from activetrack_ros.frames import planar_transform, platform_frame, sensor_frame, truth_frame
 from activetrack_ros.node_base import GraphNode, Rejected
+from activetrack_ros.params import COMMON, ParamSpec
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import (
     BearingMeasurement,
@@ -50,36 +53,53 @@ from msgs_defs.msg import (
 PATH_CHUNK = 64  # points per path marker: each epoch republishes only the newest chunk
 
 
+PARAMS = (
+    *COMMON,
+    ParamSpec(
+        "rate", 1.0, "free mode: simulated seconds per wall second (changeable while running)",
+        read_only=False, low=1e-3, high=1e6,
+    ),
+    ParamSpec(
+        "command_timeout", 5.0,
+        "lockstep: wall seconds to wait for a platform's command before it holds course "
+        "(changeable while running)",
+        read_only=False, low=1e-3, high=3600.0,
+    ),
+    ParamSpec(
+        "tick", 0.01, "wall seconds between timeout checks (free mode: between clock ticks)",
+        low=1e-3, high=1.0,
+    ),
+    ParamSpec(
+        "exit_when_done", False,
+        "exit after the last epoch (else keep serving the latched topics; changeable)",
+        read_only=False,
+    ),
+)  # fmt: skip
+
+
 class SimNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("sim_node", **kwargs)
-        self.declare_parameter("scenario", "")
-        self.declare_parameter("run", -1)
-        self.declare_parameter("mode", "lockstep")
-        self.declare_parameter("rate", 1.0)
-        self.declare_parameter("command_timeout", 5.0)
-        self.declare_parameter("tick", 0.01)  # s between checks for timeouts (free: steps)
-        self.declare_parameter("exit_when_done", False)  # else keep serving latched topics
-        path = self.get_parameter("scenario").value
-        if not path:
-            raise ValueError("parameter 'scenario' must name a scenario YAML file")
-        self.scenario = load_scenario(path)
-        self.mode = self.get_parameter("mode").value
-        if self.mode not in ("lockstep", "free"):
-            raise ValueError(f"parameter 'mode' must be 'lockstep' or 'free', got {self.mode!r}")
-        self.rate = float(self.get_parameter("rate").value)
-        if not (math.isfinite(self.rate) and self.rate > 0):
-            raise ValueError(f"parameter 'rate' must be > 0, got {self.rate!r}")
-        self.timeout = float(self.get_parameter("command_timeout").value)
-        if not (math.isfinite(self.timeout) and self.timeout > 0):
-            raise ValueError(f"parameter 'command_timeout' must be > 0 s, got {self.timeout!r}")
-        tick = float(self.get_parameter("tick").value)
-        if not (math.isfinite(tick) and 0 < tick <= 1):
-            raise ValueError(f"parameter 'tick' must be in (0, 1] s, got {tick!r}")
-        self.exit_when_done = bool(self.get_parameter("exit_when_done").value)
-        run = int(self.get_parameter("run").value)
-        rng = component_rngs(self.scenario.seed, None if run < 0 else run)[0]
+        changes: dict = {}  # filled below, once the mode is known
+        p = self.declare_params(PARAMS, changes)
+        self.scenario = load_scenario(p["scenario"])
+        self.size_history(self.scenario)
+        self.mode = p["mode"]
+        self.rate = p["rate"]
+        self.timeout = p["command_timeout"]
+        self.exit_when_done = p["exit_when_done"]
+        rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[0]
         self.sim = Simulator(self.scenario, rng)
+        changes.update(
+            command_timeout=self._set_timeout,
+            exit_when_done=self._set_exit_when_done,
+            rate=self._set_rate
+            if self.mode == "free"
+            else "parameter 'rate' applies in free "
+            "mode only (this node runs lockstep: each epoch waits for the planner)",
+        )
+        self.tf_pub = self.publisher(TFMessage, topics.TF)
+        self.tf_static_pub = self.publisher(TFMessage, topics.TF_STATIC)
 
         self.clock_pub = self.publisher(Clock, topics.CLOCK)
         self.truth_pub = self.publisher(GroundTruth, topics.GROUND_TRUTH)
@@ -104,9 +124,27 @@ class SimNode(GraphNode):
         self.last_track_epoch = -1
         self.done = False
         self.epoch_started = time.monotonic()
-        self.wall_start = time.monotonic()
+        self.clock_origin = (time.monotonic(), 0.0)  # free mode: (wall, sim) at the last rate
+        self.publish_static_frames()
         self.publish_epoch([])
-        self.guarded_timer(tick, self.on_tick)
+        self.guarded_timer(p["tick"], self.on_tick)
+
+    # --- run-time parameter changes (activetrack_ros.params) -------------------------------
+
+    def _set_rate(self, rate: float) -> None:
+        """Sim time stays continuous: the new rate counts from now."""
+        self.clock_origin = (time.monotonic(), self.sim_time_now())
+        self.rate = rate
+
+    def _set_timeout(self, seconds: float) -> None:
+        self.timeout = seconds
+
+    def _set_exit_when_done(self, value: bool) -> None:
+        self.exit_when_done = value
+
+    def sim_time_now(self) -> float:
+        wall, sim = self.clock_origin
+        return sim + (time.monotonic() - wall) * self.rate
 
     # --- inputs --------------------------------------------------------------------------
 
@@ -207,8 +245,8 @@ class SimNode(GraphNode):
             self.get_logger().info(f"scenario {self.scenario.name} finished")
             return
         if self.mode == "free":
-            sim_time = (time.monotonic() - self.wall_start) * self.rate
-            self.clock_pub.publish(Clock(clock=header(sim_time).stamp))
+            sim_time = self.sim_time_now()
+            self.clock_pub.publish(Clock(clock=header(sim_time, self.frame_id).stamp))
             if sim_time >= self.sim.time + self.sim.dt:
                 self.step()
             return
@@ -240,11 +278,11 @@ class SimNode(GraphNode):
     def publish_epoch(self, measurements) -> None:
         t = self.sim.time
         k = self.sim.epoch
-        self.clock_pub.publish(Clock(clock=header(t).stamp))
+        self.clock_pub.publish(Clock(clock=header(t, self.frame_id).stamp))
         pv = self.sim.truth_pv()
         self.truth_pub.publish(
             GroundTruth(
-                header=header(t),
+                header=header(t, self.frame_id),
                 target_id=self.scenario.target.id,
                 epoch=k,
                 state_names=list(self.sim.model.state_names),
@@ -258,11 +296,11 @@ class SimNode(GraphNode):
         for s in self.sim.platform_snapshots():
             self.platform_pub.publish(
                 PlatformState(
-                    header=header(t),
+                    header=header(t, self.frame_id),
                     platform_id=s.platform_id,
                     epoch=k,
-                    sensor_id=",".join(s.sensor_ids),
-                    sensor_kind=",".join(s.sensor_kinds),
+                    sensor_ids=list(s.sensor_ids),
+                    sensor_kinds=list(s.sensor_kinds),
                     position=Point(x=float(s.pv[0]), y=float(s.pv[2])),
                     velocity=Vector3(x=float(s.pv[1]), y=float(s.pv[3])),
                     heading=s.heading,
@@ -271,14 +309,36 @@ class SimNode(GraphNode):
                 )
             )
         self.counters.count("epochs_published")
+        self.publish_frames(t, pv)
         self.publish_markers(t)
         self.publish_diagnostics()
+
+    def publish_frames(self, t: float, target_pv) -> None:
+        """Platforms and the target's truth in the fixed frame (activetrack_ros.frames)."""
+        hdr = header(t, self.frame_id)
+        transforms = [
+            planar_transform(hdr, platform_frame(s.platform_id), s.pv[0], s.pv[2], s.heading)
+            for s in self.sim.platform_snapshots()
+        ]
+        course = math.atan2(target_pv[3], target_pv[1])
+        target = truth_frame(self.scenario.target.id)
+        transforms.append(planar_transform(hdr, target, target_pv[0], target_pv[2], course))
+        self.tf_pub.publish(TFMessage(transforms=transforms))
+
+    def publish_static_frames(self) -> None:
+        """Each sensor at its platform's origin, latched on tf_static (one message)."""
+        transforms = [
+            planar_transform(header(0.0, platform_frame(p.id)), sensor_frame(s.id), 0, 0, 0)
+            for p in self.scenario.platforms
+            for s in p.sensors
+        ]
+        self.tf_static_pub.publish(TFMessage(transforms=transforms))
 
     def publish_measurement(self, m, epoch: int, t: float, count: int) -> None:
         platform_id = self.sim.sensors[m.sensor_id][0]
         s = m.sensor_state
         common = dict(
-            header=header(t),
+            header=header(t, self.frame_id),
             platform_id=platform_id,
             sensor_id=m.sensor_id,
             epoch=epoch,
@@ -335,7 +395,7 @@ class SimNode(GraphNode):
                 del path[:-1]
             path.append(Point(x=float(p.pv[0]), y=float(p.pv[2])))
             m = Marker(
-                header=header(t),
+                header=header(t, self.frame_id),
                 ns=f"platforms/{pid}",
                 id=self.path_chunk[pid],
                 type=Marker.LINE_STRIP,
@@ -350,10 +410,9 @@ class SimNode(GraphNode):
 
     def publish_diagnostics(self, finished: bool = False) -> None:
         message = "finished" if finished else f"epoch {self.sim.epoch}/{self.scenario.steps}"
+        hdr = header(self.sim.time, self.frame_id)
         self.diag_pub.publish(
-            self.diagnostics_array(
-                header(self.sim.time), "activetrack/sim_node", self.scenario.name, message
-            )
+            self.diagnostics_array(hdr, "activetrack/sim_node", self.scenario.name, message)
         )
 
 

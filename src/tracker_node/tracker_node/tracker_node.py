@@ -22,8 +22,10 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovarianceStamped
 from std_msgs.msg import ColorRGBA
+from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
+from activetrack import limits
 from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.data import PlatformSnapshot
 from activetrack.closed_loop.tracker import TrackerCore, pose_of
@@ -33,7 +35,9 @@ from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_scenario, with_tracker_overrides
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import MeasurementChecker, header, platform_from_msg
+from activetrack_ros.frames import estimate_frame, planar_transform
 from activetrack_ros.node_base import GraphNode, Rejected
+from activetrack_ros.params import COMMON, ParamSpec
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import (
     BearingMeasurement,
@@ -59,44 +63,43 @@ class OpenEpoch:
     announced: dict[str, int] = field(default_factory=dict)  # platform id -> measurement count
 
 
+PARAMS = (
+    *COMMON,
+    ParamSpec(
+        "cloud_size", 100, "particles in the published cloud (changeable while running)",
+        read_only=False, low=0, high=100_000,
+    ),
+    ParamSpec(
+        "particles", 0, "particle filter size (0: the scenario's)", low=0,
+        high=limits.MAX_PARTICLES,
+    ),
+    ParamSpec(
+        "epoch_timeout", 5.0,
+        "wall seconds before an incomplete epoch is closed with what arrived (changeable)",
+        read_only=False, low=1e-3, high=3600.0,
+    ),
+)  # fmt: skip
+# Checked once the scenario's plugins (which may register filters) are imported.
+FILTER = ParamSpec(
+    "filter", "", "a registered filter name (empty: the scenario's)", choices=filter_names
+)
+
+
 class TrackerNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("tracker_node", **kwargs)
-        self.declare_parameter("scenario", "")
-        self.declare_parameter("run", -1)
-        self.declare_parameter("mode", "lockstep")  # lockstep: only epoch k+1 follows epoch k
-        self.declare_parameter("cloud_size", 100)  # particles in the published cloud
-        self.declare_parameter("filter", "")  # a registered filter name; empty: the scenario's
-        self.declare_parameter("particles", 0)  # 0: the scenario's
-        self.declare_parameter("epoch_timeout", 5.0)  # s before an incomplete epoch is closed
-        path = self.get_parameter("scenario").value
-        if not path:
-            raise ValueError("parameter 'scenario' must name a scenario YAML file")
-        scenario = load_scenario(path)  # imports its plugins: their filters are registered
-        filter_name = self.get_parameter("filter").value
-        if filter_name and filter_name not in filter_names():
-            raise ValueError(
-                f"parameter 'filter' must be one of {list(filter_names())} (or empty: the "
-                f"scenario's), got {filter_name!r}"
-            )
+        changes = {"cloud_size": self._set_cloud_size, "epoch_timeout": self._set_epoch_timeout}
+        p = self.declare_params(PARAMS, changes, last=False)
+        scenario = load_scenario(p["scenario"])  # imports its plugins: their filters too
+        filter_name = self.declare_params((FILTER,), changes)["filter"]
         self.scenario = with_tracker_overrides(
-            scenario,
-            filter=filter_name or None,
-            particles=self.get_parameter("particles").value or None,
+            scenario, filter=filter_name or None, particles=p["particles"] or None
         )
-        self.mode = self.get_parameter("mode").value
-        if self.mode not in ("lockstep", "free"):
-            raise ValueError(f"parameter 'mode' must be 'lockstep' or 'free', got {self.mode!r}")
-        self.epoch_timeout = float(self.get_parameter("epoch_timeout").value)
-        if not (math.isfinite(self.epoch_timeout) and self.epoch_timeout > 0):
-            raise ValueError(f"parameter 'epoch_timeout' must be > 0 s, got {self.epoch_timeout}")
-        self.cloud_size = int(self.get_parameter("cloud_size").value)
-        if not 0 <= self.cloud_size <= 100_000:
-            raise ValueError(
-                f"parameter 'cloud_size' must be in [0, 100000], got {self.cloud_size}"
-            )
-        run = int(self.get_parameter("run").value)
-        rng = component_rngs(self.scenario.seed, None if run < 0 else run)[1]
+        self.size_history(self.scenario)
+        self.mode = p["mode"]
+        self.epoch_timeout = p["epoch_timeout"]
+        self.cloud_size = p["cloud_size"]
+        rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[1]
         self.core = TrackerCore(self.scenario, rng)
         # Scenario order of the sensors: measurements of an epoch are applied in this order.
         self.sensor_order = {sid: i for i, sid in enumerate(self.core.sensors)}
@@ -112,12 +115,19 @@ class TrackerNode(GraphNode):
         self.cloud_pub = self.publisher(PoseArray, topics.PARTICLES)
         self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
+        self.tf_pub = self.publisher(TFMessage, topics.TF)
         self.subscribe(BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing)
         self.subscribe(PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar)
         self.subscribe(MeasurementMsg, topics.MEASUREMENTS, self.on_measurement)
         self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
         self.guarded_timer(0.05, self.on_tick)
         self.publish_track(self.core.snapshot())  # epoch 0: the prior
+
+    def _set_cloud_size(self, size: int) -> None:
+        self.cloud_size = size
+
+    def _set_epoch_timeout(self, seconds: float) -> None:
+        self.epoch_timeout = seconds
 
     # --- inputs --------------------------------------------------------------------------
 
@@ -219,7 +229,7 @@ class TrackerNode(GraphNode):
     # --- outputs -------------------------------------------------------------------------
 
     def publish_track(self, snap) -> None:
-        hdr = header(snap.epoch * self.scenario.dt)
+        hdr = header(snap.epoch * self.scenario.dt, self.frame_id)
         samples = snap.samples
         self.track_pub.publish(
             TrackEstimate(
@@ -252,6 +262,8 @@ class TrackerNode(GraphNode):
         cov6[0], cov6[1], cov6[6], cov6[7] = (float(v) for v in P_xy.ravel())
         pose.pose.covariance = cov6
         self.pose_pub.publish(pose)
+        target = estimate_frame(self.scenario.target.id)
+        self.tf_pub.publish(TFMessage(transforms=[planar_transform(hdr, target, x, y, course)]))
         ellipse = Marker(header=hdr, ns="track", id=0, type=Marker.LINE_STRIP)
         ellipse.action = Marker.ADD
         ellipse.pose.orientation.w = 1.0

@@ -13,13 +13,18 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.bounds.pcrlb import covariance_bound, gaussian_samples, pcrlb_trajectory
+from activetrack.bounds.pcrlb import (
+    covariance_bound,
+    gaussian_samples,
+    pcrlb_trajectory,
+    propagate_samples,
+)
 from activetrack.closed_loop.data import Decision, TrackSnapshot
 from activetrack.closed_loop.planner import PlannerCore
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
 from activetrack.models.base import SensorModel, as_linear
-from activetrack.montecarlo import parallel_map
+from activetrack.montecarlo import Progress, parallel_map
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.schema import Scenario
 
@@ -144,6 +149,51 @@ def path_bound(scenario: Scenario, record: RunRecord, rng: np.random.Generator) 
     return covariance_bound(J)
 
 
+class PathBound:
+    """:func:`path_bound` one epoch at a time, for a run in progress (the live view's bound):
+    the same recursion (Hernandez eq. 3, 8-9) drawing the same samples from ``rng`` in the same
+    order, so step k gives the summary's bound of epoch k (tested to 1e-12). NaN for nonlinear
+    target motion, as there."""
+
+    def __init__(self, scenario: Scenario, rng: np.random.Generator):
+        model = build_motion_model(scenario.target.motion)
+        self.linear = model.is_linear
+        self.sensors: list[SensorModel] = []
+        self.columns: list[int] = []
+        if not self.linear:
+            return
+        linear = as_linear(model)
+        prior = scenario.target.prior
+        C0 = prior.covariance()
+        for j, p in enumerate(scenario.platforms):
+            for s in p.sensors:
+                self.sensors.append(build_sensor(s))
+                self.columns.append(j)
+        self.F, self.Q = linear.transition_matrix(scenario.dt), linear.process_noise(scenario.dt)
+        self.rng = rng
+        self.samples = gaussian_samples(np.array(prior.mean), C0, BOUND_SAMPLES, rng)
+        self.J = np.linalg.inv(C0)
+
+    def step(self, platform_pv: np.ndarray, measured: np.ndarray) -> np.ndarray:
+        """The bound J^-1 ``(4, 4)`` at the next epoch, from the platforms' pv ``(P, 4)`` at
+        that epoch and which sensors measured there ``(S,)`` (scenario order)."""
+        if not self.linear:
+            return np.full((4, 4), math.nan)
+        self.samples = propagate_samples(self.samples, self.F, self.Q, 1, self.rng)[0]
+        paths = np.asarray(platform_pv)[self.columns][None]
+        J = pcrlb_trajectory(
+            self.J,
+            self.F,
+            self.Q,
+            self.samples[None],
+            self.sensors,
+            paths,
+            active=np.asarray(measured)[None],
+        )
+        self.J = J[0]
+        return covariance_bound(self.J)
+
+
 @dataclass
 class BatchSummary:
     scenario: str
@@ -240,15 +290,18 @@ def _run_task(task: tuple[Scenario, int | None]) -> RunRecord:
     return run_once(*task)
 
 
-def run_batch(scenario: Scenario, runs: int = 1, jobs: int = 1) -> BatchSummary:
+def run_batch(
+    scenario: Scenario, runs: int = 1, jobs: int = 1, progress: Progress | None = None
+) -> BatchSummary:
     """``runs`` seeded closed-loop runs on ``jobs`` worker processes, summarised by
     :func:`summarize`. Run r draws from its own generators (:func:`component_rngs`), so the
-    result is the same for every ``jobs``."""
+    result is the same for every ``jobs``. ``progress(done)`` is called as runs finish
+    (:func:`activetrack.montecarlo.parallel_map`); it does not change the result."""
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ValueError(f"runs: must be an integer >= 1, got {runs!r}")
     start = time.perf_counter()
     tasks = [(scenario, r if runs > 1 else None) for r in range(runs)]
-    records = parallel_map(_run_task, tasks, jobs)
+    records = parallel_map(_run_task, tasks, jobs, progress)
     return summarize(scenario, records, time.perf_counter() - start)
 
 

@@ -1,0 +1,220 @@
+"""Live view in Foxglove: the running graph served on a local WebSocket (docs/live-view.md).
+
+``activetrack run SCENARIO --foxglove`` starts a :class:`LiveServer` (the ``foxglove-sdk``
+WebSocket server, bound to 127.0.0.1:8765 by default) before the run, and adds a
+:class:`LiveViewNode` to the runner's graph. The node forwards every graph topic
+(``activetrack_ros.graph.GRAPH_TOPICS``) as the raw CDR bytes it receives, on a Foxglove channel
+of the topic's resolved name with the message definition as a ``ros2msg`` schema: exactly what
+the run's bag holds (same names, same bytes, same schemas), so one layout
+(``docs/foxglove-layout.json``) shows a live run and a recorded bag alike. Nothing is computed
+here: the scene comes from the nodes' own topics (the tracker's 2-sigma ellipse, pose and
+particles; the sim's platform paths and ``/tf``; the evaluator's truth, measuring sensors and
+planned legs) and the RMSE vs PCRLB figures from the evaluator's ``RunMetrics``.
+
+Only the graph's own messages are shown: on the per-epoch (msgs_defs) topics and
+``/diagnostics`` a message that does not verify under the run's key is counted as foreign and
+dropped, as the nodes do (``activetrack_ros.trust``). Log time is the simulated time of the
+latest ``/clock`` (as a ``--use-sim-time`` recorder stamps it), and the server announces that
+time to clients (the Foxglove ``time`` capability), so live and bag timelines agree.
+
+The view only reads: it publishes nothing on the graph, so the run's result is the same with
+and without it (tested).
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import threading
+import time
+from collections import Counter
+
+from rclpy.expand_topic_name import expand_topic_name
+from rclpy.serialization import deserialize_message
+from rosgraph_msgs.msg import Clock
+
+from activetrack_bringup.bag import graph_schemas, message_class
+from activetrack_ros import graph as topics
+from activetrack_ros.graph import GRAPH_TOPICS, reader_qos
+from activetrack_ros.node_base import GraphNode
+from activetrack_ros.trust import is_signed_type
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8765
+SERVER_NAME = "activetrack"
+NODE_NAME = "activetrack_live_view"
+# Messages buffered per client: a lockstep run publishes in bursts far faster than real time.
+BACKLOG = 16384
+
+
+class LiveViewError(ValueError):
+    """The live view cannot be served as asked (a port in use, a host that cannot be bound)."""
+
+
+def resolved_topic(topic: str, namespace: str = "") -> str:
+    """The absolute name a graph topic has in ``namespace`` (what the nodes and the bag use)."""
+    return expand_topic_name(topic, NODE_NAME, namespace or "/")
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class LiveServer:
+    """The Foxglove WebSocket server with one channel per graph topic, started at once (so that
+    a port in use fails before the run). ``port`` 0 takes a free port (see :attr:`port`)."""
+
+    def __init__(
+        self, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, namespace: str = ""
+    ) -> None:
+        import foxglove
+        from foxglove.websocket import Capability
+
+        self.host = host
+        self.subscriptions: Counter[str] = Counter()  # channel topic -> client subscriptions
+        self._subscribed = threading.Event()
+        self.context = foxglove.Context()
+        try:
+            self.server = foxglove.start_server(
+                name=SERVER_NAME,
+                host=host,
+                port=port,
+                capabilities=[Capability.Time],
+                server_listener=_Listener(self),
+                context=self.context,
+                message_backlog_size=BACKLOG,
+            )
+        except (RuntimeError, ValueError, OverflowError) as exc:
+            reason = str(exc).removeprefix("FoxgloveError: ")
+            raise LiveViewError(f"cannot serve the live view on {host}:{port}: {reason}") from None
+        schemas = graph_schemas()
+        self.channels = {}  # graph topic -> foxglove channel (its resolved name)
+        for topic, msgtype in GRAPH_TOPICS.items():
+            msgdef, _ = schemas[msgtype]
+            self.channels[topic] = foxglove.Channel(
+                resolved_topic(topic, namespace),
+                schema=foxglove.Schema(name=msgtype, encoding="ros2msg", data=msgdef.encode()),
+                message_encoding="cdr",
+                context=self.context,
+            )
+
+    @property
+    def port(self) -> int:
+        return self.server.port
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"ws://{host}:{self.port}"
+
+    def wait_for_subscriber(self, timeout: float) -> bool:
+        """Block until a client subscribed to a channel, or ``timeout`` seconds pass."""
+        deadline = time.monotonic() + timeout
+        while not self._subscribed.is_set():  # in slices: Ctrl-C stays responsive
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            self._subscribed.wait(min(left, 0.1))
+        return True
+
+    def log(self, topic: str, data: bytes, log_time_ns: int) -> None:
+        self.channels[topic].log(data, log_time=log_time_ns)
+
+    def broadcast_time(self, time_ns: int) -> None:
+        self.server.broadcast_time(time_ns)
+
+    def stop(self) -> None:
+        for channel in self.channels.values():
+            channel.close()
+        self.server.stop()
+
+    def __enter__(self) -> LiveServer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+class _Listener:
+    """The server's callbacks (on the SDK's own thread): which channels clients watch."""
+
+    def __init__(self, live: LiveServer):
+        self.live = live
+
+    def on_subscribe(self, client, channel) -> None:
+        self.live.subscriptions[channel.topic] += 1
+        self.live._subscribed.set()
+
+    def on_unsubscribe(self, client, channel) -> None:
+        self.live.subscriptions[channel.topic] -= 1
+
+
+class LiveViewNode(GraphNode):
+    """Forwards the graph's topics to a :class:`LiveServer`: raw bytes, the graph's own only.
+
+    ``forwarded`` counts the messages sent on per graph topic; foreign ones end in the node's
+    ``foreign.<Type>`` counters, as in every graph node."""
+
+    def __init__(self, server: LiveServer, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        self.server = server
+        self.clock_ns = 0  # sim time of the latest /clock: the log time of what follows
+        self.forwarded: Counter[str] = Counter()
+        for topic, msgtype in GRAPH_TOPICS.items():
+            cls = message_class(msgtype)
+            self.create_subscription(
+                cls, topic, self._forwarder(topic, cls), reader_qos(topic), raw=True
+            )
+
+    def _forwarder(self, topic: str, cls):
+        name = cls.__name__
+        key = self.graph_key
+        signed = key is not None and is_signed_type(cls)
+        diagnostics = key is not None and topic == topics.DIAGNOSTICS
+
+        def on_raw(data: bytes) -> None:
+            self.counters.received(name)
+            if signed and not key.verify(data):
+                return self._foreign(name, topic)
+            if diagnostics and not self.guarded_check(key.verify_diagnostics, data, cls):
+                return self._foreign(name, topic)
+            if cls is Clock:
+                self.guarded(self._tick, data)
+            self.server.log(topic, data, self.clock_ns)
+            self.forwarded[topic] += 1
+
+        return on_raw
+
+    def guarded_check(self, check, data: bytes, cls) -> bool:
+        """``check(message)`` on the deserialised bytes; False when they do not even decode."""
+        try:
+            return bool(check(deserialize_message(data, cls)))
+        except Exception:  # a raw writer can send any bytes
+            return False
+
+    def _tick(self, data: bytes) -> None:
+        clock = deserialize_message(data, Clock).clock
+        self.clock_ns = clock.sec * 1_000_000_000 + clock.nanosec
+        self.server.broadcast_time(self.clock_ns)
+
+
+def attach(server: LiveServer, graph_key, namespace: str = ""):
+    """A runner ``before_spin`` hook that adds the live view's node to the run's graph."""
+
+    def before_spin(graph) -> None:
+        options = {"namespace": namespace} if namespace else {}
+        graph.add(
+            LiveViewNode(
+                server,
+                graph_key=graph_key,
+                context=graph.context,
+                start_parameter_services=False,
+                **options,
+            )
+        )
+
+    return before_spin

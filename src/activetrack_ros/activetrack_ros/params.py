@@ -1,0 +1,200 @@
+"""Node parameters that tell the truth: each declared once, with a descriptor (description,
+type, range or allowed values, read-only where a running node cannot apply a change), checked
+at start-up (a bad value stops the node with exit 2 before it publishes) and at run time (a
+change is applied by the node, or refused with the reason: what ``ros2 param set`` reports).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+    SetParametersResult,
+)
+from rclpy.exceptions import ParameterException
+from rclpy.parameter import Parameter
+
+from activetrack_ros.graph import FIXED_FRAME
+
+_TYPES = {
+    bool: ParameterType.PARAMETER_BOOL,
+    int: ParameterType.PARAMETER_INTEGER,
+    float: ParameterType.PARAMETER_DOUBLE,
+    str: ParameterType.PARAMETER_STRING,
+}
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One node parameter. ``low``/``high``: closed range (numbers); ``choices``: allowed
+    strings (a callable for registries that grow, e.g. filter names); ``required``: a string
+    that must not stay empty; ``read_only=False``: the node applies run-time changes."""
+
+    name: str
+    default: bool | int | float | str
+    description: str
+    read_only: bool = True
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] | Callable[[], tuple[str, ...]] = ()
+    required: bool = False
+    pattern: str | None = None  # a string's form (regular expression, whole match)
+
+    @property
+    def type(self) -> type:
+        return type(self.default)
+
+    def allowed(self) -> tuple[str, ...]:
+        return tuple(self.choices()) if callable(self.choices) else self.choices
+
+    def descriptor(self) -> ParameterDescriptor:
+        d = ParameterDescriptor(
+            name=self.name,
+            type=_TYPES[self.type],
+            description=self.description,
+            read_only=self.read_only,
+        )
+        if self.type is float and self.low is not None and self.high is not None:
+            d.floating_point_range = [
+                FloatingPointRange(from_value=float(self.low), to_value=float(self.high))
+            ]
+        elif self.type is int and self.low is not None and self.high is not None:
+            d.integer_range = [
+                IntegerRange(from_value=int(self.low), to_value=int(self.high), step=1)
+            ]
+        allowed = self.allowed()
+        if allowed:
+            d.additional_constraints = f"one of {list(allowed)}" + (
+                "" if self.required else " (or empty)"
+            )
+        elif self.required:
+            d.additional_constraints = "must not be empty"
+        if self.pattern:
+            d.additional_constraints += f" matching {self.pattern}"
+        return d
+
+    def check(self, value) -> str | None:
+        """Why ``value`` is not allowed (a sentence naming the parameter), or None."""
+        if self.type is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if not isinstance(value, self.type) or (self.type is int and isinstance(value, bool)):
+            return (
+                f"parameter '{self.name}' must be a {self.type.__name__}, got "
+                f"{type(value).__name__} {value!r}"
+            )
+        if self.type in (int, float):
+            bad = not math.isfinite(value) or (
+                (self.low is not None and value < self.low)
+                or (self.high is not None and value > self.high)
+            )
+            if bad:
+                limits = f"[{self.low}, {self.high}]"
+                return f"parameter '{self.name}' must be in {limits}, got {value!r}"
+        allowed = self.allowed()
+        if self.type is str and allowed and value not in allowed and (value or self.required):
+            empty = "" if self.required else " (or empty)"
+            return f"parameter '{self.name}' must be one of {list(allowed)}{empty}, got {value!r}"
+        if self.type is str and self.required and not value:
+            return f"parameter '{self.name}' must not be empty: {self.description}"
+        if self.pattern and value and not re.fullmatch(self.pattern, value):
+            return f"parameter '{self.name}' must match {self.pattern}, got {value!r}"
+        return None
+
+
+# Parameters every graph node has.
+SCENARIO = ParamSpec(
+    "scenario", "", "scenario YAML file (checked on load: docs in README)", required=True
+)
+RUN = ParamSpec(
+    "run", -1, "Monte Carlo run index for seeding (-1: the scenario's seed only)",
+    low=-1, high=2**31 - 1,
+)  # fmt: skip
+MODE = ParamSpec(
+    "mode", "lockstep",
+    "lockstep: epoch k+1 waits for every answer to epoch k (deterministic); free: sim time "
+    "runs at 'rate' x wall time",
+    choices=("lockstep", "free"), required=True,
+)  # fmt: skip
+FRAME_ID = ParamSpec(
+    "frame_id", FIXED_FRAME,
+    "fixed frame of every header and the root of the tf tree (docs/frames.md)",
+    required=True, pattern=r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z0-9_]+)*",
+)  # fmt: skip
+COMMON = (SCENARIO, RUN, MODE, FRAME_ID)
+
+
+def declare(node, specs: tuple[ParamSpec, ...]) -> dict:
+    """Declare ``specs`` on ``node`` and return their values; ValueError (naming the
+    parameter and what is allowed) on a bad value. An integer given for a float parameter
+    (``-p rate:=5``) is taken as that float."""
+    overrides = node._parameter_overrides  # what --ros-args / params files / the caller gave
+    values = {}
+    for spec in specs:
+        given = overrides.get(spec.name)
+        if given is not None and spec.type is float and given.type_ == Parameter.Type.INTEGER:
+            overrides[spec.name] = Parameter(spec.name, value=float(given.value))
+        try:
+            value = node.declare_parameter(spec.name, spec.default, spec.descriptor()).value
+        except ParameterException as exc:
+            given = overrides.get(spec.name)
+            problem = spec.check(given.value) if given is not None else None
+            raise ValueError(problem or f"parameter '{spec.name}': {exc}") from None
+        problem = spec.check(value)
+        if problem:
+            raise ValueError(problem)
+        values[spec.name] = value
+    return values
+
+
+def warn_unknown(node) -> None:
+    """Log the overrides (params file, ``-p``) that name no parameter of the node: a params
+    file may address several nodes at once (``/**``), so this warns and does not fail."""
+    declared = set(node._parameters)
+    unknown = sorted(n for n in node._parameter_overrides if n not in declared)
+    if unknown:
+        node.get_logger().warning(
+            f"parameters {unknown} are not parameters of {node.get_name()} (ignored); it has "
+            f"{sorted(declared)}"
+        )
+
+
+def on_change(node, specs: tuple[ParamSpec, ...], apply: dict[str, Callable | str]) -> None:
+    """Accept run-time changes of the mutable parameters (checked, then ``apply[name](value)``
+    after they are set) and refuse every other change with a reason (``apply[name]`` may be
+    that reason, for a change the node's present state cannot take). rclpy refuses read-only
+    ones itself ("parameter ... cannot be set because it is read-only")."""
+    by_name = {s.name: s for s in specs}
+
+    def validate(params: list[Parameter]) -> SetParametersResult:
+        for p in params:
+            spec = by_name.get(p.name)
+            if spec is None:
+                continue  # use_sim_time and rclpy's own
+            if spec.read_only or p.name not in apply:
+                return SetParametersResult(
+                    successful=False,
+                    reason=f"parameter '{p.name}' cannot change while the node runs",
+                )
+            if isinstance(apply[p.name], str):  # changeable, but not in this node's state
+                return SetParametersResult(successful=False, reason=apply[p.name])
+            problem = spec.check(p.value)
+            if problem:
+                return SetParametersResult(successful=False, reason=problem)
+        return SetParametersResult(successful=True)
+
+    def applied(params: list[Parameter]) -> None:
+        for p in params:
+            if p.name in by_name and callable(apply.get(p.name)):
+                value = p.value
+                apply[p.name](float(value) if by_name[p.name].type is float else value)
+                node.get_logger().info(f"parameter '{p.name}' set to {value!r}")
+
+    node.add_on_set_parameters_callback(validate)
+    node.add_post_set_parameters_callback(applied)

@@ -1,0 +1,75 @@
+"""Frames that RViz and Foxglove show without configuration (docs/frames.md): /tf holds each
+platform, the target's truth and the track's estimate in the fixed frame, /tf_static each
+sensor on its platform; every header names the fixed frame."""
+
+import math
+
+import numpy as np
+import pytest
+from tf2_msgs.msg import TFMessage
+
+from activetrack.scenarios import load_scenario
+from activetrack_bringup.retrack import read_topic
+from activetrack_bringup.runner import run_graph
+from activetrack_ros import graph as topics
+from msgs_defs.msg import GroundTruth, PlatformState, TrackEstimate
+
+SCENARIO = "tests/ros/data/short_two_sensors.yaml"
+pytestmark = pytest.mark.ros
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    return run_graph(SCENARIO, run_dir=tmp_path_factory.mktemp("frames"), plots=False).bag
+
+
+def _ns(stamp) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def _yaw(q) -> float:
+    return 2 * math.atan2(q.z, q.w)
+
+
+def test_tf_places_platforms_truth_and_estimate(bag):
+    sc = load_scenario(SCENARIO)
+    transforms = {}  # (child, stamp) -> transform
+    for msg in read_topic(bag, topics.TF, TFMessage):
+        for t in msg.transforms:
+            assert t.header.frame_id == "world"
+            transforms[(t.child_frame_id, _ns(t.header.stamp))] = t
+    children = {c for c, _ in transforms}
+    platforms = {f"platform/{p.id}" for p in sc.platforms}
+    target = sc.target.id
+    assert children == platforms | {f"target/{target}/truth", f"target/{target}/estimate"}
+    assert len(transforms) == len(children) * (sc.steps + 1)  # every epoch, once each
+    for s in read_topic(bag, topics.PLATFORM_STATES, PlatformState):
+        t = transforms[(f"platform/{s.platform_id}", _ns(s.header.stamp))].transform
+        assert (t.translation.x, t.translation.y) == (s.position.x, s.position.y)
+        assert _yaw(t.rotation) == pytest.approx(s.heading, abs=1e-12)
+    for g in read_topic(bag, topics.GROUND_TRUTH, GroundTruth):
+        t = transforms[(f"target/{target}/truth", _ns(g.header.stamp))].transform
+        assert (t.translation.x, t.translation.y) == (g.position.x, g.position.y)
+        course = math.atan2(g.velocity.y, g.velocity.x)
+        assert _yaw(t.rotation) == pytest.approx(course, abs=1e-12)
+    tracks = read_topic(bag, topics.TRACK, TrackEstimate)
+    for k in tracks:
+        t = transforms[(f"target/{target}/estimate", _ns(k.header.stamp))].transform
+        x, vx, y, vy = np.asarray(k.state)[:4]  # pv order (docs/core-interfaces.md)
+        assert (t.translation.x, t.translation.y) == pytest.approx((x, y), abs=1e-9)
+        assert _yaw(t.rotation) == pytest.approx(math.atan2(vy, vx), abs=1e-9)
+
+
+def test_tf_static_mounts_every_sensor_on_its_platform(bag):
+    sc = load_scenario(SCENARIO)
+    static = read_topic(bag, topics.TF_STATIC, TFMessage)
+    assert len(static) == 1  # one latched message with every static transform
+    mounts = {(t.header.frame_id, t.child_frame_id) for t in static[0].transforms}
+    assert mounts == {
+        (f"platform/{p.id}", f"sensor/{s.id}") for p in sc.platforms for s in p.sensors
+    }
+
+
+def test_every_header_names_the_fixed_frame(bag):
+    for topic, cls in ((topics.PLATFORM_STATES, PlatformState), (topics.TRACK, TrackEstimate)):
+        assert {m.header.frame_id for m in read_topic(bag, topic, cls)} == {"world"}
