@@ -104,7 +104,6 @@ class McapWriter:
         self._index: dict[int, list[int]] = defaultdict(list)  # channel -> [time, offset, ...]
         self._chunk_start = 0
         self._chunk_end = 0
-        self._chunk_opened_ns = 0  # log time of the chunk's first message
         self._chunk_opened_mono = 0  # monotonic clock then (the timer's age: no clock jumps)
         self._seq: dict[int, int] = defaultdict(int)
         # What is on disk (complete chunks): counts per channel and time range.
@@ -170,7 +169,7 @@ class McapWriter:
         """Append one message (raw bytes) to the open chunk; closes the chunk when full/old."""
         buf = self._buf
         if not buf:
-            self._chunk_start = self._chunk_end = self._chunk_opened_ns = log_time
+            self._chunk_start = self._chunk_end = log_time
             self._chunk_opened_mono = time.monotonic_ns()
         elif log_time < self._chunk_start:
             self._chunk_start = log_time
@@ -188,7 +187,10 @@ class McapWriter:
         )
         buf += data
         self.written += 1
-        if len(buf) >= self.chunk_size or log_time - self._chunk_opened_ns >= self.chunk_age_ns:
+        # Age by the monotonic clock, not log time (sim time can run far faster or slower).
+        if len(buf) >= self.chunk_size or (
+            time.monotonic_ns() - self._chunk_opened_mono >= self.chunk_age_ns
+        ):
             self._close_chunk()
 
     def flush_if_older(self, age_s: float | None = None) -> bool:
