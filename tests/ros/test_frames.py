@@ -6,13 +6,18 @@ import math
 
 import numpy as np
 import pytest
+from rclpy.node import Node
+from rclpy.parameter import Parameter
 from tf2_msgs.msg import TFMessage
 
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.retrack import read_topic
 from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
-from msgs_defs.msg import GroundTruth, PlatformState, TrackEstimate
+from activetrack_ros.convert import header
+from activetrack_ros.graph import qos_for
+from msgs_defs.msg import BearingMeasurement, GroundTruth, PlatformState, TrackEstimate
+from tracker_node.tracker_node import TrackerNode
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
 pytestmark = pytest.mark.ros
@@ -73,3 +78,21 @@ def test_tf_static_mounts_every_sensor_on_its_platform(bag):
 def test_every_header_names_the_fixed_frame(bag):
     for topic, cls in ((topics.PLATFORM_STATES, PlatformState), (topics.TRACK, TrackEstimate)):
         assert {m.header.frame_id for m in read_topic(bag, topic, cls)} == {"world"}
+
+
+def test_a_message_in_another_frame_is_rejected_and_counted(graph):
+    """A tracker in frame "map" is fed a measurement stamped in "world" (e.g. a driver left at
+    the default): rejected as wrong_frame, counted, and the node keeps running."""
+    params = [Parameter("scenario", value=SCENARIO), Parameter("frame_id", value="map")]
+    tracker = graph.add(TrackerNode(context=graph.context, parameter_overrides=params))
+    feeder = graph.add(Node("feeder", context=graph.context))
+    pub = feeder.create_publisher(
+        BearingMeasurement, topics.BEARING_MEASUREMENTS, qos_for(topics.BEARING_MEASUREMENTS)
+    )
+    msg = BearingMeasurement(header=header(5.0, "world"), sensor_id="s1", platform_id="p1", epoch=1)
+    for _ in range(3):
+        pub.publish(msg)
+    assert graph.spin_until(
+        lambda: tracker.counters.counts.get("rejected.wrong_frame") == 3, timeout=5.0
+    )
+    assert tracker.counters.total("errors.") == 0 and not tracker.epochs

@@ -5,7 +5,8 @@ Every message a subscription takes ends in exactly one counter:
 - ``foreign.<Type>``: from a writer outside the graph (``activetrack_ros.trust``), dropped
   before deserialisation;
 - ``rejected.<reason>``: from the graph or, without a key, from anyone, but invalid (the node's
-  callback raised :class:`Rejected`);
+  callback raised :class:`Rejected`, or the header names another frame than the node's
+  ``frame_id``: ``rejected.wrong_frame``);
 - ``ignored.<reason>``: valid but not needed (e.g. history replayed to a late joiner);
 - otherwise it was used. ``received.<Type>`` counts them all. DDS reports samples it lost
   (``dropped.<Type>``, from the message-lost event) and writers it could not match
@@ -147,6 +148,11 @@ class GraphNode(Node):
                 return self.reject("undecodable", f"{name} on {topic}")
             if diagnostics and not self.graph_key.verify_diagnostics(msg):
                 return self._foreign(name, topic)
+            frame = getattr(getattr(msg, "header", None), "frame_id", self.frame_id)
+            if frame != self.frame_id:  # e.g. a driver in "map" feeding a graph in "world"
+                return self.reject(
+                    "wrong_frame", f"{name} on {topic} in frame {frame!r}, not {self.frame_id!r}"
+                )
             self.guarded(callback, msg)
 
         events = SubscriptionEventCallbacks(
