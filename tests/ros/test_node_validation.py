@@ -237,3 +237,21 @@ def test_no_input_makes_a_callback_raise(node_name, msg_type, graph):
         assert not errors, errors
 
     check()
+
+
+def test_the_evaluator_gives_up_on_plan_reports_only_after_its_grace(graph):
+    """Missing plan reports (a dead planner) stop blocking completion report_grace_s after the
+    sim finished: 1 s in one process, longer between processes (a participant that missed the
+    planner's first discovery announcements hears the next one about 3 s later)."""
+    from activetrack_bringup.runner import REPORT_GRACE_PROCESSES_S
+
+    assert REPORT_GRACE_PROCESSES_S > 3.0
+    sc = load_scenario(SCENARIO)
+    kw = {"context": graph.context, "start_parameter_services": False}
+    quick = graph.add(EvaluatorNode(sc, **kw))
+    patient = graph.add(EvaluatorNode(sc, report_grace_s=REPORT_GRACE_PROCESSES_S, **kw))
+    for node in (quick, patient):
+        assert node.expects_reports and not node._reports_given_up()  # sim not finished
+        node.sim_finished_at = time.monotonic() - 2.0
+    assert quick._reports_given_up() and not patient._reports_given_up()
+    assert "plan report missing" in patient.missing() and "plan report" not in quick.missing()

@@ -96,8 +96,9 @@ MEASURED_RGBA = (1.0, 0.85, 0.1, 0.45)
 class EvaluatorNode(GraphNode):
     """Collects truth, tracks, platform states and plan reports per epoch."""
 
-    def __init__(self, scenario, **kwargs):
+    def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
         super().__init__("activetrack_evaluator", **kwargs)
+        self.report_grace_s = report_grace_s
         self.scenario = scenario
         K = scenario.steps
         self.platform_index = {p.id: i for i, p in enumerate(scenario.platforms)}
@@ -329,8 +330,9 @@ class EvaluatorNode(GraphNode):
     # --- completion ---------------------------------------------------------------------------
 
     # Plan reports may be missing for good (a planner that died); once the sim has finished
-    # and the reports stopped coming for this long, the run is complete without them.
-    REPORT_GRACE_S = 1.0
+    # and the reports stopped coming for report_grace_s, the run is complete without them.
+    # Between processes the runner gives more: a DDS participant that missed the planner's
+    # first announcements only learns of it at the next periodic one (about 3 s later).
 
     @property
     def expects_reports(self) -> bool:
@@ -363,7 +365,7 @@ class EvaluatorNode(GraphNode):
 
     def _reports_given_up(self) -> bool:
         t = self.sim_finished_at
-        return t is not None and time.monotonic() - t > self.REPORT_GRACE_S
+        return t is not None and time.monotonic() - t > self.report_grace_s
 
     def completed_epochs(self) -> int:
         """The last epoch K' such that truth, track and platform states of 0..K' are all here."""

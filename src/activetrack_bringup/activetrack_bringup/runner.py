@@ -38,6 +38,10 @@ from planner_node.planner_node import PlannerNode
 from sim_node.sim_node import SimNode
 from tracker_node.tracker_node import TrackerNode
 
+# How long the evaluator waits for missing plan reports after the sim finished, with node
+# processes (DDS discovery between them): past one periodic discovery announcement.
+REPORT_GRACE_PROCESSES_S = 5.0
+
 
 class GraphSetupError(ValueError):
     """The run cannot start as asked (e.g. node processes that could not discover each other)."""
@@ -211,7 +215,12 @@ class _GraphRunner:
         self.quiet = {"context": self.graph.context, "start_parameter_services": False}
         if opts.namespace:
             self.quiet["namespace"] = opts.namespace
-        self.evaluator = self.graph.add(EvaluatorNode(scenario, graph_key=key, **self.quiet))
+        self.evaluator = self.graph.add(
+            EvaluatorNode(
+                scenario, graph_key=key, report_grace_s=REPORT_GRACE_PROCESSES_S
+                if opts.processes else 1.0, **self.quiet,
+            )
+        )  # fmt: skip
         self.recorder: BagRecorder | None = None
         self.nodes: dict = {}
         self.supervisor: Supervisor | None = None
