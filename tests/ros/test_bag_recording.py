@@ -28,7 +28,7 @@ from rosgraph_msgs.msg import Clock
 
 from activetrack.scenarios import load_scenario
 from activetrack_bringup import bag as bagmod
-from activetrack_bringup import mcap_writer
+from activetrack_bringup import interrupts, mcap_writer
 from activetrack_bringup import retrack as retrack_mod
 from activetrack_bringup.bag import BagPlayer, BagRecorder, bag_info, graph_schemas
 from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, open_bag
@@ -534,3 +534,26 @@ def test_a_foreign_clock_cannot_stretch_or_reorder_a_keyed_recording(tmp_path):
         logged = [(graph_topic_of(n), t) for n, t, _ in b.messages(list(b.topics))]
     assert [t for n, t in logged if n == topics.PLATFORM_STATES] == [0, 5 * 10**9, 5 * 10**9]
     assert max(t for _, t in logged) == 5 * 10**9
+
+
+def test_a_signal_during_a_write_is_raised_after_it(tmp_path, monkeypatch):
+    """SIGTERM (or Ctrl-C) arriving while the recorder writes is raised once the write is done:
+    raised inside a chunk's write(2) it would leave half a chunk on disk."""
+    kept = {topics.CLOCK: GRAPH_TOPICS[topics.CLOCK]}
+    data = serialize_message(Clock(clock=header(1.0).stamp))
+    with InProcessGraph() as g:
+        rec = g.add(BagRecorder(tmp_path / "b", kept, context=g.context))
+        real = rec.writer.write
+
+        def interrupted_write(*args):
+            os.kill(os.getpid(), signal.SIGTERM)  # the handler runs at the next bytecode
+            real(*args)
+            rec.writer._mcap.flush()  # the chunk reaches the file inside the same write
+
+        monkeypatch.setattr(rec.writer, "write", interrupted_write)
+        with pytest.raises(interrupts.Terminated), interrupts.raising():
+            rec._write(topics.CLOCK, data)
+        assert rec.count == 1  # the write finished before the signal was raised
+        rec.close()
+    info = bag_info(tmp_path / "b")
+    assert info["intact"] and info["topics"]["/clock"]["count"] == 1

@@ -45,6 +45,7 @@ from rosbags.rosbag2.metadata import dump_qos_v9
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosgraph_msgs.msg import Clock
 
+from activetrack_bringup import interrupts
 from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, check_rate, open_bag
 from activetrack_ros import graph as topics
 from activetrack_ros.graph import GRAPH_TOPICS, reader_qos, writer_qos
@@ -254,7 +255,9 @@ class BagRecorder(Node):
         return on_raw
 
     def _write(self, topic: str, data: bytes) -> None:
-        with self._lock:
+        # Signals wait (interrupts.deferred): Ctrl-C or SIGTERM raised inside a chunk's
+        # write(2) would leave half a chunk on disk before the bag is closed.
+        with self._lock, interrupts.deferred():
             if self.writer is None or self.failed:
                 return
             try:
@@ -265,7 +268,7 @@ class BagRecorder(Node):
             self.count += 1
 
     def _tick(self) -> None:
-        with self._lock:
+        with self._lock, interrupts.deferred():
             if self.writer is None or self.failed:
                 return
             try:
@@ -283,10 +286,11 @@ class BagRecorder(Node):
             writer, self.writer = self.writer, None
         if writer is None:
             return
-        if self.failed:  # the file is as a killed recorder leaves it: `bag recover` reads it
-            writer.abandon()
-        else:
-            writer.close()
+        with interrupts.deferred():  # the summary and metadata.yaml are written whole
+            if self.failed:  # the file is as a killed recorder leaves it: `bag recover` reads it
+                writer.abandon()
+            else:
+                writer.close()
 
     def destroy_node(self):
         self.close()  # a graph torn down without close() still leaves a finished bag

@@ -26,7 +26,7 @@ import os
 import sys
 from pathlib import Path
 
-from activetrack_bringup import cli_types
+from activetrack_bringup import cli_types, interrupts
 
 EXPERIMENTS = ("hernandez", "ramdaras", "valverde", "vanderhook")
 LAYOUT = "docs/foxglove-layout.json"  # the Foxglove layout of a live run and of a bag
@@ -226,9 +226,10 @@ def _cmd_record(args: argparse.Namespace) -> int:
             recorder = graph.add(BagRecorder(args.bag, topic_types, **node_options))
             print(f"recording {len(topic_types)} topics to {args.bag} (Ctrl-C to stop)")
             end = time.monotonic() + (args.duration if args.duration else float("inf"))
-            try:
-                graph.spin_until(lambda: time.monotonic() > end, timeout=float("inf"))
-            except KeyboardInterrupt:
+            try:  # signals wait while a chunk is written (interrupts.deferred in the recorder)
+                with interrupts.raising():
+                    graph.spin_until(lambda: time.monotonic() > end, timeout=float("inf"))
+            except (KeyboardInterrupt, interrupts.Terminated):
                 pass
             finally:
                 recorder.close()
@@ -439,7 +440,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from activetrack.allocator import tune_allocator
-    from activetrack_bringup import interrupts
 
     args = build_parser().parse_args(argv)
     tune_allocator()  # a command-line process: numpy temporaries stay on the heap (faster)
