@@ -32,15 +32,25 @@ _EXPORTS = {
     "register_sensor": "activetrack.scenarios.registry",
     "register_filter": "activetrack.filters.registry",
     "register_criterion": "activetrack.planning.criteria",
+    "ospa": "activetrack.metrics",
+    "gospa": "activetrack.metrics",
+    "GospaResult": "activetrack.metrics",
+    "ospa_over_time": "activetrack.metrics",
+    "gospa_over_time": "activetrack.metrics",
 }
 
 __all__ = [
     "BatchSummary",
+    "GospaResult",
     "RunRecord",
     "Scenario",
     "ScenarioError",
     "__version__",
+    "gospa",
+    "gospa_over_time",
     "load_scenario",
+    "ospa",
+    "ospa_over_time",
     "parallel_map",
     "register_criterion",
     "register_filter",
@@ -52,6 +62,7 @@ __all__ = [
 if TYPE_CHECKING:
     from activetrack.closed_loop.batch import BatchSummary, RunRecord, run_batch, run_once
     from activetrack.filters.registry import register_filter
+    from activetrack.metrics import GospaResult, gospa, gospa_over_time, ospa, ospa_over_time
     from activetrack.montecarlo import parallel_map
     from activetrack.planning.criteria import register_criterion
     from activetrack.scenarios import Scenario, ScenarioError, load_scenario
