@@ -25,7 +25,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite, require_in_range, require_positive
@@ -106,6 +105,9 @@ def _assign(
         empty = np.zeros(0)
         return empty.astype(np.intp), empty.astype(np.intp), empty
     dist = np.sqrt(np.sum((x[:, None, :] - y[None, :, :]) ** 2, axis=-1))  # (m, n)
+    # Imported here: scipy.optimize adds process-wide warning filters on import.
+    from scipy.optimize import linear_sum_assignment
+
     rows, cols = linear_sum_assignment(np.minimum(dist, c) ** p)
     return rows, cols, dist[rows, cols]
 

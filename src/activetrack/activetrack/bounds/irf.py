@@ -61,10 +61,10 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from scipy.special import gammainc
 
 from activetrack.arraytypes import FloatArray
 from activetrack.checks import require_in_range, require_int, require_nonnegative
+from activetrack.stats import chi2_cdf
 
 __all__ = [
     "MAX_GATE_SIGMAS",
@@ -127,7 +127,7 @@ def _irf_core(pd: float, lam: float, g: float, n: int, resolution: float = 1.0) 
         return 0.0
     surface = 2.0 * math.pi ** (n / 2) / math.gamma(n / 2)  # S_n: dnu = S_n r^{n-1} dr
     volume = surface * g**n / n
-    p_gate = float(gammainc(n / 2, g * g / 2))  # F_{chi2, n}(g^2)
+    p_gate = chi2_cdf(g * g, n)  # F_{chi2, n}(g^2)
     n0 = (2.0 * math.pi) ** (-n / 2)  # N(0; 0, I_n)
 
     # Radial grid: exp(-s phi(r)) switches over a width ~1/r, so panels of <= 0.125 sigma.

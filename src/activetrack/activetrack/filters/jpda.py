@@ -1,0 +1,321 @@
+"""Gating, JPDA association probabilities and the PDA / JPDA update of Gaussian tracks.
+
+Model (parametric JPDA with Poisson clutter; Bar-Shalom, Daum & Huang, "The probabilistic data
+association filter", IEEE Control Systems Magazine 29(6), 2009, sec. "JPDAF"; Bar-Shalom & Li,
+*Multitarget-Multisensor Tracking*, 1995, ch. 6).  One scan of ``m`` unlabelled measurements
+``z_1..z_m`` from one sensor; ``T`` Gaussian tracks ``N(x_t, P_t)``; track ``t`` is detected with
+probability ``Pd_t`` and its measurement falls in its gate with probability ``Pg_t``; false alarms
+are Poisson with density ``lambda`` per unit of ``z``.
+
+Per track the sensor's own maths gives the predicted measurement and the wrapped residuals
+(``sensor.measure``, ``models.sensors.state_jacobian``, ``sensor.residual``)::
+
+    zhat_t = h(x_t),  H_t = dh/dx (x_t),  S_t = H_t P_t H_t^T + R,  nu_tj = z_j - zhat_t (wrapped)
+
+Gate (chi-square): ``nu_tj^T S_t^-1 nu_tj <= gamma``, ``Pg = F_{chi2, dim_z}(gamma)``.
+Likelihood ratio of "z_j is track t's" against clutter, zero outside the gate::
+
+    l[t, j] = Pd_t N(nu_tj; 0, S_t) / lambda
+
+A feasible joint event ``theta`` gives each track at most one measurement and each measurement
+at most one track; with Poisson clutter its posterior probability is (BDH 2009, eq. 40-41)
+
+    P(theta | Z) = (1/c) prod_{t assigned j} l[t, j] prod_{t unassigned} (1 - Pd_t Pg_t)
+
+and the marginals ``beta[t, j] = sum_{theta: t -> j} P(theta | Z)`` (``j = 0``: no measurement)
+are found here by exact enumeration of the feasible events (only gated pairs; capped by
+``max_events``).  With one track this is the PDAF: ``beta_j = l_j / (1 - Pd Pg + sum_i l_i)``,
+``beta_0 = (1 - Pd Pg) / (1 - Pd Pg + sum_i l_i)``.
+
+Update of each track with its betas (the PDAF update, BDH 2009 eq. 23-27)::
+
+    K = P H^T S^-1,   nu = sum_j beta_j nu_j,   x+ = x + K nu
+    P_c = (I - K H) P (I - K H)^T + K R K^T                 (Joseph form)
+    P~  = K (sum_j beta_j nu_j nu_j^T - nu nu^T) K^T        (spread of the innovations)
+    P+  = beta_0 P + (1 - beta_0) P_c + P~
+
+The residuals are linearised once at the predicted mean (the EKF of :mod:`.ekf`); for a linear
+sensor this is the exact PDAF / JPDAF.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from activetrack.arraytypes import ArrayLike, BoolArray, FloatArray
+from activetrack.checks import require_positive
+from activetrack.models.base import MotionModel, SensorModel
+from activetrack.models.sensors import state_jacobian
+from activetrack.stats import chi2_cdf
+
+__all__ = [
+    "DEFAULT_MAX_EVENTS",
+    "JPDAResult",
+    "gate",
+    "gate_probability",
+    "jpda_probabilities",
+    "jpda_update",
+    "likelihood_ratios",
+    "mahalanobis2",
+    "pda_update",
+    "predict_measurements",
+]
+
+DEFAULT_MAX_EVENTS = 200_000
+
+IntArray = npt.NDArray[np.intp]
+Residual = Callable[[ArrayLike, ArrayLike], FloatArray]
+
+
+def gate_probability(gamma: float, dim_z: int) -> float:
+    """``Pg = F_{chi2, dim_z}(gamma)``: the probability that the target's own measurement is in
+    the gate ``nu^T S^-1 nu <= gamma``."""
+    gamma = require_positive("gamma", gamma)
+    return chi2_cdf(gamma, dim_z)
+
+
+def _as_measurements(z: ArrayLike, dim_z: int) -> FloatArray:
+    Z = np.asarray(z, dtype=float)
+    if Z.size == 0:
+        return np.zeros((0, dim_z))
+    Z = Z.reshape(-1, dim_z) if Z.ndim == 1 and dim_z == 1 else Z
+    if Z.ndim != 2 or Z.shape[1] != dim_z or not np.isfinite(Z).all():
+        raise ValueError(f"z must be a finite array of shape (m, {dim_z}), got {np.shape(z)}")
+    return Z
+
+
+def _residuals(Z: FloatArray, z_pred: FloatArray, residual: Residual) -> FloatArray:
+    """``nu[t, j] = residual(z_j, zhat_t)``, shape ``(T, m, dim_z)``."""
+    return np.asarray(residual(Z[None, :, :], z_pred[:, None, :]), dtype=float)
+
+
+def mahalanobis2(nu: FloatArray, S: FloatArray) -> FloatArray:
+    """``nu[t, j]^T S_t^-1 nu[t, j]`` for residuals ``(T, m, d)`` and ``S`` ``(T, d, d)``:
+    ``(T, m)``, through the Cholesky factor of each ``S_t`` (raises ValueError if not SPD)."""
+    try:
+        L = np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        raise ValueError("S: innovation covariance is not positive definite") from None
+    if nu.shape[1] == 0:
+        return np.zeros(nu.shape[:2])
+    w = np.linalg.solve(L, np.swapaxes(nu, -1, -2))  # (T, d, m) = L^-1 nu^T
+    return np.asarray(np.einsum("tdm,tdm->tm", w, w), dtype=float)
+
+
+def gate(
+    z: ArrayLike, z_pred: ArrayLike, S: ArrayLike, gamma: float, *, residual: Residual
+) -> BoolArray:
+    """Chi-square gate: ``mask[t, j] = nu_tj^T S_t^-1 nu_tj <= gamma``, shape ``(T, m)``.
+
+    z: measurements ``(m, d)``; z_pred: predicted measurements ``(T, d)``; S: innovation
+    covariances ``(T, d, d)``; gamma: gate threshold (e.g. 9 for 3 sigmas, ``chi2.ppf``);
+    residual: the sensor's ``residual(z, zhat)`` (wraps the bearing entries; a bearing near
+    +-pi is then gated by its true distance).  Required: a plain difference is wrong for angles.
+    """
+    gamma = require_positive("gamma", gamma)
+    zp = np.asarray(z_pred, dtype=float)
+    if zp.ndim != 2:
+        raise ValueError(f"z_pred must have shape (T, d), got {zp.shape}")
+    d = zp.shape[1]
+    Sa = np.asarray(S, dtype=float)
+    if Sa.shape != (zp.shape[0], d, d):
+        raise ValueError(f"S must have shape ({zp.shape[0]}, {d}, {d}), got {Sa.shape}")
+    Z = _as_measurements(z, d)
+    d2 = mahalanobis2(_residuals(Z, zp, residual), Sa)
+    return np.asarray(d2 <= gamma, dtype=bool)
+
+
+def predict_measurements(
+    means: ArrayLike,
+    covs: ArrayLike,
+    sensor: SensorModel,
+    sensor_state: ArrayLike,
+    model: MotionModel,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``(zhat, H, S)`` of every track: ``(T, d)``, ``(T, d, n)``, ``(T, d, d)``, from the
+    sensor's ``measure`` and Jacobian (chained with the model's ``kinematics_jacobian``)."""
+    X = np.asarray(means, dtype=float)
+    P = np.asarray(covs, dtype=float)
+    if X.ndim != 2 or P.shape != (X.shape[0], X.shape[1], X.shape[1]):
+        raise ValueError(f"means (T, n) and covs (T, n, n) expected, got {X.shape}, {P.shape}")
+    s = np.asarray(sensor_state, dtype=float)
+    zhat = np.asarray(sensor.measure(model.kinematics(X), s), dtype=float).reshape(X.shape[0], -1)
+    H = np.asarray(state_jacobian(sensor, model, X, s), dtype=float)
+    S = H @ P @ np.swapaxes(H, -1, -2) + np.asarray(sensor.R, dtype=float)
+    return zhat, H, 0.5 * (S + np.swapaxes(S, -1, -2))
+
+
+def likelihood_ratios(
+    nu: FloatArray, S: FloatArray, pd: ArrayLike, clutter_density: float, gamma: float
+) -> tuple[FloatArray, BoolArray]:
+    """``(l, mask)``: ``l[t, j] = Pd_t N(nu_tj; 0, S_t) / lambda`` inside the gate, 0 outside;
+    ``mask`` the gate.  ``nu`` ``(T, m, d)`` wrapped residuals, ``S`` ``(T, d, d)``,
+    ``clutter_density`` lambda > 0 per unit of z."""
+    lam = require_positive("clutter_density", clutter_density)
+    T, _, d = nu.shape
+    pd_t = _per_track("pd", pd, T)
+    d2 = mahalanobis2(nu, S)
+    mask = np.asarray(d2 <= gamma, dtype=bool)
+    log_det = np.linalg.slogdet(S)[1]  # (T,)
+    log_n = -0.5 * (d2 + log_det[:, None] + d * math.log(2.0 * math.pi))
+    l = np.where(mask, pd_t[:, None] * np.exp(log_n) / lam, 0.0)
+    return np.asarray(l, dtype=float), mask
+
+
+def _per_track(name: str, value: ArrayLike, T: int) -> FloatArray:
+    v = np.broadcast_to(np.asarray(value, dtype=float), (T,))
+    if not (np.isfinite(v).all() and (v >= 0.0).all() and (v <= 1.0).all()):
+        raise ValueError(f"{name} must be in [0, 1], got {value!r}")
+    return np.asarray(v, dtype=float)
+
+
+def _feasible_events(gated: BoolArray, max_events: int) -> IntArray:
+    """All feasible joint events as an int array ``(E, T)``: entry ``j`` in 0..m (0 = none),
+    each measurement used at most once, only gated pairs.  Built track by track, vectorised
+    over the partial events; raises ValueError past ``max_events``."""
+    T, m = gated.shape
+    events = np.zeros((1, 0), dtype=np.intp)
+    used = np.zeros((1, m + 1), dtype=bool)  # column 0 ("none") is never marked
+    for t in range(T):
+        options = np.concatenate(([0], np.flatnonzero(gated[t]) + 1))
+        ok = ~used[:, options]  # (E, k): option free in this partial event
+        ok[:, 0] = True
+        n_new = int(ok.sum())
+        if n_new > max_events:
+            raise ValueError(
+                f"JPDA enumeration needs more than max_events={max_events} joint events "
+                f"({T} tracks, {m} measurements, {int(gated.sum())} gated pairs): split the "
+                "tracks into independent clusters, tighten the gate or raise max_events"
+            )
+        rows, cols = np.nonzero(ok)
+        choice = options[cols]
+        events = np.column_stack((events[rows], choice))
+        used = used[rows]
+        used[np.arange(rows.size), choice] = True
+        used[:, 0] = False
+    return events
+
+
+def jpda_probabilities(
+    likelihood_ratios: ArrayLike,
+    pd: ArrayLike,
+    pg: ArrayLike,
+    *,
+    max_events: int = DEFAULT_MAX_EVENTS,
+) -> FloatArray:
+    """JPDA marginal association probabilities ``beta`` ``(T, m + 1)``; column 0 is "no
+    measurement", column ``j`` measurement ``j - 1``.
+
+    likelihood_ratios: ``l[t, j] = Pd_t N(nu_tj; 0, S_t) / lambda`` ``(T, m)``, zero outside
+    the gate (zero entries are not enumerated); pd, pg: detection and gate probabilities, scalars
+    or ``(T,)``.  Exact enumeration of the feasible joint events (module docstring), in log space
+    so that large ratios do not overflow.  Rows sum to 1; a measurement's column sums to <= 1.
+    Raises ValueError when the events exceed ``max_events`` or no event is possible (a track
+    with ``Pd Pg = 1`` and no gated measurement).
+    """
+    L = np.asarray(likelihood_ratios, dtype=float)
+    if L.ndim != 2 or not (np.isfinite(L).all() and (L >= 0.0).all()):
+        raise ValueError(f"likelihood_ratios must be finite, >= 0, of shape (T, m); got {L.shape}")
+    T, m = L.shape
+    if T == 0:
+        return np.zeros((0, m + 1))
+    miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
+    with np.errstate(divide="ignore"):
+        log_l = np.log(np.column_stack((miss, L)))  # (T, m + 1), -inf for impossible
+    events = _feasible_events(L > 0.0, max_events)
+    log_w = log_l[np.arange(T)[None, :], events].sum(axis=1)  # (E,)
+    top = float(np.max(log_w))
+    if not math.isfinite(top):
+        raise ValueError(
+            "jpda_probabilities: no feasible joint event has positive probability "
+            "(a track with Pd * Pg = 1 has no measurement in its gate)"
+        )
+    w = np.exp(log_w - top)
+    w /= w.sum()
+    beta = np.zeros((T, m + 1))
+    for t in range(T):
+        beta[t] = np.bincount(events[:, t], weights=w, minlength=m + 1)
+    return beta
+
+
+def pda_update(
+    x: ArrayLike, P: ArrayLike, H: ArrayLike, R: ArrayLike, nu: ArrayLike, beta: ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """PDAF update of one Gaussian track (module docstring): ``x`` ``(n,)``, ``P`` ``(n, n)``,
+    ``H`` ``(d, n)``, ``R`` ``(d, d)``, residuals ``nu`` ``(m, d)`` (wrapped), ``beta``
+    ``(m + 1,)`` with ``beta[0]`` for "no measurement".  Returns ``(x+, P+)``."""
+    x = np.asarray(x, dtype=float)
+    P = np.asarray(P, dtype=float)
+    H = np.asarray(H, dtype=float)
+    R = np.asarray(R, dtype=float)
+    b = np.asarray(beta, dtype=float)
+    d = H.shape[0]
+    nu = np.asarray(nu, dtype=float).reshape(-1, d)
+    if b.shape != (nu.shape[0] + 1,):
+        raise ValueError(f"beta must have shape ({nu.shape[0] + 1},), got {b.shape}")
+    PHT = P @ H.T
+    S = H @ PHT + R
+    K = np.linalg.solve(S, PHT.T).T  # P H^T S^-1 (S symmetric)
+    b0, bj = float(b[0]), b[1:]
+    nu_c = bj @ nu  # combined innovation
+    spread = (nu.T * bj) @ nu - np.outer(nu_c, nu_c)
+    I_KH = np.eye(x.shape[0]) - K @ H
+    P_c = I_KH @ P @ I_KH.T + K @ R @ K.T
+    P_new = b0 * P + (1.0 - b0) * P_c + K @ spread @ K.T
+    return x + K @ nu_c, 0.5 * (P_new + P_new.T)
+
+
+@dataclass(frozen=True)
+class JPDAResult:
+    """One JPDA scan: updated ``means`` ``(T, n)`` and ``covs`` ``(T, n, n)``, the association
+    probabilities ``beta`` ``(T, m + 1)`` (column 0: no measurement), the gate ``(T, m)`` and
+    the likelihood ratios ``(T, m)``."""
+
+    means: FloatArray
+    covs: FloatArray
+    beta: FloatArray
+    gated: BoolArray
+    likelihood_ratios: FloatArray
+
+
+def jpda_update(
+    means: ArrayLike,
+    covs: ArrayLike,
+    z: ArrayLike,
+    sensor: SensorModel,
+    sensor_state: ArrayLike,
+    model: MotionModel,
+    *,
+    clutter_density: float,
+    gamma: float,
+    pd: ArrayLike | None = None,
+    max_events: int = DEFAULT_MAX_EVENTS,
+) -> JPDAResult:
+    """JPDA-EKF update of ``T`` predicted tracks (``means`` ``(T, n)``, ``covs`` ``(T, n, n)``)
+    with one scan ``z`` ``(m, d)`` of ``sensor`` at ``sensor_state`` (pv ``(4,)``).
+
+    ``clutter_density``: Poisson false alarms per unit of z; ``gamma``: chi-square gate;
+    ``pd``: per-track or scalar detection probability (default ``sensor.pd``).  One track is
+    the PDAF.  Tracks with no gated measurement keep their prediction (``beta_0 = 1``).
+    """
+    X = np.asarray(means, dtype=float)
+    P = np.asarray(covs, dtype=float)
+    zhat, H, S = predict_measurements(X, P, sensor, sensor_state, model)
+    T, d = zhat.shape
+    Z = _as_measurements(z, d)
+    nu = _residuals(Z, zhat, sensor.residual)
+    pd_t = _per_track("pd", sensor.pd if pd is None else pd, T)
+    l, mask = likelihood_ratios(nu, S, pd_t, clutter_density, gamma)
+    beta = jpda_probabilities(l, pd_t, gate_probability(gamma, d), max_events=max_events)
+    R = np.asarray(sensor.R, dtype=float)
+    new_X = X.copy()
+    new_P = P.copy()
+    for t in range(T):
+        if beta[t, 0] < 1.0:
+            new_X[t], new_P[t] = pda_update(X[t], P[t], H[t], R, nu[t], beta[t])
+    return JPDAResult(new_X, new_P, beta, mask, l)
