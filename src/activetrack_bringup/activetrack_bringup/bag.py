@@ -152,9 +152,12 @@ def _bag_qos(topic: str, depth: int | None = None) -> list[dict]:
     )
 
 
-def _stamp_ns(data: bytes) -> int:
+def first_stamp_ns(data: bytes) -> int:
     """The first field's time (a Header's stamp, a Clock's clock) of a CDR message, in ns:
-    int32 sec and uint32 nanosec after the 4-byte encapsulation header."""
+    int32 sec and uint32 nanosec after the 4-byte encapsulation header. ValueError when the
+    bytes are too short to hold one."""
+    if len(data) < 12:
+        raise ValueError(f"{len(data)} bytes hold no stamp")
     order = "<" if data[1] & 1 else ">"
     sec, nanosec = struct.unpack_from(order + "iI", data, 4)
     return sec * 1_000_000_000 + nanosec
@@ -232,8 +235,8 @@ class BagRecorder(Node):
 
     def _on_clock(self, data: bytes) -> None:
         try:
-            t = _stamp_ns(data)
-        except (struct.error, IndexError):
+            t = first_stamp_ns(data)
+        except ValueError:
             t = None
         if t is not None and self._key is None:
             self._now_ns = max(t, 0)
@@ -247,7 +250,7 @@ class BagRecorder(Node):
     def _verifier(self, key, topic: str):
         def on_raw(data: bytes) -> None:
             if key.verify(data):
-                self._signed_ns = max(self._signed_ns, _stamp_ns(data))
+                self._signed_ns = max(self._signed_ns, first_stamp_ns(data))
                 self._write(topic, data)
             else:
                 self.foreign += 1

@@ -29,14 +29,11 @@ import time
 from collections import Counter
 
 from rclpy.expand_topic_name import expand_topic_name
-from rclpy.serialization import deserialize_message
-from rosgraph_msgs.msg import Clock
 
-from activetrack_bringup.bag import graph_schemas, message_class
+from activetrack_bringup.bag import first_stamp_ns, graph_schemas, message_class
 from activetrack_ros import graph as topics
-from activetrack_ros.graph import GRAPH_TOPICS, reader_qos
-from activetrack_ros.node_base import GraphNode
-from activetrack_ros.trust import is_signed_type
+from activetrack_ros.graph import GRAPH_TOPICS
+from activetrack_ros.node_base import GraphNode, Rejected
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
@@ -165,41 +162,20 @@ class LiveViewNode(GraphNode):
         self.clock_ns = 0  # sim time of the latest /clock: the log time of what follows
         self.forwarded: Counter[str] = Counter()
         for topic, msgtype in GRAPH_TOPICS.items():
-            cls = message_class(msgtype)
-            self.create_subscription(
-                cls, topic, self._forwarder(topic, cls), reader_qos(topic), raw=True
-            )
+            self.subscribe_raw(message_class(msgtype), topic, self._forwarder(topic))
 
-    def _forwarder(self, topic: str, cls):
-        name = cls.__name__
-        key = self.graph_key
-        signed = key is not None and is_signed_type(cls)
-        diagnostics = key is not None and topic == topics.DIAGNOSTICS
-
-        def on_raw(data: bytes) -> None:
-            self.counters.received(name)
-            if signed and not key.verify(data):
-                return self._foreign(name, topic)
-            if diagnostics and not self.guarded_check(key.verify_diagnostics, data, cls):
-                return self._foreign(name, topic)
-            if cls is Clock:
-                self.guarded(self._tick, data)
+    def _forwarder(self, topic: str):
+        def forward(data: bytes) -> None:
+            if topic == topics.CLOCK:
+                try:
+                    self.clock_ns = first_stamp_ns(data)
+                except ValueError as exc:  # any writer may publish a clock
+                    raise Rejected("undecodable", f"clock: {exc}") from None
+                self.server.broadcast_time(self.clock_ns)
             self.server.log(topic, data, self.clock_ns)
             self.forwarded[topic] += 1
 
-        return on_raw
-
-    def guarded_check(self, check, data: bytes, cls) -> bool:
-        """``check(message)`` on the deserialised bytes; False when they do not even decode."""
-        try:
-            return bool(check(deserialize_message(data, cls)))
-        except Exception:  # a raw writer can send any bytes
-            return False
-
-    def _tick(self, data: bytes) -> None:
-        clock = deserialize_message(data, Clock).clock
-        self.clock_ns = clock.sec * 1_000_000_000 + clock.nanosec
-        self.server.broadcast_time(self.clock_ns)
+        return forward
 
 
 def attach(server: LiveServer, graph_key, namespace: str = ""):

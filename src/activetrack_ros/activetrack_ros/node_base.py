@@ -132,22 +132,17 @@ class GraphNode(Node):
     def subscribe(self, msg_type, topic: str, callback: Callable) -> None:
         """Subscribe with the graph's reader QoS; ``callback(msg)`` may raise Rejected."""
         name = msg_type.__name__
-        self.inputs[name] = topic
-        signed = self.graph_key is not None and is_signed_type(msg_type)
-        diagnostics = self.graph_key is not None and msg_type is DiagnosticArray
+        trusted = self._trust_filter(msg_type, topic)
 
         def on_raw(data: bytes) -> None:
-            self.counters.received(name)
-            if signed and not self.graph_key.verify(data):
-                return self._foreign(name, topic)
-            try:
-                msg = deserialize_message(data, msg_type)
-            except Exception:  # a raw writer can send any bytes
-                if diagnostics:  # no tag can be read from it: not the graph's
-                    return self._foreign(name, topic)
-                return self.reject("undecodable", f"{name} on {topic}")
-            if diagnostics and not self.graph_key.verify_diagnostics(msg):
-                return self._foreign(name, topic)
+            ok, msg = trusted(data)
+            if not ok:
+                return
+            if msg is None:
+                try:
+                    msg = deserialize_message(data, msg_type)
+                except Exception:  # a raw writer can send any bytes
+                    return self.reject("undecodable", f"{name} on {topic}")
             frame = getattr(getattr(msg, "header", None), "frame_id", self.frame_id)
             if frame != self.frame_id:  # e.g. a driver in "map" feeding a graph in "world"
                 return self.reject(
@@ -155,6 +150,49 @@ class GraphNode(Node):
                 )
             self.guarded(callback, msg)
 
+        self._raw_subscription(msg_type, topic, on_raw)
+
+    def subscribe_raw(self, msg_type, topic: str, callback: Callable[[bytes], None]) -> None:
+        """Like :meth:`subscribe` for a node that passes the bytes on (the live view):
+        ``callback(data)`` gets the graph's own messages, undecoded, counted and guarded."""
+        trusted = self._trust_filter(msg_type, topic)
+
+        def on_raw(data: bytes) -> None:
+            if trusted(data)[0]:
+                self.guarded(callback, data)
+
+        self._raw_subscription(msg_type, topic, on_raw)
+
+    def _trust_filter(self, msg_type, topic: str) -> Callable[[bytes], tuple[bool, object]]:
+        """``trusted(data)``: counts the sample; ``(False, None)`` for a writer outside the
+        graph (counted as foreign), else ``(True, msg)`` with the message if it had to be
+        decoded for the check (diagnostics), else None."""
+        name = msg_type.__name__
+        self.inputs[name] = topic
+        key = self.graph_key
+        signed = key is not None and is_signed_type(msg_type)
+        diagnostics = key is not None and msg_type is DiagnosticArray
+
+        def trusted(data: bytes) -> tuple[bool, object]:
+            self.counters.received(name)
+            if signed and not key.verify(data):
+                self._foreign(name, topic)
+                return False, None
+            if not diagnostics:
+                return True, None
+            try:
+                msg = deserialize_message(data, msg_type)
+            except Exception:  # no tag can be read from it: not the graph's
+                msg = None
+            if msg is None or not key.verify_diagnostics(msg):
+                self._foreign(name, topic)
+                return False, None
+            return True, msg
+
+        return trusted
+
+    def _raw_subscription(self, msg_type, topic: str, on_raw: Callable[[bytes], None]) -> None:
+        name = msg_type.__name__
         events = SubscriptionEventCallbacks(
             message_lost=lambda info: self._lost(name, info),
             incompatible_qos=lambda info: self._incompatible(name, topic, info),
