@@ -16,7 +16,6 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
-from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from activetrack.closed_loop.batch import PathBound, RunRecord, component_rngs
@@ -32,6 +31,7 @@ from activetrack_ros.convert import (
     check_epoch_stamp,
     finite,
     header,
+    marker,
     platform_from_msg,
     report_from_msg,
 )
@@ -78,14 +78,6 @@ class EpochTable:
     def rows(self, last: int) -> np.ndarray:
         """Epochs 0..last."""
         return self.values[: last + 1]
-
-
-def _marker(hdr, ns: str, id_: int, kind: int, rgba, size: float, points=()) -> Marker:
-    m = Marker(header=hdr, ns=ns, id=id_, type=kind, action=Marker.ADD)
-    m.pose.orientation.w = 1.0
-    m.color = ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
-    m.points = [Point(x=float(x), y=float(y)) for x, y in points]
-    return m
 
 
 TRUTH_RGBA = (0.1, 0.75, 0.2, 1.0)
@@ -287,14 +279,14 @@ class EvaluatorNode(GraphNode):
         measured at epoch k (the sensor selection's effect; removed when none did)."""
         size = self.marker_size
         now, before = self.truth.values[k][[0, 2]], self.truth.values[k - 1][[0, 2]]
-        truth = _marker(hdr, "truth", 0, Marker.SPHERE, TRUTH_RGBA, size)
+        truth = marker(hdr, "truth", 0, Marker.SPHERE, TRUTH_RGBA)
         truth.pose.position = Point(x=float(now[0]), y=float(now[1]))
         truth.scale.x = truth.scale.y = truth.scale.z = 2.0 * size
-        path = _marker(hdr, "truth_path", k, Marker.LINE_STRIP, TRUTH_RGBA, size, (before, now))
+        path = marker(hdr, "truth_path", k, Marker.LINE_STRIP, TRUTH_RGBA, (before, now))
         path.scale.x = 0.5 * size  # line width
         markers = [truth, path]
         for j, p in enumerate(self.scenario.platforms):
-            disc = _marker(hdr, "measured", j, Marker.CYLINDER, MEASURED_RGBA, size)
+            disc = marker(hdr, "measured", j, Marker.CYLINDER, MEASURED_RGBA)
             if not any(self.looked[k, self.sensor_index[s.id]] for s in p.sensors):
                 disc.action = Marker.DELETE
             pv = self.platforms.values[k, j]
@@ -317,11 +309,11 @@ class EvaluatorNode(GraphNode):
         )
         hdr = header(msg.epoch * self.scenario.dt, self.frame_id)
         size = self.marker_size
-        leg = _marker(hdr, "next_leg", j, Marker.ARROW, LEG_RGBA, size, (pv[[0, 2]], end[[0, 2]]))
+        leg = marker(hdr, "next_leg", j, Marker.ARROW, LEG_RGBA, (pv[[0, 2]], end[[0, 2]]))
         leg.scale.x, leg.scale.y, leg.scale.z = 0.5 * size, 1.5 * size, 2.0 * size
         markers = [leg]
         if msg.has_waypoint:
-            wp = _marker(hdr, "waypoint", j, Marker.SPHERE, LEG_RGBA, size)
+            wp = marker(hdr, "waypoint", j, Marker.SPHERE, LEG_RGBA)
             wp.pose.position = Point(x=msg.waypoint.x, y=msg.waypoint.y)
             wp.scale.x = wp.scale.y = wp.scale.z = 1.5 * size
             markers.append(wp)

@@ -12,7 +12,9 @@ import sys
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
-from std_msgs.msg import Header
+from geometry_msgs.msg import Point
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import Marker
 
 from activetrack import limits
 from activetrack.closed_loop.data import PlanReportData, PlatformSnapshot, TrackSnapshot
@@ -62,6 +64,16 @@ def header(seconds: float, frame_id: str = FRAME_ID) -> Header:
     sec = math.floor(seconds)
     nanosec = min(round((seconds - sec) * 1e9), 999_999_999)
     return Header(stamp=TimeMsg(sec=int(sec), nanosec=int(nanosec)), frame_id=frame_id)
+
+
+def marker(hdr: Header, ns: str, id_: int, kind: int, rgba, points=()) -> Marker:
+    """A visualization_msgs Marker to ADD: identity pose, colour ``rgba`` (4 floats), the
+    plane ``points`` ((x, y) pairs); the caller sets its scale (and pose) for its kind."""
+    m = Marker(header=hdr, ns=ns, id=id_, type=kind, action=Marker.ADD)
+    m.pose.orientation.w = 1.0
+    m.color = ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+    m.points = [Point(x=float(x), y=float(y)) for x, y in points]
+    return m
 
 
 def stamp_seconds(stamp, what: str) -> float:

@@ -19,7 +19,6 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Vector3
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import ColorRGBA
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -33,6 +32,7 @@ from activetrack_ros.convert import (
     check_epoch_stamp,
     finite,
     header,
+    marker,
     measurement_topic,
 )
 from activetrack_ros.frames import planar_transform, platform_frame, sensor_frame, truth_frame
@@ -394,16 +394,10 @@ class SimNode(GraphNode):
                 self.path_chunk[pid] += 1
                 del path[:-1]
             path.append(Point(x=float(p.pv[0]), y=float(p.pv[2])))
-            m = Marker(
-                header=header(t, self.frame_id),
-                ns=f"platforms/{pid}",
-                id=self.path_chunk[pid],
-                type=Marker.LINE_STRIP,
-            )
-            m.action = Marker.ADD
-            m.pose.orientation.w = 1.0
+            hdr = header(t, self.frame_id)
+            chunk = self.path_chunk[pid]
+            m = marker(hdr, f"platforms/{pid}", chunk, Marker.LINE_STRIP, (0.1, 0.4, 0.9, 1.0))
             m.scale.x = 20.0  # line width, m
-            m.color = ColorRGBA(r=0.1, g=0.4, b=0.9, a=1.0)
             m.points = list(path)
             array.markers.append(m)
         self.marker_pub.publish(array)

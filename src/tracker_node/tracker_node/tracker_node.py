@@ -20,8 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovarianceStamped
-from std_msgs.msg import ColorRGBA
+from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -34,7 +33,7 @@ from activetrack.filters.measurement import Measurement
 from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_scenario, with_tracker_overrides
 from activetrack_ros import graph as topics
-from activetrack_ros.convert import MeasurementChecker, header, platform_from_msg
+from activetrack_ros.convert import MeasurementChecker, header, marker, platform_from_msg
 from activetrack_ros.frames import estimate_frame, planar_transform
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.params import COMMON, ParamSpec
@@ -264,15 +263,10 @@ class TrackerNode(GraphNode):
         self.pose_pub.publish(pose)
         target = estimate_frame(self.scenario.target.id)
         self.tf_pub.publish(TFMessage(transforms=[planar_transform(hdr, target, x, y, course)]))
-        ellipse = Marker(header=hdr, ns="track", id=0, type=Marker.LINE_STRIP)
-        ellipse.action = Marker.ADD
-        ellipse.pose.orientation.w = 1.0
-        ellipse.scale.x = 5.0  # line width, m
-        ellipse.color = ColorRGBA(r=0.9, g=0.1, b=0.1, a=1.0)
         # 2-sigma position ellipse of the track.
-        ellipse.points = [
-            Point(x=float(px), y=float(py)) for px, py in covariance_ellipse((x, y), P_xy, 2.0)
-        ]
+        points = covariance_ellipse((x, y), P_xy, 2.0)
+        ellipse = marker(hdr, "track", 0, Marker.LINE_STRIP, (0.9, 0.1, 0.1, 1.0), points)
+        ellipse.scale.x = 5.0  # line width, m
         self.marker_pub.publish(MarkerArray(markers=[ellipse]))
         if samples is not None and self.cloud_size > 0:
             step = max(1, len(samples) // self.cloud_size)
