@@ -557,3 +557,25 @@ def test_a_signal_during_a_write_is_raised_after_it(tmp_path, monkeypatch):
         rec.close()
     info = bag_info(tmp_path / "b")
     assert info["intact"] and info["topics"]["/clock"]["count"] == 1
+
+
+def test_a_bag_of_two_namespaces_needs_the_namespace_named(run_bag, tmp_path, capsys):
+    """Graph topics are found under any namespace; where two namespaces hold one, the name
+    must say which (retrack, read_topic and play alike)."""
+    with open_bag(run_bag) as b:
+        tracks = [d for _, _, d in b.messages(["/" + topics.TRACK])]
+    schemas = graph_schemas()
+    msgtype = GRAPH_TOPICS[topics.TRACK]
+    names = [f"/g{i}/{topics.TRACK}" for i in (1, 2)]
+    specs = [TopicSpec(n, msgtype, *schemas[msgtype]) for n in names]
+    writer = Rosbag2Writer(tmp_path / "two", specs, state="closed")
+    for t, data in enumerate(tracks):
+        for n in names:
+            writer.write(writer.channel_ids[n], t, data)
+    writer.close()
+    with pytest.raises(BagError, match="several namespaces hold activetrack/track"):
+        read_topic(tmp_path / "two", topics.TRACK, TrackEstimate)
+    got = read_topic(tmp_path / "two", names[1], TrackEstimate)
+    assert [m.epoch for m in got] == list(range(len(tracks)))
+    rc, _, err = cli(capsys, "play", tmp_path / "two", "--topics", topics.TRACK, "--rate", "100")
+    assert rc == 2 and "name the topic with its namespace" in err

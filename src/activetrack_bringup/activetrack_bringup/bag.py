@@ -349,7 +349,7 @@ class BagPlayer(Node):
                     f"{lost[0]} ({len(lost)} problem(s) with lost data: `--skip-damaged` plays "
                     f"the rest, `activetrack bag recover {path}` rewrites the bag)"
                 )
-            wanted = [_bag_name(bag, t) for t in topics_filter] if topics_filter else None
+            wanted = [bag_topic(bag, t) or t for t in topics_filter] if topics_filter else None
             missing = sorted(set(wanted or ()) - set(bag.topics))
             if missing:
                 raise BagError(f"topics not in the bag: {missing}")
@@ -418,16 +418,19 @@ class BagPlayer(Node):
         return super().destroy_node()
 
 
-def _bag_name(bag, name: str) -> str:
-    """A topic as the bag names it: ``name`` itself, or the graph topic ``name`` stands for
-    (``activetrack/track``) under the namespace it was recorded in."""
+def bag_topic(bag, name: str) -> str | None:
+    """A topic as the opened ``bag`` names it: ``name`` itself, or the graph topic ``name``
+    stands for (``activetrack/track``) under the namespace it was recorded in; None when the
+    bag has neither. BagError when several namespaces hold it (name it with its namespace)."""
     if name in bag.topics:
         return name
     topic = topics.graph_topic_of(name)
+    if topic is None:
+        return None
     try:
-        return (topic and topics.find_topic(bag.topics, topic)) or name
+        return topics.find_topic(bag.topics, topic)
     except ValueError as exc:
-        raise BagError(f"--topics {name}: {exc}: name it with its namespace") from None
+        raise BagError(f"{bag.path}: {exc}: name the topic with its namespace") from None
 
 
 def _type_problem(topic) -> str | None:

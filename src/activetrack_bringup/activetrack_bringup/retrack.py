@@ -30,12 +30,12 @@ from rclpy.serialization import deserialize_message, serialize_message
 from activetrack.filters import registry as filter_kinds
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.build import build_motion_model
-from activetrack_bringup.bag import installed_type_hash
+from activetrack_bringup.bag import bag_topic, installed_type_hash
 from activetrack_bringup.bag_io import BagError, open_bag
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import measurement_topic
-from activetrack_ros.graph import GRAPH_TOPICS, find_topic, writer_qos
+from activetrack_ros.graph import GRAPH_TOPICS, writer_qos
 from activetrack_ros.node_base import GraphNode
 from activetrack_ros.trust import GraphKey, is_signed_type
 from msgs_defs.msg import (
@@ -73,7 +73,7 @@ def read_topic(bag, topic: str, msg_type) -> list:
     """Deserialize every message of one topic of a bag (rclpy, exact); ``topic`` as the bag
     names it or a graph topic under any namespace."""
     with open_bag(bag) as b:
-        name = topic if topic in b.topics else _bag_topic(b, topic, bag)
+        name = bag_topic(b, topic)
         if name is None:
             return []
         return [deserialize_message(d, msg_type) for _, _, d in b.messages([name])]
@@ -92,14 +92,6 @@ class RunData:
     warnings: list[str] = field(default_factory=list)
 
 
-def _bag_topic(b, topic: str, bag) -> str | None:
-    """The bag's name of graph topic ``topic`` (recorded under any namespace)."""
-    try:
-        return find_topic(b.topics, topic)
-    except ValueError as exc:
-        raise RetrackError(f"{bag}: {exc}: one run per bag") from None
-
-
 def read_run(bag) -> RunData:
     """The run's measurements, platform states, tracks and truth; RetrackError when the bag
     has lost data, or a needed topic is unreadable or of another type (version)."""
@@ -113,7 +105,7 @@ def read_run(bag) -> RunData:
         run = RunData(finished=all(s.finished for s in b.scans))
         run.warnings = [str(d) for d in b.damage]
         for topic, cls in _CLASSES.items():
-            name = _bag_topic(b, topic, bag)
+            name = bag_topic(b, topic)
             t = b.topics.get(name) if name else None
             run.messages[topic] = []
             if t is None or not t.count:
@@ -150,7 +142,7 @@ def read_run(bag) -> RunData:
 
 def _read_diagnostics(b, run: RunData) -> None:
     """Whether the simulator finished, and the scenario name the nodes reported (optional)."""
-    name = _bag_topic(b, topics.DIAGNOSTICS, "")
+    name = bag_topic(b, topics.DIAGNOSTICS)
     t = b.topics.get(name) if name else None
     if t is None or t.problem or t.msgtype != GRAPH_TOPICS[topics.DIAGNOSTICS]:
         return
