@@ -74,3 +74,25 @@ class _Spy:
         pass
 
     error = warning
+
+
+def test_every_per_epoch_writer_is_sized_to_the_run(graph, tmp_path):
+    """The nodes and the evaluator (its RunMetrics) offer the run's depth, not the tools'."""
+    from activetrack_bringup.evaluator import EvaluatorNode
+    from planner_node.planner_node import PlannerNode
+    from tracker_node.tracker_node import TrackerNode
+
+    scenario = _free_run(tmp_path, 1500)  # more epochs than LATCHED_DEPTH
+    sc = load_scenario(scenario)
+    want = topics.history_depth(sc)
+    assert want > topics.LATCHED_DEPTH
+    params = [Parameter("scenario", value=scenario)]
+    kw = {"context": graph.context, "start_parameter_services": False}
+    evaluator = graph.add(EvaluatorNode(sc, **kw))
+    nodes = [
+        graph.add(cls(parameter_overrides=params, **kw))
+        for cls in (SimNode, TrackerNode, PlannerNode)
+    ]
+    sim, tracker, planner = nodes
+    writers = [evaluator.metrics_pub, sim.platform_pub, tracker.track_pub, planner.report_pub]
+    assert [w.publisher.qos_profile.depth for w in writers] == [want] * 4

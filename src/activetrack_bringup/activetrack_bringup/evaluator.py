@@ -92,6 +92,7 @@ class EvaluatorNode(GraphNode):
         super().__init__("activetrack_evaluator", **kwargs)
         self.report_grace_s = report_grace_s
         self.scenario = scenario
+        self.size_history(scenario)  # its metrics are per-epoch: a late viewer gets them all
         K = scenario.steps
         self.platform_index = {p.id: i for i, p in enumerate(scenario.platforms)}
         self.sensor_index = {
