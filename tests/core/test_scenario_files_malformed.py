@@ -431,10 +431,13 @@ CASES = [
         "  planner.search: must be one of ('sector', 'quadrant', 'grid') with cost 'mre'",
     ),
     (
-        "mre-two-step",
+        "mre-two-step-too-large",
         "default",
-        _both(_set("planner.cost", "mre"), _set("planner.horizon", 2)),
-        "  planner.horizon: must be 1 with cost 'mre'",
+        _both(
+            _set("planner.cost", "mre"),
+            _both(_set("planner.search", "grid"), _set("planner.horizon", 2)),
+        ),
+        "  planner.horizon: search 'grid' with cost 'mre' and horizon 2 costs 10201^2",
     ),
     ("cost-unknown", "short", _set("planner.cost", "entropy"), "  planner.cost: must be one of"),
     (

@@ -444,7 +444,9 @@ def test_retrack_refuses_a_bag_with_lost_data(run_bag, tmp_path):
     bag = tmp_path / "damaged"
     shutil.copytree(run_bag, bag)
     data = bytearray((bag / "bag.mcap").read_bytes())
-    data[len(data) // 3] ^= 0xFF  # inside a message chunk
+    with open(bag / "bag.mcap", "rb") as f:  # a byte inside a message chunk, whatever the layout
+        chunk = make_reader(f).get_summary().chunk_indexes[1]
+    data[chunk.chunk_start_offset + chunk.chunk_length // 2] ^= 0xFF
     (bag / "bag.mcap").write_bytes(data)
     with pytest.raises(BagError, match=r"bag.mcap: corrupt chunk at offset \d+ \(CRC mismatch"):
         retrack(bag, SCENARIO)

@@ -38,6 +38,11 @@ MAX_PRIOR_VARIANCE = 1e18  # largest entry of the prior covariance (MAX_POSITION
 MAX_PLATFORMS = 100  # papers: <= 3
 MAX_SENSORS = 100  # in total over all platforms (papers: <= 3)
 MAX_STATE_DIM = 5  # entries of a prior mean (the circular model has 5)
+MAX_TARGETS = 100  # targets of a multi-target scenario
+# Mean false alarms per scan over a sensor's whole field of view: the clutter density times the
+# field's volume in measurement units (typical radar/sonar: 1-50).
+MAX_CLUTTER_PER_SCAN = 10_000.0
+MAX_CLUTTER_DENSITY = 1e12  # false alarms per unit of z (per rad, per m rad)
 
 # --- tracker -----------------------------------------------------------------------------------
 # 1,000,000 must stay allowed: the filter benchmarks run the particle filter with that many.
@@ -46,6 +51,8 @@ MAX_PARTICLES = 1_000_000  # papers: 10,000
 # resampling soon leaves too few distinct ones for that (about 1 in 5 runs with 50).
 MIN_PARTICLES_FOR_PLANNING = 100
 MAX_ROUGHENING = 100.0  # Gordon's K (typical: 0.2)
+MAX_TRACKS = 1_000  # live tracks of the multi-target tracker (tentative ones included)
+MAX_GATE_SIGMAS = 10.0  # gate radius in innovation standard deviations (typical: 3-4)
 
 # --- planner -----------------------------------------------------------------------------------
 MAX_SAMPLES = 100_000  # planner_samples, mc_samples (papers: 1,000)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from activetrack_bringup import cli_types, interrupts
 
-EXPERIMENTS = ("hernandez", "ramdaras", "valverde", "vanderhook")
+EXPERIMENTS = ("hernandez", "multitarget", "ramdaras", "valverde", "vanderhook")
 LAYOUT = "docs/foxglove-layout.json"  # the Foxglove layout of a live run and of a bag
 
 
@@ -178,9 +178,38 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if scenario.multi_target:
+        return _batch_multi(scenario, args)
     with Bar("batch", total=args.runs) as bar:  # drawn on a terminal only
         s = run_batch(scenario, runs=args.runs, jobs=args.jobs, progress=bar if bar.shown else None)
     _print_summary(s)
+    print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
+    if args.json:
+        _write_json(args.json, s.to_json())
+    return 0
+
+
+def _batch_multi(scenario, args: argparse.Namespace) -> int:
+    """``activetrack batch`` on a multi-target scenario (a ``targets:`` list)."""
+    from activetrack.multitarget.loop import run_multi_batch
+    from activetrack_bringup.progress import Bar
+
+    with Bar("batch", total=args.runs) as bar:  # drawn on a terminal only
+        s = run_multi_batch(
+            scenario, runs=args.runs, jobs=args.jobs, progress=bar if bar.shown else None
+        )
+    print(f"scenario {s.scenario}: {s.runs} run(s) x {s.steps} steps, {len(s.target_ids)} targets")
+    ev = scenario.evaluation
+    print(
+        f"  GOSPA      {s.mean_gospa:9.2f} m (time-averaged; c = {ev.cutoff:g} m, p = {ev.order:g})"
+    )
+    print(f"  tracks     {s.breaks:.2f} breaks, {s.swaps:.2f} swaps per run")
+    for tid, rmse, bound, held in zip(
+        s.target_ids, s.target_rmse, s.target_bound, s.held_fraction, strict=True
+    ):
+        print(
+            f"  target {tid:8s} RMSE {rmse:9.2f} m, bound {bound:9.2f} m, held {100 * held:5.1f}%"
+        )
     print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
     if args.json:
         _write_json(args.json, s.to_json())

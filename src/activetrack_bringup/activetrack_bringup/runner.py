@@ -172,6 +172,11 @@ def run_graph(
     opts = RunOptions(**options)
     opts.namespace = check_namespace(opts.namespace)
     scenario = load_scenario(scenario_path)  # fails before anything starts
+    if scenario.multi_target:
+        raise GraphSetupError(
+            f"scenario {scenario.name!r} is multi-target (targets:): the ROS graph runs "
+            "single-target scenarios only for now; run it with `activetrack batch`"
+        )
     if opts.processes and os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").upper() == "OFF":
         raise GraphSetupError(
             "--processes needs DDS discovery between processes on this host, but "

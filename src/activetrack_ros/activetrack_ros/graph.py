@@ -7,8 +7,9 @@ namespace (``--ros-args -r __ns:=/g1``) uses ``/g1/activetrack/track``, ``/g1/cl
 :func:`find_topic` finds a graph topic among them whatever the namespace.
 
 Per-epoch topics (measurements, truth, platform states, tracks, commands, selections, plan
-reports) are reliable and transient-local with a deep history, so a node or recorder that joins
-late (another process still discovering, a restarted planner) still gets the run so far. Their
+reports; for multi-target scenarios scans, track arrays, beam commands and truth arrays) are
+reliable and transient-local with a deep history, so a node or recorder that joins late
+(another process still discovering, a restarted planner) still gets the run so far. Their
 messages carry the graph's authentication trailer (``activetrack_ros.trust``). The other topics
 are streams for people and tools (clock, diagnostics, markers, poses).
 
@@ -40,6 +41,13 @@ PARTICLES = "activetrack/particles"  # geometry_msgs/PoseArray, subsampled PF cl
 MARKERS = "activetrack/markers"  # visualization_msgs/MarkerArray
 # msgs_defs/RunMetrics: per-epoch RMSE and PCRLB from the runner's evaluator (live view, bags)
 METRICS = "activetrack/metrics"
+# Multi-target scenarios (a targets: list): per-sensor scans of unlabelled detections, the
+# tracker's array of tracks with ids, the planner's beam pointings (one message per steerable
+# sensor), and every alive target's truth (evaluators only, like GROUND_TRUTH).
+SCANS = "activetrack/scans"  # msgs_defs/Scan
+TRACKS = "activetrack/tracks"  # msgs_defs/TrackArray
+BEAM_COMMANDS = "activetrack/beam_commands"  # msgs_defs/BeamCommand
+GROUND_TRUTH_ARRAY = "activetrack/ground_truth_array"  # msgs_defs/GroundTruthArray
 TF = "tf"  # tf2_msgs/TFMessage: platforms, target truth and estimate (docs/frames.md)
 TF_STATIC = "tf_static"  # sensors on their platforms, latched
 
@@ -60,6 +68,10 @@ GRAPH_TOPICS = {
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
     MARKERS: "visualization_msgs/msg/MarkerArray",
     METRICS: "msgs_defs/msg/RunMetrics",
+    SCANS: "msgs_defs/msg/Scan",
+    TRACKS: "msgs_defs/msg/TrackArray",
+    BEAM_COMMANDS: "msgs_defs/msg/BeamCommand",
+    GROUND_TRUTH_ARRAY: "msgs_defs/msg/GroundTruthArray",
     TF: "tf2_msgs/msg/TFMessage",
     TF_STATIC: "tf2_msgs/msg/TFMessage",
 }
@@ -77,6 +89,10 @@ LATCHED_TOPICS = frozenset(
         MANOEUVRE_COMMANDS,
         SENSOR_SELECTION,
         METRICS,
+        SCANS,
+        TRACKS,
+        BEAM_COMMANDS,
+        GROUND_TRUTH_ARRAY,
     }
 )
 
@@ -92,7 +108,8 @@ MAX_HISTORY_DEPTH = 1_000_000
 
 def run_history(scenario) -> int:
     """Depth that keeps every per-epoch message of a run: (steps + 1) epochs times the most
-    messages one topic carries per epoch (one per sensor or per platform)."""
+    messages one topic carries per epoch (one per sensor or per platform; a scan and a beam
+    command are per sensor, a track array and a truth array per epoch)."""
     sensors = sum(len(p.sensors) for p in scenario.platforms)
     return (scenario.steps + 1) * max(1, sensors, len(scenario.platforms))
 

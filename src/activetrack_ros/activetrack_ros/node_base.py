@@ -116,6 +116,16 @@ class GraphNode(Node):
         self.frame_id = values.get("frame_id", self.frame_id)
         return values
 
+    def use_scenario(self, scenario) -> None:
+        """Refuse a scenario the nodes cannot run yet: a multi-target one (``targets:``) runs
+        closed loop in the core (``activetrack batch``); its nodes are still to come."""
+        if scenario.multi_target:
+            raise ValueError(
+                f"scenario {scenario.name!r} is multi-target (targets:): the ROS graph runs "
+                "single-target scenarios only for now; run it with `activetrack batch`"
+            )
+        self.size_history(scenario)
+
     def size_history(self, scenario) -> None:
         """Per-epoch writers keep the whole run for late joiners (graph.history_depth); a run
         too long for that says so."""

@@ -36,7 +36,7 @@ class PlannerNode(GraphNode):
         super().__init__("planner_node", **kwargs)
         p = self.declare_params((SCENARIO, RUN, FRAME_ID))  # no mode: it plans alike in both
         self.scenario = load_scenario(p["scenario"])
-        self.size_history(self.scenario)
+        self.use_scenario(self.scenario)
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[2]
         self.core = PlannerCore(self.scenario, rng)
         self.platform_ids = {p.id for p in self.scenario.platforms}

@@ -83,7 +83,7 @@ class SimNode(GraphNode):
         changes: dict = {}  # filled below, once the mode is known
         p = self.declare_params(PARAMS, changes)
         self.scenario = load_scenario(p["scenario"])
-        self.size_history(self.scenario)
+        self.use_scenario(self.scenario)
         self.mode = p["mode"]
         self.rate = p["rate"]
         self.timeout = p["command_timeout"]

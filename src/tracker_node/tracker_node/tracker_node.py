@@ -94,7 +94,7 @@ class TrackerNode(GraphNode):
         self.scenario = with_tracker_overrides(
             scenario, filter=filter_name or None, particles=p["particles"] or None
         )
-        self.size_history(self.scenario)
+        self.use_scenario(self.scenario)
         self.mode = p["mode"]
         self.epoch_timeout = p["epoch_timeout"]
         self.cloud_size = p["cloud_size"]

@@ -59,6 +59,10 @@ class Simulator:
         else:
             L = np.linalg.cholesky(tgt.prior.covariance())
             self.truth = np.array(tgt.prior.mean) + L @ rng.standard_normal(len(tgt.prior.mean))
+        self._init_platforms(scenario)
+
+    def _init_platforms(self, scenario: Scenario) -> None:
+        """Platforms, sensors and the sensor gating (no random draws)."""
         self.platforms: dict[str, _Platform] = {}
         # sensor id -> (platform id, model)
         self.sensors: dict[str, tuple[str, SensorModel]] = {}
@@ -109,8 +113,7 @@ class Simulator:
             raise RuntimeError(f"the scenario has only {self.scenario.steps} steps")
         self.epoch += 1
         self.truth = self.model.sample(self.truth, self.dt, self.rng)
-        for p in self.platforms.values():
-            p.pv = p.pv + self.dt * np.array([p.pv[1], 0.0, p.pv[3], 0.0])
+        self._move_platforms()
         target_pv = self.truth_pv()
         t = self.time
         out = []
@@ -124,6 +127,11 @@ class Simulator:
             z = sensor.sample(target_pv, s_pv, self.rng) if detected else None
             out.append(Measurement(sensor, s_pv.copy(), z, t, sensor_id))
         return out
+
+    def _move_platforms(self) -> None:
+        """Every platform flies its constant-velocity leg to the next epoch."""
+        for p in self.platforms.values():
+            p.pv = p.pv + self.dt * np.array([p.pv[1], 0.0, p.pv[3], 0.0])
 
     def apply_command(self, cmd: Command) -> ApplyResult:
         """Apply a manoeuvre for the leg starting now, within the platform's limits.

@@ -357,7 +357,9 @@ class MrePrediction:
 
 class MrePositioning:
     """Ramdaras sec. 4: each controllable platform on its own to the position minimising the
-    criterion of eq. 23 with all its sensors there (:func:`position_platform`)."""
+    criterion of eq. 23 with all its sensors there (:func:`position_platform`); with
+    ``planner.horizon`` R >= 2 the first of R manoeuvres minimising it after R legs (sec. 7's
+    multi-step positioning, :func:`activetrack.planning.selection.plan_positions`)."""
 
     def __init__(self, scenario: Scenario, sensors: Sequence[SensorEntry], dt: float):
         cfg = scenario.planner
@@ -369,6 +371,7 @@ class MrePositioning:
                 f"got {cfg.search!r}"
             )
         self.dt = dt
+        self.horizon = cfg.horizon
         self.platforms = tuple(
             (
                 p.id,
@@ -387,7 +390,12 @@ class MrePositioning:
                 pid, snap.pv, models, limits, heading=snap.heading, speed=snap.speed
             )
             pos = position_platform(
-                platform, context.prediction, self.dt, criterion=self.criterion, search=self.search
+                platform,
+                context.prediction,
+                self.dt,
+                criterion=self.criterion,
+                search=self.search,
+                horizon=self.horizon,
             )
             dpsi, v = float(pos.manoeuvre[0]), float(pos.manoeuvre[1])
             commands.append(Command(pid, context.epoch, dpsi, v - snap.speed, pos.heading, v))

@@ -77,9 +77,14 @@ _KINDS: dict[str, SensorKind] = {}
 _LISTENERS: list[Callable[[], None]] = []
 
 
+# Fields of every sensor entry that describe the scene around the sensor (its field of view and
+# clutter: models.clutter.ClutteredSensor), not the sensor model's constructor arguments.
+SCENE_FIELDS = ("id", "kind", "clutter_density", "fov_centre", "fov_width", "beam_width")
+
+
 def _default_build(sensor_class: type) -> Callable[[Any], SensorModel]:
     def build(cfg: BaseModel) -> SensorModel:
-        fields = {k: getattr(cfg, k) for k in type(cfg).model_fields if k not in ("id", "kind")}
+        fields = {k: getattr(cfg, k) for k in type(cfg).model_fields if k not in SCENE_FIELDS}
         sensor: SensorModel = sensor_class(**fields)
         return sensor
 

@@ -31,6 +31,7 @@ from activetrack.limits import (
     MAX_ACCELERATION,
     MAX_ANGLE,
     MAX_BEARING_SIGMA,
+    MAX_CLUTTER_DENSITY,
     MAX_DESCRIPTION_LENGTH,
     MAX_DT,
     MAX_DURATION,
@@ -58,6 +59,7 @@ from activetrack.limits import (
     MAX_SPEED,
     MAX_STATE_DIM,
     MAX_STEPS,
+    MAX_TARGETS,
     MAX_TURN_RATE,
     MIN_DT,
     MIN_PARTICLES_FOR_PLANNING,
@@ -69,6 +71,12 @@ from activetrack.models.sensors import (
     BearingSensor,
     RangeBearingSensor,
     RangeRateBearingSensor,
+)
+from activetrack.scenarios.multitarget_config import (
+    EvaluationConfig,
+    MultiTargetPlanConfig,
+    TrackManagementConfig,
+    multitarget_problems,
 )
 from activetrack.scenarios.plugins import MAX_PLUGINS, check_plugin_names
 from activetrack.scenarios.registry import (
@@ -251,6 +259,14 @@ class SensorConfigBase(_Strict):
     pd: Annotated[float, Field(gt=0, le=1)] = 1.0
     r_min: RangeM = 0.0
     r_max: Annotated[float, Field(gt=0)] = math.inf  # inf: no maximum range
+    # Multi-target scenarios only (scenarios.multitarget_config): Poisson false alarms per
+    # unit of z (per rad; per m rad for range-bearing) over the field of view, which is a
+    # bearing sector fov_width wide centred fov_centre off the platform's heading (None: all
+    # around), or a steerable beam beam_width wide the planner points at one track per epoch.
+    clutter_density: Annotated[float, _range(0, MAX_CLUTTER_DENSITY)] = 0.0
+    fov_centre: Annotated[float, _range(-math.pi, math.pi)] = 0.0
+    fov_width: Annotated[float, _range(gt=0, hi=2 * math.pi)] | None = None
+    beam_width: Annotated[float, _range(gt=0, hi=2 * math.pi)] | None = None
     if TYPE_CHECKING:
         kind: str  # a field of every subclass, as Literal["<kind>"]
 
@@ -435,6 +451,12 @@ class TargetConfig(_Strict):
     prior: PriorConfig
     # Truth at k = 0: a fixed state, or drawn from the prior with the simulator's generator.
     initial_state: list[FiniteFloat] | None = Field(default=None, max_length=MAX_STATE_DIM)
+    # Multi-target scenarios: the target exists for epochs birth <= k < death (its truth at
+    # ``birth`` is initial_state or a draw from the prior); priority weighs it in the planner's
+    # weighted sum. Targets present at epoch 0 are tracked from their priors.
+    birth: Annotated[int, Field(ge=0, le=MAX_STEPS)] = 0
+    death: Annotated[int, Field(ge=1, le=MAX_STEPS)] | None = None
+    priority: Annotated[float, _range(gt=0, hi=1e6)] = 1.0
 
     @field_validator("id")
     @classmethod
@@ -496,6 +518,8 @@ class TrackerConfig(_Strict):
     # Equally weighted posterior samples handed to the planner for renewal (particle-based
     # filters only).
     planner_samples: Samples = 1000
+    # Multi-target scenarios: gating, M-of-N confirmation and deletion, initiation.
+    tracks: TrackManagementConfig = TrackManagementConfig()
 
     @field_validator("filter", mode="before")
     @classmethod
@@ -562,6 +586,8 @@ class PlannerConfig(_Strict):
     max_sensor_iterations: SensorIterations = 10
     selection: SelectionConfig = SelectionConfig()
     cautious: CautiousConfig = CautiousConfig()
+    # Multi-target scenarios: costs over tracks, beam assignment.
+    targets: MultiTargetPlanConfig = MultiTargetPlanConfig()
 
     @field_validator("criterion", mode="before")
     @classmethod
@@ -607,11 +633,24 @@ class Scenario(_Strict):
     seed: Seed = 0
     dt: Dt  # s between measurement / decision epochs (T)
     steps: Steps  # epochs k = 1..steps
+    # One target (the papers), or a targets: list for a multi-target scenario, whose first
+    # entry then also stands as ``target`` (its motion model is every target's).
     target: TargetConfig
+    targets: list[TargetConfig] | None = Field(default=None, min_length=1, max_length=MAX_TARGETS)
     platforms: list[PlatformConfig] = Field(min_length=1, max_length=MAX_PLATFORMS)
     tracker: TrackerConfig = TrackerConfig()
     planner: PlannerConfig = PlannerConfig()
+    evaluation: EvaluationConfig = EvaluationConfig()
     graph: GraphConfig = GraphConfig()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _first_target(cls, data: Any) -> Any:
+        """``targets:`` without ``target:``: the first target stands as ``target``."""
+        targets = data.get("targets") if isinstance(data, dict) else None
+        if isinstance(targets, list) and targets and "target" not in data:
+            return {**data, "target": targets[0]}
+        return data
 
     @field_validator("name")
     @classmethod
@@ -651,6 +690,11 @@ class Scenario(_Strict):
     @property
     def duration(self) -> float:
         return self.dt * self.steps
+
+    @property
+    def multi_target(self) -> bool:
+        """Whether this is a multi-target scenario (a ``targets:`` list)."""
+        return self.targets is not None
 
 
 def _cross_field_problems(s: Scenario) -> list[tuple[str, str]]:
@@ -694,6 +738,10 @@ def _cross_field_problems(s: Scenario) -> list[tuple[str, str]]:
                         f"{blind} an r_min > 0",
                     )
                 )
+    out += multitarget_problems(s)
+    if s.targets is not None:
+        if s.target != s.targets[0]:
+            out.append(("target", "give target or targets, not both"))
     if s.planner.enabled:
         out += _planner_problems(s)
     return out
@@ -759,14 +807,22 @@ def _steering_problems(
                 f"must be one of {positioning} with cost 'mre', got {cfg.criterion!r}",
             )
         )
-    if cfg.cost == "mre" and cfg.horizon != 1:
-        out.append(
-            (
-                "planner.horizon",
-                f"must be 1 with cost 'mre' (MRE positioning looks one epoch ahead), "
-                f"got {cfg.horizon}",
+    if cfg.cost == "mre" and cfg.horizon != 1 and cfg.search in POSITIONING_SEARCHES:
+        # Multi-step positioning nests one search per leg (planning.selection.plan_positions):
+        # per_stage^R evaluations, per_call^R candidate covariances (4 x 4) scored together.
+        per_stage, per_call = _search_size(cfg)
+        R = cfg.horizon
+        if per_stage**R > MAX_SEARCH_EVALUATIONS or 16 * per_call**R > MAX_PLANNER_BATCH:
+            out.append(
+                (
+                    "planner.horizon",
+                    f"search {cfg.search!r} with cost 'mre' and horizon {R} costs "
+                    f"{per_stage}^{R} = {float(per_stage**R):.3g} cost evaluations per "
+                    f"platform and decision, {per_call}^{R} covariances scored together; at "
+                    f"most {MAX_SEARCH_EVALUATIONS:.0e} and {MAX_PLANNER_BATCH // 16:.3g} "
+                    f"(activetrack.limits): lower the horizon or the search's size",
+                )
             )
-        )
     if (robots or cfg.selection.enabled) and target_model not in PV_MODELS:
         out.append(
             (

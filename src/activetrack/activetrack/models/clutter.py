@@ -1,0 +1,153 @@
+"""A sensor in clutter: its field of view, Poisson false alarms and the information it carries.
+
+:class:`ClutteredSensor` wraps any sensor model (contract ``models.base.SensorModel``) with the
+multi-target measurement model:
+
+- field of view: a bearing sector ``fov_width`` wide centred ``fov_centre`` off the platform's
+  heading (the heading is that of the platform's pv velocity), or all around; a steerable beam
+  (``beam_width``) is pointed each epoch (:meth:`field_of_view` with ``pointing``);
+- the target is detected with ``pd`` inside the field of view and the detection ranges;
+- false alarms: Poisson with mean ``lambda V`` per scan, uniform over the field of view in
+  measurement space (``V`` its volume: the sector width [rad] for a bearing sensor, times
+  ``r_max - r_min`` [m] for a range-bearing one), ``lambda = clutter_density``;
+- Fisher information: the clutter-free ``H^T R^-1 H`` scaled by the information reduction
+  factor ``q(Pd, lambda sqrt(det R), g, dim_z)`` (Niu, Willett & Bar-Shalom 2001; Hernandez,
+  Farina & Ristic 2006, :mod:`activetrack.bounds.irf`) in place of the ``pd`` factor of
+  Hernandez eq. 8, and zero outside the field of view. With no clutter and a wide gate q = pd
+  to within the gate's tail, so the bound is that of the clutter-free sensor.
+
+Every other member is the wrapped sensor's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from activetrack.arraytypes import ArrayLike, FloatArray
+from activetrack.bounds.irf import information_reduction_factor
+from activetrack.models.base import SensorModel
+from activetrack.multitarget.data import FieldOfView
+from activetrack.scenarios.multitarget_config import fov_volume
+
+__all__ = ["ClutteredSensor"]
+
+_TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class ClutteredSensor:
+    """``base`` observed in clutter of ``clutter_density`` (per unit of z) within a field of
+    view; ``gate_sigmas`` is the association gate (the IRF's ``g``)."""
+
+    base: SensorModel
+    clutter_density: float = 0.0
+    gate_sigmas: float = 3.5
+    fov_centre: float = 0.0
+    fov_width: float | None = None
+    beam_width: float | None = None
+
+    def __getattr__(self, name: str) -> Any:
+        # Everything not defined here (kind, R, measure, residual, ...) is the base sensor's.
+        if name == "base":
+            raise AttributeError(name)
+        return getattr(self.base, name)
+
+    @property
+    def steerable(self) -> bool:
+        return self.beam_width is not None
+
+    @property
+    def information_factor(self) -> float:
+        """The IRF ``q`` that replaces ``pd`` in J_Z (cached in :mod:`activetrack.bounds.irf`)."""
+        R = np.atleast_2d(np.asarray(self.base.R, dtype=float))
+        whitened = self.clutter_density * math.sqrt(float(np.linalg.det(R)))
+        return information_reduction_factor(
+            float(self.base.pd), whitened, self.gate_sigmas, int(self.base.dim_z)
+        )
+
+    def field_of_view(self, sensor_pv: ArrayLike, pointing: float | None = None) -> FieldOfView:
+        """Where the sensor looks from ``sensor_pv`` ``(4,)``: the beam's sector around
+        ``pointing`` [rad, world frame] for a steerable sensor (required), else the fixed
+        sector off the platform's heading, else all around; ranges [r_min, r_max]."""
+        s = np.asarray(sensor_pv, dtype=float)
+        r_min, r_max = float(self.base.r_min), float(self.base.r_max)
+        if self.beam_width is not None:
+            if pointing is None or not math.isfinite(pointing):
+                raise ValueError("pointing: a steerable beam needs a finite bearing")
+            return FieldOfView(float(pointing), self.beam_width, r_min, r_max)
+        if self.fov_width is not None:
+            heading = math.atan2(s[3], s[1])
+            centre = math.remainder(heading + self.fov_centre, _TWO_PI)
+            return FieldOfView(centre, self.fov_width, r_min, r_max)
+        return FieldOfView(0.0, _TWO_PI, r_min, r_max)
+
+    def clutter_volume(self, fov: FieldOfView) -> float:
+        """The field of view's volume in measurement units (rad, or m rad)."""
+        r_max = fov.r_max if math.isfinite(fov.r_max) else fov.r_min
+        return fov_volume(self.base.kind, fov.width, fov.r_min, r_max)
+
+    def sample_clutter(self, fov: FieldOfView, rng: np.random.Generator) -> FloatArray:
+        """Poisson(lambda V) false alarms uniform over ``fov`` in measurement space,
+        ``(m, dim_z)``: bearing (wrapped) for a bearing sensor, (range, bearing) for a
+        range-bearing one. Draws the count, then the points, from ``rng``."""
+        d = int(self.base.dim_z)
+        if self.clutter_density <= 0.0:
+            return np.empty((0, d))
+        m = int(rng.poisson(self.clutter_density * self.clutter_volume(fov)))
+        u = rng.random((m, d))
+        bearing = np.remainder(fov.centre + (u[:, -1] - 0.5) * fov.width + math.pi, _TWO_PI)
+        bearing = bearing - math.pi
+        if self.base.kind == "range_bearing":
+            r = fov.r_min + u[:, 0] * (fov.r_max - fov.r_min)
+            return np.column_stack([r, bearing])
+        return bearing[:, None]
+
+    def fisher_information(
+        self,
+        target_samples: FloatArray,
+        sensor_pv: FloatArray,
+        kinematics_jacobian: FloatArray | None = None,
+    ) -> FloatArray:
+        """``q / pd`` times the base sensor's J_Z (Hernandez eq. 8 with the IRF in place of
+        pd), zero for samples outside a fixed field of view (a beam is assumed on target)."""
+        J = self.base.fisher_information(target_samples, sensor_pv, kinematics_jacobian)
+        scale = self.information_factor / float(self.base.pd)
+        if self.fov_width is None:
+            return scale * J
+        # Outside the sector a sample adds nothing: recompute the mean over the inside ones.
+        X = np.asarray(target_samples, dtype=float)
+        S = np.asarray(sensor_pv, dtype=float)
+        heading = np.arctan2(S[..., 3], S[..., 1])
+        dx = X[:, 0] - S[..., 0, None]
+        dy = X[:, 2] - S[..., 2, None]
+        off = np.angle(np.exp(1j * (np.arctan2(dy, dx) - heading[..., None] - self.fov_centre)))
+        inside = np.abs(off) <= 0.5 * self.fov_width  # (..., M)
+        if np.all(inside):
+            return scale * J
+        out = np.zeros_like(J)
+        flat_S = S.reshape(-1, 4)
+        flat_in = inside.reshape(-1, X.shape[0])
+        flat_out = out.reshape(-1, *J.shape[-2:])
+        M = X.shape[0]
+        for i, (s, keep) in enumerate(zip(flat_S, flat_in, strict=True)):
+            if keep.any():
+                K = None if kinematics_jacobian is None else kinematics_jacobian[keep]
+                part = self.base.fisher_information(X[keep], s, K)
+                flat_out[i] = part * keep.sum() / M
+        return scale * out
+
+    @classmethod
+    def wrap(cls, base: SensorModel, cfg: Any, gate_sigmas: float) -> ClutteredSensor:
+        """From a validated ``sensors:`` entry ``cfg`` (its clutter and field-of-view fields)."""
+        return cls(
+            base,
+            float(cfg.clutter_density),
+            float(gate_sigmas),
+            float(cfg.fov_centre),
+            cfg.fov_width,
+            cfg.beam_width,
+        )

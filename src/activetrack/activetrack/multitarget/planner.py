@@ -1,0 +1,631 @@
+"""Planning across targets: platform manoeuvres against every confirmed track, and steerable
+beams assigned to tracks (issue 14, sec. 4).
+
+``MultiTargetPlanner(scenario, rng).decide(epoch, tracks, platforms) -> MultiDecision``.
+
+Sensors are the scenario's, each in clutter (:class:`activetrack.models.clutter.ClutteredSensor`):
+its information is the PCRLB's J_Z with the information reduction factor q in place of pd and
+its fixed field of view applied (Hernandez eq. 8 with the IRF of Niu, Willett & Bar-Shalom
+2001). A steerable sensor (``beam_width``) observes only the track its beam serves.
+
+Cost of a confirmed track (tentative ones do not count), ``planner.cost``:
+
+- ``pcrlb``: ``planner.criterion`` of the bound at k+1..k+R, renewal from the track
+  (Hernandez eq. 3, footnote 2): J_k = P_{k|k}^-1, J_{k+1} = (Q + F J_k^-1 F^T)^-1 +
+  sum_s J_Z,s, J_Z by Monte Carlo (eq. 8) over the track's particle ``samples`` or
+  ``mc_samples`` draws from its Gaussian, pushed through the dynamics (eq. 2);
+- ``mre``: ``planner.criterion`` of Ramdaras eq. 23 with q as the detection factor, at the
+  track's constant-velocity prediction x_{k+1+r|k} = F^{r+1} x. A beam, pointed at the
+  predicted position before the epoch's measurements, holds the target only with the
+  probability :func:`activetrack.planning.assignment.beam_coverage` of the predicted
+  covariance: that multiplies its detection factor too (the PCRLB's J_Z keeps the beam on
+  target, as :class:`ClutteredSensor` defines it).
+
+Costs over tracks combine by ``planner.targets.aggregate`` (:mod:`activetrack.planning.
+assignment`): ``worst`` (max) or ``weighted_sum`` (the tracks' priorities). The manoeuvre
+searches add ``TIE_BREAK`` times the sum to ``worst``, so that the other tracks decide when no
+candidate moves the worst one.
+
+Manoeuvres (``planner.enabled``): each controllable platform in turn, the others flying their
+current plans (Hernandez sec. 4.1, until no plan changes or ``max_sensor_iterations``
+passes), searches its R-leg manoeuvre sequence (:func:`activetrack.planning.selection.
+search_horizon`, the searches of :mod:`activetrack.planning.searches` over the manoeuvre
+parametrisation of :mod:`activetrack.planning.manoeuvre`). Objective: pcrlb the sum over the
+legs (eq. 15-16, as :func:`activetrack.planning.planner.plan`), mre the cost after leg R
+(:func:`activetrack.planning.selection.plan_positions` says why). Only the first manoeuvre is
+flown. During the search a beam counts for the track it serves now: its previous track if
+still confirmed, else the track nearest its platform. Planner off: every controllable platform
+holds course.
+
+Beams (after the manoeuvres, from the platforms' planned k+1 positions), ``planner.targets.
+assignment``: ``mre`` the optimal assignment of the per-pair eq. 23 costs
+(:func:`activetrack.planning.assignment.assign_beams`: the non-steerable sensors' expected
+updates folded in first; shared tracks in rounds when beams outnumber tracks), ``random``
+uniform from the planner's generator (balanced), ``nearest`` the closest track. A beam points
+along the bearing from its platform's planned k+1 position to the track's predicted position
+F x. No confirmed track: every beam sweeps, its previous bearing plus ``beam_width`` each
+epoch (starting along its platform's heading).
+
+Random draws, all from the planner's generator, in this order: the tracks' Gaussian samples and
+their process noise (pcrlb; track order), the evolutionary search, the random assignment.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import cast
+
+import numpy as np
+
+from activetrack.angles import wrap_angle
+from activetrack.bounds.mre import mre_update
+from activetrack.bounds.pcrlb import (
+    covariance_bound,
+    gaussian_samples,
+    predicted_information,
+    propagate_samples,
+)
+from activetrack.checks import symmetrize
+from activetrack.closed_loop.data import Command, PlanReportData, PlatformSnapshot
+from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.models.clutter import ClutteredSensor
+from activetrack.multitarget.data import BeamCommand, MultiDecision, TrackEstimate, TrackSet
+from activetrack.planning.assignment import (
+    aggregate_costs,
+    assign_beams,
+    beam_coverage,
+    nearest_assignment,
+    random_assignment,
+)
+from activetrack.planning.criteria import PCRLB, POSITIONING, Criterion, get_criterion
+from activetrack.planning.horizons import SearchSettings
+from activetrack.planning.manoeuvre import PlatformLimits, hold_course, rollout
+from activetrack.planning.planner import PlannerPlatform
+from activetrack.planning.selection import (
+    TargetPrediction,
+    expected_update,
+    search_horizon,
+)
+from activetrack.scenarios.build import build_sensor
+from activetrack.scenarios.schema import PlannerConfig, Scenario
+
+__all__ = ["MultiTargetPlanner"]
+
+# Plans closer than this (rad, m/s) count as unchanged (as planning.multisensor).
+_SAME_PLAN_ATOL = 1e-9
+# "worst" searches minimise max_t c_t + TIE_BREAK sum_t c_t: when no candidate moves the worst
+# track (e.g. no sensor of the platform serves it) the others still decide, instead of the
+# search's first candidate (a hard turn) winning a tie.
+TIE_BREAK = 1e-6
+
+
+def _search_cost(costs: np.ndarray, weights: np.ndarray, aggregate: str, tie: float) -> np.ndarray:
+    """The aggregate of per-track costs ``(..., T)``, plus the tie-break for ``worst``."""
+    total = aggregate_costs(costs, weights, aggregate)
+    return total + tie * np.sum(costs, axis=-1) if aggregate == "worst" else total
+
+
+def _in_view(sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray) -> np.ndarray:
+    """1.0 where the target pv ``x`` ``(4,)`` is inside the sensor's fixed field of view seen
+    from sensor pvs ``(..., 4)`` (heading of their velocity), else 0.0; all around, or a beam
+    (pointed at its track), is 1.0. Shape ``(...)``."""
+    if sensor.fov_width is None:
+        return np.ones(pv.shape[:-1])
+    heading = np.arctan2(pv[..., 3], pv[..., 1])
+    bearing = np.arctan2(x[2] - pv[..., 2], x[0] - pv[..., 0])
+    off = wrap_angle(bearing - heading - sensor.fov_centre)
+    return (np.abs(off) <= 0.5 * sensor.fov_width).astype(float)
+
+
+@dataclass(frozen=True)
+class _Sensor:
+    sensor_id: str
+    platform: int  # index into the scenario's platforms
+    model: ClutteredSensor
+    q: float  # the IRF, cached
+
+    @property
+    def steerable(self) -> bool:
+        return self.model.beam_width is not None
+
+    def detection(self, x: np.ndarray, pv: np.ndarray, P: np.ndarray | None = None) -> np.ndarray:
+        """The detection factor of eq. 23 for a target at x seen from pvs ``(..., 4)``: q I_r
+        I_fov, and for a beam pointed at x the probability it holds the target given the
+        predicted covariance ``P`` (:func:`beam_coverage`; None: on target). ``(...)``."""
+        inside = np.asarray(self.model.in_range(x, pv), dtype=float)
+        d = self.q * inside * _in_view(self.model, x, pv)
+        if self.steerable and P is not None:
+            d = d * beam_coverage(cast(float, self.model.beam_width), x, P, pv)
+        return d
+
+
+@dataclass
+class _PcrlbStage:
+    """Hernandez eq. 3 for every track at once (a :class:`HorizonStage`): state J ``(..., T, 4,
+    4)``; ``fixed`` ``(R, T, 4, 4)`` the other platforms' J_Z; ``own`` the optimised platform's
+    sensors with the tracks each serves ``(T,)``; ``samples`` per track ``(R, M_t, 4)``."""
+
+    F: np.ndarray
+    Q: np.ndarray
+    samples: list[np.ndarray]
+    fixed: np.ndarray
+    own: tuple[tuple[ClutteredSensor, np.ndarray], ...]
+    criterion: Criterion
+    weights: np.ndarray
+    aggregate: str
+    tie: float = TIE_BREAK
+
+    def advance(self, J: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
+        J_Z = np.zeros((*pv.shape[:-1], len(self.samples), 4, 4))
+        for t, X in enumerate(self.samples):
+            for sensor, serves in self.own:
+                if serves[t]:
+                    J_Z[..., t, :, :] += sensor.fisher_information(X[level], pv)
+        return predicted_information(J, self.F, self.Q) + self.fixed[level] + J_Z
+
+    def cost(self, J: np.ndarray, level: int) -> np.ndarray:
+        c = self.criterion.of_information(J)
+        return _search_cost(c, self.weights, self.aggregate, self.tie)
+
+
+@dataclass
+class _MreStage:
+    """Ramdaras eq. 23 for every track at once (a :class:`HorizonStage`): state P_{k+1+r|k+r}
+    ``(..., T, 4, 4)``; ``x`` ``(R, T, 4)`` the CV predictions; ``fixed[r][t]`` the other
+    platforms' sensors serving track t and their pvs at leg r; ``own`` the optimised
+    platform's sensors with the tracks each serves ``(T,)``. A beam's coverage is that of the
+    prediction (it is pointed before the epoch's measurements)."""
+
+    F: np.ndarray
+    Q: np.ndarray
+    x: np.ndarray
+    fixed: list[list[list[tuple[_Sensor, np.ndarray]]]]
+    own: tuple[tuple[_Sensor, np.ndarray], ...]
+    criterion: Criterion
+    weights: np.ndarray
+    aggregate: str
+    tie: float = TIE_BREAK
+
+    def advance(self, P: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
+        if level > 0:
+            P = symmetrize(P)
+        out = np.empty((*pv.shape[:-1], self.x.shape[1], 4, 4))
+        for t, x in enumerate(self.x[level]):
+            P0 = Pt = P[..., t, :, :]
+            for sensor, at in self.fixed[level][t]:
+                d = sensor.detection(x, at, P0)
+                Pt = mre_update(Pt, sensor.model.jacobian(x, at), sensor.model.R, d)
+            for sensor, serves in self.own:
+                if serves[t]:
+                    H = sensor.model.jacobian(x, pv)
+                    Pt = mre_update(Pt, H, sensor.model.R, sensor.detection(x, pv, P0))
+            out[..., t, :, :] = self.F @ Pt @ self.F.T + self.Q
+        return out
+
+    def cost(self, P: np.ndarray, level: int) -> np.ndarray:
+        c = [self.criterion.of_covariance(P[..., t, :, :], x) for t, x in enumerate(self.x[level])]
+        return _search_cost(np.stack(c, axis=-1), self.weights, self.aggregate, self.tie)
+
+
+@dataclass
+class _Epoch:
+    """One decision's working set: the platforms at k, the confirmed tracks, their
+    predictions and (pcrlb) samples, which tracks each sensor serves ``(S, T)``, the
+    platforms' paths ``(R, 4)`` over the horizon."""
+
+    epoch: int
+    platforms: list[PlannerPlatform]
+    tracks: tuple[TrackEstimate, ...]
+    predictions: list[TargetPrediction]
+    weights: np.ndarray
+    serves: np.ndarray
+    paths: list[np.ndarray]
+    samples: list[np.ndarray] = field(default_factory=list)
+    plans: dict[int, np.ndarray] = field(default_factory=dict)  # controllable platforms' (R, 2)
+    evaluations: int = 0
+
+
+def _cost_kind(cfg: PlannerConfig) -> str:
+    """``planner.cost``, or the other kind when the criterion does not apply to it (only
+    possible with the planner off or no controllable platform: the schema checks the rest)."""
+    crit = get_criterion(cfg.criterion, PCRLB, POSITIONING, what="planner.criterion")
+    if cfg.cost == "pcrlb" and not crit.applies_to(PCRLB):
+        return "mre"
+    if cfg.cost == "mre" and not crit.applies_to(POSITIONING):
+        return "pcrlb"
+    return cfg.cost
+
+
+class MultiTargetPlanner:
+    """Manoeuvres and beam pointings against every confirmed track (module docstring); draws
+    only from its own ``rng``."""
+
+    def __init__(self, scenario: Scenario, rng: np.random.Generator):
+        cfg = scenario.planner
+        self.rng = rng
+        self.dynamics = LinearDynamics.of(scenario)
+        self.dt = scenario.dt
+        gate = scenario.tracker.tracks.gate_sigmas
+        sensors = []
+        for i, p in enumerate(scenario.platforms):
+            for s in p.sensors:
+                model = ClutteredSensor.wrap(build_sensor(s), s, gate)
+                sensors.append(_Sensor(s.id, i, model, model.information_factor))
+        self.sensors = tuple(sensors)
+        self.platform_ids = tuple(p.id for p in scenario.platforms)
+        self.controllable = tuple(p.controllable for p in scenario.platforms)
+        self.limits = tuple(
+            PlatformLimits.from_config(p.limits, self.dt)
+            if cfg.enabled and p.controllable and p.limits is not None
+            else None
+            for p in scenario.platforms
+        )
+        self.cost_kind = _cost_kind(cfg)
+        self.criterion = get_criterion(cfg.criterion)
+        if cfg.targets.assignment == "mre" and not self.criterion.applies_to(POSITIONING):
+            raise ValueError(
+                f"planner.criterion must apply to MRE positioning with planner.targets."
+                f"assignment 'mre', got {cfg.criterion!r}"
+            )
+        steering = any(lim is not None for lim in self.limits)
+        self.search = SearchSettings.from_config(cfg) if steering else None
+        self.horizon = cfg.horizon if steering else 1
+        self.mc_samples = cfg.mc_samples
+        self.max_iterations = cfg.max_sensor_iterations
+        self.aggregate = cfg.targets.aggregate
+        self.assignment = cfg.targets.assignment
+        self.last_track: dict[str, int] = {}  # beam sensor id -> track id it served last
+        self.last_bearing: dict[str, float] = {}
+
+    # --- the decision ---------------------------------------------------------------------
+
+    def decide(
+        self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]
+    ) -> MultiDecision:
+        """Commands for the leg epoch -> epoch+1, beam pointings for epoch+1, the report."""
+        start = time.perf_counter()
+        snaps = {s.platform_id: s for s in platforms}
+        missing = [pid for pid in self.platform_ids if pid not in snaps]
+        if missing:
+            raise ValueError(f"platforms: states missing for {missing}")
+        planners = [
+            PlannerPlatform(
+                pid,
+                snaps[pid].pv,
+                tuple(s.model for s in self.sensors if s.platform == i),
+                self.limits[i],
+                heading=snaps[pid].heading,
+                speed=snaps[pid].speed,
+            )
+            for i, pid in enumerate(self.platform_ids)
+        ]
+        if not tracks.confirmed:
+            return self._sweep(epoch, planners, start)
+        ep = self._epoch(epoch, planners, tracks.confirmed)
+        objective = self._manoeuvres(ep)
+        next_pv = np.stack([path[0] for path in ep.paths])
+        self._assign(ep, next_pv)
+        costs = self._track_costs(ep, next_pv)
+        return self._decision(ep, next_pv, costs, objective, time.perf_counter() - start)
+
+    def _epoch(
+        self, epoch: int, planners: list[PlannerPlatform], tracks: tuple[TrackEstimate, ...]
+    ) -> _Epoch:
+        d, R = self.dynamics, self.horizon
+        predictions = [TargetPrediction.from_posterior(t.mean, t.cov, d.F, d.Q) for t in tracks]
+        ep = _Epoch(
+            epoch,
+            planners,
+            tracks,
+            predictions,
+            np.array([t.priority for t in tracks], dtype=float),
+            self._serving_now(planners, tracks, predictions),
+            [self._hold_path(p) for p in planners],
+        )
+        if self.cost_kind == "pcrlb":
+            for t in tracks:
+                X = t.samples
+                if X is None:
+                    X = gaussian_samples(t.mean, t.cov, self.mc_samples, self.rng)
+                ep.samples.append(propagate_samples(X, d.F, d.Q, R, self.rng))
+        return ep
+
+    def _serving_now(
+        self,
+        planners: list[PlannerPlatform],
+        tracks: tuple[TrackEstimate, ...],
+        predictions: list[TargetPrediction],
+    ) -> np.ndarray:
+        """``(S, T)``: every track for a fixed sensor; for a beam its previous track if still
+        confirmed, else the nearest one to its platform now."""
+        ids = [t.track_id for t in tracks]
+        xy = np.array([[p.x[0], p.x[2]] for p in predictions])
+        serves = np.ones((len(self.sensors), len(tracks)), dtype=bool)
+        for i, s in enumerate(self.sensors):
+            if s.steerable:
+                pv = planners[s.platform].pv
+                last = self.last_track.get(s.sensor_id)
+                t = ids.index(last) if last in ids else int(nearest_assignment(pv[::2], xy)[0])
+                serves[i] = np.arange(len(tracks)) == t
+        return serves
+
+    def _hold_path(self, p: PlannerPlatform) -> np.ndarray:
+        """The platform's pv at k+1..k+R holding course ``(R, 4)``."""
+        if p.limits is None:
+            steps = np.arange(1, self.horizon + 1)[:, None] * self.dt
+            return p.pv + steps * np.array([p.pv[1], 0.0, p.pv[3], 0.0])
+        heading, speed = p.heading_and_speed
+        return rollout(p.pv, heading, hold_course(speed, p.limits, self.horizon), self.dt)[0]
+
+    # --- manoeuvres -----------------------------------------------------------------------
+
+    def _state0(self, ep: _Epoch) -> np.ndarray:
+        if self.cost_kind == "pcrlb":
+            return np.stack([covariance_bound(t.cov) for t in ep.tracks])
+        return np.stack([p.P for p in ep.predictions])
+
+    def _stage(self, ep: _Epoch, j: int | None) -> _PcrlbStage | _MreStage:
+        """The stage of platform ``j`` being optimised, every other platform on its path
+        (``j`` None: all fixed, for the objective of the plans)."""
+        own = [(s, ep.serves[i]) for i, s in enumerate(self.sensors) if s.platform == j]
+        others = [(s, ep.serves[i]) for i, s in enumerate(self.sensors) if s.platform != j]
+        if self.cost_kind == "pcrlb":
+            return self._pcrlb_stage(ep, own, others)
+        return self._mre_stage(ep, own, others)
+
+    def _pcrlb_stage(
+        self,
+        ep: _Epoch,
+        own: list[tuple[_Sensor, np.ndarray]],
+        others: list[tuple[_Sensor, np.ndarray]],
+    ) -> _PcrlbStage:
+        fixed = np.zeros((self.horizon, len(ep.tracks), 4, 4))
+        for s, serves in others:
+            path = ep.paths[s.platform]
+            for t in np.flatnonzero(serves):
+                for r in range(self.horizon):
+                    fixed[r, t] += s.model.fisher_information(ep.samples[t][r], path[r])
+        d = self.dynamics
+        return _PcrlbStage(
+            d.F,
+            d.Q,
+            ep.samples,
+            fixed,
+            tuple((s.model, serves) for s, serves in own),
+            self.criterion,
+            ep.weights,
+            self.aggregate,
+        )
+
+    def _mre_stage(
+        self,
+        ep: _Epoch,
+        own: list[tuple[_Sensor, np.ndarray]],
+        others: list[tuple[_Sensor, np.ndarray]],
+    ) -> _MreStage:
+        d = self.dynamics
+        x = [np.stack([p.x for p in ep.predictions])]  # x_{k+1+r|k} = F^r x_{k+1|k}
+        for _ in range(1, self.horizon):
+            x.append(x[-1] @ d.F.T)
+        updates: list[list[list[tuple[_Sensor, np.ndarray]]]] = [
+            [[] for _ in ep.tracks] for _ in range(self.horizon)
+        ]
+        for s, serves in others:
+            for r in range(self.horizon):
+                for t in np.flatnonzero(serves):
+                    updates[r][t].append((s, ep.paths[s.platform][r]))
+        return _MreStage(
+            d.F,
+            d.Q,
+            np.stack(x),
+            updates,
+            tuple(own),
+            self.criterion,
+            ep.weights,
+            self.aggregate,
+        )
+
+    def _manoeuvres(self, ep: _Epoch) -> float:
+        """Coordinate-wise search of the controllable platforms' plans (Hernandez sec. 4.1):
+        ``ep.plans`` and ``ep.paths`` take them. Returns the objective with everybody's plans;
+        a platform is searched again only when another one changed its plan since."""
+        state0 = self._state0(ep)
+        for j, p in enumerate(ep.platforms):
+            if p.limits is not None:
+                ep.plans[j] = hold_course(p.heading_and_speed[1], p.limits, self.horizon)
+        changed_at, clock = [0] * len(ep.platforms), 0
+        searched_at: dict[int, int] = {}
+        for _ in range(self.max_iterations if ep.plans else 0):
+            changed = False
+            for j in ep.plans:
+                others = [c for i, c in enumerate(changed_at) if i != j]
+                if j in searched_at and all(c <= searched_at[j] for c in others):
+                    continue
+                best = self._search(ep, j, state0)
+                clock += 1
+                searched_at[j] = clock
+                if not np.allclose(best, ep.plans[j], rtol=0.0, atol=_SAME_PLAN_ATOL):
+                    p = ep.platforms[j]
+                    ep.plans[j] = best
+                    ep.paths[j] = rollout(p.pv, p.heading_and_speed[0], best, self.dt)[0]
+                    changed_at[j] = clock
+                    changed = True
+            if not changed:
+                break
+        return self._objective(ep, state0)
+
+    def _search(self, ep: _Epoch, j: int, state0: np.ndarray) -> np.ndarray:
+        assert self.search is not None  # set whenever a platform is steered
+        best = search_horizon(
+            self._stage(ep, j),
+            state0,
+            ep.platforms[j],
+            self.dt,
+            self.search,
+            self.horizon,
+            summed=self.cost_kind == "pcrlb",
+            rng=self.rng,
+        )
+        ep.evaluations += best.evaluations
+        return best.plan
+
+    def _objective(self, ep: _Epoch, state0: np.ndarray) -> float:
+        """The aggregate over the horizon (summed or after leg R) with everybody's plans."""
+        stage, state, total = self._stage(ep, None), state0, 0.0
+        stage.tie = 0.0
+        dummy = np.zeros((1, 1, 4))
+        for r in range(self.horizon):
+            state = stage.advance(state, r, dummy)
+            if self.cost_kind == "pcrlb" or r == self.horizon - 1:
+                total += float(stage.cost(state, r)[0, 0])
+        return total
+
+    # --- beams and the outcome --------------------------------------------------------------
+
+    def _assign(self, ep: _Epoch, next_pv: np.ndarray) -> None:
+        """Every beam to one confirmed track at the planned k+1 positions: ``ep.serves``."""
+        beams = [i for i, s in enumerate(self.sensors) if s.steerable]
+        if not beams:
+            return
+        T = len(ep.tracks)
+        pvs = np.stack([next_pv[self.sensors[i].platform] for i in beams])
+        if self.assignment == "random":
+            picks = random_assignment(len(beams), T, self.rng)
+        elif self.assignment == "nearest":
+            xy = np.array([[p.x[0], p.x[2]] for p in ep.predictions])
+            picks = nearest_assignment(pvs[:, ::2], xy)
+        else:
+            picks = assign_beams(
+                self._fixed_updates(ep, next_pv),
+                [self.sensors[i].model for i in beams],
+                pvs,
+                np.array(
+                    [
+                        [self.sensors[i].detection(p.x, pv, p.P) for p in ep.predictions]
+                        for i, pv in zip(beams, pvs, strict=True)
+                    ]
+                ),
+                self.criterion.name,
+                ep.weights,
+                self.aggregate,
+            )
+        for i, t in zip(beams, picks, strict=True):
+            ep.serves[i] = np.arange(T) == t
+
+    def _fixed_updates(self, ep: _Epoch, next_pv: np.ndarray) -> list[TargetPrediction]:
+        """Each track's prediction with the fixed (non-steerable) sensors' expected updates."""
+        fixed = [s for s in self.sensors if not s.steerable]
+        out = []
+        for p in ep.predictions:
+            if fixed:
+                pvs = np.stack([next_pv[s.platform] for s in fixed])
+                factors = [float(s.detection(p.x, pv)) for s, pv in zip(fixed, pvs, strict=True)]
+                P = expected_update(p.P, p.x, [s.model for s in fixed], pvs, detection=factors)
+                p = p.with_covariance(P)
+            out.append(p)
+        return out
+
+    def _track_costs(self, ep: _Epoch, next_pv: np.ndarray) -> np.ndarray:
+        """Each track's cost at k+1 with the chosen manoeuvres and beams ``(T,)``."""
+        out = np.empty(len(ep.tracks))
+        for t, (track, p) in enumerate(zip(ep.tracks, ep.predictions, strict=True)):
+            serving = [s for i, s in enumerate(self.sensors) if ep.serves[i, t]]
+            pvs = np.stack([next_pv[s.platform] for s in serving]) if serving else np.zeros((0, 4))
+            if self.cost_kind == "pcrlb":
+                J = predicted_information(covariance_bound(track.cov), p.F, p.Q)
+                for s, pv in zip(serving, pvs, strict=True):
+                    J = J + s.model.fisher_information(ep.samples[t][0], pv)
+                out[t] = float(self.criterion.of_information(J))
+            else:
+                factors = [
+                    float(s.detection(p.x, pv, p.P)) for s, pv in zip(serving, pvs, strict=True)
+                ]
+                models = [s.model for s in serving]
+                P = expected_update(p.P, p.x, models, pvs, detection=factors) if serving else p.P
+                out[t] = float(self.criterion.of_covariance(p.F @ P @ p.F.T + p.Q, p.x))
+        return out
+
+    def _commands(self, ep_platforms: list[PlannerPlatform], epoch: int, plans: dict) -> list:
+        """A command per controllable platform: its plan's first manoeuvre, else hold course."""
+        commands = []
+        for j, p in enumerate(ep_platforms):
+            if j in plans:
+                heading, speed = p.heading_and_speed
+                dpsi, v = float(plans[j][0, 0]), float(plans[j][0, 1])
+                psi = float(wrap_angle(heading + dpsi))
+                commands.append(Command(p.platform_id, epoch, dpsi, v - speed, psi, v))
+            elif self.controllable[j]:
+                commands.append(Command(p.platform_id, epoch, 0.0, 0.0))
+        return commands
+
+    def _decision(
+        self, ep: _Epoch, next_pv: np.ndarray, costs: np.ndarray, objective: float, wall: float
+    ) -> MultiDecision:
+        beams, assignment = [], {}
+        for i, s in enumerate(self.sensors):
+            if not s.steerable:
+                continue
+            t = int(np.flatnonzero(ep.serves[i])[0])
+            x, pv = ep.predictions[t].x, next_pv[s.platform]
+            bearing = math.atan2(x[2] - pv[2], x[0] - pv[0])
+            track_id = ep.tracks[t].track_id
+            beams.append(BeamCommand(s.sensor_id, ep.epoch, bearing, track_id))
+            assignment[s.sensor_id] = track_id
+            self.last_track[s.sensor_id] = track_id
+            self.last_bearing[s.sensor_id] = bearing
+        ids = [t.track_id for t in ep.tracks]
+        total = float(aggregate_costs(costs, ep.weights, self.aggregate))
+        report = PlanReportData(
+            epoch=ep.epoch,
+            cost_kind=self.cost_kind,
+            criterion=self.criterion.name,
+            search=self.search.search if self.search is not None and ep.plans else "hold",
+            horizon=self.horizon,
+            cost_names=("aggregate", "objective", *(f"track_{i}" for i in ids)),
+            predicted_costs=(total, objective, *(float(c) for c in costs)),
+            evaluations=ep.evaluations,
+            wall_time_s=wall,
+        )
+        return MultiDecision(
+            ep.epoch,
+            tuple(self._commands(ep.platforms, ep.epoch, ep.plans)),
+            tuple(beams),
+            report,
+            {
+                "track_costs": dict(zip(ids, (float(c) for c in costs), strict=True)),
+                "assignment": assignment,
+            },
+        )
+
+    def _sweep(self, epoch: int, planners: list[PlannerPlatform], start: float) -> MultiDecision:
+        """No confirmed track: hold course, every beam one beam width on from where it was."""
+        beams, assignment = [], {}
+        for s in self.sensors:
+            if s.model.beam_width is None:
+                continue
+            last = self.last_bearing.get(s.sensor_id)
+            heading = planners[s.platform].heading_and_speed[0]
+            bearing = heading if last is None else float(wrap_angle(last + s.model.beam_width))
+            beams.append(BeamCommand(s.sensor_id, epoch, bearing, -1))
+            assignment[s.sensor_id] = -1
+            self.last_bearing[s.sensor_id] = bearing
+            self.last_track.pop(s.sensor_id, None)
+        report = PlanReportData(
+            epoch=epoch,
+            cost_kind=self.cost_kind,
+            criterion=self.criterion.name,
+            search="sweep",
+            horizon=self.horizon,
+            wall_time_s=time.perf_counter() - start,
+        )
+        commands = tuple(
+            Command(p.platform_id, epoch, 0.0, 0.0)
+            for j, p in enumerate(planners)
+            if self.controllable[j]
+        )
+        return MultiDecision(
+            epoch, commands, tuple(beams), report, {"track_costs": {}, "assignment": assignment}
+        )

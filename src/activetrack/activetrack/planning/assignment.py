@@ -1,0 +1,254 @@
+"""Sensor-to-track assignment of steerable beams, and costs aggregated over tracks.
+
+A steerable sensor (a beam ``beam_width`` wide) observes one track per epoch. Given the
+per-pair costs ``C[s, t]`` (track t's cost if sensor s serves it) and ``c0[t]`` (its cost if
+no beam does), one *round* gives each track at most one sensor:
+
+- ``"weighted_sum"``: minimise sum_t w_t cost_t. With at most one beam per track the costs
+  add up, so this is the linear assignment of the gains ``w_t (C[s, t] - c0[t])`` (the
+  offset ``c0`` matters: a track left without a beam keeps its cost), solved exactly by
+  ``scipy.optimize.linear_sum_assignment``;
+- ``"worst"``: minimise max_t cost_t. Exact for any size, no enumeration: the optimum is one
+  of the costs, the smallest threshold theta for which every track with ``c0[t] > theta``
+  gets its own sensor with ``C[s, t] <= theta`` (a bipartite matching, tested with
+  ``linear_sum_assignment`` on 0/1 costs; binary search over the sorted costs). Among the
+  assignments reaching it, the one with the largest summed gain is returned.
+
+More sensors than tracks: tracks are shared, in rounds. Each round assigns one sensor to every
+track (the optimal choice of which sensors, as above); the tracks' covariances take in that
+round's expected updates and the sensors left are assigned in the next round against them.
+Each round is optimal given the earlier ones (greedy over rounds, not jointly optimal).
+
+Per-pair costs (:func:`mre_pair_costs`): Ramdaras eq. 23 for the track with that sensor's
+expected update (:func:`activetrack.planning.selection.expected_update`, the detection factor
+given, e.g. the IRF q of a sensor in clutter), then the criterion. The update never raises a
+criterion (it shrinks P in the PSD order), so ``C <= c0``; round-off is clipped.
+
+A beam is pointed at the track's predicted position, so it holds the target only with the
+probability :func:`beam_coverage` (the predicted bearing spread against the beam's width);
+the caller folds that into the detection factor.
+
+Baselines: :func:`random_assignment` (uniform, balanced like the rounds) and
+:func:`nearest_assignment` (each sensor its closest track).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from activetrack.arraytypes import ArrayLike
+from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
+from activetrack.planning.selection import TargetPrediction, expected_update
+
+if TYPE_CHECKING:
+    from activetrack.models.base import SensorModel
+
+__all__ = [
+    "AGGREGATES",
+    "aggregate_costs",
+    "assign_beams",
+    "assignment_value",
+    "beam_coverage",
+    "mre_pair_costs",
+    "nearest_assignment",
+    "random_assignment",
+    "round_assignment",
+]
+
+AGGREGATES = ("worst", "weighted_sum")
+
+
+def _linear_sum_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """scipy's optimal linear assignment (rows, cols) of a cost matrix ``(n, m)``; imported
+    here, not at module import (importing scipy.optimize installs warning filters)."""
+    from scipy.optimize import linear_sum_assignment as lsa
+
+    rows, cols = lsa(cost)
+    return np.asarray(rows), np.asarray(cols)
+
+
+_erf = np.vectorize(math.erf, otypes=[float])
+
+
+def beam_coverage(
+    beam_width: float, x: np.ndarray, P: np.ndarray, sensor_pv: np.ndarray
+) -> np.ndarray:
+    """Probability that a target N(x, P) lies inside a beam ``beam_width`` wide pointed at x
+    from sensor pvs ``(..., 4)``: erf(w / (2 sqrt(2) sigma_b)), sigma_b^2 = h P h^T the
+    linearised bearing variance (h = (-dy, 0, dx, 0) / r^2). x ``(4,)``, P ``(..., 4, 4)``
+    broadcasting against the sensors; returns ``(...)``."""
+    pv = np.asarray(sensor_pv, dtype=float)
+    dx, dy = x[0] - pv[..., 0], x[2] - pv[..., 2]
+    r2 = np.maximum(dx * dx + dy * dy, 1e-300)
+    z = np.zeros_like(dx)
+    h = np.stack([-dy / r2, z, dx / r2, z], axis=-1)
+    var = np.einsum("...i,...ij,...j->...", h, np.asarray(P, dtype=float), h)
+    sigma = np.sqrt(np.maximum(var, 1e-300))
+    return np.asarray(_erf(0.5 * beam_width / (math.sqrt(2.0) * sigma)), dtype=float)
+
+
+def _check_aggregate(aggregate: str) -> str:
+    if aggregate not in AGGREGATES:
+        raise ValueError(f"aggregate must be one of {AGGREGATES}, got {aggregate!r}")
+    return aggregate
+
+
+def aggregate_costs(costs: ArrayLike, weights: ArrayLike, aggregate: str) -> np.ndarray:
+    """Per-track costs ``(..., T)`` to one: ``"worst"`` max_t, ``"weighted_sum"`` sum_t w_t c_t
+    (``weights`` ``(T,)``, the tracks' priorities)."""
+    c = np.asarray(costs, dtype=float)
+    if _check_aggregate(aggregate) == "worst":
+        return np.max(c, axis=-1)
+    return np.sum(c * np.asarray(weights, dtype=float), axis=-1)
+
+
+def _check_round(C: ArrayLike, c0: ArrayLike, weights: ArrayLike) -> tuple[np.ndarray, ...]:
+    C = np.asarray(C, dtype=float)
+    c0 = np.asarray(c0, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    if C.ndim != 2 or c0.shape != (C.shape[1],) or w.shape != c0.shape:
+        raise ValueError(
+            f"C must be (S, T) with c0 and weights (T,), got {C.shape}, {c0.shape}, {w.shape}"
+        )
+    if not (np.isfinite(C).all() and np.isfinite(c0).all() and np.all(w > 0)):
+        raise ValueError("C and c0 must be finite and weights > 0")
+    return C, c0, w
+
+
+def assignment_value(
+    tracks_of: ArrayLike, C: ArrayLike, c0: ArrayLike, weights: ArrayLike, aggregate: str
+) -> float:
+    """The aggregate of one round's assignment ``tracks_of`` ``(S,)`` (track index, -1: none;
+    each track at most once): track t costs ``C[s, t]`` if sensor s serves it, else ``c0[t]``."""
+    C, c0, w = _check_round(C, c0, weights)
+    costs = c0.copy()
+    for s, t in enumerate(np.asarray(tracks_of, dtype=int)):
+        if t >= 0:
+            costs[t] = C[s, t]
+    return float(aggregate_costs(costs, w, aggregate))
+
+
+def round_assignment(C: ArrayLike, c0: ArrayLike, weights: ArrayLike, aggregate: str) -> np.ndarray:
+    """One round: the track of each sensor ``(S,)``, each track at most once (-1: the sensor
+    waits for the next round, only when S > T), minimising ``aggregate`` (module docstring).
+
+    ``C`` ``(S, T)``: track t's cost served by sensor s; ``c0`` ``(T,)``: unserved;
+    ``weights`` ``(T,)`` > 0."""
+    C, c0, w = _check_round(C, c0, weights)
+    if _check_aggregate(aggregate) == "worst":
+        rows, cols = _minimax(C, c0, C - c0)
+    else:
+        rows, cols = _linear_sum_assignment(w * (C - c0))
+    out = np.full(C.shape[0], -1, dtype=int)
+    out[rows] = cols
+    return out
+
+
+def _feasible(C: np.ndarray, c0: np.ndarray, theta: float) -> bool:
+    """Whether every track above ``theta`` can get its own sensor that brings it to theta."""
+    must = c0 > theta
+    if must.sum() > C.shape[0]:
+        return False
+    if not must.any():
+        return True
+    blocked = (C[:, must] > theta).astype(float)
+    rows, cols = _linear_sum_assignment(blocked)
+    return bool(blocked[rows, cols].sum() == 0.0)
+
+
+def _minimax(C: np.ndarray, c0: np.ndarray, gain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact bottleneck round: the smallest feasible threshold, then the largest summed gain
+    with every track above it served by an allowed sensor (a -big bonus forces those pairs,
+    a +big penalty forbids pairs that would leave a track above it)."""
+    values = np.unique(np.concatenate([c0, C.ravel()]))
+    lo, hi = 0, len(values) - 1  # values[hi] (the largest cost) is always feasible
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if _feasible(C, c0, float(values[mid])):
+            hi = mid
+        else:
+            lo = mid + 1
+    theta = values[lo]
+    big = 4.0 * (C.shape[0] + 1) * (float(np.max(np.abs(gain))) + 1.0)
+    allowed = C <= theta
+    must = c0 > theta
+    D = gain + np.where(allowed, 0.0, big) - np.where(allowed & must[None, :], big, 0.0)
+    return _linear_sum_assignment(D)
+
+
+def mre_pair_costs(
+    predictions: Sequence[TargetPrediction],
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    detection: ArrayLike,
+    criterion: str,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``C`` ``(S, T)`` and ``c0`` ``(T,)``: ``criterion`` of eq. 23 for each track (its
+    prediction x_{k+1|k}, P_{k+1|k}, F, Q) with sensor s's expected update at its pv ``(S, 4)``
+    with detection factor ``detection[s, t]`` (``(S, T)``), or with none."""
+    crit = get_criterion(criterion, POSITIONING, SELECTION, what="criterion")
+    pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
+    d = np.asarray(detection, dtype=float)
+    S, T = len(sensors), len(predictions)
+    if pvs.shape[0] != S or d.shape != (S, T):
+        raise ValueError(f"sensor_pvs must be ({S}, 4) and detection ({S}, {T})")
+    C, c0 = np.empty((S, T)), np.empty(T)
+    for t, p in enumerate(predictions):
+        c0[t] = float(crit.of_covariance(p.F @ p.P @ p.F.T + p.Q, p.x))
+        for s, sensor in enumerate(sensors):
+            P_upd = expected_update(p.P, p.x, [sensor], pvs[s], detection=d[s, t : t + 1])
+            C[s, t] = float(crit.of_covariance(p.F @ P_upd @ p.F.T + p.Q, p.x))
+    return np.minimum(C, c0), c0
+
+
+def assign_beams(
+    predictions: Sequence[TargetPrediction],
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    detection: ArrayLike,
+    criterion: str,
+    weights: ArrayLike,
+    aggregate: str,
+) -> np.ndarray:
+    """The track index ``(S,)`` of each steerable sensor: :func:`round_assignment` of the
+    :func:`mre_pair_costs`, in rounds while sensors are left (module docstring)."""
+    pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
+    d = np.asarray(detection, dtype=float)
+    preds = list(predictions)
+    out = np.full(len(sensors), -1, dtype=int)
+    remaining = list(range(len(sensors)))
+    while remaining and preds:
+        C, c0 = mre_pair_costs(
+            preds, [sensors[i] for i in remaining], pvs[remaining], d[remaining], criterion
+        )
+        picks = round_assignment(C, c0, weights, aggregate)
+        for i, t in zip(remaining, picks, strict=True):
+            if t >= 0:
+                out[i] = t
+                p = preds[t]
+                P = expected_update(p.P, p.x, [sensors[i]], pvs[i], detection=d[i, t : t + 1])
+                preds[t] = p.with_covariance(P)
+        remaining = [i for i, t in zip(remaining, picks, strict=True) if t < 0]
+    return out
+
+
+def random_assignment(n_sensors: int, n_tracks: int, rng: np.random.Generator) -> np.ndarray:
+    """The random baseline: uniform over the balanced assignments the rounds make (each track
+    once before any twice): ``ceil(S / T)`` permutations of the tracks from ``rng``."""
+    if n_tracks < 1 or n_sensors < 0:
+        raise ValueError(f"n_tracks must be >= 1 and n_sensors >= 0, got {n_tracks}, {n_sensors}")
+    rounds = [rng.permutation(n_tracks) for _ in range(math.ceil(n_sensors / n_tracks))]
+    return np.concatenate(rounds)[:n_sensors].astype(int) if rounds else np.zeros(0, dtype=int)
+
+
+def nearest_assignment(sensor_xy: ArrayLike, track_xy: ArrayLike) -> np.ndarray:
+    """Each sensor's closest track ``(S,)`` (positions ``(S, 2)`` and ``(T, 2)``; shared)."""
+    a = np.asarray(sensor_xy, dtype=float).reshape(-1, 2)
+    b = np.asarray(track_xy, dtype=float).reshape(-1, 2)
+    if b.shape[0] < 1:
+        raise ValueError("track_xy must hold at least one track position")
+    return np.argmin(np.hypot(*np.moveaxis(a[:, None] - b[None], -1, 0)), axis=1).astype(int)

@@ -1,0 +1,252 @@
+"""Multi-target active tracking in clutter: the planner against its baselines (issue 14).
+
+On each multi-target scenario (``mt_bearings_crossing``: two bearings-only platforms, three
+crossing targets; ``mt_radars_beams``: heterogeneous radars with beams, five targets;
+``mt_appear_disappear``: targets born and dying, tracks started from detections), ``runs``
+seeded closed-loop runs of three strategies on the same truth and detections draws:
+
+- ``planner``: the scenario as written (manoeuvres against every track, MRE beam assignment);
+- ``hold_course``: the platforms hold course and speed (beams still assigned by MRE);
+- ``random_assignment``: the planner's manoeuvres, but beams pointed at uniformly drawn tracks.
+
+The figure of merit is the time-averaged GOSPA (cut-off and order from the scenario's
+``evaluation``), averaged over runs, with its Monte Carlo standard error; the improvement is
+``1 - GOSPA(planner) / GOSPA(baseline)`` (the issue asks for >= 20 % against both).
+
+In a notebook::
+
+    from activetrack_experiments import multitarget
+    res = multitarget.reproduce(runs=20, jobs=2)
+    res.table()
+
+On the command line (``python -m activetrack_experiments.multitarget`` is the same)::
+
+    activetrack reproduce multitarget [--runs N] [--jobs J] [--scenario NAME ...]
+        [--json PATH] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from activetrack.argtypes import int_in_range
+from activetrack.limits import MAX_JOBS, MAX_RUNS
+from activetrack.montecarlo import available_jobs
+from activetrack.multitarget.loop import MultiBatchSummary, run_multi_batch
+from activetrack.scenarios import load_scenario
+from activetrack.scenarios.schema import Scenario
+from activetrack_experiments.paths import scenario_path
+
+__all__ = ["SCENARIOS", "STRATEGIES", "MultiTargetResult", "reproduce", "strategy_scenario"]
+
+SCENARIOS = ("mt_bearings_crossing", "mt_radars_beams", "mt_appear_disappear")
+STRATEGIES = ("planner", "hold_course", "random_assignment")
+BASELINES = STRATEGIES[1:]
+REQUIRED_IMPROVEMENT = 0.20
+
+
+def strategy_scenario(scenario: Scenario, strategy: str) -> Scenario:
+    """The scenario with the planner set up for ``strategy`` (one of :data:`STRATEGIES`)."""
+    planner = scenario.planner
+    if strategy == "planner":
+        return scenario
+    if strategy == "hold_course":
+        planner = planner.model_copy(update={"enabled": False})
+    elif strategy == "random_assignment":
+        targets = planner.targets.model_copy(update={"assignment": "random"})
+        planner = planner.model_copy(update={"targets": targets})
+    else:
+        raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
+    return scenario.model_copy(update={"planner": planner})
+
+
+@dataclass
+class ScenarioResult:
+    """One scenario: each strategy's batch summary."""
+
+    name: str
+    summaries: dict[str, MultiBatchSummary]
+
+    def mean(self, strategy: str) -> float:
+        return self.summaries[strategy].mean_gospa
+
+    def stderr(self, strategy: str) -> float:
+        g = np.asarray(self.summaries[strategy].run_gospa)
+        return float(g.std(ddof=1) / math.sqrt(len(g))) if len(g) > 1 else math.nan
+
+    def improvement(self, baseline: str) -> float:
+        """1 - GOSPA(planner) / GOSPA(baseline)."""
+        return 1.0 - self.mean("planner") / self.mean(baseline)
+
+    def improvement_stderr(self, baseline: str) -> float:
+        """Standard error of :meth:`improvement` over runs (the runs are paired: same seeds)."""
+        a = np.asarray(self.summaries["planner"].run_gospa)
+        b = np.asarray(self.summaries[baseline].run_gospa)
+        if len(a) < 2:
+            return math.nan
+        ma, mb = a.mean(), b.mean()
+        # Delta method for the ratio of paired means.
+        d = a / mb - ma * b / mb**2
+        return float(d.std(ddof=1) / math.sqrt(len(a)))
+
+
+@dataclass
+class MultiTargetResult:
+    runs: int
+    scenarios: list[ScenarioResult] = field(default_factory=list)
+
+    def table(self) -> list[dict[str, float | int | str]]:
+        rows: list[dict[str, float | int | str]] = []
+        for sc in self.scenarios:
+            for strategy in STRATEGIES:
+                s = sc.summaries[strategy]
+                rows.append(
+                    {
+                        "scenario": sc.name,
+                        "strategy": strategy,
+                        "runs": s.runs,
+                        "mean_gospa_m": s.mean_gospa,
+                        "stderr_m": sc.stderr(strategy),
+                        "breaks_per_run": s.breaks,
+                        "swaps_per_run": s.swaps,
+                        "improvement": 0.0 if strategy == "planner" else sc.improvement(strategy),
+                    }
+                )
+        return rows
+
+    def to_json(self) -> dict:
+        return {
+            "runs": self.runs,
+            "table": self.table(),
+            "summaries": {
+                sc.name: {k: v.to_json() for k, v in sc.summaries.items()} for sc in self.scenarios
+            },
+        }
+
+
+def reproduce(
+    runs: int = 100,
+    *,
+    scenarios: Sequence[str] = SCENARIOS,
+    jobs: int = 1,
+    scenarios_dir: str | Path | None = None,
+    task_progress: Callable[[int, int], None] | None = None,
+) -> MultiTargetResult:
+    """Every strategy on every scenario, ``runs`` seeded runs each (run r of every strategy
+    draws the same truth and detections: the simulator's generator is the run's)."""
+    result = MultiTargetResult(runs)
+    total, done = len(scenarios) * len(STRATEGIES), 0
+    for name in scenarios:
+        base = load_scenario(scenario_path(name, scenarios_dir))
+        summaries = {}
+        for strategy in STRATEGIES:
+            summaries[strategy] = run_multi_batch(
+                strategy_scenario(base, strategy), runs=runs, jobs=jobs, keep_records=False
+            )
+            done += 1
+            if task_progress is not None:
+                task_progress(done, total)
+        result.scenarios.append(ScenarioResult(name, summaries))
+    return result
+
+
+def format_report(res: MultiTargetResult) -> str:
+    lines = [
+        f"Multi-target active tracking: time-averaged GOSPA over {res.runs} seeded runs "
+        f"(mean +- standard error, m)",
+        "",
+        f"{'scenario':24s} {'strategy':18s} {'GOSPA':>10s} {'+-':>7s} {'breaks':>7s} "
+        f"{'swaps':>6s} {'improvement':>12s}",
+    ]
+    for sc in res.scenarios:
+        for strategy in STRATEGIES:
+            s = sc.summaries[strategy]
+            imp = "" if strategy == "planner" else f"{100 * sc.improvement(strategy):11.1f}%"
+            lines.append(
+                f"{sc.name:24s} {strategy:18s} {s.mean_gospa:10.1f} {sc.stderr(strategy):7.1f} "
+                f"{s.breaks:7.2f} {s.swaps:6.2f} {imp:>12s}"
+            )
+    lines.append("")
+    worst = min(sc.improvement(b) for sc in res.scenarios for b in BASELINES)
+    verdict = "meets" if worst >= REQUIRED_IMPROVEMENT else "MISSES"
+    lines.append(
+        f"smallest improvement of the planner over a baseline: {100 * worst:.1f}% "
+        f"({verdict} the {100 * REQUIRED_IMPROVEMENT:.0f}% target)"
+    )
+    return "\n".join(lines)
+
+
+def _parse(argv):
+    parser = argparse.ArgumentParser(
+        prog="activetrack reproduce multitarget", description=__doc__.splitlines()[0]
+    )
+    parser.add_argument(
+        "--runs", type=int_in_range(1, MAX_RUNS), default=100, help="Monte Carlo runs per row"
+    )
+    parser.add_argument(
+        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
+    )
+    parser.add_argument("--json", type=Path, default=None, help="write the results as JSON")
+    parser.add_argument("--out", type=Path, default=Path("runs/reproduce-multitarget"))
+    parser.add_argument(
+        "--jobs",
+        type=int_in_range(1, MAX_JOBS),
+        default=available_jobs(),
+        help="worker processes (the numbers do not depend on it)",
+    )
+    return parser.parse_args(argv)
+
+
+def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
+    """GOSPA vs time per scenario, the three strategies."""
+    from activetrack.plots import new_figure, write_figures
+
+    def figure(sc: ScenarioResult):
+        fig = new_figure(figsize=(7, 4))
+        ax = fig.add_subplot()
+        for strategy in STRATEGIES:
+            s = sc.summaries[strategy]
+            t = s.dt * np.arange(1, s.steps + 1)
+            ax.plot(t, s.gospa_t, label=f"{strategy} ({s.mean_gospa:.0f} m)")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("GOSPA [m]")
+        ax.set_title(f"{sc.name}: mean GOSPA over {res.runs} runs")
+        ax.legend()
+        return fig
+
+    return write_figures(
+        [(f"gospa_{sc.name}", lambda sc=sc: figure(sc)) for sc in res.scenarios], out
+    )
+
+
+def main(
+    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
+) -> int:
+    args = _parse(argv)
+    res = reproduce(
+        args.runs,
+        scenarios=tuple(args.scenario or SCENARIOS),
+        jobs=args.jobs,
+        task_progress=task_progress,
+    )
+    print(format_report(res))
+    args.out.mkdir(parents=True, exist_ok=True)
+    plots = save_figures(res, args.out)
+    print("\nplots: " + ", ".join(str(p) for p in plots))
+    text = json.dumps(res.to_json(), indent=2)
+    (args.out / "results.json").write_text(text)
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,448 @@
+"""Planning across targets (issue 14 sec. 4): manoeuvres against every confirmed track, beams
+assigned to tracks, multi-step MRE positioning.
+
+- the aggregate matters: in a two-track geometry "worst" turns towards the uncertain track,
+  "weighted_sum" (priority 50 on the other) towards the other one;
+- the optimal beam assignment equals brute force over all assignments (cost matrices with
+  ties, and the MRE costs of random geometries);
+- with one track the planner is the single-target one: PCRLB plan() (R = 1, 2 quadrant, R = 3
+  evolution) and MRE positioning (R = 1, 2) with a sensor whose pd is the IRF q;
+- clutter: a bearing sensor's predicted information is q times the clutter-free one; a beam
+  informs only its track; no confirmed track: beams sweep; random assignment is seeded.
+"""
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from activetrack.bounds.irf import information_reduction_factor
+from activetrack.bounds.pcrlb import covariance_bound, predicted_information, propagate_samples
+from activetrack.closed_loop.data import PlatformSnapshot, heading_speed
+from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
+from activetrack.multitarget.data import TrackEstimate, TrackSet
+from activetrack.multitarget.planner import MultiTargetPlanner
+from activetrack.planning.assignment import (
+    aggregate_costs,
+    assign_beams,
+    assignment_value,
+    beam_coverage,
+    mre_pair_costs,
+    random_assignment,
+    round_assignment,
+)
+from activetrack.planning.criteria import get_criterion
+from activetrack.planning.horizons import SearchSettings
+from activetrack.planning.manoeuvre import PlatformLimits
+from activetrack.planning.planner import PlannerPlatform, PlanSettings, TargetBelief, plan
+from activetrack.planning.selection import TargetPrediction, expected_update, plan_positions
+from activetrack.scenarios import parse_scenario
+
+LIMITS = {"dpsi_max": 0.6, "dv_max": 10.0, "v_min": 30.0, "v_max": 120.0}
+TARGET = {
+    "id": "t1",
+    "motion": {"model": "ncv", "q": 0.01},
+    "prior": {"mean": [1000.0, 1.0, 1000.0, 1.0], "var": [100.0, 1.0, 100.0, 1.0]},
+}
+
+
+def scenario(platforms, planner=None, gate=3.5):
+    data = {
+        "name": "mt_test",
+        "dt": 5.0,
+        "steps": 10,
+        "targets": [TARGET],
+        "platforms": platforms,
+        "tracker": {"filter": "ekf", "tracks": {"gate_sigmas": gate}},
+        "planner": planner or {},
+    }
+    return parse_scenario(data, "mt_test")
+
+
+def platform(pid, pv, sensors, controllable=False):
+    out = {"id": pid, "initial_state": list(pv), "sensors": sensors}
+    return {**out, "controllable": True, "limits": LIMITS} if controllable else out
+
+
+def snapshots(sc):
+    out = []
+    for p in sc.platforms:
+        pv = np.array(p.initial_state)
+        out.append(PlatformSnapshot(p.id, 0, 0.0, pv, *heading_speed(pv)))
+    return out
+
+
+def track(i, mean, cov, status="confirmed", priority=1.0, samples=None):
+    m, P = np.asarray(mean, float), np.asarray(cov, float)
+    return TrackEstimate(i, status, m, P, priority=priority, samples=samples)
+
+
+def decide(sc, tracks, seed=0, epoch=0):
+    planner = MultiTargetPlanner(sc, np.random.default_rng(seed))
+    return planner.decide(epoch, TrackSet(epoch, 0.0, "ekf", tuple(tracks)), snapshots(sc))
+
+
+# --- the aggregate ----------------------------------------------------------------------------
+
+
+def test_worst_and_weighted_sum_choose_differently():
+    # One platform at the origin heading +x with an all-around bearing sensor; track 1 to the
+    # north-east with sigma 200 m, track 2 to the south-east with sigma 100 m and priority 50.
+    sensor = {"id": "s1", "kind": "bearing", "sigma": 0.02}
+    platforms = [platform("p1", [0.0, 50.0, 0.0, 0.0], [sensor], controllable=True)]
+    tracks = [
+        track(1, [3000, 0, 3000, 0], np.diag([4e4, 4, 4e4, 4])),
+        track(2, [3000, 0, -3000, 0], np.diag([1e4, 4, 1e4, 4]), priority=50.0),
+    ]
+    out = {}
+    for aggregate in ("worst", "weighted_sum"):
+        planner = {"search": "grid", "grid_size": 11, "mc_samples": 300}
+        sc = scenario(platforms, {**planner, "targets": {"aggregate": aggregate}})
+        d = decide(sc, tracks)
+        costs = d.extra["track_costs"]
+        assert d.report.cost_names[:4] == ("aggregate", "objective", "track_1", "track_2")
+        weights = [1.0, 50.0]
+        want = aggregate_costs([costs[1], costs[2]], weights, aggregate)
+        assert d.report.predicted_costs[0] == pytest.approx(want, rel=1e-12)
+        out[aggregate] = (d.commands[0].heading_change, costs[1], costs[2])
+    # worst: hard left towards track 1, b_k 151.0 / 86.1 m; weighted_sum: hard right towards
+    # track 2, 158.4 / 84.1 m (50 x 2.0 m gained on track 2 against 7.4 m lost on track 1).
+    assert out["worst"][0] == pytest.approx(0.6)
+    assert out["weighted_sum"][0] == pytest.approx(-0.6)
+    assert out["worst"][1] == pytest.approx(151.0, abs=0.1)
+    assert out["weighted_sum"][1:] == pytest.approx((158.4, 84.1), abs=0.1)
+    assert out["worst"][1] < out["weighted_sum"][1] and out["worst"][2] > out["weighted_sum"][2]
+
+
+# --- the assignment ---------------------------------------------------------------------------
+
+
+def _brute_force(C, c0, w, aggregate):
+    S, T = C.shape
+    return min(
+        assignment_value(p, C, c0, w, aggregate) for p in itertools.permutations(range(T), S)
+    )
+
+
+def test_round_assignment_equals_brute_force_on_random_cost_matrices():
+    rng = np.random.default_rng(0)
+    for case in range(400):
+        S = int(rng.integers(1, 4))
+        T = int(rng.integers(S, 6))
+        c0 = rng.uniform(1.0, 10.0, T)
+        C = c0 * rng.uniform(0.2, 1.0, (S, T))
+        if case % 3 == 0:  # integer costs: many ties, for "worst" in particular
+            C = np.round(C)
+            c0 = np.maximum(np.round(c0), C.max(axis=0))
+        w = rng.uniform(0.5, 3.0, T)
+        for aggregate in ("worst", "weighted_sum"):
+            picks = round_assignment(C, c0, w, aggregate)
+            assert sorted(set(picks.tolist())) == sorted(picks.tolist()) and picks.min() >= 0
+            value = assignment_value(picks, C, c0, w, aggregate)
+            assert value == pytest.approx(_brute_force(C, c0, w, aggregate), rel=1e-12)
+
+
+def _random_geometry(rng, S, T):
+    F = np.array([[1.0, 1.0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 1.0], [0, 0, 0, 1.0]])
+    Q = np.diag([0.25, 1.0, 0.25, 1.0])
+    predictions = []
+    for _ in range(T):
+        x = np.array([rng.uniform(0, 8000), rng.uniform(-50, 50)] * 2)
+        x[2], x[3] = rng.uniform(0, 8000), rng.uniform(-50, 50)
+        predictions.append(TargetPrediction(x, np.diag(rng.uniform(100, 5000, 4)), F, Q))
+    kinds = [
+        BearingSensor(0.002, pd=0.9),
+        RangeBearingSensor(30.0, 0.002, pd=0.8),
+        RangeRateBearingSensor(8.0, 10.0, 0.02, pd=0.7),
+    ]
+    sensors = [kinds[int(rng.integers(3))] for _ in range(S)]
+    pvs = np.column_stack([rng.uniform(-2000, 10000, S), np.zeros(S)] * 2)
+    pvs[:, 2] = rng.uniform(-2000, 10000, S)
+    return predictions, sensors, pvs, rng.uniform(0.5, 1.0, (S, T))
+
+
+def test_mre_beam_assignment_equals_brute_force_on_random_geometries():
+    rng = np.random.default_rng(7)
+    crit = get_criterion("det_pos")
+    for _ in range(12):
+        S = int(rng.integers(1, 4))
+        T = int(rng.integers(S, 5))
+        preds, sensors, pvs, d = _random_geometry(rng, S, T)
+        w = rng.uniform(0.5, 3.0, T)
+
+        def value(tracks_of, aggregate, preds=preds, sensors=sensors, pvs=pvs, d=d, w=w):
+            costs = []
+            for t, p in enumerate(preds):
+                mine = [s for s in range(len(sensors)) if tracks_of[s] == t]
+                P = expected_update(
+                    p.P, p.x, [sensors[s] for s in mine], pvs[mine], detection=d[mine, t]
+                )
+                costs.append(float(crit.of_covariance(p.F @ P @ p.F.T + p.Q, p.x)))
+            return float(aggregate_costs(costs, w, aggregate))
+
+        for aggregate in ("worst", "weighted_sum"):
+            picks = assign_beams(preds, sensors, pvs, d, "det_pos", w, aggregate)
+            best = min(value(p, aggregate) for p in itertools.permutations(range(T), S))
+            assert value(picks, aggregate) == pytest.approx(best, rel=1e-12)
+
+
+def _costs(preds, sensors, pvs, d):
+    return mre_pair_costs(preds, sensors, pvs, d, "det_pos")
+
+
+def test_more_beams_than_tracks_share_them_in_rounds():
+    rng = np.random.default_rng(5)
+    preds, sensors, pvs, d = _random_geometry(rng, 3, 2)
+    w = np.ones(2)
+    picks = assign_beams(preds, sensors, pvs, d, "det_pos", w, "weighted_sum")
+    assert sorted(picks.tolist()) in ([0, 0, 1], [0, 1, 1])  # every track served
+    first = round_assignment(*_costs(preds, sensors, pvs, d), w, "weighted_sum")
+    waiting = int(np.flatnonzero(first < 0)[0])
+    assert picks[first >= 0].tolist() == first[first >= 0].tolist()
+    # The waiting sensor joins the track where it then gains most (round 2, after round 1).
+    gains = []
+    for t, p in enumerate(preds):
+        s = int(np.flatnonzero(first == t)[0])
+        P = expected_update(p.P, p.x, [sensors[s]], pvs[s], detection=d[s, t : t + 1])
+        C, c0 = _costs(
+            [p.with_covariance(P)], [sensors[waiting]], pvs[[waiting]], d[[waiting]][:, [t]]
+        )
+        gains.append(C[0, 0] - c0[0])
+    assert picks[waiting] == int(np.argmin(gains))
+
+
+def test_beam_coverage_is_the_probability_the_beam_holds_the_target():
+    # A target N(x, P) 4 km away, 300 m across the line of sight (0.075 rad), a 0.1 rad beam
+    # pointed at x: erf(0.05 / (sqrt 2 0.075)) = 0.495; Monte Carlo of the true bearings.
+    x, pv = np.array([4000.0, 5.0, 0.0, 0.0]), np.array([0.0, 10.0, 0.0, 0.0])
+    P = np.diag([100.0**2, 4.0, 300.0**2, 4.0])
+    got = float(beam_coverage(0.1, x, P, pv))
+    assert got == pytest.approx(math.erf(0.05 / (math.sqrt(2.0) * 0.075)), rel=1e-9)
+    X = np.random.default_rng(1).multivariate_normal(x, P, 200_000)
+    inside = np.abs(np.arctan2(X[:, 2], X[:, 0])) <= 0.05
+    assert got == pytest.approx(0.495, abs=1e-3)
+    # 4 sigma of the Monte Carlo and 0.005 for the linearised bearing (300 m at 4 km).
+    tolerance = 4 * math.sqrt(got * (1 - got) / 200_000) + 0.005
+    assert inside.mean() == pytest.approx(got, abs=tolerance)
+    # Batched over sensor positions: closer, the same spread is wider in angle.
+    near = beam_coverage(0.1, x, P, np.array([pv, [3000.0, 0.0, 0.0, 0.0]]))
+    assert near[0] == pytest.approx(got) and near[1] < 0.2
+
+
+def test_random_assignment_is_seeded_balanced_and_uniform():
+    beam = {"kind": "bearing", "sigma": 0.01, "beam_width": 0.2, "r_min": 10.0}
+    platforms = [
+        platform(f"p{i}", [-5000.0 * i - 100, 10.0, -4000.0, 0.0], [{**beam, "id": f"s{i}"}])
+        for i in range(3)
+    ]
+    sc = scenario(platforms, {"targets": {"assignment": "random"}})
+    tracks = [
+        track(i, [1000.0 * i, 0, 500.0 * i, 0], np.diag([100, 1, 100, 1.0])) for i in range(5)
+    ]
+
+    def run(seed):
+        planner = MultiTargetPlanner(sc, np.random.default_rng(seed))
+        ts = TrackSet(0, 0.0, "ekf", tuple(tracks))
+        out = [
+            tuple(planner.decide(k, ts, snapshots(sc)).extra["assignment"].values())
+            for k in range(6)
+        ]
+        assert all(len(set(a)) == 3 for a in out)  # three beams, three different tracks
+        return out
+
+    assert run(1) == run(1)
+    assert run(1) != run(2)
+    # Uniform: each of the 6 ordered pairs of 2 beams over 3 tracks 1/6 of 6000 draws (4 sigma).
+    rng = np.random.default_rng(3)
+    counts = {}
+    for _ in range(6000):
+        key = tuple(random_assignment(2, 3, rng).tolist())
+        counts[key] = counts.get(key, 0) + 1
+    assert len(counts) == 6
+    assert all(abs(c - 1000) < 4 * math.sqrt(6000 * (1 / 6) * (5 / 6)) for c in counts.values())
+
+
+# --- one track: the single-target planners ------------------------------------------------------
+
+
+def test_one_track_pcrlb_equals_plan():
+    # Gate 10 sigma and no clutter: q = pd (1 - 1e-20), so the clutter-wrapped sensor is the
+    # plain one and the planner must be plan() (same samples, same noise draws).
+    sensor = {"id": "s1", "kind": "bearing", "sigma": 0.02, "pd": 0.8}
+    platforms = [platform("p1", [0.0, 50.0, 0.0, 0.0], [sensor], controllable=True)]
+    mean, cov = np.array([3000.0, 0, 2000, 0]), np.diag([4e4, 4, 4e4, 4])
+    X = np.random.default_rng(5).multivariate_normal(mean, cov, 300)
+    for R, search in ((1, "quadrant"), (2, "quadrant"), (3, "evolution")):
+        sc = scenario(platforms, {"search": search, "horizon": R}, gate=10.0)
+        d = decide(sc, [track(1, mean, cov, samples=X)])
+        dyn = LinearDynamics.of(sc)
+        limits = PlatformLimits.from_config(sc.platforms[0].limits, sc.dt)
+        pp = PlannerPlatform("p1", snapshots(sc)[0].pv, (BearingSensor(0.02, pd=0.8),), limits)
+        settings = PlanSettings.from_config(sc.planner)
+        belief = TargetBelief(covariance_bound(cov), X)
+        rng = np.random.default_rng(0)
+        want = plan([pp], belief, settings, F=dyn.F, Q=dyn.Q, dt=sc.dt, rng=rng)
+        m = want.manoeuvres[0]
+        got = d.commands[0]
+        assert (got.heading_change, got.speed_change) == pytest.approx(
+            (m.heading_change, m.speed_change), abs=1e-9
+        )
+        aggregate, objective = d.report.predicted_costs[:2]
+        assert objective == pytest.approx(want.report.objective, rel=1e-12)
+        assert aggregate == pytest.approx(want.report.predicted["b_k"], rel=1e-12)
+
+
+def test_one_track_mre_equals_multi_step_positioning():
+    # A range-bearing sensor in light clutter: the planner's eq. 23 uses q (0.786) where the
+    # single-target positioning uses pd; with pd = q they agree, for one leg and two.
+    sensor = {
+        "id": "s1",
+        "kind": "range_bearing",
+        "sigma_r": 20.0,
+        "sigma_b": 0.02,
+        "pd": 0.8,
+        "clutter_density": 1e-4,
+        "r_max": 20000.0,
+    }
+    platforms = [platform("p1", [0.0, 50.0, 0.0, 0.0], [sensor], controllable=True)]
+    mean, cov = np.array([3000.0, 0, 2000, 0]), np.diag([4e4, 4, 4e4, 4])
+    q = information_reduction_factor(0.8, 1e-4 * 20.0 * 0.02, 3.5, 2)
+    assert q == pytest.approx(0.786, abs=1e-3)
+    for R in (1, 2):
+        planner = {"cost": "mre", "criterion": "det_pos", "search": "sector", "horizon": R}
+        sc = scenario(platforms, planner)
+        d = decide(sc, [track(1, mean, cov)])
+        dyn, s = LinearDynamics.of(sc), snapshots(sc)[0]
+        limits = PlatformLimits.from_config(sc.platforms[0].limits, sc.dt)
+        single = RangeBearingSensor(20.0, 0.02, pd=q, r_max=20000.0)
+        pp = PlannerPlatform("p1", s.pv, (single,), limits, heading=s.heading, speed=s.speed)
+        prediction = TargetPrediction.from_posterior(mean, cov, dyn.F, dyn.Q)
+        search = SearchSettings("sector", sector_levels=3)
+        want = plan_positions(pp, prediction, sc.dt, search=search, horizon=R)
+        assert d.commands[0].heading_change == pytest.approx(want.manoeuvre[0], abs=1e-12)
+        assert d.commands[0].commanded_speed == pytest.approx(want.manoeuvre[1], abs=1e-12)
+        assert d.report.predicted_costs[1] == pytest.approx(want.cost, rel=1e-12)
+        assert d.report.horizon == R and d.report.evaluations == want.evaluations
+
+
+# --- clutter, beams, sweeps ---------------------------------------------------------------------
+
+
+def _expected_bk(track_cov, samples_next, pv_next, sigma, q, F, Q, criterion="b_k"):
+    """b_k of (Q + F J^-1 F^T)^-1 + q E[H^T R^-1 H] (Hernandez eq. 3 and 8, IRF for pd)."""
+    J = predicted_information(covariance_bound(track_cov), F, Q)
+    if q:
+        J = J + q * BearingSensor(sigma, pd=1.0).fisher_information(samples_next, pv_next)
+    return float(get_criterion(criterion).of_information(J))
+
+
+def test_clutter_scales_the_bearing_information_by_the_irf():
+    # Bearing sensor sigma 0.01 rad, pd 0.9, 4 false alarms per rad, gate 3.5 sigma: whitened
+    # density 0.04 and q = 0.736 (0.894 without clutter: pd F_chi2,3(3.5^2)).
+    q = information_reduction_factor(0.9, 4.0 * 0.01, 3.5, 1)
+    assert q == pytest.approx(0.736, abs=1e-3)
+    assert information_reduction_factor(0.9, 0.0, 3.5, 1) == pytest.approx(0.894, abs=1e-3)
+    sensor = {"id": "s1", "kind": "bearing", "sigma": 0.01, "pd": 0.9, "clutter_density": 4.0}
+    mean, cov = np.array([3000.0, 3, 2000, -2]), np.diag([900.0, 4, 400, 4])
+    X = np.random.default_rng(2).multivariate_normal(mean, cov, 200)
+    pv1 = np.array([-2000.0 + 100.0, 20.0, 500.0 + 25.0, 5.0])  # coasting one 5 s leg
+    got = {}
+    for criterion in ("b_k", "det_pos"):
+        planner = {"criterion": criterion}
+        sc = scenario([platform("p1", [-2000.0, 20.0, 500.0, 5.0], [sensor])], planner)
+        d = decide(sc, [track(4, mean, cov, samples=X)], seed=9)
+        dyn = LinearDynamics.of(sc)
+        X1 = propagate_samples(X, dyn.F, dyn.Q, 1, np.random.default_rng(9))[0]
+        got[criterion] = d.extra["track_costs"][4]
+        want = _expected_bk(cov, X1, pv1, 0.01, q, dyn.F, dyn.Q, criterion)
+        assert got[criterion] == pytest.approx(want, rel=1e-12)
+        plain = _expected_bk(cov, X1, pv1, 0.01, 0.9, dyn.F, dyn.Q, criterion)
+        assert got[criterion] > plain  # clutter costs accuracy
+    # b_k 31.31 m (31.25 m clutter-free: the bearing informs the cross-range axis only).
+    assert got["b_k"] == pytest.approx(31.31, abs=0.01)
+
+
+def test_a_beam_informs_only_its_track_and_points_at_it():
+    beam = {"id": "s1", "kind": "bearing", "sigma": 0.01, "beam_width": 0.2, "clutter_density": 2}
+    sc = scenario(
+        [platform("p1", [0.0, 20.0, 0.0, 0.0], [beam])], {"targets": {"assignment": "nearest"}}
+    )
+    cov = np.diag([400.0, 4, 400, 4])
+    rng = np.random.default_rng(4)
+    Xn = rng.multivariate_normal([2000, 0, 1000, 0], cov, 100)
+    Xf = rng.multivariate_normal([-6000, 0, 3000, 0], cov, 100)
+    near = track(1, [2000, 0, 1000, 0], cov, samples=Xn)
+    far = track(2, [-6000, 0, 3000, 0], cov, samples=Xf)
+    d = decide(sc, [far, near], seed=1)
+    dyn = LinearDynamics.of(sc)
+    noise = np.random.default_rng(1)
+    X1f = propagate_samples(Xf, dyn.F, dyn.Q, 1, noise)[0]  # track order: far, then near
+    X1n = propagate_samples(Xn, dyn.F, dyn.Q, 1, noise)[0]
+    pv1 = np.array([100.0, 20.0, 0.0, 0.0])
+    q = information_reduction_factor(1.0, 2 * 0.01, 3.5, 1)
+    costs = d.extra["track_costs"]
+    assert costs[2] == _expected_bk(cov, X1f, pv1, 0.01, 0.0, dyn.F, dyn.Q)  # nothing
+    assert costs[1] == pytest.approx(_expected_bk(cov, X1n, pv1, 0.01, q, dyn.F, dyn.Q), rel=1e-12)
+    assert (costs[1], costs[2]) == pytest.approx((21.11, 22.37), abs=0.01)  # b_k [m]
+    assert d.extra["assignment"] == {"s1": 1}
+    (b,) = d.beams
+    x1 = dyn.F @ near.mean
+    assert (b.track_id, b.epoch) == (1, 0)
+    assert b.bearing == pytest.approx(math.atan2(x1[2] - pv1[2], x1[0] - pv1[0]), abs=1e-12)
+
+
+def test_no_confirmed_track_sweeps_the_beams_and_holds_course():
+    beam = {"id": "s1", "kind": "range_bearing", "sigma_r": 10.0, "sigma_b": 0.01}
+    beam.update(beam_width=0.5, r_max=20000.0, clutter_density=1e-5)
+    sc = scenario([platform("p1", [0.0, 30.0, 0.0, 30.0], [beam], controllable=True)])
+    planner = MultiTargetPlanner(sc, np.random.default_rng(0))
+    tentative = TrackSet(0, 0.0, "ekf", (track(7, [500, 0, 500, 0], np.eye(4), "tentative"),))
+    bearings = []
+    for k in range(3):
+        d = planner.decide(k, tentative, snapshots(sc))
+        assert [(c.heading_change, c.speed_change) for c in d.commands] == [(0.0, 0.0)]
+        assert d.report.search == "sweep" and d.extra["assignment"] == {"s1": -1}
+        bearings.append(d.beams[0].bearing)
+    assert bearings == pytest.approx([math.pi / 4, math.pi / 4 + 0.5, math.pi / 4 + 1.0])
+    confirmed = TrackSet(3, 0.0, "ekf", (track(7, [500, 0, 500, 0], np.eye(4)),))
+    d = planner.decide(3, confirmed, snapshots(sc))
+    assert d.beams[0].track_id == 7 and d.report.search == "quadrant"
+    pointed = d.beams[0].bearing
+    d = planner.decide(4, TrackSet(4, 0.0, "ekf"), snapshots(sc))  # the track is gone
+    assert d.beams[0].track_id == -1
+    assert d.beams[0].bearing == pytest.approx(pointed + 0.5)  # the sweep goes on from it
+
+
+def test_planner_off_holds_course_and_still_assigns_beams():
+    beam = {"kind": "range_bearing", "sigma_r": 10.0, "sigma_b": 0.01, "beam_width": 0.05}
+    platforms = [
+        platform("p1", [0.0, 30.0, 0.0, 0.0], [{**beam, "id": "s1"}], controllable=True),
+        platform("p2", [8000.0, 0.0, 0.0, 30.0], [{**beam, "id": "s2", "sigma_r": 50.0}]),
+    ]
+    sc = scenario(platforms, {"enabled": False, "cost": "mre", "criterion": "det_pos"})
+    tracks = [
+        track(1, [1000, 10, 3000, 0], np.diag([900.0, 4, 900, 4])),
+        track(2, [7000, 0, 2000, -10], np.diag([4e4, 9, 4e4, 9])),
+        track(3, [4000, 0, -2000, 0], np.diag([400.0, 4, 400, 4])),
+    ]
+    d = decide(sc, tracks)
+    assert [(c.platform_id, c.heading_change, c.speed_change) for c in d.commands] == [
+        ("p1", 0.0, 0.0)
+    ]
+    dyn = LinearDynamics.of(sc)
+    preds = [TargetPrediction.from_posterior(t.mean, t.cov, dyn.F, dyn.Q) for t in tracks]
+    pvs = np.array([[150.0, 30.0, 0.0, 0.0], [8000.0, 0.0, 150.0, 30.0]])  # coasting
+    sensors = [RangeBearingSensor(10.0, 0.01), RangeBearingSensor(50.0, 0.01)]
+    q = information_reduction_factor(1.0, 0.0, 3.5, 2)
+    factors = np.array([[q * beam_coverage(0.05, p.x, p.P, pv) for p in preds] for pv in pvs])
+    assert factors.min() < 0.5 * q  # track 2 does not fit in p2's beam
+    want = assign_beams(preds, sensors, pvs, factors, "det_pos", np.ones(3), "worst")
+    # Track 2 (200 m) is worst; p2's beam would hold it with probability 0.20 only, p1's with
+    # 0.62: p1 takes it. Beams assumed on target would send p2's.
+    assert want.tolist() == [1, 0]
+    on_target = np.full((2, 3), q)
+    assert assign_beams(preds, sensors, pvs, on_target, "det_pos", np.ones(3), "worst")[1] == 1
+    assert d.extra["assignment"] == {"s1": int(want[0]) + 1, "s2": int(want[1]) + 1}
+    assert d.report.search == "hold"
