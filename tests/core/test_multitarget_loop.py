@@ -189,10 +189,3 @@ def test_batch_prints_gospa_for_a_multitarget_scenario(tmp_path, capsys):
 
     data = json.loads(out_json.read_text())
     assert len(data["run_gospa"]) == 2 and data["target_ids"] == ["t1", "t2", "t3"]
-
-
-def test_the_graph_refuses_a_multitarget_scenario_before_starting():
-    from activetrack_bringup.runner import GraphSetupError, run_graph
-
-    with pytest.raises(GraphSetupError, match="multi-target .* run it with `activetrack batch`"):
-        run_graph(CROSSING)

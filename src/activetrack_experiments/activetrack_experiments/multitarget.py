@@ -222,7 +222,7 @@ def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
         return fig
 
     return write_figures(
-        [(f"gospa_{sc.name}", lambda sc=sc: figure(sc)) for sc in res.scenarios], out
+        [(f"gospa_{sc.name}.png", lambda sc=sc: figure(sc)) for sc in res.scenarios], out
     )
 
 
