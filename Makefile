@@ -25,6 +25,7 @@ format: setup
 bench: setup
 	$(PY) -m pip install -qq -r requirements-bench.txt -c constraints.txt
 	$(PY) benchmarks/filters.py
+	$(PY) benchmarks/multitarget.py --quick
 
 clean:
 	rm -rf build .venv runs

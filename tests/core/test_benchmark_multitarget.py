@@ -265,18 +265,23 @@ def test_manager_sweeps_without_confirmed_tracks():
     assert manager.configurations == 0
 
 
-def test_the_three_strategies_run_paired_on_a_short_scenario():
-    """Scenario (b) cut to 3 epochs, one run: every strategy yields a finite GOSPA within
-    [0, c sqrt(N + tracks)] and one decision per epoch; a run repeats bit for bit."""
+def test_the_three_strategies_run_paired_on_a_short_scenario(capsys):
+    """Scenario (b) cut to 3 epochs, one run: every strategy yields a GOSPA within
+    (0, c sqrt(N + tracks)) and missed / false counts within range, one decision per epoch;
+    a run repeats bit for bit; the printout names every strategy and both ratios."""
     short = SCENARIO_B.model_copy(update={"steps": 3})
     c = mt.compare_managers(short, [0], jobs=1)
     assert list(c.gospa) == list(mt.MANAGERS)
     for s in mt.MANAGERS:
         g = c.gospa[s]
         assert g.shape == (1,) and 0.0 < g[0] < 500.0 * math.sqrt(5 + 50)
+        assert 0.0 <= c.missed[s] <= 5.0 and c.false[s] >= 0.0
         assert c.decide_s[s] > 0.0
+    mt.print_managers(short, c)
+    out = capsys.readouterr().out
+    assert out.count(" m  (missed ") == 3 and out.count("/ GOSPA(stonesoup) = ") == 2
     again = mt.run_manager((short, 0, "stonesoup", mt.DEFAULT_CANDIDATES))
-    assert again[0] == c.gospa["stonesoup"][0] and again[2] == 3
+    assert again.gospa == c.gospa["stonesoup"][0] and again.epochs == 3
     with pytest.raises(ValueError, match="strategy"):
         mt.run_manager((short, 0, "greedy", 4))
 
