@@ -8,9 +8,12 @@ assigned to tracks, multi-step MRE positioning.
 - with one track the planner is the single-target one: PCRLB plan() (R = 1, 2 quadrant, R = 3
   evolution) and MRE positioning (R = 1, 2) with a sensor whose pd is the IRF q;
 - clutter: a bearing sensor's predicted information is q times the clutter-free one; a beam
-  informs only its track; no confirmed track: beams sweep; random assignment is seeded.
+  informs only its track; no confirmed track: beams sweep; random assignment is seeded;
+- a beam that found nothing at a track lowers the probability that the next one holds it
+  (Bayes' rule against Monte Carlo), so beams leave a track lost to the tracker.
 """
 
+import dataclasses
 import itertools
 import math
 
@@ -29,6 +32,7 @@ from activetrack.planning.assignment import (
     assign_beams,
     assignment_value,
     beam_coverage,
+    coverage_after_misses,
     mre_pair_costs,
     random_assignment,
     round_assignment,
@@ -229,6 +233,66 @@ def test_beam_coverage_is_the_probability_the_beam_holds_the_target():
     # Batched over sensor positions: closer, the same spread is wider in angle.
     near = beam_coverage(0.1, x, P, np.array([pv, [3000.0, 0.0, 0.0, 0.0]]))
     assert near[0] == pytest.approx(got) and near[1] < 0.2
+
+
+def test_coverage_after_misses_is_bayes_rule_for_unsuccessful_looks():
+    # c = 0.6, pd 0.8: one miss 0.12 / 0.52 = 0.2308, two 0.024 / 0.424 = 0.0566.
+    c, pd = 0.6, 0.8
+    got = coverage_after_misses(c, [1.0, 1 - pd, (1 - pd) ** 2])
+    assert got == pytest.approx([0.6, 0.2308, 0.0566], abs=1e-4)
+    assert coverage_after_misses([0.0, 1.0], 0.5) == pytest.approx([0.0, 1.0])
+    assert coverage_after_misses(1.0, 0.0) == 0.0  # 0 / 0: a certain miss says "not there"
+    # Monte Carlo: the target is in the beam with probability c, each look detects it with pd
+    # when it is; among the runs with two misses, the fraction in the beam (4 sigma).
+    rng = np.random.default_rng(11)
+    n = 400_000
+    inside = rng.random(n) < c
+    missed = ~(inside[:, None] & (rng.random((n, 2)) < pd)).any(axis=1)
+    frac = inside[missed].mean()
+    tol = 4 * math.sqrt(got[2] * (1 - got[2]) / missed.sum())
+    assert frac == pytest.approx(got[2], abs=tol)
+    with pytest.raises(ValueError, match="miss_factor"):
+        coverage_after_misses(0.5, 1.5)
+
+
+def test_a_beam_leaves_a_track_where_it_found_nothing():
+    # A fixed platform with one 0.1 rad beam (pd 0.8); track 1 3 km east, 100 m sigma
+    # (predicted coverage 0.858), track 2 3 km north, 80 m (0.937). The beam serves track 1
+    # (det_pos, sum) after one look at it found nothing (M = 0.2, coverage 0.547); after two
+    # (M = 0.04, coverage 0.194) track 2 gains more and gets the beam; a hit on track 1 (any
+    # sensor's) resets it.
+    beam = {"id": "s1", "kind": "range_bearing", "sigma_r": 10.0, "sigma_b": 0.002}
+    beam.update(pd=0.8, beam_width=0.1)
+    sc = scenario(
+        [platform("p1", [0.0, 10.0, 0.0, 0.0], [beam])],
+        {"cost": "mre", "criterion": "det_pos", "targets": {"aggregate": "weighted_sum"}},
+    )
+    t1 = track(1, [3000, 0, 0, 0], np.diag([100.0**2, 4, 100.0**2, 4]))
+    t2 = track(2, [0, 0, 3000, 0], np.diag([80.0**2, 4, 80.0**2, 4]))
+    planner = MultiTargetPlanner(sc, np.random.default_rng(0))
+    served, factors = [], []
+    for k, (hits, misses) in enumerate([(5, 0), (5, 1), (5, 2), (6, 2)]):
+        tracks = (dataclasses.replace(t1, hits=hits, misses=misses), t2)
+        d = planner.decide(k, TrackSet(k, 5.0 * k, "ekf", tracks), snapshots(sc))
+        served.append(d.extra["assignment"]["s1"])
+        factors.append(planner.miss_factor.get(1, (1.0, 0))[0])
+    assert served == [1, 1, 2, 1]
+    assert factors == pytest.approx([1.0, 0.2, 0.04, 1.0])
+    # The decision's cost of track 1 is eq. 23 with the detection factor q c(M).
+    dyn = LinearDynamics.of(sc)
+    p = TargetPrediction.from_posterior(t1.mean, t1.cov, dyn.F, dyn.Q)
+    pv = np.array([50.0, 10.0, 0.0, 0.0])  # the platform at k+1 (dt 5 s)
+    q = information_reduction_factor(0.8, 0.0, 3.5, 2)
+    c = coverage_after_misses(beam_coverage(0.1, p.x, p.P, pv), 0.2)
+    assert float(c) == pytest.approx(0.547, abs=1e-3)
+    sensor = RangeBearingSensor(10.0, 0.002, pd=0.8)
+    P = expected_update(p.P, p.x, [sensor], pv[None], detection=[q * float(c)])
+    want = get_criterion("det_pos").of_covariance(p.F @ P @ p.F.T + p.Q, p.x)
+    tracks = (dataclasses.replace(t1, hits=5, misses=1), t2)
+    again = MultiTargetPlanner(sc, np.random.default_rng(0))
+    again.decide(0, TrackSet(0, 0.0, "ekf", (dataclasses.replace(t1, hits=5), t2)), snapshots(sc))
+    d = again.decide(1, TrackSet(1, 5.0, "ekf", tracks), snapshots(sc))
+    assert d.extra["track_costs"][1] == pytest.approx(float(want), rel=1e-9)
 
 
 def test_random_assignment_is_seeded_balanced_and_uniform():

@@ -18,8 +18,12 @@ Cost of a confirmed track (tentative ones do not count), ``planner.cost``:
   track's constant-velocity prediction x_{k+1+r|k} = F^{r+1} x. A beam, pointed at the
   predicted position before the epoch's measurements, holds the target only with the
   probability :func:`activetrack.planning.assignment.beam_coverage` of the predicted
-  covariance: that multiplies its detection factor too (the PCRLB's J_Z keeps the beam on
-  target, as :class:`ClutteredSensor` defines it).
+  covariance, lowered by Bayes' rule for each epoch since the track's last hit at which a beam
+  looked at it and it got none (:func:`activetrack.planning.assignment.
+  coverage_after_misses`: the tracker does not move a track away from where a beam found
+  nothing, so without it the beams keep looking at a lost track's empty prediction): that
+  multiplies its detection factor too (the PCRLB's J_Z keeps the beam on target, as
+  :class:`ClutteredSensor` defines it).
 
 Costs over tracks combine by ``planner.targets.aggregate`` (:mod:`activetrack.planning.
 assignment`): ``worst`` (max) or ``weighted_sum`` (the tracks' priorities). The manoeuvre
@@ -77,6 +81,7 @@ from activetrack.planning.assignment import (
     aggregate_costs,
     assign_beams,
     beam_coverage,
+    coverage_after_misses,
     nearest_assignment,
     random_assignment,
 )
@@ -131,14 +136,18 @@ class _Sensor:
     def steerable(self) -> bool:
         return self.model.beam_width is not None
 
-    def detection(self, x: np.ndarray, pv: np.ndarray, P: np.ndarray | None = None) -> np.ndarray:
+    def detection(
+        self, x: np.ndarray, pv: np.ndarray, P: np.ndarray | None = None, missed: float = 1.0
+    ) -> np.ndarray:
         """The detection factor of eq. 23 for a target at x seen from pvs ``(..., 4)``: q I_r
         I_fov, and for a beam pointed at x the probability it holds the target given the
-        predicted covariance ``P`` (:func:`beam_coverage`; None: on target). ``(...)``."""
+        predicted covariance ``P`` (:func:`beam_coverage`; None: on target) and the track's
+        unsuccessful beam looks ``missed`` (:func:`coverage_after_misses`). ``(...)``."""
         inside = np.asarray(self.model.in_range(x, pv), dtype=float)
         d = self.q * inside * _in_view(self.model, x, pv)
         if self.steerable and P is not None:
-            d = d * beam_coverage(cast(float, self.model.beam_width), x, P, pv)
+            c = beam_coverage(cast(float, self.model.beam_width), x, P, pv)
+            d = d * coverage_after_misses(c, missed)
         return d
 
 
@@ -177,13 +186,15 @@ class _MreStage:
     ``(..., T, 4, 4)``; ``x`` ``(R, T, 4)`` the CV predictions; ``fixed[r][t]`` the other
     platforms' sensors serving track t and their pvs at leg r; ``own`` the optimised
     platform's sensors with the tracks each serves ``(T,)``. A beam's coverage is that of the
-    prediction (it is pointed before the epoch's measurements)."""
+    prediction (it is pointed before the epoch's measurements), after the track's unsuccessful
+    beam looks ``missed`` ``(T,)``."""
 
     F: np.ndarray
     Q: np.ndarray
     x: np.ndarray
     fixed: list[list[list[tuple[_Sensor, np.ndarray]]]]
     own: tuple[tuple[_Sensor, np.ndarray], ...]
+    missed: np.ndarray
     criterion: Criterion
     weights: np.ndarray
     aggregate: str
@@ -196,12 +207,13 @@ class _MreStage:
         for t, x in enumerate(self.x[level]):
             P0 = Pt = P[..., t, :, :]
             for sensor, at in self.fixed[level][t]:
-                d = sensor.detection(x, at, P0)
+                d = sensor.detection(x, at, P0, self.missed[t])
                 Pt = mre_update(Pt, sensor.model.jacobian(x, at), sensor.model.R, d)
             for sensor, serves in self.own:
                 if serves[t]:
                     H = sensor.model.jacobian(x, pv)
-                    Pt = mre_update(Pt, H, sensor.model.R, sensor.detection(x, pv, P0))
+                    d = sensor.detection(x, pv, P0, self.missed[t])
+                    Pt = mre_update(Pt, H, sensor.model.R, d)
             out[..., t, :, :] = self.F @ Pt @ self.F.T + self.Q
         return out
 
@@ -213,14 +225,16 @@ class _MreStage:
 @dataclass
 class _Epoch:
     """One decision's working set: the platforms at k, the confirmed tracks, their
-    predictions and (pcrlb) samples, which tracks each sensor serves ``(S, T)``, the
-    platforms' paths ``(R, 4)`` over the horizon."""
+    predictions and (pcrlb) samples, their miss factors ``(T,)`` (:meth:`MultiTargetPlanner.
+    _note_looks`), which tracks each sensor serves ``(S, T)``, the platforms' paths ``(R, 4)``
+    over the horizon."""
 
     epoch: int
     platforms: list[PlannerPlatform]
     tracks: tuple[TrackEstimate, ...]
     predictions: list[TargetPrediction]
     weights: np.ndarray
+    missed: np.ndarray
     serves: np.ndarray
     paths: list[np.ndarray]
     samples: list[np.ndarray] = field(default_factory=list)
@@ -279,6 +293,10 @@ class MultiTargetPlanner:
         self.assignment = cfg.targets.assignment
         self.last_track: dict[str, int] = {}  # beam sensor id -> track id it served last
         self.last_bearing: dict[str, float] = {}
+        # Track id -> (M of coverage_after_misses since its last hit, its hits then); and the
+        # beams' looks decided for the next epoch: track id -> (hits, misses, prod (1 - pd I_r)).
+        self.miss_factor: dict[int, tuple[float, int]] = {}
+        self.looks: dict[int, tuple[int, int, float]] = {}
 
     # --- the decision ---------------------------------------------------------------------
 
@@ -302,6 +320,7 @@ class MultiTargetPlanner:
             )
             for i, pid in enumerate(self.platform_ids)
         ]
+        self._note_looks(tracks)
         if not tracks.confirmed:
             return self._sweep(epoch, planners, start)
         ep = self._epoch(epoch, planners, tracks.confirmed)
@@ -310,6 +329,23 @@ class MultiTargetPlanner:
         self._assign(ep, next_pv)
         costs = self._track_costs(ep, next_pv)
         return self._decision(ep, next_pv, costs, objective, time.perf_counter() - start)
+
+    def _note_looks(self, tracks: TrackSet) -> None:
+        """The outcome of the beams' looks decided last epoch: a track looked at with no hit
+        (its misses grew, its hits did not) takes the factor prod (1 - pd I_r) of the beams
+        that looked (:func:`coverage_after_misses`); a track with a new hit, from any sensor,
+        starts afresh (M = 1)."""
+        now = {t.track_id: t for t in tracks.tracks}
+        factors = {
+            i: (M, hits)
+            for i, (M, hits) in self.miss_factor.items()
+            if i in now and now[i].hits <= hits
+        }
+        for i, (hits, misses, fail) in self.looks.items():
+            t = now.get(i)
+            if t is not None and t.hits <= hits and t.misses > misses:
+                factors[i] = (factors.get(i, (1.0, hits))[0] * fail, hits)
+        self.miss_factor, self.looks = factors, {}
 
     def _epoch(
         self, epoch: int, planners: list[PlannerPlatform], tracks: tuple[TrackEstimate, ...]
@@ -322,6 +358,7 @@ class MultiTargetPlanner:
             tracks,
             predictions,
             np.array([t.priority for t in tracks], dtype=float),
+            np.array([self.miss_factor.get(t.track_id, (1.0, 0))[0] for t in tracks]),
             self._serving_now(planners, tracks, predictions),
             [self._hold_path(p) for p in planners],
         )
@@ -423,6 +460,7 @@ class MultiTargetPlanner:
             np.stack(x),
             updates,
             tuple(own),
+            ep.missed,
             self.criterion,
             ep.weights,
             self.aggregate,
@@ -504,7 +542,10 @@ class MultiTargetPlanner:
                 pvs,
                 np.array(
                     [
-                        [self.sensors[i].detection(p.x, pv, p.P) for p in ep.predictions]
+                        [
+                            self.sensors[i].detection(p.x, pv, p.P, ep.missed[t])
+                            for t, p in enumerate(ep.predictions)
+                        ]
                         for i, pv in zip(beams, pvs, strict=True)
                     ]
                 ),
@@ -541,7 +582,8 @@ class MultiTargetPlanner:
                 out[t] = float(self.criterion.of_information(J))
             else:
                 factors = [
-                    float(s.detection(p.x, pv, p.P)) for s, pv in zip(serving, pvs, strict=True)
+                    float(s.detection(p.x, pv, p.P, ep.missed[t]))
+                    for s, pv in zip(serving, pvs, strict=True)
                 ]
                 models = [s.model for s in serving]
                 P = expected_update(p.P, p.x, models, pvs, detection=factors) if serving else p.P
@@ -576,6 +618,10 @@ class MultiTargetPlanner:
             assignment[s.sensor_id] = track_id
             self.last_track[s.sensor_id] = track_id
             self.last_bearing[s.sensor_id] = bearing
+            track = ep.tracks[t]
+            fail = 1.0 - float(s.model.pd) * float(s.model.in_range(x, pv))
+            _, _, before = self.looks.get(track_id, (0, 0, 1.0))
+            self.looks[track_id] = (track.hits, track.misses, before * fail)
         ids = [t.track_id for t in ep.tracks]
         total = float(aggregate_costs(costs, ep.weights, self.aggregate))
         report = PlanReportData(

@@ -26,7 +26,9 @@ criterion (it shrinks P in the PSD order), so ``C <= c0``; round-off is clipped.
 
 A beam is pointed at the track's predicted position, so it holds the target only with the
 probability :func:`beam_coverage` (the predicted bearing spread against the beam's width);
-the caller folds that into the detection factor.
+the caller folds that into the detection factor. Beams that looked at a track and found nothing
+lower that probability (:func:`coverage_after_misses`): the tracker does not move a track away
+from where a beam saw nothing, so the next beam looks at the same place.
 
 Baselines: :func:`random_assignment` (uniform, balanced like the rounds) and
 :func:`nearest_assignment` (each sensor its closest track).
@@ -53,6 +55,7 @@ __all__ = [
     "assign_beams",
     "assignment_value",
     "beam_coverage",
+    "coverage_after_misses",
     "mre_pair_costs",
     "nearest_assignment",
     "random_assignment",
@@ -89,6 +92,27 @@ def beam_coverage(
     var = np.einsum("...i,...ij,...j->...", h, np.asarray(P, dtype=float), h)
     sigma = np.sqrt(np.maximum(var, 1e-300))
     return np.asarray(_erf(0.5 * beam_width / (math.sqrt(2.0) * sigma)), dtype=float)
+
+
+def coverage_after_misses(coverage: ArrayLike, miss_factor: ArrayLike) -> np.ndarray:
+    """The probability c' that the target lies in the beam after unsuccessful looks there,
+    by Bayes' rule: P(in | m misses) = c M / (c M + (1 - c)), a miss being certain when the
+    target is outside the beam and of probability 1 - pd_look inside it (the posterior
+    probability of containment after an unsuccessful search, Stone, *Theory of Optimal
+    Search*, 1975; the "negative information" of Koch 2004; the IPDA existence update after an
+    empty gate, Musicki, Evans & Stankovic 1994, has the same form)::
+
+        c' = c M / (c M + 1 - c),    M = prod over the looks of (1 - pd_look)
+
+    ``coverage`` c in [0, 1] (:func:`beam_coverage`), ``miss_factor`` M in [0, 1] (1: no
+    unsuccessful look); broadcast, returns their shape."""
+    c = np.asarray(coverage, dtype=float)
+    M = np.asarray(miss_factor, dtype=float)
+    if not (np.all((c >= 0.0) & (c <= 1.0)) and np.all((M >= 0.0) & (M <= 1.0))):
+        raise ValueError(f"coverage and miss_factor must lie in [0, 1], got {c}, {M}")
+    num = c * M
+    den = num + (1.0 - c)
+    return np.divide(num, den, out=np.zeros(np.broadcast(num, den).shape), where=den > 0.0)
 
 
 def _check_aggregate(aggregate: str) -> str:
