@@ -35,7 +35,7 @@ from activetrack.multitarget.data import (
     TrackSet,
     TruthSet,
 )
-from activetrack.scenarios.build import build_sensor
+from activetrack.scenarios.build import build_scan_sensors
 from activetrack.scenarios.schema import Scenario
 from activetrack_ros.convert import (
     FRAME_ID,
@@ -118,12 +118,7 @@ def _shown(text: str) -> str:
 def scan_sensors(scenario: Scenario) -> SensorTable:
     """Every sensor of the scenario by id: ``(platform id, sensor in clutter)``, the models the
     simulator and tracker build (gate from ``tracker.tracks.gate_sigmas``)."""
-    gate = scenario.tracker.tracks.gate_sigmas
-    return {
-        s.id: (p.id, ClutteredSensor.wrap(build_sensor(s), s, gate))
-        for p in scenario.platforms
-        for s in p.sensors
-    }
+    return build_scan_sensors(scenario)
 
 
 # --- scans -------------------------------------------------------------------------------------

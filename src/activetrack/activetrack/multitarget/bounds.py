@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from activetrack.bounds.pcrlb import (
 from activetrack.models.base import as_linear
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.multitarget.data import MultiRunRecord
-from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.build import build_motion_model, build_scan_sensors
 from activetrack.scenarios.schema import Scenario, TargetConfig
 
 __all__ = ["BOUND_SAMPLES", "alive_mask", "bound_sensors", "target_bounds"]
@@ -109,13 +110,12 @@ def bound_sensors(scenario: Scenario) -> tuple[list[ClutteredSensor], list[int]]
     """Each sensor in scenario order (platforms, then their sensors) as the bound sees it: the
     IRF scaling of its clutter, ``pd`` and the tracker's gate, no field of view or beam; and
     the index of its platform."""
-    gate = float(scenario.tracker.tracks.gate_sigmas)
+    platform_ids = [p.id for p in scenario.platforms]
     sensors: list[ClutteredSensor] = []
     columns: list[int] = []
-    for j, p in enumerate(scenario.platforms):
-        for s in p.sensors:
-            sensors.append(ClutteredSensor(build_sensor(s), float(s.clutter_density), gate))
-            columns.append(j)
+    for pid, model in build_scan_sensors(scenario).values():
+        sensors.append(replace(model, fov_width=None, beam_width=None))
+        columns.append(platform_ids.index(pid))
     return sensors, columns
 
 

@@ -94,7 +94,7 @@ from activetrack.planning.selection import (
     expected_update,
     search_horizon,
 )
-from activetrack.scenarios.build import build_sensor
+from activetrack.scenarios.build import build_scan_sensors
 from activetrack.scenarios.schema import PlannerConfig, Scenario
 
 __all__ = ["MultiTargetPlanner"]
@@ -262,14 +262,11 @@ class MultiTargetPlanner:
         self.rng = rng
         self.dynamics = LinearDynamics.of(scenario)
         self.dt = scenario.dt
-        gate = scenario.tracker.tracks.gate_sigmas
-        sensors = []
-        for i, p in enumerate(scenario.platforms):
-            for s in p.sensors:
-                model = ClutteredSensor.wrap(build_sensor(s), s, gate)
-                sensors.append(_Sensor(s.id, i, model, model.information_factor))
-        self.sensors = tuple(sensors)
         self.platform_ids = tuple(p.id for p in scenario.platforms)
+        self.sensors = tuple(
+            _Sensor(sid, self.platform_ids.index(pid), model, model.information_factor)
+            for sid, (pid, model) in build_scan_sensors(scenario).items()
+        )
         self.controllable = tuple(p.controllable for p in scenario.platforms)
         self.limits = tuple(
             PlatformLimits.from_config(p.limits, self.dt)

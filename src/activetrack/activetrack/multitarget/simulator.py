@@ -24,7 +24,7 @@ import numpy as np
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.multitarget.data import BeamCommand, Scan, ScanTruth, TruthSet
-from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.build import build_motion_model, build_scan_sensors
 from activetrack.scenarios.schema import Scenario, TargetConfig
 
 __all__ = ["MultiTargetSimulator"]
@@ -51,13 +51,8 @@ class MultiTargetSimulator(Simulator):
         self.targets = tuple(scenario.targets)
         self.models = tuple(build_motion_model(t.motion) for t in self.targets)
         self.model = self.models[0]
-        gate = scenario.tracker.tracks.gate_sigmas
         self._init_platforms(scenario)
-        self.scan_sensors = {
-            s.id: ClutteredSensor.wrap(build_sensor(s), s, gate)
-            for p in scenario.platforms
-            for s in p.sensors
-        }
+        self.scan_sensors = {sid: m for sid, (_, m) in build_scan_sensors(scenario).items()}
         # Steerable beams start along their platform's heading.
         self.pointing: dict[str, float] = {}
         for p in scenario.platforms:

@@ -53,7 +53,7 @@ from activetrack.models.base import as_linear
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.multitarget.data import CONFIRMED, TENTATIVE, Scan, TrackSet
 from activetrack.multitarget.tracks import ParticleCloud, Track, TrackManager
-from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.build import build_motion_model, build_scan_sensors
 from activetrack.scenarios.schema import Scenario
 
 __all__ = ["INITIATING_KINDS", "MultiTargetTracker"]
@@ -96,9 +96,7 @@ class MultiTargetTracker:
         self.rng = rng
         self.gamma = cfg.tracks.gate_sigmas**2
         self.sensors: dict[str, ClutteredSensor] = {
-            s.id: ClutteredSensor.wrap(build_sensor(s), s, cfg.tracks.gate_sigmas)
-            for p in scenario.platforms
-            for s in p.sensors
+            sid: m for sid, (_, m) in build_scan_sensors(scenario).items()
         }
         self.new_track_priority = scenario.planner.targets.new_track_priority
         self.book = TrackManager(cfg.tracks)
