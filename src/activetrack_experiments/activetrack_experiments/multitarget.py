@@ -28,7 +28,6 @@ On the command line (``python -m activetrack_experiments.multitarget`` is the sa
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -42,6 +41,7 @@ from activetrack.montecarlo import available_jobs
 from activetrack.multitarget.loop import MultiBatchSummary, run_multi_batch
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.schema import Scenario
+from activetrack_experiments.outputs import write_outputs
 from activetrack_experiments.paths import scenario_path
 
 __all__ = ["SCENARIOS", "STRATEGIES", "MultiTargetResult", "reproduce", "strategy_scenario"]
@@ -237,14 +237,7 @@ def main(
         task_progress=task_progress,
     )
     print(format_report(res))
-    args.out.mkdir(parents=True, exist_ok=True)
-    plots = save_figures(res, args.out)
-    print("\nplots: " + ", ".join(str(p) for p in plots))
-    text = json.dumps(res.to_json(), indent=2)
-    (args.out / "results.json").write_text(text)
-    if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(text)
+    write_outputs(save_figures(res, args.out), res.to_json(), args.out, args.json)
     return 0
 
 

@@ -30,7 +30,6 @@ On the command line (``python -m activetrack_experiments.vanderhook`` is the sam
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
@@ -59,6 +58,7 @@ from activetrack.planning.cautious_bounds import (
     time_upper_bound,
 )
 from activetrack.plots import new_figure, write_figures
+from activetrack_experiments.outputs import write_outputs
 from activetrack_experiments.vanderhook_sim import (
     SIGMA_S_DEFAULT,
     LocalisationBatch,
@@ -640,13 +640,7 @@ def main(
         task_progress=task_progress,
     )
     print(format_report(res))
-    plots = save_figures(res, args.out)
-    print("\nplots: " + ", ".join(str(p) for p in plots))
-    text = json.dumps(res.to_json(), indent=2)
-    (args.out / "results.json").write_text(text)
-    if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(text)
+    write_outputs(save_figures(res, args.out), res.to_json(), args.out, args.json)
     return 0
 
 
