@@ -19,5 +19,10 @@ setup(
     maintainer_email="dev@activetrack.invalid",
     description="See package.xml.",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["planner_node = planner_node.planner_node:main"]},
+    entry_points={
+        "console_scripts": [
+            "planner_node = planner_node.planner_node:main",
+            "multi_planner_node = planner_node.multi_planner_node:main",
+        ]
+    },
 )

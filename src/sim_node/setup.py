@@ -19,5 +19,10 @@ setup(
     maintainer_email="dev@activetrack.invalid",
     description="See package.xml.",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["sim_node = sim_node.sim_node:main"]},
+    entry_points={
+        "console_scripts": [
+            "sim_node = sim_node.sim_node:main",
+            "multi_sim_node = sim_node.multi_sim_node:main",
+        ]
+    },
 )

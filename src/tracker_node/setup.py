@@ -19,5 +19,10 @@ setup(
     maintainer_email="dev@activetrack.invalid",
     description="See package.xml.",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["tracker_node = tracker_node.tracker_node:main"]},
+    entry_points={
+        "console_scripts": [
+            "tracker_node = tracker_node.tracker_node:main",
+            "multi_tracker_node = tracker_node.multi_tracker_node:main",
+        ]
+    },
 )

@@ -85,7 +85,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if live is not None:
             live.stop()
     mode = "processes" if args.processes else "one process"
-    if result.summary is not None:
+    if result.summary is not None and hasattr(result.summary, "gospa_t"):  # multi-target
+        from activetrack.scenarios import load_scenario
+
+        _print_multi_summary(result.summary, load_scenario(args.scenario))
+        print(f"  decisions  {len(result.summary.records[0].decisions)}")
+    elif result.summary is not None:
         _print_summary(result.summary)
         print(f"  decisions  {len(result.summary.records[0].decisions)}")
     if not result.complete:
@@ -189,15 +194,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     return 0
 
 
-def _batch_multi(scenario, args: argparse.Namespace) -> int:
-    """``activetrack batch`` on a multi-target scenario (a ``targets:`` list)."""
-    from activetrack.multitarget.loop import run_multi_batch
-    from activetrack_bringup.progress import Bar
-
-    with Bar("batch", total=args.runs) as bar:  # drawn on a terminal only
-        s = run_multi_batch(
-            scenario, runs=args.runs, jobs=args.jobs, progress=bar if bar.shown else None
-        )
+def _print_multi_summary(s, scenario) -> None:
+    """A multi-target summary (MultiBatchSummary): GOSPA, breaks and swaps, each target."""
     print(f"scenario {s.scenario}: {s.runs} run(s) x {s.steps} steps, {len(s.target_ids)} targets")
     ev = scenario.evaluation
     print(
@@ -210,6 +208,18 @@ def _batch_multi(scenario, args: argparse.Namespace) -> int:
         print(
             f"  target {tid:8s} RMSE {rmse:9.2f} m, bound {bound:9.2f} m, held {100 * held:5.1f}%"
         )
+
+
+def _batch_multi(scenario, args: argparse.Namespace) -> int:
+    """``activetrack batch`` on a multi-target scenario (a ``targets:`` list)."""
+    from activetrack.multitarget.loop import run_multi_batch
+    from activetrack_bringup.progress import Bar
+
+    with Bar("batch", total=args.runs) as bar:  # drawn on a terminal only
+        s = run_multi_batch(
+            scenario, runs=args.runs, jobs=args.jobs, progress=bar if bar.shown else None
+        )
+    _print_multi_summary(s, scenario)
     print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
     if args.json:
         _write_json(args.json, s.to_json())
@@ -321,9 +331,12 @@ def _cmd_bag_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_bag_retrack(args: argparse.Namespace) -> int:
+    from activetrack.scenarios import load_scenario
     from activetrack_bringup.retrack import retrack
 
     try:
+        if load_scenario(args.scenario).multi_target:
+            return _bag_retrack_multi(args)
         r = retrack(args.bag, args.scenario, filter_kind=args.filter, run=args.run)
     except (ValueError, OSError) as exc:  # BagError/RetrackError, ScenarioError
         return _error(exc)
@@ -339,6 +352,24 @@ def _cmd_bag_retrack(args: argparse.Namespace) -> int:
         f"                 replayed ({r.replayed_filter}): x {r.replayed_rmse[0]:.3f} "
         f"y {r.replayed_rmse[1]:.3f} m"
     )
+    if args.json:
+        _write_json(args.json, r.to_json())
+    return 0
+
+
+def _bag_retrack_multi(args: argparse.Namespace) -> int:
+    """``bag retrack`` of a multi-target run: its scans into a fresh multi_tracker_node."""
+    from activetrack_bringup.retrack_multi import retrack_multi
+
+    if args.filter:
+        return _error("--filter: a multi-target run is retracked with its scenario's tracker")
+    r = retrack_multi(args.bag, args.scenario, run=args.run)
+    _warn(r.warnings)
+    same = "identical to" if r.identical else "NOT identical to"
+    print(f"replayed {r.epochs} epochs of {args.bag} into a fresh multi-target tracker")
+    print(f"  track arrays {same} the recorded ones (max |mean difference| "
+          f"{r.max_mean_difference:.3g})")  # fmt: skip
+    print(f"  GOSPA vs truth  recorded {r.recorded_gospa:.3f} m, replayed {r.replayed_gospa:.3f} m")
     if args.json:
         _write_json(args.json, r.to_json())
     return 0

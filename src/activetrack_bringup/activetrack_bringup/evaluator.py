@@ -85,13 +85,63 @@ LEG_RGBA = (1.0, 0.55, 0.0, 1.0)
 MEASURED_RGBA = (1.0, 0.85, 0.1, 0.45)
 
 
-class EvaluatorNode(GraphNode):
+class ResultNode(GraphNode):
+    """What every run evaluator shares: the graph's result messages checked as faults, the
+    nodes' counters from /diagnostics, and when the sim said it finished."""
+
+    def __init__(self, node_name: str, scenario, *, report_grace_s: float = 1.0, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.scenario = scenario
+        self.report_grace_s = report_grace_s
+        self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
+        self.diagnostics_order: dict[str, tuple] = {}
+        self.sim_finished_at: float | None = None
+        self.faults: list[str] = []  # the graph's own result messages that failed validation
+        self.subscribe(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics)
+
+    def _result_input(self, check, msg) -> None:
+        """Run ``check(msg)``; a message of the graph's own that fails it (other than as a
+        duplicate) is a fault of the graph: the runner stops the run instead of waiting."""
+        try:
+            check(msg)
+        except Rejected as r:
+            if self.graph_key is not None and r.reason != "duplicate":
+                self.faults.append(f"{type(msg).__name__} epoch {msg.epoch}: {r}")
+            raise
+
+    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        """Counters of the graph's nodes (only the graph's own statuses arrive with a key)."""
+        for status in msg.status:
+            node = status.name.rsplit("/", 1)[-1].removesuffix("_node")
+            if not status.name.startswith("activetrack/") or node not in NODE_NAMES:
+                self.ignore("other_diagnostics")
+                continue
+            counts = {kv.key: int(kv.value) for kv in status.values if kv.value.isdigit()}
+            # Counters only grow: an older status (a replay, a late delivery) is not news.
+            order = (msg.header.stamp.sec, msg.header.stamp.nanosec, sum(counts.values()))
+            if order < self.diagnostics_order.get(node, (-1,)):
+                self.ignore("stale_diagnostics")
+                continue
+            self.diagnostics_order[node] = order
+            self.diagnostics[node] = counts
+            if node == "sim" and status.message == "finished" and self.sim_finished_at is None:
+                self.sim_finished_at = time.monotonic()
+
+    # Plan reports may be missing for good (a planner that died); once the sim has finished
+    # and the reports stopped coming for report_grace_s, the run is complete without them.
+    # Between processes the runner gives more: a DDS participant that missed the planner's
+    # first announcements only learns of it at the next periodic one (about 3 s later).
+
+    def _reports_given_up(self) -> bool:
+        t = self.sim_finished_at
+        return t is not None and time.monotonic() - t > self.report_grace_s
+
+
+class EvaluatorNode(ResultNode):
     """Collects truth, tracks, platform states and plan reports per epoch."""
 
     def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
-        super().__init__("activetrack_evaluator", **kwargs)
-        self.report_grace_s = report_grace_s
-        self.scenario = scenario
+        super().__init__("activetrack_evaluator", scenario, report_grace_s=report_grace_s, **kwargs)
         self.size_history(scenario)  # its metrics are per-epoch: a late viewer gets them all
         K = scenario.steps
         self.platform_index = {p.id: i for i, p in enumerate(scenario.platforms)}
@@ -106,10 +156,6 @@ class EvaluatorNode(GraphNode):
         self.platforms = EpochTable(K + 1, (4,), slots=len(scenario.platforms))  # pv
         self.looked = np.zeros((K + 1, len(self.sensor_index)), dtype=bool)
         self.reports: dict[int, PlanReportData] = {}
-        self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
-        self.diagnostics_order: dict[str, tuple] = {}
-        self.sim_finished_at: float | None = None
-        self.faults: list[str] = []  # the graph's own result messages that failed validation
         # The live view's inputs (docs/live-view.md): per-epoch metrics and markers.
         self.kinematics = build_motion_model(scenario.tracker.motion or scenario.target.motion)
         # The summary's bound generator for one run (batch.summarize), drawn as it draws.
@@ -124,7 +170,6 @@ class EvaluatorNode(GraphNode):
         self.metrics_pub = self.publisher(RunMetrics, topics.METRICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.subscribe(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS, self.on_command)
-        self.subscribe(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics)
         for msg_type, topic, callback in (
             (GroundTruth, topics.GROUND_TRUTH, self.on_truth),
             (TrackEstimate, topics.TRACK, self.on_track),
@@ -140,16 +185,6 @@ class EvaluatorNode(GraphNode):
     def tracks(self) -> EpochTable:
         """Epochs with a track (``k in evaluator.tracks``, ``len(evaluator.tracks)``)."""
         return self.means
-
-    def _result_input(self, check, msg) -> None:
-        """Run ``check(msg)``; a message of the graph's own that fails it (other than as a
-        duplicate) is a fault of the graph: the runner stops the run instead of waiting."""
-        try:
-            check(msg)
-        except Rejected as r:
-            if self.graph_key is not None and r.reason != "duplicate":
-                self.faults.append(f"{type(msg).__name__} epoch {msg.epoch}: {r}")
-            raise
 
     # --- inputs ---------------------------------------------------------------------------
 
@@ -202,24 +237,6 @@ class EvaluatorNode(GraphNode):
             return self.ignore("stale_command")  # a replay or a late delivery: not news
         self.command_epoch[msg.platform_id] = msg.epoch
         self._draw_leg(msg)
-
-    def on_diagnostics(self, msg: DiagnosticArray) -> None:
-        """Counters of the graph's nodes (only the graph's own statuses arrive with a key)."""
-        for status in msg.status:
-            node = status.name.rsplit("/", 1)[-1].removesuffix("_node")
-            if not status.name.startswith("activetrack/") or node not in NODE_NAMES:
-                self.ignore("other_diagnostics")
-                continue
-            counts = {kv.key: int(kv.value) for kv in status.values if kv.value.isdigit()}
-            # Counters only grow: an older status (a replay, a late delivery) is not news.
-            order = (msg.header.stamp.sec, msg.header.stamp.nanosec, sum(counts.values()))
-            if order < self.diagnostics_order.get(node, (-1,)):
-                self.ignore("stale_diagnostics")
-                continue
-            self.diagnostics_order[node] = order
-            self.diagnostics[node] = counts
-            if node == "sim" and status.message == "finished" and self.sim_finished_at is None:
-                self.sim_finished_at = time.monotonic()
 
     # --- what the live view shows (docs/live-view.md) --------------------------------------
 
@@ -322,11 +339,6 @@ class EvaluatorNode(GraphNode):
 
     # --- completion ---------------------------------------------------------------------------
 
-    # Plan reports may be missing for good (a planner that died); once the sim has finished
-    # and the reports stopped coming for report_grace_s, the run is complete without them.
-    # Between processes the runner gives more: a DDS participant that missed the planner's
-    # first announcements only learns of it at the next periodic one (about 3 s later).
-
     @property
     def expects_reports(self) -> bool:
         """The planner reports a decision per epoch when it commands any platform."""
@@ -355,10 +367,6 @@ class EvaluatorNode(GraphNode):
         return ", ".join(
             f"{what} missing at epochs {_ranges(ks)}" for what, ks in lacks.items() if ks
         )
-
-    def _reports_given_up(self) -> bool:
-        t = self.sim_finished_at
-        return t is not None and time.monotonic() - t > self.report_grace_s
 
     def completed_epochs(self) -> int:
         """The last epoch K' such that truth, track and platform states of 0..K' are all here."""

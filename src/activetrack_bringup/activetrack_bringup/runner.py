@@ -24,19 +24,28 @@ from pathlib import Path
 
 from rclpy.parameter import Parameter
 
-from activetrack.closed_loop.batch import summarize
+from activetrack.closed_loop.batch import component_rngs, summarize
+from activetrack.multitarget.evaluation import evaluate_run
+from activetrack.multitarget.loop import MultiBatchSummary, summarize_multi
 from activetrack.scenarios import load_scenario
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.inprocess import InProcessGraph
+from activetrack_bringup.multi_evaluator import MultiEvaluatorNode
 from activetrack_bringup.run_folder import run_dir_for
 from activetrack_bringup.supervisor import NodeDied, Supervisor
 from activetrack_ros.graph import history_depth
 from activetrack_ros.trust import KEY_ENV, GraphKey
+from planner_node.multi_planner_node import MultiPlannerNode
 from planner_node.planner_node import PlannerNode
+from sim_node.multi_sim_node import MultiSimNode
 from sim_node.sim_node import SimNode
+from tracker_node.multi_tracker_node import MultiTrackerNode
 from tracker_node.tracker_node import TrackerNode
+
+NODES = {"sim": SimNode, "tracker": TrackerNode, "planner": PlannerNode}
+MULTI_NODES = {"sim": MultiSimNode, "tracker": MultiTrackerNode, "planner": MultiPlannerNode}
 
 # How long the evaluator waits for missing plan reports after the sim finished, with node
 # processes (DDS discovery between them): past one periodic discovery announcement.
@@ -172,10 +181,10 @@ def run_graph(
     opts = RunOptions(**options)
     opts.namespace = check_namespace(opts.namespace)
     scenario = load_scenario(scenario_path)  # fails before anything starts
-    if scenario.multi_target:
+    if scenario.multi_target and opts.mode != "lockstep":
         raise GraphSetupError(
-            f"scenario {scenario.name!r} is multi-target (targets:): the ROS graph runs "
-            "single-target scenarios only for now; run it with `activetrack batch`"
+            f"scenario {scenario.name!r} is multi-target (targets:): it runs in lockstep mode "
+            "only (--mode lockstep)"
         )
     if opts.processes and os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").upper() == "OFF":
         raise GraphSetupError(
@@ -220,8 +229,9 @@ class _GraphRunner:
         self.quiet = {"context": self.graph.context, "start_parameter_services": False}
         if opts.namespace:
             self.quiet["namespace"] = opts.namespace
+        evaluator = MultiEvaluatorNode if scenario.multi_target else EvaluatorNode
         self.evaluator = self.graph.add(
-            EvaluatorNode(
+            evaluator(
                 scenario, graph_key=key, report_grace_s=REPORT_GRACE_PROCESSES_S
                 if opts.processes else 1.0, **self.quiet,
             )
@@ -270,14 +280,16 @@ class _GraphRunner:
             restartable = o.restartable or tuple(self.scenario.graph.restartable)
             self.supervisor = _start_processes(
                 self.params, o.sim_params, self.key, self.domain, restartable,
-                self.scenario.graph.max_restarts, o.namespace,
+                self.scenario.graph.max_restarts, o.namespace, self.scenario.multi_target,
             )  # fmt: skip
             graph.supervisor = self.supervisor  # for during_spin hooks (fault-injection tests)
         else:
-            for name, node_class in (("tracker", TrackerNode), ("planner", PlannerNode)):
-                self.nodes[name] = graph.add(node_class(**self._node_options(self.params[name])))
+            classes = MULTI_NODES if self.scenario.multi_target else NODES
+            for name in ("tracker", "planner"):
+                options = self._node_options(self.params[name])
+                self.nodes[name] = graph.add(classes[name](**options))
             sim = {**self.params["sim"], **(o.sim_params or {})}
-            self.nodes["sim"] = graph.add(SimNode(**self._node_options(sim)))
+            self.nodes["sim"] = graph.add(classes["sim"](**self._node_options(sim)))
         if o.before_spin is not None:
             o.before_spin(graph)
 
@@ -328,7 +340,7 @@ class _GraphRunner:
         complete = self.status == "complete"
         last = scenario.steps if complete else evaluator.completed_epochs()
         partial = scenario if complete else scenario.model_copy(update={"steps": max(last, 0)})
-        summary = summarize(partial, [evaluator.record(wall, last)], wall) if last >= 1 else None
+        summary = _summary(partial, evaluator.record(wall, last), wall) if last >= 1 else None
         diagnostics = self.diagnostics()
         result = GraphRun(
             summary=summary,
@@ -346,11 +358,32 @@ class _GraphRunner:
         )
         _judge(result)
         if self.opts.plots and result.status == "complete" and summary is not None:
-            from activetrack.plots import plot_run  # matplotlib: 0.7 s of imports
-
-            result.files = plot_run(summary, run_dir)
+            result.files = _plots(scenario, summary, run_dir)
         (run_dir / "summary.json").write_text(json.dumps(result.to_json(), indent=2))
         return result
+
+
+def _summary(scenario, record, wall: float):
+    """A run's summary with the batch loop's code: ``summarize`` of one target, or the
+    multi-target evaluation (GOSPA, breaks, swaps, per-target RMSE and bound) drawn from the
+    evaluator generator as ``run_multi_batch`` draws it."""
+    if not scenario.multi_target:
+        return summarize(scenario, [record], wall)
+    evaluation = evaluate_run(scenario, record, component_rngs(scenario.seed, None)[3])
+    return summarize_multi(scenario, [record], [evaluation], wall)
+
+
+def _plots(scenario, summary, run_dir: Path) -> list:
+    """The run folder's figures (matplotlib: 0.7 s of imports, so only here)."""
+    if not scenario.multi_target:
+        from activetrack.plots import plot_run
+
+        return plot_run(summary, run_dir)
+    from activetrack.multitarget.plots import plot_gospa
+    from activetrack.multitarget.plots import plot_run as plot_multi_run
+
+    tracks = plot_multi_run(scenario, summary.records[0], run_dir / "tracks.png")
+    return [tracks, plot_gospa({"run": summary.evaluations}, run_dir / "gospa.png")]
 
 
 def _total(counts: dict, prefix: str) -> int:
@@ -373,7 +406,9 @@ def _judge(result: GraphRun) -> None:
 
 def _finite_metrics(summary) -> bool:
     """RMSEs must be finite; bounds may be NaN only where none is computed (nonlinear
-    motion models), never infinite."""
+    motion models), never infinite. A multi-target run: its GOSPA must be finite."""
+    if isinstance(summary, MultiBatchSummary):
+        return math.isfinite(summary.mean_gospa)
     rmse_ok = all(math.isfinite(v) for v in (summary.rmse_x, summary.rmse_y))
     bounds_ok = not any(math.isinf(v) for v in (summary.mean_bound_x, summary.mean_bound_y))
     return rmse_ok and bounds_ok
@@ -384,10 +419,18 @@ def _domain_id() -> int:
 
 
 def _start_processes(
-    params, sim_params, key: GraphKey, domain: int, restartable, max_restarts: int, namespace
+    params,
+    sim_params,
+    key: GraphKey,
+    domain: int,
+    restartable,
+    max_restarts: int,
+    namespace,
+    multi_target: bool = False,
 ) -> Supervisor:
-    """Each node as its own OS process (its console entry point), talking over DDS on this
-    host in the runner's domain; the caller's environment is not changed."""
+    """Each node as its own OS process (its console entry point, ``multi_*_node`` for a
+    multi-target scenario), talking over DDS on this host in the runner's domain; the
+    caller's environment is not changed."""  # fmt: skip
     env = dict(os.environ)
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
     env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
@@ -395,9 +438,10 @@ def _start_processes(
     supervisor = Supervisor(
         env, max_restarts, log=lambda text: print(f"activetrack: {text}", file=sys.stderr)
     )
+    prefix = "multi_" if multi_target else ""
     for name, extra in (("tracker", {}), ("planner", {}), ("sim", sim_params or {})):
         supervisor.add(
-            f"{name}_node", {**params[name], **extra}, restartable=name in restartable,
+            f"{prefix}{name}_node", {**params[name], **extra}, restartable=name in restartable,
             namespace=namespace,
         )  # fmt: skip
     supervisor.start()

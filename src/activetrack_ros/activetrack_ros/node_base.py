@@ -116,13 +116,17 @@ class GraphNode(Node):
         self.frame_id = values.get("frame_id", self.frame_id)
         return values
 
-    def use_scenario(self, scenario) -> None:
-        """Refuse a scenario the nodes cannot run yet: a multi-target one (``targets:``) runs
-        closed loop in the core (``activetrack batch``); its nodes are still to come."""
-        if scenario.multi_target:
+    def use_scenario(self, scenario, multi_target: bool = False) -> None:
+        """Take a scenario of the node's kind: a multi-target one (``targets:``) runs on the
+        ``multi_*_node`` executables, a single-target one on the others (ValueError naming
+        the executable to use); size the per-epoch histories for it."""
+        if scenario.multi_target != multi_target:
+            kind = "multi-target (targets:)" if scenario.multi_target else "single-target"
+            node = self.get_name().removeprefix("multi_")
+            use = f"multi_{node}" if scenario.multi_target else node
             raise ValueError(
-                f"scenario {scenario.name!r} is multi-target (targets:): the ROS graph runs "
-                "single-target scenarios only for now; run it with `activetrack batch`"
+                f"scenario {scenario.name!r} is {kind}: run it with {use} (or `activetrack "
+                "run`, which picks the nodes)"
             )
         self.size_history(scenario)
 

@@ -11,7 +11,7 @@ rejected, counted and logged; the node keeps running.
 from diagnostic_msgs.msg import DiagnosticArray
 
 from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.data import PlatformSnapshot, TrackSnapshot
+from activetrack.closed_loop.data import Command, PlatformSnapshot, TrackSnapshot
 from activetrack.closed_loop.planner import PlannerCore
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics
@@ -93,21 +93,7 @@ class PlannerNode(GraphNode):
             del self.platforms[e]
         hdr = header(k * self.scenario.dt, self.frame_id)
         for c in decision.commands:
-            msg = ManoeuvreCommand(
-                header=hdr,
-                platform_id=c.platform_id,
-                epoch=c.epoch,
-                heading_change=c.heading_change,
-                speed_change=c.speed_change,
-                commanded_heading=c.commanded_heading,
-                commanded_speed=c.commanded_speed,
-                gate_measurement=c.take_measurement is not None,
-                take_measurement=bool(c.take_measurement),
-                has_waypoint=c.waypoint is not None,
-            )
-            if c.waypoint is not None:
-                msg.waypoint.x, msg.waypoint.y = (float(v) for v in c.waypoint)
-            self.command_pub.publish(msg)
+            self.command_pub.publish(command_msg(c, hdr))
         if decision.selected_sensor_ids is not None:
             self.selection_pub.publish(
                 SensorSelection(
@@ -127,6 +113,25 @@ class PlannerNode(GraphNode):
                 hdr, "activetrack/planner_node", self.scenario.name, f"decided epoch {k}"
             )
         )
+
+
+def command_msg(c: Command, hdr) -> ManoeuvreCommand:
+    """A planner's Command as a ManoeuvreCommand stamped ``hdr`` (its decision epoch)."""
+    msg = ManoeuvreCommand(
+        header=hdr,
+        platform_id=c.platform_id,
+        epoch=c.epoch,
+        heading_change=c.heading_change,
+        speed_change=c.speed_change,
+        commanded_heading=c.commanded_heading,
+        commanded_speed=c.commanded_speed,
+        gate_measurement=c.take_measurement is not None,
+        take_measurement=bool(c.take_measurement),
+        has_waypoint=c.waypoint is not None,
+    )
+    if c.waypoint is not None:
+        msg.waypoint.x, msg.waypoint.y = (float(v) for v in c.waypoint)
+    return msg
 
 
 def main(args=None):

@@ -157,37 +157,17 @@ class SimNode(GraphNode):
             raise Rejected("future_epoch", f"{what} for epoch {epoch} > {self.sim.epoch}")
 
     def on_command(self, msg: ManoeuvreCommand) -> None:
+        cmd = command_from_msg(msg, self.scenario, self.sim)
         what = f"command for {msg.platform_id!r}"
-        if msg.platform_id not in self.sim.controllable_ids:
-            raise Rejected(
-                "unknown_platform",
-                f"{msg.platform_id!r} is not one of {list(self.sim.controllable_ids)}",
-            )
-        check_epoch_stamp(msg, self.scenario, what)
-        # A heading change beyond half a turn or a speed change beyond the platform's whole
-        # speed range is not a command to clamp but garbage: reject it.
-        finite((msg.heading_change,), f"{what} heading_change", math.pi + 1e-9)
-        v_max = self.scenario_platform(msg.platform_id).limits.v_max
-        finite((msg.speed_change,), f"{what} speed_change", min(v_max, MAX_SPEED))
         self._check_epoch(msg.epoch, what)
         if self.mode == "lockstep" and msg.platform_id in self.pending:
             raise Rejected("duplicate", f"second {what} at epoch {msg.epoch}")
-        cmd = Command(
-            msg.platform_id,
-            self.sim.epoch,
-            msg.heading_change,
-            msg.speed_change,
-            take_measurement=msg.take_measurement if msg.gate_measurement else None,
-        )
         if self.mode == "free":
             self.apply(cmd)
         else:
             self.pending[msg.platform_id] = cmd
             if self.ready():
                 self.on_tick()  # the last command of the epoch: step now, not at the next tick
-
-    def scenario_platform(self, platform_id: str):
-        return next(p for p in self.scenario.platforms if p.id == platform_id)
 
     def on_selection(self, msg: SensorSelection) -> None:
         if not self.expects_selection:
@@ -293,21 +273,8 @@ class SimNode(GraphNode):
         )
         for m in measurements:
             self.publish_measurement(m, k, t, len(measurements))
-        for s in self.sim.platform_snapshots():
-            self.platform_pub.publish(
-                PlatformState(
-                    header=header(t, self.frame_id),
-                    platform_id=s.platform_id,
-                    epoch=k,
-                    sensor_ids=list(s.sensor_ids),
-                    sensor_kinds=list(s.sensor_kinds),
-                    position=Point(x=float(s.pv[0]), y=float(s.pv[2])),
-                    velocity=Vector3(x=float(s.pv[1]), y=float(s.pv[3])),
-                    heading=s.heading,
-                    speed=s.speed,
-                    epoch_measurement_count=len(measurements),
-                )
-            )
+        for msg in platform_state_msgs(self.sim, len(measurements), self.frame_id):
+            self.platform_pub.publish(msg)
         self.counters.count("epochs_published")
         self.publish_frames(t, pv)
         self.publish_markers(t)
@@ -408,6 +375,51 @@ class SimNode(GraphNode):
         self.diag_pub.publish(
             self.diagnostics_array(hdr, "activetrack/sim_node", self.scenario.name, message)
         )
+
+
+def command_from_msg(msg: ManoeuvreCommand, scenario, sim: Simulator) -> Command:
+    """A ManoeuvreCommand for one of ``sim``'s controllable platforms as a Command of the
+    current epoch, every field checked (Rejected naming it); the epoch itself is the mode's
+    business."""
+    what = f"command for {msg.platform_id!r}"
+    if msg.platform_id not in sim.controllable_ids:
+        raise Rejected(
+            "unknown_platform", f"{msg.platform_id!r} is not one of {list(sim.controllable_ids)}"
+        )
+    check_epoch_stamp(msg, scenario, what)
+    # A heading change beyond half a turn or a speed change beyond the platform's whole speed
+    # range is not a command to clamp but garbage: reject it.
+    finite((msg.heading_change,), f"{what} heading_change", math.pi + 1e-9)
+    v_max = next(p for p in scenario.platforms if p.id == msg.platform_id).limits.v_max
+    finite((msg.speed_change,), f"{what} speed_change", min(v_max, MAX_SPEED))
+    return Command(
+        msg.platform_id,
+        sim.epoch,
+        msg.heading_change,
+        msg.speed_change,
+        take_measurement=msg.take_measurement if msg.gate_measurement else None,
+    )
+
+
+def platform_state_msgs(sim: Simulator, count: int, frame_id: str) -> list[PlatformState]:
+    """Every platform's state at the sim's epoch; ``count``: what the sim published at it
+    (measurements, or scans of a multi-target run)."""
+    hdr = header(sim.time, frame_id)
+    return [
+        PlatformState(
+            header=hdr,
+            platform_id=s.platform_id,
+            epoch=sim.epoch,
+            sensor_ids=list(s.sensor_ids),
+            sensor_kinds=list(s.sensor_kinds),
+            position=Point(x=float(s.pv[0]), y=float(s.pv[2])),
+            velocity=Vector3(x=float(s.pv[1]), y=float(s.pv[3])),
+            heading=s.heading,
+            speed=s.speed,
+            epoch_measurement_count=count,
+        )
+        for s in sim.platform_snapshots()
+    ]
 
 
 def main(args=None):

@@ -27,15 +27,18 @@ _CLUTTER = "0.8"  # light grey
 
 def clutter_points(scenario: Scenario, record: MultiRunRecord) -> np.ndarray:
     """``(m, 2)`` x, y of every clutter detection (label "") of the range-bearing scans:
-    z = (range, bearing) from the scan's sensor position (bearing sensors give no range)."""
+    z = (range, bearing) from the scan's sensor position (bearing sensors give no range).
+    A record without labels (a graph run's: they stay in the sim) gives every detection."""
     kinds = {s.id: s.kind for p in scenario.platforms for s in p.sensors}
     points = [np.empty((0, 2))]
-    for scans, truths in zip(record.scans, record.scan_truth, strict=True):
-        labels = {(t.sensor_id, t.epoch): t.labels for t in truths}
+    truths = record.scan_truth or [[] for _ in record.scans]
+    for scans, epoch_truths in zip(record.scans, truths, strict=True):
+        labels = {(t.sensor_id, t.epoch): t.labels for t in epoch_truths}
         for scan in scans:
             if kinds.get(scan.sensor_id) != "range_bearing" or len(scan.Z) == 0:
                 continue
-            clutter = np.array(labels[(scan.sensor_id, scan.epoch)]) == ""
+            known = labels.get((scan.sensor_id, scan.epoch))
+            clutter = np.ones(len(scan.Z), bool) if known is None else np.array(known) == ""
             r, b = scan.Z[clutter, 0], scan.Z[clutter, 1]
             xy = np.column_stack([np.cos(b), np.sin(b)]) * r[:, None]
             points.append(xy + np.asarray(scan.sensor_pv)[[0, 2]])
@@ -57,7 +60,8 @@ def track_paths(record: MultiRunRecord) -> dict[int, np.ndarray]:
 def _draw_run(ax: Axes, scenario: Scenario, record: MultiRunRecord) -> None:
     clutter = clutter_points(scenario, record)
     if len(clutter):
-        ax.plot(clutter[:, 0], clutter[:, 1], ".", color=_CLUTTER, ms=2, label="clutter")
+        shown = "clutter" if record.scan_truth else "detections (unlabelled)"
+        ax.plot(clutter[:, 0], clutter[:, 1], ".", color=_CLUTTER, ms=2, label=shown)
     truth = np.asarray(record.truth, dtype=float)
     for n, tid in enumerate(record.target_ids):
         ax.plot(truth[:, n, 0], truth[:, n, 2], "k-", lw=1.5, label="truth" if n == 0 else None)
