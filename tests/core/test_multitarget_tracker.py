@@ -14,7 +14,13 @@ Figures asserted (seeded; the measured values are in the comments):
   (Pd 1) is confirmed at its 3rd look under 3-of-5; a dead target's track goes after 4 looks;
 - the particle filter with the clutter-aware likelihood against the JPDA-EKF (one target,
   ~14 false alarms per scan) on the same scans: position means apart by < 0.25 of the EKF's
-  position std on average and < 0.6 at every epoch (measured 0.11 and 0.24).
+  position std on average and < 0.6 at every epoch (measured 0.11 and 0.24);
+- probability of existence: the IPDA recursion and its LM-IPDA form for two tracks sharing a
+  detection against hand-computed values (1e-6); a detection inside a track's gate starts no
+  track; confirmation waits for existence >= 0.9 (1-of-1 confirms at the second hit, not the
+  first); a confirmed track started from detections goes when its existence falls below
+  0.1 (at its 3rd miss, 0.043019); tracks from priors are never deleted by existence; the
+  field-of-view coverage that scales Pd is the planner's beam coverage for a centred beam.
 """
 
 from __future__ import annotations
@@ -36,8 +42,16 @@ from activetrack.filters.measurement import Measurement
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.models.sensors import RangeBearingSensor
 from activetrack.multitarget.data import CONFIRMED, TENTATIVE, FieldOfView, Scan
-from activetrack.multitarget.tracker import MultiTargetTracker
-from activetrack.multitarget.tracks import COALESCE_D2, COALESCE_LOOKS
+from activetrack.multitarget.tracker import MultiTargetTracker, _fov_coverage
+from activetrack.multitarget.tracks import (
+    COALESCE_D2,
+    COALESCE_LOOKS,
+    EXISTENCE_DELETE,
+    EXISTENCE_INIT,
+    EXISTENCE_SURVIVAL,
+    existence_update,
+)
+from activetrack.planning.assignment import beam_coverage
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.schema import Scenario
 
@@ -244,12 +258,18 @@ def test_clutter_alone_confirms_no_track_and_tentative_tracks_die_within_n_looks
     assert started > 100
     assert sorted(ids) == list(range(1, started + 1))  # 1, 2, 3, ...: never reused
     assert tracker.book.deleted["unconfirmed"] == started - len(sets[-1].tracks)
-    # At 30x the density tentative tracks on clutter do confirm (the rule above is not
-    # vacuous): measured 27 confirmed after 10 epochs.
+    # At 30x the density clutter tracks do reach M hits in N looks (the rule above is not
+    # vacuous: with M-of-N alone 27 confirmed after 10 epochs), but their probability of
+    # existence mostly stays below EXISTENCE_CONFIRM (measured: 46 tracks reached M hits, 3
+    # were confirmed, each for one epoch before existence deleted it).
     dense = make_scenario([far], [range_bearing(clutter_density=3e-3)], tracks={"max_tracks": 500})
     _, scans = simulate(dense, 10, np.random.default_rng(5))
     _, sets = run(dense, scans)
-    assert len(sets[-1].confirmed) > 10
+    m = dense.tracker.tracks.confirm_m
+    reached = {t.track_id for ts in sets for t in ts.tracks if t.hits >= m}
+    confirmed = {t.track_id for ts in sets for t in ts.confirmed}
+    assert len(reached) > 40 and len(confirmed) <= 3
+    assert max(len(ts.confirmed) for ts in sets) <= 1 and not sets[-1].confirmed
 
 
 def test_max_tracks_caps_the_live_tracks_and_counts_the_rest():
@@ -531,3 +551,111 @@ def test_priors_give_ids_origins_and_priorities_in_scenario_order():
     np.testing.assert_allclose(new.cov[0, 0], (0.005 * r) ** 2, rtol=1e-9)
     np.testing.assert_allclose(new.cov[2, 2], 10.0**2, rtol=1e-9)
     np.testing.assert_allclose(new.cov[[1, 3], [1, 3]], 100.0)
+
+
+# --- probability of existence (IPDA / LM-IPDA) ------------------------------------------------
+
+
+def test_existence_follows_the_ipda_recursion_for_one_track():
+    # delta = Pd Pg - Pd sum_j N_j / rho; psi' = (1 - delta) psi / (1 - delta psi).
+    # One detection with N / rho = 2, Pd 0.9, Pg 0.99, psi 0.5: delta = 0.891 - 1.8 = -0.909,
+    # psi' = 1.909 * 0.5 / (1 + 0.909 * 0.5) = 0.65624.
+    got = existence_update(np.array([0.5]), np.array([[2.0]]), 0.9, 0.99)
+    np.testing.assert_allclose(got, [0.6562393], rtol=1e-6)
+    # An empty gate (no detection, or detections outside it: ratio 0): delta = Pd Pg = 0.891,
+    # psi' = 0.109 * 0.5 / (1 - 0.4455) = 0.098287.
+    for empty in (np.zeros((1, 0)), np.zeros((1, 3))):
+        np.testing.assert_allclose(
+            existence_update(np.array([0.5]), empty, 0.9, 0.99), [0.0982867], rtol=1e-6
+        )
+    # Per-track Pd (Pd times the field-of-view coverage): Pd 0 leaves psi as it is.
+    np.testing.assert_allclose(existence_update(np.array([0.5]), np.zeros((1, 0)), 0.0, 0.99), 0.5)
+
+
+def test_lm_ipda_a_detection_a_sharper_track_explains_barely_raises_the_wide_one():
+    # One detection in the gates of a sharp track (N / rho = 1000) and a wide one (2); both
+    # psi 0.9, Pd 0.9, Pg 1. P_t = psi Pd Pg = 0.81 for each (one detection in each gate).
+    # Wide: Omega / rho = 1 + 0.81 * 1000 / 0.19 = 4264.16, delta = 0.9 - 0.9 * 2 / 4264.16
+    # = 0.899578, psi' = 0.100422 * 0.9 / (1 - 0.80962) = 0.47473 (a plain miss: 0.47368).
+    # Sharp: Omega / rho = 1 + 0.81 * 2 / 0.19 = 9.5263, delta = 0.9 - 0.9 * 104.972 =
+    # -93.575, psi' = 0.99883. Alone (IPDA), the wide track would rise: delta = -0.9, 0.94475.
+    got = existence_update(np.array([0.9, 0.9]), np.array([[1000.0], [2.0]]), 0.9, 1.0)
+    np.testing.assert_allclose(got, [0.9988265, 0.4747345], rtol=1e-6)
+    alone = existence_update(np.array([0.9]), np.array([[2.0]]), 0.9, 1.0)
+    np.testing.assert_allclose(alone, [0.9447514], rtol=1e-6)
+
+
+def test_a_detection_in_a_tracks_gate_starts_no_track():
+    sc = make_scenario([{"id": "a", "mean": [100.0, 5.0, 100.0, 5.0]}], [range_bearing()])
+    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    sensor = tracker.sensors["s1"]
+    near = sensor.measure(np.array([105.0, 0.0, 105.0, 0.0]), SENSOR_PV) + np.array([15.0, 0.0])
+    far = sensor.measure(np.array([0.0, 0.0, 500.0, 0.0]), SENSOR_PV)
+    ts = tracker.step(1, 1.0, [Scan("s1", 1, 1.0, SENSOR_PV, np.array([near, far]))])
+    # The track predicted to (105, 105) with range std ~14 m gates the detection 15 m beyond
+    # it (d^2 ~ 1.1 <= 12.25): only the far one started a track.
+    assert (ts.detections, ts.unassociated) == (2, 1)
+    assert [t.track_id for t in ts.tracks] == [1, 2]
+    np.testing.assert_allclose(ts.tracks[1].mean[[0, 2]], [0.0, 500.0], atol=1e-6)
+
+
+def test_confirmation_waits_for_existence_and_existence_deletes_a_confirmed_track():
+    # 1-of-1: M-of-N alone would confirm a track at the detection that starts it.
+    sc = make_scenario(
+        [{"id": "new", "mean": [300.0, 0.0, 100.0, 0.0], "birth": 1}],
+        [range_bearing(pd=0.9)],
+        tracks={"confirm_m": 1, "confirm_n": 1},
+    )
+    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    z = tracker.sensors["s1"].measure(np.array([300.0, 0.0, 100.0, 0.0]), SENSOR_PV)[None]
+    ts = tracker.step(1, 1.0, [Scan("s1", 1, 1.0, SENSOR_PV, z)])
+    assert [t.status for t in ts.tracks] == [TENTATIVE]
+    assert tracker.book.tracks[1].existence == EXISTENCE_INIT == 0.2
+    ts = tracker.step(2, 2.0, [Scan("s1", 2, 2.0, SENSOR_PV, z)])
+    assert [t.status for t in ts.tracks] == [CONFIRMED]  # no clutter: the second hit is sure
+    assert tracker.book.tracks[1].existence > 1.0 - 1e-6
+
+    # Then misses (Pd 0.9, Pg = 1 - exp(-12.25 / 2), delta = 0.898032): each epoch psi *=
+    # 0.98, then psi' = (1 - delta) psi / (1 - delta psi): 0.833235, 0.312210, 0.043019 <
+    # EXISTENCE_DELETE = 0.1, so the track goes at its 3rd miss, before delete_misses (4) would.
+    assert (EXISTENCE_SURVIVAL, EXISTENCE_DELETE) == (0.98, 0.1)
+    empty = np.zeros((0, 2))
+    for k, expected in ((3, 0.833235), (4, 0.312210)):
+        ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty)])
+        assert [t.status for t in ts.tracks] == [CONFIRMED]
+        assert tracker.book.tracks[1].existence == pytest.approx(expected, rel=1e-5)
+    ts = tracker.step(5, 5.0, [Scan("s1", 5, 5.0, SENSOR_PV, empty)])
+    assert ts.tracks == () and tracker.book.deleted == {"existence": 1}
+
+
+def test_tracks_from_priors_are_never_deleted_by_existence():
+    # A prior's track missed 5 times (Pd 0.9, no clutter): existence 4.5e-4, kept until
+    # delete_misses (6) says otherwise.
+    sc = make_scenario(
+        [{"id": "a", "mean": [100.0, 0.0, 100.0, 0.0]}],
+        [range_bearing(pd=0.9)],
+        tracks={"delete_misses": 6},
+    )
+    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    empty = np.zeros((0, 2))
+    for k in range(1, 6):
+        ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty)])
+    assert [t.track_id for t in ts.tracks] == [1]
+    assert tracker.book.tracks[1].existence < 1e-3
+    ts = tracker.step(6, 6.0, [Scan("s1", 6, 6.0, SENSOR_PV, empty)])
+    assert ts.tracks == () and tracker.book.deleted == {"misses": 1}
+
+
+def test_field_of_view_coverage_is_the_beam_coverage():
+    # A beam centred on the track: erf(w / (2 sqrt(2) sigma_b)) (the planner's beam_coverage);
+    # a track on the beam's edge with sigma_b << w: one half; all around: 1.
+    s = np.array([0.0, 0.0, -3000.0, 0.0])
+    means = np.array([[0.0, 0.0, 2000.0, 0.0]])  # 5000 m north: bearing pi / 2
+    covs = np.diag([2500.0, 1.0, 100.0, 1.0])[None]  # cross-range std 50 m: sigma_b 0.01
+    w = 0.02
+    got = _fov_coverage(means, covs, FieldOfView(math.pi / 2, w), s)
+    np.testing.assert_allclose(got, [math.erf(w / (2 * math.sqrt(2) * 0.01))], rtol=1e-9)
+    np.testing.assert_allclose(got, beam_coverage(w, means[0], covs[0], s), rtol=1e-9)
+    edge = _fov_coverage(means, covs * 1e-4, FieldOfView(math.pi / 2 + 0.05, 0.1), s)
+    np.testing.assert_allclose(edge, [0.5], atol=1e-9)
+    np.testing.assert_allclose(_fov_coverage(means, covs, FieldOfView(), s), [1.0])

@@ -19,14 +19,18 @@ One call of :meth:`MultiTargetTracker.step` per epoch, with all of the epoch's s
 
    the gate is the chi-square gate ``gamma = gate_sigmas^2`` of each track's predicted
    measurement (for a particle track, of its moments). Zero clutter and ``Pd = 1`` go through
-   the floor and cap of :mod:`activetrack.filters.clutter_likelihood`;
+   the floor and cap of :mod:`activetrack.filters.clutter_likelihood`. Before the update, the
+   same predicted measurements give each track's probability of existence its LM-IPDA update
+   (:func:`~activetrack.multitarget.tracks.existence_update`; once per epoch first its
+   survival), with Pd times the probability that the target lies in the scan's bearing sector
+   (a track at a beam's edge that brings no detection is not counted a full miss);
 4. detections of a range-bearing scan that no track gated start tentative tracks at once (so a
    later scan of the epoch already updates them): position from the inverse measurement,
    velocity 0, covariance ``J R J^T`` (J = d position / d z) and ``init_speed_std^2``; at most
    ``max_tracks`` live tracks, the rest counted in ``not_started``. Bearing-only detections
    never start tracks (a bearing fixes no position): bearings-only targets are tracked from
    their priors;
-5. M-of-N confirmation and deletion and the coalescence rule (:mod:`.tracks`).
+5. M-of-N confirmation (and existence) and deletion and the coalescence rule (:mod:`.tracks`).
 
 Tracks from the priors of the targets present at epoch 0 start confirmed, ids 1, 2, ... in
 scenario order; later tracks take the next id; ids are never reused. The tracker draws only
@@ -47,12 +51,25 @@ from activetrack.filters.clutter_likelihood import (
     effective_pd,
     scan_log_likelihood,
 )
-from activetrack.filters.jpda import DEFAULT_MAX_EVENTS, gate, jpda_update, predict_measurements
+from activetrack.filters.jpda import (
+    DEFAULT_MAX_EVENTS,
+    gate_probability,
+    jpda_update,
+    likelihood_ratios,
+    predict_measurements,
+)
 from activetrack.filters.measurement import TIME_TOLERANCE
 from activetrack.models.base import as_linear
 from activetrack.models.clutter import ClutteredSensor
-from activetrack.multitarget.data import CONFIRMED, TENTATIVE, Scan, TrackSet
-from activetrack.multitarget.tracks import ParticleCloud, Track, TrackManager
+from activetrack.multitarget.data import CONFIRMED, TENTATIVE, FieldOfView, Scan, TrackSet
+from activetrack.multitarget.tracks import (
+    EXISTENCE_INIT,
+    EXISTENCE_SURVIVAL,
+    ParticleCloud,
+    Track,
+    TrackManager,
+    existence_update,
+)
 from activetrack.scenarios.build import build_motion_model, build_scan_sensors
 from activetrack.scenarios.schema import Scenario
 
@@ -62,6 +79,7 @@ FILTERS = ("ekf", "pf")
 # Sensor kinds whose detections start tracks (they fix a position: the inverse measurement).
 INITIATING_KINDS = ("range_bearing",)
 _XY = np.ix_([0, 2], [0, 2])
+_erf = np.vectorize(math.erf, otypes=[float])
 
 
 @dataclass(frozen=True)
@@ -103,6 +121,7 @@ class MultiTargetTracker:
         self.epoch = 0
         self.time = 0.0
         self._counts = (0, 0)  # detections, unassociated of the last step
+        self._aged: set[int] = set()  # tracks whose existence was predicted this epoch
         for target in scenario.targets or [scenario.target]:
             if target.birth == 0:
                 mean = np.array(target.prior.mean, dtype=float)
@@ -116,6 +135,7 @@ class MultiTargetTracker:
         :class:`TrackSet` after it. ValueError (state unchanged) for a bad scan."""
         t, checked = self._check(epoch, t, scans)
         self._predict(t)
+        self._aged.clear()
         looked: dict[int, bool] = {}  # track id -> hit, for the tracks looked at
         weighed: set[int] = set()
         detections = unassociated = 0
@@ -208,7 +228,22 @@ class MultiTargetTracker:
         covs = np.array([track.cov for track in tracks])
         base = c.sensor.base
         zhat, _, S = predict_measurements(means, covs, base, c.s, self.model)
-        mask = gate(c.Z, zhat, S, self.gamma, residual=base.residual)
+        nu = np.asarray(base.residual(c.Z[None, :, :], zhat[:, None, :]), dtype=float)
+        ratios, mask = likelihood_ratios(
+            nu, S, 1.0, effective_clutter_density(c.sensor.clutter_density), self.gamma
+        )
+        for track in tracks:
+            if track.track_id not in self._aged:
+                track.existence *= EXISTENCE_SURVIVAL
+                self._aged.add(track.track_id)
+        psi = existence_update(
+            np.array([track.existence for track in tracks]),
+            ratios,
+            effective_pd(c.sensor.pd) * _fov_coverage(means, covs, c.scan.fov, c.s),
+            gate_probability(self.gamma, int(base.dim_z)),
+        )
+        for track, p in zip(tracks, psi, strict=True):
+            track.existence = float(p)
         if self.kind == "ekf":
             self._jpda(tracks, means, covs, mask, c)
         else:
@@ -303,7 +338,9 @@ class MultiTargetTracker:
         mean = np.array([c.s[0] + r * cb, 0.0, c.s[2] + r * sb, 0.0])
         cov = np.diag(np.full(4, self.options.tracks.init_speed_std**2))
         cov[_XY] = J @ np.asarray(c.sensor.base.R, dtype=float) @ J.T
-        return self._start(mean, cov, epoch, TENTATIVE, "", self.new_track_priority)
+        track = self._start(mean, cov, epoch, TENTATIVE, "", self.new_track_priority)
+        track.existence = EXISTENCE_INIT
+        return track
 
 
 def _detections(i: int, scan: Scan, sensor: ClutteredSensor) -> FloatArray:
@@ -324,6 +361,25 @@ def _platform(i: int, scan: Scan) -> FloatArray:
     if s.shape != (4,) or not np.isfinite(s).all():
         raise ValueError(f"scans[{i}].sensor_pv: must be a finite pv of shape (4,), got {s!r}")
     return s
+
+
+def _fov_coverage(
+    means: FloatArray, covs: FloatArray, fov: FieldOfView, s: FloatArray
+) -> FloatArray:
+    """Probability ``(T,)`` that each track's target N(mean, cov) lies in the bearing sector
+    of ``fov`` seen from ``s`` (linearised bearing, variance ``h P h^T``, h = (-dy, 0, dx, 0) /
+    r^2, as :func:`activetrack.planning.assignment.beam_coverage` for a beam centred on the
+    track); 1 all around. The ranges are not counted."""
+    if fov.width >= 2.0 * math.pi:
+        return np.ones(means.shape[0])
+    dx, dy = means[:, 0] - s[0], means[:, 2] - s[2]
+    r2 = np.maximum(dx * dx + dy * dy, 1e-300)
+    z = np.zeros_like(dx)
+    h = np.stack([-dy / r2, z, dx / r2, z], axis=-1)
+    sigma = np.sqrt(np.maximum(np.einsum("ti,tij,tj->t", h, covs, h), 1e-300)) * math.sqrt(2.0)
+    off = np.angle(np.exp(1j * (np.arctan2(dy, dx) - fov.centre)))
+    half = 0.5 * fov.width
+    return np.asarray(0.5 * (_erf((half - off) / sigma) + _erf((half + off) / sigma)), dtype=float)
 
 
 def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -10,9 +10,11 @@ TrackManagementConfig`) once per epoch (M-of-N confirmation and deletion: Blackm
   position; a **hit** a look with at least one detection in the track's gate (any scan of the
   epoch). The detection that starts a track is its first look and hit;
 - a tentative track is **confirmed** once it has ``confirm_m`` hits in its last ``confirm_n``
-  looks. It is confirmed or deleted within its first ``confirm_n`` looks, so its last
-  ``confirm_n`` looks are all of them: it is **deleted** as soon as
-  ``hits + (confirm_n - looks) < confirm_m`` (it can no longer reach M);
+  looks and the existence below. It is **deleted** as soon as
+  ``hits + (confirm_n - looks) < confirm_m`` (within its first ``confirm_n`` looks: it can
+  no longer reach M). One that reached M without the existence stays tentative until that
+  rule (past ``confirm_n`` looks each look without a hit uses up one of its spare hits) or
+  its existence decides;
 - a confirmed track is deleted after ``delete_misses`` consecutive looks without a hit;
 - any track is deleted when its position standard deviation (sqrt of the largest eigenvalue of
   its xy covariance block) exceeds ``max_position_std`` (lost: a planner cannot use it);
@@ -22,6 +24,22 @@ TrackManagementConfig`) once per epoch (M-of-N confirmation and deletion: Blackm
   which both were looked at: the younger (the larger id: ids are given in order of creation)
   is deleted. Two tracks on two targets that cross pass through that distance for an epoch or
   two; tracks on one target stay there.
+- **probability of existence** (IPDA: Musicki, Evans & Stankovic, "Integrated probabilistic
+  data association", IEEE TAC 39(6), 1994; among tracks that share detections the linear
+  multi-target form, LM-IPDA: Musicki & La Scala, "Multi-target tracking in clutter without
+  measurement assignment", IEEE TAES 44(3), 2008): each track carries ``existence``, predicted
+  by ``EXISTENCE_SURVIVAL`` (Markov chain one) once per epoch at its first scan of the epoch
+  and updated by every scan whose field of view held it (:func:`existence_update`); a track
+  from a prior starts at 1, one from a detection at ``EXISTENCE_INIT``. A tentative track is
+  confirmed only once it also has ``existence >= EXISTENCE_CONFIRM``. A track started from
+  detections is deleted ("existence") when its existence falls below ``EXISTENCE_DELETE``,
+  once confirmed or past its first ``confirm_n`` looks (within them the M-of-N rule decides,
+  as above). Tracks from the scenario's priors are never deleted by existence: their targets
+  are known to exist, and a deleted one may never come back (bearings only start no track).
+  A detection in a track's gate that another, sharper track explains counts as a hit for
+  M-of-N but barely raises the wide track's existence (LM-IPDA adds the other track's
+  detection density to that detection's clutter density), so wide duplicates and clutter
+  tracks fed by stray detections die out.
 """
 
 from __future__ import annotations
@@ -41,20 +59,62 @@ from activetrack.scenarios.multitarget_config import TrackManagementConfig
 __all__ = [
     "COALESCE_D2",
     "COALESCE_LOOKS",
+    "EXISTENCE_CONFIRM",
+    "EXISTENCE_DELETE",
+    "EXISTENCE_INIT",
+    "EXISTENCE_SURVIVAL",
     "ParticleCloud",
     "Track",
     "TrackManager",
+    "existence_update",
     "position_std",
 ]
 
 COALESCE_D2 = 0.5  # squared Mahalanobis distance of the two positions (2 dof: ~22 % quantile)
 COALESCE_LOOKS = 5  # consecutive joint looks
+EXISTENCE_INIT = 0.2  # a track started from one detection
+EXISTENCE_SURVIVAL = 0.98  # per epoch (IPDA's Markov chain one: p11)
+EXISTENCE_CONFIRM = 0.9  # a tentative track needs M of N and this
+EXISTENCE_DELETE = 0.1  # a track from detections below it is deleted (module docstring)
+_P_MAX = 1.0 - 1e-9  # cap of LM-IPDA's a priori probability that a detection is a track's
 _XY = np.ix_([0, 2], [0, 2])
 
 
 def position_std(cov: FloatArray) -> float:
     """sqrt of the largest eigenvalue of the xy block of a pv covariance ``(4, 4)`` [m]."""
     return math.sqrt(max(float(np.linalg.eigvalsh(cov[_XY])[-1]), 0.0))
+
+
+def existence_update(
+    existence: FloatArray, ratios: FloatArray, pd: float | FloatArray, pg: float
+) -> FloatArray:
+    """One scan's LM-IPDA update of the probabilities of existence ``(T,)`` of the tracks the
+    scan looked at (Musicki & La Scala 2008; with one track it is IPDA, Musicki, Evans &
+    Stankovic 1994).
+
+    ratios ``(T, m)``: ``N(z_j; zhat_t, S_t) / rho`` for the detections in track t's gate, 0
+    outside it (rho: the clutter density per unit of z); pd: detection probability, one or
+    ``(T,)`` (per track: Pd times the probability that the target is in the field of view);
+    pg: gate probability. With ``p_tj = N_tj / Pg`` (the detection's density, gated):
+
+    - ``P_tj = psi_t Pd Pg p_tj / sum_i p_ti``: a priori, z_j is track t's detection;
+    - ``Omega_tj = rho + sum_{s != t} P_sj p_sj / (1 - P_sj)``: z_j's clutter density seen
+      from track t, the other tracks' detections added to the clutter;
+    - ``delta_t = Pd Pg - Pd sum_j N_tj / Omega_tj`` and ``psi_t <- (1 - delta_t) psi_t /
+      (1 - delta_t psi_t)``. No gated detection: ``delta = Pd Pg``, psi falls.
+    """
+    psi = np.asarray(existence, dtype=float)
+    A = np.asarray(ratios, dtype=float).reshape(psi.shape[0], -1)  # N / rho
+    pd = np.broadcast_to(np.asarray(pd, dtype=float), psi.shape)
+    total = A.sum(axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        P = np.where(total > 0.0, (psi * pd * pg)[:, None] * A / total, 0.0)
+    P = np.minimum(P, _P_MAX)
+    # P p / (1 - P) in units of rho: p = N / Pg = A rho / Pg
+    other = P * (A / pg) / (1.0 - P)
+    omega = 1.0 + other.sum(axis=0, keepdims=True) - other  # Omega / rho
+    delta = pd * pg - pd * (A / omega).sum(axis=1)
+    return (1.0 - delta) * psi / (1.0 - delta * psi)
 
 
 @dataclass
@@ -136,6 +196,7 @@ class Track:
     run_of_misses: int = 0
     window: deque[bool] = field(default_factory=deque)  # hit per look, the last confirm_n
     samples: FloatArray | None = None
+    existence: float = 1.0  # IPDA probability of existence (module docstring)
 
     @property
     def confirmed(self) -> bool:
@@ -154,17 +215,28 @@ class Track:
         self.window.append(hit)
         while len(self.window) > cfg.confirm_n:
             self.window.popleft()
-        if self.status == TENTATIVE and sum(self.window) >= cfg.confirm_m:
+        if (
+            self.status == TENTATIVE
+            and sum(self.window) >= cfg.confirm_m
+            and self.existence >= EXISTENCE_CONFIRM
+        ):
             self.status = CONFIRMED
 
     def deletion_reason(self, cfg: TrackManagementConfig) -> str | None:
-        """Why the track must go ("unconfirmed", "misses", "position_std"), or None."""
+        """Why the track must go ("unconfirmed", "misses", "position_std", "existence"), or
+        None."""
         if self.status == TENTATIVE and self.hits + cfg.confirm_n - self.looks < cfg.confirm_m:
             return "unconfirmed"
         if self.status == CONFIRMED and self.run_of_misses >= cfg.delete_misses:
             return "misses"
         if position_std(self.cov) > cfg.max_position_std:
             return "position_std"
+        if (
+            not self.origin
+            and (self.status == CONFIRMED or self.looks > cfg.confirm_n)
+            and self.existence < EXISTENCE_DELETE
+        ):
+            return "existence"
         return None
 
     def estimate(self, epoch: int) -> TrackEstimate:
