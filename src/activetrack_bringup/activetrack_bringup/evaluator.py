@@ -364,9 +364,7 @@ class EvaluatorNode(ResultNode):
             if self.expects_reports and not self._reports_given_up()
             else [],
         }
-        return ", ".join(
-            f"{what} missing at epochs {_ranges(ks)}" for what, ks in lacks.items() if ks
-        )
+        return lacks_text(lacks)
 
     def completed_epochs(self) -> int:
         """The last epoch K' such that truth, track and platform states of 0..K' are all here."""
@@ -402,6 +400,11 @@ def _marker_size(scenario) -> float:
         for p in scenario.platforms
     )
     return max(0.01 * far, 0.1)
+
+
+def lacks_text(lacks: dict[str, list[int]]) -> str:
+    """'truth missing at epochs 3-5, track missing at epochs 7' (what -> epochs lacking)."""
+    return ", ".join(f"{what} missing at epochs {_ranges(ks)}" for what, ks in lacks.items() if ks)
 
 
 def _ranges(ks: list[int]) -> str:

@@ -27,7 +27,7 @@ from activetrack.multitarget.data import (
     Scan,
     TrackSet,
 )
-from activetrack_bringup.evaluator import TRUTH_RGBA, EpochTable, ResultNode, _ranges
+from activetrack_bringup.evaluator import TRUTH_RGBA, EpochTable, ResultNode, lacks_text
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import (
     MAX_SPEED,
@@ -204,9 +204,7 @@ class MultiEvaluatorNode(ResultNode):
             "commands or beams": [] if given_up else [k for k in range(K) if not self._decided(k)],
             "plan report": [] if given_up else [k for k in range(K) if k not in self.reports],
         }
-        return ", ".join(
-            f"{what} missing at epochs {_ranges(ks)}" for what, ks in lacks.items() if ks
-        )
+        return lacks_text(lacks)
 
     def completed_epochs(self) -> int:
         """The last epoch K' such that truth, tracks, platform states and scans of 0..K' are

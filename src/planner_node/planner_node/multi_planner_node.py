@@ -10,18 +10,17 @@ platform's state of epoch k. Only the graph's own tracker and simulator count
 from diagnostic_msgs.msg import DiagnosticArray
 
 from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.data import PlatformSnapshot
 from activetrack.multitarget.data import TrackSet
 from activetrack.multitarget.planner import MultiTargetPlanner
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics
-from activetrack_ros.convert import header, platform_from_msg, report_msg
+from activetrack_ros.convert import header, report_msg
 from activetrack_ros.convert_multi import beam_msg, track_array_from_msg
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.params import FRAME_ID, RUN, SCENARIO
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import BeamCommand, ManoeuvreCommand, PlanReport, PlatformState, TrackArray
-from planner_node.planner_node import STATE_WINDOW, command_msg
+from planner_node.planner_node import AwaitedStates, command_msg
 
 
 class MultiPlannerNode(GraphNode):
@@ -32,9 +31,8 @@ class MultiPlannerNode(GraphNode):
         self.use_scenario(self.scenario, multi_target=True)
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[2]
         self.core = MultiTargetPlanner(self.scenario, rng)
-        self.platform_ids = {p.id for p in self.scenario.platforms}
         self.tracks: TrackSet | None = None
-        self.platforms: dict[int, dict[str, PlatformSnapshot]] = {}
+        self.platforms = AwaitedStates(self, self.scenario)
         self.last_decided = -1
 
         self.command_pub = self.publisher(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS)
@@ -55,34 +53,19 @@ class MultiPlannerNode(GraphNode):
         self.try_decide()
 
     def on_platform(self, msg: PlatformState) -> None:
-        snap = platform_from_msg(msg, self.scenario, self.platform_ids)
-        if snap.epoch <= self.last_decided:
-            return self.ignore("old_state")
-        states = self.platforms.setdefault(snap.epoch, {})
-        if snap.platform_id in states:
-            raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
-        states[snap.platform_id] = snap
-        while len(self.platforms) > STATE_WINDOW:  # a late joiner's replayed history: bounded
-            del self.platforms[min(self.platforms)]
-            self.ignore("evicted_states")
-        self.try_decide()
+        if self.platforms.add(msg, self.last_decided):
+            self.try_decide()
 
     def try_decide(self) -> None:
         if self.tracks is None:
             return
         k = self.tracks.epoch
-        states = self.platforms.get(k, {})
-        if (
-            k <= self.last_decided
-            or k >= self.scenario.steps
-            or len(states) < len(self.platform_ids)
-        ):
+        ordered = self.platforms.complete(k)
+        if k <= self.last_decided or k >= self.scenario.steps or ordered is None:
             return
-        ordered = [states[p.id] for p in self.scenario.platforms]
         decision = self.core.decide(k, self.tracks, ordered)
         self.last_decided = k
-        for e in [e for e in self.platforms if e <= k]:
-            del self.platforms[e]
+        self.platforms.decided(k)
         hdr = header(k * self.scenario.dt, self.frame_id)
         for c in decision.commands:
             self.command_pub.publish(command_msg(c, hdr))

@@ -39,10 +39,9 @@ class PlannerNode(GraphNode):
         self.use_scenario(self.scenario)
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[2]
         self.core = PlannerCore(self.scenario, rng)
-        self.platform_ids = {p.id for p in self.scenario.platforms}
         self.check_track = TrackChecker(self.scenario)
         self.track: TrackSnapshot | None = None
-        self.platforms: dict[int, dict[str, PlatformSnapshot]] = {}
+        self.platforms = AwaitedStates(self, self.scenario)
         self.last_decided = -1
 
         self.command_pub = self.publisher(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS)
@@ -63,34 +62,19 @@ class PlannerNode(GraphNode):
         self.try_decide()
 
     def on_platform(self, msg: PlatformState) -> None:
-        snap = platform_from_msg(msg, self.scenario, self.platform_ids)
-        if snap.epoch <= self.last_decided:
-            return self.ignore("old_state")  # a latched state already planned for
-        states = self.platforms.setdefault(snap.epoch, {})
-        if snap.platform_id in states:
-            raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
-        states[snap.platform_id] = snap
-        while len(self.platforms) > STATE_WINDOW:  # a late joiner's replayed history: bounded
-            del self.platforms[min(self.platforms)]
-            self.ignore("evicted_states")
-        self.try_decide()
+        if self.platforms.add(msg, self.last_decided):
+            self.try_decide()
 
     def try_decide(self) -> None:
         if self.track is None:
             return
         k = self.track.epoch
-        states = self.platforms.get(k, {})
-        if (
-            k <= self.last_decided
-            or k >= self.scenario.steps
-            or len(states) < len(self.platform_ids)
-        ):
+        ordered = self.platforms.complete(k)
+        if k <= self.last_decided or k >= self.scenario.steps or ordered is None:
             return
-        ordered = [states[p.id] for p in self.scenario.platforms]
         decision = self.core.decide(k, self.track, ordered)
         self.last_decided = k
-        for e in [e for e in self.platforms if e <= k]:
-            del self.platforms[e]
+        self.platforms.decided(k)
         hdr = header(k * self.scenario.dt, self.frame_id)
         for c in decision.commands:
             self.command_pub.publish(command_msg(c, hdr))
@@ -113,6 +97,46 @@ class PlannerNode(GraphNode):
                 hdr, "activetrack/planner_node", self.scenario.name, f"decided epoch {k}"
             )
         )
+
+
+class AwaitedStates:
+    """Platform states by epoch, kept until the planner has decided for their epoch: a state
+    of an epoch already decided is ignored (a latched state replayed), a second one for a
+    platform and epoch rejected, and at most STATE_WINDOW epochs kept (a late joiner's
+    replayed history, oldest evicted first)."""
+
+    def __init__(self, node, scenario):
+        self.node = node
+        self.scenario = scenario
+        self.platform_ids = {p.id for p in scenario.platforms}
+        self.by_epoch: dict[int, dict[str, PlatformSnapshot]] = {}
+
+    def add(self, msg: PlatformState, last_decided: int) -> bool:
+        """Take a state; False when it is not news (counted as ignored)."""
+        snap = platform_from_msg(msg, self.scenario, self.platform_ids)
+        if snap.epoch <= last_decided:
+            self.node.ignore("old_state")
+            return False
+        states = self.by_epoch.setdefault(snap.epoch, {})
+        if snap.platform_id in states:
+            raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
+        states[snap.platform_id] = snap
+        while len(self.by_epoch) > STATE_WINDOW:
+            del self.by_epoch[min(self.by_epoch)]
+            self.node.ignore("evicted_states")
+        return True
+
+    def complete(self, k: int) -> list[PlatformSnapshot] | None:
+        """Every platform's state of epoch k in scenario order, or None while one is missing."""
+        states = self.by_epoch.get(k, {})
+        if len(states) < len(self.platform_ids):
+            return None
+        return [states[p.id] for p in self.scenario.platforms]
+
+    def decided(self, k: int) -> None:
+        """Drop the states of epochs up to k."""
+        for e in [e for e in self.by_epoch if e <= k]:
+            del self.by_epoch[e]
 
 
 def command_msg(c: Command, hdr) -> ManoeuvreCommand:

@@ -28,7 +28,7 @@ from activetrack.scenarios.build import build_scan_sensors
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import check_epoch_stamp, header
 from activetrack_ros.convert_multi import beam_from_msg, scan_msg, truth_array_msg
-from activetrack_ros.frames import planar_transform, platform_frame, sensor_frame, truth_frame
+from activetrack_ros.frames import planar_transform, platform_frame, truth_frame
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import (
@@ -41,7 +41,14 @@ from msgs_defs.msg import (
     Scan,
     TrackArray,
 )
-from sim_node.sim_node import PARAMS, command_from_msg, platform_state_msgs
+from sim_node.sim_node import (
+    PARAMS,
+    check_lockstep_epoch,
+    command_from_msg,
+    platform_state_msgs,
+    sim_diagnostics,
+    static_frames,
+)
 
 # The single-target sim's parameters but its free-mode rate (multi-target runs are lockstep).
 MULTI_PARAMS = tuple(p for p in PARAMS if p.name != "rate")
@@ -53,12 +60,7 @@ class MultiSimNode(GraphNode):
         changes = {"command_timeout": self._set_timeout, "exit_when_done": self._set_exit}
         p = self.declare_params(MULTI_PARAMS, changes)
         self.scenario = load_scenario(p["scenario"])
-        self.use_scenario(self.scenario, multi_target=True)
-        if p["mode"] != "lockstep":
-            raise ValueError(
-                "parameter 'mode' must be 'lockstep' for a multi-target scenario (free mode "
-                "runs single-target scenarios only)"
-            )
+        self.use_scenario(self.scenario, multi_target=True, mode=p["mode"])
         self.timeout = p["command_timeout"]
         self.exit_when_done = p["exit_when_done"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[0]
@@ -95,10 +97,7 @@ class MultiSimNode(GraphNode):
     # --- inputs --------------------------------------------------------------------------
 
     def _check_epoch(self, epoch: int, what: str) -> None:
-        if epoch < self.sim.epoch:
-            raise Rejected("stale_epoch", f"{what} for epoch {epoch} < {self.sim.epoch}")
-        if epoch > self.sim.epoch:
-            raise Rejected("future_epoch", f"{what} for epoch {epoch} > {self.sim.epoch}")
+        check_lockstep_epoch(epoch, self.sim.epoch, what)
 
     def on_command(self, msg: ManoeuvreCommand) -> None:
         cmd = command_from_msg(msg, self.scenario, self.sim)
@@ -212,20 +211,10 @@ class MultiSimNode(GraphNode):
         self.tf_pub.publish(TFMessage(transforms=transforms))
 
     def publish_static_frames(self) -> None:
-        """Each sensor at its platform's origin, latched on tf_static (one message)."""
-        transforms = [
-            planar_transform(header(0.0, platform_frame(p.id)), sensor_frame(s.id), 0, 0, 0)
-            for p in self.scenario.platforms
-            for s in p.sensors
-        ]
-        self.tf_static_pub.publish(TFMessage(transforms=transforms))
+        self.tf_static_pub.publish(static_frames(self.scenario))
 
     def publish_diagnostics(self, finished: bool = False) -> None:
-        message = "finished" if finished else f"epoch {self.sim.epoch}/{self.scenario.steps}"
-        hdr = header(self.sim.time, self.frame_id)
-        self.diag_pub.publish(
-            self.diagnostics_array(hdr, "activetrack/sim_node", self.scenario.name, message)
-        )
+        self.diag_pub.publish(sim_diagnostics(self, finished))
 
 
 def main(args=None):

@@ -149,12 +149,8 @@ class SimNode(GraphNode):
     # --- inputs --------------------------------------------------------------------------
 
     def _check_epoch(self, epoch: int, what: str) -> None:
-        if self.mode != "lockstep":
-            return
-        if epoch < self.sim.epoch:
-            raise Rejected("stale_epoch", f"{what} for epoch {epoch} < {self.sim.epoch}")
-        if epoch > self.sim.epoch:
-            raise Rejected("future_epoch", f"{what} for epoch {epoch} > {self.sim.epoch}")
+        if self.mode == "lockstep":
+            check_lockstep_epoch(epoch, self.sim.epoch, what)
 
     def on_command(self, msg: ManoeuvreCommand) -> None:
         cmd = command_from_msg(msg, self.scenario, self.sim)
@@ -293,13 +289,7 @@ class SimNode(GraphNode):
         self.tf_pub.publish(TFMessage(transforms=transforms))
 
     def publish_static_frames(self) -> None:
-        """Each sensor at its platform's origin, latched on tf_static (one message)."""
-        transforms = [
-            planar_transform(header(0.0, platform_frame(p.id)), sensor_frame(s.id), 0, 0, 0)
-            for p in self.scenario.platforms
-            for s in p.sensors
-        ]
-        self.tf_static_pub.publish(TFMessage(transforms=transforms))
+        self.tf_static_pub.publish(static_frames(self.scenario))
 
     def publish_measurement(self, m, epoch: int, t: float, count: int) -> None:
         platform_id = self.sim.sensors[m.sensor_id][0]
@@ -370,11 +360,33 @@ class SimNode(GraphNode):
         self.marker_pub.publish(array)
 
     def publish_diagnostics(self, finished: bool = False) -> None:
-        message = "finished" if finished else f"epoch {self.sim.epoch}/{self.scenario.steps}"
-        hdr = header(self.sim.time, self.frame_id)
-        self.diag_pub.publish(
-            self.diagnostics_array(hdr, "activetrack/sim_node", self.scenario.name, message)
-        )
+        self.diag_pub.publish(sim_diagnostics(self, finished))
+
+
+def check_lockstep_epoch(epoch: int, current: int, what: str) -> None:
+    """Lockstep: an answer must be of the sim's current epoch (Rejected otherwise)."""
+    if epoch < current:
+        raise Rejected("stale_epoch", f"{what} for epoch {epoch} < {current}")
+    if epoch > current:
+        raise Rejected("future_epoch", f"{what} for epoch {epoch} > {current}")
+
+
+def static_frames(scenario) -> TFMessage:
+    """Each sensor at its platform's origin (tf_static, one message)."""
+    transforms = [
+        planar_transform(header(0.0, platform_frame(p.id)), sensor_frame(s.id), 0, 0, 0)
+        for p in scenario.platforms
+        for s in p.sensors
+    ]
+    return TFMessage(transforms=transforms)
+
+
+def sim_diagnostics(node, finished: bool) -> DiagnosticArray:
+    """A sim node's status: its epoch (or finished) and its counters."""
+    sim, scenario = node.sim, node.scenario
+    message = "finished" if finished else f"epoch {sim.epoch}/{scenario.steps}"
+    hdr = header(sim.time, node.frame_id)
+    return node.diagnostics_array(hdr, "activetrack/sim_node", scenario.name, message)
 
 
 def command_from_msg(msg: ManoeuvreCommand, scenario, sim: Simulator) -> Command:

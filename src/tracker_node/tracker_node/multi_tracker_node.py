@@ -33,7 +33,7 @@ from activetrack_ros.params import COMMON
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import PlatformState, TrackArray
 from msgs_defs.msg import Scan as ScanMsg
-from tracker_node.tracker_node import PARAMS, POSITION_TOLERANCE
+from tracker_node.tracker_node import PARAMS, note_incomplete, where_their_platforms_are
 
 MULTI_PARAMS = (*COMMON, *(p for p in PARAMS if p.name == "epoch_timeout"))
 CONFIRMED_RGBA = (0.9, 0.1, 0.1, 1.0)
@@ -54,12 +54,7 @@ class MultiTrackerNode(GraphNode):
         super().__init__("multi_tracker_node", **kwargs)
         p = self.declare_params(MULTI_PARAMS, {"epoch_timeout": self._set_epoch_timeout})
         self.scenario = load_scenario(p["scenario"])
-        self.use_scenario(self.scenario, multi_target=True)
-        if p["mode"] != "lockstep":
-            raise ValueError(
-                "parameter 'mode' must be 'lockstep' for a multi-target scenario (free mode "
-                "runs single-target scenarios only)"
-            )
+        self.use_scenario(self.scenario, multi_target=True, mode=p["mode"])
         self.epoch_timeout = p["epoch_timeout"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[1]
         self.core = MultiTargetTracker(self.scenario, rng)
@@ -131,24 +126,12 @@ class MultiTrackerNode(GraphNode):
     def process(self, k: int, complete: bool) -> None:
         epoch = self.epochs.pop(k)
         if not complete:
-            self.counters.count("incomplete_epochs")
-            self.log_limited(
-                "warning",
-                "incomplete",
-                f"epoch {k} closed incomplete after {time.monotonic() - epoch.opened:.2f} s: "
-                f"{len(epoch.scans)} scans, states of {sorted(epoch.states)}",
-            )
-        used = []
-        for scan in sorted(epoch.scans.values(), key=lambda s: self.sensor_order[s.sensor_id]):
-            state = epoch.states.get(self.sensors[scan.sensor_id][0])
-            if state is not None and not np.allclose(
-                scan.sensor_pv, state.pv, rtol=0, atol=POSITION_TOLERANCE
-            ):
-                self.reject(
-                    "inconsistent", f"{scan.sensor_id!r} at {k} is not where its platform is"
-                )
-                continue
-            used.append(scan)
+            what = f"{len(epoch.scans)} scans, states of {sorted(epoch.states)}"
+            note_incomplete(self, k, epoch.opened, what)
+        ordered = sorted(epoch.scans.values(), key=lambda s: self.sensor_order[s.sensor_id])
+        used = where_their_platforms_are(
+            self, k, ordered, epoch.states, lambda s: s.sensor_pv, lambda i: self.sensors[i][0]
+        )
         tracks = self.core.step(k, k * self.scenario.dt, used)
         self.last_epoch = k
         self.counters.count("updates")

@@ -199,22 +199,12 @@ class TrackerNode(GraphNode):
     def process(self, k: int, complete: bool) -> None:
         epoch = self.epochs.pop(k)
         if not complete:
-            self.counters.count("incomplete_epochs")
-            self.log_limited(
-                "warning",
-                "incomplete",
-                f"epoch {k} closed incomplete after {time.monotonic() - epoch.opened:.2f} s: "
-                f"{len(epoch.measurements)} measurements, states of {sorted(epoch.states)}",
-            )
-        used = []
-        for m in sorted(epoch.measurements.values(), key=lambda m: self.sensor_order[m.sensor_id]):
-            state = epoch.states.get(self.owner[m.sensor_id])
-            if state is not None and not np.allclose(
-                m.sensor_state, state.pv, rtol=0, atol=POSITION_TOLERANCE
-            ):
-                self.reject("inconsistent", f"{m.sensor_id!r} at {k} is not where its platform is")
-                continue
-            used.append(m)
+            what = f"{len(epoch.measurements)} measurements, states of {sorted(epoch.states)}"
+            note_incomplete(self, k, epoch.opened, what)
+        ordered = sorted(epoch.measurements.values(), key=lambda m: self.sensor_order[m.sensor_id])
+        used = where_their_platforms_are(
+            self, k, ordered, epoch.states, lambda m: m.sensor_state, self.owner.__getitem__
+        )
         snapshot = self.core.step(k, k * self.scenario.dt, used)
         self.last_epoch = k
         for e in [e for e in self.epochs if e <= k]:
@@ -280,6 +270,32 @@ class TrackerNode(GraphNode):
         self.diag_pub.publish(
             self.diagnostics_array(hdr, "activetrack/tracker_node", self.scenario.name, message)
         )
+
+
+def where_their_platforms_are(node, k: int, items, states, sensor_pv, owner) -> list:
+    """The epoch's ``items`` (measurements or scans) whose sensor position ``sensor_pv(item)``
+    is its platform's announced one (``states``: platform id -> state; ``owner``: sensor id
+    -> platform id); each other one is rejected (counted and logged) as inconsistent."""
+    kept = []
+    for item in items:
+        state = states.get(owner(item.sensor_id))
+        if state is not None and not np.allclose(
+            sensor_pv(item), state.pv, rtol=0, atol=POSITION_TOLERANCE
+        ):
+            node.reject("inconsistent", f"{item.sensor_id!r} at {k} is not where its platform is")
+            continue
+        kept.append(item)
+    return kept
+
+
+def note_incomplete(node, k: int, opened: float, what: str) -> None:
+    """An epoch closed before all it announced arrived: counted and logged (rate-limited)."""
+    node.counters.count("incomplete_epochs")
+    node.log_limited(
+        "warning",
+        "incomplete",
+        f"epoch {k} closed incomplete after {time.monotonic() - opened:.2f} s: {what}",
+    )
 
 
 def main(args=None):
