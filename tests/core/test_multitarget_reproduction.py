@@ -1,10 +1,11 @@
-"""``activetrack reproduce multitarget`` on scenario (a), six seeded runs per strategy.
+"""``activetrack reproduce multitarget`` on the three scenarios, six seeded runs per strategy.
 
 The issue's criterion (>= 20 % lower time-averaged GOSPA than both baselines over 100 runs) is
-judged by the reproduction command; over 100 runs scenario (a) gave 18.4 % against hold course
-and 16.2 % against random assignment (docs/multitarget.md). Here the same six seeded runs of
-each strategy must keep the planner's figures: its GOSPA below both baselines' by a clear
-margin on these paired runs (measured: 71.9 m against 102.3 m and 122.7 m)."""
+judged by the reproduction command (docs/multitarget.md has the 100-run figures: met on (a),
+27.3 % and 22.8 %; not on (b), where holding course beats the planner's manoeuvres by 17.7 %,
+nor on (c), 4.7 % and 10.1 %). Here the same six seeded runs of each strategy must keep their
+figures (measured values in MEASURED), so that a change that moves them is seen; on (a) the
+planner beats both baselines by more than 20 % on these runs too."""
 
 from __future__ import annotations
 
@@ -12,23 +13,47 @@ import pytest
 
 from activetrack_experiments import multitarget
 
+RUNS = 6
+# GOSPA [m] of planner, hold_course, random_assignment on runs 0-5 (measured).
+MEASURED = {
+    "mt_bearings_crossing": (53.03, 118.38, 122.71),
+    "mt_radars_beams": (69.70, 77.46, 227.80),
+    "mt_appear_disappear": (72.04, 75.25, 79.34),
+}
+
 
 @pytest.fixture(scope="module")
 def result():
-    return multitarget.reproduce(6, scenarios=("mt_bearings_crossing",), jobs=2)
+    return multitarget.reproduce(RUNS, jobs=2)
+
+
+@pytest.mark.parametrize("name", sorted(MEASURED))
+def test_each_strategy_keeps_its_figures(result, name):
+    sc = next(s for s in result.scenarios if s.name == name)
+    got = tuple(sc.mean(strategy) for strategy in multitarget.STRATEGIES)
+    assert got == pytest.approx(MEASURED[name], rel=0.02)
 
 
 def test_the_planner_beats_both_baselines_on_scenario_a(result):
     sc = result.scenarios[0]
-    assert sc.mean("planner") == pytest.approx(71.9, rel=0.02)
+    assert sc.name == "mt_bearings_crossing"
     assert sc.improvement("hold_course") > 0.2
-    assert sc.improvement("random_assignment") > 0.3
+    assert sc.improvement("random_assignment") > 0.2
     assert sc.summaries["planner"].breaks == 0.0
+
+
+def test_random_beams_lose_targets_on_scenario_b(result):
+    """Five targets, three beams: pointing them at random loses tracks (breaks) that the MRE
+    assignment keeps."""
+    sc = result.scenarios[1]
+    assert sc.improvement("random_assignment") > 0.3
+    planner, rand = sc.summaries["planner"], sc.summaries["random_assignment"]
+    assert rand.breaks > planner.breaks
 
 
 def test_the_report_states_the_verdict(result):
     text = multitarget.format_report(result)
     assert "mt_bearings_crossing" in text and "hold_course" in text
-    assert "smallest improvement of the planner over a baseline: 29.7% (meets" in text
+    assert "(MISSES the 20% target)" in text
     rows = result.table()
-    assert [r["strategy"] for r in rows] == list(multitarget.STRATEGIES)
+    assert [r["strategy"] for r in rows] == list(multitarget.STRATEGIES) * 3
