@@ -352,7 +352,7 @@ class ForeignNode(Node):
         self.seen.setdefault(msg_type, []).append(bytes(data))
         msg = deserialize_message(data, msg_type)
         self.latest[msg_type] = msg
-        if msg_type is TrackEstimate and msg.epoch == self.at_epoch:
+        if msg_type is TrackEstimate and msg.epoch >= self.at_epoch:
             self.fire(msg.epoch)
 
     def publish(self, msg_type, msg) -> None:
@@ -372,11 +372,16 @@ class ForeignNode(Node):
         self.sent[msg_type.__name__] += 1
 
     def fire(self, epoch: int) -> None:
-        self.fired = True
+        """Publish every category (at the next track instead, if a genuine message a
+        category copies has not been seen yet: the executor may hand the track over first)."""
         ctx = Context(epoch, self.dt, self.latest, self.seen, self.rng)
-        for cat in self.categories:
-            for msg in cat.build(ctx, cat.msg_type):
-                self.publish(cat.msg_type, msg)
+        try:
+            built = [(c.msg_type, m) for c in self.categories for m in c.build(ctx, c.msg_type)]
+        except KeyError:
+            return
+        self.fired = True
+        for msg_type, msg in built:
+            self.publish(msg_type, msg)
         for msg_type, pool in self.pools.items():
             for data in pool:
                 self.publish(msg_type, data)
