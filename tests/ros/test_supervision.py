@@ -154,8 +154,9 @@ def _start(tmp_path: Path, *extra: str):
     return proc, out, scenario.name
 
 
-def _tracks_on_disk(bag: Path) -> int:
-    """Tracks the recorder has flushed, from the metadata.yaml it keeps current."""
+def _on_disk(bag: Path, topic: str = "/activetrack/track") -> int:
+    """Messages of ``topic`` the recorder has flushed, from the metadata.yaml it keeps
+    current."""
     try:
         meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     except (OSError, yaml.YAMLError, KeyError, TypeError):
@@ -164,15 +165,18 @@ def _tracks_on_disk(bag: Path) -> int:
         t["topic_metadata"]["name"]: t["message_count"]
         for t in meta.get("topics_with_message_count") or []
     }
-    return counts.get("/activetrack/track", 0)
+    return counts.get(topic, 0)
 
 
 def _wait_until_running(proc, out: Path, timeout: float = 60):
-    """Until the run is a few epochs in (three tracks recorded and flushed)."""
+    """Until the run is a few epochs in for the runner too: three tracks and three truths
+    recorded and flushed (between processes the runner's participant may hear of the sim one
+    discovery announcement, about 3 s, after the tracker does; until then it has no epoch)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         assert proc.poll() is None, proc.communicate()[0]
-        if _tracks_on_disk(out / "bag") >= 3:
+        bag = out / "bag"
+        if _on_disk(bag) >= 3 and _on_disk(bag, "/activetrack/ground_truth") >= 3:
             return
         time.sleep(0.05)
     raise AssertionError("the run did not start")
