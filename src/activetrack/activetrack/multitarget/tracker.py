@@ -70,6 +70,7 @@ from activetrack.multitarget.tracks import (
     TrackManager,
     existence_update,
 )
+from activetrack.planning.assignment import sector_coverage
 from activetrack.scenarios.build import build_motion_model, build_scan_sensors
 from activetrack.scenarios.schema import Scenario
 
@@ -79,7 +80,6 @@ FILTERS = ("ekf", "pf")
 # Sensor kinds whose detections start tracks (they fix a position: the inverse measurement).
 INITIATING_KINDS = ("range_bearing",)
 _XY = np.ix_([0, 2], [0, 2])
-_erf = np.vectorize(math.erf, otypes=[float])
 
 
 @dataclass(frozen=True)
@@ -367,19 +367,12 @@ def _fov_coverage(
     means: FloatArray, covs: FloatArray, fov: FieldOfView, s: FloatArray
 ) -> FloatArray:
     """Probability ``(T,)`` that each track's target N(mean, cov) lies in the bearing sector
-    of ``fov`` seen from ``s`` (linearised bearing, variance ``h P h^T``, h = (-dy, 0, dx, 0) /
-    r^2, as :func:`activetrack.planning.assignment.beam_coverage` for a beam centred on the
-    track); 1 all around. The ranges are not counted."""
+    of ``fov`` seen from ``s`` (:func:`activetrack.planning.assignment.sector_coverage`); 1
+    all around. The ranges are not counted."""
     if fov.width >= 2.0 * math.pi:
         return np.ones(means.shape[0])
-    dx, dy = means[:, 0] - s[0], means[:, 2] - s[2]
-    r2 = np.maximum(dx * dx + dy * dy, 1e-300)
-    z = np.zeros_like(dx)
-    h = np.stack([-dy / r2, z, dx / r2, z], axis=-1)
-    sigma = np.sqrt(np.maximum(np.einsum("ti,tij,tj->t", h, covs, h), 1e-300)) * math.sqrt(2.0)
-    off = np.angle(np.exp(1j * (np.arctan2(dy, dx) - fov.centre)))
-    half = 0.5 * fov.width
-    return np.asarray(0.5 * (_erf((half - off) / sigma) + _erf((half + off) / sigma)), dtype=float)
+    off = np.angle(np.exp(1j * (np.arctan2(means[:, 2] - s[2], means[:, 0] - s[0]) - fov.centre)))
+    return sector_coverage(fov.width, off, means, covs, s)
 
 
 def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
