@@ -16,6 +16,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from activetrack.closed_loop.batch import component_rngs
+from activetrack.multitarget.evaluation import evaluate_run
 from activetrack.multitarget.loop import run_multi_batch, run_multi_once
 from activetrack.multitarget.simulator import MultiTargetSimulator
 from activetrack.scenarios import load_scenario
@@ -198,3 +199,16 @@ def test_bad_scans_are_rejected_counted_and_the_tracker_keeps_running(graph, tmp
     assert counts.get("updates") == 3
     assert counts.get("detections") == detections > 0
     assert not any(k.startswith("errors.") for k in counts)
+
+
+def test_a_monte_carlo_run_index_is_that_run_of_the_batch(tmp_path):
+    """``--run r``: the graph draws every generator of run r, the evaluator's (the sampled
+    per-target bound) included."""
+    path = _short(tmp_path, "mt_bearings_crossing", 5)
+    scenario = load_scenario(path)
+    result = run_graph(path, run_dir=tmp_path / "run", plots=False, run=2)
+    batch = run_multi_once(scenario, 2)
+    _assert_bit_for_bit(result.summary.records[0], batch)
+    want = evaluate_run(scenario, batch, component_rngs(scenario.seed, 2)[3])
+    assert result.summary.run_gospa == [want.mean_gospa]
+    assert result.summary.target_bound == [float(b) for b in want.target_bound]

@@ -340,7 +340,8 @@ class _GraphRunner:
         complete = self.status == "complete"
         last = scenario.steps if complete else evaluator.completed_epochs()
         partial = scenario if complete else scenario.model_copy(update={"steps": max(last, 0)})
-        summary = _summary(partial, evaluator.record(wall, last), wall) if last >= 1 else None
+        record = evaluator.record(wall, last) if last >= 1 else None
+        summary = _summary(partial, record, wall, self.opts.run) if record is not None else None
         diagnostics = self.diagnostics()
         result = GraphRun(
             summary=summary,
@@ -363,13 +364,13 @@ class _GraphRunner:
         return result
 
 
-def _summary(scenario, record, wall: float):
+def _summary(scenario, record, wall: float, run: int | None):
     """A run's summary with the batch loop's code: ``summarize`` of one target, or the
-    multi-target evaluation (GOSPA, breaks, swaps, per-target RMSE and bound) drawn from the
-    evaluator generator as ``run_multi_batch`` draws it."""
+    multi-target evaluation (GOSPA, breaks, swaps, per-target RMSE and bound) drawn from run
+    ``run``'s evaluator generator, as ``run_multi_batch`` draws it."""
     if not scenario.multi_target:
         return summarize(scenario, [record], wall)
-    evaluation = evaluate_run(scenario, record, component_rngs(scenario.seed, None)[3])
+    evaluation = evaluate_run(scenario, record, component_rngs(scenario.seed, run)[3])
     return summarize_multi(scenario, [record], [evaluation], wall)
 
 
