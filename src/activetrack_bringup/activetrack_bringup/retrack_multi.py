@@ -95,12 +95,17 @@ def _last_epoch(scenario, messages, bag) -> int:
             f"are not scenario {scenario.name}'s ({sorted(sensors)}, {sorted(platforms)}): "
             "wrong --scenario?"
         )
+    states: dict[int, list] = {}
+    scans: dict[int, int] = {}
+    for m, _ in messages[topics.PLATFORM_STATES]:
+        states.setdefault(m.epoch, []).append(m)
+    for m, _ in messages[topics.SCANS]:
+        scans[m.epoch] = scans.get(m.epoch, 0) + 1
     last = 0
     for k in range(1, scenario.steps + 1):
-        states = [m for m, _ in messages[topics.PLATFORM_STATES] if m.epoch == k]
-        scans = [m for m, _ in messages[topics.SCANS] if m.epoch == k]
-        announced = max((m.epoch_measurement_count for m in states), default=0)
-        if {m.platform_id for m in states} != platforms or len(scans) < announced:
+        got = states.get(k, [])
+        announced = max((m.epoch_measurement_count for m in got), default=0)
+        if {m.platform_id for m in got} != platforms or scans.get(k, 0) < announced:
             break
         last = k
     if last == 0:

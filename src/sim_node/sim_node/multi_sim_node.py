@@ -21,7 +21,7 @@ from tf2_msgs.msg import TFMessage
 
 from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.data import Command
-from activetrack.multitarget.data import BeamCommand
+from activetrack.multitarget.data import BeamCommand, TruthSet
 from activetrack.multitarget.simulator import MultiTargetSimulator
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.build import build_scan_sensors
@@ -184,7 +184,8 @@ class MultiSimNode(GraphNode):
     def publish_epoch(self, scans) -> None:
         t = self.sim.time
         self.clock_pub.publish(Clock(clock=header(t, self.frame_id).stamp))
-        self.truth_pub.publish(truth_array_msg(self.sim.truth_set(), self.frame_id))
+        truth = self.sim.truth_set()
+        self.truth_pub.publish(truth_array_msg(truth, self.frame_id))
         for scan in scans:
             self.scan_pub.publish(
                 scan_msg(scan, self.scenario, len(scans), self.frame_id, self.sensors)
@@ -194,17 +195,16 @@ class MultiSimNode(GraphNode):
         for msg in platform_state_msgs(self.sim, len(scans), self.frame_id):
             self.platform_pub.publish(msg)
         self.counters.count("epochs_published")
-        self.publish_frames(t)
+        self.publish_frames(t, truth)
         self.publish_diagnostics()
 
-    def publish_frames(self, t: float) -> None:
+    def publish_frames(self, t: float, truth: TruthSet) -> None:
         """Platforms and each alive target's truth in the fixed frame (docs/frames.md)."""
         hdr = header(t, self.frame_id)
         transforms = [
             planar_transform(hdr, platform_frame(s.platform_id), s.pv[0], s.pv[2], s.heading)
             for s in self.sim.platform_snapshots()
         ]
-        truth = self.sim.truth_set()
         for target_id, pv in zip(truth.ids, truth.pv, strict=True):
             course = math.atan2(pv[3], pv[1])
             transforms.append(planar_transform(hdr, truth_frame(target_id), pv[0], pv[2], course))
