@@ -85,13 +85,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if live is not None:
             live.stop()
     mode = "processes" if args.processes else "one process"
-    if result.summary is not None and hasattr(result.summary, "gospa_t"):  # multi-target
-        from activetrack.scenarios import load_scenario
+    if result.summary is not None:
+        if hasattr(result.summary, "gospa_t"):  # a multi-target run's MultiBatchSummary
+            from activetrack.scenarios import load_scenario
 
-        _print_multi_summary(result.summary, load_scenario(args.scenario))
-        print(f"  decisions  {len(result.summary.records[0].decisions)}")
-    elif result.summary is not None:
-        _print_summary(result.summary)
+            _print_multi_summary(result.summary, load_scenario(args.scenario))
+        else:
+            _print_summary(result.summary)
         print(f"  decisions  {len(result.summary.records[0].decisions)}")
     if not result.complete:
         print(
