@@ -86,9 +86,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
             live.stop()
     mode = "processes" if args.processes else "one process"
     if result.summary is not None:
-        if hasattr(result.summary, "gospa_t"):  # a multi-target run's MultiBatchSummary
-            from activetrack.scenarios import load_scenario
+        from activetrack.multitarget.loop import MultiBatchSummary  # loaded by the runner
+        from activetrack.scenarios import load_scenario
 
+        if isinstance(result.summary, MultiBatchSummary):
             _print_multi_summary(result.summary, load_scenario(args.scenario))
         else:
             _print_summary(result.summary)
