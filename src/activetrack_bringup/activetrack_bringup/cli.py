@@ -1,9 +1,10 @@
 """The ``activetrack`` command line.
 
 activetrack run SCENARIO [--processes] [--mode lockstep|free] [--json PATH]
-                [--foxglove [--port P] [--host H]]
+                [--foxglove [--port P] [--host H]] [--nodes [NAME ...]]
                                         the ROS node graph, closed loop, with a run folder
-                                        (and a live view in Foxglove)
+                                        (and a live view in Foxglove; --nodes: only these
+                                        node processes here, the others on other hosts)
 activetrack batch SCENARIO [--runs N] [--json PATH]
                                         the same closed loop without ROS (the reference)
 activetrack record BAG [--topics T ...] [--duration S]
@@ -64,7 +65,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             args.scenario,
             run=args.run,
             mode=args.mode,
-            processes=args.processes,
+            processes=args.processes or args.nodes is not None,
             run_dir=args.out,
             record=not args.no_bag,
             plots=not args.no_plots,
@@ -72,6 +73,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             **hook,
             **view,
             namespace=args.namespace,
+            nodes=args.nodes,
         )
         code = 0
     except (ScenarioError, FileExistsError, GraphSetupError) as exc:
@@ -84,7 +86,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         bar.close()
         if live is not None:
             live.stop()
-    mode = "processes" if args.processes else "one process"
+    mode = "processes" if args.processes or args.nodes is not None else "one process"
     if result.summary is not None:
         from activetrack.multitarget.loop import MultiBatchSummary  # loaded by the runner
         from activetrack.scenarios import load_scenario
@@ -129,10 +131,12 @@ def _start_live_view(args: argparse.Namespace):
             raise ValueError("--port, --host and --foxglove-wait need --foxglove")
         return None, {}
     from activetrack_bringup import live_view
-    from activetrack_bringup.runner import check_namespace
+    from activetrack_bringup.runner import check_namespace, remote_key
     from activetrack_ros.trust import GraphKey
 
     namespace = check_namespace(args.namespace)
+    # The run's key: the view shows the graph's own messages only (other hosts': theirs).
+    key = remote_key(args.nodes) or GraphKey.generate()
     host = live_view.DEFAULT_HOST if args.host is None else args.host
     port = live_view.DEFAULT_PORT if args.port is None else args.port
     server = live_view.LiveServer(host, port, namespace=namespace)
@@ -147,7 +151,6 @@ def _start_live_view(args: argparse.Namespace):
     except BaseException:  # Ctrl-C while waiting
         server.stop()
         raise
-    key = GraphKey.generate()  # the run's key: the view shows the graph's own messages only
     return server, {"graph_key": key, "before_spin": live_view.attach(server, key, namespace)}
 
 
@@ -449,6 +452,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument(
         "--namespace", default="", help="ROS namespace of the graph (several graphs per domain)"
+    )
+    run.add_argument(
+        "--nodes",
+        nargs="*",
+        choices=("sim", "tracker", "planner"),
+        metavar="NAME",
+        help="start only these node processes here (sim, tracker, planner; none: evaluate "
+        "only), implies --processes; the others run on other hosts (docs/multi-host.md)",
     )
     run.add_argument("--out", help="run folder (default runs/<scenario>-<timestamp>)")
     run.add_argument("--no-bag", action="store_true", help="do not record the bag")

@@ -36,7 +36,7 @@ from activetrack_bringup.multi_evaluator import MultiEvaluatorNode
 from activetrack_bringup.run_folder import run_dir_for
 from activetrack_bringup.supervisor import NodeDied, Supervisor
 from activetrack_ros.graph import history_depth
-from activetrack_ros.trust import KEY_ENV, GraphKey
+from activetrack_ros.trust import KEY_BYTES, KEY_ENV, GraphKey
 from planner_node.multi_planner_node import MultiPlannerNode
 from planner_node.planner_node import PlannerNode
 from sim_node.multi_sim_node import MultiSimNode
@@ -45,6 +45,7 @@ from tracker_node.multi_tracker_node import MultiTrackerNode
 from tracker_node.tracker_node import TrackerNode
 
 NODES = {"sim": SimNode, "tracker": TrackerNode, "planner": PlannerNode}
+NODE_NAMES = tuple(NODES)  # the graph's nodes, as ``nodes`` (RunOptions) names them
 MULTI_NODES = {"sim": MultiSimNode, "tracker": MultiTrackerNode, "planner": MultiPlannerNode}
 
 # How long the evaluator waits for missing plan reports after the sim finished, with node
@@ -54,6 +55,10 @@ REPORT_GRACE_PROCESSES_S = 5.0
 
 class GraphSetupError(ValueError):
     """The run cannot start as asked (e.g. node processes that could not discover each other)."""
+
+
+class RemoteNodesMissing(RuntimeError):
+    """Nodes meant to run on other hosts did not join the graph in time."""
 
 
 class GraphFault(RuntimeError):
@@ -139,6 +144,52 @@ def check_namespace(namespace: str) -> str:
     return "/" + ns if ns else ""
 
 
+def remote_nodes(nodes: tuple[str, ...] | None) -> tuple[str, ...]:
+    """The graph's nodes that a runner starting the node processes ``nodes`` (None: all) does
+    not start: they run on other hosts."""
+    return () if nodes is None else tuple(n for n in NODE_NAMES if n not in nodes)
+
+
+def remote_key(nodes: tuple[str, ...] | None) -> GraphKey | None:
+    """The graph key of a run whose other nodes run on other hosts: ACTIVETRACK_GRAPH_KEY, the
+    same on every host (GraphSetupError if unset or malformed); None when every node runs
+    here (the run makes its own)."""
+    remote = remote_nodes(nodes)
+    if not remote:
+        return None
+    try:
+        key = GraphKey.from_environment()
+    except ValueError as exc:
+        raise GraphSetupError(str(exc)) from None
+    if key is None:
+        raise GraphSetupError(
+            f"the {' and '.join(remote)} node(s) run on another host: set {KEY_ENV} to the same "
+            f"{2 * KEY_BYTES} hex digits on every host "
+            "(e.g. python -c 'import secrets; print(secrets.token_hex(32))')"
+        )
+    return key
+
+
+def _check_remote(opts: RunOptions, key: GraphKey | None) -> GraphKey | None:
+    """Check ``nodes``. With nodes on other hosts the run shares their domain and graph key:
+    ROS_DOMAIN_ID must be set explicitly and the key given or in ACTIVETRACK_GRAPH_KEY; returns
+    the run's key (None: a fresh one)."""
+    if opts.nodes is None:
+        return key
+    unknown = sorted(set(opts.nodes) - set(NODE_NAMES))
+    if unknown:
+        raise GraphSetupError(f"unknown nodes {unknown}: the graph's are {', '.join(NODE_NAMES)}")
+    if not opts.processes:
+        raise GraphSetupError("choosing the nodes to start here (--nodes) needs --processes")
+    remote = remote_nodes(opts.nodes)
+    if remote and not os.environ.get("ROS_DOMAIN_ID", "").strip():
+        raise GraphSetupError(
+            f"the {' and '.join(remote)} node(s) run on another host: set ROS_DOMAIN_ID, the "
+            "same on every host"
+        )
+    return key or remote_key(opts.nodes)
+
+
 def default_run_dir(scenario_name: str) -> Path:
     return run_dir_for(scenario_name)
 
@@ -158,6 +209,7 @@ class RunOptions:
     during_spin: object = None
     restartable: tuple[str, ...] | None = None
     namespace: str = ""
+    nodes: tuple[str, ...] | None = None
 
 
 def run_graph(
@@ -175,8 +227,10 @@ def run_graph(
     in-process graph before it runs), ``during_spin(graph)`` (called between executor steps:
     fault-injection tests), ``restartable`` (node names, default the scenario's
     ``graph.restartable``), ``namespace`` (every node, the evaluator and the recorder in it:
-    several graphs share a domain). Raises RunIncomplete when the run stops early, ScenarioError,
-    FileExistsError or GraphSetupError before anything starts.
+    several graphs share a domain), ``nodes`` (with processes: the node processes started here,
+    default all; the others run on other hosts, docs/multi-host.md). Raises RunIncomplete when
+    the run stops early, ScenarioError, FileExistsError or GraphSetupError before anything
+    starts.
     """
     opts = RunOptions(**options)
     opts.namespace = check_namespace(opts.namespace)
@@ -191,6 +245,7 @@ def run_graph(
             "--processes needs DDS discovery between processes on this host, but "
             "ROS_AUTOMATIC_DISCOVERY_RANGE is OFF: set it to LOCALHOST (or unset it)"
         )
+    graph_key = _check_remote(opts, graph_key)
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name)
     bag_path = run_dir / "bag" if opts.record else None
     if bag_path is not None and bag_path.exists():
@@ -221,6 +276,7 @@ class _GraphRunner:
         self.opts = opts
         self.key = key
         self.params = _node_params(scenario_path, opts.run, opts.mode)
+        self.remote = remote_nodes(opts.nodes)  # started on other hosts, not here
         # The node processes' domain; in one process the context needs no domain of its own.
         self.domain = _domain_id() if opts.processes else None
         self.graph = InProcessGraph(domain_id=self.domain)
@@ -260,6 +316,8 @@ class _GraphRunner:
             self._end("node_died", str(exc), 1)
         except GraphFault as exc:
             self._end("graph_fault", f"the graph published invalid {exc}", 1)
+        except RemoteNodesMissing as exc:
+            self._end("timeout", str(exc), 1)
         finally:
             with interrupts.deferred():  # a second Ctrl-C must not leave the bag open
                 self._stop()
@@ -277,10 +335,12 @@ class _GraphRunner:
                 )
             )  # fmt: skip
         if o.processes:
+            self._await_remote()
             restartable = o.restartable or tuple(self.scenario.graph.restartable)
             self.supervisor = _start_processes(
                 self.params, o.sim_params, self.key, self.domain, restartable,
                 self.scenario.graph.max_restarts, o.namespace, self.scenario.multi_target,
+                NODE_NAMES if o.nodes is None else o.nodes,
             )  # fmt: skip
             graph.supervisor = self.supervisor  # for during_spin hooks (fault-injection tests)
         else:
@@ -292,6 +352,26 @@ class _GraphRunner:
             self.nodes["sim"] = graph.add(classes["sim"](**self._node_options(sim)))
         if o.before_spin is not None:
             o.before_spin(graph)
+
+    def _await_remote(self) -> None:
+        """Nodes on other hosts: wait until each has joined the graph (DDS discovery) before
+        starting ours, so that a lockstep sim here does not count its command timeout from
+        before the planner existed; RemoteNodesMissing after the run's timeout."""
+        if not self.remote:
+            return
+        prefix = "multi_" if self.scenario.multi_target else ""
+        namespace = self.opts.namespace or "/"
+        wanted = {(f"{prefix}{name}_node", namespace) for name in self.remote}
+
+        def joined() -> bool:
+            return wanted <= set(self.evaluator.get_node_names_and_namespaces())
+
+        if not self.graph.spin_until(joined, timeout=self.opts.timeout, step=0.05):
+            absent = sorted(wanted - set(self.evaluator.get_node_names_and_namespaces()))
+            raise RemoteNodesMissing(
+                f"the nodes {[name for name, _ in absent]} of other hosts did not join domain "
+                f"{self.domain} within {self.opts.timeout} s (docs/multi-host.md)"
+            )
 
     def _node_options(self, params: dict) -> dict:
         overrides = [Parameter(k, value=v) for k, v in params.items()]
@@ -428,19 +508,26 @@ def _start_processes(
     max_restarts: int,
     namespace,
     multi_target: bool = False,
+    names: tuple[str, ...] = NODE_NAMES,
 ) -> Supervisor:
-    """Each node as its own OS process (its console entry point, ``multi_*_node`` for a
-    multi-target scenario), talking over DDS on this host in the runner's domain; the
-    caller's environment is not changed."""  # fmt: skip
+    """The nodes ``names``, each as its own OS process (its console entry point,
+    ``multi_*_node`` for a multi-target scenario), talking over DDS in the runner's domain: on
+    this host only when it runs them all, else with the caller's discovery settings
+    (ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_STATIC_PEERS), which reach the other hosts. The caller's
+    environment is not changed."""  # fmt: skip
     env = dict(os.environ)
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
-    env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    env["ROS_DOMAIN_ID"] = str(domain)
+    if set(names) == set(NODE_NAMES):
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env[KEY_ENV] = key.hex()  # the environment, not a parameter: parameters are readable
     supervisor = Supervisor(
         env, max_restarts, log=lambda text: print(f"activetrack: {text}", file=sys.stderr)
     )
     prefix = "multi_" if multi_target else ""
     for name, extra in (("tracker", {}), ("planner", {}), ("sim", sim_params or {})):
+        if name not in names:
+            continue
         supervisor.add(
             f"{prefix}{name}_node", {**params[name], **extra}, restartable=name in restartable,
             namespace=namespace,
