@@ -49,6 +49,10 @@ class Hosts:
         lines = self.ip(host, "-o", "link", "show").splitlines()
         return {line.split(":")[1].strip().split("@")[0] for line in lines}
 
+    def flags(self, host: str) -> set[str]:
+        line = self.ip(host, "-o", "link", "show", "dev", self.dev[host])
+        return set(line.split("<", 1)[1].split(">", 1)[0].split(","))
+
     def bytes_received(self, host: str) -> int:
         return int(_ip("netns", "exec", self.ns[host], "cat", _rx_path(self.dev[host])))
 
@@ -201,6 +205,7 @@ def test_the_graph_on_two_hosts_equals_batch(two_hosts, tmp_path):
     variant, hosts = two_hosts
     for h in "ab":  # nowhere else for DDS to go: the loopback and the link
         assert hosts.interfaces(h) == {"lo", hosts.dev[h]}
+        assert {"UP", "MULTICAST"} <= hosts.flags(h)  # blocked, for static_peers, by sysctl
     received = {h: hosts.bytes_received(h) for h in "ab"}
     arrays, summary = _run_two_hosts(hosts, variant, tmp_path)
     batch = run_batch(load_scenario(SCENARIO), runs=1)
