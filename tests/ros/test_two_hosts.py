@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import secrets
 import shutil
 import signal
@@ -54,11 +55,8 @@ class Hosts:
         return set(line.split("<", 1)[1].split(">", 1)[0].split(","))
 
     def bytes_received(self, host: str) -> int:
-        return int(_ip("netns", "exec", self.ns[host], "cat", _rx_path(self.dev[host])))
-
-
-def _rx_path(dev: str) -> str:
-    return f"/sys/class/net/{dev}/statistics/rx_bytes"
+        (link,) = json.loads(self.ip(host, "-j", "-s", "link", "show", "dev", self.dev[host]))
+        return int(link["stats64"]["rx"]["bytes"])
 
 
 def _ip(*args: str) -> str:
@@ -79,9 +77,14 @@ def _probe() -> str | None:
     return None
 
 
+def _names(tag: str) -> dict[str, str]:
+    """The namespaces of a test run: ``at2h-<pid of the test process>-<tag>-<host>``."""
+    return {h: f"at2h-{os.getpid()}-{tag}-{h}" for h in "ab"}
+
+
 def _make_hosts(tag: str, multicast: bool) -> Hosts:
-    ns = {h: f"at-{tag}-{h}" for h in "ab"}
-    dev = {h: f"at{tag}{h}" for h in "ab"}  # at most 15 characters
+    ns = _names(tag)
+    dev = {h: f"at2h{tag}{h}" for h in "ab"}  # interface names: at most 15 characters
     hosts = Hosts(ns, dev)
     for h in "ab":
         _ip("netns", "add", ns[h])
@@ -92,15 +95,27 @@ def _make_hosts(tag: str, multicast: bool) -> Hosts:
         hosts.ip(h, "link", "set", "lo", "up")
         hosts.ip(h, "link", "set", dev[h], "up")
         if not multicast:  # no group can be joined: multicast discovery reaches nobody
-            _ip("netns", "exec", ns[h], "sysctl", "-qw", "net.ipv4.igmp_max_memberships=0")
+            no_groups = "echo 0 > /proc/sys/net/ipv4/igmp_max_memberships"
+            _ip("netns", "exec", ns[h], "sh", "-c", no_groups)
     return hosts
 
 
-def _remove_hosts(tag: str) -> None:
-    """Delete what _make_hosts made (the veth goes with its namespace), ignoring what is not
-    there."""
-    for h in "ab":
-        subprocess.run(["ip", "netns", "del", f"at-{tag}-{h}"], capture_output=True, timeout=10)
+def _remove_namespaces(names) -> None:
+    """Delete namespaces (a veth goes with its namespace), ignoring those not there."""
+    for name in names:
+        subprocess.run(["ip", "netns", "del", name], capture_output=True, timeout=10)
+
+
+def _remove_stale() -> None:
+    """The namespaces of earlier test runs that were killed before their clean-up (their
+    process is gone): nothing runs in them any more (their processes died with the test)."""
+    listed = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True, timeout=10)
+    stale = []
+    for line in listed.stdout.splitlines():
+        match = re.fullmatch(r"(at2h-(\d+)-[0-9a-f]+-[ab])( .*)?", line.strip())
+        if match and not Path(f"/proc/{match.group(2)}").exists():
+            stale.append(match.group(1))
+    _remove_namespaces(stale)
 
 
 @pytest.fixture(params=["multicast", "static_peers"])
@@ -108,9 +123,11 @@ def two_hosts(request):
     """Two simulated hosts, removed after the test, whatever happens."""
     if not _unavailable:
         _unavailable.append(_probe() or "")
+        if not _unavailable[0]:
+            _remove_stale()
     if _unavailable[0]:
         pytest.skip(_unavailable[0])
-    tag = f"{os.getpid() % 100000:05d}{secrets.token_hex(2)}"
+    tag = secrets.token_hex(3)
     try:
         try:
             hosts = _make_hosts(tag, multicast=request.param == "multicast")
@@ -119,7 +136,7 @@ def two_hosts(request):
             pytest.skip(_unavailable[0])
         yield request.param, hosts
     finally:
-        _remove_hosts(tag)
+        _remove_namespaces(_names(tag).values())
 
 
 def _env(static_peer: str | None) -> dict[str, str]:
@@ -140,9 +157,14 @@ def _env(static_peer: str | None) -> dict[str, str]:
 
 
 def _spawn(hosts: Hosts, host: str, argv: list[str], env: dict, log: Path) -> subprocess.Popen:
+    """``argv`` in a host's namespace, killed by the kernel if this process dies (the
+    runner's launcher: PR_SET_PDEATHSIG, kept across the exec into ``ip`` and the node)."""
+    from activetrack_bringup.supervisor import _LAUNCHER
+
+    ip = [shutil.which("ip") or "/usr/sbin/ip", "netns", "exec", hosts.ns[host], *argv]
     with open(log, "wb") as out:
         return subprocess.Popen(
-            ["ip", "netns", "exec", hosts.ns[host], *argv],
+            [sys.executable, "-S", "-c", _LAUNCHER, str(os.getpid()), *ip],
             env=env,
             stdout=out,
             stderr=subprocess.STDOUT,
@@ -188,7 +210,10 @@ def _run_two_hosts(hosts: Hosts, variant: str, tmp_path: Path) -> tuple[dict, di
             env = env_a if host == "a" else env_b
             procs.append(_spawn(hosts, host, argv, env, tmp_path / f"{name}.log"))
         runner = procs[-1]
-        runner.wait(timeout=RUN_TIMEOUT_S + 15)
+        try:
+            runner.wait(timeout=RUN_TIMEOUT_S + 15)
+        except subprocess.TimeoutExpired:
+            pass  # returncode None: fails below, with the logs
         logs = {name: _tail(tmp_path / f"{name}.log") for name in commands}
         assert runner.returncode == 0, f"host A's runner failed: {logs}"
     finally:
