@@ -3,8 +3,9 @@
 Host A runs the runner (evaluator) and the sim node (``run_graph(..., nodes=("sim",))``, as
 ``activetrack run --nodes sim`` does), host B the tracker and planner nodes from their console
 scripts, as docs/multi-host.md tells a user to. Each namespace holds only ``lo`` and its end of
-the veth, so DDS discovery and data can only cross that link; Fast DDS is held to UDPv4 (its
-shared-memory transport would otherwise bypass the link, /dev/shm being common to both). The
+the veth, so DDS discovery and data can only cross that link; Fast DDS is held to UDPv4 (a
+safeguard: /dev/shm is common to both, so its shared-memory transport could bypass the link;
+measured, it carried nothing between them even when allowed). The
 lockstep closed loop must equal ``batch`` exactly, once with multicast discovery and once on a
 link without multicast, found by ``ROS_STATIC_PEERS``.
 
@@ -172,15 +173,23 @@ def _spawn(hosts: Hosts, host: str, argv: list[str], env: dict, log: Path) -> su
         )
 
 
+def _signal(proc: subprocess.Popen, sig: int) -> None:
+    """``sig`` to the process group the test started (its own session), if still there."""
+    try:
+        os.killpg(proc.pid, sig)
+    except ProcessLookupError:
+        pass
+
+
 def _stop(procs: list[subprocess.Popen]) -> None:
     for p in procs:
         if p.poll() is None:
-            os.killpg(p.pid, signal.SIGTERM)
+            _signal(p, signal.SIGTERM)
     for p in procs:
         try:
             p.wait(timeout=5)
         except subprocess.TimeoutExpired:
-            os.killpg(p.pid, signal.SIGKILL)
+            _signal(p, signal.SIGKILL)
             p.wait()
 
 
