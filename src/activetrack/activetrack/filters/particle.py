@@ -45,6 +45,7 @@ from activetrack.filters.measurement import (
     check_predict_time,
 )
 from activetrack.filters.resampling import roughen, systematic_resample
+from activetrack.kernels import particle_kernels
 from activetrack.models.base import MotionModel
 
 __all__ = ["FilterCollapseError", "ParticleFilter"]
@@ -346,19 +347,25 @@ class ParticleFilter:
             self.last_info = info
             return info
 
+        kernels = particle_kernels()
         w = np.exp(logw - top)
         total = float(w.sum())
-        w /= total
+        if kernels is None:
+            w /= total
+            ess = 1.0 / float(w @ w)
+        else:  # the same division, and sum w^2 in the same pass
+            ess = 1.0 / kernels.normalise(w, total)
         log_norm = top + math.log(total)
         log_lik = log_norm + const
         if self._logw is None:
             log_lik -= math.log(w.shape[0])  # uniform prior weights 1/N were left out above
-        ess = 1.0 / float(w @ w)
         N = w.shape[0]
         resampled = self.resample == "always" or ess < self.ess_threshold * N
         if resampled:
-            idx = systematic_resample(w, self.rng)
-            self._X = np.take(self._X, idx, axis=0)
+            if kernels is None:
+                self._X = np.take(self._X, systematic_resample(w, self.rng), axis=0)
+            else:  # the same draw and rows, copied in one pass
+                self._X = kernels.systematic_resample_rows(self._X, w, self.rng.random())
             roughen(self._X, self.roughening, self.rng)
             self._w = np.full(N, 1.0 / N)
             self._logw = None

@@ -22,7 +22,14 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_nonnegative
-from activetrack.models._common import add_gaussian_noise, check_dt, check_rng, check_state
+from activetrack.kernels import particle_kernels
+from activetrack.models._common import (
+    add_gaussian_noise,
+    check_dt,
+    check_rng,
+    check_state,
+    noise_factor,
+)
 
 PV_NAMES = ("x", "xdot", "y", "ydot")
 
@@ -61,8 +68,22 @@ class _LinearPV(ABC):
         return np.broadcast_to(self.transition_matrix(dt), (*x.shape[:-1], 4, 4)).copy()
 
     def sample(self, x: ArrayLike, dt: float, rng: np.random.Generator) -> FloatArray:
-        """f(x) + w, w ~ N(0, Q), independently for each state of the batch ``(..., 4)``."""
+        """f(x) + w, w ~ N(0, Q), independently for each state of the batch ``(..., 4)``.
+
+        A particle array ``(N, 4)`` goes through the compiled kernel when one is enabled
+        (``activetrack.kernels``): the same draws from ``rng`` and the same numbers to
+        round-off, in one pass.
+        """
         check_rng(rng)
+        kernels = particle_kernels()
+        if kernels is not None and type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4:
+            F = self.transition_matrix(dt)
+            L = noise_factor(self.process_noise(dt))
+            X = np.ascontiguousarray(x, dtype=float)
+            out, finite = kernels.linear_gaussian_sample(X, F, L, rng)
+            if not finite:
+                check_state("x", X, 4)  # raises, naming the argument as the numpy path does
+            return out
         return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
 
     def kinematics(self, x: ArrayLike) -> FloatArray:
