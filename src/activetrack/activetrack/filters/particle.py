@@ -347,19 +347,18 @@ class ParticleFilter:
             self.last_info = info
             return info
 
-        kernels = particle_kernels()
+        # numpy's vectorised exp, sum and dot are at the memory floor here (a compiled pass
+        # would be slower: numba's scalar exp costs ~8x numpy's per element).
         w = np.exp(logw - top)
         total = float(w.sum())
-        if kernels is None:
-            w /= total
-            ess = 1.0 / float(w @ w)
-        else:  # the same division, and sum w^2 in the same pass
-            ess = 1.0 / kernels.normalise(w, total)
+        w /= total
+        ess = 1.0 / float(w @ w)
         log_norm = top + math.log(total)
         log_lik = log_norm + const
         if self._logw is None:
             log_lik -= math.log(w.shape[0])  # uniform prior weights 1/N were left out above
         N = w.shape[0]
+        kernels = particle_kernels(work=N)  # "auto" counts the work (activetrack.kernels)
         resampled = self.resample == "always" or ess < self.ess_threshold * N
         if resampled:
             if kernels is None:

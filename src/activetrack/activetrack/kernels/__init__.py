@@ -1,39 +1,63 @@
 """Compiled kernels (numba) for the hot loops, with the numpy code kept as the reference.
 
+Each kernel does the very operations of its numpy reference, in the same order and on the same
+random draws, so the two paths give the same bits (tests/core/test_pf_kernels.py): which one
+runs changes the speed, never a result.
+
 Which path runs is one process-wide switch, read from the environment variable
 ``ACTIVETRACK_KERNELS`` at first use:
 
-- ``auto`` (the default): the compiled kernels when numba imports, numpy otherwise;
-- ``numpy``: always the numpy code (the reference the kernels are tested against);
-- ``compiled``: the compiled kernels; an ImportError if numba is missing.
+- ``auto`` (the default): numpy first, the compiled kernels once they pay off, i.e. as soon as
+  numba is already imported (another kernel loaded it) or once the process has done
+  :data:`AUTO_WORK` particle updates (particles x steps; each ``ParticleFilter.update`` counts
+  its N). Loading numba and its cached machine code costs about 0.5 s of CPU per process
+  (more on a loaded machine), about what the numpy path spends on that much work; a short
+  command such as ``activetrack run`` on the default scenario (30 steps of 10,000 particles)
+  never pays it, a Monte Carlo campaign pays it once. Without numba: numpy throughout.
+- ``numpy``: always the numpy code;
+- ``compiled``: the compiled kernels from the first step; an ImportError if numba is missing.
 
-:func:`set_kernels` changes it within a process (tests and benchmarks compare both paths).
+:func:`set_kernels` changes the mode within a process (tests and benchmarks compare both).
 
-numba is imported only when a kernel is first asked for (:func:`particle_kernels`), so a process
-that never runs a particle filter pays nothing. Every kernel is compiled with ``cache=True``:
-the machine code is kept in ``__pycache__`` next to the source and loaded from there by later
-processes; ``make setup`` compiles them once (:func:`warm_up`).
+Every kernel is compiled with ``cache=True``: the machine code is kept in ``__pycache__`` next
+to the source and loaded from there by later processes; ``make setup`` compiles them once
+(:func:`warm_up`, run by ``tools/setup.sh`` when the kernel sources change).
 
 The consumers stay free of type tests (``tests/core/test_no_type_dispatch.py``): a built-in
-sensor or motion model calls the kernel inside its own method (e.g.
-``BearingSensor.log_likelihood``, ``NearlyConstantVelocity.sample``), so a sensor or model
-without a kernel simply runs its numpy maths.
+sensor or motion model calls the kernel inside its own method (``BearingSensor`` /
+``RangeBearingSensor.log_likelihood``, the NCV models' ``sample``), so a sensor or model without
+a kernel simply runs its own numpy maths, and the filter's own part (systematic resampling)
+goes through :func:`particle_kernels` like any other caller.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from types import ModuleType
 
-__all__ = ["ENV_VAR", "MODES", "compiled_enabled", "particle_kernels", "set_kernels", "warm_up"]
+__all__ = [
+    "AUTO_WORK",
+    "ENV_VAR",
+    "MODES",
+    "compiled_enabled",
+    "particle_kernels",
+    "set_kernels",
+    "warm_up",
+]
 
 ENV_VAR = "ACTIVETRACK_KERNELS"
 MODES = ("auto", "numpy", "compiled")
+# Particle updates (particles x steps) after which "auto" loads numba: 5e6 is ~500 steps of
+# 10,000 particles, ~0.5 s of the numpy path.
+AUTO_WORK = 5_000_000
 
-# The chosen mode (None: not read from the environment yet) and the loaded kernel module.
+# The chosen mode (None: not read from the environment yet), the loaded kernel module and the
+# particle updates counted so far.
 _mode: str | None = None
 _particle: ModuleType | None = None
-_unavailable = False  # "auto" found no numba: do not retry the import at every call
+_unavailable = False  # numba did not import: do not retry at every call
+_work = 0
 
 
 def _check_mode(mode: str) -> str:
@@ -56,33 +80,43 @@ def _current_mode() -> str:
     return _mode
 
 
-def particle_kernels() -> ModuleType | None:
-    """The compiled particle-filter kernels (:mod:`activetrack.kernels.particle`), or None
-    when the numpy path is chosen or (in ``auto`` mode) numba does not import."""
+def _load(mode: str) -> ModuleType | None:
     global _particle, _unavailable
-    mode = _current_mode()
-    if mode == "numpy" or (mode == "auto" and _unavailable):
+    try:
+        from activetrack.kernels import particle
+    except ImportError:
+        if mode == "compiled":
+            raise
+        _unavailable = True
         return None
-    if _particle is None:
-        try:
-            from activetrack.kernels import particle
-        except ImportError:
-            if mode == "compiled":
-                raise
-            _unavailable = True
-            return None
-        _particle = particle
-    return _particle
+    _particle = particle
+    return particle
+
+
+def particle_kernels(work: int = 0) -> ModuleType | None:
+    """The compiled particle-filter kernels (:mod:`activetrack.kernels.particle`), or None
+    for the numpy path (see the module docstring). ``work``: particle updates to count
+    towards :data:`AUTO_WORK` (the particle filter passes its N once per update)."""
+    global _work
+    _work += work
+    if _particle is not None:
+        return None if _current_mode() == "numpy" else _particle
+    mode = _current_mode()
+    if mode == "numpy" or (_unavailable and mode == "auto"):
+        return None
+    if mode == "auto" and _work < AUTO_WORK and "numba" not in sys.modules:
+        return None
+    return _load(mode)
 
 
 def compiled_enabled() -> bool:
-    """True when the compiled kernels run (see the module docstring)."""
+    """True when the compiled kernels run now (see the module docstring)."""
     return particle_kernels() is not None
 
 
 def warm_up() -> bool:
-    """Compile (or load from the disk cache) every particle kernel once; False without numba."""
-    kernels = particle_kernels()
+    """Compile (or load from the disk cache) every particle kernel; False without numba."""
+    kernels = _particle if _particle is not None else _load("auto")
     if kernels is None:
         return False
     kernels.warm_up()

@@ -13,14 +13,14 @@ floating-point round-off (tests/core/test_pf_kernels.py):
   ``BearingSensor.log_likelihood`` / ``RangeBearingSensor.log_likelihood``). The arcsin
   itself stays with numpy between the two passes: numpy's vectorised arcsin is several times
   faster than a scalar one per particle, and it is then the very same function;
-- :func:`normalise`: w / sum w and sum (w / sum w)^2 (the ESS) in one pass (reference
-  ``ParticleFilter.update``);
 - :func:`systematic_indices` and :func:`systematic_resample_rows`: systematic resampling
   (reference ``filters.resampling.systematic_indices``), the second one copying the chosen rows
   straight into the new particle array (no index array, no ``take``).
 
 No ``fastmath``: without it LLVM neither reorders nor fuses the floating-point operations, which
-keeps them those of the reference. Every kernel is cached on disk (``cache=True``).
+keeps them those of the reference. ``error_model="numpy"``: a division by zero gives inf or NaN
+as in numpy (a particle on the sensor) instead of raising. Every kernel is cached on disk
+(``cache=True``).
 """
 
 from __future__ import annotations
@@ -34,7 +34,6 @@ __all__ = [
     "bearing_finish",
     "bearing_sines",
     "linear_gaussian_sample",
-    "normalise",
     "range_bearing_finish",
     "systematic_indices",
     "systematic_resample_rows",
@@ -42,7 +41,7 @@ __all__ = [
 ]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def linear_gaussian_sample(X, F, L, rng):  # pragma: no cover - compiled
     """``(X F^T + W L^T, finite)`` for 4-D states: W ``(N, 4)`` standard normals drawn row by
     row from ``rng`` (the order of ``rng.standard_normal((N, 4))``). X ``(N, 4)``, F and L
@@ -65,7 +64,7 @@ def linear_gaussian_sample(X, F, L, rng):  # pragma: no cover - compiled
     l10, l11, l12, l13 = L[1, 0], L[1, 1], L[1, 2], L[1, 3]
     l20, l21, l22, l23 = L[2, 0], L[2, 1], L[2, 2], L[2, 3]
     l30, l31, l32, l33 = L[3, 0], L[3, 1], L[3, 2], L[3, 3]
-    probe = 0.0  # x * 0 is NaN exactly for a non-finite x
+    bad = False
     for i in range(N):
         x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
         w0, w1, w2, w3 = out[i, 0], out[i, 1], out[i, 2], out[i, 3]
@@ -81,11 +80,11 @@ def linear_gaussian_sample(X, F, L, rng):  # pragma: no cover - compiled
         out[i, 3] = (x0 * f30 + x1 * f31 + x2 * f32 + x3 * f33) + (
             w0 * l30 + w1 * l31 + w2 * l32 + w3 * l33
         )
-        probe += x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0
-    return out, probe == 0.0
+        bad |= x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0  # NaN for a non-finite x
+    return out, not bad
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def bearing_sines(pv, sx, sy, cz, sz):  # pragma: no cover - compiled
     """First pass of the bearing likelihood for the particles' pv ``(N, 4)``, a sensor at
     ``(sx, sy)`` and a measured bearing zb given as ``cz = cos zb``, ``sz = sin zb``:
@@ -111,7 +110,7 @@ def bearing_sines(pv, sx, sy, cz, sz):  # pragma: no cover - compiled
     return s, behind, r
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def bearing_finish(a, behind, r, coef, gate, r_min, r_max):  # pragma: no cover - compiled
     """In place: a = coef * |e|^2 from a = arcsin(s) of :func:`bearing_sines`
     (|e| = pi - a where behind), -inf outside [r_min, r_max] when ``gate``."""
@@ -125,7 +124,7 @@ def bearing_finish(a, behind, r, coef, gate, r_min, r_max):  # pragma: no cover 
     return a
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def range_bearing_finish(
     a, behind, r, zr, sigma_r, sigma_b, gate, r_min, r_max
 ):  # pragma: no cover - compiled
@@ -142,18 +141,7 @@ def range_bearing_finish(
     return a
 
 
-@njit(cache=True)
-def normalise(w, total):  # pragma: no cover - compiled
-    """In place w /= total; returns sum w^2 of the result (1 / ESS)."""
-    sq = 0.0
-    for i in range(w.shape[0]):
-        v = w[i] / total
-        w[i] = v
-        sq += v * v
-    return sq
-
-
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _first_copies(w, u):  # pragma: no cover - compiled
     """``first`` ``(N + 1,)``: first[k] is the particle whose copies start at output k (0
     where none starts), so the running maximum of first[:k + 1] is the particle of output k.
@@ -175,7 +163,7 @@ def _first_copies(w, u):  # pragma: no cover - compiled
     return first
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def systematic_indices(w, u):  # pragma: no cover - compiled
     """Systematic resampling indices ``(N,)`` (sorted) for normalised weights ``w`` and the
     offset ``u`` in [0, 1): those of ``filters.resampling.systematic_indices``."""
@@ -189,7 +177,7 @@ def systematic_indices(w, u):  # pragma: no cover - compiled
     return idx
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def systematic_resample_rows(X, w, u):  # pragma: no cover - compiled
     """X[systematic_indices(w, u)] for particles X ``(N, d)``, as a new array, copied in the
     same pass that finds the indices."""
@@ -217,6 +205,5 @@ def warm_up() -> None:
     bearing_finish(a.copy(), behind, r, -0.5, False, 0.0, math.inf)
     range_bearing_finish(a, behind, r, 1.0, 1.0, 1.0, False, 0.0, math.inf)
     w = np.full(2, 0.5)
-    normalise(w, 1.0)
     systematic_indices(w, 0.5)
     systematic_resample_rows(X, w, 0.5)

@@ -41,6 +41,16 @@ def cv_transition(dt: float) -> FloatArray:
     return F
 
 
+def rows_times(X: FloatArray, A: FloatArray) -> FloatArray:
+    """X A^T for rows X ``(N, 4)`` and A ``(4, 4)``, summed over k = 0..3 in that order
+    (sum_k X[:, k] A[:, k]): the order the compiled kernel follows, so both give the same bits
+    (a BLAS matmul may sum in another order or fuse multiply-adds)."""
+    out = X[:, 0, None] * A[:, 0]
+    for k in range(1, 4):
+        out += X[:, k, None] * A[:, k]
+    return out
+
+
 class _LinearPV(ABC):
     """Members shared by the linear models whose state is pv itself (``state_is_pv``)."""
 
@@ -70,21 +80,25 @@ class _LinearPV(ABC):
     def sample(self, x: ArrayLike, dt: float, rng: np.random.Generator) -> FloatArray:
         """f(x) + w, w ~ N(0, Q), independently for each state of the batch ``(..., 4)``.
 
-        A particle array ``(N, 4)`` goes through the compiled kernel when one is enabled
-        (``activetrack.kernels``): the same draws from ``rng`` and the same numbers to
-        round-off, in one pass.
+        A particle array ``(N, 4)`` is computed as :func:`rows_times` (x F^T) plus
+        ``rows_times(W, L)`` (W L^T, L L^T = Q) with W = ``rng.standard_normal((N, 4))``: in
+        one pass by the compiled kernel when one is enabled (``activetrack.kernels``), which
+        draws the same normals and does the same operations, so both paths give the same bits.
         """
         check_rng(rng)
+        if not (type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4):
+            return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
+        F = self.transition_matrix(dt)
+        L = noise_factor(self.process_noise(dt))
         kernels = particle_kernels()
-        if kernels is not None and type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4:
-            F = self.transition_matrix(dt)
-            L = noise_factor(self.process_noise(dt))
-            X = np.ascontiguousarray(x, dtype=float)
-            out, finite = kernels.linear_gaussian_sample(X, F, L, rng)
-            if not finite:
-                check_state("x", X, 4)  # raises, naming the argument as the numpy path does
-            return out
-        return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
+        if kernels is None:
+            X = check_state("x", x, 4)
+            return rows_times(X, F) + rows_times(rng.standard_normal(X.shape), L)
+        X = np.ascontiguousarray(x, dtype=float)
+        out, finite = kernels.linear_gaussian_sample(X, F, L, rng)
+        if not finite:
+            check_state("x", X, 4)  # raises, naming the argument as the numpy path does
+        return out
 
     def kinematics(self, x: ArrayLike) -> FloatArray:
         """The state is already pv: returns a copy, ``(..., 4)``."""
