@@ -1,10 +1,11 @@
-"""The compiled particle-filter kernels (activetrack.kernels) against their numpy references.
+"""The compiled kernels (activetrack.kernels) against their numpy references.
 
 Every kernel draws the same random numbers from the same generator as its reference and does
 the same floating-point operations in the same order, so the tests ask for identical bits
 (``assert_array_equal``), which is stronger than the 1e-12 the issue asks for; no draw order
 changes, so no statistical comparison is needed. Each test runs both paths in one process with
-``set_kernels`` and equal seeds.
+``set_kernels`` and equal seeds. The EKF kernels (compiled mode only) agree to round-off: their
+loop-order sums differ from numpy's BLAS products in the last bits, so those tests ask 1e-12.
 """
 
 import math
@@ -14,7 +15,12 @@ import pytest
 from linear_sensor import LinearPositionSensor
 
 from activetrack import kernels
-from activetrack.filters import Measurement, ParticleFilter, systematic_indices
+from activetrack.filters import (
+    ExtendedKalmanFilter,
+    Measurement,
+    ParticleFilter,
+    systematic_indices,
+)
 from activetrack.models.motion import (
     CircularMotion,
     ConstantTurn,
@@ -220,3 +226,55 @@ def test_mode_names_are_checked(monkeypatch):
     monkeypatch.setenv("ACTIVETRACK_KERNELS", "Numpy")
     kernels.set_kernels(None)
     assert not kernels.compiled_enabled()
+
+
+# --- the EKF kernels (compiled mode only; round-off agreement) ---------------------------------
+
+
+def ekf_run(model, x0, P0, steps=12):
+    """Means, covariances, NIS and log-likelihoods of a seeded EKF run with a bearing and a
+    range-bearing sensor (one update has both, one has a missed detection)."""
+    f = ExtendedKalmanFilter(model, x0, P0)
+    bearing, rb = BearingSensor(0.01), RangeBearingSensor(20.0, 0.02)
+    rng = np.random.default_rng(4)
+    out = []
+    for k in range(1, steps + 1):
+        t = 5.0 * k
+        s1 = np.array([1800.0 - 150.0 * k, -30.0, 2000.0 - 100.0 * k, -20.0])
+        s2 = np.array([-1500.0, 0.0, 1200.0, 0.0])
+        truth = np.array([8.0 * t, 8.0, 6.0 * t, 6.0])
+        z1 = None if k % 5 == 0 else bearing.sample(truth, s1, rng)
+        z2 = rb.sample(truth, s2, rng)
+        info = f.step(t, [Measurement(bearing, s1, z1, t), Measurement(rb, s2, z2, t)])
+        out.append((f.mean, f.cov, info.nis, info.log_likelihood))
+    return out
+
+
+@pytest.mark.parametrize(
+    ("model", "x0", "P0"),
+    [
+        (NearlyConstantVelocity(0.01), [0.0, 8.0, 0.0, 6.0], np.diag([400.0, 1.0, 400.0, 1.0])),
+        (CircularMotion(0.001, 0.05), [0.64, 0.0, 0.0, 0.001, 10.0], np.eye(5) * 0.5),
+    ],
+)
+def test_ekf_kernels_agree_with_the_numpy_ekf(model, x0, P0):
+    """Compiled mode runs the EKF kernels (loop-order sums where numpy's matmul uses BLAS):
+    the same estimates to round-off, checked to 1e-12 relative (the covariances to 1e-12 of
+    their largest entry)."""
+    kernels.set_kernels("auto")
+    assert kernels.ekf_kernels() is None  # never in auto: not bit-identical
+    ref, out = both(lambda: ekf_run(model, np.array(x0), P0))
+    for (m_ref, P_ref, nis_ref, ll_ref), (m, P, nis, ll) in zip(ref, out, strict=True):
+        np.testing.assert_allclose(m, m_ref, rtol=1e-12, atol=1e-12 * np.abs(m_ref).max())
+        np.testing.assert_allclose(P, P_ref, rtol=0, atol=1e-12 * np.abs(P_ref).max())
+        assert nis == pytest.approx(nis_ref, rel=1e-11)
+        assert ll == pytest.approx(ll_ref, rel=1e-12)
+
+
+def test_ekf_kernel_rejects_a_non_positive_innovation_covariance():
+    from activetrack.kernels import ekf
+
+    x, P = np.zeros(4), np.eye(4)
+    for R in (np.array([[-5.0]]), np.diag([1.0, -5.0])):
+        H = np.zeros((R.shape[0], 4))
+        assert not ekf.update(x, P, H, np.zeros(R.shape[0]), R)[-1]

@@ -16,6 +16,8 @@ Which path runs is one process-wide switch, read from the environment variable
   never pays it, a Monte Carlo campaign pays it once. Without numba: numpy throughout.
 - ``numpy``: always the numpy code;
 - ``compiled``: the compiled kernels from the first step; an ImportError if numba is missing.
+  This mode also runs the EKF kernels (:func:`ekf_kernels`), which agree with numpy's BLAS
+  products to round-off only and so are left out of ``auto``.
 
 :func:`set_kernels` changes the mode within a process (tests and benchmarks compare both).
 
@@ -41,6 +43,7 @@ __all__ = [
     "ENV_VAR",
     "MODES",
     "compiled_enabled",
+    "ekf_kernels",
     "particle_kernels",
     "set_kernels",
     "warm_up",
@@ -56,6 +59,7 @@ AUTO_WORK = 5_000_000
 # particle updates counted so far.
 _mode: str | None = None
 _particle: ModuleType | None = None
+_ekf: ModuleType | None = None
 _unavailable = False  # numba did not import: do not retry at every call
 _work = 0
 
@@ -109,15 +113,32 @@ def particle_kernels(work: int = 0) -> ModuleType | None:
     return _load(mode)
 
 
+def ekf_kernels() -> ModuleType | None:
+    """The compiled EKF kernels (:mod:`activetrack.kernels.ekf`) in ``compiled`` mode only,
+    else None: they agree with numpy's BLAS products to round-off, not to the bit, so ``auto``
+    (which may switch mid-process) keeps the numpy EKF."""
+    global _ekf
+    if _current_mode() != "compiled":
+        return None
+    if _ekf is None:
+        from activetrack.kernels import ekf
+
+        _ekf = ekf
+    return _ekf
+
+
 def compiled_enabled() -> bool:
     """True when the compiled kernels run now (see the module docstring)."""
     return particle_kernels() is not None
 
 
 def warm_up() -> bool:
-    """Compile (or load from the disk cache) every particle kernel; False without numba."""
+    """Compile (or load from the disk cache) every kernel; False without numba."""
     kernels = _particle if _particle is not None else _load("auto")
     if kernels is None:
         return False
     kernels.warm_up()
+    from activetrack.kernels import ekf
+
+    ekf.warm_up()
     return True
