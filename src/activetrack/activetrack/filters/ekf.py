@@ -20,6 +20,10 @@ These are the equations of filterpy's ``ExtendedKalmanFilter.predict`` / ``updat
 check equality to 1e-9), computed here with plain numpy on small matrices to keep the per-step
 overhead low.
 
+With ``ACTIVETRACK_KERNELS=compiled`` (``activetrack.kernels``) the prediction and each
+detection's update run as one compiled call each (``activetrack.kernels.ekf``), equal to this
+numpy algebra to round-off.
+
 Several sensors per step are processed **sequentially** in the order given: each detection
 is linearised at the state updated by the ones before it. For a linear measurement model this
 equals the stacked update exactly; for independent measurement noises it is the usual

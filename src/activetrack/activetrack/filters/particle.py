@@ -25,6 +25,12 @@ The likelihoods are the sensors' own (``sensor.log_likelihood`` for a detection,
 ``sensor.log_miss_likelihood`` for a look without one; contract
 ``activetrack.models.base.SensorModel``): angle residuals wrapped, and for the built-in
 bearing and range-bearing sensors computed inline from the particle offsets.
+
+Compiled kernels (``activetrack.kernels``, numba): the built-in NCV models' sampling and the
+built-in bearing sensors' likelihoods run them inside their own methods, and the filter's
+systematic resampling copies the chosen particles in one compiled pass. They give the numpy
+path's bits on the same random draws, so the switch (``ACTIVETRACK_KERNELS``: ``auto`` by
+default, ``numpy``, ``compiled``) changes the speed only.
 """
 
 from __future__ import annotations

@@ -20,6 +20,10 @@ Where a faster form exists it overrides the generic member, with the same number
   Fisher information;
 - every built-in sensor: the missed-detection likelihood from the particle ranges.
 
+The bearing and range-bearing likelihoods of a particle array ``(N, 4)`` run the compiled
+kernels of ``activetrack.kernels`` when they are enabled: the same operations in one pass each
+side of numpy's arcsin, so the same bits.
+
 The other members are the generic ones of ``GaussianSensor``.
 """
 
