@@ -199,6 +199,7 @@ def warm_up() -> None:
     X = np.zeros((2, 4))
     X[:, 0] = 1.0
     eye = np.eye(4)
+    eye.flags.writeable = False  # the models pass their cached, read-only F and L
     linear_gaussian_sample(X, eye, eye, rng)
     s, behind, r = bearing_sines(X, 0.0, 0.0, 0.5, 0.5)
     a = np.arcsin(s)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import ClassVar
 
 import numpy as np
@@ -49,6 +50,17 @@ def rows_times(X: FloatArray, A: FloatArray) -> FloatArray:
     for k in range(1, 4):
         out += X[:, k, None] * A[:, k]
     return out
+
+
+@lru_cache(maxsize=64)
+def _sample_factors(model: _LinearPV, dt: float) -> tuple[FloatArray, FloatArray]:
+    """F and L (L L^T = Q) of a model and a time step, read-only and kept for the next step
+    (a filter samples with the same dt every step; the models are frozen, so hashable)."""
+    F = model.transition_matrix(dt)
+    L = noise_factor(model.process_noise(dt))
+    F.flags.writeable = False
+    L.flags.writeable = False
+    return F, L
 
 
 class _LinearPV(ABC):
@@ -88,8 +100,10 @@ class _LinearPV(ABC):
         check_rng(rng)
         if not (type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4):
             return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
-        F = self.transition_matrix(dt)
-        L = noise_factor(self.process_noise(dt))
+        try:
+            F, L = _sample_factors(self, check_dt(dt))
+        except TypeError:  # an unhashable subclass: no cache
+            F, L = self.transition_matrix(dt), noise_factor(self.process_noise(dt))
         kernels = particle_kernels()
         if kernels is None:
             X = check_state("x", x, 4)
