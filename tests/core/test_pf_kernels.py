@@ -80,6 +80,21 @@ def test_sampling_draws_the_same_normals_and_gives_the_same_bits(model):
     np.testing.assert_allclose(ref, X @ model.transition_matrix(5.0).T + W @ L.T, rtol=1e-12)
 
 
+def test_the_models_pick_the_sampling_kernel_by_the_zeros_of_f_and_l():
+    """NCV's F and L have the zeros of two constant-velocity axes (cv_gaussian_sample, which
+    the test above checks against the full sums); the discrete NCV's eigh factor and the
+    turn model's F do not (linear_gaussian_sample)."""
+    from activetrack.models._common import noise_factor
+    from activetrack.models.ncv import has_cv_zeros
+
+    def zeros(model):
+        return has_cv_zeros(model.transition_matrix(5.0), noise_factor(model.process_noise(5.0)))
+
+    assert zeros(NearlyConstantVelocity(0.01))
+    assert not zeros(NearlyConstantVelocityDiscrete(0.3, 0.5))
+    assert not zeros(ConstantTurn(0.05, 0.1))
+
+
 def test_sampling_rejects_non_finite_particles_on_both_paths():
     X = particles(10)
     X[4, 2] = np.nan

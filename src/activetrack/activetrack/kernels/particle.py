@@ -7,7 +7,8 @@ floating-point round-off (tests/core/test_pf_kernels.py):
 
 - :func:`linear_gaussian_sample`: f(x) + w = x F^T + w L^T, w ~ N(0, I) drawn row by row, the
   sampling of a linear motion model (reference ``models._common.add_gaussian_noise`` after
-  ``propagate``), fused into one pass without the ``(N, n)`` array of normals;
+  ``propagate``), without the ``(N, n)`` array of normals; :func:`cv_gaussian_sample` is the
+  same for the zero pattern of the NCV models' F and L, summing the non-zero terms only;
 - :func:`bearing_sines` with :func:`bearing_finish` / :func:`range_bearing_finish`: the
   arcsin-wrapped bearing log-likelihood (reference ``models.sensors._abs_bearing_error`` and
   ``BearingSensor.log_likelihood`` / ``RangeBearingSensor.log_likelihood``). The arcsin
@@ -33,6 +34,7 @@ from numba import njit
 __all__ = [
     "bearing_finish",
     "bearing_sines",
+    "cv_gaussian_sample",
     "linear_gaussian_sample",
     "range_bearing_finish",
     "systematic_indices",
@@ -80,6 +82,33 @@ def linear_gaussian_sample(X, F, L, rng):  # pragma: no cover - compiled
         out[i, 3] = (x0 * f30 + x1 * f31 + x2 * f32 + x3 * f33) + (
             w0 * l30 + w1 * l31 + w2 * l32 + w3 * l33
         )
+        bad |= x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0  # NaN for a non-finite x
+    return out, not bad
+
+
+@njit(cache=True, error_model="numpy")
+def cv_gaussian_sample(X, F, L, rng):  # pragma: no cover - compiled
+    """:func:`linear_gaussian_sample` for F and L with the zeros of two independent
+    constant-velocity axes (x, xdot) and (y, ydot): F upper and L lower triangular within each
+    2 x 2 block, zero outside the blocks (the NCV models; ``models.ncv.has_cv_zeros`` checks
+    the pattern). Only the non-zero terms are summed,
+    in the same order; a zero term changes a sum only in the sign of a zero result, so the
+    result is that of the full sum (with the chance of an exact zero, the same numbers)."""
+    N = X.shape[0]
+    out = np.empty((N, 4))
+    for i in range(N):
+        for k in range(4):
+            out[i, k] = rng.standard_normal()
+    f00, f01, f11, f22, f23, f33 = F[0, 0], F[0, 1], F[1, 1], F[2, 2], F[2, 3], F[3, 3]
+    l00, l10, l11, l22, l32, l33 = L[0, 0], L[1, 0], L[1, 1], L[2, 2], L[3, 2], L[3, 3]
+    bad = False
+    for i in range(N):
+        x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
+        w0, w1, w2, w3 = out[i, 0], out[i, 1], out[i, 2], out[i, 3]
+        out[i, 0] = (x0 * f00 + x1 * f01) + w0 * l00
+        out[i, 1] = x1 * f11 + (w0 * l10 + w1 * l11)
+        out[i, 2] = (x2 * f22 + x3 * f23) + w2 * l22
+        out[i, 3] = x3 * f33 + (w2 * l32 + w3 * l33)
         bad |= x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0  # NaN for a non-finite x
     return out, not bad
 
@@ -201,6 +230,7 @@ def warm_up() -> None:
     eye = np.eye(4)
     eye.flags.writeable = False  # the models pass their cached, read-only F and L
     linear_gaussian_sample(X, eye, eye, rng)
+    cv_gaussian_sample(X, eye, eye, rng)
     s, behind, r = bearing_sines(X, 0.0, 0.0, 0.5, 0.5)
     a = np.arcsin(s)
     bearing_finish(a.copy(), behind, r, -0.5, False, 0.0, math.inf)

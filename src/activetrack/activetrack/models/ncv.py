@@ -52,15 +52,37 @@ def rows_times(X: FloatArray, A: FloatArray) -> FloatArray:
     return out
 
 
+# Entries (row, column) of F and of L that can be non-zero for two independent
+# constant-velocity axes (x, xdot) and (y, ydot): F upper, L lower triangular in each block.
+_CV_F_ENTRIES = ((0, 0), (0, 1), (1, 1), (2, 2), (2, 3), (3, 3))
+_CV_L_ENTRIES = ((0, 0), (1, 0), (1, 1), (2, 2), (3, 2), (3, 3))
+
+
+def has_cv_zeros(F: FloatArray, L: FloatArray) -> bool:
+    """True when F and L are zero outside the entries of two independent constant-velocity
+    axes (then the compiled ``cv_gaussian_sample`` applies: it sums the non-zero terms only)."""
+    for A, keep in ((F, _CV_F_ENTRIES), (L, _CV_L_ENTRIES)):
+        mask = np.ones((4, 4), dtype=bool)
+        mask[tuple(zip(*keep, strict=True))] = False
+        if A.shape != (4, 4) or np.any(A[mask] != 0.0):
+            return False
+    return True
+
+
 @lru_cache(maxsize=64)
-def _sample_factors(model: _LinearPV, dt: float) -> tuple[FloatArray, FloatArray]:
-    """F and L (L L^T = Q) of a model and a time step, read-only and kept for the next step
-    (a filter samples with the same dt every step; the models are frozen, so hashable)."""
+def _sample_factors(model: _LinearPV, dt: float) -> tuple[FloatArray, FloatArray, bool]:
+    """F, L (L L^T = Q) and :func:`has_cv_zeros` of a model and a time step, read-only and
+    kept for the next step (a filter samples with one dt every step; the models are frozen,
+    so hashable)."""
+    return _read_only_factors(model, dt)
+
+
+def _read_only_factors(model: _LinearPV, dt: float) -> tuple[FloatArray, FloatArray, bool]:
     F = model.transition_matrix(dt)
     L = noise_factor(model.process_noise(dt))
     F.flags.writeable = False
     L.flags.writeable = False
-    return F, L
+    return F, L, has_cv_zeros(F, L)
 
 
 class _LinearPV(ABC):
@@ -101,15 +123,17 @@ class _LinearPV(ABC):
         if not (type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4):
             return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
         try:
-            F, L = _sample_factors(self, check_dt(dt))
+            F, L, cv = _sample_factors(self, check_dt(dt))
         except TypeError:  # an unhashable subclass: no cache
-            F, L = self.transition_matrix(dt), noise_factor(self.process_noise(dt))
+            F, L, cv = _read_only_factors(self, dt)
         kernels = particle_kernels()
         if kernels is None:
             X = check_state("x", x, 4)
             return rows_times(X, F) + rows_times(rng.standard_normal(X.shape), L)
         X = np.ascontiguousarray(x, dtype=float)
-        out, finite = kernels.linear_gaussian_sample(X, F, L, rng)
+        # The NCV models' F and L: the zero terms left out (the same numbers, has_cv_zeros).
+        sample = kernels.cv_gaussian_sample if cv else kernels.linear_gaussian_sample
+        out, finite = sample(X, F, L, rng)
         if not finite:
             check_state("x", X, 4)  # raises, naming the argument as the numpy path does
         return out
