@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from functools import partial
+from functools import lru_cache, partial
 from typing import Any
 
 import numpy as np
@@ -136,6 +136,15 @@ def _initial_weights(weights: ArrayLike | None, N: int) -> FloatArray:
             f"weights must be ({N},), non-negative, with a positive sum; got shape {w.shape}"
         )
     return w / w.sum()
+
+
+@lru_cache(maxsize=8)
+def _uniform_weights(N: int) -> FloatArray:
+    """The weights 1/N after resampling, one read-only array per N (the filter never writes
+    into its weights; it replaces them)."""
+    w = np.full(N, 1.0 / N)
+    w.flags.writeable = False
+    return w
 
 
 class ParticleFilter:
@@ -372,7 +381,7 @@ class ParticleFilter:
             else:  # the same draw and rows, copied in one pass
                 self._X = kernels.systematic_resample_rows(self._X, w, self.rng.random())
             roughen(self._X, self.roughening, self.rng)
-            self._w = np.full(N, 1.0 / N)
+            self._w = _uniform_weights(N)
             self._logw = None
         else:
             self._w = w
