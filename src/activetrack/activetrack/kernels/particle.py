@@ -90,10 +90,10 @@ def linear_gaussian_sample(X, F, L, rng):  # pragma: no cover - compiled
 def cv_gaussian_sample(X, F, L, rng):  # pragma: no cover - compiled
     """:func:`linear_gaussian_sample` for F and L with the zeros of two independent
     constant-velocity axes (x, xdot) and (y, ydot): F upper and L lower triangular within each
-    2 x 2 block, zero outside the blocks (the NCV models; ``models.ncv.has_cv_zeros`` checks
-    the pattern). Only the non-zero terms are summed,
-    in the same order; a zero term changes a sum only in the sign of a zero result, so the
-    result is that of the full sum (with the chance of an exact zero, the same numbers)."""
+    2 x 2 block, zero outside the blocks (the NCV models; ``models.ncv.has_cv_zeros``). Only
+    the non-zero terms are summed, with the operations of ``models.ncv.cv_rows`` (its numpy
+    reference); the full sums of :func:`linear_gaussian_sample` differ at most in the sign of
+    an exact zero."""
     N = X.shape[0]
     out = np.empty((N, 4))
     for i in range(N):

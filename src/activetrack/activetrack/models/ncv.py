@@ -58,6 +58,21 @@ _CV_F_ENTRIES = ((0, 0), (0, 1), (1, 1), (2, 2), (2, 3), (3, 3))
 _CV_L_ENTRIES = ((0, 0), (1, 0), (1, 1), (2, 2), (3, 2), (3, 3))
 
 
+def cv_rows(X: FloatArray, W: FloatArray, F: FloatArray, L: FloatArray) -> FloatArray:
+    """``rows_times(X, F) + rows_times(W, L)`` for F and L with the zeros of
+    :func:`has_cv_zeros`, from the non-zero terms only: x F^T has x0 f00 + x1 f01, x1 f11,
+    x2 f22 + x3 f23, x3 f33 and w L^T has w0 l00, w0 l10 + w1 l11, w2 l22, w2 l32 + w3 l33.
+    The operations of the compiled ``cv_gaussian_sample`` (a + b = b + a exactly)."""
+    mean = X * np.diagonal(F)
+    mean[:, 0] += X[:, 1] * F[0, 1]
+    mean[:, 2] += X[:, 3] * F[2, 3]
+    noise = W * np.diagonal(L)
+    noise[:, 1] += W[:, 0] * L[1, 0]
+    noise[:, 3] += W[:, 2] * L[3, 2]
+    mean += noise
+    return mean
+
+
 def has_cv_zeros(F: FloatArray, L: FloatArray) -> bool:
     """True when F and L are zero outside the entries of two independent constant-velocity
     axes (then the compiled ``cv_gaussian_sample`` applies: it sums the non-zero terms only)."""
@@ -115,9 +130,11 @@ class _LinearPV(ABC):
         """f(x) + w, w ~ N(0, Q), independently for each state of the batch ``(..., 4)``.
 
         A particle array ``(N, 4)`` is computed as :func:`rows_times` (x F^T) plus
-        ``rows_times(W, L)`` (W L^T, L L^T = Q) with W = ``rng.standard_normal((N, 4))``: in
-        one pass by the compiled kernel when one is enabled (``activetrack.kernels``), which
-        draws the same normals and does the same operations, so both paths give the same bits.
+        ``rows_times(W, L)`` (W L^T, L L^T = Q) with W = ``rng.standard_normal((N, 4))``, or
+        from the non-zero terms only (:func:`cv_rows`) when F and L have the zeros of two
+        constant-velocity axes: in one pass by the compiled kernel when one is enabled
+        (``activetrack.kernels``), which draws the same normals and does the same operations,
+        so both paths give the same bits.
         """
         check_rng(rng)
         if not (type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4):
@@ -129,7 +146,8 @@ class _LinearPV(ABC):
         kernels = particle_kernels()
         if kernels is None:
             X = check_state("x", x, 4)
-            return rows_times(X, F) + rows_times(rng.standard_normal(X.shape), L)
+            W = rng.standard_normal(X.shape)
+            return cv_rows(X, W, F, L) if cv else rows_times(X, F) + rows_times(W, L)
         X = np.ascontiguousarray(x, dtype=float)
         # The NCV models' F and L: the zero terms left out (the same numbers, has_cv_zeros).
         sample = kernels.cv_gaussian_sample if cv else kernels.linear_gaussian_sample
