@@ -184,7 +184,8 @@ def bearing_run(pf_options, model=None, sensor=None, steps=8, n=3000):
             math.atan2(6.0 * t - s2[2], 8.0 * t - s2[0]),
         ]
         info = f.step(t, [Measurement(sensor, s1, z1, t), Measurement(second, s2, z2, t)])
-        out.append((f.mean, f.cov, f.weights.copy(), info.ess, info.log_likelihood, info.resampled))
+        exact = (f.particles.copy(), f.weights.copy(), info.ess, info.log_likelihood)
+        out.append((exact, info.resampled, f.mean, f.cov))
     return out
 
 
@@ -197,11 +198,39 @@ def bearing_run(pf_options, model=None, sensor=None, steps=8, n=3000):
     ],
 )
 def test_filter_runs_give_the_same_bits(options):
+    """Particles, weights, ESS and log-likelihoods: the same bits. The mean and covariance
+    come from the compiled moments in compiled mode (particle-order sums against numpy's
+    BLAS): 1e-12."""
     ref, out = both(lambda: bearing_run(options))
     assert len(ref) == len(out)
-    for a, b in zip(ref, out, strict=True):
-        for x, y in zip(a, b, strict=True):
+    resampled = []
+    for (exact_ref, res_ref, m_ref, P_ref), (exact, res, m, P) in zip(ref, out, strict=True):
+        for x, y in zip(exact_ref, exact, strict=True):
             np.testing.assert_array_equal(y, x)
+        assert res == res_ref
+        resampled.append(res)
+        np.testing.assert_allclose(m, m_ref, rtol=1e-12, atol=1e-12 * np.abs(m_ref).max())
+        np.testing.assert_allclose(P, P_ref, rtol=0, atol=1e-12 * np.abs(P_ref).max())
+    if options.get("resample") == "ess":
+        assert any(resampled) and not all(resampled)  # both branches ran
+
+
+def test_compiled_moments_agree_with_numpy():
+    from activetrack.kernels import moments
+
+    rng = np.random.default_rng(8)
+    X = particles(3000)
+    w = rng.random(3000)
+    w /= w.sum()
+    mean, cov = moments.weighted_moments4(X, w)
+    ref_mean = w @ X
+    D = X - ref_mean
+    ref_cov = (D.T * w) @ D
+    np.testing.assert_allclose(mean, ref_mean, rtol=1e-12)
+    np.testing.assert_allclose(cov, ref_cov, rtol=0, atol=1e-12 * np.abs(ref_cov).max())
+    assert np.array_equal(cov, cov.T)
+    w.flags.writeable = False  # the filter's uniform weights are read-only
+    np.testing.assert_array_equal(moments.weighted_moments4(X, w)[0], mean)
 
 
 def test_custom_sensor_and_nonlinear_model_fall_back_to_numpy():

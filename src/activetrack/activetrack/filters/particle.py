@@ -51,7 +51,7 @@ from activetrack.filters.measurement import (
     check_predict_time,
 )
 from activetrack.filters.resampling import roughen, systematic_resample
-from activetrack.kernels import particle_kernels
+from activetrack.kernels import moment_kernels, particle_kernels
 from activetrack.models.base import MotionModel
 
 __all__ = ["FilterCollapseError", "ParticleFilter"]
@@ -259,6 +259,10 @@ class ParticleFilter:
 
     def _compute_moments(self) -> tuple[np.ndarray, np.ndarray]:
         if self._moments is None:
+            kernels = moment_kernels()  # compiled mode only: round-off agreement
+            if kernels is not None and self._X.shape[1] == 4:
+                self._moments = kernels.weighted_moments4(self._X, self._w)
+                return self._moments
             mean = self._w @ self._X
             D = self._X - mean
             P = (D.T * self._w) @ D

@@ -16,8 +16,9 @@ Which path runs is one process-wide switch, read from the environment variable
   never pays it, a Monte Carlo campaign pays it once. Without numba: numpy throughout.
 - ``numpy``: always the numpy code;
 - ``compiled``: the compiled kernels from the first step; an ImportError if numba is missing.
-  This mode also runs the EKF kernels (:func:`ekf_kernels`), which agree with numpy's BLAS
-  products to round-off only and so are left out of ``auto``.
+  This mode also runs the EKF kernels (:func:`ekf_kernels`) and the particle filter's
+  mean and covariance (:func:`moment_kernels`), which agree with numpy's BLAS products to
+  round-off only and so are left out of ``auto``.
 
 :func:`set_kernels` changes the mode within a process (tests and benchmarks compare both).
 
@@ -44,6 +45,7 @@ __all__ = [
     "MODES",
     "compiled_enabled",
     "ekf_kernels",
+    "moment_kernels",
     "particle_kernels",
     "set_kernels",
     "warm_up",
@@ -60,6 +62,7 @@ AUTO_WORK = 5_000_000
 _mode: str | None = None
 _particle: ModuleType | None = None
 _ekf: ModuleType | None = None
+_moments: ModuleType | None = None
 _unavailable = False  # numba did not import: do not retry at every call
 _work = 0
 
@@ -127,6 +130,19 @@ def ekf_kernels() -> ModuleType | None:
     return _ekf
 
 
+def moment_kernels() -> ModuleType | None:
+    """The compiled particle moments (:mod:`activetrack.kernels.moments`) in ``compiled``
+    mode only, else None (round-off agreement with numpy's BLAS sums, like the EKF's)."""
+    global _moments
+    if _current_mode() != "compiled":
+        return None
+    if _moments is None:
+        from activetrack.kernels import moments
+
+        _moments = moments
+    return _moments
+
+
 def compiled_enabled() -> bool:
     """True when the compiled kernels run now (see the module docstring)."""
     return particle_kernels() is not None
@@ -138,7 +154,8 @@ def warm_up() -> bool:
     if kernels is None:
         return False
     kernels.warm_up()
-    from activetrack.kernels import ekf
+    from activetrack.kernels import ekf, moments
 
     ekf.warm_up()
+    moments.warm_up()
     return True
