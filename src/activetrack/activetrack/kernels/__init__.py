@@ -1,8 +1,9 @@
 """Compiled kernels (numba) for the hot loops, with the numpy code kept as the reference.
 
-Each kernel does the very operations of its numpy reference, in the same order and on the same
-random draws, so the two paths give the same bits (tests/core/test_pf_kernels.py): which one
-runs changes the speed, never a result.
+The particle-filter step kernels (:func:`particle_kernels`) do the very operations of their numpy
+references, in the same order and on the same random draws, so the two paths give the same
+particles and weights bit for bit (tests/core/test_pf_kernels.py): which one runs changes the
+speed, never a result. The EKF and moment kernels agree to round-off only (see ``compiled``).
 
 Which path runs is one process-wide switch, read from the environment variable
 ``ACTIVETRACK_KERNELS`` at first use:
