@@ -19,6 +19,10 @@ seeded numpy Generator; every implementation filters the very same bearings from
 prior. The particle filters also start from the same initial particle cloud (their later
 random draws differ, which is what the Monte Carlo error covers).
 
+Our PF runs on the compiled kernels (``activetrack.kernels``, numba) from the first step; its
+numpy path, the kernels' reference, is timed as well on the Stone Soup runs (same numbers, so
+its RMSE difference is exactly zero).
+
 Timing: time.perf_counter around each predict + update (estimate extraction excluded), over
 all steps of all runs after a warm-up run; the median per-step time is reported. Detections
 (ours: ``Measurement``, Stone Soup: ``Detection`` with a per-epoch measurement model) are built
@@ -38,6 +42,7 @@ from datetime import datetime, timedelta
 
 import numpy as np
 
+from activetrack import kernels
 from activetrack.allocator import tune_allocator
 from activetrack.angles import wrap_angle
 from activetrack.bounds.pcrlb import measurement_information, pcrlb_step
@@ -119,6 +124,15 @@ def run_ours_ekf(sc: Scenario, run: Run, **_):
         dt[k] = clock() - t0
         est[k] = f.mean
     return est, dt
+
+
+def run_ours_pf_numpy(sc: Scenario, run: Run, n_particles: int, **_):
+    """Our PF on the numpy path (the reference of the compiled kernels; same numbers)."""
+    kernels.set_kernels("numpy")
+    try:
+        return run_ours_pf(sc, run, n_particles)
+    finally:
+        kernels.set_kernels("compiled")
 
 
 def run_ours_pf(sc: Scenario, run: Run, n_particles: int, **_):
@@ -410,6 +424,9 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
 
     sc = Scenario()
+    # Our PF on the compiled kernels from the first step (the default "auto" mode switches to
+    # them after a first stretch of work, activetrack.kernels); its numpy path is measured too.
+    kernels.set_kernels("compiled")
     if args.quick:
         n_ekf, n_pf, n_ss_pf, pcrlb_reps = 20, 6, 3, 50
     else:
@@ -438,8 +455,8 @@ def main(argv=None) -> int:
         f"m0={sc.m0}, C0=diag{sc.C0}, sensor0={sc.sensor0}"
     )
     print(
-        f"# Monte Carlo runs: EKFs {n_ekf}, our PF {n_pf}, Stone Soup PF {n_ss_pf} "
-        f"(the first {n_ss_pf} of ours: the slow one gets fewer); PF particles {N}"
+        f"# Monte Carlo runs: EKFs {n_ekf}, our PF {n_pf}, Stone Soup PF and our PF's numpy "
+        f"path {n_ss_pf} (the first {n_ss_pf} of ours: the slow ones get fewer); PF particles {N}"
     )
     print()
 
@@ -457,6 +474,7 @@ def main(argv=None) -> int:
     pf = measure(
         [
             ("activetrack PF", run_ours_pf, n_pf),
+            ("activetrack PF (numpy)", run_ours_pf_numpy, n_ss_pf),
             ("Stone Soup PF", run_stonesoup_pf, n_ss_pf),
         ],
         sc,
@@ -475,7 +493,7 @@ def main(argv=None) -> int:
     print()
 
     ours_ekf, ss_ekf, ss_ekf_j, fp_ekf = ekf
-    ours_pf, ss_pf = pf
+    ours_pf, ours_pf_numpy, ss_pf = pf
     print("speed ratios: their median step time / ours; [p10, p90] of the ratio run by run")
 
     def verdict(x, target):
@@ -488,14 +506,17 @@ def main(argv=None) -> int:
         print(f"  {label:<30} {x:6.1f}x  [{lo:5.1f}, {hi:5.1f}]  {extra}".rstrip())
         return x
 
-    ekf_speedup = line("EKF vs Stone Soup EKF", ss_ekf, ours_ekf, 10)
+    ekf_speedup = line("EKF vs Stone Soup EKF", ss_ekf, ours_ekf, 30)
     line("EKF vs Stone Soup EKF (Joseph)", ss_ekf_j, ours_ekf)
     line("EKF vs filterpy EKF", fp_ekf, ours_ekf)
-    pf_speedup = line("PF vs Stone Soup SIR PF", ss_pf, ours_pf, 5)
+    pf_speedup = line("PF vs Stone Soup SIR PF", ss_pf, ours_pf, 15)
+    line("PF (numpy path) vs Stone Soup", ss_pf, ours_pf_numpy)
+    line("PF compiled vs numpy path", ours_pf_numpy, ours_pf)
     print()
 
     print("RMSE agreement (position RMSE over all epochs; paired difference on common runs)")
-    for a, b in ((ours_ekf, ss_ekf), (ours_ekf, fp_ekf), (ours_pf, ss_pf)):
+    pairs = ((ours_ekf, ss_ekf), (ours_ekf, fp_ekf), (ours_pf, ss_pf), (ours_pf, ours_pf_numpy))
+    for a, b in pairs:
         d, se, n = paired_rmse_diff(a, b)
         ok = "agree" if abs(d) <= 2 * se or abs(d) < 1e-6 * a.rmse else "DIFFER"
         print(f"  {a.name} - {b.name}: {d:+.3g} m +- {se:.2g} (paired SE, {n} runs)  {ok}")

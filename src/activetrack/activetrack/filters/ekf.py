@@ -20,6 +20,10 @@ These are the equations of filterpy's ``ExtendedKalmanFilter.predict`` / ``updat
 check equality to 1e-9), computed here with plain numpy on small matrices to keep the per-step
 overhead low.
 
+With ``ACTIVETRACK_KERNELS=compiled`` (``activetrack.kernels``) the prediction and each
+detection's update run as one compiled call each (``activetrack.kernels.ekf``), equal to this
+numpy algebra to round-off.
+
 Several sensors per step are processed **sequentially** in the order given: each detection
 is linearised at the state updated by the ones before it. For a linear measurement model this
 equals the stacked update exactly; for independent measurement noises it is the usual
@@ -47,6 +51,7 @@ from activetrack.filters.measurement import (
     check_measurement_times,
     check_predict_time,
 )
+from activetrack.kernels import ekf_kernels
 from activetrack.models.base import MotionModel, as_linear
 
 __all__ = ["ExtendedKalmanFilter"]
@@ -56,6 +61,43 @@ _S_NOT_SPD = (
     "measurements: innovation covariance S = H P H^T + R is not positive definite for "
     "sensor {!r} (check the sensor's R)"
 )
+
+
+def _joseph_update(
+    x: FloatArray,
+    P: FloatArray,
+    H: FloatArray,
+    nu: FloatArray,
+    R: FloatArray,
+    I: FloatArray,
+    sid: str,
+) -> tuple[FloatArray, FloatArray, float, float]:
+    """One detection (Ramdaras eq. 16-22): ``(x, P, nis, log det S)``."""
+    n = x.shape[0]
+    PHT = P @ H.T
+    S = H @ PHT + R
+    dim_z = nu.shape[0]
+    if dim_z == 1:  # scalar innovation: S^-1 is a division
+        s11 = float(S[0, 0])
+        if not s11 > 0.0:
+            raise ValueError(_S_NOT_SPD.format(sid))
+        K = PHT / s11
+        nis = float(nu[0]) ** 2 / s11
+        log_det_S = math.log(s11)
+    else:
+        try:
+            L = np.linalg.cholesky(S)
+        except np.linalg.LinAlgError:
+            raise ValueError(_S_NOT_SPD.format(sid)) from None
+        # One solve gives both S^-1 (H P) for the gain and S^-1 nu for the NIS.
+        sol = np.linalg.solve(S, np.column_stack((PHT.T, nu)))
+        K = sol[:, :n].T
+        nis = float(nu @ sol[:, n])
+        log_det_S = 2.0 * float(np.sum(np.log(np.diagonal(L))))
+    x = x + K @ nu
+    I_KH = I - K @ H
+    P = I_KH @ P @ I_KH.T + K @ R @ K.T
+    return x, 0.5 * (P + P.T), nis, log_det_S
 
 
 class ExtendedKalmanFilter:
@@ -116,13 +158,19 @@ class ExtendedKalmanFilter:
                     cache = (dt, F, model.process_noise(dt))
                     self._linear_cache = cache
                 _, F, Q = cache
-                self._x = F @ x
+                x_new = None  # F x
             else:
                 F = model.jacobian(x, dt)
                 Q = model.process_noise(dt, x)
-                self._x = np.asarray(model.propagate(x, dt), dtype=float)
-            P = F @ self._P @ F.T + Q
-            self._P = 0.5 * (P + P.T)
+                x_new = np.asarray(model.propagate(x, dt), dtype=float)
+            kernels = ekf_kernels()
+            if kernels is not None:  # the same algebra in one compiled call
+                Fx, self._P = kernels.predict(x, self._P, F, Q)
+            else:
+                Fx = F @ x if x_new is None else x_new
+                P = F @ self._P @ F.T + Q
+                self._P = 0.5 * (P + P.T)
+            self._x = Fx if x_new is None else x_new
         self._t = t
 
     def update(self, measurements: Sequence[Measurement]) -> UpdateInfo:
@@ -133,7 +181,7 @@ class ExtendedKalmanFilter:
         """
         check_measurement_times(measurements, self._t)
         model, x, P, I = self.model, self._x, self._P, self._I
-        n = x.shape[0]
+        kernels = ekf_kernels()
         nis_each: list[float] = []
         nis_total = 0.0
         log_lik = 0.0
@@ -151,30 +199,13 @@ class ExtendedKalmanFilter:
                 _, H_pv, nu = sensor.linearize(model.kinematics(x), s, m.z)
                 H = np.asarray(H_pv @ model.kinematics_jacobian(x), dtype=float)
             R = sensor.R
-            PHT = P @ H.T
-            S = H @ PHT + R
-            dim_z = nu.shape[0]
-            if dim_z == 1:  # scalar innovation: S^-1 is a division
-                s11 = float(S[0, 0])
-                if not s11 > 0.0:
+            if kernels is not None:  # the same algebra in one compiled call
+                x, P, nis, log_det_S, ok = kernels.update(x, P, H, nu, np.asarray(R, dtype=float))
+                if not ok:
                     raise ValueError(_S_NOT_SPD.format(m.sensor_id))
-                K = PHT / s11
-                nis = float(nu[0]) ** 2 / s11
-                log_det_S = math.log(s11)
             else:
-                try:
-                    L = np.linalg.cholesky(S)
-                except np.linalg.LinAlgError:
-                    raise ValueError(_S_NOT_SPD.format(m.sensor_id)) from None
-                # One solve gives both S^-1 (H P) for the gain and S^-1 nu for the NIS.
-                sol = np.linalg.solve(S, np.column_stack((PHT.T, nu)))
-                K = sol[:, :n].T
-                nis = float(nu @ sol[:, n])
-                log_det_S = 2.0 * float(np.sum(np.log(np.diagonal(L))))
-            x = x + K @ nu
-            I_KH = I - K @ H
-            P = I_KH @ P @ I_KH.T + K @ R @ K.T
-            P = 0.5 * (P + P.T)
+                x, P, nis, log_det_S = _joseph_update(x, P, H, nu, R, I, m.sensor_id)
+            dim_z = nu.shape[0]
             nis_each.append(nis)
             nis_total += nis
             dof += dim_z

@@ -25,13 +25,19 @@ The likelihoods are the sensors' own (``sensor.log_likelihood`` for a detection,
 ``sensor.log_miss_likelihood`` for a look without one; contract
 ``activetrack.models.base.SensorModel``): angle residuals wrapped, and for the built-in
 bearing and range-bearing sensors computed inline from the particle offsets.
+
+Compiled kernels (``activetrack.kernels``, numba): the built-in NCV models' sampling and the
+built-in bearing sensors' likelihoods run them inside their own methods, and the filter's
+systematic resampling copies the chosen particles in one compiled pass. They give the numpy
+path's bits on the same random draws, so the switch (``ACTIVETRACK_KERNELS``: ``auto`` by
+default, ``numpy``, ``compiled``) changes the speed only.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from functools import partial
+from functools import lru_cache, partial
 from typing import Any
 
 import numpy as np
@@ -45,6 +51,7 @@ from activetrack.filters.measurement import (
     check_predict_time,
 )
 from activetrack.filters.resampling import roughen, systematic_resample
+from activetrack.kernels import moment_kernels, particle_kernels
 from activetrack.models.base import MotionModel
 
 __all__ = ["FilterCollapseError", "ParticleFilter"]
@@ -129,6 +136,15 @@ def _initial_weights(weights: ArrayLike | None, N: int) -> FloatArray:
             f"weights must be ({N},), non-negative, with a positive sum; got shape {w.shape}"
         )
     return w / w.sum()
+
+
+@lru_cache(maxsize=8)
+def _uniform_weights(N: int) -> FloatArray:
+    """The weights 1/N after resampling, one read-only array per N (the filter never writes
+    into its weights; it replaces them)."""
+    w = np.full(N, 1.0 / N)
+    w.flags.writeable = False
+    return w
 
 
 class ParticleFilter:
@@ -243,6 +259,10 @@ class ParticleFilter:
 
     def _compute_moments(self) -> tuple[np.ndarray, np.ndarray]:
         if self._moments is None:
+            kernels = moment_kernels()  # compiled mode only: round-off agreement
+            if kernels is not None and self._X.shape[1] == 4:
+                self._moments = kernels.weighted_moments4(self._X, self._w)
+                return self._moments
             mean = self._w @ self._X
             D = self._X - mean
             P = (D.T * self._w) @ D
@@ -346,21 +366,26 @@ class ParticleFilter:
             self.last_info = info
             return info
 
+        # numpy's vectorised exp, sum and dot are at the memory floor here (a compiled pass
+        # would be slower: numba's scalar exp costs ~8x numpy's per element).
         w = np.exp(logw - top)
         total = float(w.sum())
         w /= total
+        ess = 1.0 / float(w @ w)
         log_norm = top + math.log(total)
         log_lik = log_norm + const
         if self._logw is None:
             log_lik -= math.log(w.shape[0])  # uniform prior weights 1/N were left out above
-        ess = 1.0 / float(w @ w)
         N = w.shape[0]
+        kernels = particle_kernels(work=N)  # "auto" counts the work (activetrack.kernels)
         resampled = self.resample == "always" or ess < self.ess_threshold * N
         if resampled:
-            idx = systematic_resample(w, self.rng)
-            self._X = np.take(self._X, idx, axis=0)
+            if kernels is None:
+                self._X = np.take(self._X, systematic_resample(w, self.rng), axis=0)
+            else:  # the same draw and rows, copied in one pass
+                self._X = kernels.systematic_resample_rows(self._X, w, self.rng.random())
             roughen(self._X, self.roughening, self.rng)
-            self._w = np.full(N, 1.0 / N)
+            self._w = _uniform_weights(N)
             self._logw = None
         else:
             self._w = w

@@ -16,13 +16,21 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import ClassVar
 
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_nonnegative
-from activetrack.models._common import add_gaussian_noise, check_dt, check_rng, check_state
+from activetrack.kernels import particle_kernels
+from activetrack.models._common import (
+    add_gaussian_noise,
+    check_dt,
+    check_rng,
+    check_state,
+    noise_factor,
+)
 
 PV_NAMES = ("x", "xdot", "y", "ydot")
 
@@ -32,6 +40,64 @@ def cv_transition(dt: float) -> FloatArray:
     F = np.eye(4)
     F[0, 1] = F[2, 3] = dt
     return F
+
+
+def rows_times(X: FloatArray, A: FloatArray) -> FloatArray:
+    """X A^T for rows X ``(N, 4)`` and A ``(4, 4)``, summed over k = 0..3 in that order
+    (sum_k X[:, k] A[:, k]): the order the compiled kernel follows, so both give the same bits
+    (a BLAS matmul may sum in another order or fuse multiply-adds)."""
+    out = X[:, 0, None] * A[:, 0]
+    for k in range(1, 4):
+        out += X[:, k, None] * A[:, k]
+    return out
+
+
+# Entries (row, column) of F and of L that can be non-zero for two independent
+# constant-velocity axes (x, xdot) and (y, ydot): F upper, L lower triangular in each block.
+_CV_F_ENTRIES = ((0, 0), (0, 1), (1, 1), (2, 2), (2, 3), (3, 3))
+_CV_L_ENTRIES = ((0, 0), (1, 0), (1, 1), (2, 2), (3, 2), (3, 3))
+
+
+def cv_rows(X: FloatArray, W: FloatArray, F: FloatArray, L: FloatArray) -> FloatArray:
+    """``rows_times(X, F) + rows_times(W, L)`` for F and L with the zeros of
+    :func:`has_cv_zeros`, from the non-zero terms only: x F^T has x0 f00 + x1 f01, x1 f11,
+    x2 f22 + x3 f23, x3 f33 and w L^T has w0 l00, w0 l10 + w1 l11, w2 l22, w2 l32 + w3 l33.
+    The operations of the compiled ``cv_gaussian_sample`` (a + b = b + a exactly)."""
+    mean = X * np.diagonal(F)
+    mean[:, 0] += X[:, 1] * F[0, 1]
+    mean[:, 2] += X[:, 3] * F[2, 3]
+    noise = W * np.diagonal(L)
+    noise[:, 1] += W[:, 0] * L[1, 0]
+    noise[:, 3] += W[:, 2] * L[3, 2]
+    mean += noise
+    return mean
+
+
+def has_cv_zeros(F: FloatArray, L: FloatArray) -> bool:
+    """True when F and L are zero outside the entries of two independent constant-velocity
+    axes (then the compiled ``cv_gaussian_sample`` applies: it sums the non-zero terms only)."""
+    for A, keep in ((F, _CV_F_ENTRIES), (L, _CV_L_ENTRIES)):
+        mask = np.ones((4, 4), dtype=bool)
+        mask[tuple(zip(*keep, strict=True))] = False
+        if A.shape != (4, 4) or np.any(A[mask] != 0.0):
+            return False
+    return True
+
+
+@lru_cache(maxsize=64)
+def _sample_factors(model: _LinearPV, dt: float) -> tuple[FloatArray, FloatArray, bool]:
+    """F, L (L L^T = Q) and :func:`has_cv_zeros` of a model and a time step, read-only and
+    kept for the next step (a filter samples with one dt every step; the models are frozen,
+    so hashable)."""
+    return _read_only_factors(model, dt)
+
+
+def _read_only_factors(model: _LinearPV, dt: float) -> tuple[FloatArray, FloatArray, bool]:
+    F = model.transition_matrix(dt)
+    L = noise_factor(model.process_noise(dt))
+    F.flags.writeable = False
+    L.flags.writeable = False
+    return F, L, has_cv_zeros(F, L)
 
 
 class _LinearPV(ABC):
@@ -61,9 +127,34 @@ class _LinearPV(ABC):
         return np.broadcast_to(self.transition_matrix(dt), (*x.shape[:-1], 4, 4)).copy()
 
     def sample(self, x: ArrayLike, dt: float, rng: np.random.Generator) -> FloatArray:
-        """f(x) + w, w ~ N(0, Q), independently for each state of the batch ``(..., 4)``."""
+        """f(x) + w, w ~ N(0, Q), independently for each state of the batch ``(..., 4)``.
+
+        A particle array ``(N, 4)`` is computed as :func:`rows_times` (x F^T) plus
+        ``rows_times(W, L)`` (W L^T, L L^T = Q) with W = ``rng.standard_normal((N, 4))``, or
+        from the non-zero terms only (:func:`cv_rows`) when F and L have the zeros of two
+        constant-velocity axes: in one pass by the compiled kernel when one is enabled
+        (``activetrack.kernels``), which draws the same normals and does the same operations,
+        so both paths give the same bits.
+        """
         check_rng(rng)
-        return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
+        if not (type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4):
+            return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
+        try:
+            F, L, cv = _sample_factors(self, check_dt(dt))
+        except TypeError:  # an unhashable subclass: no cache
+            F, L, cv = _read_only_factors(self, dt)
+        kernels = particle_kernels()
+        if kernels is None:
+            X = check_state("x", x, 4)
+            W = rng.standard_normal(X.shape)
+            return cv_rows(X, W, F, L) if cv else rows_times(X, F) + rows_times(W, L)
+        X = np.ascontiguousarray(x, dtype=float)
+        # The NCV models' F and L: the zero terms left out (the same numbers, has_cv_zeros).
+        sample = kernels.cv_gaussian_sample if cv else kernels.linear_gaussian_sample
+        out, finite = sample(X, F, L, rng)
+        if not finite:
+            check_state("x", X, 4)  # raises, naming the argument as the numpy path does
+        return out
 
     def kinematics(self, x: ArrayLike) -> FloatArray:
         """The state is already pv: returns a copy, ``(..., 4)``."""

@@ -20,6 +20,10 @@ Where a faster form exists it overrides the generic member, with the same number
   Fisher information;
 - every built-in sensor: the missed-detection likelihood from the particle ranges.
 
+The bearing and range-bearing likelihoods of a particle array ``(N, 4)`` run the compiled
+kernels of ``activetrack.kernels`` when they are enabled: the same operations in one pass each
+side of numpy's arcsin, so the same bits.
+
 The other members are the generic ones of ``GaussianSensor``.
 """
 
@@ -28,13 +32,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import partial
+from types import ModuleType
 from typing import ClassVar
 
 import numpy as np
 
 from activetrack.angles import wrap_angle, wrap_half_angle
-from activetrack.arraytypes import ArrayLike, FloatArray
+from activetrack.arraytypes import ArrayLike, BoolArray, FloatArray
 from activetrack.checks import require_positive
+from activetrack.kernels import particle_kernels
 from activetrack.models._common import relative_geometry
 from activetrack.models.base import (
     GaussianSensor,
@@ -152,6 +158,29 @@ def _abs_bearing_error(dx: FloatArray, dy: FloatArray, r: FloatArray, zb: float)
     behind = dx * cz + dy * sz < 0.0  # cos e < 0: |e| > pi/2
     np.subtract(math.pi, a, out=a, where=behind)
     return a
+
+
+def _compiled_sines(
+    kernels: ModuleType, target_pv: ArrayLike, sensor_pv: ArrayLike, zb: float
+) -> tuple[FloatArray, BoolArray, FloatArray] | None:
+    """The compiled first pass of the bearing likelihood for a particle array ``(N, 4)``
+    (``kernels.bearing_sines``) with the arcsin applied: ``(arcsin |sin e|, behind, r)``, the
+    intermediates of :func:`_abs_bearing_error`. None for other shapes (the numpy path)."""
+    pv, s = target_pv, sensor_pv
+    if not (
+        type(pv) is np.ndarray
+        and pv.ndim == 2
+        and pv.shape[1] == 4
+        and pv.dtype == np.float64
+        and type(s) is np.ndarray
+        and s.shape == (4,)
+    ):
+        return None
+    sines, behind, r = kernels.bearing_sines(
+        pv, float(s[0]), float(s[2]), math.cos(zb), math.sin(zb)
+    )
+    np.arcsin(sines, out=sines)
+    return sines, behind, r
 
 
 def _gated(ell: FloatArray, r: FloatArray, sensor: GaussianSensor) -> FloatArray:
@@ -281,12 +310,18 @@ class BearingSensor(_BearingFamily):
     ) -> tuple[FloatArray, float]:
         """-0.5 e^2 / sigma^2 per state with the arcsin-wrapped residual e (``GaussianSensor``
         for the contract)."""
-        dx, dy, r = _offsets(target_pv, sensor_pv)
         log_norm = self._likelihood_whitener[1]
         zb = float(np.asarray(z, dtype=float).reshape(-1)[-1])
+        coef = -0.5 / self.sigma**2
+        kernels = particle_kernels()
+        if kernels is not None and (pass1 := _compiled_sines(kernels, target_pv, sensor_pv, zb)):
+            a, behind, r = pass1
+            ell = kernels.bearing_finish(a, behind, r, coef, gate, self.r_min, self.r_max)
+            return ell, log_norm
+        dx, dy, r = _offsets(target_pv, sensor_pv)
         a = _abs_bearing_error(dx, dy, r, zb)
         a *= a
-        a *= -0.5 / self.sigma**2
+        a *= coef
         return (_gated(a, r, self) if gate else a), log_norm
 
 
@@ -359,9 +394,16 @@ class RangeBearingSensor(_PlanarSensor):
     ) -> tuple[FloatArray, float]:
         """-0.5 (e_r^2 / sigma_r^2 + e_b^2 / sigma_b^2) per state, the bearing residual
         arcsin-wrapped (``GaussianSensor`` for the contract)."""
-        dx, dy, r = _offsets(target_pv, sensor_pv)
         log_norm = self._likelihood_whitener[1]
         zr, zb = _scalar_entries(z)[:2]
+        kernels = particle_kernels()
+        if kernels is not None and (pass1 := _compiled_sines(kernels, target_pv, sensor_pv, zb)):
+            a, behind, r = pass1
+            ell = kernels.range_bearing_finish(
+                a, behind, r, zr, self.sigma_r, self.sigma_b, gate, self.r_min, self.r_max
+            )
+            return ell, log_norm
+        dx, dy, r = _offsets(target_pv, sensor_pv)
         a = _abs_bearing_error(dx, dy, r, zb)
         a /= self.sigma_b
         e_r = (zr - r) / self.sigma_r

@@ -1,0 +1,162 @@
+"""Compiled kernels (numba) for the hot loops, with the numpy code kept as the reference.
+
+The particle-filter step kernels (:func:`particle_kernels`) do the very operations of their numpy
+references, in the same order and on the same random draws, so the two paths give the same
+particles and weights bit for bit (tests/core/test_pf_kernels.py): which one runs changes the
+speed, never a result. The EKF and moment kernels agree to round-off only (see ``compiled``).
+
+Which path runs is one process-wide switch, read from the environment variable
+``ACTIVETRACK_KERNELS`` at first use:
+
+- ``auto`` (the default): numpy first, the compiled kernels once they pay off, i.e. as soon as
+  numba is already imported (another kernel loaded it) or once the process has done
+  :data:`AUTO_WORK` particle updates (particles x steps; each ``ParticleFilter.update`` counts
+  its N). Loading numba and its cached machine code costs about 0.5 s of CPU per process
+  (more on a loaded machine), about what the numpy path spends on that much work; a short
+  command such as ``activetrack run`` on the default scenario (30 steps of 10,000 particles)
+  never pays it, a Monte Carlo campaign pays it once. Without numba: numpy throughout.
+- ``numpy``: always the numpy code;
+- ``compiled``: the compiled kernels from the first step; an ImportError if numba is missing.
+  This mode also runs the EKF kernels (:func:`ekf_kernels`) and the particle filter's
+  mean and covariance (:func:`moment_kernels`), which agree with numpy's BLAS products to
+  round-off only and so are left out of ``auto``.
+
+:func:`set_kernels` changes the mode within a process (tests and benchmarks compare both).
+
+Every kernel is compiled with ``cache=True``: the machine code is kept in ``__pycache__`` next
+to the source and loaded from there by later processes; ``make setup`` compiles them once
+(:func:`warm_up`, run by ``tools/setup.sh`` when the kernel sources change).
+
+The consumers stay free of type tests (``tests/core/test_no_type_dispatch.py``): a built-in
+sensor or motion model calls the kernel inside its own method (``BearingSensor`` /
+``RangeBearingSensor.log_likelihood``, the NCV models' ``sample``), so a sensor or model without
+a kernel simply runs its own numpy maths, and the filter's own part (systematic resampling)
+goes through :func:`particle_kernels` like any other caller.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from types import ModuleType
+
+__all__ = [
+    "AUTO_WORK",
+    "ENV_VAR",
+    "MODES",
+    "compiled_enabled",
+    "ekf_kernels",
+    "moment_kernels",
+    "particle_kernels",
+    "set_kernels",
+    "warm_up",
+]
+
+ENV_VAR = "ACTIVETRACK_KERNELS"
+MODES = ("auto", "numpy", "compiled")
+# Particle updates (particles x steps) after which "auto" loads numba: 5e6 is ~500 steps of
+# 10,000 particles, ~0.5 s of the numpy path.
+AUTO_WORK = 5_000_000
+
+# The chosen mode (None: not read from the environment yet), the loaded kernel module and the
+# particle updates counted so far.
+_mode: str | None = None
+_particle: ModuleType | None = None
+_ekf: ModuleType | None = None
+_moments: ModuleType | None = None
+_unavailable = False  # numba did not import: do not retry at every call
+_work = 0
+
+
+def _check_mode(mode: str) -> str:
+    if mode not in MODES:
+        raise ValueError(f"{ENV_VAR} / set_kernels: mode must be one of {MODES}, got {mode!r}")
+    return mode
+
+
+def set_kernels(mode: str | None) -> None:
+    """Choose ``"auto"``, ``"numpy"`` or ``"compiled"`` for this process; None goes back to
+    the environment variable ``ACTIVETRACK_KERNELS``."""
+    global _mode
+    _mode = None if mode is None else _check_mode(mode)
+
+
+def _current_mode() -> str:
+    global _mode
+    if _mode is None:
+        _mode = _check_mode(os.environ.get(ENV_VAR, "auto").strip().lower() or "auto")
+    return _mode
+
+
+def _load(mode: str) -> ModuleType | None:
+    global _particle, _unavailable
+    try:
+        from activetrack.kernels import particle
+    except ImportError:
+        if mode == "compiled":
+            raise
+        _unavailable = True
+        return None
+    _particle = particle
+    return particle
+
+
+def particle_kernels(work: int = 0) -> ModuleType | None:
+    """The compiled particle-filter kernels (:mod:`activetrack.kernels.particle`), or None
+    for the numpy path (see the module docstring). ``work``: particle updates to count
+    towards :data:`AUTO_WORK` (the particle filter passes its N once per update)."""
+    global _work
+    _work += work
+    if _particle is not None:
+        return None if _current_mode() == "numpy" else _particle
+    mode = _current_mode()
+    if mode == "numpy" or (_unavailable and mode == "auto"):
+        return None
+    if mode == "auto" and _work < AUTO_WORK and "numba" not in sys.modules:
+        return None
+    return _load(mode)
+
+
+def ekf_kernels() -> ModuleType | None:
+    """The compiled EKF kernels (:mod:`activetrack.kernels.ekf`) in ``compiled`` mode only,
+    else None: they agree with numpy's BLAS products to round-off, not to the bit, so ``auto``
+    (which may switch mid-process) keeps the numpy EKF."""
+    global _ekf
+    if _current_mode() != "compiled":
+        return None
+    if _ekf is None:
+        from activetrack.kernels import ekf
+
+        _ekf = ekf
+    return _ekf
+
+
+def moment_kernels() -> ModuleType | None:
+    """The compiled particle moments (:mod:`activetrack.kernels.moments`) in ``compiled``
+    mode only, else None (round-off agreement with numpy's BLAS sums, like the EKF's)."""
+    global _moments
+    if _current_mode() != "compiled":
+        return None
+    if _moments is None:
+        from activetrack.kernels import moments
+
+        _moments = moments
+    return _moments
+
+
+def compiled_enabled() -> bool:
+    """True when the compiled kernels run now (see the module docstring)."""
+    return particle_kernels() is not None
+
+
+def warm_up() -> bool:
+    """Compile (or load from the disk cache) every kernel; False without numba."""
+    kernels = _particle if _particle is not None else _load("auto")
+    if kernels is None:
+        return False
+    kernels.warm_up()
+    from activetrack.kernels import ekf, moments
+
+    ekf.warm_up()
+    moments.warm_up()
+    return True
