@@ -77,6 +77,7 @@ KEYED = {
     "pydantic": ("python3-pydantic", "pydantic"),
     "pydantic_core": ("python3-pydantic", "pydantic"),  # pydantic's own core, comes with it
     "tqdm": ("python3-tqdm", "tqdm"),
+    "numba": ("python3-numba", "numba"),
 }
 # import name -> PyPI distribution, for modules rosdep has no key for (the pip-only comment).
 PIP_ONLY = {
