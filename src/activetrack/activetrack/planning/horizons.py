@@ -25,6 +25,7 @@ from activetrack.planning.manoeuvre import (
     PlatformLimits,
     hold_course,
     manoeuvre_to_unit,
+    speed_interval,
     step_platform,
     unit_to_manoeuvre,
 )
@@ -120,12 +121,15 @@ def _dynamic_programme(
     J_prev ``(B, 4, 4)``, pv ``(B, 4)``, heading and speed ``(B,)`` at epoch k+level.
     Returns the plans ``(B, R - level, 2)`` and the values ``(B,)`` (eq. 13-15 nested).
     """
+    from activetrack.planning._kernels import candidate_legs
+
     R = model.horizon
     J_pred = model.predict(J_prev)  # (B, 4, 4): the same for every stage of the search
+    v_lo, v_hi = speed_interval(speed, limits)
 
     def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        man = unit_to_manoeuvre(u, speed[rows, None], limits)  # (b, C, 2)
-        pv1, h1 = step_platform(pv[rows, None, :], heading[rows, None], man, dt)
+        # unit_to_manoeuvre then step_platform, compiled: (b, C, 2), (b, C, 4), (b, C)
+        man, pv1, h1 = candidate_legs(u, rows, pv, heading, v_lo, v_hi, limits.dpsi_max, dt)
         J1 = model.update(J_pred[rows, None], level, pv1)  # (b, C, 4, 4)
         costs = model.cost(J1)
         plan = man[:, :, None, :]

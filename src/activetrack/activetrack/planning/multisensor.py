@@ -90,6 +90,9 @@ def coordinate_platforms(
     controllable = [(i, p.limits) for i, p in enumerate(platforms) if p.limits is not None]
     # Bookkeeping to skip re-optimising a platform when nobody else changed since its last
     # optimisation (a deterministic search would return the same plan).
+    # Each platform's own J_Z of candidate batches, kept across its optimisations in this
+    # decision (HorizonModel's cache): a later pass often scores the same candidates again.
+    caches: list[dict] = [{} for _ in range(n)]
     clock, changed_at = 0, [0] * n
     optimised_at: list[int | None] = [None] * n
     evaluations, iterations, converged = 0, 0, False
@@ -103,7 +106,7 @@ def coordinate_platforms(
             fixed = sum(info[i] for i in range(n) if i != j) if n > 1 else np.zeros_like(info[j])
             p = platforms[j]
             heading, speed = p.heading_and_speed
-            model = HorizonModel(F, Q, samples, fixed, p.sensors, criterion)
+            model = HorizonModel(F, Q, samples, fixed, p.sensors, criterion, cache=caches[j])
             plan, _ = optimise_platform(model, J0, p.pv, heading, speed, limits, dt, settings, rng)
             evaluations += model.evaluations
             clock += 1
