@@ -1,7 +1,8 @@
 """The compiled PCRLB pieces equal the numpy reference: the sensors' Fisher-information kernels
-(Hernandez eq. 8-9) to 1e-12, and the planner with its compiled search bookkeeping, candidate
-legs and per-platform J_Z cache takes the decisions it took before them (paths recorded from
-the numpy planner on the Hernandez scenarios, scenario seed)."""
+(Hernandez eq. 8-9), the prediction step of eq. 3 and b_k of eq. 10 to 1e-12; and the planner
+with its compiled search bookkeeping, candidate legs, kernels and per-platform J_Z cache takes the
+decisions it took before them (paths recorded from the numpy planner on the Hernandez
+scenarios, scenario seed)."""
 
 import math
 from dataclasses import dataclass
@@ -11,8 +12,13 @@ import numpy as np
 import pytest
 from linear_sensor import LinearPositionSensor
 
-from activetrack.bounds import measurement_information
-from activetrack.bounds.pcrlb import information_function, information_kernel, pcrlb_trajectory
+from activetrack.bounds import measurement_information, rmse_bound_of_information
+from activetrack.bounds.pcrlb import (
+    information_function,
+    information_kernel,
+    pcrlb_trajectory,
+    predicted_information,
+)
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,
@@ -185,3 +191,48 @@ def test_planner_takes_the_recorded_decisions(name):
     # search moves a sensor by metres).
     np.testing.assert_allclose(case.paths[1:][..., [0, 2]], expected, rtol=0.0, atol=2e-6)
     assert math.isfinite(float(case.bounds.sum()))
+
+
+def _spd_stack(N: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(N, 4, 4))
+    scale = np.array([1e-3, 1.0, 1e-3, 1.0])  # pv information: position and velocity units
+    J = A @ np.swapaxes(A, -1, -2) + 0.1 * np.eye(4)
+    return 0.5 * (J + np.swapaxes(J, -1, -2)) * np.sqrt(np.outer(scale, scale))
+
+
+def test_compiled_prediction_step_equals_numpy(monkeypatch):
+    F = np.eye(4)
+    F[0, 1] = F[2, 3] = 5.0
+    block = np.array([[125 / 3, 12.5], [12.5, 5.0]])
+    Q = 0.01 * np.kron(np.eye(2), block)  # NCV noise in (x, xdot, y, ydot) order
+    J = _spd_stack(50, seed=7)
+    auto = predicted_information(J, F, Q)
+    monkeypatch.setenv("ACTIVETRACK_KERNELS", "numpy")
+    ref = predicted_information(J, F, Q)
+    for a, b in zip(auto, ref, strict=True):
+        _close(a, b)
+    monkeypatch.delenv("ACTIVETRACK_KERNELS")
+    bad = J.copy()
+    bad[3] = -bad[3]
+    with pytest.raises(ValueError, match="J_prev must be symmetric positive definite"):
+        predicted_information(bad, F, Q)
+    bad = J.copy()
+    bad[2, 0, 1] += 1.0
+    with pytest.raises(ValueError, match="not symmetric"):
+        predicted_information(bad, F, Q)
+
+
+def test_compiled_rmse_bound_equals_numpy(monkeypatch):
+    J = _spd_stack(60, seed=8).reshape(5, 12, 4, 4)
+    auto = rmse_bound_of_information(J)
+    monkeypatch.setenv("ACTIVETRACK_KERNELS", "numpy")
+    ref = rmse_bound_of_information(J)
+    assert auto.shape == ref.shape == (5, 12)
+    np.testing.assert_allclose(auto, ref, rtol=1e-12, atol=0.0)
+    assert rmse_bound_of_information(J[0, 0]).shape == ()
+    monkeypatch.delenv("ACTIVETRACK_KERNELS")
+    with pytest.raises(ValueError, match="singular"):
+        rmse_bound_of_information(np.zeros((3, 4, 4)))
+    with pytest.raises(ValueError, match="non-positive variance"):
+        rmse_bound_of_information(-np.eye(4)[None])

@@ -19,7 +19,6 @@ States are kinematic pv vectors ``(x, xdot, y, ydot)`` (Hernandez eq. 6-7).
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from typing import cast
 
@@ -27,6 +26,7 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite
+from activetrack.compiled import kernels_enabled
 from activetrack.linalg import cholesky as _cholesky
 from activetrack.linalg import lower_solve as _lower_solve
 from activetrack.linalg import psd_sqrt as _psd_sqrt
@@ -162,7 +162,7 @@ def information_kernel(sensor: SensorModel) -> InformationKernel | None:
     None for a sensor without one or with ``ACTIVETRACK_KERNELS=numpy`` in the environment
     (every sensor then uses its numpy ``fisher_information``)."""
     get = getattr(sensor, "information_kernel", None)
-    if get is None or os.environ.get("ACTIVETRACK_KERNELS", "auto") == "numpy":
+    if get is None or not kernels_enabled():
         return None
     return get()
 
@@ -228,13 +228,43 @@ def predicted_information(J_prev: FloatArray, F: FloatArray, Q: FloatArray) -> F
     """The prediction part of eq. 3, (Q + F J_k^{-1} F^T)^{-1}, for ``J_prev`` ``(..., n, n)``.
 
     F and Q ``(n, n)`` are taken as valid (the planner checks them once per decision, through
-    :func:`pcrlb_step`); J_prev is still checked to be SPD.
+    :func:`pcrlb_step`); J_prev is still checked to be SPD. A stack ``(N, n, n)`` goes through
+    the compiled Cholesky steps (``bounds._kernels.predicted_stack``, equal to 1e-12) unless
+    ``ACTIVETRACK_KERNELS=numpy``.
     """
+    if J_prev.ndim == 3 and kernels_enabled():
+        return _predicted_stack(J_prev, F, Q)
     L = _cholesky("J_prev", J_prev)
     Xt = _lower_solve(L, F.T)  # (..., n, n) = L^{-1} F^T
     C = Q + np.swapaxes(Xt, -1, -2) @ Xt  # predicted-state bound Q + F J^{-1} F^T
     # C and its inverse L^{-T} L^{-1} are symmetric by construction.
     return _spd_inverse("Q + F J_prev^-1 F^T", C, check_symmetry=False)
+
+
+def _predicted_stack(J_prev: FloatArray, F: FloatArray, Q: FloatArray) -> FloatArray:
+    """:func:`predicted_information` of a stack ``(N, n, n)``, compiled; the checks and messages
+    of the numpy form."""
+    from activetrack.bounds._kernels import predicted_stack
+
+    J_prev = np.ascontiguousarray(J_prev, dtype=float)
+    _check_symmetric("J_prev", J_prev)
+    P, status = predicted_stack(J_prev, np.ascontiguousarray(F), np.ascontiguousarray(Q))
+    if status == 1:
+        raise ValueError("J_prev must be symmetric positive definite (all eigenvalues > 0)")
+    if status == 2:
+        raise ValueError(
+            "Q + F J_prev^-1 F^T must be symmetric positive definite (all eigenvalues > 0)"
+        )
+    return P
+
+
+def _check_symmetric(name: str, A: FloatArray) -> None:
+    """Finite and symmetric to 1e-9 relative, as ``linalg.cholesky`` checks (ValueError)."""
+    if not np.isfinite(A).all():
+        raise ValueError(f"{name} must be finite (got NaN or inf entries)")
+    At = np.swapaxes(A, -1, -2)
+    if not (A == At).all() and np.max(np.abs(A - At)) > 1e-9 * np.max(np.abs(A)):
+        raise ValueError(f"{name} must be symmetric positive definite (it is not symmetric)")
 
 
 def propagate_samples(

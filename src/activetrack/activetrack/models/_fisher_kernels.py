@@ -24,19 +24,22 @@ __all__ = ["bearing_information"]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _bearing_sums(
-    xs: FloatArray, ys: FloatArray, sx: FloatArray, sy: FloatArray, r_min2: float, r_max2: float
-) -> tuple[FloatArray, FloatArray, FloatArray, bool]:
-    """Sums over the samples of b^2, a^2 and a b (a = dx / r^2, b = dy / r^2) for N sensor
-    positions, samples outside [r_min, r_max] left out (eq. 8's I_r), and whether any sample
+def _bearing_information(
+    X: FloatArray, S: FloatArray, scale: float, r_min2: float, r_max2: float
+) -> tuple[FloatArray, bool]:
+    """J_Z ``(N, 4, 4)`` of a bearing sensor at the N pv states ``S`` over the samples ``X``:
+    scale x the sums over the samples of b^2, a^2 and -a b (a = dx / r^2, b = dy / r^2) in the
+    (x, y) block, samples outside [r_min, r_max] left out (eq. 8's I_r); and whether any sample
     sits on a sensor (zero range)."""
-    n = sx.shape[0]
+    n = S.shape[0]
+    sx = np.ascontiguousarray(S[:, 0])
+    sy = np.ascontiguousarray(S[:, 2])
     sbb = np.zeros(n)
     saa = np.zeros(n)
     sab = np.zeros(n)
     on_sensor = False
-    for m in range(xs.shape[0]):
-        x, y = xs[m], ys[m]
+    for m in range(X.shape[0]):
+        x, y = X[m, 0], X[m, 2]
         for c in range(n):
             dx = x - sx[c]
             dy = y - sy[c]
@@ -48,7 +51,12 @@ def _bearing_sums(
             sbb[c] += b * b
             saa[c] += a * a
             sab[c] += a * b
-    return sbb, saa, sab, on_sensor
+    out = np.zeros((n, 4, 4))
+    for c in range(n):
+        out[c, 0, 0] = scale * sbb[c]
+        out[c, 2, 2] = scale * saa[c]
+        out[c, 0, 2] = out[c, 2, 0] = -scale * sab[c]
+    return out, on_sensor
 
 
 def bearing_information(
@@ -57,16 +65,8 @@ def bearing_information(
     """Hernandez eq. 8-9 for a bearing sensor (noise sigma, rad) at N pv states ``(N, 4)`` over
     pv samples ``(M, 4)``: ``(N, 4, 4)``, the closed form of ``BearingSensor.fisher_information``
     (H^T H / sigma^2 = (dy^2, -dx dy, dx^2) / (sigma^2 r^4) in the (x, y) block)."""
-    xs = np.ascontiguousarray(samples[:, 0])
-    ys = np.ascontiguousarray(samples[:, 2])
-    sx = np.ascontiguousarray(sensor_pv[:, 0])
-    sy = np.ascontiguousarray(sensor_pv[:, 2])
-    sbb, saa, sab, on_sensor = _bearing_sums(xs, ys, sx, sy, r_min * r_min, r_max * r_max)
+    scale = float(pd) / (sigma**2 * samples.shape[0])  # pd and the MC mean, as the numpy form
+    out, on_sensor = _bearing_information(samples, sensor_pv, scale, r_min * r_min, r_max * r_max)
     if on_sensor:
         raise ValueError("sensor_states: a target sample coincides with a sensor (zero range)")
-    scale = float(pd) / (sigma**2 * samples.shape[0])  # pd and the MC mean, as the numpy form
-    out = np.zeros((sx.shape[0], 4, 4))
-    out[:, 0, 0] = scale * sbb
-    out[:, 2, 2] = scale * saa
-    out[:, 0, 2] = out[:, 2, 0] = -scale * sab
     return out

@@ -93,9 +93,17 @@ def _first_argmin(v: FloatArray) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _offer(i: int, r: int, u: FloatArray, costs: FloatArray, aux: FloatArray, best: tuple) -> bool:
+def _offer(
+    i: int,
+    r: int,
+    u: FloatArray,
+    costs: FloatArray,
+    aux: FloatArray,
+    best_u: FloatArray,
+    best_cost: FloatArray,
+    best_aux: FloatArray,
+) -> bool:
     """Take row i's lowest candidate for problem r if it beats the stored best."""
-    best_u, best_cost, best_aux = best
     k = _first_argmin(costs[i])
     if not costs[i, k] < best_cost[r]:
         return False
@@ -136,8 +144,14 @@ def _split(r: int, values: FloatArray, payload: FloatArray, origin: FloatArray, 
 
 @numba.njit(cache=True, nogil=True)
 def quadrant_accept(
-    state: tuple,
-    best: tuple,
+    values: FloatArray,
+    payload: FloatArray,
+    origin: FloatArray,
+    side: FloatArray,
+    stale: IntArray,
+    best_u: FloatArray,
+    best_cost: FloatArray,
+    best_aux: FloatArray,
     rows: IntArray,
     new: IntArray,
     u: FloatArray,
@@ -150,15 +164,15 @@ def quadrant_accept(
     entries ``new``, offer each row's best point, and (unless ``last``) split the square of
     every row still searching (fewer than ``patience`` divisions without improvement).
 
-    state: (values (B, 3, 3), payload (B, 9, P), origin (B, 2), side (B,), stale (B,));
-    best: (u (B, 2), cost (B,), aux (B, P)). Returns the rows that search on."""
-    values, payload, origin, side, stale = state
+    The search's state: values (B, 3, 3), payload (B, 9, P), origin (B, 2), side (B,), stale
+    (B,); its best points: u (B, 2), cost (B,), aux (B, P). Returns the rows that search on."""
     for i in range(rows.shape[0]):
         r = rows[i]
         for c in range(new.shape[0]):
             values[r, new[c, 0], new[c, 1]] = costs[i, c]
             payload[r, 3 * new[c, 0] + new[c, 1], :] = aux[i, c, :]
-        stale[r] = 0 if _offer(i, r, u, costs, aux, best) else stale[r] + 1
+        better = _offer(i, r, u, costs, aux, best_u, best_cost, best_aux)
+        stale[r] = 0 if better else stale[r] + 1
     keep = np.empty(0, dtype=rows.dtype)
     if last:
         return keep

@@ -15,6 +15,7 @@ Every candidate J computed counts as one cost evaluation.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -121,7 +122,7 @@ class HorizonModel:
         ``pv`` ``(..., 4)`` and the others' fixed information."""
         pv = np.asarray(pv, dtype=float)
         J_Z = self.fixed[r] + self.platform_information(r, pv)
-        self.evaluations += int(np.prod(pv.shape[:-1], dtype=int))
+        self.evaluations += math.prod(pv.shape[:-1])
         return J_pred + J_Z
 
     def cost(self, J: np.ndarray) -> np.ndarray:

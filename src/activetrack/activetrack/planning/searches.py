@@ -169,7 +169,7 @@ def quadrant_search(
             state = (values, np.zeros((B, 9, P)), origin, side, stale)
         flat = np.zeros((b, C, 0)) if aux is None else np.asarray(aux, float).reshape(b, C, -1)
         last = division == int(divisions) - 1
-        rows = quadrant_accept(state, best, rows, new, u, costs, flat, last, int(patience))
+        rows = quadrant_accept(*state, *best, rows, new, u, costs, flat, last, int(patience))
         if rows.size == 0:
             break
     payload = None if aux_shape is None else best[2].reshape(B, *aux_shape)
