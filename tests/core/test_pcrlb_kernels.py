@@ -5,6 +5,7 @@ decisions it took before them (paths recorded from the numpy planner on the Hern
 scenarios, scenario seed)."""
 
 import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,15 +20,23 @@ from activetrack.bounds.pcrlb import (
     pcrlb_trajectory,
     predicted_information,
 )
+from activetrack.compiled import kernels_enabled, prefer_kernels
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,
     RangeBearingSensor,
 )
+from activetrack.planning.searches import quadrant_search
 from activetrack.scenarios import load_scenario
 from activetrack_experiments.hernandez import plan_case
 
 SCENARIOS = Path(__file__).parents[2] / "scenarios"
+
+
+@pytest.fixture(autouse=True)
+def compiled(monkeypatch):
+    """The compiled kernels on (activetrack.compiled: else only after numba is loaded)."""
+    monkeypatch.setenv("ACTIVETRACK_KERNELS", "compiled")
 
 
 def _samples(M: int, seed: int = 0) -> np.ndarray:
@@ -182,8 +191,10 @@ RECORDED_PATHS = {
 }
 
 
+@pytest.mark.parametrize("mode", ["compiled", "numpy"])
 @pytest.mark.parametrize("name", sorted(RECORDED_PATHS))
-def test_planner_takes_the_recorded_decisions(name):
+def test_planner_takes_the_recorded_decisions(name, mode, monkeypatch):
+    monkeypatch.setenv("ACTIVETRACK_KERNELS", mode)
     expected = np.array(RECORDED_PATHS[name])
     scenario = load_scenario(SCENARIOS / f"{name}.yaml")
     case = plan_case(scenario.model_copy(update={"steps": len(expected)}))
@@ -236,3 +247,43 @@ def test_compiled_rmse_bound_equals_numpy(monkeypatch):
         rmse_bound_of_information(np.zeros((3, 4, 4)))
     with pytest.raises(ValueError, match="non-positive variance"):
         rmse_bound_of_information(-np.eye(4)[None])
+
+
+@pytest.mark.parametrize("patience", [None, 2])
+def test_compiled_quadrant_search_equals_numpy(monkeypatch, patience):
+    """Same points, costs, payloads and evaluations, ties and plateaus included (rounded costs
+    make many exact ties, where the first index must win in both)."""
+    centres = np.random.default_rng(4).uniform(0.0, 1.0, size=(7, 2))
+
+    def cost_fn(rows, u):
+        d = u - centres[rows, None, :]
+        costs = np.round(4.0 * np.hypot(d[..., 0], d[..., 1]), 1)  # plateaus: exact ties
+        return costs, np.stack([u[..., 0] * 2.0, u[..., 1] + rows[:, None]], axis=-1)
+
+    results = {}
+    for mode in ("compiled", "numpy"):
+        monkeypatch.setenv("ACTIVETRACK_KERNELS", mode)
+        results[mode] = quadrant_search(cost_fn, 7, divisions=6, patience=patience)
+    a, b = results["compiled"], results["numpy"]
+    np.testing.assert_array_equal(a.u, b.u)
+    np.testing.assert_array_equal(a.cost, b.cost)
+    np.testing.assert_array_equal(a.payload(), b.payload())
+    assert a.evaluations == b.evaluations
+
+
+def test_light_work_stays_on_numpy_until_numba_is_loaded(monkeypatch):
+    """Without the environment variable: the kernels where a caller prefers them or numba is
+    loaded; never with ACTIVETRACK_KERNELS=numpy."""
+    monkeypatch.delenv("ACTIVETRACK_KERNELS")
+    monkeypatch.setitem(sys.modules, "numba", None)  # loaded: any value in sys.modules
+    assert kernels_enabled()
+    monkeypatch.delitem(sys.modules, "numba")
+    assert not kernels_enabled()
+    with prefer_kernels():
+        assert kernels_enabled()
+        with prefer_kernels(False):
+            assert not kernels_enabled()
+    assert not kernels_enabled()
+    monkeypatch.setenv("ACTIVETRACK_KERNELS", "numpy")
+    with prefer_kernels():
+        assert not kernels_enabled()

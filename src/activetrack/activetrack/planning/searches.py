@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from activetrack.compiled import kernels_enabled
+
 __all__ = [
     "SEARCHES",
     "SearchResult",
@@ -138,16 +140,20 @@ def quadrant_search(
 
     Each problem holds a square (origin, side) and the costs of its 3 x 3 points; division 1
     evaluates all 9, later divisions the 5 points that are new in the chosen quadrant. The
-    bookkeeping between divisions is compiled (``planning._kernels``).
+    The bookkeeping between divisions is compiled (``planning._kernels``) where
+    ``compiled.kernels_enabled()``, else numpy: the same comparisons and arithmetic, so the same
+    decisions (tested).
     """
-    from activetrack.planning._kernels import quadrant_accept, quadrant_points
-
     B = _check_problems(n_problems)
     if isinstance(divisions, bool) or int(divisions) != divisions or divisions < 1:
         raise ValueError(f"divisions must be an integer >= 1, got {divisions!r}")
     patience = int(divisions) if patience is None else patience
     if isinstance(patience, bool) or int(patience) != patience or patience < 1:
         raise ValueError(f"patience must be an integer >= 1, got {patience!r}")
+    if not kernels_enabled():
+        return _quadrant_search_numpy(cost_fn, B, int(divisions), int(patience))
+    from activetrack.planning._kernels import quadrant_accept, quadrant_points
+
     origin, side = np.zeros((B, 2)), np.ones(B)
     values = np.full((B, 3, 3), np.nan)  # costs of the 3 x 3 points of each square
     stale = np.zeros(B, dtype=np.int64)  # divisions without improvement
@@ -174,6 +180,58 @@ def quadrant_search(
             break
     payload = None if aux_shape is None else best[2].reshape(B, *aux_shape)
     return SearchResult(best[0], best[1], payload, evaluations)
+
+
+def _quadrant_search_numpy(cost_fn: CostFn, B: int, divisions: int, patience: int) -> SearchResult:
+    """:func:`quadrant_search` with numpy bookkeeping (the reference of the compiled one)."""
+    offsets = np.array([0.0, 0.5, 1.0])
+    ij = np.stack(np.meshgrid(np.arange(3), np.arange(3), indexing="ij"), -1).reshape(9, 2)
+    origin = np.zeros((B, 2))
+    side = np.ones(B)
+    values = np.full((B, 3, 3), np.nan)  # costs of the 3 x 3 points of each square
+    payload: np.ndarray | None = None
+    stale = np.zeros(B, dtype=int)  # divisions without improvement
+    best = _Best(B)
+    rows = np.arange(B)
+    evaluations = 0
+    for division in range(int(divisions)):
+        # New points: all 9 at the first division, else the 5 not inherited from the parent.
+        new = ij if division == 0 else ij[np.isnan(values[rows[0]]).reshape(-1)]
+        u = origin[rows, None, :] + side[rows, None, None] * offsets[new]
+        costs, aux = _call(cost_fn, rows, u)
+        evaluations += costs.size
+        values[rows[:, None], new[:, 0], new[:, 1]] = costs
+        if aux is not None:
+            if payload is None:
+                payload = np.zeros((B, 3, 3, *aux.shape[2:]))
+            payload[rows[:, None], new[:, 0], new[:, 1]] = aux
+        improved = best.offer(rows, u, costs, aux)
+        stale[rows] = np.where(improved, 0, stale[rows] + 1)
+        if division == int(divisions) - 1:
+            break
+        rows = rows[stale[rows] < patience]
+        if rows.size == 0:
+            break
+        # Average corner cost of each quadrant (a, b) in {0, 1}^2; take the lowest.
+        v = values[rows]
+        quad = 0.25 * (v[:, :2, :2] + v[:, 1:, :2] + v[:, :2, 1:] + v[:, 1:, 1:])
+        q = np.argmin(quad.reshape(len(rows), 4), axis=1)
+        a, b = q // 2, q % 2
+        # The chosen quadrant's corners become the new square's corners (indices 0 and 2).
+        child = np.full((len(rows), 3, 3), np.nan)
+        for da in (0, 1):
+            for db in (0, 1):
+                child[:, 2 * da, 2 * db] = v[np.arange(len(rows)), a + da, b + db]
+        if payload is not None:
+            pchild = np.zeros((len(rows), 3, 3, *payload.shape[3:]))
+            for da in (0, 1):
+                for db in (0, 1):
+                    pchild[:, 2 * da, 2 * db] = payload[rows, a + da, b + db]
+            payload[rows] = pchild
+        values[rows] = child
+        origin[rows] = origin[rows] + 0.5 * side[rows, None] * np.stack([a, b], axis=1)
+        side[rows] = 0.5 * side[rows]
+    return best.result(evaluations)
 
 
 def sector_search(cost_fn: CostFn, n_problems: int = 1, levels: int = 3) -> SearchResult:
