@@ -26,8 +26,9 @@ __all__ = ["predicted_stack", "rmse_bounds"]
 @numba.njit(cache=True, nogil=True)
 def _solve_columns(A: FloatArray, perm: np.ndarray, z: FloatArray, out: FloatArray) -> bool:
     """x = A^{-1} e_0 and y = A^{-1} e_2 for one n x n A (overwritten by its LU factors);
-    out = (x[0], y[2]). False if A is singular (a zero pivot). perm, z: work arrays (n,)."""
-    n = A.shape[0]
+    out = (x[0], y[2]). False if A is singular (a zero pivot). perm, z: work arrays (n,).
+    n = 4, a constant, so that the compiler unrolls the loops."""
+    n = 4
     for k in range(n):
         perm[k] = k
     for k in range(n):
@@ -68,7 +69,7 @@ def rmse_bounds(J: FloatArray) -> tuple[FloatArray, int]:
     ``(N,)`` and a status: 0, or 1 if a J is singular, 2 if a variance is not positive."""
     N = J.shape[0]
     out = np.empty(N)
-    n = J.shape[1]
+    n = 4
     A = np.empty((n, n))
     perm = np.empty(n, dtype=np.int64)
     z = np.empty(n)
