@@ -17,8 +17,11 @@ their decision times and time-averaged bounds (Table 1's numbers). The last line
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +29,7 @@ import numpy as np
 from activetrack.allocator import tune_allocator
 from activetrack.bounds.costs import rmse_bound_of_information
 from activetrack.bounds.pcrlb import measurement_information, pcrlb_step, predicted_information
+from activetrack.compiled import ENV_VAR
 from activetrack.models.sensors import BearingSensor
 from activetrack.scenarios import load_scenario
 from activetrack_experiments.hernandez import plan_case
@@ -85,6 +89,20 @@ def _throughput_case(n_candidates: int, M: int):
     return X, S, sensor, F, Q, J0
 
 
+@contextmanager
+def kernels(mode: str) -> Iterator[None]:
+    """ACTIVETRACK_KERNELS=mode within the block (activetrack.compiled)."""
+    before = os.environ.get(ENV_VAR)
+    os.environ[ENV_VAR] = mode
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ[ENV_VAR]
+        else:
+            os.environ[ENV_VAR] = before
+
+
 def pcrlb_throughput(
     n_candidates: int, M: int = 1000, reps: int = 20
 ) -> tuple[float, float, float]:
@@ -93,20 +111,23 @@ def pcrlb_throughput(
     X, S, sensor, F, Q, J0 = _throughput_case(n_candidates, M)
     J_pred = np.broadcast_to(predicted_information(J0, F, Q), (n_candidates, 4, 4))
 
-    def compiled():  # the planner's path: batched eq. 8-9, eq. 3 and eq. 10 compiled
-        return rmse_bound_of_information(J_pred + measurement_information(sensor, S, X))
+    def compiled():  # the planner's path: batched eq. 8-9 and eq. 10 compiled
+        with kernels("compiled"):
+            return rmse_bound_of_information(J_pred + measurement_information(sensor, S, X))
 
     def numpy_batched():
-        J_Z = measurement_information(sensor, S, X, method="numpy")
-        return rmse_bound_of_information(pcrlb_step(J0, F, Q, J_Z))
+        with kernels("numpy"):
+            J_Z = measurement_information(sensor, S, X)
+            return rmse_bound_of_information(pcrlb_step(J0, F, Q, J_Z))
 
     def one_by_one():
-        return [
-            rmse_bound_of_information(
-                pcrlb_step(J0, F, Q, measurement_information(sensor, s, X, method="numpy"))
-            )
-            for s in S
-        ]
+        with kernels("numpy"):
+            return [
+                rmse_bound_of_information(
+                    pcrlb_step(J0, F, Q, measurement_information(sensor, s, X))
+                )
+                for s in S
+            ]
 
     ref = np.array(one_by_one())
     np.testing.assert_allclose(numpy_batched(), ref, rtol=1e-9)
