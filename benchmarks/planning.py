@@ -5,9 +5,10 @@ reference and one candidate per call (the baselines, same process, same data).
 Plans open loop from the prior, as the paper does (sec. 3.2), for the first ``--epochs``
 decisions of each case (quadrant search, 1,000 Monte Carlo samples), and prints per case the
 median and maximum decision time, cost evaluations per decision and evaluations per second.
-Then plans the 1-3 sensor scenarios with R = 3 (receding horizon, the quadrant search nested
-three deep, Hernandez eq. 16) and with R = 2 over ``--three-epochs`` decisions and prints
-their decision times and time-averaged bounds (Table 1's numbers). The last line is
+Then plans the 1-3 sensor scenarios with R = 3 (``hernandez_<n>sensor_three``: receding
+horizon, the quadrant search nested three deep, Hernandez eq. 16) and with R = 2 over
+``--three-epochs`` decisions and prints their decision times and time-averaged bounds (Table
+1's numbers). The last line is
 ``two_step_3sensor_decision_median_s=<s>``.
 
     .venv/bin/python benchmarks/planning.py [--epochs N] [--cases 1s,2s,3s,1t,2t,3t]
@@ -47,14 +48,11 @@ TARGET_S = 0.05  # two-step, 3-sensor decision, median
 TARGET_THREE_STEP_S = 1.0  # three-step, 1-sensor decision, median
 
 
-def decision_times(name: str, epochs: int, horizon: int | None = None) -> dict:
-    """Open-loop plan of the first ``epochs`` decisions (the scenario's horizon, or
-    ``horizon``): decision times, evaluations and the time-averaged bounds."""
+def decision_times(name: str, epochs: int) -> dict:
+    """Open-loop plan of the first ``epochs`` decisions: decision times, evaluations and the
+    time-averaged bounds."""
     scenario = load_scenario(SCENARIOS / f"{name}.yaml")
-    update: dict = {"steps": min(epochs, scenario.steps)}
-    if horizon is not None:
-        update["planner"] = scenario.planner.model_copy(update={"horizon": horizon})
-    case = plan_case(scenario.model_copy(update=update))
+    case = plan_case(scenario.model_copy(update={"steps": min(epochs, scenario.steps)}))
     t = np.array(case.decision_times)
     evals = float(np.mean(case.evaluations))
     return {
@@ -169,7 +167,7 @@ def _print_decisions(cases: list[str], epochs: int) -> dict:
 
 
 def _print_three_step(sensors: list[int], epochs: int) -> dict:
-    """Three-step (R = 3) against two-step on the n-sensor two-step scenarios."""
+    """Three-step (R = 3, scenarios hernandez_<n>sensor_three) against two-step."""
     print(
         f"three-step (R = 3, quadrant search nested three deep) vs two-step, open loop, "
         f"first {epochs} decisions; bounds averaged over them (m):"
@@ -181,7 +179,8 @@ def _print_three_step(sensors: list[int], epochs: int) -> dict:
     out = {}
     for n in sensors:
         for R in (2, 3):
-            r = out[(n, R)] = decision_times(f"hernandez_{n}sensor_two", epochs, horizon=R)
+            name = f"hernandez_{n}sensor_{('two', 'three')[R - 2]}"
+            r = out[(n, R)] = decision_times(name, epochs)
             print(
                 f"  {n:7d} {R:2d} {r['median_s'] * 1e3:7.1f}ms {r['max_s'] * 1e3:7.1f}ms "
                 f"{r['evaluations']:15.0f} {r['bound_x']:8.2f} {r['bound_y']:8.2f}"
