@@ -249,8 +249,9 @@ def test_compiled_rmse_bound_equals_numpy(monkeypatch):
         rmse_bound_of_information(-np.eye(4)[None])
 
 
+@pytest.mark.parametrize("with_aux", [True, False])
 @pytest.mark.parametrize("patience", [None, 2])
-def test_compiled_quadrant_search_equals_numpy(monkeypatch, patience):
+def test_compiled_quadrant_search_equals_numpy(monkeypatch, patience, with_aux):
     """Same points, costs, payloads and evaluations, ties and plateaus included (rounded costs
     make many exact ties, where the first index must win in both)."""
     centres = np.random.default_rng(4).uniform(0.0, 1.0, size=(7, 2))
@@ -258,6 +259,8 @@ def test_compiled_quadrant_search_equals_numpy(monkeypatch, patience):
     def cost_fn(rows, u):
         d = u - centres[rows, None, :]
         costs = np.round(4.0 * np.hypot(d[..., 0], d[..., 1]), 1)  # plateaus: exact ties
+        if not with_aux:
+            return costs
         return costs, np.stack([u[..., 0] * 2.0, u[..., 1] + rows[:, None]], axis=-1)
 
     results = {}
@@ -267,7 +270,10 @@ def test_compiled_quadrant_search_equals_numpy(monkeypatch, patience):
     a, b = results["compiled"], results["numpy"]
     np.testing.assert_array_equal(a.u, b.u)
     np.testing.assert_array_equal(a.cost, b.cost)
-    np.testing.assert_array_equal(a.payload(), b.payload())
+    if with_aux:
+        np.testing.assert_array_equal(a.payload(), b.payload())
+    else:
+        assert a.aux is None and b.aux is None
     assert a.evaluations == b.evaluations
 
 
