@@ -33,7 +33,7 @@ from activetrack.planning.criteria import PCRLB, get_criterion
 if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
 
-__all__ = ["HorizonModel", "criterion_cost", "platform_information"]
+__all__ = ["HorizonModel", "InformationCache", "criterion_cost", "platform_information"]
 
 
 def criterion_cost(criterion: str, J: np.ndarray) -> np.ndarray:
@@ -53,6 +53,25 @@ def platform_information(
     return measurement_information(tuple(sensors), states, samples)
 
 
+class InformationCache:
+    """One platform's own J_Z of whole candidate batches within a decision, keyed by epoch and
+    positions, holding at most ``max_candidates`` candidates (then it stops adding: a long
+    horizon scores millions, and a batch seen once is rarely seen again)."""
+
+    def __init__(self, max_candidates: int = 100_000):
+        self.max_candidates = int(max_candidates)
+        self.candidates = 0
+        self._store: dict[tuple[int, bytes], np.ndarray] = {}
+
+    def get(self, key: tuple[int, bytes]) -> np.ndarray | None:
+        return self._store.get(key)
+
+    def put(self, key: tuple[int, bytes], J_Z: np.ndarray) -> None:
+        if self.candidates + len(J_Z) <= self.max_candidates:
+            self._store[key] = J_Z
+            self.candidates += len(J_Z)
+
+
 class HorizonModel:
     """Batched PCRLB steps and costs over epochs k+1..k+R for one platform being optimised.
 
@@ -60,7 +79,8 @@ class HorizonModel:
     k+1..k+R. fixed_information: ``(R, 4, 4)`` J_Z of all other platforms at those epochs.
     sensors: the optimised platform's sensors. ``evaluations`` counts candidate PCRLB steps.
 
-    ``cache``: an optional dict shared by the models of one platform within a decision (the
+    ``cache``: an optional :class:`InformationCache` shared by the models of one platform within
+    a decision (the
     coordinate descent over platforms optimises a platform again with the others' plans
     changed): the platform's own J_Z of a whole batch of candidate positions at an epoch is
     computed once and looked up when the same batch comes again (same numbers: the J_Z of a
@@ -75,7 +95,7 @@ class HorizonModel:
         fixed_information: ArrayLike,
         sensors: Sequence[SensorModel],
         criterion: str = "b_k",
-        cache: dict | None = None,
+        cache: InformationCache | None = None,
     ):
         self._criterion = get_criterion(criterion, PCRLB)
         self.F, self.Q = check_dynamics(F, Q, 4)  # once: the steps below trust them
@@ -107,14 +127,15 @@ class HorizonModel:
         """The platform's own J_Z at epoch k+1+r for pv states ``(..., 4)``: ``(..., 4, 4)``
         (eq. 8-9, its sensors summed in order as :func:`platform_information` does)."""
         flat = np.ascontiguousarray(pv, dtype=float).reshape(-1, 4)
-        key = (r, flat.tobytes()) if self._cache is not None else None
-        J_Z = None if key is None or self._cache is None else self._cache.get(key)
+        cache = self._cache
+        key = (r, flat.tobytes()) if cache is not None else (r, b"")
+        J_Z = None if cache is None else cache.get(key)
         if J_Z is None:
             J_Z = np.zeros((flat.shape[0], 4, 4))
             for info in self._information:
                 J_Z = J_Z + info(self.samples[r], flat)
-            if key is not None and self._cache is not None:
-                self._cache[key] = J_Z
+            if cache is not None:
+                cache.put(key, J_Z)
         return J_Z.reshape(*pv.shape[:-1], 4, 4)
 
     def update(self, J_pred: np.ndarray, r: int, pv: np.ndarray) -> np.ndarray:

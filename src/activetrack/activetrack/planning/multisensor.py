@@ -17,7 +17,12 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike
 from activetrack.bounds.pcrlb import pcrlb_step
-from activetrack.planning.costs import HorizonModel, criterion_cost, platform_information
+from activetrack.planning.costs import (
+    HorizonModel,
+    InformationCache,
+    criterion_cost,
+    platform_information,
+)
 from activetrack.planning.horizons import SearchSettings, optimise_platform
 from activetrack.planning.manoeuvre import hold_course, rollout
 
@@ -91,8 +96,10 @@ def coordinate_platforms(
     # Bookkeeping to skip re-optimising a platform when nobody else changed since its last
     # optimisation (a deterministic search would return the same plan).
     # Each platform's own J_Z of candidate batches, kept across its optimisations in this
-    # decision (HorizonModel's cache): a later pass often scores the same candidates again.
-    caches: list[dict] = [{} for _ in range(n)]
+    # decision (HorizonModel's cache): a later pass often scores the same candidates again. A
+    # single controllable platform is optimised once: nothing to share.
+    shared = sum(p.limits is not None for p in platforms) > 1
+    caches = [InformationCache() if shared else None for _ in range(n)]
     clock, changed_at = 0, [0] * n
     optimised_at: list[int | None] = [None] * n
     evaluations, iterations, converged = 0, 0, False
