@@ -80,11 +80,10 @@ class HorizonModel:
     sensors: the optimised platform's sensors. ``evaluations`` counts candidate PCRLB steps.
 
     ``cache``: an optional :class:`InformationCache` shared by the models of one platform within
-    a decision (the
-    coordinate descent over platforms optimises a platform again with the others' plans
-    changed): the platform's own J_Z of a whole batch of candidate positions at an epoch is
-    computed once and looked up when the same batch comes again (same numbers: the J_Z of a
-    position does not depend on the other platforms).
+    a decision (the coordinate descent over platforms optimises a platform again with the
+    others' plans changed): the platform's own J_Z of a whole batch of candidate positions at an
+    epoch is computed once and looked up when the same batch comes again (same numbers: the J_Z
+    of a position does not depend on the other platforms).
     """
 
     def __init__(
@@ -128,7 +127,7 @@ class HorizonModel:
         (eq. 8-9, its sensors summed in order as :func:`platform_information` does)."""
         flat = np.ascontiguousarray(pv, dtype=float).reshape(-1, 4)
         cache = self._cache
-        key = (r, flat.tobytes()) if cache is not None else (r, b"")
+        key = (r, flat.tobytes() if cache is not None else b"")
         J_Z = None if cache is None else cache.get(key)
         if J_Z is None:
             J_Z = np.zeros((flat.shape[0], 4, 4))

@@ -93,13 +93,12 @@ def coordinate_platforms(
 
     info = [info_of(i) for i in range(n)]
     controllable = [(i, p.limits) for i, p in enumerate(platforms) if p.limits is not None]
-    # Bookkeeping to skip re-optimising a platform when nobody else changed since its last
-    # optimisation (a deterministic search would return the same plan).
     # Each platform's own J_Z of candidate batches, kept across its optimisations in this
     # decision (HorizonModel's cache): a later pass often scores the same candidates again. A
     # single controllable platform is optimised once: nothing to share.
-    shared = sum(p.limits is not None for p in platforms) > 1
-    caches = [InformationCache() if shared else None for _ in range(n)]
+    caches = [InformationCache() if len(controllable) > 1 else None for _ in range(n)]
+    # Bookkeeping to skip re-optimising a platform when nobody else changed since its last
+    # optimisation (a deterministic search would return the same plan).
     clock, changed_at = 0, [0] * n
     optimised_at: list[int | None] = [None] * n
     evaluations, iterations, converged = 0, 0, False
