@@ -20,7 +20,7 @@ from activetrack.bounds.pcrlb import (
     pcrlb_trajectory,
     predicted_information,
 )
-from activetrack.compiled import kernels_enabled, prefer_kernels
+from activetrack.compiled import KERNEL_MODULES, kernels_enabled, prefer_kernels, warm_up
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,
@@ -293,3 +293,10 @@ def test_light_work_stays_on_numpy_until_numba_is_loaded(monkeypatch):
     monkeypatch.setenv("ACTIVETRACK_KERNELS", "numpy")
     with prefer_kernels():
         assert not kernels_enabled()
+
+
+def test_warm_up_readies_every_kernel_module():
+    """``python -m activetrack.compiled`` (e.g. at setup) compiles or loads every kernel."""
+    seconds = warm_up()
+    assert tuple(seconds) == KERNEL_MODULES
+    assert all(s >= 0.0 for s in seconds.values())

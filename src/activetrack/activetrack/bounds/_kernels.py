@@ -20,7 +20,7 @@ import numpy as np
 
 from activetrack.arraytypes import FloatArray
 
-__all__ = ["predicted_stack", "rmse_bounds"]
+__all__ = ["predicted_stack", "rmse_bounds", "warm_up"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -158,3 +158,10 @@ def predicted_stack(J: FloatArray, F: FloatArray, Q: FloatArray) -> tuple[FloatA
                 out[m, i, j] = s
                 out[m, j, i] = s
     return out, 0
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels of this module (``activetrack.compiled.warm_up``)."""
+    J = np.eye(4)[None].copy()
+    rmse_bounds(J)
+    predicted_stack(J, np.eye(4), np.eye(4))

@@ -20,7 +20,7 @@ import numpy as np
 
 from activetrack.arraytypes import FloatArray
 
-__all__ = ["bearing_information"]
+__all__ = ["bearing_information", "warm_up"]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -70,3 +70,9 @@ def bearing_information(
     if on_sensor:
         raise ValueError("sensor_states: a target sample coincides with a sensor (zero range)")
     return out
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels of this module (``activetrack.compiled.warm_up``)."""
+    X = np.array([[1.0, 0.0, 2.0, 0.0], [3.0, 0.0, 1.0, 0.0]])
+    bearing_information(X, np.zeros((1, 4)), 0.01, 1.0, 0.0, np.inf)

@@ -21,7 +21,7 @@ import numpy as np
 
 from activetrack.arraytypes import FloatArray
 
-__all__ = ["candidate_legs", "quadrant_accept", "quadrant_points"]
+__all__ = ["candidate_legs", "quadrant_accept", "quadrant_points", "warm_up"]
 
 IntArray = np.ndarray
 _TWO_PI = 2.0 * np.pi
@@ -188,3 +188,17 @@ def quadrant_accept(
     for r in keep:
         _split(r, values, payload, origin, side)
     return keep
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels of this module (``activetrack.compiled.warm_up``), with
+    the argument types the planner passes (a payload and none)."""
+    from activetrack.planning.searches import quadrant_search
+
+    def cost_fn(rows: IntArray, u: FloatArray) -> tuple[FloatArray, FloatArray]:
+        return u[..., 0] + u[..., 1], u.copy()
+
+    quadrant_search(cost_fn, 2, divisions=2)
+    quadrant_search(lambda rows, u: u[..., 0] * u[..., 1], 1, divisions=2)
+    rows, one = np.zeros(1, dtype=np.int64), np.ones(1)
+    candidate_legs(np.full((1, 1, 2), 0.5), rows, np.zeros((1, 4)), one, one, one, 0.1, 1.0)
