@@ -21,6 +21,7 @@ from activetrack.bounds.pcrlb import (
     predicted_information,
 )
 from activetrack.compiled import KERNEL_MODULES, kernels_enabled, prefer_kernels, warm_up
+from activetrack.models.clutter import ClutteredSensor
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,
@@ -300,3 +301,35 @@ def test_warm_up_readies_every_kernel_module():
     seconds = warm_up()
     assert tuple(seconds) == KERNEL_MODULES
     assert all(s >= 0.0 for s in seconds.values())
+
+
+def test_a_sensor_in_clutter_scales_its_base_kernel_by_the_irf():
+    """A wrapper that forwards unknown members to its base must not hand out the base's kernel
+    unscaled: ClutteredSensor's own kernel is q / pd times the base's (its numpy form's maths)."""
+    base = BearingSensor(sigma=0.01, pd=0.9, r_min=50.0)
+    X, S = _samples(500), _states((3, 5))
+    for sensor in (ClutteredSensor(base, clutter_density=10.0), ClutteredSensor(base)):
+        assert information_kernel(sensor) is not None
+        _close(
+            measurement_information(sensor, S, X),
+            measurement_information(sensor, S, X, method="numpy"),
+        )
+    ratio = ClutteredSensor(base, clutter_density=10.0).information_factor / 0.9
+    assert ratio < 0.8  # the clutter does reduce the information
+    sector = ClutteredSensor(base, clutter_density=10.0, fov_width=1.0)
+    assert information_kernel(sector) is None  # the field of view's mask: the numpy form
+
+
+def test_a_subclass_overriding_the_numpy_form_is_scored_by_its_override():
+    @dataclass(frozen=True)
+    class Halved(BearingSensor):
+        def fisher_information(self, target_samples, sensor_pv, kinematics_jacobian=None):
+            return 0.5 * super().fisher_information(target_samples, sensor_pv, kinematics_jacobian)
+
+    sensor = Halved(sigma=0.01)
+    assert information_kernel(sensor) is None
+    X, S = _samples(100), _states((4,))
+    np.testing.assert_array_equal(
+        measurement_information(sensor, S, X),
+        0.5 * measurement_information(BearingSensor(sigma=0.01), S, X, method="numpy"),
+    )

@@ -247,9 +247,12 @@ class _BearingFamily(_PlanarSensor):
         g = dx[..., None] * K[:, 2, :] - dy[..., None] * K[:, 0, :]  # (..., M, n)
         return scale * np.einsum("...mi,...mj,...m->...ij", g, g, w)
 
-    def information_kernel(self) -> InformationKernel:
+    def information_kernel(self) -> InformationKernel | None:
         """The compiled closed form of eq. 8-9 (``models._fisher_kernels``; numba is imported
-        on first use, not with the sensors)."""
+        on first use, not with the sensors). None for a subclass that overrides
+        :meth:`fisher_information`: the kernel computes this class's form, not the override."""
+        if type(self).fisher_information is not _BearingFamily.fisher_information:
+            return None
         from activetrack.models._fisher_kernels import bearing_information
 
         return partial(
