@@ -387,8 +387,36 @@ CASES = [
         "  tracker.motion.model: must estimate the target's state",
     ),
     # --- planner ---
-    ("horizon-zero", "default", _set("planner.horizon", 0), "  planner.horizon: Input should be"),
-    ("horizon-eleven", "short", _set("planner.horizon", 11), "  planner.horizon: Input should be"),
+    (
+        "horizon-zero",
+        "default",
+        _set("planner.horizon", 0),
+        "  planner.horizon: must be an integer in [1, 10]",
+    ),
+    (
+        "horizon-eleven",
+        "short",
+        _set("planner.horizon", 11),
+        "  planner.horizon: must be an integer in [1, 10]",
+    ),
+    (
+        "horizon-bool",
+        "short",
+        _set("planner.horizon", True),
+        "  planner.horizon: must be an integer in [1, 10]",
+    ),
+    (
+        "horizon-text",
+        "short",
+        _set("planner.horizon", "three"),
+        "  planner.horizon: must be an integer in [1, 10]",
+    ),
+    (
+        "horizon-fraction",
+        "short",
+        _set("planner.horizon", 2.5),
+        "  planner.horizon: must be an integer in [1, 10]",
+    ),
     (
         "horizon-exponential",
         "default",

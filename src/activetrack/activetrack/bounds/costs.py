@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike
+from activetrack.compiled import kernels_enabled
 
 __all__ = [
     "EQ26_ROWS",
@@ -63,14 +64,37 @@ _POSITION_COLUMNS = np.eye(4)[:, [0, 2]]
 
 def rmse_bound_of_information(J: np.ndarray) -> np.ndarray:
     """Hernandez eq. 10 straight from pv information matrices ``(..., 4, 4) -> (...)``: the two
-    position variances of J^{-1} from one solve J V = [e_x, e_y], no full inverse."""
+    position variances of J^{-1} from one solve J V = [e_x, e_y], no full inverse.
+
+    Compiled (``bounds._kernels``: the LU solve written out for stacks of 4 x 4 matrices) while
+    :func:`activetrack.compiled.kernels_enabled`; the numpy solve is the reference (equal to
+    1e-12)."""
+    J = np.asarray(J, dtype=float)
+    if not kernels_enabled() or J.shape[-2:] != (4, 4):
+        return _rmse_bound_of_information_numpy(J)
+    from activetrack.bounds._kernels import rmse_bounds
+
+    b, status = rmse_bounds(np.ascontiguousarray(J).reshape(-1, 4, 4))
+    if status:
+        raise ValueError(_NOT_SPD[status])
+    return b.reshape(J.shape[:-2])
+
+
+_NOT_SPD = {
+    1: "J must be symmetric positive definite (it is singular)",
+    2: "J must be symmetric positive definite (non-positive variance)",
+}
+
+
+def _rmse_bound_of_information_numpy(J: np.ndarray) -> np.ndarray:
+    """:func:`rmse_bound_of_information` by ``numpy.linalg.solve`` (the reference)."""
     try:
         V = np.linalg.solve(J, _POSITION_COLUMNS)  # (..., 4, 2) = columns x, y of J^{-1}
     except np.linalg.LinAlgError:
-        raise ValueError("J must be symmetric positive definite (it is singular)") from None
+        raise ValueError(_NOT_SPD[1]) from None
     var = np.maximum(V[..., 0, 0], V[..., 2, 1])
     if not np.all(var > 0.0):
-        raise ValueError("J must be symmetric positive definite (non-positive variance)")
+        raise ValueError(_NOT_SPD[2])
     return np.sqrt(var)
 
 

@@ -26,24 +26,30 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite
+from activetrack.compiled import kernels_enabled
 from activetrack.linalg import cholesky as _cholesky
 from activetrack.linalg import lower_solve as _lower_solve
 from activetrack.linalg import psd_sqrt as _psd_sqrt
 from activetrack.linalg import spd_inverse as _spd_inverse
-from activetrack.models.base import SensorModel, jacobian_information
+from activetrack.models.base import InformationKernel, SensorModel, jacobian_information
 
 __all__ = [
     "covariance_bound",
     "gaussian_samples",
+    "information_function",
+    "information_kernel",
     "measurement_information",
     "pcrlb_step",
     "pcrlb_trajectory",
     "propagate_samples",
+    "sensor_information",
 ]
 
-# How J_Z is evaluated: each sensor's own fisher_information (its closed form where it has one,
-# e.g. bearing sensors, Hernandez eq. 9), or the Jacobian form of eq. 8 for every sensor.
-_METHODS = ("auto", "jacobian")
+# How J_Z is evaluated: each sensor's compiled kernel where it has one, else its own
+# fisher_information ("auto"); always its numpy fisher_information (its closed form where it
+# has one, e.g. bearing sensors, Hernandez eq. 9: "numpy", the reference of the kernels); or
+# the Jacobian form of eq. 8 for every sensor ("jacobian").
+_METHODS = ("auto", "numpy", "jacobian")
 Sensors = SensorModel | Sequence[SensorModel]
 
 
@@ -121,9 +127,12 @@ def measurement_information(
         target_samples: pv samples ``(M, 4)`` of the prior target distribution at this epoch.
         kinematics_jacobian: optional d pv / d x ``(M, 4, n)`` at the samples; the information is
             then with respect to that model state (n x n) instead of pv.
-        method: ``"auto"`` (each sensor's ``fisher_information``: the closed form of eq. 9 for
-            bearing sensors) or ``"jacobian"`` (the Jacobian form of eq. 8 for every sensor,
-            ``models.base.jacobian_information``; a check on closed forms).
+        method: ``"auto"`` (each sensor's compiled ``information_kernel`` where it has one
+            and ``kinematics_jacobian`` is None, else its ``fisher_information``), ``"numpy"``
+            (each sensor's ``fisher_information``: the closed form of eq. 9 for bearing
+            sensors; the reference of the kernels) or ``"jacobian"`` (the Jacobian form of
+            eq. 8 for every sensor, ``models.base.jacobian_information``; a check on closed
+            forms).
 
     Returns:
         J_Z ``(..., n, n)``, symmetric positive semi-definite (n = 4 in pv).
@@ -144,12 +153,48 @@ def measurement_information(
     n = 4 if K is None else K.shape[-1]
     J_Z = np.zeros((*states.shape[:-2], n, n))
     for j, sensor in enumerate(batch):  # a handful of sensors; candidates/samples vectorised
-        s = states[..., j, :]
-        if method == "jacobian":
-            J_Z = J_Z + jacobian_information(sensor, X, s, K)
-        else:
-            J_Z = J_Z + sensor.fisher_information(X, s, K)
+        J_Z = J_Z + sensor_information(sensor, X, states[..., j, :], K, method)
     return J_Z
+
+
+def information_kernel(sensor: SensorModel) -> InformationKernel | None:
+    """The sensor's compiled Fisher information (its optional ``information_kernel()``), or
+    None for a sensor without one or while the kernels are off
+    (:func:`activetrack.compiled.kernels_enabled`: every sensor then uses its numpy
+    ``fisher_information``)."""
+    get = getattr(sensor, "information_kernel", None)
+    if get is None or not kernels_enabled():
+        return None
+    return get()
+
+
+def information_function(sensor: SensorModel) -> InformationKernel:
+    """The sensor's J_Z of flat pv batches ``(samples (M, 4), states (N, 4)) -> (N, 4, 4)``:
+    its compiled kernel where it has one (:func:`information_kernel`), else its numpy
+    ``fisher_information``. Resolve it once where the same sensor is scored many times (the
+    planner's searches); inputs are taken as checked."""
+    kernel = information_kernel(sensor)
+    return sensor.fisher_information if kernel is None else kernel
+
+
+def sensor_information(
+    sensor: SensorModel,
+    target_samples: FloatArray,
+    sensor_states: FloatArray,
+    kinematics_jacobian: FloatArray | None = None,
+    method: str = "auto",
+) -> FloatArray:
+    """One sensor's J_Z (Hernandez eq. 8-9) at pv states ``(..., 4)`` over samples ``(M, 4)``:
+    ``(..., n, n)``. Inputs are taken as checked (see :func:`measurement_information`, which
+    checks them and explains ``method``)."""
+    if method == "jacobian":
+        return jacobian_information(sensor, target_samples, sensor_states, kinematics_jacobian)
+    if method == "auto" and kinematics_jacobian is None:
+        kernel = information_kernel(sensor)
+        if kernel is not None:
+            flat = sensor_states.reshape(-1, 4)
+            return kernel(target_samples, flat).reshape(*sensor_states.shape[:-1], 4, 4)
+    return sensor.fisher_information(target_samples, sensor_states, kinematics_jacobian)
 
 
 def pcrlb_step(J_prev: ArrayLike, F: ArrayLike, Q: ArrayLike, J_Z: ArrayLike) -> FloatArray:
@@ -184,13 +229,43 @@ def predicted_information(J_prev: FloatArray, F: FloatArray, Q: FloatArray) -> F
     """The prediction part of eq. 3, (Q + F J_k^{-1} F^T)^{-1}, for ``J_prev`` ``(..., n, n)``.
 
     F and Q ``(n, n)`` are taken as valid (the planner checks them once per decision, through
-    :func:`pcrlb_step`); J_prev is still checked to be SPD.
+    :func:`pcrlb_step`); J_prev is still checked to be SPD. A stack ``(N, n, n)`` goes through
+    the compiled Cholesky steps (``bounds._kernels.predicted_stack``, equal to 1e-12) while
+    :func:`activetrack.compiled.kernels_enabled`.
     """
+    if J_prev.ndim == 3 and kernels_enabled():
+        return _predicted_stack(J_prev, F, Q)
     L = _cholesky("J_prev", J_prev)
     Xt = _lower_solve(L, F.T)  # (..., n, n) = L^{-1} F^T
     C = Q + np.swapaxes(Xt, -1, -2) @ Xt  # predicted-state bound Q + F J^{-1} F^T
     # C and its inverse L^{-T} L^{-1} are symmetric by construction.
     return _spd_inverse("Q + F J_prev^-1 F^T", C, check_symmetry=False)
+
+
+def _predicted_stack(J_prev: FloatArray, F: FloatArray, Q: FloatArray) -> FloatArray:
+    """:func:`predicted_information` of a stack ``(N, n, n)``, compiled; the checks and messages
+    of the numpy form."""
+    from activetrack.bounds._kernels import predicted_stack
+
+    J_prev = np.ascontiguousarray(J_prev, dtype=float)
+    _check_symmetric("J_prev", J_prev)
+    P, status = predicted_stack(J_prev, np.ascontiguousarray(F), np.ascontiguousarray(Q))
+    if status == 1:
+        raise ValueError("J_prev must be symmetric positive definite (all eigenvalues > 0)")
+    if status == 2:
+        raise ValueError(
+            "Q + F J_prev^-1 F^T must be symmetric positive definite (all eigenvalues > 0)"
+        )
+    return P
+
+
+def _check_symmetric(name: str, A: FloatArray) -> None:
+    """Finite and symmetric to 1e-9 relative, as ``linalg.cholesky`` checks (ValueError)."""
+    if not np.isfinite(A).all():
+        raise ValueError(f"{name} must be finite (got NaN or inf entries)")
+    At = np.swapaxes(A, -1, -2)
+    if not (A == At).all() and np.max(np.abs(A - At)) > 1e-9 * np.max(np.abs(A)):
+        raise ValueError(f"{name} must be symmetric positive definite (it is not symmetric)")
 
 
 def propagate_samples(

@@ -12,7 +12,9 @@ would otherwise special-case by class:
 - ``linearize``: the EKF's h(x), H = dh/d pv and the wrapped residual at one pv state;
 - ``log_likelihood`` / ``log_miss_likelihood``: the particle filter's weights for a detection
   and for a look without one (the detection model of Hernandez sec. 2.3);
-- ``fisher_information``: its measurement contribution to the PCRLB, Hernandez eq. 8-9.
+- ``fisher_information``: its measurement contribution to the PCRLB, Hernandez eq. 8-9;
+  optionally ``information_kernel()`` (not part of the protocol: a sensor without it is
+  scored by ``fisher_information``), a compiled form of the same sums, :data:`InformationKernel`.
 
 ``GaussianSensor`` is the optional base class for z = h(x) + v, v ~ N(0, R): a subclass defines
 ``kind``, ``components``, ``R``, ``measure`` and ``jacobian`` (and which entries are angles) and
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from functools import cached_property
 from typing import ClassVar, NamedTuple, Protocol, cast
 
@@ -41,6 +44,7 @@ from activetrack.models._common import check_rng, relative_geometry
 
 __all__ = [
     "GaussianSensor",
+    "InformationKernel",
     "LinearMotionModel",
     "Linearization",
     "MotionModel",
@@ -217,6 +221,12 @@ class SensorModel(Protocol):
         ...
 
 
+# A sensor's compiled Fisher information (optional ``information_kernel()`` of a sensor):
+# (pv samples (M, 4), sensor pv states (N, 4)) -> (N, 4, 4), the numbers of its
+# ``fisher_information`` (pv, no kinematics Jacobian) to round-off. Inputs are taken as checked.
+InformationKernel = Callable[[FloatArray, FloatArray], FloatArray]
+
+
 def jacobian_information(
     sensor: SensorModel,
     target_samples: FloatArray,
@@ -379,6 +389,11 @@ class GaussianSensor(ABC):
     ) -> FloatArray:
         """Hernandez eq. 8 through the Jacobian (:func:`jacobian_information`)."""
         return jacobian_information(self, target_samples, sensor_pv, kinematics_jacobian)
+
+    def information_kernel(self) -> InformationKernel | None:
+        """The compiled form of :meth:`fisher_information` in pv, or None (the generic sensor
+        has none: ``bounds.pcrlb`` then uses :meth:`fisher_information`)."""
+        return None
 
 
 def _miss_term(inside: BoolArray, pd: float) -> FloatArray:

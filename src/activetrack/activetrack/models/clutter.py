@@ -29,7 +29,7 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.bounds.irf import information_reduction_factor
-from activetrack.models.base import SensorModel
+from activetrack.models.base import InformationKernel, SensorModel
 from activetrack.multitarget.data import FieldOfView
 from activetrack.scenarios.multitarget_config import fov_volume
 
@@ -139,6 +139,18 @@ class ClutteredSensor:
                 part = self.base.fisher_information(X[keep], s, K)
                 flat_out[i] = part * keep.sum() / M
         return scale * out
+
+    def information_kernel(self) -> InformationKernel | None:
+        """The base sensor's compiled J_Z times ``q / pd``, as :meth:`fisher_information` does
+        with the numpy form; None with a fixed field of view (its per-sample mask is the numpy
+        form's) or a base without a kernel. Defined here so that the forwarding of unknown
+        members to the base never hands out the base's kernel without the IRF."""
+        get = getattr(self.base, "information_kernel", None)
+        kernel = None if get is None or self.fov_width is not None else get()
+        if kernel is None:
+            return None
+        scale = self.information_factor / float(self.base.pd)
+        return lambda X, S: scale * kernel(X, S)
 
     @classmethod
     def wrap(cls, base: SensorModel, cfg: Any, gate_sigmas: float) -> ClutteredSensor:

@@ -17,7 +17,8 @@ Where a faster form exists it overrides the generic member, with the same number
 - ``BearingSensor`` and ``RangeBearingSensor``: the EKF linearisation in plain floats and the
   particle log-likelihood from the particle offsets with an arcsin-wrapped bearing residual;
 - ``BearingSensor`` and ``AmbiguousBearingSensor``: the closed form of Hernandez eq. 9 for the
-  Fisher information;
+  Fisher information, and its compiled form (``information_kernel``, module
+  ``models._fisher_kernels``) for the batched PCRLB;
 - every built-in sensor: the missed-detection likelihood from the particle ranges.
 
 The bearing and range-bearing likelihoods of a particle array ``(N, 4)`` run the compiled
@@ -44,6 +45,7 @@ from activetrack.kernels import particle_kernels
 from activetrack.models._common import relative_geometry
 from activetrack.models.base import (
     GaussianSensor,
+    InformationKernel,
     Linearization,
     MotionModel,
     SensorModel,
@@ -273,6 +275,22 @@ class _BearingFamily(_PlanarSensor):
         # Chain rule to a model state: H_state = H_pv @ dpv/dx (contract state_jacobian).
         g = dx[..., None] * K[:, 2, :] - dy[..., None] * K[:, 0, :]  # (..., M, n)
         return scale * np.einsum("...mi,...mj,...m->...ij", g, g, w)
+
+    def information_kernel(self) -> InformationKernel | None:
+        """The compiled closed form of eq. 8-9 (``models._fisher_kernels``; numba is imported
+        on first use, not with the sensors). None for a subclass that overrides
+        :meth:`fisher_information`: the kernel computes this class's form, not the override."""
+        if type(self).fisher_information is not _BearingFamily.fisher_information:
+            return None
+        from activetrack.models._fisher_kernels import bearing_information
+
+        return partial(
+            bearing_information,
+            sigma=float(self.sigma),
+            pd=float(self.pd),
+            r_min=float(self.r_min),
+            r_max=float(self.r_max),
+        )
 
 
 def _dot(a: FloatArray, b: FloatArray) -> FloatArray:

@@ -20,11 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from activetrack.compiled import kernels_enabled
 from activetrack.planning.costs import HorizonModel
 from activetrack.planning.manoeuvre import (
     PlatformLimits,
     hold_course,
     manoeuvre_to_unit,
+    speed_interval,
     step_platform,
     unit_to_manoeuvre,
 )
@@ -89,6 +91,19 @@ class SearchSettings:
         fields.update(overrides)
         return cls(**fields)
 
+    def evaluations_per_platform(self, horizon: int) -> int:
+        """Cost evaluations of one platform's R-step optimisation (at most, for the quadrant
+        search with patience): per_stage^R for the nested lockstep searches, the population
+        over all generations for evolution."""
+        if self.search == "evolution":
+            return self.evolution_popsize * 2 * horizon * (self.evolution_maxiter + 1)
+        per_stage = {
+            "grid": self.grid_size**2,
+            "quadrant": 9 + 5 * (self.quadrant_divisions - 1),
+            "sector": 16 + 12 * (self.sector_levels - 1) + 1,
+        }[self.search]
+        return int(per_stage**horizon)
+
     def lockstep_search(self) -> LockstepSearch:
         """The batched search function ``(cost_fn, n_problems) -> SearchResult``."""
         if self.search == "grid":
@@ -122,10 +137,10 @@ def _dynamic_programme(
     """
     R = model.horizon
     J_pred = model.predict(J_prev)  # (B, 4, 4): the same for every stage of the search
+    legs = _candidate_legs(pv, heading, speed, limits, dt)
 
     def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        man = unit_to_manoeuvre(u, speed[rows, None], limits)  # (b, C, 2)
-        pv1, h1 = step_platform(pv[rows, None, :], heading[rows, None], man, dt)
+        man, pv1, h1 = legs(rows, u)  # (b, C, 2), (b, C, 4), (b, C)
         J1 = model.update(J_pred[rows, None], level, pv1)  # (b, C, 4, 4)
         costs = model.cost(J1)
         plan = man[:, :, None, :]
@@ -148,6 +163,32 @@ def _dynamic_programme(
 
     result = search(cost_fn, len(speed))
     return result.payload(), result.cost
+
+
+# (rows (b,), u (b, C, 2)) -> manoeuvres (b, C, 2), pv (b, C, 4), headings (b, C)
+Legs = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+def _candidate_legs(
+    pv: np.ndarray, heading: np.ndarray, speed: np.ndarray, limits: PlatformLimits, dt: float
+) -> Legs:
+    """(rows, u) -> manoeuvres, pv and headings at the next epoch of the candidates u
+    ``(b, C, 2)`` of problems ``rows``: unit_to_manoeuvre then step_platform, compiled in one
+    call (``planning._kernels.candidate_legs``, the same operations) where the kernels are on."""
+    if not kernels_enabled():
+
+        def numpy_legs(
+            rows: np.ndarray, u: np.ndarray
+        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            man = unit_to_manoeuvre(u, speed[rows, None], limits)
+            pv1, h1 = step_platform(pv[rows, None, :], heading[rows, None], man, dt)
+            return man, pv1, h1
+
+        return numpy_legs
+    from activetrack.planning._kernels import candidate_legs
+
+    v_lo, v_hi = speed_interval(speed, limits)
+    return lambda rows, u: candidate_legs(u, rows, pv, heading, v_lo, v_hi, limits.dpsi_max, dt)
 
 
 def _evolution(

@@ -17,7 +17,12 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike
 from activetrack.bounds.pcrlb import pcrlb_step
-from activetrack.planning.costs import HorizonModel, criterion_cost, platform_information
+from activetrack.planning.costs import (
+    HorizonModel,
+    InformationCache,
+    criterion_cost,
+    platform_information,
+)
 from activetrack.planning.horizons import SearchSettings, optimise_platform
 from activetrack.planning.manoeuvre import hold_course, rollout
 
@@ -88,6 +93,10 @@ def coordinate_platforms(
 
     info = [info_of(i) for i in range(n)]
     controllable = [(i, p.limits) for i, p in enumerate(platforms) if p.limits is not None]
+    # Each platform's own J_Z of candidate batches, kept across its optimisations in this
+    # decision (HorizonModel's cache): a later pass often scores the same candidates again. A
+    # single controllable platform is optimised once: nothing to share.
+    caches = [InformationCache() if len(controllable) > 1 else None for _ in range(n)]
     # Bookkeeping to skip re-optimising a platform when nobody else changed since its last
     # optimisation (a deterministic search would return the same plan).
     clock, changed_at = 0, [0] * n
@@ -103,7 +112,7 @@ def coordinate_platforms(
             fixed = sum(info[i] for i in range(n) if i != j) if n > 1 else np.zeros_like(info[j])
             p = platforms[j]
             heading, speed = p.heading_and_speed
-            model = HorizonModel(F, Q, samples, fixed, p.sensors, criterion)
+            model = HorizonModel(F, Q, samples, fixed, p.sensors, criterion, cache=caches[j])
             plan, _ = optimise_platform(model, J0, p.pv, heading, speed, limits, dt, settings, rng)
             evaluations += model.evaluations
             clock += 1

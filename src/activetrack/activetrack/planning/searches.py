@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from activetrack.compiled import kernels_enabled
+
 __all__ = [
     "SEARCHES",
     "SearchResult",
@@ -125,13 +127,22 @@ def grid_search(
     return best.result(B * len(pts))
 
 
+# The 3 x 3 grid entries a division scores: all nine at the first, then the five that are new in
+# the chosen quadrant (its corners are inherited), in row-major order as the costs are stored.
+_QUADRANT_ALL = np.stack(np.meshgrid(np.arange(3), np.arange(3), indexing="ij"), -1).reshape(9, 2)
+_QUADRANT_NEW = _QUADRANT_ALL[[1, 3, 4, 5, 7]]
+
+
 def quadrant_search(
     cost_fn: CostFn, n_problems: int = 1, divisions: int = 6, patience: int | None = None
 ) -> SearchResult:
     """Hernandez's efficient search (sec. 4.1, Fig. 1), B problems in lockstep.
 
     Each problem holds a square (origin, side) and the costs of its 3 x 3 points; division 1
-    evaluates all 9, later divisions the 5 points that are new in the chosen quadrant.
+    evaluates all 9, later divisions the 5 points that are new in the chosen quadrant. The
+    The bookkeeping between divisions is compiled (``planning._kernels``) where
+    ``compiled.kernels_enabled()``, else numpy: the same comparisons and arithmetic, so the same
+    decisions (tested).
     """
     B = _check_problems(n_problems)
     if isinstance(divisions, bool) or int(divisions) != divisions or divisions < 1:
@@ -139,6 +150,40 @@ def quadrant_search(
     patience = int(divisions) if patience is None else patience
     if isinstance(patience, bool) or int(patience) != patience or patience < 1:
         raise ValueError(f"patience must be an integer >= 1, got {patience!r}")
+    if not kernels_enabled():
+        return _quadrant_search_numpy(cost_fn, B, int(divisions), int(patience))
+    from activetrack.planning._kernels import quadrant_accept, quadrant_points
+
+    origin, side = np.zeros((B, 2)), np.ones(B)
+    values = np.full((B, 3, 3), np.nan)  # costs of the 3 x 3 points of each square
+    stale = np.zeros(B, dtype=np.int64)  # divisions without improvement
+    best = (np.full((B, 2), np.nan), np.full(B, np.inf), np.zeros((B, 0)))
+    state = (values, np.zeros((B, 9, 0)), origin, side, stale)
+    rows = np.arange(B, dtype=np.int64)
+    aux_shape: tuple[int, ...] | None = None
+    evaluations = 0
+    for division in range(int(divisions)):
+        new = _QUADRANT_ALL if division == 0 else _QUADRANT_NEW
+        u = quadrant_points(origin, side, rows, new)
+        costs, aux = _call(cost_fn, rows, u)
+        evaluations += costs.size
+        b, C = costs.shape
+        if aux is not None and aux_shape is None:  # the payload's size, from the first call
+            aux_shape = aux.shape[2:]
+            P = int(np.prod(aux_shape, dtype=int))
+            best = (best[0], best[1], np.zeros((B, P)))
+            state = (values, np.zeros((B, 9, P)), origin, side, stale)
+        flat = np.zeros((b, C, 0)) if aux is None else np.asarray(aux, float).reshape(b, C, -1)
+        last = division == int(divisions) - 1
+        rows = quadrant_accept(*state, *best, rows, new, u, costs, flat, last, int(patience))
+        if rows.size == 0:
+            break
+    payload = None if aux_shape is None else best[2].reshape(B, *aux_shape)
+    return SearchResult(best[0], best[1], payload, evaluations)
+
+
+def _quadrant_search_numpy(cost_fn: CostFn, B: int, divisions: int, patience: int) -> SearchResult:
+    """:func:`quadrant_search` with numpy bookkeeping (the reference of the compiled one)."""
     offsets = np.array([0.0, 0.5, 1.0])
     ij = np.stack(np.meshgrid(np.arange(3), np.arange(3), indexing="ij"), -1).reshape(9, 2)
     origin = np.zeros((B, 2))

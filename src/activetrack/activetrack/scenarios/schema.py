@@ -594,6 +594,20 @@ class PlannerConfig(_Strict):
     def _criterion(cls, value: object) -> str:
         return _registered_criterion(value, "pcrlb", "positioning")
 
+    @field_validator("horizon", mode="before")
+    @classmethod
+    def _horizon(cls, value: object) -> int:
+        """R of the receding horizon (1: single-step, eq. 11; 2: two-step DP, eq. 13-15; R:
+        eq. 16, the DP nested R deep or evolution): an integer, neither a bool nor a fraction."""
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_HORIZON:
+            raise ValueError(
+                f"must be an integer in [1, {MAX_HORIZON}] (the planning horizon R: 1 "
+                f"single-step, 2 two-step, 3 three-step, ...), got {value!r}"
+            )
+        return value
+
 
 # Per-stage candidates of the searches (activetrack.planning.searches) for the size rules.
 _GRID_CHUNK = 2048  # grid_search scores at most this many points per problem and call
