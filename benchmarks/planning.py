@@ -30,7 +30,7 @@ import numpy as np
 from activetrack.allocator import tune_allocator
 from activetrack.bounds.costs import rmse_bound_of_information
 from activetrack.bounds.pcrlb import measurement_information, pcrlb_step, predicted_information
-from activetrack.compiled import ENV_VAR
+from activetrack.kernels import ENV_VAR
 from activetrack.models.sensors import BearingSensor
 from activetrack.scenarios import load_scenario
 from activetrack_experiments.hernandez import plan_case
@@ -89,7 +89,7 @@ def _throughput_case(n_candidates: int, M: int):
 
 @contextmanager
 def kernels(mode: str) -> Iterator[None]:
-    """ACTIVETRACK_KERNELS=mode within the block (activetrack.compiled)."""
+    """ACTIVETRACK_KERNELS=mode within the block (activetrack.kernels)."""
     before = os.environ.get(ENV_VAR)
     os.environ[ENV_VAR] = mode
     try:

@@ -109,18 +109,19 @@ else
 fi
 
 # --- 7. compiled kernels: numba's disk cache, next to their sources ------------------------------
-# activetrack.kernels compiles with cache=True; doing it here keeps the compilation (several
-# seconds) out of the first campaign. numba keys its cache on each source's mtime and size, so
-# the stamp hashes those as well as the contents.
-step kernels "compiling the numba kernels of activetrack.kernels into their disk cache"
-KDIR="$ROOT/src/activetrack/activetrack/kernels"
-h=$( { cat "$STAMPS/python-packages" "$KDIR"/*.py; stat -c '%n %Y %s' "$KDIR"/*.py; } | sha256sum | cut -c1-16)
-if stamp_ok kernels "$h" && compgen -G "$KDIR/__pycache__/*.nbi" >/dev/null; then
+# Every kernel compiles with cache=True; doing it here keeps the compilation (15-30 s on a busy
+# 2-core machine) out of the first campaign. numba keys its cache on each source's mtime and
+# size, so the stamp hashes those as well as the contents.
+step kernels "compiling the numba kernels (activetrack.kernels.KERNEL_MODULES) into their disk cache"
+A="$ROOT/src/activetrack/activetrack"
+KSRC=("$A"/kernels/*.py "$A/models/_fisher_kernels.py" "$A/bounds/_kernels.py" "$A/planning/_kernels.py")
+h=$( { cat "$STAMPS/python-packages" "${KSRC[@]}"; stat -c '%n %Y %s' "${KSRC[@]}"; } | sha256sum | cut -c1-16)
+if stamp_ok kernels "$h" && compgen -G "$A/kernels/__pycache__/*.nbi" >/dev/null \
+    && compgen -G "$A/planning/__pycache__/_kernels*.nbi" >/dev/null; then
     echo "setup: [$STEP] unchanged, skipped"
 else
     rm -f "$STAMPS/kernels"
-    env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c 'from activetrack import kernels
-assert kernels.warm_up(), "numba did not import"'
+    env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -m activetrack.kernels
     stamp_write kernels "$h"
 fi
 

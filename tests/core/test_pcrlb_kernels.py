@@ -20,7 +20,7 @@ from activetrack.bounds.pcrlb import (
     pcrlb_trajectory,
     predicted_information,
 )
-from activetrack.compiled import KERNEL_MODULES, kernels_enabled, prefer_kernels, warm_up
+from activetrack.kernels import KERNEL_MODULES, kernels_enabled, prefer_kernels, warm_up
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.models.sensors import (
     AmbiguousBearingSensor,
@@ -36,7 +36,7 @@ SCENARIOS = Path(__file__).parents[2] / "scenarios"
 
 @pytest.fixture(autouse=True)
 def compiled(monkeypatch):
-    """The compiled kernels on (activetrack.compiled: else only after numba is loaded)."""
+    """The compiled kernels on (activetrack.kernels: else only for heavy decisions)."""
     monkeypatch.setenv("ACTIVETRACK_KERNELS", "compiled")
 
 
@@ -278,13 +278,12 @@ def test_compiled_quadrant_search_equals_numpy(monkeypatch, patience, with_aux):
     assert a.evaluations == b.evaluations
 
 
-def test_light_work_stays_on_numpy_until_numba_is_loaded(monkeypatch):
-    """Without the environment variable: the kernels where a caller prefers them or numba is
-    loaded; never with ACTIVETRACK_KERNELS=numpy."""
-    monkeypatch.delenv("ACTIVETRACK_KERNELS")
-    monkeypatch.setitem(sys.modules, "numba", None)  # loaded: any value in sys.modules
-    assert kernels_enabled()
-    monkeypatch.delitem(sys.modules, "numba")
+def test_light_work_stays_on_numpy_whatever_the_process_ran_before(monkeypatch):
+    """Without the environment variable: the kernels where a caller prefers them, not because
+    numba is loaded (round-off kernels must not depend on a process's history); never with
+    ACTIVETRACK_KERNELS=numpy."""
+    monkeypatch.delenv("ACTIVETRACK_KERNELS", raising=False)
+    monkeypatch.setitem(sys.modules, "numba", sys.modules.get("numba"))  # loaded
     assert not kernels_enabled()
     with prefer_kernels():
         assert kernels_enabled()
@@ -297,7 +296,7 @@ def test_light_work_stays_on_numpy_until_numba_is_loaded(monkeypatch):
 
 
 def test_warm_up_readies_every_kernel_module():
-    """``python -m activetrack.compiled`` (e.g. at setup) compiles or loads every kernel."""
+    """``python -m activetrack.kernels`` (e.g. at setup) compiles or loads every kernel."""
     seconds = warm_up()
     assert tuple(seconds) == KERNEL_MODULES
     assert all(s >= 0.0 for s in seconds.values())

@@ -161,7 +161,7 @@ def predicted_stack(J: FloatArray, F: FloatArray, Q: FloatArray) -> tuple[FloatA
 
 
 def warm_up() -> None:
-    """Compile (or load) the kernels of this module (``activetrack.compiled.warm_up``)."""
+    """Compile (or load) the kernels of this module (``activetrack.kernels.warm_up``)."""
     J = np.eye(4)[None].copy()
     rmse_bounds(J)
     predicted_stack(J, np.eye(4), np.eye(4))

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike
-from activetrack.compiled import kernels_enabled
+from activetrack.kernels import kernels_enabled
 
 __all__ = [
     "EQ26_ROWS",
@@ -67,7 +67,7 @@ def rmse_bound_of_information(J: np.ndarray) -> np.ndarray:
     position variances of J^{-1} from one solve J V = [e_x, e_y], no full inverse.
 
     Compiled (``bounds._kernels``: the LU solve written out for stacks of 4 x 4 matrices) while
-    :func:`activetrack.compiled.kernels_enabled`; the numpy solve is the reference (equal to
+    :func:`activetrack.kernels.kernels_enabled`; the numpy solve is the reference (equal to
     1e-12)."""
     J = np.asarray(J, dtype=float)
     if not kernels_enabled() or J.shape[-2:] != (4, 4):

@@ -26,7 +26,7 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite
-from activetrack.compiled import kernels_enabled
+from activetrack.kernels import kernels_enabled
 from activetrack.linalg import cholesky as _cholesky
 from activetrack.linalg import lower_solve as _lower_solve
 from activetrack.linalg import psd_sqrt as _psd_sqrt
@@ -160,7 +160,7 @@ def measurement_information(
 def information_kernel(sensor: SensorModel) -> InformationKernel | None:
     """The sensor's compiled Fisher information (its optional ``information_kernel()``), or
     None for a sensor without one or while the kernels are off
-    (:func:`activetrack.compiled.kernels_enabled`: every sensor then uses its numpy
+    (:func:`activetrack.kernels.kernels_enabled`: every sensor then uses its numpy
     ``fisher_information``)."""
     get = getattr(sensor, "information_kernel", None)
     if get is None or not kernels_enabled():
@@ -231,7 +231,7 @@ def predicted_information(J_prev: FloatArray, F: FloatArray, Q: FloatArray) -> F
     F and Q ``(n, n)`` are taken as valid (the planner checks them once per decision, through
     :func:`pcrlb_step`); J_prev is still checked to be SPD. A stack ``(N, n, n)`` goes through
     the compiled Cholesky steps (``bounds._kernels.predicted_stack``, equal to 1e-12) while
-    :func:`activetrack.compiled.kernels_enabled`.
+    :func:`activetrack.kernels.kernels_enabled`.
     """
     if J_prev.ndim == 3 and kernels_enabled():
         return _predicted_stack(J_prev, F, Q)

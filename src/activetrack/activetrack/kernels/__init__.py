@@ -5,8 +5,10 @@ references, in the same order and on the same random draws, so the two paths giv
 particles and weights bit for bit (tests/core/test_pf_kernels.py): which one runs changes the
 speed, never a result. The EKF and moment kernels agree to round-off only (see ``compiled``).
 
-Which path runs is one process-wide switch, read from the environment variable
-``ACTIVETRACK_KERNELS`` at first use:
+Which path runs is one process-wide switch, the environment variable ``ACTIVETRACK_KERNELS``
+(read at each call unless :func:`set_kernels` chose a mode), for every kernel of the library:
+the filters' here and the PCRLB planner's (``models._fisher_kernels``, ``bounds._kernels``,
+``planning._kernels``; docs/planning-speed.md):
 
 - ``auto`` (the default): numpy first, the compiled kernels once they pay off, i.e. as soon as
   numba is already imported (another kernel loaded it) or once the process has done
@@ -15,6 +17,11 @@ Which path runs is one process-wide switch, read from the environment variable
   (more on a loaded machine), about what the numpy path spends on that much work; a short
   command such as ``activetrack run`` on the default scenario (30 steps of 10,000 particles)
   never pays it, a Monte Carlo campaign pays it once. Without numba: numpy throughout.
+  The kernels that agree with numpy to round-off only (the Fisher information, the eq. 3
+  prediction and b_k of the planner: :func:`kernels_enabled`) run in ``auto`` only where the
+  caller expects heavy work and says so (:func:`prefer_kernels`; the planner does for a decision
+  of at least ``planning.planner.HEAVY_DECISION`` candidates per platform): what ran earlier in
+  the process never decides it, so a Monte Carlo task gives the same bits on every worker.
 - ``numpy``: always the numpy code;
 - ``compiled``: the compiled kernels from the first step; an ImportError if numba is missing.
   This mode also runs the EKF kernels (:func:`ekf_kernels`) and the particle filter's
@@ -25,7 +32,8 @@ Which path runs is one process-wide switch, read from the environment variable
 
 Every kernel is compiled with ``cache=True``: the machine code is kept in ``__pycache__`` next
 to the source and loaded from there by later processes; ``make setup`` compiles them once
-(:func:`warm_up`, run by ``tools/setup.sh`` when the kernel sources change).
+(:func:`warm_up`, run by ``tools/setup.sh`` when the kernel sources change;
+``python -m activetrack.kernels`` does the same by hand).
 
 The consumers stay free of type tests (``tests/core/test_no_type_dispatch.py``): a built-in
 sensor or motion model calls the kernel inside its own method (``BearingSensor`` /
@@ -36,8 +44,13 @@ goes through :func:`particle_kernels` like any other caller.
 
 from __future__ import annotations
 
+import importlib
 import os
 import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from types import ModuleType
 
 __all__ = [
@@ -57,8 +70,18 @@ MODES = ("auto", "numpy", "compiled")
 # Particle updates (particles x steps) after which "auto" loads numba: 5e6 is ~500 steps of
 # 10,000 particles, ~0.5 s of the numpy path.
 AUTO_WORK = 5_000_000
+# The modules with compiled kernels; each has a warm_up() that calls every kernel once.
+KERNEL_MODULES = (
+    "activetrack.kernels.particle",
+    "activetrack.kernels.ekf",
+    "activetrack.kernels.moments",
+    "activetrack.models._fisher_kernels",
+    "activetrack.bounds._kernels",
+    "activetrack.planning._kernels",
+)
+_PREFERRED: ContextVar[bool] = ContextVar("activetrack_prefer_kernels", default=False)
 
-# The chosen mode (None: not read from the environment yet), the loaded kernel module and the
+# The mode set_kernels chose (None: the environment's), the loaded kernel modules and the
 # particle updates counted so far.
 _mode: str | None = None
 _particle: ModuleType | None = None
@@ -82,10 +105,29 @@ def set_kernels(mode: str | None) -> None:
 
 
 def _current_mode() -> str:
-    global _mode
-    if _mode is None:
-        _mode = _check_mode(os.environ.get(ENV_VAR, "auto").strip().lower() or "auto")
-    return _mode
+    if _mode is not None:
+        return _mode
+    return _check_mode(os.environ.get(ENV_VAR, "auto").strip().lower() or "auto")
+
+
+def kernels_enabled() -> bool:
+    """Whether a kernel that agrees with its numpy reference to round-off (the planner's: the
+    Fisher information, the eq. 3 prediction, b_k) runs now: in ``compiled`` mode, and in
+    ``auto`` inside :func:`prefer_kernels` only (never because numba happens to be loaded, so
+    a result does not depend on what the process ran before)."""
+    mode = _current_mode()
+    return mode == "compiled" or (mode == "auto" and _PREFERRED.get())
+
+
+@contextmanager
+def prefer_kernels(prefer: bool = True) -> Iterator[None]:
+    """Within the block, :func:`kernels_enabled` in ``auto`` mode is ``prefer``: the caller
+    expects (or not) enough work to pay for numba's start-up."""
+    token = _PREFERRED.set(bool(prefer))
+    try:
+        yield
+    finally:
+        _PREFERRED.reset(token)
 
 
 def _load(mode: str) -> ModuleType | None:
@@ -149,14 +191,12 @@ def compiled_enabled() -> bool:
     return particle_kernels() is not None
 
 
-def warm_up() -> bool:
-    """Compile (or load from the disk cache) every kernel; False without numba."""
-    kernels = _particle if _particle is not None else _load("auto")
-    if kernels is None:
-        return False
-    kernels.warm_up()
-    from activetrack.kernels import ekf, moments
-
-    ekf.warm_up()
-    moments.warm_up()
-    return True
+def warm_up() -> dict[str, float]:
+    """Compile (or load from numba's cache) every kernel of :data:`KERNEL_MODULES`: seconds
+    each, in that order. ImportError without numba."""
+    out = {}
+    for name in KERNEL_MODULES:
+        t0 = time.perf_counter()
+        importlib.import_module(name).warm_up()
+        out[name] = time.perf_counter() - t0
+    return out

@@ -73,6 +73,6 @@ def bearing_information(
 
 
 def warm_up() -> None:
-    """Compile (or load) the kernels of this module (``activetrack.compiled.warm_up``)."""
+    """Compile (or load) the kernels of this module (``activetrack.kernels.warm_up``)."""
     X = np.array([[1.0, 0.0, 2.0, 0.0], [3.0, 0.0, 1.0, 0.0]])
     bearing_information(X, np.zeros((1, 4)), 0.01, 1.0, 0.0, np.inf)

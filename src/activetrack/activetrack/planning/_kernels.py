@@ -191,7 +191,7 @@ def quadrant_accept(
 
 
 def warm_up() -> None:
-    """Compile (or load) the kernels of this module (``activetrack.compiled.warm_up``), with
+    """Compile (or load) the kernels of this module (``activetrack.kernels.warm_up``), with
     the argument types the planner passes (a payload and none)."""
     from activetrack.planning.searches import quadrant_search
 

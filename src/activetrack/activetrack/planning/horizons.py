@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from activetrack.compiled import kernels_enabled
+from activetrack.kernels import kernels_enabled
 from activetrack.planning.costs import HorizonModel
 from activetrack.planning.manoeuvre import (
     PlatformLimits,

@@ -37,7 +37,7 @@ from activetrack.bounds.pcrlb import (
     propagate_samples,
 )
 from activetrack.checks import require_finite, require_positive, require_psd, require_spd
-from activetrack.compiled import prefer_kernels
+from activetrack.kernels import prefer_kernels
 from activetrack.planning.costs import platform_information
 from activetrack.planning.criteria import PCRLB, get_criterion
 from activetrack.planning.horizons import SearchSettings
@@ -62,7 +62,7 @@ __all__ = [
 
 
 # Candidates per platform and decision from which the planner takes the compiled kernels even
-# before numba is loaded (activetrack.compiled): two-step quadrant search (34^2 = 1,156) and
+# before numba is loaded (activetrack.kernels): two-step quadrant search (34^2 = 1,156) and
 # beyond, the grid; not the single-step searches (34, 41 or 5 candidates).
 HEAVY_DECISION = 1000
 
@@ -365,7 +365,7 @@ def plan(
     F, Q, dt = _check_dynamics(F, Q, dt)
     R = int(settings.horizon)
     samples = propagate_samples(belief.samples, F, Q, R, rng)  # (R, M, 4) at k+1..k+R
-    # Heavy decisions pay for numba's start-up: take the compiled kernels (activetrack.compiled).
+    # Heavy decisions pay for numba's start-up: take the compiled kernels (activetrack.kernels).
     with prefer_kernels(settings.search.evaluations_per_platform(R) >= HEAVY_DECISION):
         result = coordinate_platforms(
             platforms,

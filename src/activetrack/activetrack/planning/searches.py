@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from activetrack.compiled import kernels_enabled
+from activetrack.kernels import kernels_enabled
 
 __all__ = [
     "SEARCHES",
@@ -141,7 +141,7 @@ def quadrant_search(
     Each problem holds a square (origin, side) and the costs of its 3 x 3 points; division 1
     evaluates all 9, later divisions the 5 points that are new in the chosen quadrant. The
     The bookkeeping between divisions is compiled (``planning._kernels``) where
-    ``compiled.kernels_enabled()``, else numpy: the same comparisons and arithmetic, so the same
+    ``kernels.kernels_enabled()``, else numpy: the same comparisons and arithmetic, so the same
     decisions (tested).
     """
     B = _check_problems(n_problems)
