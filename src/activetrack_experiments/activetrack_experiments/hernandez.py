@@ -40,6 +40,7 @@ from activetrack.bounds.pcrlb import (
 )
 from activetrack.filters import Measurement, ParticleFilter
 from activetrack.geometry import covariance_ellipse
+from activetrack.kernels import expect_particle_work
 from activetrack.limits import (
     MAX_GRID_SIZE,
     MAX_JOBS,
@@ -258,6 +259,7 @@ def track_case(
     ([seed, r]) split into truth/measurement and filter generators), on ``jobs`` processes;
     the result does not depend on ``jobs`` (nor on ``progress``, called with the runs done)."""
     tasks = [_RunTask(scenario, paths, r, particles, seed) for r in range(runs)]
+    expect_particle_work(runs * scenario.steps * particles)  # kernels loaded before the fork
     sq = np.stack(parallel_map(_track_run, tasks, jobs, progress))
     mse = sq.mean(axis=0)
     return np.sqrt(mse[:, [0, 2]])

@@ -59,6 +59,7 @@ __all__ = [
     "MODES",
     "compiled_enabled",
     "ekf_kernels",
+    "expect_particle_work",
     "moment_kernels",
     "particle_kernels",
     "set_kernels",
@@ -157,6 +158,15 @@ def particle_kernels(work: int = 0) -> ModuleType | None:
     if mode == "auto" and _work < AUTO_WORK and "numba" not in sys.modules:
         return None
     return _load(mode)
+
+
+def expect_particle_work(work: int) -> None:
+    """Announce ``work`` particle updates (particles x steps x runs) about to be done, by this
+    process or by workers it forks: in ``auto`` mode they count towards :data:`AUTO_WORK` now,
+    so a Monte Carlo of particle filters loads the kernels once, before its workers fork,
+    instead of every worker starting on numpy and loading numba itself. The PF kernels give the
+    numpy path's bits, so this changes the speed only."""
+    particle_kernels(work=max(0, int(work)))
 
 
 def ekf_kernels() -> ModuleType | None:
