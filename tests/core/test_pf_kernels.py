@@ -268,6 +268,23 @@ def test_auto_mode_switches_after_enough_work(monkeypatch):
     assert kernels.particle_kernels(work=10**9) is None
 
 
+def test_announced_work_loads_the_kernels_before_any_update(monkeypatch):
+    """``expect_particle_work`` (a Monte Carlo about to fork its workers) counts towards
+    AUTO_WORK at once: the kernels load in the parent, before a single particle update."""
+    from activetrack.kernels import particle
+
+    monkeypatch.setattr(kernels, "_particle", None)
+    monkeypatch.setattr(kernels, "_work", 0)
+    monkeypatch.setattr(kernels, "AUTO_WORK", 100)
+    monkeypatch.delitem(__import__("sys").modules, "numba")
+    kernels.set_kernels("auto")
+    kernels.expect_particle_work(99)
+    assert kernels.particle_kernels() is None
+    kernels.expect_particle_work(1)
+    assert kernels._particle is particle
+    assert kernels.particle_kernels() is particle
+
+
 def test_mode_names_are_checked(monkeypatch):
     with pytest.raises(ValueError, match="ACTIVETRACK_KERNELS"):
         kernels.set_kernels("fast")
