@@ -86,6 +86,7 @@ PIP_ONLY = {
     "zstandard": "zstandard",
     "foxglove": "foxglove-sdk",
     "filterpy": "filterpy",
+    "distributed": "distributed",  # Dask's cluster client (activetrack.montecarlo_dask)
 }
 # Declared but not imported, on purpose: (package, rosdep key or pip name) -> why.
 # Each node is an rclpy node (its class derives from rclpy's Node through activetrack_ros):
