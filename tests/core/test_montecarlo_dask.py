@@ -5,6 +5,7 @@ tasks carry the client's registrations; a wrong scheduler fails at once, naming 
 
 from __future__ import annotations
 
+import dataclasses
 import socket
 import sys
 import textwrap
@@ -15,6 +16,7 @@ import pytest
 
 import activetrack as at
 from activetrack import montecarlo_dask
+from activetrack.allocator import allocator_tuned
 from activetrack.closed_loop.batch import run_batch
 from activetrack.montecarlo import parallel_map
 from activetrack.montecarlo_dask import SchedulerError, WorkerSetupError, check_scheduler
@@ -32,7 +34,7 @@ TIMING = {"wall_time_s", "decision_time_s"}  # wall-clock figures: the only fiel
 def cluster():
     """Two single-threaded worker processes (spawned: no state forked from this process)."""
     with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     ) as local:
         yield local
 
@@ -87,8 +89,11 @@ def test_run_batch_dask_equals_local_processes_and_one_process(scenario, address
 
 
 def test_run_batch_with_a_connected_client_equals_one_process(scenario, cluster):
+    assert allocator_tuned()  # tests/conftest.py, as the command line
     with distributed.Client(cluster, set_as_default=False) as client:
         dask = run_batch(scenario, runs=3, scheduler=client)
+        # The workers were spawned, not forked: the chunks told them to tune theirs too.
+        assert list(client.run(allocator_tuned).values()) == [True, True]
     _same_batch(run_batch(scenario, runs=3), dask)
 
 
@@ -156,8 +161,7 @@ def test_a_worker_without_the_plugin_module_says_which(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     import only_on_the_client
 
-    context = (montecarlo_dask._registrations(), montecarlo_dask._versions())
-    payload = dumps((only_on_the_client.cube, [2], *context))
+    payload = dumps((only_on_the_client.cube, [2], montecarlo_dask.client_context()))
     assert montecarlo_dask.run_chunk(payload) == [8]
     monkeypatch.delitem(sys.modules, "only_on_the_client")
     monkeypatch.setattr(sys, "path", [p for p in sys.path if p != str(tmp_path)])
@@ -168,8 +172,9 @@ def test_a_worker_without_the_plugin_module_says_which(tmp_path, monkeypatch):
 def test_a_worker_with_other_versions_refuses():
     from distributed.protocol.pickle import dumps
 
-    versions = {**montecarlo_dask._versions(), "numpy": "0.0.1"}
-    payload = dumps((_square, [3], montecarlo_dask._registrations(), versions))
+    context = montecarlo_dask.client_context()
+    versions = {**context.versions, "numpy": "0.0.1"}
+    payload = dumps((_square, [3], dataclasses.replace(context, versions=versions)))
     with pytest.raises(WorkerSetupError, match=r"numpy 0\.0\.1 on the client"):
         montecarlo_dask.run_chunk(payload)
 
@@ -215,7 +220,7 @@ def test_the_command_line_names_scheduler(command, capsys):
 def test_a_scheduler_without_workers_fails_with_the_remedy(scenario, monkeypatch, capsys):
     monkeypatch.setattr(montecarlo_dask, "WORKER_WAIT_S", 0.5)
     with distributed.LocalCluster(
-        n_workers=0, processes=False, protocol="tcp://", dashboard_address=None
+        n_workers=0, processes=False, protocol="tcp://", dashboard_address=":0"
     ) as empty:
         with pytest.raises(SchedulerError, match="no worker joined.*dask worker"):
             run_batch(scenario, runs=2, scheduler=empty.scheduler_address)

@@ -12,6 +12,9 @@ What a task needs on a worker of another host, which shares no forked state:
 - the same software: activetrack and the pinned packages (numpy, scipy, ...) of the client;
   each payload carries the client's versions and a worker whose versions differ refuses the
   chunk with :class:`WorkerSetupError` (other versions could change the numbers);
+- the process settings: a client that tuned the allocator (:mod:`activetrack.allocator`, as
+  the command line does) has the workers tune theirs, as forked workers inherit it (over the
+  ``MALLOC_TRIM_THRESHOLD_`` that Dask's nanny sets by default, not over a user's own);
 - the registrations (sensor kinds, filters, planner criteria) the client made before the call:
   each payload carries the client's registries and the worker registers what it lacks or has
   otherwise. A plugin defined in a script or notebook (``__main__``) travels by value; one
@@ -26,6 +29,7 @@ importable on the scheduler (it holds the tasks' function by reference).
 from __future__ import annotations
 
 import math
+import os
 import socket
 import sys
 import threading
@@ -147,10 +151,8 @@ def _map_on(client: Client, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> I
 
     threads = _worker_threads(client)
     size = max(1, math.ceil(len(tasks) / (CHUNKS_PER_THREAD * threads)))
-    context = (_registrations(), _versions())
-    payloads = [
-        dumps((fn, list(tasks[i : i + size]), *context)) for i in range(0, len(tasks), size)
-    ]
+    context = client_context()
+    payloads = [dumps((fn, list(tasks[i : i + size]), context)) for i in range(0, len(tasks), size)]
     futures = client.map(run_chunk, payloads, pure=False)
     try:
         for future in futures:
@@ -185,6 +187,22 @@ class Registrations:
     criteria: tuple[Any, ...]  # planning.criteria.Criterion
 
 
+@dataclass(frozen=True)
+class ClientContext:
+    """What every chunk carries besides its tasks (module docstring)."""
+
+    registrations: Registrations
+    versions: dict[str, str]  # python and PINNED distributions
+    allocator_tuned: bool  # activetrack.allocator.tune_allocator applied in the client
+
+
+def client_context() -> ClientContext:
+    """This process's :class:`ClientContext`."""
+    from activetrack.allocator import allocator_tuned
+
+    return ClientContext(_registrations(), _versions(), allocator_tuned())
+
+
 def _registrations() -> Registrations:
     from activetrack.filters.registry import filter_kind, filter_names
     from activetrack.planning.criteria import criteria
@@ -212,12 +230,15 @@ _INSTALL = threading.Lock()  # a worker's threads may install the same registrat
 
 
 def run_chunk(payload: bytes) -> list[Any]:
-    """On a worker: unpickle one chunk, check its versions, install the client's registrations
-    and return ``[fn(t) for t in tasks]``. Module-level, so the scheduler holds it by name."""
+    """On a worker: unpickle one chunk ``(fn, tasks, ClientContext)``, check the versions,
+    install the client's registrations and settings and return ``[fn(t) for t in tasks]``.
+    Module-level, so the scheduler holds it by name."""
     from distributed.protocol.pickle import loads
 
+    from activetrack.allocator import tune_allocator
+
     try:
-        fn, tasks, registrations, versions = loads(payload)
+        fn, tasks, context = loads(payload)
     except (ImportError, AttributeError) as exc:
         raise WorkerSetupError(
             f"worker {socket.gethostname()}: cannot load the tasks ({type(exc).__name__}: "
@@ -225,7 +246,7 @@ def run_chunk(payload: bytes) -> list[Any]:
             "plugin (sensor kind, filter, criterion) on every worker host (docs/dask.md)"
         ) from None
     mine = _versions()
-    differ = {k: (v, mine.get(k)) for k, v in versions.items() if mine.get(k) != v}
+    differ = {k: (v, mine.get(k)) for k, v in context.versions.items() if mine.get(k) != v}
     if differ:
         shown = ", ".join(f"{k} {c} on the client, {w} here" for k, (c, w) in differ.items())
         raise WorkerSetupError(
@@ -233,8 +254,19 @@ def run_chunk(payload: bytes) -> list[Any]:
             "versions (make setup) for identical results (docs/dask.md)"
         )
     with _INSTALL:
-        _install(registrations)
+        _install(context.registrations)
+    if context.allocator_tuned:
+        tune_allocator(ignore=_dask_environ())
     return [fn(t) for t in tasks]
+
+
+def _dask_environ() -> tuple[str, ...]:
+    """The variables of this process that hold the values Dask's nanny sets before it starts a
+    worker (``distributed.nanny.pre-spawn-environ``): Dask's defaults, not the user's."""
+    import dask.config
+
+    preset = dask.config.get("distributed.nanny.pre-spawn-environ", default={}) or {}
+    return tuple(k for k, v in preset.items() if os.environ.get(k) == str(v))
 
 
 def _install(reg: Registrations) -> None:
