@@ -19,6 +19,12 @@ throughput_1) (1.0: perfect). Every campaign's RMSE and bound series are checked
 printed beside each figure: other jobs on the machine take cores from the 2-worker campaigns
 first, so a loaded machine shows a lower efficiency than the code has.
 
+Beside the wall time, the CPU seconds of the whole campaign (this process, the local worker
+processes or the Dask workers) per run: their ratio, ``cpu_1 / cpu_2``, is the work
+efficiency, what parallel running costs in extra work (forks, pickling, per-worker set-up,
+the parent's summary) whatever the load. On two idle cores the wall efficiency would be the
+work efficiency less the tail (the last chunk running alone).
+
 The last line is ``campaign_2worker_efficiency=<x>``: the local backend's efficiency at the
 largest size measured (the dask one's with ``--backend dask``). A full run (10, 100 and 1,000
 runs, both backends) takes about 2 x 1,110 x 1.5 run times, ~25 min at 0.45 s a run;
@@ -30,6 +36,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import resource
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -45,14 +52,27 @@ TARGET = 0.85  # issue 15: the 2-worker efficiency at least 85 %
 WORKERS = (1, 2)
 
 Campaign = Callable[[Scenario, int], BatchSummary]  # (scenario, runs) -> summary
+CpuClock = Callable[[], float]  # CPU seconds used so far by everything a campaign runs on
 
 
-def local_campaigns() -> Iterator[dict[int, Campaign]]:
-    """``jobs=w`` on this machine's forked worker processes."""
-    yield {w: (lambda sc, n, w=w: run_batch(sc, runs=n, jobs=w)) for w in WORKERS}
+def _own_and_children_cpu() -> float:
+    """This process's CPU seconds and its finished (joined) children's."""
+    me, kids = (
+        resource.getrusage(resource.RUSAGE_SELF),
+        resource.getrusage(resource.RUSAGE_CHILDREN),
+    )
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
-def dask_campaigns() -> Iterator[dict[int, Campaign]]:
+def local_campaigns() -> Iterator[dict[int, tuple[Campaign, CpuClock]]]:
+    """``jobs=w`` on this machine's forked worker processes (joined at the end of each map)."""
+    yield {
+        w: ((lambda sc, n, w=w: run_batch(sc, runs=n, jobs=w)), _own_and_children_cpu)
+        for w in WORKERS
+    }
+
+
+def dask_campaigns() -> Iterator[dict[int, tuple[Campaign, CpuClock]]]:
     """A LocalCluster of w single-threaded worker processes for each w, by address."""
     from distributed import Client, LocalCluster
 
@@ -67,26 +87,40 @@ def dask_campaigns() -> Iterator[dict[int, Campaign]]:
         )
         for w in WORKERS
     }
+    clients = {w: Client(c, set_as_default=False) for w, c in clusters.items()}
     try:
-        for cluster in clusters.values():
-            with Client(cluster, set_as_default=False) as client:  # warm: imports on workers
-                client.run(__import__, "activetrack.closed_loop.batch")
+        for client in clients.values():  # warm: activetrack imported on the workers
+            client.run(__import__, "activetrack.closed_loop.batch")
+
+        def cpu(client) -> float:  # the workers' CPU and this process's (client, scheduler)
+            me = resource.getrusage(resource.RUSAGE_SELF)
+            return sum(client.run(time.process_time).values()) + me.ru_utime + me.ru_stime
+
         yield {
-            w: (lambda sc, n, a=c.scheduler_address: run_batch(sc, runs=n, scheduler=a))
+            w: (
+                lambda sc, n, a=c.scheduler_address: run_batch(sc, runs=n, scheduler=a),
+                lambda client=clients[w]: cpu(client),
+            )
             for w, c in clusters.items()
         }
     finally:
-        for cluster in clusters.values():
-            cluster.close()
+        for w in WORKERS:
+            clients[w].close()
+            clusters[w].close()
 
 
 BACKENDS = {"local": contextmanager(local_campaigns), "dask": contextmanager(dask_campaigns)}
 
 
-def measure(campaign: Campaign, scenario: Scenario, runs: int) -> tuple[float, BatchSummary]:
-    start = time.perf_counter()
-    summary = campaign(scenario, runs)
-    return time.perf_counter() - start, summary
+def measure(
+    campaign: tuple[Campaign, CpuClock], scenario: Scenario, runs: int
+) -> tuple[float, float, BatchSummary]:
+    """(wall seconds, CPU seconds, summary) of one campaign."""
+    run, cpu = campaign
+    cpu0, start = cpu(), time.perf_counter()
+    summary = run(scenario, runs)
+    wall = time.perf_counter() - start
+    return wall, cpu() - cpu0, summary
 
 
 def _same(a: BatchSummary, b: BatchSummary) -> bool:
@@ -97,22 +131,24 @@ def run_backend(name: str, scenario: Scenario, sizes: list[int]) -> dict[int, fl
     """Throughput of 1 and 2 workers for each size; returns size -> 2-worker efficiency."""
     efficiency = {}
     with BACKENDS[name]() as campaigns:
-        campaigns[1](scenario, 2)  # warm-up: imports, caches
+        campaigns[1][0](scenario, 2)  # warm-up: imports, caches
         for n in sizes:
-            rate, summaries = {}, {}
+            rate, cpu, summaries = {}, {}, {}
             for w in WORKERS:
-                seconds, summaries[w] = measure(campaigns[w], scenario, n)
-                rate[w] = n / seconds
+                seconds, cpu_s, summaries[w] = measure(campaigns[w], scenario, n)
+                rate[w], cpu[w] = n / seconds, cpu_s / n
                 print(
                     f"  {name:5s} {n:5d} runs, {w} worker(s): {seconds:8.1f} s, "
-                    f"{rate[w]:6.3f} runs/s  (load average {os.getloadavg()[0]:.1f})",
+                    f"{rate[w]:6.3f} runs/s, CPU {cpu[w]:.3f} s/run  "
+                    f"(load average {os.getloadavg()[0]:.1f})",
                     flush=True,
                 )
             efficiency[n] = rate[2] / (2 * rate[1])
             same = "identical" if _same(summaries[1], summaries[2]) else "DIFFERENT"
             print(
                 f"  {name:5s} {n:5d} runs: 2-worker efficiency {efficiency[n]:.3f} "
-                f"(speed-up {rate[2] / rate[1]:.2f}x); results {same}",
+                f"(speed-up {rate[2] / rate[1]:.2f}x), work efficiency {cpu[1] / cpu[2]:.3f}; "
+                f"results {same}",
                 flush=True,
             )
     return efficiency

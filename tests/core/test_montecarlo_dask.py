@@ -18,7 +18,7 @@ import activetrack as at
 from activetrack import montecarlo_dask
 from activetrack.allocator import allocator_tuned
 from activetrack.closed_loop.batch import run_batch
-from activetrack.montecarlo import parallel_map
+from activetrack.montecarlo import even_chunks, parallel_map
 from activetrack.montecarlo_dask import SchedulerError, WorkerSetupError, check_scheduler
 from activetrack.multitarget.loop import run_multi_batch
 from activetrack_bringup.cli import main as cli_main
@@ -227,3 +227,12 @@ def test_a_scheduler_without_workers_fails_with_the_remedy(scenario, monkeypatch
         assert cli_main(["batch", SCENARIO, "--scheduler", empty.scheduler_address]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: --scheduler: no worker joined tcp://127.0.0.1:")
+
+
+@pytest.mark.parametrize("n, workers", [(1, 2), (10, 2), (100, 2), (1000, 2), (7, 3), (0, 2)])
+def test_even_chunks_cover_the_tasks_in_order_with_sizes_one_apart(n, workers):
+    chunks = even_chunks(list(range(n)), workers)
+    assert [t for c in chunks for t in c] == list(range(n))
+    assert len(chunks) == max(1, min(n, 4 * workers))
+    sizes = {len(c) for c in chunks}
+    assert max(sizes) - min(sizes) <= 1

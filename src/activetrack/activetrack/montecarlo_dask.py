@@ -2,10 +2,11 @@
 
 ``parallel_map(fn, tasks, scheduler="tcp://host:8786")`` sends the tasks to the workers of a
 running Dask distributed scheduler (``dask scheduler`` / ``dask worker``, docs/dask.md) instead
-of forking local worker processes. The tasks are cut into chunks (about four per worker thread,
-as the local pool does); each chunk travels as one pickled payload and comes back as the list
-of its results, which are handed out in task order. Every task carries its own seed, so the
-results are bit-identical to ``jobs=1`` and to the local pool.
+of forking local worker processes. The tasks are cut into chunks as for the local pool
+(:func:`activetrack.montecarlo.even_chunks`, four per worker thread); each chunk travels as
+one pickled payload and comes back as the list of its results, which are handed out in task
+order. Every task carries its own seed, so the results are bit-identical to ``jobs=1`` and to
+the local pool.
 
 What a task needs on a worker of another host, which shares no forked state:
 
@@ -28,7 +29,6 @@ importable on the scheduler (it holds the tasks' function by reference).
 
 from __future__ import annotations
 
-import math
 import os
 import socket
 import sys
@@ -62,7 +62,6 @@ _SOCKET_SCHEMES = ("tcp", "tls", "ws", "wss")
 PROBE_TIMEOUT_S = 3.0  # the first TCP connection to the scheduler (fails fast when refused)
 CONNECT_TIMEOUT_S = 10.0  # the Dask client's connection
 WORKER_WAIT_S = 30.0  # a scheduler without workers: how long to wait for the first one
-CHUNKS_PER_THREAD = 4  # as the local pool: fewer round trips, still balanced
 # The distributions whose versions fix the numbers: they must match between client and worker.
 PINNED = ("activetrack", "numpy", "scipy")
 
@@ -149,10 +148,11 @@ def dask_map(fn: Callable[[Any], Any], tasks: Sequence[Any], scheduler: Schedule
 def _map_on(client: Client, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[Any]:
     from distributed.protocol.pickle import dumps
 
-    threads = _worker_threads(client)
-    size = max(1, math.ceil(len(tasks) / (CHUNKS_PER_THREAD * threads)))
+    from activetrack.montecarlo import even_chunks
+
     context = client_context()
-    payloads = [dumps((fn, list(tasks[i : i + size]), context)) for i in range(0, len(tasks), size)]
+    chunks = even_chunks(tasks, _worker_threads(client))
+    payloads = [dumps((fn, chunk, context)) for chunk in chunks]
     futures = client.map(run_chunk, payloads, pure=False)
     try:
         for future in futures:
