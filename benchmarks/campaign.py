@@ -25,6 +25,11 @@ efficiency, what parallel running costs in extra work (forks, pickling, per-work
 the parent's summary) whatever the load. On two idle cores the wall efficiency would be the
 work efficiency less the tail (the last chunk running alone).
 
+And the machine's own 2-worker efficiency at that moment, measured around each size's
+campaigns: a pure-Python busy loop (no memory traffic, no IPC to speak of), two units of work
+in this process against one on each of two forked workers. It is the ceiling that the load
+of other jobs leaves; ``campaign / machine`` is what the campaign loses beyond it.
+
 The last line is ``campaign_2worker_efficiency=<x>``: the local backend's efficiency at the
 largest size measured (the dask one's with ``--backend dask``). A full run (10, 100 and 1,000
 runs, both backends) takes about 2 x 1,110 x 1.5 run times, ~25 min at 0.45 s a run;
@@ -37,6 +42,7 @@ import argparse
 import logging
 import os
 import resource
+import statistics
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -45,6 +51,7 @@ import numpy as np
 
 from activetrack.allocator import tune_allocator
 from activetrack.closed_loop.batch import BatchSummary, run_batch
+from activetrack.montecarlo import parallel_map
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.schema import Scenario
 
@@ -127,6 +134,29 @@ def _same(a: BatchSummary, b: BatchSummary) -> bool:
     return np.array_equal(a.rmse_t, b.rmse_t) and np.array_equal(a.bound_t, b.bound_t)
 
 
+def _spin(n: int) -> int:
+    """A pure-Python busy loop (the machine calibration's unit of work)."""
+    x = 0
+    for i in range(n):
+        x += i * i % 7
+    return x
+
+
+def machine_efficiency(n: int = 1_500_000, repeats: int = 3) -> float:
+    """Two busy loops in this process against one on each of two forked workers, the median
+    of ``repeats`` alternations: the 2-worker efficiency the machine offers now."""
+    ratios = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        _spin(n)
+        _spin(n)
+        one = time.perf_counter() - start
+        start = time.perf_counter()
+        parallel_map(_spin, [n, n], jobs=2)
+        ratios.append(one / (2 * (time.perf_counter() - start)))
+    return statistics.median(ratios)
+
+
 def run_backend(name: str, scenario: Scenario, sizes: list[int]) -> dict[int, float]:
     """Throughput of 1 and 2 workers for each size; returns size -> 2-worker efficiency."""
     efficiency = {}
@@ -134,6 +164,7 @@ def run_backend(name: str, scenario: Scenario, sizes: list[int]) -> dict[int, fl
         campaigns[1][0](scenario, 2)  # warm-up: imports, caches
         for n in sizes:
             rate, cpu, summaries = {}, {}, {}
+            machine = machine_efficiency()
             for w in WORKERS:
                 seconds, cpu_s, summaries[w] = measure(campaigns[w], scenario, n)
                 rate[w], cpu[w] = n / seconds, cpu_s / n
@@ -144,10 +175,12 @@ def run_backend(name: str, scenario: Scenario, sizes: list[int]) -> dict[int, fl
                     flush=True,
                 )
             efficiency[n] = rate[2] / (2 * rate[1])
+            machine = (machine + machine_efficiency()) / 2
             same = "identical" if _same(summaries[1], summaries[2]) else "DIFFERENT"
             print(
                 f"  {name:5s} {n:5d} runs: 2-worker efficiency {efficiency[n]:.3f} "
-                f"(speed-up {rate[2] / rate[1]:.2f}x), work efficiency {cpu[1] / cpu[2]:.3f}; "
+                f"(speed-up {rate[2] / rate[1]:.2f}x), work efficiency {cpu[1] / cpu[2]:.3f}, "
+                f"machine {machine:.3f}, campaign/machine {efficiency[n] / machine:.3f}; "
                 f"results {same}",
                 flush=True,
             )
