@@ -189,6 +189,8 @@ def test_a_worker_with_other_versions_refuses():
         ("http://127.0.0.1:8786", "scheme must be one of"),
         ("tcp://127.0.0.1", "scheme://host:port"),
         ("tcp://127.0.0.1:99999", "scheme://host:port"),
+        ("tcp://127.0.0.1:0", "scheme://host:port"),
+        ("tcp://127.0.0.1:8786/path", "scheme://host:port"),
     ],
 )
 def test_malformed_addresses_are_refused(bad, message):

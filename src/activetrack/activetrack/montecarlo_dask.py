@@ -101,9 +101,9 @@ def _host_port(address: str, parts: Any) -> tuple[str, int]:
         port = parts.port
     except ValueError:
         port = None
-    if not parts.hostname or port is None or parts.path not in ("", "/"):
+    if not parts.hostname or not port or parts.path not in ("", "/"):
         raise SchedulerError(
-            f"scheduler: must be scheme://host:port with a port in [0, 65535], got {address!r}"
+            f"scheduler: must be scheme://host:port with a port in [1, 65535], got {address!r}"
         )
     return parts.hostname, port
 
