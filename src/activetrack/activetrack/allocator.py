@@ -37,10 +37,14 @@ def allocator_tuned() -> bool:
 
 def tune_allocator(ignore: Collection[str] = ()) -> bool:
     """Set glibc's mmap and trim thresholds; True if applied (idempotent). ``ignore``: names of
-    ``MALLOC_*`` variables that were not the user's choice (they do not prevent the tuning)."""
+    ``MALLOC_*`` variables that were not the user's choice (they do not prevent the tuning).
+
+    A refusal is not final: a later call with other ``ignore`` names decides afresh (a Dask
+    worker may have refused once, at the import of a script's module, before its first task
+    says which variable is Dask's)."""
     global _applied
-    if _applied is not None:
-        return _applied
+    if _applied:
+        return True
     _applied = False
     if not sys.platform.startswith("linux") or os.environ.get("ACTIVETRACK_MALLOC_TUNING") == "0":
         return False
