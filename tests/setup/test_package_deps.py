@@ -87,6 +87,8 @@ PIP_ONLY = {
     "zstandard": "zstandard",
     "foxglove": "foxglove-sdk",
     "filterpy": "filterpy",
+    "distributed": "distributed",  # Dask's cluster client (activetrack.montecarlo_dask)
+    "dask": "dask",  # its configuration (activetrack.montecarlo_dask)
 }
 # Declared but not imported, on purpose: (package, rosdep key or pip name) -> why.
 # Each node is an rclpy node (its class derives from rclpy's Node through activetrack_ros):

@@ -8,7 +8,9 @@ here, ``dx * dx + dy * dy`` on 45 x 1,000 arrays took 0.5 ms instead of 0.05 ms,
 thresholds makes freed blocks reusable. Results do not change, only speed.
 
 Applied once when ``activetrack`` is imported, on glibc only; skipped when the user set any
-``MALLOC_*`` variable (theirs wins) or ``ACTIVETRACK_MALLOC_TUNING=0``.
+``MALLOC_*`` variable (theirs wins) or ``ACTIVETRACK_MALLOC_TUNING=0``. A Dask worker's
+``MALLOC_TRIM_THRESHOLD_`` comes from Dask's own defaults, not from the user: the Monte Carlo
+tasks name it in ``ignore`` (activetrack.montecarlo_dask).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import ctypes
 import ctypes.util
 import os
 import sys
+from collections.abc import Collection
 
 M_TRIM_THRESHOLD = -1  # glibc <malloc.h>
 M_MMAP_THRESHOLD = -3
@@ -26,15 +29,26 @@ TRIM_THRESHOLD = 128 * 1024 * 1024  # bytes of free heap top kept before giving 
 _applied: bool | None = None
 
 
-def tune_allocator() -> bool:
-    """Set glibc's mmap and trim thresholds; True if applied (idempotent)."""
+def allocator_tuned() -> bool:
+    """Whether :func:`tune_allocator` applied the tuning in this process (a Dask worker does
+    the same for a client that did: activetrack.montecarlo_dask)."""
+    return bool(_applied)
+
+
+def tune_allocator(ignore: Collection[str] = ()) -> bool:
+    """Set glibc's mmap and trim thresholds; True if applied (idempotent). ``ignore``: names of
+    ``MALLOC_*`` variables that were not the user's choice (they do not prevent the tuning).
+
+    A refusal is not final: a later call with other ``ignore`` names decides afresh (a Dask
+    worker may have refused once, at the import of a script's module, before its first task
+    says which variable is Dask's)."""
     global _applied
-    if _applied is not None:
-        return _applied
+    if _applied:
+        return True
     _applied = False
     if not sys.platform.startswith("linux") or os.environ.get("ACTIVETRACK_MALLOC_TUNING") == "0":
         return False
-    if any(k.startswith("MALLOC_") for k in os.environ):
+    if any(k.startswith("MALLOC_") and k not in ignore for k in os.environ):
         return False
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")

@@ -1,4 +1,5 @@
-"""argparse ``type=`` functions for numbers: a bad value is a one-line usage error.
+"""argparse ``type=`` functions for numbers (and a scheduler address): a bad value is a
+one-line usage error.
 
 ``ap.add_argument("--runs", type=int_in_range(1, MAX_RUNS))`` makes argparse print
 ``error: argument --runs: must be an integer in [1, 100000], got '0'`` and exit with code 2,
@@ -12,7 +13,7 @@ import argparse
 import math
 from collections.abc import Callable
 
-__all__ = ["float_in_range", "int_in_range"]
+__all__ = ["SCHEDULER_HELP", "float_in_range", "int_in_range", "scheduler_address"]
 
 
 def _note(note: str) -> str:
@@ -67,3 +68,24 @@ def float_in_range(
 
     parse.__name__ = f"number in {interval}"
     return parse
+
+
+SCHEDULER_HELP = (
+    "run the Monte Carlo tasks on the Dask cluster of this scheduler (tcp://host:port; "
+    "--jobs is then unused; docs/dask.md)"
+)
+
+
+def scheduler_address(text: str) -> str:
+    """The ``--scheduler`` type: a Dask scheduler address that answers (``tcp://host:port``),
+    checked by :func:`activetrack.montecarlo_dask.check_scheduler`, so a wrong or unreachable
+    one is a usage error (``error: argument --scheduler: cannot reach ...``) before any work."""
+    from activetrack.montecarlo_dask import SchedulerError, check_scheduler
+
+    try:
+        return check_scheduler(text)
+    except SchedulerError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("scheduler: ")) from None
+
+
+scheduler_address.__name__ = "scheduler address"

@@ -5,8 +5,9 @@ activetrack run SCENARIO [--processes] [--mode lockstep|free] [--json PATH]
                                         the ROS node graph, closed loop, with a run folder
                                         (and a live view in Foxglove; --nodes: only these
                                         node processes here, the others on other hosts)
-activetrack batch SCENARIO [--runs N] [--json PATH]
-                                        the same closed loop without ROS (the reference)
+activetrack batch SCENARIO [--runs N] [--jobs J | --scheduler ADDRESS] [--json PATH]
+                                        the same closed loop without ROS (the reference), on
+                                        local processes or a Dask cluster (docs/dask.md)
 activetrack record BAG [--topics T ...] [--duration S]
                                         record graph topics to a rosbag2 directory (MCAP)
 activetrack play BAG [--topics T ...] [--rate R] [--skip-damaged]
@@ -21,6 +22,7 @@ activetrack reproduce NAME [ARGS...]    reproduce a paper's tables (hernandez, .
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import json
 import os
@@ -189,8 +191,14 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         return 2
     if scenario.multi_target:
         return _batch_multi(scenario, args)
-    with Bar("batch", total=args.runs) as bar:  # drawn on a terminal only
-        s = run_batch(scenario, runs=args.runs, jobs=args.jobs, progress=bar if bar.shown else None)
+    with Bar("batch", total=args.runs) as bar, _scheduler_errors():  # bar: on a terminal only
+        s = run_batch(
+            scenario,
+            runs=args.runs,
+            jobs=args.jobs,
+            progress=bar if bar.shown else None,
+            scheduler=args.scheduler,
+        )
     _print_summary(s)
     print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
     if args.json:
@@ -219,15 +227,35 @@ def _batch_multi(scenario, args: argparse.Namespace) -> int:
     from activetrack.multitarget.loop import run_multi_batch
     from activetrack_bringup.progress import Bar
 
-    with Bar("batch", total=args.runs) as bar:  # drawn on a terminal only
+    with Bar("batch", total=args.runs) as bar, _scheduler_errors():  # bar: on a terminal only
         s = run_multi_batch(
-            scenario, runs=args.runs, jobs=args.jobs, progress=bar if bar.shown else None
+            scenario,
+            runs=args.runs,
+            jobs=args.jobs,
+            progress=bar if bar.shown else None,
+            scheduler=args.scheduler,
         )
     _print_multi_summary(s, scenario)
     print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
     if args.json:
         _write_json(args.json, s.to_json())
     return 0
+
+
+class _CommandError(Exception):
+    """A failure that ends a command with one ``error:`` line and exit code 2."""
+
+
+@contextlib.contextmanager
+def _scheduler_errors():
+    """A Dask cluster that fails once the command runs (no worker joined, a worker without a
+    module or with other versions): an ``error: --scheduler ...`` line, exit code 2."""
+    from activetrack.montecarlo_dask import SchedulerError, WorkerSetupError
+
+    try:
+        yield
+    except (SchedulerError, WorkerSetupError) as exc:
+        raise _CommandError(f"--scheduler: {str(exc).removeprefix('scheduler: ')}") from None
 
 
 def _error(exc) -> int:
@@ -406,7 +434,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     from activetrack_bringup.progress import Bar
 
     module = importlib.import_module(f"activetrack_experiments.{args.name}")
-    with Bar(f"reproduce {args.name}", unit="task") as bar:  # drawn on a terminal only
+    with Bar(f"reproduce {args.name}", unit="task") as bar, _scheduler_errors():
         return int(module.main(args.rest, task_progress=bar if bar.shown else None) or 0)
 
 
@@ -438,6 +466,8 @@ def _add_bag_parser(sub) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from activetrack.argtypes import SCHEDULER_HELP, scheduler_address
+
     parser = argparse.ArgumentParser(
         prog="activetrack", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
@@ -480,6 +510,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=1,
         help="worker processes (the results do not depend on it)",
     )
+    batch.add_argument(
+        "--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP
+    )
     batch.add_argument("--json", help="write the summary to this JSON file")
     batch.set_defaults(func=_cmd_batch)
 
@@ -518,6 +551,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with interrupts.raising():
             return args.func(args)
+    except _CommandError as exc:
+        return _error(exc)
     except BrokenPipeError:  # `activetrack bag info BAG | head`: the reader left, fine
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit
         return 0

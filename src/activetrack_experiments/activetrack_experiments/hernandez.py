@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import int_in_range
+from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
 from activetrack.bounds.pcrlb import (
     covariance_bound,
     gaussian_samples,
@@ -53,11 +53,13 @@ from activetrack.limits import (
 )
 from activetrack.montecarlo import (
     Progress,
+    Scheduler,
     TaskProgress,
     available_jobs,
     check_jobs,
     parallel_map,
 )
+from activetrack.montecarlo_dask import connected
 from activetrack.planning import (
     PlannerPlatform,
     PlanSettings,
@@ -254,13 +256,15 @@ def track_case(
     seed: int,
     jobs: int = 1,
     progress: Progress | None = None,
+    scheduler: Scheduler | None = None,
 ) -> np.ndarray:
     """PF RMSE per epoch (K, 2) in x and y over ``runs`` seeded runs (run r: SeedSequence
-    ([seed, r]) split into truth/measurement and filter generators), on ``jobs`` processes;
-    the result does not depend on ``jobs`` (nor on ``progress``, called with the runs done)."""
+    ([seed, r]) split into truth/measurement and filter generators), on ``jobs`` processes
+    or the Dask cluster ``scheduler``; the result does not depend on either (nor on
+    ``progress``, called with the runs done)."""
     tasks = [_RunTask(scenario, paths, r, particles, seed) for r in range(runs)]
     expect_particle_work(runs * scenario.steps * particles)  # kernels loaded before the fork
-    sq = np.stack(parallel_map(_track_run, tasks, jobs, progress))
+    sq = np.stack(parallel_map(_track_run, tasks, jobs, progress, scheduler))
     mse = sq.mean(axis=0)
     return np.sqrt(mse[:, [0, 2]])
 
@@ -505,6 +509,7 @@ def _run_case(
     seed: int | None,
     jobs: int,
     tasks: TaskProgress,
+    scheduler: Scheduler | None = None,
     **plan_kw,
 ) -> CaseResult:
     """Plan one case (one task of ``tasks``), then track along its paths (runs > 0: ``runs``
@@ -516,7 +521,9 @@ def _run_case(
     tasks.advance()
     if runs > 0:
         t0 = time.perf_counter()
-        result.rmse = track_case(scenario, case.paths, runs, particles, seed, jobs, tasks.of_map())
+        result.rmse = track_case(
+            scenario, case.paths, runs, particles, seed, jobs, tasks.of_map(), scheduler
+        )
         result.runs, result.particles = runs, particles
         result.tracking_time_s = time.perf_counter() - t0
     return result
@@ -543,6 +550,7 @@ def reproduce(
     particles: int = 10000,
     seed: int | None = None,
     jobs: int = 1,
+    scheduler: Scheduler | None = None,
     comparison: bool = True,
     scenarios_dir: str | Path | None = None,
     sensors: Iterable[int] = SENSOR_COUNTS,
@@ -557,7 +565,8 @@ def reproduce(
 
     Every case is planned open loop (``mc_samples`` planner samples, scenario: 1,000; the
     scenarios' search unless ``search``), then ``runs`` PF runs of ``particles`` particles track
-    along the planned paths (0: the bounds only) on ``jobs`` processes; ``seed`` (default: the
+    along the planned paths (0: the bounds only) on ``jobs`` processes or the Dask cluster
+    ``scheduler`` (``tcp://host:port``: the same numbers); ``seed`` (default: the
     scenarios' seed) fixes both. ``comparison`` re-plans the 1-sensor single-step case on a
     ``grid_size`` x ``grid_size`` grid (with 1 among ``sensors``). ``progress`` is called with
     each finished case, ``task_progress(done, total)`` as tasks finish (a case's planning, each
@@ -566,7 +575,7 @@ def reproduce(
     """
     if runs < 0 or particles < 1:
         raise ValueError(f"runs must be >= 0 and particles >= 1, got {runs} and {particles}")
-    check_jobs(jobs)
+    check_jobs(jobs, scheduler)
     counts, horizon_list = check_options(
         sensors=sensors,
         horizons=horizons,
@@ -582,10 +591,13 @@ def reproduce(
     tasks = TaskProgress(len(files) * (1 + runs) + int(compare), task_progress)
     run_kw = dict(runs=runs, particles=particles, seed=seed, jobs=jobs, mc_samples=mc_samples)
     cases = []
-    for key in sorted(files):
-        cases.append(_run_case(load_scenario(files[key]), search=search, tasks=tasks, **run_kw))
-        if progress is not None:
-            progress(cases[-1])
+    with connected(scheduler) as cluster:  # one connection for every case's PF runs
+        for key in sorted(files):
+            scenario = load_scenario(files[key])
+            case = _run_case(scenario, search=search, tasks=tasks, scheduler=cluster, **run_kw)
+            cases.append(case)
+            if progress is not None:
+                progress(cases[-1])
     times = reference.dt * np.arange(1, reference.steps + 1)
     res = HernandezResults(runs, particles, cases, None, times)
     if compare:
@@ -847,6 +859,7 @@ def _build_parser() -> argparse.ArgumentParser:
         default=available_jobs(),
         help="PF worker processes",
     )
+    add("--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP)
     add("--json", default=None, help="write the numbers to this JSON file")
     add("--out", default="runs/reproduce-hernandez", help="figure directory")
     add("--no-figures", action="store_true", help="do not write PNG figures")
@@ -887,6 +900,7 @@ def main(
         particles=args.particles,
         seed=args.seed,
         jobs=args.jobs,
+        scheduler=args.scheduler,
         comparison=not args.no_comparison,
         scenarios_dir=args.scenarios,
         sensors=args.sensor_counts,

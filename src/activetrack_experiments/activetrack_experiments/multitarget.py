@@ -21,8 +21,8 @@ In a notebook::
 
 On the command line (``python -m activetrack_experiments.multitarget`` is the same)::
 
-    activetrack reproduce multitarget [--runs N] [--jobs J] [--scenario NAME ...]
-        [--json PATH] [--out DIR]
+    activetrack reproduce multitarget [--runs N] [--jobs J | --scheduler ADDRESS]
+        [--scenario NAME ...] [--json PATH] [--out DIR]
 """
 
 from __future__ import annotations
@@ -35,9 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import int_in_range
+from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
 from activetrack.limits import MAX_JOBS, MAX_RUNS
-from activetrack.montecarlo import available_jobs
+from activetrack.montecarlo import Scheduler, available_jobs, check_jobs
+from activetrack.montecarlo_dask import connected
 from activetrack.multitarget.loop import MultiBatchSummary, run_multi_batch
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.schema import Scenario
@@ -136,24 +137,32 @@ def reproduce(
     *,
     scenarios: Sequence[str] = SCENARIOS,
     jobs: int = 1,
+    scheduler: Scheduler | None = None,
     scenarios_dir: str | Path | None = None,
     task_progress: Callable[[int, int], None] | None = None,
 ) -> MultiTargetResult:
     """Every strategy on every scenario, ``runs`` seeded runs each (run r of every strategy
-    draws the same truth and detections: the simulator's generator is the run's)."""
+    draws the same truth and detections: the simulator's generator is the run's), on ``jobs``
+    worker processes or the Dask cluster ``scheduler`` (the numbers do not depend on either)."""
+    check_jobs(jobs, scheduler)
     result = MultiTargetResult(runs)
     total, done = len(scenarios) * len(STRATEGIES), 0
-    for name in scenarios:
-        base = load_scenario(scenario_path(name, scenarios_dir))
-        summaries = {}
-        for strategy in STRATEGIES:
-            summaries[strategy] = run_multi_batch(
-                strategy_scenario(base, strategy), runs=runs, jobs=jobs, keep_records=False
-            )
-            done += 1
-            if task_progress is not None:
-                task_progress(done, total)
-        result.scenarios.append(ScenarioResult(name, summaries))
+    with connected(scheduler) as cluster:
+        for name in scenarios:
+            base = load_scenario(scenario_path(name, scenarios_dir))
+            summaries = {}
+            for strategy in STRATEGIES:
+                summaries[strategy] = run_multi_batch(
+                    strategy_scenario(base, strategy),
+                    runs=runs,
+                    jobs=jobs,
+                    keep_records=False,
+                    scheduler=cluster,
+                )
+                done += 1
+                if task_progress is not None:
+                    task_progress(done, total)
+            result.scenarios.append(ScenarioResult(name, summaries))
     return result
 
 
@@ -201,6 +210,9 @@ def _parse(argv):
         default=available_jobs(),
         help="worker processes (the numbers do not depend on it)",
     )
+    parser.add_argument(
+        "--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP
+    )
     return parser.parse_args(argv)
 
 
@@ -234,6 +246,7 @@ def main(
         args.runs,
         scenarios=tuple(args.scenario or SCENARIOS),
         jobs=args.jobs,
+        scheduler=args.scheduler,
         task_progress=task_progress,
     )
     print(format_report(res))

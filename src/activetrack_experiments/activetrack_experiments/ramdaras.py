@@ -39,13 +39,20 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import int_in_range
+from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
 from activetrack.bounds.costs import position_determinant
 from activetrack.bounds.mre import mre_update
 from activetrack.checks import require_int
 from activetrack.closed_loop.batch import run_once
 from activetrack.limits import MAX_JOBS, MAX_RUNS
-from activetrack.montecarlo import Progress, TaskProgress, available_jobs, check_jobs, parallel_map
+from activetrack.montecarlo import (
+    Progress,
+    Scheduler,
+    TaskProgress,
+    available_jobs,
+    check_jobs,
+    parallel_map,
+)
 from activetrack.planning.selection import expected_update
 from activetrack.plots import new_figure, write_figures
 from activetrack.scenarios import build_motion_model, load_scenario
@@ -211,17 +218,20 @@ def _run_task(args) -> RunTrace:
 
 
 def run_groups(
-    groups: Sequence[tuple[Scenario, int]], jobs: int = 1, progress: Progress | None = None
+    groups: Sequence[tuple[Scenario, int]],
+    jobs: int = 1,
+    progress: Progress | None = None,
+    scheduler: Scheduler | None = None,
 ) -> list[list[RunTrace]]:
     """For each ``(scenario, runs)``, its ``runs`` seeded runs (run r: SeedSequence([seed,
     r])); all of them in one :func:`activetrack.montecarlo.parallel_map` over ``jobs``
-    processes (``progress``: called with the runs done). The traces do not depend on
-    ``jobs``."""
+    processes or the Dask cluster ``scheduler`` (``progress``: called with the runs done).
+    The traces do not depend on either."""
     for _, runs in groups:
         if runs < 1:
             raise ValueError(f"runs must be >= 1, got {runs}")
     tasks = [(scenario.model_dump(), r) for scenario, runs in groups for r in range(runs)]
-    traces = parallel_map(_run_task, tasks, jobs, progress)
+    traces = parallel_map(_run_task, tasks, jobs, progress, scheduler)
     out, start = [], 0
     for _, runs in groups:
         out.append(traces[start : start + runs])
@@ -229,9 +239,12 @@ def run_groups(
     return out
 
 
-def run_runs(scenario: Scenario, runs: int, jobs: int = 1) -> list[RunTrace]:
-    """``runs`` seeded runs (run r: SeedSequence([seed, r])), in ``jobs`` processes."""
-    return run_groups([(scenario, runs)], jobs)[0]
+def run_runs(
+    scenario: Scenario, runs: int, jobs: int = 1, scheduler: Scheduler | None = None
+) -> list[RunTrace]:
+    """``runs`` seeded runs (run r: SeedSequence([seed, r])), in ``jobs`` processes or on the
+    Dask cluster ``scheduler``."""
+    return run_groups([(scenario, runs)], jobs, scheduler=scheduler)[0]
 
 
 @dataclass
@@ -375,6 +388,7 @@ def run_case(
     seed: int | None = None,
     jobs: int = 1,
     scenarios_dir=None,
+    scheduler: Scheduler | None = None,
 ) -> CaseResult:
     """Load a case, apply the variant, run it ``runs`` times and summarise."""
     spec = _case_spec(
@@ -387,7 +401,7 @@ def run_case(
         seed=seed,
         scenarios_dir=scenarios_dir,
     )
-    return spec.summarize(run_runs(spec.scenario, spec.runs, jobs))
+    return spec.summarize(run_runs(spec.scenario, spec.runs, jobs, scheduler))
 
 
 def margins(results: list[CaseResult]) -> list[dict]:
@@ -534,10 +548,12 @@ def bound_check(
     seed: int | None = None,
     jobs: int = 1,
     scenarios_dir=None,
+    scheduler: Scheduler | None = None,
 ) -> BoundCheck:
     """Run ``case`` with open-loop MRE planning and compare the filter with the MRE."""
     spec = _bound_spec(case, runs, steps=steps, seed=seed, scenarios_dir=scenarios_dir)
-    return summarize_bound(case, spec.scenario, run_runs(spec.scenario, spec.runs, jobs), draws)
+    traces = run_runs(spec.scenario, spec.runs, jobs, scheduler)
+    return summarize_bound(case, spec.scenario, traces, draws)
 
 
 def detection_average_realized(scenario: Scenario, trace: RunTrace) -> np.ndarray:
@@ -609,9 +625,11 @@ class RamdarasResults:
         }
 
 
-def _check_args(runs, jobs, cases, strategies) -> tuple[tuple[str, ...], tuple[str, ...]]:
+def _check_args(
+    runs, jobs, cases, strategies, scheduler=None
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
     require_int("runs", runs, 1, MAX_RUNS)
-    check_jobs(jobs)
+    check_jobs(jobs, scheduler)
     keys = CASE_KEYS if cases is None else (cases,) if isinstance(cases, str) else tuple(cases)
     bad = [c for c in keys if c not in CASE_KEYS]
     if bad or not keys:
@@ -652,6 +670,7 @@ def reproduce(
     *,
     seed: int | None = None,
     jobs: int = 1,
+    scheduler: Scheduler | None = None,
     quick: bool = False,
     cases: Sequence[str] | None = None,
     scenarios_dir: str | Path | None = None,
@@ -668,8 +687,9 @@ def reproduce(
 
     ``runs`` Monte Carlo runs per case and strategy (default 20, 3 when ``quick``); ``seed``
     replaces the scenario files' seed (run r draws from SeedSequence([seed, r])); ``steps``
-    shortens the runs (the paper: 100 epochs); ``jobs`` worker processes, one
-    :func:`activetrack.montecarlo.parallel_map` over all runs (results do not depend on it);
+    shortens the runs (the paper: 100 epochs); ``jobs`` worker processes or the Dask cluster
+    ``scheduler`` (``tcp://host:port``), one :func:`activetrack.montecarlo.parallel_map` over
+    all runs (results do not depend on either);
     ``scenarios_dir`` holds ramdaras_*.yaml (default: the package's scenario files).
     ``task_progress(done, total)`` is called as runs finish (the command line's progress bar).
     """
@@ -677,14 +697,14 @@ def reproduce(
     runs = (3 if quick else 20) if runs is None else runs
     if strategies is None:
         strategies = QUICK_STRATEGIES if quick else STRATEGIES
-    keys, strategies = _check_args(runs, jobs, cases, strategies)
+    keys, strategies = _check_args(runs, jobs, cases, strategies, scheduler)
     bound_runs = max(runs, BOUND_MIN_RUNS) if bound_runs is None else bound_runs
     kw = dict(steps=steps, seed=seed, scenarios_dir=scenarios_dir)
     case_specs, crit_specs, bound_specs = _specs(keys, strategies, runs, bound_runs, **kw)
     specs = case_specs + crit_specs + bound_specs
     groups = [(s.scenario, s.runs) for s in specs]
     tasks = TaskProgress(sum(runs for _, runs in groups), task_progress)
-    traced = run_groups(groups, jobs, tasks.of_map())
+    traced = run_groups(groups, jobs, tasks.of_map(), scheduler)
     n_cases, n_crit = len(case_specs), len(crit_specs)
     results = [s.summarize(t) for s, t in zip(case_specs, traced[:n_cases], strict=True)]
     criteria = [
@@ -927,6 +947,7 @@ def _parse(argv):
         default=available_jobs(),
         help="worker processes",
     )
+    ap.add_argument("--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP)
     ap.add_argument("--json", default=None, help="write the numbers to this JSON file")
     ap.add_argument("--out", default="runs/reproduce-ramdaras", help="figure directory")
     ap.add_argument("--no-figures", action="store_true", help="do not write PNG figures")
@@ -950,6 +971,7 @@ def main(
     res = reproduce(
         args.runs,
         jobs=args.jobs,
+        scheduler=args.scheduler,
         quick=args.quick,
         cases=args.case_keys,
         scenarios_dir=args.scenarios,

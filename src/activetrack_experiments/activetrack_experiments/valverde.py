@@ -32,8 +32,8 @@ In a notebook::
 
 On the command line (``python -m activetrack_experiments.valverde`` is the same)::
 
-    activetrack reproduce valverde [--runs N] [--steps K] [--seed S] [--jobs J] [--json PATH]
-        [--out DIR] [--quick] [--no-plots]
+    activetrack reproduce valverde [--runs N] [--steps K] [--seed S]
+        [--jobs J | --scheduler ADDRESS] [--json PATH] [--out DIR] [--quick] [--no-plots]
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from activetrack.angles import wrap_angle
-from activetrack.argtypes import int_in_range
+from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import nominal_path, taylor_crlb
 from activetrack.bounds.tichavsky import tichavsky_pcrlb
@@ -59,7 +59,13 @@ from activetrack.filters import ekf_over_runs
 from activetrack.limits import MAX_JOBS, MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
 from activetrack.models.motion import CircularMotion, ConstantTurn
 from activetrack.models.sensors import RangeBearingSensor
-from activetrack.montecarlo import TaskProgress, available_jobs, check_jobs, parallel_map
+from activetrack.montecarlo import (
+    Scheduler,
+    TaskProgress,
+    available_jobs,
+    check_jobs,
+    parallel_map,
+)
 from activetrack.observability import observability_rank
 from activetrack.plots import new_figure, write_figures
 
@@ -472,13 +478,13 @@ class ValverdeResults:
         }
 
 
-def _check(runs, steps, seed, jobs) -> None:
+def _check(runs, steps, seed, jobs, scheduler) -> None:
     require_int("runs", runs, 2, MAX_RUNS)
     require_int("steps", steps, 1, MAX_STEPS)
     if runs * steps > MAX_RUN_EPOCHS:
         raise ValueError(f"runs x steps must be <= {MAX_RUN_EPOCHS:.1e}, got {runs} x {steps}")
     require_int("seed", seed, 0, MAX_SEED)
-    check_jobs(jobs)
+    check_jobs(jobs, scheduler)
 
 
 def reproduce(
@@ -487,6 +493,7 @@ def reproduce(
     seed: int = 0,
     quick: bool = False,
     jobs: int = 1,
+    scheduler: Scheduler | None = None,
     steps: int | None = None,
     setup: ValverdeSetup | None = None,
     noise_pairs: Sequence[tuple[float, float]] | None = None,
@@ -499,15 +506,16 @@ def reproduce(
 
     ``setup`` replaces :class:`ValverdeSetup` (its ``steps`` unless ``steps`` is given);
     ``seed``: (case, model) draws from SeedSequence([seed, case, model]), shared by its noise
-    rows; ``jobs`` worker processes, one :func:`activetrack.montecarlo.parallel_map` over the
-    rows (the results do not depend on it); a run counts as diverged when a square error
+    rows; ``jobs`` worker processes or the Dask cluster ``scheduler`` (``tcp://host:port``),
+    one :func:`activetrack.montecarlo.parallel_map` over the rows (the results do not depend
+    on either); a run counts as diverged when a square error
     exceeds ``divergence_m``^2. ``task_progress(done, total)`` is called as rows finish (the
     command line's progress bar).
     """
     if steps is None:
         steps = setup.steps if setup is not None else 126 if quick else 252
     runs = (50 if quick else 1000) if runs is None else runs
-    _check(runs, steps, seed, jobs)
+    _check(runs, steps, seed, jobs, scheduler)
     setup = replace(setup or ValverdeSetup(), steps=steps)
     pairs = tuple(noise_pairs or setup.noise_pairs)
     start = time.perf_counter()
@@ -516,7 +524,8 @@ def reproduce(
         for model in MODELS:
             draws = draw_case(setup, case, model, runs, seed)
             tasks += [RowTask(setup, case, model, r, b, draws, divergence_m) for r, b in pairs]
-    rows = parallel_map(run_row, tasks, jobs, TaskProgress(len(tasks), task_progress).of_map())
+    progress = TaskProgress(len(tasks), task_progress).of_map()
+    rows = parallel_map(run_row, tasks, jobs, progress, scheduler)
     mc_time = time.perf_counter() - start
     return ValverdeResults(setup, runs, seed, rows, observability_table(setup), mc_time)
 
@@ -730,6 +739,7 @@ def _parse(argv):
         default=available_jobs(),
         help="worker processes (the numbers do not depend on it)",
     )
+    p.add_argument("--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP)
     p.add_argument("--json", help="write the table rows to this JSON file")
     p.add_argument("--out", default="runs/reproduce-valverde", help="figure directory")
     p.add_argument("--quick", action="store_true", help="50 runs, one lap")
@@ -752,7 +762,12 @@ def main(
 ) -> int:
     args = _parse(sys.argv[1:] if argv is None else argv)
     res = reproduce(
-        args.runs, seed=args.seed, jobs=args.jobs, steps=args.steps, task_progress=task_progress
+        args.runs,
+        seed=args.seed,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        steps=args.steps,
+        task_progress=task_progress,
     )
     print(format_report(res))
     print(f"Monte Carlo and bounds: {res.mc_time_s:.1f} s")

@@ -23,8 +23,8 @@ In a notebook::
 
 On the command line (``python -m activetrack_experiments.vanderhook`` is the same)::
 
-    activetrack reproduce vanderhook [--runs N] [--seed S] [--jobs J] [--json PATH] [--out DIR]
-        [--quick]
+    activetrack reproduce vanderhook [--runs N] [--seed S] [--jobs J | --scheduler ADDRESS]
+        [--json PATH] [--out DIR] [--quick]
 """
 
 from __future__ import annotations
@@ -38,12 +38,13 @@ from typing import Any
 
 import numpy as np
 
-from activetrack.argtypes import int_in_range
+from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
 from activetrack.checks import require_int
 from activetrack.limits import MAX_JOBS, MAX_RUNS, MAX_SEED
 from activetrack.models.sensors import AmbiguousBearingSensor
 from activetrack.montecarlo import (
     Progress,
+    Scheduler,
     TaskProgress,
     available_jobs,
     check_jobs,
@@ -135,13 +136,17 @@ def simulate_task(task: SimTask) -> LocalisationBatch:
 
 
 def simulate_all(
-    tasks: Sequence[SimTask], jobs: int = 1, progress: Progress | None = None
+    tasks: Sequence[SimTask],
+    jobs: int = 1,
+    progress: Progress | None = None,
+    scheduler: Scheduler | None = None,
 ) -> list[LocalisationBatch]:
-    """The batches of ``tasks`` in task order, equal tasks run once, on ``jobs`` processes
-    (:func:`activetrack.montecarlo.parallel_map`; the results do not depend on ``jobs``);
-    ``progress`` is called with the count of distinct tasks done."""
+    """The batches of ``tasks`` in task order, equal tasks run once, on ``jobs`` processes or
+    the Dask cluster ``scheduler`` (:func:`activetrack.montecarlo.parallel_map`; the results
+    do not depend on either); ``progress`` is called with the count of distinct tasks done."""
     unique = list(dict.fromkeys(tasks))
-    done = dict(zip(unique, parallel_map(simulate_task, unique, jobs, progress), strict=True))
+    batches = parallel_map(simulate_task, unique, jobs, progress, scheduler)
+    done = dict(zip(unique, batches, strict=True))
     return [done[t] for t in tasks]
 
 
@@ -230,9 +235,11 @@ def _table1_rows(batches: Sequence[LocalisationBatch]) -> list[Table1Row]:
     return rows
 
 
-def table1(runs: int, seed: int = 0, jobs: int = 1) -> list[Table1Row]:
+def table1(
+    runs: int, seed: int = 0, jobs: int = 1, scheduler: Scheduler | None = None
+) -> list[Table1Row]:
     """Table I: one batch of ``runs`` localisations per (sweep, value), common random numbers."""
-    return _table1_rows(simulate_all(_table1_tasks(runs, seed), jobs))
+    return _table1_rows(simulate_all(_table1_tasks(runs, seed), jobs, scheduler=scheduler))
 
 
 # --- the worked example ------------------------------------------------------------------------
@@ -348,10 +355,16 @@ def _failure_rows(betas, batches: Sequence[LocalisationBatch]) -> list[FailureRo
 
 
 def failure_rates(
-    runs: int, betas=BETAS, seed: int = 0, tail="one_sided", jobs: int = 1
+    runs: int,
+    betas=BETAS,
+    seed: int = 0,
+    tail="one_sided",
+    jobs: int = 1,
+    scheduler: Scheduler | None = None,
 ) -> list[FailureRow]:
     """Fig. 5 data plus the greedy baseline (same true targets and noise stream per row)."""
-    return _failure_rows(betas, simulate_all(_failure_tasks(runs, betas, seed, tail), jobs))
+    tasks = _failure_tasks(runs, betas, seed, tail)
+    return _failure_rows(betas, simulate_all(tasks, jobs, scheduler=scheduler))
 
 
 @dataclass(frozen=True)
@@ -421,10 +434,10 @@ class VanderHookResults:
         }
 
 
-def _check(runs, seed, jobs) -> None:
+def _check(runs, seed, jobs, scheduler) -> None:
     require_int("runs", runs, 1, MAX_RUNS)
     require_int("seed", seed, 0, MAX_SEED)
-    check_jobs(jobs)
+    check_jobs(jobs, scheduler)
 
 
 def reproduce(
@@ -433,6 +446,7 @@ def reproduce(
     seed: int = 0,
     quick: bool = False,
     jobs: int = 1,
+    scheduler: Scheduler | None = None,
     betas: Sequence[float] | None = None,
     task_progress: Callable[[int, int], None] | None = None,
 ) -> VanderHookResults:
@@ -440,12 +454,13 @@ def reproduce(
     Fig. 5 failure rows (``betas``, default ``BETAS``, ``QUICK_BETAS`` when ``quick``; and
     ``TWO_SIDED_BETAS`` with the two-sided sigma_beta), ``runs`` localisations per batch
     (default 4000, 400 when ``quick``), each batch from ``default_rng(seed)``. ``jobs`` worker
-    processes: one :func:`activetrack.montecarlo.parallel_map` over all batches (the results
-    do not depend on it). Fig. 4's single run always uses seed 1. ``task_progress(done,
+    processes or the Dask cluster ``scheduler`` (``tcp://host:port``): one
+    :func:`activetrack.montecarlo.parallel_map` over all batches (the results do not depend on
+    either). Fig. 4's single run always uses seed 1. ``task_progress(done,
     total)`` is called as batches finish (the command line's progress bar).
     """
     runs = (400 if quick else 4000) if runs is None else runs
-    _check(runs, seed, jobs)
+    _check(runs, seed, jobs, scheduler)
     betas = tuple(betas) if betas is not None else QUICK_BETAS if quick else BETAS
     groups = [
         [_example_task(min(runs, 1000), seed, 0.1)],
@@ -455,7 +470,7 @@ def reproduce(
     ]
     every = [t for g in groups for t in g]
     tasks = TaskProgress(len(set(every)), task_progress)
-    batches = simulate_all(every, jobs, tasks.of_map())
+    batches = simulate_all(every, jobs, tasks.of_map(), scheduler)
     ends = np.cumsum([len(g) for g in groups])
     ex, t1, fail, fail_two = (batches[e - len(g) : e] for g, e in zip(groups, ends, strict=True))
     return VanderHookResults(
@@ -625,6 +640,9 @@ def _parse(argv):
         default=available_jobs(),
         help="worker processes (the numbers do not depend on it)",
     )
+    parser.add_argument(
+        "--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP
+    )
     return parser.parse_args(argv)
 
 
@@ -637,6 +655,7 @@ def main(
         seed=args.seed,
         quick=args.quick,
         jobs=args.jobs,
+        scheduler=args.scheduler,
         task_progress=task_progress,
     )
     print(format_report(res))

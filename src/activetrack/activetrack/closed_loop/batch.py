@@ -24,7 +24,7 @@ from activetrack.closed_loop.planner import PlannerCore
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
 from activetrack.models.base import SensorModel, as_linear
-from activetrack.montecarlo import Progress, parallel_map
+from activetrack.montecarlo import Progress, Scheduler, parallel_map
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.schema import Scenario
 
@@ -286,30 +286,48 @@ class BatchSummary:
         return path
 
 
-def _run_task(task: tuple[Scenario, int | None]) -> RunRecord:
-    return run_once(*task)
+def _run_task(task: tuple[Scenario, int | None]) -> tuple[RunRecord, np.ndarray]:
+    """One run and its bound along the flown paths (the evaluator generator of the run), both
+    on the worker: the parent only adds up."""
+    scenario, run = task
+    record = run_once(scenario, run)
+    return record, path_bound(scenario, record, component_rngs(scenario.seed, run)[3])
 
 
 def run_batch(
-    scenario: Scenario, runs: int = 1, jobs: int = 1, progress: Progress | None = None
+    scenario: Scenario,
+    runs: int = 1,
+    jobs: int = 1,
+    progress: Progress | None = None,
+    scheduler: Scheduler | None = None,
 ) -> BatchSummary:
-    """``runs`` seeded closed-loop runs on ``jobs`` worker processes, summarised by
-    :func:`summarize`. Run r draws from its own generators (:func:`component_rngs`), so the
-    result is the same for every ``jobs``. ``progress(done)`` is called as runs finish
-    (:func:`activetrack.montecarlo.parallel_map`); it does not change the result."""
+    """``runs`` seeded closed-loop runs on ``jobs`` worker processes, or on the workers of the
+    Dask cluster ``scheduler`` (``tcp://host:port`` or a ``distributed.Client``), summarised
+    by :func:`summarize`. Run r draws from its own generators (:func:`component_rngs`), so the
+    result is the same for every ``jobs`` and backend. ``progress(done)`` is called as runs
+    finish (:func:`activetrack.montecarlo.parallel_map`); it does not change the result."""
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ValueError(f"runs: must be an integer >= 1, got {runs!r}")
     start = time.perf_counter()
     tasks = [(scenario, r if runs > 1 else None) for r in range(runs)]
-    records = parallel_map(_run_task, tasks, jobs, progress)
-    return summarize(scenario, records, time.perf_counter() - start)
+    results = parallel_map(_run_task, tasks, jobs, progress, scheduler)
+    records = [record for record, _ in results]
+    bounds = np.stack([bound for _, bound in results])
+    return summarize(scenario, records, time.perf_counter() - start, bounds)
 
 
-def summarize(scenario: Scenario, records: list[RunRecord], wall_time_s: float) -> BatchSummary:
+def summarize(
+    scenario: Scenario,
+    records: list[RunRecord],
+    wall_time_s: float,
+    bounds: np.ndarray | None = None,
+) -> BatchSummary:
     """RMSE vs truth and the PCRLB along the flown paths over one or more runs.
 
     RMSE at epoch k is the root mean square over runs; the reported figure is its arithmetic
-    mean over k = 1..K (as Hernandez' Table 1). The bound is averaged the same way.
+    mean over k = 1..K (as Hernandez' Table 1). The bound is averaged the same way: ``bounds``
+    (R, K, 4, 4), each run's :func:`path_bound` with its evaluator generator, computed here
+    unless given (``run_batch`` computes them on the workers).
     """
     runs = len(records)
     est = np.stack([r.estimate[1:] for r in records])  # (R, K, n)
@@ -319,12 +337,16 @@ def summarize(scenario: Scenario, records: list[RunRecord], wall_time_s: float) 
     sq = (est_pv - truth) ** 2
     rmse_x_t = np.sqrt(sq[..., 0].mean(axis=0))
     rmse_y_t = np.sqrt(sq[..., 2].mean(axis=0))
-    B = np.stack(
-        [
-            path_bound(scenario, rec, component_rngs(scenario.seed, None if runs == 1 else r)[3])
-            for r, rec in enumerate(records)
-        ]
-    )  # (R, K, 4, 4)
+    B = bounds
+    if B is None:
+        B = np.stack(
+            [
+                path_bound(
+                    scenario, rec, component_rngs(scenario.seed, None if runs == 1 else r)[3]
+                )
+                for r, rec in enumerate(records)
+            ]
+        )  # (R, K, 4, 4)
     bound_x_t = np.sqrt(B[..., 0, 0].mean(axis=0))
     bound_y_t = np.sqrt(B[..., 2, 2].mean(axis=0))
     decisions = sum(len(r.decisions) for r in records)

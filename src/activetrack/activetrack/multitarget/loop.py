@@ -16,7 +16,7 @@ import numpy as np
 
 from activetrack.closed_loop.batch import component_rngs
 from activetrack.closed_loop.data import PlatformSnapshot
-from activetrack.montecarlo import Progress, parallel_map
+from activetrack.montecarlo import Progress, Scheduler, parallel_map
 from activetrack.multitarget.data import MultiDecision, MultiRunRecord, TrackSet
 from activetrack.multitarget.evaluation import RunEvaluation, evaluate_run
 from activetrack.multitarget.planner import MultiTargetPlanner
@@ -153,14 +153,16 @@ def run_multi_batch(
     jobs: int = 1,
     progress: Progress | None = None,
     keep_records: bool = True,
+    scheduler: Scheduler | None = None,
 ) -> MultiBatchSummary:
-    """``runs`` seeded multi-target runs on ``jobs`` worker processes (the same result for
-    every ``jobs``), each evaluated (:func:`evaluate_run`) with its evaluator generator."""
+    """``runs`` seeded multi-target runs on ``jobs`` worker processes, or on the workers of the
+    Dask cluster ``scheduler`` (the same result for every ``jobs`` and backend), each evaluated
+    (:func:`evaluate_run`) with its evaluator generator."""
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ValueError(f"runs: must be an integer >= 1, got {runs!r}")
     start = time.perf_counter()
     tasks = [(scenario, r if runs > 1 else None) for r in range(runs)]
-    results = parallel_map(_run_task, tasks, jobs, progress)
+    results = parallel_map(_run_task, tasks, jobs, progress, scheduler)
     records = [r for r, _ in results]
     evals = [e for _, e in results]
     summary = summarize_multi(scenario, records, evals, time.perf_counter() - start)
