@@ -23,6 +23,8 @@ from activetrack.closed_loop.data import Decision, TrackSnapshot
 from activetrack.closed_loop.planner import PlannerCore
 from activetrack.closed_loop.simulator import Simulator
 from activetrack.closed_loop.tracker import TrackerCore
+from activetrack.filters.registry import filter_kind
+from activetrack.kernels import expect_particle_work
 from activetrack.models.base import SensorModel, as_linear
 from activetrack.montecarlo import Progress, Scheduler, parallel_map
 from activetrack.scenarios.build import build_motion_model, build_sensor
@@ -310,6 +312,8 @@ def run_batch(
         raise ValueError(f"runs: must be an integer >= 1, got {runs!r}")
     start = time.perf_counter()
     tasks = [(scenario, r if runs > 1 else None) for r in range(runs)]
+    if filter_kind(scenario.tracker.filter).particle_based:  # kernels loaded before the fork
+        expect_particle_work(runs * scenario.steps * scenario.tracker.particles)
     results = parallel_map(_run_task, tasks, jobs, progress, scheduler)
     records = [record for record, _ in results]
     bounds = np.stack([bound for _, bound in results])
