@@ -501,8 +501,22 @@ def check_options(
     return counts, horizon_list
 
 
-def _run_case(
-    scenario: Scenario,
+def _plan_task(task: tuple[Scenario, dict]) -> CaseResult:
+    """Plan one case (a task of :func:`reproduce`'s first map): its plan and planning time."""
+    scenario, plan_kw = task
+    t0 = time.perf_counter()
+    case = plan_case(scenario, **plan_kw)
+    return CaseResult(case, time.perf_counter() - t0)
+
+
+def _timed_track_run(task: _RunTask) -> tuple[np.ndarray, float]:
+    """:func:`_track_run` and its wall time in the worker."""
+    t0 = time.perf_counter()
+    return _track_run(task), time.perf_counter() - t0
+
+
+def _plan_and_track(
+    scenarios: list[Scenario],
     *,
     runs: int,
     particles: int,
@@ -511,22 +525,30 @@ def _run_case(
     tasks: TaskProgress,
     scheduler: Scheduler | None = None,
     **plan_kw,
-) -> CaseResult:
-    """Plan one case (one task of ``tasks``), then track along its paths (runs > 0: ``runs``
-    tasks)."""
-    seed = scenario.seed if seed is None else seed
-    t0 = time.perf_counter()
-    case = plan_case(scenario, seed=seed, **plan_kw)
-    result = CaseResult(case, time.perf_counter() - t0)
-    tasks.advance()
-    if runs > 0:
-        t0 = time.perf_counter()
-        result.rmse = track_case(
-            scenario, case.paths, runs, particles, seed, jobs, tasks.of_map(), scheduler
-        )
-        result.runs, result.particles = runs, particles
-        result.tracking_time_s = time.perf_counter() - t0
-    return result
+) -> list[CaseResult]:
+    """Every case planned (one map, a task per case), then every case's ``runs`` PF runs along
+    its paths (one map over all cases' runs, so the workers stay busy across cases). The
+    numbers are those of planning and tracking each case alone (each task carries its seeds);
+    a case's ``tracking_time_s`` is the sum of its runs' times in the workers."""
+    seeds = [sc.seed if seed is None else seed for sc in scenarios]
+    plan_tasks = [(sc, {**plan_kw, "seed": sd}) for sc, sd in zip(scenarios, seeds, strict=True)]
+    results = parallel_map(_plan_task, plan_tasks, jobs, tasks.of_map(), scheduler)
+    if runs == 0:
+        return results
+    run_tasks = [
+        _RunTask(sc, res.plan.paths, r, particles, sd)
+        for sc, res, sd in zip(scenarios, results, seeds, strict=True)
+        for r in range(runs)
+    ]
+    expect_particle_work(len(run_tasks) * scenarios[0].steps * particles)  # before the fork
+    out = parallel_map(_timed_track_run, run_tasks, jobs, tasks.of_map(), scheduler)
+    for i, res in enumerate(results):
+        part = out[i * runs : (i + 1) * runs]
+        mse = np.stack([sq for sq, _ in part]).mean(axis=0)
+        res.rmse = np.sqrt(mse[:, [0, 2]])
+        res.runs, res.particles = runs, particles
+        res.tracking_time_s = sum(t for _, t in part)
+    return results
 
 
 def _compare_searches(
@@ -569,9 +591,9 @@ def reproduce(
     ``scheduler`` (``tcp://host:port``: the same numbers); ``seed`` (default: the
     scenarios' seed) fixes both. ``comparison`` re-plans the 1-sensor single-step case on a
     ``grid_size`` x ``grid_size`` grid (with 1 among ``sensors``). ``progress`` is called with
-    each finished case, ``task_progress(done, total)`` as tasks finish (a case's planning, each
-    of its PF runs, the comparison: the command line's progress bar); neither changes the
-    numbers. Scenario files come from ``scenarios_dir`` or the package data.
+    each case, in order, once all are tracked; ``task_progress(done, total)`` as tasks finish
+    (a case's planning, each of its PF runs, the comparison: the command line's progress bar);
+    neither changes the numbers. Scenario files come from ``scenarios_dir`` or the package data.
     """
     if runs < 0 or particles < 1:
         raise ValueError(f"runs must be >= 0 and particles >= 1, got {runs} and {particles}")
@@ -590,14 +612,12 @@ def reproduce(
     compare = comparison and 1 in counts
     tasks = TaskProgress(len(files) * (1 + runs) + int(compare), task_progress)
     run_kw = dict(runs=runs, particles=particles, seed=seed, jobs=jobs, mc_samples=mc_samples)
-    cases = []
-    with connected(scheduler) as cluster:  # one connection for every case's PF runs
-        for key in sorted(files):
-            scenario = load_scenario(files[key])
-            case = _run_case(scenario, search=search, tasks=tasks, scheduler=cluster, **run_kw)
-            cases.append(case)
-            if progress is not None:
-                progress(cases[-1])
+    scenarios = [load_scenario(files[key]) for key in sorted(files)]
+    with connected(scheduler) as cluster:  # one connection for both maps
+        cases = _plan_and_track(scenarios, search=search, tasks=tasks, scheduler=cluster, **run_kw)
+    if progress is not None:
+        for case in cases:
+            progress(case)
     times = reference.dt * np.arange(1, reference.steps + 1)
     res = HernandezResults(runs, particles, cases, None, times)
     if compare:
