@@ -18,7 +18,8 @@ import yaml
 from activetrack_bringup.runner import RunIncomplete, run_graph
 
 SHORT = "tests/ros/data/short_two_sensors.yaml"
-LONG = "scenarios/hernandez_3sensor_two.yaml"  # ~10 s in one process: time to interrupt it
+# Three-step planning, ~1 s per decision (about 30 s a run): time to interrupt it at any epoch.
+LONG = "scenarios/hernandez_3sensor_three.yaml"
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.usefixtures("localhost_discovery")]
 
 

@@ -249,6 +249,9 @@ class GraphNode(Node):
         except Rejected as r:
             self.reject(r.reason, r.detail)
         except Exception as exc:
+            interrupt = _interrupt_inside(exc)
+            if interrupt is not None:  # Ctrl-C landed inside compiled code: still a Ctrl-C
+                raise interrupt from None
             if not self.context.ok():  # shutting down (SIGTERM): publishing fails, as it may
                 return
             where = getattr(callback, "__name__", "callback")
@@ -286,3 +289,17 @@ class GraphNode(Node):
             values=[KeyValue(key=k, value=v) for k, v in self.counters.as_pairs()],
         )
         return DiagnosticArray(header=header, status=[status])
+
+
+def _interrupt_inside(exc: BaseException) -> BaseException | None:
+    """The KeyboardInterrupt or SystemExit that ``exc`` wraps, if any: a signal handler that
+    raises while a compiled function (a numba kernel) runs surfaces as a SystemError ("returned
+    a result with an exception set") chained to the handler's exception."""
+    seen: set[int] = set()
+    cause: BaseException | None = exc
+    while cause is not None and id(cause) not in seen:
+        if not isinstance(cause, Exception):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None

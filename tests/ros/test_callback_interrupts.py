@@ -1,0 +1,56 @@
+"""A Ctrl-C that lands inside a compiled kernel stays a Ctrl-C: the callback guard, which counts
+every other exception and keeps the node running, must not swallow it."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from activetrack_ros.node_base import GraphNode, _interrupt_inside
+
+pytestmark = pytest.mark.ros
+
+
+def _wrapped(inner: BaseException) -> SystemError:
+    """What CPython raises when a C function (a numba dispatcher) returns while a signal
+    handler's exception is pending."""
+    try:
+        try:
+            raise inner
+        except BaseException as exc:
+            raise SystemError("returned a result with an exception set") from exc
+    except SystemError as err:
+        return err
+
+
+def _guard():
+    counted = []
+    stub = SimpleNamespace(
+        context=SimpleNamespace(ok=lambda: True),
+        counters=SimpleNamespace(count=counted.append),
+        log_limited=lambda *a: None,
+    )
+    return stub, counted
+
+
+@pytest.mark.parametrize("inner", [KeyboardInterrupt(), SystemExit(143)])
+def test_an_interrupt_wrapped_in_a_system_error_is_raised_as_itself(inner):
+    stub, counted = _guard()
+
+    def callback():
+        raise _wrapped(inner)
+
+    with pytest.raises(type(inner)):
+        GraphNode.guarded(stub, callback)
+    assert counted == []
+
+
+def test_other_system_errors_are_counted_and_the_node_keeps_running():
+    stub, counted = _guard()
+
+    def on_track():
+        raise _wrapped(ValueError("bad"))
+
+    GraphNode.guarded(stub, on_track)
+    assert counted == ["errors.on_track"]
+    assert _interrupt_inside(np.linalg.LinAlgError("x")) is None
