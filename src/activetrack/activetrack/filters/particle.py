@@ -214,6 +214,7 @@ class ParticleFilter:
         self._pv_state = bool(model.state_is_pv)
         self._t = t0
         self._moments: tuple[FloatArray, FloatArray] | None = None
+        self._mean: FloatArray | None = None  # the mean alone, before a covariance is asked
         self.last_info: UpdateInfo | None = None
 
     @classmethod
@@ -263,16 +264,27 @@ class ParticleFilter:
             if kernels is not None and self._X.shape[1] == 4:
                 self._moments = kernels.weighted_moments4(self._X, self._w)
                 return self._moments
-            mean = self._w @ self._X
+            mean = self._w @ self._X if self._mean is None else self._mean
             D = self._X - mean
             P = (D.T * self._w) @ D
             self._moments = (mean, 0.5 * (P + P.T))
         return self._moments
 
+    def _compute_mean(self) -> np.ndarray:
+        """The mean alone where the covariance is not needed (the numpy path: the mean of
+        :meth:`_compute_moments`, the same bits, without the 4 x N covariance pass)."""
+        if self._moments is not None:
+            return self._moments[0]
+        if moment_kernels() is not None and self._X.shape[1] == 4:
+            return self._compute_moments()[0]
+        if self._mean is None:
+            self._mean = self._w @ self._X
+        return self._mean
+
     @property
     def mean(self) -> np.ndarray:
         """Weighted mean ``sum w_i x_i``, shape ``(n,)``."""
-        return self._compute_moments()[0].copy()
+        return self._compute_mean().copy()
 
     @property
     def cov(self) -> np.ndarray:
@@ -290,6 +302,7 @@ class ParticleFilter:
                 raise ValueError(f"model.sample returned shape {X.shape}, expected {self._X.shape}")
             self._X = X
             self._moments = None
+            self._mean = None
         self._t = t
 
     def _log_likelihood(
@@ -392,6 +405,7 @@ class ParticleFilter:
             logw -= log_norm
             self._logw = logw
         self._moments = None
+        self._mean = None
         info = common(ess=ess, resampled=resampled, log_likelihood=log_lik)
         self.last_info = info
         return info
