@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from activetrack.arraytypes import FloatArray
+from activetrack.kernels.linalg import cholesky_into
 
 __all__ = ["predicted_stack", "rmse_bounds", "warm_up"]
 
@@ -86,26 +87,6 @@ def rmse_bounds(J: FloatArray) -> tuple[FloatArray, int]:
 
 
 @numba.njit(cache=True, nogil=True)
-def _cholesky(A: FloatArray, L: FloatArray) -> bool:
-    """Lower Cholesky factor L of one SPD n x n A; False if A is not positive definite."""
-    n = A.shape[0]
-    L[:, :] = 0.0
-    for j in range(n):
-        d = A[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if not d > 0.0:
-            return False
-        L[j, j] = np.sqrt(d)
-        for i in range(j + 1, n):
-            s = A[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            L[i, j] = s / L[j, j]
-    return True
-
-
-@numba.njit(cache=True, nogil=True)
 def _lower_inverse(L: FloatArray, out: FloatArray) -> None:
     """L^{-1} of a lower-triangular n x n L (forward substitution on the identity)."""
     n = L.shape[0]
@@ -132,7 +113,7 @@ def predicted_stack(J: FloatArray, F: FloatArray, Q: FloatArray) -> tuple[FloatA
     X = np.empty((n, n))
     C = np.empty((n, n))
     for m in range(N):
-        if not _cholesky(J[m], L):
+        if not cholesky_into(J[m], L):
             return out, 1
         _lower_inverse(L, Li)
         for i in range(n):  # X = L^{-1} F^T
@@ -147,7 +128,7 @@ def predicted_stack(J: FloatArray, F: FloatArray, Q: FloatArray) -> tuple[FloatA
                 for k in range(n):
                     s += X[k, i] * X[k, j]
                 C[i, j] = Q[i, j] + s
-        if not _cholesky(C, L):
+        if not cholesky_into(C, L):
             return out, 2
         _lower_inverse(L, Li)
         for i in range(n):  # C^{-1} = Li^T Li, symmetric by construction

@@ -15,6 +15,8 @@ import math
 import numpy as np
 from numba import njit
 
+from activetrack.kernels.linalg import cholesky_into
+
 __all__ = ["predict", "update", "warm_up"]
 
 
@@ -49,26 +51,6 @@ def _symmetrize(A):  # pragma: no cover - compiled
             v = 0.5 * (A[i, j] + A[j, i])
             A[i, j] = v
             A[j, i] = v
-
-
-@njit(cache=True, error_model="numpy")
-def _cholesky(S):  # pragma: no cover - compiled
-    """Lower L with L L^T = S, or ``(L, False)`` when S is not positive definite."""
-    m = S.shape[0]
-    L = np.zeros((m, m))
-    for j in range(m):
-        d = S[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if not d > 0.0:
-            return L, False
-        L[j, j] = math.sqrt(d)
-        for i in range(j + 1, m):
-            v = S[i, j]
-            for k in range(j):
-                v -= L[i, k] * L[j, k]
-            L[i, j] = v / L[j, j]
-    return L, True
 
 
 @njit(cache=True, error_model="numpy")
@@ -121,8 +103,8 @@ def update(x, P, H, nu, R):  # pragma: no cover - compiled
         nis = nu[0] * nu[0] / s11
         log_det = math.log(s11)
     else:
-        L, ok = _cholesky(S)
-        if not ok:
+        L = np.empty((m, m))
+        if not cholesky_into(S, L):
             return x, P, 0.0, 0.0, False
         for i in range(n):
             K[i] = _chol_solve(L, PHT[i])  # row i of K = P H^T S^-1 (S symmetric)
