@@ -13,7 +13,8 @@ import pytest
 from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
 
-SCENARIO = "scenarios/hernandez_2sensor_two.yaml"  # ~4 s in one process
+# Three-step planning with 2 sensors: ~8 s in one process, longer than the 2 s flood.
+SCENARIO = "scenarios/hernandez_2sensor_three.yaml"
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 # Flooded topic -> the graph's readers of it in a run without a bag.

@@ -355,6 +355,12 @@ class ForeignNode(Node):
         if msg_type is TrackEstimate and msg.epoch >= self.at_epoch:
             self.fire(msg.epoch)
 
+    def _matched(self, msg_type) -> bool:
+        """Whether the publisher of ``msg_type`` reaches every reader the graph has of it (and
+        this node's own sniffer of the topic)."""
+        readers = READERS.get(msg_type.__name__, ())
+        return self.pubs[msg_type].get_subscription_count() >= len(readers) + 1
+
     def publish(self, msg_type, msg) -> None:
         pub = self.pubs[msg_type]
         if isinstance(msg, bytes):
@@ -373,11 +379,18 @@ class ForeignNode(Node):
 
     def fire(self, epoch: int) -> None:
         """Publish every category (at the next track instead, if a genuine message a
-        category copies has not been seen yet: the executor may hand the track over first)."""
+        category copies has not been seen yet: the executor may hand the track over first; or
+        if a topic it will publish on has not yet matched all of the graph's readers of it:
+        a message sent before discovery reaches nobody, so no reader could count it)."""
         ctx = Context(epoch, self.dt, self.latest, self.seen, self.rng)
         try:
             built = [(c.msg_type, m) for c in self.categories for m in c.build(ctx, c.msg_type)]
         except KeyError:
+            return
+        types = {t for t, _ in built} | set(self.pools) | {t for t, _ in self.messages}
+        if self.replay:
+            types |= set(self.seen)
+        if not all(self._matched(t) for t in types):
             return
         self.fired = True
         for msg_type, msg in built:
