@@ -392,7 +392,9 @@ class _GraphRunner:
             missing = self.evaluator.missing()
             self._end("timeout", f"did not complete within {timeout} s: {missing}", 1)
         else:  # let the last messages be recorded and counted: the counters are final
-            self.graph.spin_until_quiet(self.progress)
+            # (0.1 s without a new message: a burst sent as the last epoch closes, e.g. by a
+            # writer outside the graph, is still in flight after a 20 ms lull on a busy host)
+            self.graph.spin_until_quiet(self.progress, quiet=0.1)
 
     def _stop(self) -> None:
         if self.status != "complete":  # take in what was delivered: a fuller partial run
