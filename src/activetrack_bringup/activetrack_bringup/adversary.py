@@ -106,10 +106,13 @@ class Category:
 
 
 def _next(**changes):
-    """The latest genuine message of the type, moved to the next epoch (stamp too), changed."""
+    """The latest genuine message of the type, moved to the epoch after both its own and the
+    firing one (stamp too), changed. Not merely after the firing epoch: the graph may already
+    have sent that epoch's message (lockstep runs ahead of the track that fires us), and a copy
+    of it would be that genuine message, tag and all: a replay, not a forgery."""
 
     def build(c: Context, t) -> list:
-        k = c.epoch + 1
+        k = max(c.epoch, c.latest[t].epoch) + 1
         return [c.like(t, **{"epoch": k, **c.stamp(k), **changes})]
 
     return build
