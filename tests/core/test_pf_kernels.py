@@ -82,6 +82,73 @@ def test_sampling_draws_the_same_normals_and_gives_the_same_bits(model):
     np.testing.assert_allclose(ref, X @ model.transition_matrix(5.0).T + W @ L.T, rtol=1e-12)
 
 
+@pytest.mark.parametrize("cv", [True, False])
+def test_pcg64_route_draws_numpys_normals_and_leaves_its_state(cv):
+    """The compiled PCG64 stream (four LCG chains, numpy's ziggurat, a 2,048-output buffer
+    refilled inside rows) gives ``standard_normal``'s bits and state for many seeds and sizes:
+    rows that straddle a refill, rejections in the tail and the wedge, a 32-bit half kept
+    buffered by an earlier ``integers`` draw."""
+    from activetrack.kernels import particle
+
+    F = NearlyConstantVelocity(0.01).transition_matrix(5.0)
+    L = np.linalg.cholesky(NearlyConstantVelocity(0.01).process_noise(5.0))
+    if not cv:
+        F, L = F + 0.01, L + np.tril(np.full((4, 4), 0.02))
+    draws = 0
+    for seed in range(12):
+        for n in (1, 3, 511, 512, 513, 5000):
+            X = particles(n, seed)
+            ours, ref = np.random.default_rng([seed, n]), np.random.default_rng([seed, n])
+            if seed % 2:
+                ours.integers(0, 2**32, dtype=np.uint32)
+                ref.integers(0, 2**32, dtype=np.uint32)
+            out, finite = particle.gaussian_sample(X, F, L, cv, ours)
+            W = ref.standard_normal((n, 4))
+            want = np.empty_like(X)
+            rows = particle._cv_rows_from_normals if cv else particle._full_rows_from_normals
+            rows(W, X, F, L, want)
+            np.testing.assert_array_equal(out, want)
+            assert finite
+            assert ours.bit_generator.state == ref.bit_generator.state
+            assert ours.random() == ref.random()
+            draws += 4 * n
+    assert draws > 300_000  # about 4,700 rejections (1.5 %), about 80 in layer 0's tail
+
+
+def test_other_bit_generators_take_numbas_generator_route():
+    """MT19937, Philox, ... are not PCG64: numba's generator support, the same bits."""
+    from activetrack.kernels import particle, pcg64
+
+    X = particles(300)
+    F, L = np.eye(4), 0.5 * np.eye(4)
+    for bits in (np.random.MT19937, np.random.Philox, np.random.PCG64DXSM):
+        ours, ref = np.random.Generator(bits(7)), np.random.Generator(bits(7))
+        assert not pcg64.pcg64_route(ours, "cv_rows", lambda: True)
+        out, _ = particle.gaussian_sample(X, F, L, True, ours)
+        np.testing.assert_array_equal(out, X + 0.5 * ref.standard_normal(X.shape))
+        assert ours.random() == ref.random()
+
+
+def test_a_failed_pcg64_check_warns_once_and_keeps_the_generic_route(monkeypatch):
+    from activetrack.kernels import particle, pcg64
+
+    monkeypatch.setattr(pcg64, "_checked", {})
+    monkeypatch.setattr(particle, "_pcg64_check", lambda cv: lambda: False)
+    X = particles(100)
+    F, L = np.eye(4), np.eye(4)
+    with pytest.warns(RuntimeWarning, match="does not reproduce this numpy's draws"):
+        out, _ = particle.gaussian_sample(X, F, L, True, np.random.default_rng(3))
+    np.testing.assert_array_equal(out, X + np.random.default_rng(3).standard_normal(X.shape))
+    assert pcg64._checked == {"cv_rows": False}
+    particle.gaussian_sample(X, F, L, True, np.random.default_rng(3))  # no second warning
+
+
+def test_the_pcg64_check_passes_here():
+    from activetrack.kernels import particle
+
+    assert particle._pcg64_check(True)() and particle._pcg64_check(False)()
+
+
 def test_the_models_pick_the_sampling_kernel_by_the_zeros_of_f_and_l():
     """NCV's F and L have the zeros of two constant-velocity axes (cv_gaussian_sample, which
     the test above checks against the full sums); the discrete NCV's eigh factor and the

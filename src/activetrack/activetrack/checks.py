@@ -38,7 +38,7 @@ def require_finite(name: str, array: ArrayLike) -> FloatArray:
         arr = np.asarray(array, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a numeric array, got {array!r}") from None
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite (no NaN or inf), got {arr!r}")
     return arr
 

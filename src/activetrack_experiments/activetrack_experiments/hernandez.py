@@ -25,7 +25,7 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -515,6 +515,32 @@ def _timed_track_run(task: _RunTask) -> tuple[np.ndarray, float]:
     return _track_run(task), time.perf_counter() - t0
 
 
+def _plan_order(task: tuple[Scenario, dict]) -> tuple[int, int]:
+    """Sort key of the plan map, heaviest first: two-step before single-step (about 4x the
+    decision time), then more sensors first; the grid search (10,201 candidates) counts as a
+    two-step case of one sensor."""
+    scenario, kw = task
+    sensors = len(platforms_from_scenario(scenario))
+    horizon = 2 if kw.get("search") == "grid" else scenario.planner.horizon
+    return (-horizon, -sensors)
+
+
+def _plan_all(
+    plan_tasks: list[tuple[Scenario, dict]],
+    jobs: int,
+    tasks: TaskProgress,
+    scheduler: Scheduler | None,
+) -> list[CaseResult]:
+    """:func:`_plan_task` of every task in one map, heaviest first so that no long plan starts
+    last on an otherwise idle pool; results in the tasks' order."""
+    order = sorted(range(len(plan_tasks)), key=lambda i: _plan_order(plan_tasks[i]))
+    done = parallel_map(_plan_task, [plan_tasks[i] for i in order], jobs, tasks.of_map(), scheduler)
+    results = list(done)
+    for i, res in zip(order, done, strict=True):
+        results[i] = res
+    return results
+
+
 def _plan_and_track(
     scenarios: list[Scenario],
     *,
@@ -524,17 +550,21 @@ def _plan_and_track(
     jobs: int,
     tasks: TaskProgress,
     scheduler: Scheduler | None = None,
+    extra_plans: Sequence[tuple[Scenario, dict]] = (),
     **plan_kw,
-) -> list[CaseResult]:
-    """Every case planned (one map, a task per case), then every case's ``runs`` PF runs along
-    its paths (one map over all cases' runs, so the workers stay busy across cases). The
-    numbers are those of planning and tracking each case alone (each task carries its seeds);
-    a case's ``tracking_time_s`` is the sum of its runs' times in the workers."""
+) -> tuple[list[CaseResult], list[CaseResult]]:
+    """Every case planned (one map, a task per case, with ``extra_plans``: the search
+    comparison's plans, each ``(scenario, plan_case keywords)``), then every case's ``runs`` PF
+    runs along its paths (one map over all cases' runs, so the workers stay busy across cases).
+    The numbers are those of planning and tracking each case alone (each task carries its
+    seeds); a case's ``tracking_time_s`` is the sum of its runs' times in the workers. Returns
+    the cases and the extra plans."""
     seeds = [sc.seed if seed is None else seed for sc in scenarios]
     plan_tasks = [(sc, {**plan_kw, "seed": sd}) for sc, sd in zip(scenarios, seeds, strict=True)]
-    results = parallel_map(_plan_task, plan_tasks, jobs, tasks.of_map(), scheduler)
+    planned = _plan_all(plan_tasks + list(extra_plans), jobs, tasks, scheduler)
+    results, extra = planned[: len(scenarios)], planned[len(scenarios) :]
     if runs == 0:
-        return results
+        return results, extra
     run_tasks = [
         _RunTask(sc, res.plan.paths, r, particles, sd)
         for sc, res, sd in zip(scenarios, results, seeds, strict=True)
@@ -548,22 +578,23 @@ def _plan_and_track(
         res.rmse = np.sqrt(mse[:, [0, 2]])
         res.runs, res.particles = runs, particles
         res.tracking_time_s = sum(t for _, t in part)
-    return results
+    return results, extra
 
 
-def _compare_searches(
-    scenario: Scenario,
-    quadrant: PlannedCase | None,
+def _comparison_plans(
+    reference: Scenario,
+    has_quadrant: bool,
     grid_size: int,
     mc_samples: int | None,
     seed: int | None,
-) -> SearchComparison:
-    """The 1-sensor single-step case planned on the grid (and, unless given, the quadrant)."""
-    seed = scenario.seed if seed is None else seed
-    grid = plan_case(scenario, search="grid", grid_size=grid_size, mc_samples=mc_samples, seed=seed)
-    if quadrant is None:
-        quadrant = plan_case(scenario, search="quadrant", mc_samples=mc_samples, seed=seed)
-    return SearchComparison(grid_size, quadrant, grid)
+) -> list[tuple[Scenario, dict]]:
+    """The plan tasks of the quadrant vs grid comparison on the 1-sensor single-step case:
+    the grid, and the quadrant unless the cases plan it already."""
+    kw = {"mc_samples": mc_samples, "seed": reference.seed if seed is None else seed}
+    plans = [(reference, {**kw, "search": "grid", "grid_size": grid_size})]
+    if not has_quadrant:
+        plans.append((reference, {**kw, "search": "quadrant"}))
+    return plans
 
 
 def reproduce(
@@ -610,22 +641,29 @@ def reproduce(
     files = {(n, R): scenario_path(scenario_name(n, R), sdir) for n in counts for R in horizon_list}
     reference = load_scenario(scenario_path(scenario_name(1, 1), sdir))
     compare = comparison and 1 in counts
-    tasks = TaskProgress(len(files) * (1 + runs) + int(compare), task_progress)
+    # The comparison's grid (and its quadrant, when the cases do not plan the 1-sensor
+    # single-step case with the quadrant search) is planned in the cases' plan map.
+    has_quadrant = (1, 1) in files and (search or "quadrant") == "quadrant"
+    extra = []
+    if compare:
+        extra = _comparison_plans(reference, has_quadrant, grid_size, mc_samples, seed)
+    tasks = TaskProgress(len(files) * (1 + runs) + len(extra), task_progress)
     run_kw = dict(runs=runs, particles=particles, seed=seed, jobs=jobs, mc_samples=mc_samples)
     scenarios = [load_scenario(files[key]) for key in sorted(files)]
     with connected(scheduler) as cluster:  # one connection for both maps
-        cases = _plan_and_track(scenarios, search=search, tasks=tasks, scheduler=cluster, **run_kw)
+        cases, extra_plans = _plan_and_track(
+            scenarios, search=search, tasks=tasks, scheduler=cluster, extra_plans=extra, **run_kw
+        )
     if progress is not None:
         for case in cases:
             progress(case)
     times = reference.dt * np.arange(1, reference.steps + 1)
     res = HernandezResults(runs, particles, cases, None, times)
     if compare:
-        quad = res.case(1, 1)
-        quad_plan = None if quad is None else quad.plan
-        res.comparison = _compare_searches(reference, quad_plan, grid_size, mc_samples, seed)
+        quad = res.case(1, 1) if has_quadrant else extra_plans[1]
+        assert quad is not None
+        res.comparison = SearchComparison(grid_size, quad.plan, extra_plans[0].plan)
         res.prior_samples = prior_samples(reference)
-        tasks.advance()
     return res
 
 
@@ -818,18 +856,28 @@ def _figure_all(res: HernandezResults, out: Path) -> Path:
     return _save(fig, out / "bounds_and_rmse_all_cases.png")
 
 
-def save_figures(res: HernandezResults, out: str | Path) -> list[Path]:
+_FIGURES = {"fig2": _figure2, "fig3": _figure3, "all": _figure_all}
+
+
+def _render(task: tuple[str, HernandezResults, Path]) -> Path:
+    """One figure of :func:`save_figures` (a task of its map)."""
+    name, res, out = task
+    return _FIGURES[name](res, out)
+
+
+def save_figures(res: HernandezResults, out: str | Path, jobs: int = 1) -> list[Path]:
     """Write the PNG figures into ``out``: Fig. 2 (with the comparison and the 1-sensor
-    single-step case), Fig. 3 (with both 2-sensor cases) and all cases; returns the files."""
+    single-step case), Fig. 3 (with both 2-sensor cases) and all cases; returns the files.
+    ``jobs``: render them on that many processes (about 0.4 s each)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    files = []
+    names = []
     if res.comparison is not None and res.case(1, 1) is not None:
-        files.append(_figure2(res, out))
+        names.append("fig2")
     if res.case(2, 1) is not None and res.case(2, 2) is not None:
-        files.append(_figure3(res, out))
-    files.append(_figure_all(res, out))
-    return files
+        names.append("fig3")
+    names.append("all")
+    return parallel_map(_render, [(name, res, out) for name in names], jobs)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -934,7 +982,7 @@ def main(
     print(format_results(res))
     doc = res.to_json()
     if not args.no_figures:
-        files = save_figures(res, args.out)
+        files = save_figures(res, args.out, jobs=args.jobs)
         doc["figures"] = [str(f) for f in files]
         print("\nfigures: " + ", ".join(str(f) for f in files))
     if args.json:

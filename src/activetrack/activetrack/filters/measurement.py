@@ -56,7 +56,7 @@ class Measurement:
 
     def __post_init__(self) -> None:
         s = np.array(self.sensor_state, dtype=float)
-        if s.shape != (4,) or not np.all(np.isfinite(s)):
+        if s.shape != (4,) or not np.isfinite(s).all():
             raise ValueError(
                 f"sensor_state must be a finite pv vector (x, xdot, y, ydot) of shape (4,), "
                 f"got {self.sensor_state!r}"
@@ -75,7 +75,7 @@ class Measurement:
                     f"z must have shape ({dim_z},) for a {self.sensor.kind} sensor, "
                     f"got shape {np.shape(self.z)}"
                 )
-            if not np.all(np.isfinite(z)):
+            if not np.isfinite(z).all():
                 raise ValueError(f"z must be finite (no NaN or inf), got {self.z!r}")
             z.flags.writeable = False
             object.__setattr__(self, "z", z)

@@ -381,7 +381,8 @@ class ParticleFilter:
 
         # numpy's vectorised exp, sum and dot are at the memory floor here (a compiled pass
         # would be slower: numba's scalar exp costs ~8x numpy's per element).
-        w = np.exp(logw - top)
+        w = np.subtract(logw, top)
+        np.exp(w, out=w)
         total = float(w.sum())
         w /= total
         ess = 1.0 / float(w @ w)

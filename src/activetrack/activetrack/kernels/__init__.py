@@ -73,6 +73,7 @@ MODES = ("auto", "numpy", "compiled")
 AUTO_WORK = 5_000_000
 # The modules with compiled kernels; each has a warm_up() that calls every kernel once.
 KERNEL_MODULES = (
+    "activetrack.kernels.pcg64",
     "activetrack.kernels.particle",
     "activetrack.kernels.ekf",
     "activetrack.kernels.moments",

@@ -27,15 +27,27 @@ as in numpy (a particle on the sensor) instead of raising. Every kernel is cache
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit
 
+from activetrack.kernels.pcg64 import (
+    BUFFER,
+    KI,
+    advance,
+    layer,
+    new_stream,
+    pcg64_route,
+    refill,
+    rejected,
+    stream_words,
+)
+
 __all__ = [
     "bearing_finish",
     "bearing_sines",
-    "cv_gaussian_sample",
-    "linear_gaussian_sample",
+    "gaussian_sample",
     "range_bearing_finish",
     "systematic_indices",
     "systematic_resample_rows",
@@ -43,74 +55,195 @@ __all__ = [
 ]
 
 
+@njit(inline="always")
+def _cv_row(out, i, X, w, f, g):  # pragma: no cover - compiled
+    """out[i] = X[i] F^T + w L^T from the non-zero terms of two constant-velocity axes only
+    (F, L row-major 16-tuples f, g), the operations of ``models.ncv.cv_rows``. True when
+    X[i] holds a NaN or an infinity."""
+    x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
+    out[i, 0] = (x0 * f[0] + x1 * f[1]) + w[0] * g[0]
+    out[i, 1] = x1 * f[5] + (w[0] * g[4] + w[1] * g[5])
+    out[i, 2] = (x2 * f[10] + x3 * f[11]) + w[2] * g[10]
+    out[i, 3] = x3 * f[15] + (w[2] * g[14] + w[3] * g[15])
+    return x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0  # NaN for a non-finite x
+
+
+@njit(inline="always")
+def _full_row(out, i, X, w, f, g):  # pragma: no cover - compiled
+    """out[i] = X[i] F^T + w L^T, full sums over k = 0..3 in order (``models.ncv.rows_times``).
+    True when X[i] holds a NaN or an infinity."""
+    x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
+    w0, w1, w2, w3 = w[0], w[1], w[2], w[3]
+    for r in range(4):
+        out[i, r] = (x0 * f[4 * r] + x1 * f[4 * r + 1] + x2 * f[4 * r + 2] + x3 * f[4 * r + 3]) + (
+            w0 * g[4 * r] + w1 * g[4 * r + 1] + w2 * g[4 * r + 2] + w3 * g[4 * r + 3]
+        )
+    return x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0
+
+
+@njit(inline="always")
+def _entries(A):  # pragma: no cover - compiled
+    """The 16 entries of a 4 x 4 matrix, row-major, as a tuple (held in registers)."""
+    return (
+        A[0, 0], A[0, 1], A[0, 2], A[0, 3], A[1, 0], A[1, 1], A[1, 2], A[1, 3],
+        A[2, 0], A[2, 1], A[2, 2], A[2, 3], A[3, 0], A[3, 1], A[3, 2], A[3, 3],
+    )  # fmt: skip
+
+
+# ``out = X F^T + W L^T`` with W's normals drawn row by row: from the PCG64 stream of state
+# ``words`` (``pcg64``; returning (outputs used or -1, any non-finite x)), or given ``(N, 4)``
+# (returning any non-finite x); with the constant-velocity zeros or the full sums. Separate
+# small kernels, and the draw loop written out in each: a flag for the arithmetic form, or the
+# draws in an inlined helper, compiled to code two to four times slower.
+
+
 @njit(cache=True, error_model="numpy")
-def linear_gaussian_sample(X, F, L, rng):  # pragma: no cover - compiled
-    """``(X F^T + W L^T, finite)`` for 4-D states: W ``(N, 4)`` standard normals drawn row by
-    row from ``rng`` (the order of ``rng.standard_normal((N, 4))``). X ``(N, 4)``, F and L
-    ``(4, 4)``.
+def _cv_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
+    f, g, w = _entries(F), _entries(L), np.empty(4)
+    chains, buf = new_stream(words), np.empty(BUFFER, dtype=np.uint64)
+    end = refill(chains, buf, 0)
+    base, i, j, bad = 0, 0, 0, False
+    while i < X.shape[0]:
+        j0, k = j, 0
+        while k < 4:
+            if j >= end:
+                break
+            idx, rabs, x = layer(buf[j])
+            if rabs < KI[idx]:
+                j += 1
+            else:
+                x, j = rejected(buf, j + 1, end, idx, rabs, x)
+                if j < 0:
+                    break
+            w[k] = x
+            k += 1
+        if k < 4:  # the buffer ran out inside this row: keep its outputs, refill, redo it
+            keep = end - j0
+            buf[:keep] = buf[j0:end]
+            base += j0
+            end, j = refill(chains, buf, keep), 0
+            if end == keep:  # a row needing more than a buffer (never seen): give up
+                return -1, bad
+            continue
+        bad |= _cv_row(out, i, X, w, f, g)
+        i += 1
+    return base + j, bad
+
+
+@njit(cache=True, error_model="numpy")
+def _full_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
+    f, g, w = _entries(F), _entries(L), np.empty(4)
+    chains, buf = new_stream(words), np.empty(BUFFER, dtype=np.uint64)
+    end = refill(chains, buf, 0)
+    base, i, j, bad = 0, 0, 0, False
+    while i < X.shape[0]:
+        j0, k = j, 0
+        while k < 4:
+            if j >= end:
+                break
+            idx, rabs, x = layer(buf[j])
+            if rabs < KI[idx]:
+                j += 1
+            else:
+                x, j = rejected(buf, j + 1, end, idx, rabs, x)
+                if j < 0:
+                    break
+            w[k] = x
+            k += 1
+        if k < 4:  # as in _cv_rows_pcg64
+            keep = end - j0
+            buf[:keep] = buf[j0:end]
+            base += j0
+            end, j = refill(chains, buf, keep), 0
+            if end == keep:
+                return -1, bad
+            continue
+        bad |= _full_row(out, i, X, w, f, g)
+        i += 1
+    return base + j, bad
+
+
+@njit(cache=True, error_model="numpy")
+def _cv_rows_from_normals(W, X, F, L, out):  # pragma: no cover - compiled
+    f, g, bad = _entries(F), _entries(L), False
+    for i in range(X.shape[0]):
+        bad |= _cv_row(out, i, X, W[i], f, g)
+    return bad
+
+
+@njit(cache=True, error_model="numpy")
+def _full_rows_from_normals(W, X, F, L, out):  # pragma: no cover - compiled
+    f, g, bad = _entries(F), _entries(L), False
+    for i in range(X.shape[0]):
+        bad |= _full_row(out, i, X, W[i], f, g)
+    return bad
+
+
+@njit(cache=True)
+def _generator_normals(rng, out):  # pragma: no cover - compiled
+    """numba's ``Generator.standard_normal``, one draw per entry (any bit generator)."""
+    for i in range(out.shape[0]):
+        out[i] = rng.standard_normal()
+    return out
+
+
+def _sample_pcg64(X, F, L, cv, rng):
+    """The PCG64 route of :func:`gaussian_sample`, or None when a row needs more than a
+    buffer of outputs (the generator is then left untouched)."""
+    out = np.empty((X.shape[0], 4))
+    with rng.bit_generator.lock:
+        words, state = stream_words(rng)
+        used, bad = (_cv_rows_pcg64 if cv else _full_rows_pcg64)(words, X, F, L, out)
+        if used < 0:
+            return None
+        advance(rng, used, state)
+    return out, not bad
+
+
+def _sample_generic(X, F, L, cv, rng):
+    """:func:`gaussian_sample` through numba's generator support (any bit generator)."""
+    W = _generator_normals(rng, np.empty(4 * X.shape[0])).reshape(-1, 4)
+    out = np.empty((X.shape[0], 4))
+    bad = (_cv_rows_from_normals if cv else _full_rows_from_normals)(W, X, F, L, out)
+    return out, not bad
+
+
+def _pcg64_check(cv: bool) -> Callable[[], bool]:
+    """The PCG64 route against numpy's ``standard_normal`` and the generic route, on 2,000
+    rows (about 100 rejections, a refill inside a row) and a buffered 32-bit half."""
+
+    def check() -> bool:
+        ours, ref = np.random.default_rng(2025), np.random.default_rng(2025)
+        for g in (ours, ref):
+            g.integers(0, 2**32, dtype=np.uint32)
+        X = np.linspace(-1.0, 1.0, 8000).reshape(-1, 4)
+        F = L = np.eye(4)
+        got = _sample_pcg64(X, F, L, cv, ours)
+        W = ref.standard_normal((X.shape[0], 4))
+        want = np.empty_like(X)
+        (_cv_rows_from_normals if cv else _full_rows_from_normals)(W, X, F, L, want)
+        same_state = ours.bit_generator.state == ref.bit_generator.state
+        return got is not None and np.array_equal(got[0], want) and same_state
+
+    return check
+
+
+def gaussian_sample(X, F, L, cv, rng):
+    """``(X F^T + W L^T, finite)`` for 4-D states X ``(N, 4)``, F and L ``(4, 4)``, W the
+    ``(N, 4)`` normals of ``rng.standard_normal((N, 4))`` (drawn row by row, the same bits, and
+    the generator left where that call leaves it: module ``pcg64`` for ``default_rng``'s
+    generators, numba's generator support for others). ``cv``: F and L have the zeros of two
+    constant-velocity axes (``models.ncv.has_cv_zeros``) and only the non-zero terms are
+    summed, as ``models.ncv.cv_rows`` does; else the full sums of ``rows_times``.
 
     finite is False when X holds a NaN or an infinity (the caller then raises as the
-    reference's ``check_state`` does; the draws are spent by then). The draws come first, into
-    the output, and the products in a second loop that holds F and L in registers.
-    """
-    N = X.shape[0]
-    out = np.empty((N, 4))
-    for i in range(N):
-        for k in range(4):
-            out[i, k] = rng.standard_normal()
-    f00, f01, f02, f03 = F[0, 0], F[0, 1], F[0, 2], F[0, 3]
-    f10, f11, f12, f13 = F[1, 0], F[1, 1], F[1, 2], F[1, 3]
-    f20, f21, f22, f23 = F[2, 0], F[2, 1], F[2, 2], F[2, 3]
-    f30, f31, f32, f33 = F[3, 0], F[3, 1], F[3, 2], F[3, 3]
-    l00, l01, l02, l03 = L[0, 0], L[0, 1], L[0, 2], L[0, 3]
-    l10, l11, l12, l13 = L[1, 0], L[1, 1], L[1, 2], L[1, 3]
-    l20, l21, l22, l23 = L[2, 0], L[2, 1], L[2, 2], L[2, 3]
-    l30, l31, l32, l33 = L[3, 0], L[3, 1], L[3, 2], L[3, 3]
-    bad = False
-    for i in range(N):
-        x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
-        w0, w1, w2, w3 = out[i, 0], out[i, 1], out[i, 2], out[i, 3]
-        out[i, 0] = (x0 * f00 + x1 * f01 + x2 * f02 + x3 * f03) + (
-            w0 * l00 + w1 * l01 + w2 * l02 + w3 * l03
-        )
-        out[i, 1] = (x0 * f10 + x1 * f11 + x2 * f12 + x3 * f13) + (
-            w0 * l10 + w1 * l11 + w2 * l12 + w3 * l13
-        )
-        out[i, 2] = (x0 * f20 + x1 * f21 + x2 * f22 + x3 * f23) + (
-            w0 * l20 + w1 * l21 + w2 * l22 + w3 * l23
-        )
-        out[i, 3] = (x0 * f30 + x1 * f31 + x2 * f32 + x3 * f33) + (
-            w0 * l30 + w1 * l31 + w2 * l32 + w3 * l33
-        )
-        bad |= x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0  # NaN for a non-finite x
-    return out, not bad
-
-
-@njit(cache=True, error_model="numpy")
-def cv_gaussian_sample(X, F, L, rng):  # pragma: no cover - compiled
-    """:func:`linear_gaussian_sample` for F and L with the zeros of two independent
-    constant-velocity axes (x, xdot) and (y, ydot): F upper and L lower triangular within each
-    2 x 2 block, zero outside the blocks (the NCV models; ``models.ncv.has_cv_zeros``). Only
-    the non-zero terms are summed, with the operations of ``models.ncv.cv_rows`` (its numpy
-    reference); the full sums of :func:`linear_gaussian_sample` differ at most in the sign of
-    an exact zero."""
-    N = X.shape[0]
-    out = np.empty((N, 4))
-    for i in range(N):
-        for k in range(4):
-            out[i, k] = rng.standard_normal()
-    f00, f01, f11, f22, f23, f33 = F[0, 0], F[0, 1], F[1, 1], F[2, 2], F[2, 3], F[3, 3]
-    l00, l10, l11, l22, l32, l33 = L[0, 0], L[1, 0], L[1, 1], L[2, 2], L[3, 2], L[3, 3]
-    bad = False
-    for i in range(N):
-        x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
-        w0, w1, w2, w3 = out[i, 0], out[i, 1], out[i, 2], out[i, 3]
-        out[i, 0] = (x0 * f00 + x1 * f01) + w0 * l00
-        out[i, 1] = x1 * f11 + (w0 * l10 + w1 * l11)
-        out[i, 2] = (x2 * f22 + x3 * f23) + w2 * l22
-        out[i, 3] = x3 * f33 + (w2 * l32 + w3 * l33)
-        bad |= x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0  # NaN for a non-finite x
-    return out, not bad
+    reference's ``check_state`` does; the draws are spent by then)."""
+    name = "cv_rows" if cv else "full_rows"
+    if pcg64_route(rng, name, _pcg64_check(cv)):
+        result = _sample_pcg64(X, F, L, cv, rng)
+        if result is not None:
+            return result
+    return _sample_generic(X, F, L, cv, rng)
 
 
 @njit(cache=True, error_model="numpy")
@@ -126,9 +259,11 @@ def bearing_sines(pv, sx, sy, cz, sz):  # pragma: no cover - compiled
     s = np.empty(N)
     behind = np.empty(N, dtype=np.bool_)
     r = np.empty(N)
+    for i in range(N):  # the strided columns first, into the outputs (a faster second loop)
+        s[i] = pv[i, 0] - sx
+        r[i] = pv[i, 2] - sy
     for i in range(N):
-        dx = pv[i, 0] - sx
-        dy = pv[i, 2] - sy
+        dx, dy = s[i], r[i]
         ri = math.sqrt(dx * dx + dy * dy)
         a = abs(dx * sz - dy * cz) / ri
         if a > 1.0:  # NaN (a particle on the sensor) stays NaN, as with np.minimum
@@ -214,6 +349,11 @@ def systematic_resample_rows(X, w, u):  # pragma: no cover - compiled
     first = _first_copies(w, u)
     out = np.empty((n, d))
     cur = 0
+    if d == 4:  # the pv states: one row of four registers per output
+        for k in range(n):
+            cur = max(cur, first[k])
+            out[k, 0], out[k, 1], out[k, 2], out[k, 3] = X[cur, 0], X[cur, 1], X[cur, 2], X[cur, 3]
+        return out
     for k in range(n):
         cur = max(cur, first[k])
         for j in range(d):
@@ -229,8 +369,9 @@ def warm_up() -> None:
     X[:, 0] = 1.0
     eye = np.eye(4)
     eye.flags.writeable = False  # the models pass their cached, read-only F and L
-    linear_gaussian_sample(X, eye, eye, rng)
-    cv_gaussian_sample(X, eye, eye, rng)
+    for cv in (False, True):
+        gaussian_sample(X, eye, eye, cv, rng)
+        gaussian_sample(X, eye, eye, cv, np.random.Generator(np.random.MT19937(0)))
     s, behind, r = bearing_sines(X, 0.0, 0.0, 0.5, 0.5)
     a = np.arcsin(s)
     bearing_finish(a.copy(), behind, r, -0.5, False, 0.0, math.inf)

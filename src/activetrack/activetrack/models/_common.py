@@ -58,5 +58,5 @@ def relative_geometry(
         raise ValueError(
             f"target_pv {t.shape} and sensor_pv {s.shape} must broadcast together"
         ) from None
-    dx, dvx, dy, dvy = np.moveaxis(d, -1, 0)
+    dx, dvx, dy, dvy = d[..., 0], d[..., 1], d[..., 2], d[..., 3]  # views, as moveaxis gave
     return dx, dvx, dy, dvy, dx * dx + dy * dy

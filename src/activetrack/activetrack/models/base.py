@@ -331,7 +331,7 @@ class GaussianSensor(ABC):
         """h + v, v ~ N(0, R), angle entries wrapped, ``(..., dim_z)``."""
         check_rng(rng)
         h = self.measure(target_pv, sensor_pv)
-        z = h + rng.standard_normal(h.shape) @ np.linalg.cholesky(self.R).T
+        z = h + rng.standard_normal(h.shape) @ self._noise_factor.T
         for i in self.angle_indices:
             z[..., i] = self._wrap(z[..., i])
         return z
@@ -351,6 +351,12 @@ class GaussianSensor(ABC):
         nu = np.asarray(self.residual(z, zhat), dtype=float).reshape(-1)
         H = np.asarray(self.jacobian(target_pv, sensor_pv), dtype=float)
         return Linearization(zhat, H, nu)
+
+    @cached_property
+    def _noise_factor(self) -> FloatArray:
+        """cholesky(R), for :meth:`sample` (sensors are frozen: R never changes; a simulator
+        draws one measurement at a time, and the factorisation cost more than the draw)."""
+        return np.linalg.cholesky(self.R)
 
     @cached_property
     def _likelihood_whitener(self) -> tuple[FloatArray, float]:

@@ -25,7 +25,6 @@ from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_nonnegative
 from activetrack.kernels import particle_kernels
 from activetrack.models._common import (
-    add_gaussian_noise,
     check_dt,
     check_rng,
     check_state,
@@ -62,7 +61,7 @@ def cv_rows(X: FloatArray, W: FloatArray, F: FloatArray, L: FloatArray) -> Float
     """``rows_times(X, F) + rows_times(W, L)`` for F and L with the zeros of
     :func:`has_cv_zeros`, from the non-zero terms only: x F^T has x0 f00 + x1 f01, x1 f11,
     x2 f22 + x3 f23, x3 f33 and w L^T has w0 l00, w0 l10 + w1 l11, w2 l22, w2 l32 + w3 l33.
-    The operations of the compiled ``cv_gaussian_sample`` (a + b = b + a exactly)."""
+    The operations of the compiled ``gaussian_sample`` (a + b = b + a exactly)."""
     mean = X * np.diagonal(F)
     mean[:, 0] += X[:, 1] * F[0, 1]
     mean[:, 2] += X[:, 3] * F[2, 3]
@@ -75,7 +74,7 @@ def cv_rows(X: FloatArray, W: FloatArray, F: FloatArray, L: FloatArray) -> Float
 
 def has_cv_zeros(F: FloatArray, L: FloatArray) -> bool:
     """True when F and L are zero outside the entries of two independent constant-velocity
-    axes (then the compiled ``cv_gaussian_sample`` applies: it sums the non-zero terms only)."""
+    axes (then the compiled ``gaussian_sample`` applies: it sums the non-zero terms only)."""
     for A, keep in ((F, _CV_F_ENTRIES), (L, _CV_L_ENTRIES)):
         mask = np.ones((4, 4), dtype=bool)
         mask[tuple(zip(*keep, strict=True))] = False
@@ -137,12 +136,14 @@ class _LinearPV(ABC):
         so both paths give the same bits.
         """
         check_rng(rng)
-        if not (type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4):
-            return add_gaussian_noise(self.propagate(x, dt), self.process_noise(dt), rng)
         try:
             F, L, cv = _sample_factors(self, check_dt(dt))
         except TypeError:  # an unhashable subclass: no cache
             F, L, cv = _read_only_factors(self, dt)
+        if not (type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4):
+            # propagate() and add_gaussian_noise() with the cached F and L (the same numbers)
+            mean = check_state("x", x, 4) @ F.T
+            return mean + rng.standard_normal(mean.shape) @ L.T
         kernels = particle_kernels()
         if kernels is None:
             X = check_state("x", x, 4)
@@ -150,8 +151,7 @@ class _LinearPV(ABC):
             return cv_rows(X, W, F, L) if cv else rows_times(X, F) + rows_times(W, L)
         X = np.ascontiguousarray(x, dtype=float)
         # The NCV models' F and L: the zero terms left out (the same numbers, has_cv_zeros).
-        sample = kernels.cv_gaussian_sample if cv else kernels.linear_gaussian_sample
-        out, finite = sample(X, F, L, rng)
+        out, finite = kernels.gaussian_sample(X, F, L, cv, rng)
         if not finite:
             check_state("x", X, 4)  # raises, naming the argument as the numpy path does
         return out

@@ -1,0 +1,236 @@
+"""numpy's PCG64 stream and its ziggurat normals inside compiled kernels: the bits of
+``Generator.standard_normal`` for ``numpy.random.default_rng`` generators, without a call into
+numpy per draw.
+
+The particle filter's process noise (4 normals per particle and step) is the largest part of a
+compiled PF step. numba's own ``Generator`` support calls the bit generator through a function
+pointer per draw and costs about 9 us per kernel call to unbox the generator; here:
+
+- **the stream**: PCG64 is a 128-bit LCG, s_{k+1} = a s_k + c (mod 2^128), whose output is the
+  XSL-RR mix of the new state. :func:`refill` steps it in four interleaved chains,
+  s_{k+4} = a^4 s_k + c (a^3 + a^2 + a + 1), so four 128-bit products are in flight at once
+  instead of one long dependency chain, into a small buffer (16 KiB, cache-resident) that the
+  kernel consumes and refills as it goes;
+- **the normals**: numpy's ziggurat on those outputs (:func:`layer` for the ~99 % accepted at
+  once, :func:`rejected` for the rest, with numpy's 256-layer tables as numba ships them); one
+  output per normal except after a rejection;
+- **the generator**: read with :func:`stream_words` and advanced by the outputs used with
+  :func:`advance` (numpy's public ``state`` and ``advance``, under the generator's lock; a
+  buffered 32-bit half survives).
+
+:func:`pcg64_route` says whether a generator takes this route: a plain ``PCG64`` bit generator,
+and the route checked once per process against numpy itself (the caller's kernel is compared
+with numpy's draws; a mismatch warns and leaves numba's generic route in use). The rejection
+branches use ``np.exp`` / ``np.log1p`` as numba's own implementation does; tests/core/
+test_pf_kernels.py compares millions of draws with numpy bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
+from numba.np.random._constants import (
+    fi_double,
+    ki_double,
+    wi_double,
+    ziggurat_nor_inv_r,
+    ziggurat_nor_r,
+)
+
+__all__ = [
+    "BUFFER",
+    "KI",
+    "advance",
+    "layer",
+    "new_stream",
+    "pcg64_route",
+    "refill",
+    "rejected",
+    "stream_words",
+]
+
+_MASK64 = (1 << 64) - 1
+_MOD128 = 1 << 128
+_A = (0x2360ED051FC65DA4 << 64) | 0x4385DF649FCCF645  # PCG64's multiplier (numpy's)
+_A4 = pow(_A, 4, _MOD128)
+_K4 = (_A**3 + _A**2 + _A + 1) % _MOD128  # c K4 is the four-step increment
+# uint64 halves (hi, lo) of a, a^4 and K4 for the compiled code.
+_HALVES = np.array([v >> s & _MASK64 for v in (_A, _A4, _K4) for s in (64, 0)], dtype=np.uint64)
+KI = np.array(ki_double, dtype=np.uint64)
+_WI = np.array(wi_double, dtype=np.float64)
+_FI = np.array(fi_double, dtype=np.float64)
+_TO_UNIT = 1.0 / 9007199254740992.0  # 2^-53: PCG64's next_double from a 64-bit output
+BUFFER = 2048  # raw outputs per refill (a multiple of 4: whole rounds of the four chains)
+
+
+def _mul_add_128_typing(typingctx, hi, lo, ahi, alo, chi, clo):  # pragma: no cover - compiled
+    """(hi, lo) * (ahi, alo) + (chi, clo) mod 2^128, each number as two uint64 halves;
+    returns (hi, lo). LLVM's i128 arithmetic: one 64 x 64 -> 128 product, two 64-bit ones."""
+    u64 = types.uint64
+    sig = types.UniTuple(u64, 2)(u64, u64, u64, u64, u64, u64)
+
+    def codegen(context, builder, signature, args):
+        i128, i64 = ir.IntType(128), ir.IntType(64)
+        shift = ir.Constant(i128, 64)
+
+        def join(h, low):
+            return builder.or_(builder.shl(builder.zext(h, i128), shift), builder.zext(low, i128))
+
+        s = builder.add(builder.mul(join(*args[0:2]), join(*args[2:4])), join(*args[4:6]))
+        halves = [builder.trunc(builder.lshr(s, shift), i64), builder.trunc(s, i64)]
+        return context.make_tuple(builder, signature.return_type, halves)
+
+    return sig, codegen
+
+
+_mul_add_128: Any = intrinsic(_mul_add_128_typing)  # called from compiled code only
+
+
+@njit(inline="always")
+def _xsl_rr(hi, lo):  # pragma: no cover - compiled
+    """PCG's XSL-RR output of a 128-bit state: (hi ^ lo) rotated right by hi >> 58."""
+    x = hi ^ lo
+    rot = hi >> np.uint64(58)
+    return (x >> rot) | (x << ((np.uint64(64) - rot) & np.uint64(63)))
+
+
+@njit(cache=True)
+def new_stream(words):  # pragma: no cover - compiled
+    """The four chains after state ``words`` = (s_hi, s_lo, c_hi, c_lo): a uint64 array
+    (chain states s_1..s_4 as hi, lo pairs, then a^4 and c K4) for :func:`refill`."""
+    a_hi, a_lo = _HALVES[0], _HALVES[1]
+    c_hi, c_lo = words[2], words[3]
+    chains = np.empty(12, dtype=np.uint64)
+    h, low = words[0], words[1]
+    for k in range(4):
+        h, low = _mul_add_128(h, low, a_hi, a_lo, c_hi, c_lo)
+        chains[2 * k], chains[2 * k + 1] = h, low
+    zero = np.uint64(0)
+    chains[8], chains[9] = _HALVES[2], _HALVES[3]
+    chains[10], chains[11] = _mul_add_128(c_hi, c_lo, _HALVES[4], _HALVES[5], zero, zero)
+    return chains
+
+
+@njit(cache=True)
+def refill(chains, buf, start):  # pragma: no cover - compiled
+    """Write the stream's next outputs into buf[start:], whole rounds of the four chains
+    (``len(buf) - start`` rounded down to a multiple of 4); returns the end of the data."""
+    h0, l0, h1, l1 = chains[0], chains[1], chains[2], chains[3]
+    h2, l2, h3, l3 = chains[4], chains[5], chains[6], chains[7]
+    bh, bl, dh, dl = chains[8], chains[9], chains[10], chains[11]
+    end = start + (buf.shape[0] - start) // 4 * 4
+    for i in range(start, end, 4):
+        buf[i] = _xsl_rr(h0, l0)
+        buf[i + 1] = _xsl_rr(h1, l1)
+        buf[i + 2] = _xsl_rr(h2, l2)
+        buf[i + 3] = _xsl_rr(h3, l3)
+        h0, l0 = _mul_add_128(h0, l0, bh, bl, dh, dl)
+        h1, l1 = _mul_add_128(h1, l1, bh, bl, dh, dl)
+        h2, l2 = _mul_add_128(h2, l2, bh, bl, dh, dl)
+        h3, l3 = _mul_add_128(h3, l3, bh, bl, dh, dl)
+    chains[0], chains[1], chains[2], chains[3] = h0, l0, h1, l1
+    chains[4], chains[5], chains[6], chains[7] = h2, l2, h3, l3
+    return end
+
+
+@njit(inline="always")
+def layer(r):  # pragma: no cover - compiled
+    """numpy's ziggurat split of a 64-bit output: (layer, |x| bits, x on the layer); x is the
+    normal when |x| bits < KI[layer] (about 99 % of draws), else see :func:`rejected`."""
+    idx = r & np.uint64(0xFF)
+    r >>= np.uint64(8)
+    rabs = (r >> np.uint64(1)) & np.uint64(0x000FFFFFFFFFFFFF)
+    x = np.float64(np.int64(rabs)) * _WI[idx]  # rabs < 2^52: exact as a signed integer
+    if r & np.uint64(1):
+        x = -x
+    return idx, rabs, x
+
+
+@njit(cache=True)
+def rejected(raw, j, end, idx, rabs, x):  # pragma: no cover - compiled
+    """numpy's ziggurat after a first output outside its layer's rectangle: the tail (layer 0)
+    or the wedge test, then new outputs until one is accepted, reading raw[j:end]. Returns
+    (x, next j), or (nan, -1) when the data runs out first."""
+    while True:
+        if idx == 0:
+            while True:
+                if j + 2 > end:
+                    return math.nan, -1
+                xx = -ziggurat_nor_inv_r * np.log1p(-((raw[j] >> np.uint64(11)) * _TO_UNIT))
+                yy = -np.log1p(-((raw[j + 1] >> np.uint64(11)) * _TO_UNIT))
+                j += 2
+                if yy + yy > xx * xx:
+                    if (rabs >> np.uint64(8)) & np.uint64(1):
+                        return -(ziggurat_nor_r + xx), j
+                    return ziggurat_nor_r + xx, j
+        if j + 2 > end:
+            return math.nan, -1
+        u = (raw[j] >> np.uint64(11)) * _TO_UNIT
+        if (_FI[idx - 1] - _FI[idx]) * u + _FI[idx] < np.exp(-0.5 * x * x):
+            return x, j + 1
+        idx, rabs, x = layer(raw[j + 1])
+        j += 2
+        if rabs < KI[idx]:
+            return x, j
+
+
+def stream_words(rng: np.random.Generator) -> tuple[np.ndarray, dict[str, Any]]:
+    """``(words, state)``: the PCG64 state and increment as uint64 halves (s_hi, s_lo, c_hi,
+    c_lo), and numpy's state dict (for :func:`advance`). Call under ``rng.bit_generator.lock``."""
+    state = dict(rng.bit_generator.state)
+    s, c = state["state"]["state"], state["state"]["inc"]
+    words = np.array([s >> 64, s & _MASK64, c >> 64, c & _MASK64], dtype=np.uint64)
+    return words, state
+
+
+def advance(rng: np.random.Generator, used: int, state: dict[str, Any]) -> None:
+    """Move ``rng`` past ``used`` outputs of the stream read with :func:`stream_words`, as
+    numpy's own draws would (``advance`` drops a buffered 32-bit half: it is put back)."""
+    bg: Any = rng.bit_generator  # a PCG64 (pcg64_route)
+    bg.advance(used)
+    if state["has_uint32"]:
+        after = dict(bg.state)
+        after["has_uint32"], after["uinteger"] = state["has_uint32"], state["uinteger"]
+        bg.state = after
+
+
+_checked: dict[str, bool] = {}
+_check_lock = threading.Lock()
+
+
+def pcg64_route(rng: np.random.Generator, name: str, check: Callable[[], bool]) -> bool:
+    """Whether ``rng`` takes the PCG64 route for the kernel ``name``: a plain PCG64 bit
+    generator, and ``check()`` (the kernel against numpy's own draws, run once per process)
+    passed. A failed check warns once and the caller keeps its generic route."""
+    if type(rng.bit_generator) is not np.random.PCG64:
+        return False
+    ok = _checked.get(name)
+    if ok is None:
+        with _check_lock:
+            ok = _checked[name] = bool(check())
+        if not ok:
+            import warnings
+
+            warnings.warn(
+                f"activetrack.kernels.pcg64: {name} does not reproduce this numpy's draws on "
+                "the PCG64 route; numba's generator route is used instead",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+    return ok
+
+
+def warm_up() -> None:
+    """Compile (or load from the disk cache) the stream's kernels."""
+    chains = new_stream(np.zeros(4, dtype=np.uint64))
+    buf = np.empty(BUFFER, dtype=np.uint64)
+    refill(chains, buf, 0)
+    idx, rabs, x = 0, np.uint64(0), 0.0
+    rejected(buf, 0, buf.shape[0], np.uint64(idx), rabs, x)
