@@ -133,7 +133,7 @@ def test_a_failed_pcg64_check_warns_once_and_keeps_the_generic_route(monkeypatch
     from activetrack.kernels import particle, pcg64
 
     monkeypatch.setattr(pcg64, "_checked", {})
-    monkeypatch.setattr(particle, "_pcg64_check", lambda cv: lambda: False)
+    monkeypatch.setattr(particle, "_CHECKS", {True: lambda: False, False: lambda: False})
     X = particles(100)
     F, L = np.eye(4), np.eye(4)
     with pytest.warns(RuntimeWarning, match="does not reproduce this numpy's draws"):

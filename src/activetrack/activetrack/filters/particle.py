@@ -347,7 +347,7 @@ class ParticleFilter:
         check_measurement_times(measurements, self._t)
         with np.errstate(divide="ignore", invalid="ignore"):
             ell, const, n_missed = self._log_likelihood(measurements)
-        ids = tuple(m.sensor_id for m in measurements)
+        ids = tuple([m.sensor_id for m in measurements])
         n_det = len(measurements) - n_missed
         common = partial(
             UpdateInfo, time=self._t, n_detections=n_det, n_missed=n_missed, sensor_ids=ids
@@ -359,10 +359,10 @@ class ParticleFilter:
 
         # log w_k = log w_k-1 + log p(z | x), normalised by log-sum-exp (no underflow).
         logw = ell if self._logw is None else ell + self._logw  # None: uniform prior weights
-        top = float(np.max(logw))
+        top = float(logw.max())
         if math.isnan(top):  # NaN likelihoods (e.g. a particle on the sensor) count as zero
             logw = np.where(np.isnan(logw), -math.inf, logw)
-            top = float(np.max(logw))
+            top = float(logw.max())
         if not (math.isfinite(top) and math.isfinite(const)):
             message = (
                 f"particle weights collapsed at t={self._t}: no particle has a non-zero "
@@ -383,7 +383,7 @@ class ParticleFilter:
         # would be slower: numba's scalar exp costs ~8x numpy's per element).
         w = np.subtract(logw, top)
         np.exp(w, out=w)
-        total = float(w.sum())
+        total = float(np.add.reduce(w))  # w.sum() without its Python wrapper
         w /= total
         ess = 1.0 / float(w @ w)
         log_norm = top + math.log(total)

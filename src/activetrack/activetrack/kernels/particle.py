@@ -56,24 +56,23 @@ __all__ = [
 
 
 @njit(inline="always")
-def _cv_row(out, i, X, w, f, g):  # pragma: no cover - compiled
+def _cv_row(out, i, X, w0, w1, w2, w3, f, g):  # pragma: no cover - compiled
     """out[i] = X[i] F^T + w L^T from the non-zero terms of two constant-velocity axes only
     (F, L row-major 16-tuples f, g), the operations of ``models.ncv.cv_rows``. True when
     X[i] holds a NaN or an infinity."""
     x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
-    out[i, 0] = (x0 * f[0] + x1 * f[1]) + w[0] * g[0]
-    out[i, 1] = x1 * f[5] + (w[0] * g[4] + w[1] * g[5])
-    out[i, 2] = (x2 * f[10] + x3 * f[11]) + w[2] * g[10]
-    out[i, 3] = x3 * f[15] + (w[2] * g[14] + w[3] * g[15])
+    out[i, 0] = (x0 * f[0] + x1 * f[1]) + w0 * g[0]
+    out[i, 1] = x1 * f[5] + (w0 * g[4] + w1 * g[5])
+    out[i, 2] = (x2 * f[10] + x3 * f[11]) + w2 * g[10]
+    out[i, 3] = x3 * f[15] + (w2 * g[14] + w3 * g[15])
     return x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0  # NaN for a non-finite x
 
 
 @njit(inline="always")
-def _full_row(out, i, X, w, f, g):  # pragma: no cover - compiled
+def _full_row(out, i, X, w0, w1, w2, w3, f, g):  # pragma: no cover - compiled
     """out[i] = X[i] F^T + w L^T, full sums over k = 0..3 in order (``models.ncv.rows_times``).
     True when X[i] holds a NaN or an infinity."""
     x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
-    w0, w1, w2, w3 = w[0], w[1], w[2], w[3]
     for r in range(4):
         out[i, r] = (x0 * f[4 * r] + x1 * f[4 * r + 1] + x2 * f[4 * r + 2] + x3 * f[4 * r + 3]) + (
             w0 * g[4 * r] + w1 * g[4 * r + 1] + w2 * g[4 * r + 2] + w3 * g[4 * r + 3]
@@ -93,18 +92,29 @@ def _entries(A):  # pragma: no cover - compiled
 # ``out = X F^T + W L^T`` with W's normals drawn row by row: from the PCG64 stream of state
 # ``words`` (``pcg64``; returning (outputs used or -1, any non-finite x)), or given ``(N, 4)``
 # (returning any non-finite x); with the constant-velocity zeros or the full sums. Separate
-# small kernels, and the draw loop written out in each: a flag for the arithmetic form, or the
-# draws in an inlined helper, compiled to code two to four times slower.
+# small kernels with the common case written out: a flag for the arithmetic form, or the draws
+# in an inlined helper, compiled to code two to four times slower.
 
 
 @njit(cache=True, error_model="numpy")
 def _cv_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
-    f, g, w = _entries(F), _entries(L), np.empty(4)
+    f, g = _entries(F), _entries(L)
     chains, buf = new_stream(words), np.empty(BUFFER, dtype=np.uint64)
     end = refill(chains, buf, 0)
     base, i, j, bad = 0, 0, 0, False
     while i < X.shape[0]:
-        j0, k = j, 0
+        if j + 4 <= end:  # all four in their layers' rectangles: ~94 % of rows
+            i0, a0, w0 = layer(buf[j])
+            i1, a1, w1 = layer(buf[j + 1])
+            i2, a2, w2 = layer(buf[j + 2])
+            i3, a3, w3 = layer(buf[j + 3])
+            if a0 < KI[i0] and a1 < KI[i1] and a2 < KI[i2] and a3 < KI[i3]:
+                j += 4
+                bad |= _cv_row(out, i, X, w0, w1, w2, w3, f, g)
+                i += 1
+                continue
+        j0, k = j, 0  # one output at a time, rejections included
+        w0 = w1 = w2 = w3 = 0.0
         while k < 4:
             if j >= end:
                 break
@@ -115,7 +125,13 @@ def _cv_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
                 x, j = rejected(buf, j + 1, end, idx, rabs, x)
                 if j < 0:
                     break
-            w[k] = x
+            w0, w1, w2, w3 = (
+                (x, w1, w2, w3)
+                if k == 0
+                else (w0, x, w2, w3)
+                if k == 1
+                else ((w0, w1, x, w3) if k == 2 else (w0, w1, w2, x))
+            )
             k += 1
         if k < 4:  # the buffer ran out inside this row: keep its outputs, refill, redo it
             keep = end - j0
@@ -125,19 +141,30 @@ def _cv_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
             if end == keep:  # a row needing more than a buffer (never seen): give up
                 return -1, bad
             continue
-        bad |= _cv_row(out, i, X, w, f, g)
+        bad |= _cv_row(out, i, X, w0, w1, w2, w3, f, g)
         i += 1
     return base + j, bad
 
 
 @njit(cache=True, error_model="numpy")
 def _full_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
-    f, g, w = _entries(F), _entries(L), np.empty(4)
+    f, g = _entries(F), _entries(L)
     chains, buf = new_stream(words), np.empty(BUFFER, dtype=np.uint64)
     end = refill(chains, buf, 0)
     base, i, j, bad = 0, 0, 0, False
     while i < X.shape[0]:
-        j0, k = j, 0
+        if j + 4 <= end:  # as in _cv_rows_pcg64
+            i0, a0, w0 = layer(buf[j])
+            i1, a1, w1 = layer(buf[j + 1])
+            i2, a2, w2 = layer(buf[j + 2])
+            i3, a3, w3 = layer(buf[j + 3])
+            if a0 < KI[i0] and a1 < KI[i1] and a2 < KI[i2] and a3 < KI[i3]:
+                j += 4
+                bad |= _full_row(out, i, X, w0, w1, w2, w3, f, g)
+                i += 1
+                continue
+        j0, k = j, 0  # one output at a time, rejections included
+        w0 = w1 = w2 = w3 = 0.0
         while k < 4:
             if j >= end:
                 break
@@ -148,17 +175,23 @@ def _full_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
                 x, j = rejected(buf, j + 1, end, idx, rabs, x)
                 if j < 0:
                     break
-            w[k] = x
+            w0, w1, w2, w3 = (
+                (x, w1, w2, w3)
+                if k == 0
+                else (w0, x, w2, w3)
+                if k == 1
+                else ((w0, w1, x, w3) if k == 2 else (w0, w1, w2, x))
+            )
             k += 1
-        if k < 4:  # as in _cv_rows_pcg64
+        if k < 4:  # the buffer ran out inside this row: keep its outputs, refill, redo it
             keep = end - j0
             buf[:keep] = buf[j0:end]
             base += j0
             end, j = refill(chains, buf, keep), 0
-            if end == keep:
+            if end == keep:  # a row needing more than a buffer (never seen): give up
                 return -1, bad
             continue
-        bad |= _full_row(out, i, X, w, f, g)
+        bad |= _full_row(out, i, X, w0, w1, w2, w3, f, g)
         i += 1
     return base + j, bad
 
@@ -167,7 +200,7 @@ def _full_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
 def _cv_rows_from_normals(W, X, F, L, out):  # pragma: no cover - compiled
     f, g, bad = _entries(F), _entries(L), False
     for i in range(X.shape[0]):
-        bad |= _cv_row(out, i, X, W[i], f, g)
+        bad |= _cv_row(out, i, X, W[i, 0], W[i, 1], W[i, 2], W[i, 3], f, g)
     return bad
 
 
@@ -175,7 +208,7 @@ def _cv_rows_from_normals(W, X, F, L, out):  # pragma: no cover - compiled
 def _full_rows_from_normals(W, X, F, L, out):  # pragma: no cover - compiled
     f, g, bad = _entries(F), _entries(L), False
     for i in range(X.shape[0]):
-        bad |= _full_row(out, i, X, W[i], f, g)
+        bad |= _full_row(out, i, X, W[i, 0], W[i, 1], W[i, 2], W[i, 3], f, g)
     return bad
 
 
@@ -228,6 +261,9 @@ def _pcg64_check(cv: bool) -> Callable[[], bool]:
     return check
 
 
+_CHECKS = {cv: _pcg64_check(cv) for cv in (True, False)}
+
+
 def gaussian_sample(X, F, L, cv, rng):
     """``(X F^T + W L^T, finite)`` for 4-D states X ``(N, 4)``, F and L ``(4, 4)``, W the
     ``(N, 4)`` normals of ``rng.standard_normal((N, 4))`` (drawn row by row, the same bits, and
@@ -239,7 +275,7 @@ def gaussian_sample(X, F, L, cv, rng):
     finite is False when X holds a NaN or an infinity (the caller then raises as the
     reference's ``check_state`` does; the draws are spent by then)."""
     name = "cv_rows" if cv else "full_rows"
-    if pcg64_route(rng, name, _pcg64_check(cv)):
+    if pcg64_route(rng, name, _CHECKS[cv]):
         result = _sample_pcg64(X, F, L, cv, rng)
         if result is not None:
             return result

@@ -184,7 +184,7 @@ def rejected(raw, j, end, idx, rabs, x):  # pragma: no cover - compiled
 def stream_words(rng: np.random.Generator) -> tuple[np.ndarray, dict[str, Any]]:
     """``(words, state)``: the PCG64 state and increment as uint64 halves (s_hi, s_lo, c_hi,
     c_lo), and numpy's state dict (for :func:`advance`). Call under ``rng.bit_generator.lock``."""
-    state = dict(rng.bit_generator.state)
+    state: dict[str, Any] = rng.bit_generator.state  # type: ignore[assignment]
     s, c = state["state"]["state"], state["state"]["inc"]
     words = np.array([s >> 64, s & _MASK64, c >> 64, c & _MASK64], dtype=np.uint64)
     return words, state

@@ -14,6 +14,7 @@ Two noise conventions, both with the transition of Ramdaras eq. 4:
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import lru_cache
@@ -136,8 +137,10 @@ class _LinearPV(ABC):
         so both paths give the same bits.
         """
         check_rng(rng)
+        if not (type(dt) is float and 0.0 <= dt < math.inf):  # a filter's dt: no more checks
+            dt = check_dt(dt)
         try:
-            F, L, cv = _sample_factors(self, check_dt(dt))
+            F, L, cv = _sample_factors(self, dt)
         except TypeError:  # an unhashable subclass: no cache
             F, L, cv = _read_only_factors(self, dt)
         if not (type(x) is np.ndarray and x.ndim == 2 and x.shape[1] == 4):

@@ -329,7 +329,7 @@ class BearingSensor(_BearingFamily):
         """-0.5 e^2 / sigma^2 per state with the arcsin-wrapped residual e (``GaussianSensor``
         for the contract)."""
         log_norm = self._likelihood_whitener[1]
-        zb = float(np.asarray(z, dtype=float).reshape(-1)[-1])
+        zb = float(z[-1] if type(z) is np.ndarray and z.ndim == 1 else _scalar_entries(z)[-1])
         coef = -0.5 / self.sigma**2
         kernels = particle_kernels()
         if kernels is not None and (pass1 := _compiled_sines(kernels, target_pv, sensor_pv, zb)):
