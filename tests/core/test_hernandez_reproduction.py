@@ -106,6 +106,9 @@ def test_figures_and_text(res, tmp_path):
     ]
     for f in files:
         assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # Drawn on two worker processes: the same files, byte for byte.
+    two = hernandez.save_figures(res, tmp_path / "figs2", jobs=2)
+    assert [f.read_bytes() for f in two] == [f.read_bytes() for f in files]
     text = hernandez.format_results(res)
     assert "x-coordinate       12.5 (16.3)          9.6 (14.0) " in text
     assert "  grid 21x21       bound (" in text
@@ -149,6 +152,30 @@ def test_jobs_do_not_change_the_results():
     np.testing.assert_allclose(
         (one.cases[0].pf_rmse_x, one.cases[0].pf_rmse_y), (30.974711, 15.750705), rtol=1e-6
     )
+
+
+def test_comparison_plans_its_own_quadrant_when_the_cases_do_not():
+    """Without the 1-sensor single-step case among the cases (two-step only), the plan map
+    also plans the comparison's quadrant: the same plan as planning it alone."""
+    res = hernandez.reproduce(sensors=[1], horizons=[2], runs=0, grid_size=5)
+    assert [c.key for c in res.cases] == [(1, 2)]
+    sdir = hernandez.find_scenarios_dir(None, "hernandez_*.yaml")
+    reference = hernandez.load_scenario(hernandez.scenario_path("hernandez_1sensor_single", sdir))
+    alone = hernandez.plan_case(reference, search="quadrant")
+    assert res.comparison is not None and res.comparison.quadrant.horizon == 1
+    np.testing.assert_array_equal(res.comparison.quadrant.paths, alone.paths)
+    np.testing.assert_array_equal(res.comparison.grid.paths[0], alone.paths[0])
+    assert res.comparison.grid.search == "grid"
+
+
+def test_plan_map_runs_heaviest_first():
+    sdir = hernandez.find_scenarios_dir(None, "hernandez_*.yaml")
+    tasks = [
+        (hernandez.load_scenario(hernandez.scenario_path(hernandez.scenario_name(n, R), sdir)), kw)
+        for n, R, kw in ((1, 1, {}), (3, 1, {}), (2, 2, {}), (1, 1, {"search": "grid"}), (3, 2, {}))
+    ]
+    order = sorted(range(len(tasks)), key=lambda i: hernandez._plan_order(tasks[i]))
+    assert order == [4, 2, 3, 1, 0]  # 3s two-step, 2s two-step, the grid, 3s single, 1s single
 
 
 def test_main_prints_and_writes_the_json_of_reproduce(tmp_path, capsys):
