@@ -169,13 +169,15 @@ def test_a_worker_without_the_plugin_module_says_which(tmp_path, monkeypatch):
         montecarlo_dask.run_chunk(payload)
 
 
-def test_a_worker_with_other_versions_refuses():
+@pytest.mark.parametrize("name", ["numpy", "numba"])
+def test_a_worker_with_other_versions_refuses(name):
     from distributed.protocol.pickle import dumps
 
     context = montecarlo_dask.client_context()
-    versions = {**context.versions, "numpy": "0.0.1"}
+    assert {"python", "activetrack", "numpy", "scipy", "numba", "llvmlite"} <= set(context.versions)
+    versions = {**context.versions, name: "0.0.1"}
     payload = dumps((_square, [3], dataclasses.replace(context, versions=versions)))
-    with pytest.raises(WorkerSetupError, match=r"numpy 0\.0\.1 on the client"):
+    with pytest.raises(WorkerSetupError, match=rf"{name} 0\.0\.1 on the client"):
         montecarlo_dask.run_chunk(payload)
 
 

@@ -150,9 +150,9 @@ def test_the_pcg64_check_passes_here():
 
 
 def test_the_models_pick_the_sampling_kernel_by_the_zeros_of_f_and_l():
-    """NCV's F and L have the zeros of two constant-velocity axes (cv_gaussian_sample, which
-    the test above checks against the full sums); the discrete NCV's eigh factor and the
-    turn model's F do not (linear_gaussian_sample)."""
+    """NCV's F and L have the zeros of two constant-velocity axes (gaussian_sample's cv form,
+    which the test above checks against the full sums); the discrete NCV's eigh factor and
+    the turn model's F do not (its full sums)."""
     from activetrack.models._common import noise_factor
     from activetrack.models.ncv import has_cv_zeros
 

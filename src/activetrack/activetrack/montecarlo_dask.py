@@ -62,8 +62,9 @@ _SOCKET_SCHEMES = ("tcp", "tls", "ws", "wss")
 PROBE_TIMEOUT_S = 3.0  # the first TCP connection to the scheduler (fails fast when refused)
 CONNECT_TIMEOUT_S = 10.0  # the Dask client's connection
 WORKER_WAIT_S = 30.0  # a scheduler without workers: how long to wait for the first one
-# The distributions whose versions fix the numbers: they must match between client and worker.
-PINNED = ("activetrack", "numpy", "scipy")
+# The distributions whose versions fix the numbers: they must match between client and worker
+# (numba and llvmlite compile the planner's kernels, which agree with numpy to round-off only).
+PINNED = ("activetrack", "numpy", "scipy", "numba", "llvmlite")
 
 
 class SchedulerError(ValueError):

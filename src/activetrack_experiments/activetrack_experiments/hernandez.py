@@ -264,8 +264,12 @@ def track_case(
     ``progress``, called with the runs done)."""
     tasks = [_RunTask(scenario, paths, r, particles, seed) for r in range(runs)]
     expect_particle_work(runs * scenario.steps * particles)  # kernels loaded before the fork
-    sq = np.stack(parallel_map(_track_run, tasks, jobs, progress, scheduler))
-    mse = sq.mean(axis=0)
+    return _rmse(parallel_map(_track_run, tasks, jobs, progress, scheduler))
+
+
+def _rmse(squared_errors: Sequence[np.ndarray]) -> np.ndarray:
+    """RMSE per epoch (K, 2) in x and y from the runs' squared errors, each (K, 4)."""
+    mse = np.stack(squared_errors).mean(axis=0)
     return np.sqrt(mse[:, [0, 2]])
 
 
@@ -574,8 +578,7 @@ def _plan_and_track(
     out = parallel_map(_timed_track_run, run_tasks, jobs, tasks.of_map(), scheduler)
     for i, res in enumerate(results):
         part = out[i * runs : (i + 1) * runs]
-        mse = np.stack([sq for sq, _ in part]).mean(axis=0)
-        res.rmse = np.sqrt(mse[:, [0, 2]])
+        res.rmse = _rmse([sq for sq, _ in part])
         res.runs, res.particles = runs, particles
         res.tracking_time_s = sum(t for _, t in part)
     return results, extra

@@ -1,14 +1,16 @@
 """numba kernels of the particle filter step, each equal to a numpy reference in the core.
 
 Each kernel does the arithmetic of its reference in the same order and draws the same random
-numbers from the same ``numpy.random.Generator`` (numba runs numpy's own normal sampler on the
-generator's bit stream), so the compiled and the numpy paths give the same particles up to
-floating-point round-off (tests/core/test_pf_kernels.py):
+numbers from the same ``numpy.random.Generator``, so the compiled and the numpy paths give the
+same particles up to floating-point round-off, in practice the same bits
+(tests/core/test_pf_kernels.py):
 
-- :func:`linear_gaussian_sample`: f(x) + w = x F^T + w L^T, w ~ N(0, I) drawn row by row, the
-  sampling of a linear motion model (reference ``models._common.add_gaussian_noise`` after
-  ``propagate``), without the ``(N, n)`` array of normals; :func:`cv_gaussian_sample` is the
-  same for the zero pattern of the NCV models' F and L, summing the non-zero terms only;
+- :func:`gaussian_sample`: f(x) + w = x F^T + w L^T, w ~ N(0, I) drawn row by row, the
+  sampling of a linear motion model (reference ``rng.standard_normal((N, 4))``, then
+  ``models.ncv.cv_rows`` for the zero pattern of the NCV models' F and L, or
+  ``models.ncv.rows_times``), without the ``(N, 4)`` array of normals. The normals come from
+  numpy's PCG64 stream compiled (``kernels.pcg64``) for ``default_rng`` generators, from
+  numba's generator support for other bit generators;
 - :func:`bearing_sines` with :func:`bearing_finish` / :func:`range_bearing_finish`: the
   arcsin-wrapped bearing log-likelihood (reference ``models.sensors._abs_bearing_error`` and
   ``BearingSensor.log_likelihood`` / ``RangeBearingSensor.log_likelihood``). The arcsin
