@@ -352,6 +352,25 @@ def test_announced_work_loads_the_kernels_before_any_update(monkeypatch):
     assert kernels.particle_kernels() is particle
 
 
+@pytest.mark.parametrize(("steps", "loads"), [(30, False), (600, True)])
+def test_a_tracker_announces_its_runs_particle_work(monkeypatch, steps, loads):
+    """A closed-loop tracker (a tracker node's core) with a particle filter announces its
+    run's work (steps x particles) when it is built: a long run loads the kernels before its
+    first update instead of pausing in mid-run; a short one (``make run``) never loads them."""
+    from activetrack.closed_loop.tracker import TrackerCore
+    from activetrack.scenarios import load_scenario
+
+    monkeypatch.setattr(kernels, "_particle", None)
+    monkeypatch.setattr(kernels, "_work", 0)
+    monkeypatch.delitem(__import__("sys").modules, "numba")
+    kernels.set_kernels("auto")
+    scenario = load_scenario("scenarios/default.yaml")
+    assert scenario.tracker.particles * 30 < kernels.AUTO_WORK <= scenario.tracker.particles * 600
+    scenario = scenario.model_copy(update={"steps": steps})
+    TrackerCore(scenario, np.random.default_rng(0))
+    assert (kernels._particle is not None) == loads
+
+
 def test_mode_names_are_checked(monkeypatch):
     with pytest.raises(ValueError, match="ACTIVETRACK_KERNELS"):
         kernels.set_kernels("fast")

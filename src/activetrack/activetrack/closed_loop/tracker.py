@@ -12,6 +12,7 @@ from activetrack.filters import filter_kind, make_filter
 from activetrack.filters.measurement import Measurement
 from activetrack.filters.registry import ParticlePosterior
 from activetrack.filters.resampling import systematic_resample
+from activetrack.kernels import expect_particle_work
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.schema import Scenario
 
@@ -33,6 +34,8 @@ class TrackerCore:
         # The registered factory reads its own options from the tracker block (the PF its
         # particles, ...) and draws only from this tracker's rng.
         self.particle_based = filter_kind(self.kind).particle_based
+        if self.particle_based:  # a long run loads the PF kernels now, not in mid-run
+            expect_particle_work(scenario.steps * cfg.particles)
         self.filter = make_filter(
             self.kind, self.model, np.array(prior.mean), prior.covariance(), cfg, rng
         )
