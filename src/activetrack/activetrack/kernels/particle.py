@@ -94,8 +94,10 @@ def _entries(A):  # pragma: no cover - compiled
 # ``out = X F^T + W L^T`` with W's normals drawn row by row: from the PCG64 stream of state
 # ``words`` (``pcg64``; returning (outputs used or -1, any non-finite x)), or given ``(N, 4)``
 # (returning any non-finite x); with the constant-velocity zeros or the full sums. Separate
-# small kernels with the common case written out: a flag for the arithmetic form, or the draws
-# in an inlined helper, compiled to code two to four times slower.
+# small kernels with the common case written out, the two PCG64 ones alike but for the row:
+# measured, a flag for the arithmetic form or the draws in an inlined helper compiled to code
+# two to four times slower, the row function as an argument cost 7 us more per call, and a
+# closure factory is recompiled in every process (numba does not cache it: about 5 s).
 
 
 @njit(cache=True, error_model="numpy")
