@@ -89,6 +89,7 @@ PIP_ONLY = {
     "filterpy": "filterpy",
     "distributed": "distributed",  # Dask's cluster client (activetrack.montecarlo_dask)
     "dask": "dask",  # its configuration (activetrack.montecarlo_dask)
+    "llvmlite": "llvmlite",  # numba's LLVM binding (activetrack.kernels.pcg64's intrinsic)
 }
 # Declared but not imported, on purpose: (package, rosdep key or pip name) -> why.
 # Each node is an rclpy node (its class derives from rclpy's Node through activetrack_ros):
