@@ -26,6 +26,7 @@ from activetrack.models.sensors import (
     AmbiguousBearingSensor,
     BearingSensor,
     RangeBearingSensor,
+    RangeRateBearingSensor,
 )
 from activetrack.planning.searches import quadrant_search
 from activetrack.scenarios import load_scenario
@@ -86,14 +87,51 @@ def test_bearing_kernel_equals_the_numpy_closed_form(sensor, shape):
     )
 
 
+@pytest.mark.parametrize(
+    "sensor",
+    [
+        RangeBearingSensor(sigma_r=5.0, sigma_b=0.02),
+        RangeBearingSensor(sigma_r=8.0, sigma_b=0.02, pd=0.8, r_min=150.0, r_max=700.0),
+        ClutteredSensor(RangeBearingSensor(sigma_r=10.0, sigma_b=0.01, pd=0.9), 5.0),
+    ],
+)
+@pytest.mark.parametrize("shape", [(1,), (9,), (5, 9)])
+def test_range_bearing_kernel_equals_the_generic_jacobian_form(sensor, shape):
+    """The range-bearing sensor's compiled eq. 8 (its closed form for H = (range row, bearing
+    row), R diagonal) against its generic numpy form, G^T G with G = R^(-1/2) H, to 1e-12 of
+    the largest entry; both terms matter (neither noise dominates the other here)."""
+    X, S = _samples(1000), _states(shape)
+    assert information_kernel(sensor) is not None
+    auto = measurement_information(sensor, S, X)
+    ref = measurement_information(sensor, S, X, method="numpy")
+    assert auto.shape == ref.shape == (*shape, 4, 4)
+    _close(auto, ref)
+    base = getattr(sensor, "base", sensor)
+    range_only = RangeBearingSensor(base.sigma_r, 1e9, base.pd, base.r_min, base.r_max)
+    bearing_only = RangeBearingSensor(1e9, base.sigma_b, base.pd, base.r_min, base.r_max)
+    parts = [measurement_information(s, S, X, method="numpy") for s in (range_only, bearing_only)]
+    assert min(float(np.abs(p[..., 0, 0]).max()) for p in parts) > 0.05 * float(
+        np.abs(ref[..., 0, 0]).max()
+    )
+
+
+def test_range_bearing_kernel_rejects_a_sample_on_a_sensor():
+    sensor = RangeBearingSensor(sigma_r=5.0, sigma_b=0.02)
+    X, S = _samples(20), _states((3,))
+    S[2, [0, 2]] = X[4, [0, 2]]
+    with pytest.raises(ValueError, match="coincides with a sensor"):
+        measurement_information(sensor, S, X)
+
+
 def test_several_sensors_mix_kernels_and_numpy_forms():
     sensors = (
         BearingSensor(sigma=0.01, r_min=100.0),
-        RangeBearingSensor(sigma_r=5.0, sigma_b=0.02),  # no kernel: its numpy form
+        RangeRateBearingSensor(sigma_r=5.0, sigma_rr=0.5, sigma_b=0.02),  # no kernel: numpy
         AmbiguousBearingSensor(sigma=0.02),
+        RangeBearingSensor(sigma_r=5.0, sigma_b=0.02, r_min=100.0),
     )
     assert information_kernel(sensors[1]) is None
-    X, S = _samples(700, seed=3), _states((6, 3), seed=4)
+    X, S = _samples(700, seed=3), _states((6, 4), seed=4)
     _close(
         measurement_information(sensors, S, X),
         measurement_information(sensors, S, X, method="numpy"),
@@ -327,6 +365,14 @@ def test_a_subclass_overriding_the_numpy_form_is_scored_by_its_override():
 
     sensor = Halved(sigma=0.01)
     assert information_kernel(sensor) is None
+
+    @dataclass(frozen=True)
+    class Doubled(RangeBearingSensor):  # another R: the generic form follows it, so no kernel
+        @property
+        def R(self):
+            return 2.0 * super().R
+
+    assert information_kernel(Doubled(sigma_r=5.0, sigma_b=0.02)) is None
     X, S = _samples(100), _states((4,))
     np.testing.assert_array_equal(
         measurement_information(sensor, S, X),

@@ -1,4 +1,5 @@
-"""Compiled Fisher-information kernels of the built-in sensors (Hernandez eq. 8-9).
+"""Compiled Fisher-information kernels of the built-in sensors (Hernandez eq. 8-9): the
+bearing family's and the range-bearing sensor's.
 
 A sensor offers its kernel through ``information_kernel()`` (contract:
 ``activetrack.models.base.InformationKernel``); ``bounds.pcrlb.measurement_information`` calls
@@ -20,7 +21,7 @@ import numpy as np
 
 from activetrack.arraytypes import FloatArray
 
-__all__ = ["bearing_information", "warm_up"]
+__all__ = ["bearing_information", "range_bearing_information", "warm_up"]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -72,7 +73,74 @@ def bearing_information(
     return out
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _range_bearing_information(
+    X: FloatArray,
+    S: FloatArray,
+    scale_r: float,
+    scale_b: float,
+    r_min: float,
+    r_max: float,
+) -> tuple[FloatArray, bool]:
+    """J_Z ``(N, 4, 4)`` of a range-bearing sensor at the N pv states ``S`` over the samples
+    ``X``: in the (x, y) block, scale_r x the sums of (dx^2, dx dy, dy^2) / r^2 (the range row
+    (dx, dy) / r) plus scale_b x the sums of (dy^2, -dx dy, dx^2) / r^4 (the bearing row
+    (-dy, dx) / r^2), samples outside [r_min, r_max] left out (eq. 8's I_r, on r itself as
+    ``in_range`` tests it); and whether any sample sits on a sensor (zero range)."""
+    n = S.shape[0]
+    sx = np.ascontiguousarray(S[:, 0])
+    sy = np.ascontiguousarray(S[:, 2])
+    rxx, rxy, ryy = np.zeros(n), np.zeros(n), np.zeros(n)
+    bxx, bxy, byy = np.zeros(n), np.zeros(n), np.zeros(n)
+    on_sensor = False
+    for m in range(X.shape[0]):
+        x, y = X[m, 0], X[m, 2]
+        for c in range(n):
+            dx = x - sx[c]
+            dy = y - sy[c]
+            r2 = dx * dx + dy * dy
+            on_sensor |= r2 == 0.0
+            r = np.sqrt(r2)
+            inv = 1.0 / r2 if (r >= r_min) & (r <= r_max) else 0.0
+            xx, xy, yy = dx * dx * inv, dx * dy * inv, dy * dy * inv
+            rxx[c] += xx
+            rxy[c] += xy
+            ryy[c] += yy
+            bxx[c] += yy * inv  # the bearing row's (dy^2, -dx dy, dx^2) / r^4
+            bxy[c] += xy * inv
+            byy[c] += xx * inv
+    out = np.zeros((n, 4, 4))
+    for c in range(n):
+        out[c, 0, 0] = scale_r * rxx[c] + scale_b * bxx[c]
+        out[c, 2, 2] = scale_r * ryy[c] + scale_b * byy[c]
+        out[c, 0, 2] = out[c, 2, 0] = scale_r * rxy[c] - scale_b * bxy[c]
+    return out, on_sensor
+
+
+def range_bearing_information(
+    samples: FloatArray,
+    sensor_pv: FloatArray,
+    sigma_r: float,
+    sigma_b: float,
+    pd: float,
+    r_min: float,
+    r_max: float,
+) -> FloatArray:
+    """Eq. 8 for a range-bearing sensor (noise sigma_r, m, and sigma_b, rad; Ramdaras eq. 8-9)
+    at N pv states ``(N, 4)`` over pv samples ``(M, 4)``: ``(N, 4, 4)``, the closed form of
+    ``GaussianSensor.fisher_information`` for H = ((dx, 0, dy, 0) / r, (-dy, 0, dx, 0) / r^2)
+    and R = diag(sigma_r^2, sigma_b^2)."""
+    M = samples.shape[0]
+    scale_r = float(pd) / (sigma_r**2 * M)
+    scale_b = float(pd) / (sigma_b**2 * M)
+    out, on_sensor = _range_bearing_information(samples, sensor_pv, scale_r, scale_b, r_min, r_max)
+    if on_sensor:
+        raise ValueError("sensor_states: a target sample coincides with a sensor (zero range)")
+    return out
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels of this module (``activetrack.kernels.warm_up``)."""
     X = np.array([[1.0, 0.0, 2.0, 0.0], [3.0, 0.0, 1.0, 0.0]])
     bearing_information(X, np.zeros((1, 4)), 0.01, 1.0, 0.0, np.inf)
+    range_bearing_information(X, np.zeros((1, 4)), 5.0, 0.01, 1.0, 0.0, np.inf)

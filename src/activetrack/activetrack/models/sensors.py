@@ -18,7 +18,8 @@ Where a faster form exists it overrides the generic member, with the same number
   particle log-likelihood from the particle offsets with an arcsin-wrapped bearing residual;
 - ``BearingSensor`` and ``AmbiguousBearingSensor``: the closed form of Hernandez eq. 9 for the
   Fisher information, and its compiled form (``information_kernel``, module
-  ``models._fisher_kernels``) for the batched PCRLB;
+  ``models._fisher_kernels``) for the batched PCRLB; ``RangeBearingSensor``: the compiled
+  closed form of its generic (Jacobian) Fisher information;
 - every built-in sensor: the missed-detection likelihood from the particle ranges.
 
 The bearing and range-bearing likelihoods of a particle array ``(N, 4)`` run the compiled
@@ -427,6 +428,29 @@ class RangeBearingSensor(_PlanarSensor):
         e_r = (zr - r) / self.sigma_r
         ell = -0.5 * (a * a + e_r * e_r)
         return (_gated(ell, r, self) if gate else ell), log_norm
+
+    def information_kernel(self) -> InformationKernel | None:
+        """The compiled closed form of eq. 8 for H = (range row, bearing row) and
+        R = diag(sigma_r^2, sigma_b^2) (``models._fisher_kernels``), equal to the generic
+        :meth:`fisher_information` to round-off. None for a subclass that overrides
+        :meth:`fisher_information` or :meth:`jacobian`: the kernel computes this class's form."""
+        own = RangeBearingSensor
+        if (
+            type(self).fisher_information is not own.fisher_information
+            or type(self).jacobian is not own.jacobian
+            or type(self).R is not own.R
+        ):
+            return None
+        from activetrack.models._fisher_kernels import range_bearing_information
+
+        return partial(
+            range_bearing_information,
+            sigma_r=float(self.sigma_r),
+            sigma_b=float(self.sigma_b),
+            pd=float(self.pd),
+            r_min=float(self.r_min),
+            r_max=float(self.r_max),
+        )
 
 
 @dataclass(frozen=True)
