@@ -168,6 +168,14 @@ def test_comparison_plans_its_own_quadrant_when_the_cases_do_not():
     assert res.comparison.grid.search == "grid"
 
 
+def test_comparison_with_another_search_still_compares_the_quadrant():
+    """With the cases planned by another search (--search sector), the comparison plans its
+    own quadrant instead of labelling the cases' plan as one."""
+    res = hernandez.reproduce(sensors=[1], horizons=[1], runs=0, grid_size=5, search="sector")
+    assert res.cases[0].plan.search == "sector"
+    assert res.comparison is not None and res.comparison.quadrant.search == "quadrant"
+
+
 def test_plan_map_runs_heaviest_first():
     sdir = hernandez.find_scenarios_dir(None, "hernandez_*.yaml")
     tasks = [

@@ -646,7 +646,7 @@ def reproduce(
     compare = comparison and 1 in counts
     # The comparison's grid (and its quadrant, when the cases do not plan the 1-sensor
     # single-step case with the quadrant search) is planned in the cases' plan map.
-    has_quadrant = (1, 1) in files and (search or "quadrant") == "quadrant"
+    has_quadrant = (1, 1) in files and (search or reference.planner.search) == "quadrant"
     extra = []
     if compare:
         extra = _comparison_plans(reference, has_quadrant, grid_size, mc_samples, seed)
