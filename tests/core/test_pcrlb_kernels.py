@@ -115,6 +115,28 @@ def test_range_bearing_kernel_equals_the_generic_jacobian_form(sensor, shape):
     )
 
 
+@pytest.mark.parametrize(
+    "sensor",
+    [
+        RangeRateBearingSensor(sigma_r=5.0, sigma_rr=0.5, sigma_b=0.02),
+        RangeRateBearingSensor(sigma_r=8.0, sigma_rr=0.2, sigma_b=0.01, pd=0.7, r_min=150.0),
+    ],
+)
+@pytest.mark.parametrize("shape", [(1,), (9,), (4, 6)])
+def test_range_rate_bearing_kernel_equals_the_generic_jacobian_form(sensor, shape):
+    """The Doppler sensor's range-rate row depends on the relative velocity and fills all of
+    J_Z, velocity block included: the compiled closed form equals the generic numpy form to
+    1e-12 of the largest entry, and the velocity entries are not zero."""
+    X, S = _samples(1000), _states(shape)
+    assert information_kernel(sensor) is not None
+    auto = measurement_information(sensor, S, X)
+    ref = measurement_information(sensor, S, X, method="numpy")
+    assert auto.shape == ref.shape == (*shape, 4, 4)
+    _close(auto, ref)
+    assert float(np.abs(ref[..., 1, 1]).min()) > 0.0 and float(np.abs(ref[..., 0, 1]).max()) > 0.0
+    np.testing.assert_array_equal(auto, np.swapaxes(auto, -1, -2))
+
+
 def test_range_bearing_kernel_rejects_a_sample_on_a_sensor():
     sensor = RangeBearingSensor(sigma_r=5.0, sigma_b=0.02)
     X, S = _samples(20), _states((3,))
@@ -126,7 +148,7 @@ def test_range_bearing_kernel_rejects_a_sample_on_a_sensor():
 def test_several_sensors_mix_kernels_and_numpy_forms():
     sensors = (
         BearingSensor(sigma=0.01, r_min=100.0),
-        RangeRateBearingSensor(sigma_r=5.0, sigma_rr=0.5, sigma_b=0.02),  # no kernel: numpy
+        ClutteredSensor(BearingSensor(sigma=0.01), 5.0, fov_width=1.0),  # no kernel: numpy
         AmbiguousBearingSensor(sigma=0.02),
         RangeBearingSensor(sigma_r=5.0, sigma_b=0.02, r_min=100.0),
     )

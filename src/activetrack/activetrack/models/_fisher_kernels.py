@@ -1,5 +1,5 @@
 """Compiled Fisher-information kernels of the built-in sensors (Hernandez eq. 8-9): the
-bearing family's and the range-bearing sensor's.
+bearing family's, the range-bearing sensor's and the range-rate-bearing sensor's.
 
 A sensor offers its kernel through ``information_kernel()`` (contract:
 ``activetrack.models.base.InformationKernel``); ``bounds.pcrlb.measurement_information`` calls
@@ -21,7 +21,12 @@ import numpy as np
 
 from activetrack.arraytypes import FloatArray
 
-__all__ = ["bearing_information", "range_bearing_information", "warm_up"]
+__all__ = [
+    "bearing_information",
+    "range_bearing_information",
+    "range_rate_bearing_information",
+    "warm_up",
+]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -139,8 +144,85 @@ def range_bearing_information(
     return out
 
 
+# Entries (i, j), i <= j, of a symmetric 4 x 4 J in the order _range_rate_bearing_information
+# accumulates them.
+_UPPER = ((0, 0), (0, 1), (0, 2), (0, 3), (1, 1), (1, 2), (1, 3), (2, 2), (2, 3), (3, 3))
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _range_rate_bearing_information(
+    X: FloatArray,
+    S: FloatArray,
+    scales: FloatArray,
+    r_min: float,
+    r_max: float,
+) -> tuple[FloatArray, bool]:
+    """J_Z ``(N, 4, 4)`` of a range, range-rate and bearing sensor at the N pv states ``S`` over
+    the samples ``X``: the sums of scales[k] h_k^T h_k over its three Jacobian rows (those of
+    ``RangeRateBearingSensor.jacobian``: the range rate's row (dy c, dx / r, -dx c, dy / r),
+    c = (dvx dy - dvy dx) / r^3, fills every entry), samples outside [r_min, r_max] left out;
+    and whether any sample sits on a sensor (zero range)."""
+    n = S.shape[0]
+    acc = np.zeros((n, 10))
+    on_sensor = False
+    s_r, s_rr, s_b = scales[0], scales[1], scales[2]
+    for m in range(X.shape[0]):
+        x, vx, y, vy = X[m, 0], X[m, 1], X[m, 2], X[m, 3]
+        for c in range(n):
+            dx, dvx = x - S[c, 0], vx - S[c, 1]
+            dy, dvy = y - S[c, 2], vy - S[c, 3]
+            r2 = dx * dx + dy * dy
+            on_sensor |= r2 == 0.0
+            r = np.sqrt(r2)
+            if not ((r >= r_min) & (r <= r_max)) or r2 == 0.0:
+                continue
+            ux, uy = dx / r, dy / r  # the range row; the range rate's velocity part
+            bx, by = -dy / r2, dx / r2  # the bearing row
+            cross = (dvx * dy - dvy * dx) / (r2 * r)
+            gx, gy = dy * cross, -dx * cross  # the range rate's position part
+            acc[c, 0] += s_r * ux * ux + s_rr * gx * gx + s_b * bx * bx  # (x, x)
+            acc[c, 1] += s_rr * gx * ux  # (x, xdot)
+            acc[c, 2] += s_r * ux * uy + s_rr * gx * gy + s_b * bx * by  # (x, y)
+            acc[c, 3] += s_rr * gx * uy  # (x, ydot)
+            acc[c, 4] += s_rr * ux * ux  # (xdot, xdot)
+            acc[c, 5] += s_rr * ux * gy  # (xdot, y)
+            acc[c, 6] += s_rr * ux * uy  # (xdot, ydot)
+            acc[c, 7] += s_r * uy * uy + s_rr * gy * gy + s_b * by * by  # (y, y)
+            acc[c, 8] += s_rr * gy * uy  # (y, ydot)
+            acc[c, 9] += s_rr * uy * uy  # (ydot, ydot)
+    out = np.empty((n, 4, 4))
+    for c in range(n):
+        for k in range(10):
+            i, j = _UPPER[k]
+            out[c, i, j] = out[c, j, i] = acc[c, k]
+    return out, on_sensor
+
+
+def range_rate_bearing_information(
+    samples: FloatArray,
+    sensor_pv: FloatArray,
+    sigma_r: float,
+    sigma_rr: float,
+    sigma_b: float,
+    pd: float,
+    r_min: float,
+    r_max: float,
+) -> FloatArray:
+    """Eq. 8 for a range, range-rate and bearing sensor (Ramdaras eq. 10-11; noise sigma_r, m,
+    sigma_rr, m/s, sigma_b, rad) at N pv states ``(N, 4)`` over pv samples ``(M, 4)``:
+    ``(N, 4, 4)``, the closed form of ``GaussianSensor.fisher_information`` for its Jacobian
+    and R = diag(sigma_r^2, sigma_rr^2, sigma_b^2)."""
+    w = float(pd) / samples.shape[0]
+    scales = np.array([w / sigma_r**2, w / sigma_rr**2, w / sigma_b**2])
+    out, on_sensor = _range_rate_bearing_information(samples, sensor_pv, scales, r_min, r_max)
+    if on_sensor:
+        raise ValueError("sensor_states: a target sample coincides with a sensor (zero range)")
+    return out
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels of this module (``activetrack.kernels.warm_up``)."""
     X = np.array([[1.0, 0.0, 2.0, 0.0], [3.0, 0.0, 1.0, 0.0]])
     bearing_information(X, np.zeros((1, 4)), 0.01, 1.0, 0.0, np.inf)
     range_bearing_information(X, np.zeros((1, 4)), 5.0, 0.01, 1.0, 0.0, np.inf)
+    range_rate_bearing_information(X, np.zeros((1, 4)), 5.0, 0.5, 0.01, 1.0, 0.0, np.inf)

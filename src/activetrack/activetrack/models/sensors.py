@@ -18,8 +18,9 @@ Where a faster form exists it overrides the generic member, with the same number
   particle log-likelihood from the particle offsets with an arcsin-wrapped bearing residual;
 - ``BearingSensor`` and ``AmbiguousBearingSensor``: the closed form of Hernandez eq. 9 for the
   Fisher information, and its compiled form (``information_kernel``, module
-  ``models._fisher_kernels``) for the batched PCRLB; ``RangeBearingSensor``: the compiled
-  closed form of its generic (Jacobian) Fisher information;
+  ``models._fisher_kernels``) for the batched PCRLB; ``RangeBearingSensor`` and
+  ``RangeRateBearingSensor``: the compiled closed forms of their generic (Jacobian) Fisher
+  information;
 - every built-in sensor: the missed-detection likelihood from the particle ranges.
 
 The bearing and range-bearing likelihoods of a particle array ``(N, 4)`` run the compiled
@@ -504,6 +505,30 @@ class RangeRateBearingSensor(_PlanarSensor):
         cross = (dvx * dy - dvy * dx) / (r2 * r)
         rr_row = np.stack([dy * cross, dx / r, -dx * cross, dy / r], axis=-1)
         return np.stack([_range_row(dx, dy, r), rr_row, _bearing_row(dx, dy, r2)], axis=-2)
+
+    def information_kernel(self) -> InformationKernel | None:
+        """The compiled closed form of eq. 8 for :meth:`jacobian`'s three rows and
+        R = diag(sigma_r^2, sigma_rr^2, sigma_b^2) (``models._fisher_kernels``), equal to the
+        generic :meth:`fisher_information` to round-off. None for a subclass that overrides
+        :meth:`fisher_information`, :meth:`jacobian` or :attr:`R`."""
+        own = RangeRateBearingSensor
+        if (
+            type(self).fisher_information is not own.fisher_information
+            or type(self).jacobian is not own.jacobian
+            or type(self).R is not own.R
+        ):
+            return None
+        from activetrack.models._fisher_kernels import range_rate_bearing_information
+
+        return partial(
+            range_rate_bearing_information,
+            sigma_r=float(self.sigma_r),
+            sigma_rr=float(self.sigma_rr),
+            sigma_b=float(self.sigma_b),
+            pd=float(self.pd),
+            r_min=float(self.r_min),
+            r_max=float(self.r_max),
+        )
 
 
 def state_jacobian(
