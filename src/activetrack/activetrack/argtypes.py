@@ -13,7 +13,13 @@ import argparse
 import math
 from collections.abc import Callable
 
-__all__ = ["SCHEDULER_HELP", "float_in_range", "int_in_range", "scheduler_address"]
+__all__ = [
+    "SCHEDULER_HELP",
+    "add_scheduler_option",
+    "float_in_range",
+    "int_in_range",
+    "scheduler_address",
+]
 
 
 def _note(note: str) -> str:
@@ -89,3 +95,11 @@ def scheduler_address(text: str) -> str:
 
 
 scheduler_address.__name__ = "scheduler address"
+
+
+def add_scheduler_option(parser: argparse.ArgumentParser) -> None:
+    """The ``--scheduler ADDRESS`` option of every Monte Carlo command (:func:`scheduler_address`,
+    :data:`SCHEDULER_HELP`)."""
+    parser.add_argument(
+        "--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP
+    )

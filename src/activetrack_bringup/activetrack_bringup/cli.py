@@ -466,7 +466,7 @@ def _add_bag_parser(sub) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from activetrack.argtypes import SCHEDULER_HELP, scheduler_address
+    from activetrack.argtypes import add_scheduler_option
 
     parser = argparse.ArgumentParser(
         prog="activetrack", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
@@ -510,9 +510,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=1,
         help="worker processes (the results do not depend on it)",
     )
-    batch.add_argument(
-        "--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP
-    )
+    add_scheduler_option(batch)
     batch.add_argument("--json", help="write the summary to this JSON file")
     batch.set_defaults(func=_cmd_batch)
 

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
+from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.bounds.pcrlb import (
     covariance_bound,
     gaussian_samples,
@@ -930,7 +930,7 @@ def _build_parser() -> argparse.ArgumentParser:
         default=available_jobs(),
         help="PF worker processes",
     )
-    add("--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP)
+    add_scheduler_option(ap)
     add("--json", default=None, help="write the numbers to this JSON file")
     add("--out", default="runs/reproduce-hernandez", help="figure directory")
     add("--no-figures", action="store_true", help="do not write PNG figures")

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
+from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.limits import MAX_JOBS, MAX_RUNS
 from activetrack.montecarlo import Scheduler, available_jobs, check_jobs
 from activetrack.montecarlo_dask import connected
@@ -210,9 +210,7 @@ def _parse(argv):
         default=available_jobs(),
         help="worker processes (the numbers do not depend on it)",
     )
-    parser.add_argument(
-        "--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP
-    )
+    add_scheduler_option(parser)
     return parser.parse_args(argv)
 
 

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
+from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.bounds.costs import position_determinant
 from activetrack.bounds.mre import mre_update
 from activetrack.checks import require_int
@@ -947,7 +947,7 @@ def _parse(argv):
         default=available_jobs(),
         help="worker processes",
     )
-    ap.add_argument("--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP)
+    add_scheduler_option(ap)
     ap.add_argument("--json", default=None, help="write the numbers to this JSON file")
     ap.add_argument("--out", default="runs/reproduce-ramdaras", help="figure directory")
     ap.add_argument("--no-figures", action="store_true", help="do not write PNG figures")

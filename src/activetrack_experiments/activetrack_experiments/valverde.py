@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from activetrack.angles import wrap_angle
-from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
+from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import nominal_path, taylor_crlb
 from activetrack.bounds.tichavsky import tichavsky_pcrlb
@@ -739,7 +739,7 @@ def _parse(argv):
         default=available_jobs(),
         help="worker processes (the numbers do not depend on it)",
     )
-    p.add_argument("--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP)
+    add_scheduler_option(p)
     p.add_argument("--json", help="write the table rows to this JSON file")
     p.add_argument("--out", default="runs/reproduce-valverde", help="figure directory")
     p.add_argument("--quick", action="store_true", help="50 runs, one lap")

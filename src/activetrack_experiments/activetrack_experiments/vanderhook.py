@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from activetrack.argtypes import SCHEDULER_HELP, int_in_range, scheduler_address
+from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.checks import require_int
 from activetrack.limits import MAX_JOBS, MAX_RUNS, MAX_SEED
 from activetrack.models.sensors import AmbiguousBearingSensor
@@ -640,9 +640,7 @@ def _parse(argv):
         default=available_jobs(),
         help="worker processes (the numbers do not depend on it)",
     )
-    parser.add_argument(
-        "--scheduler", type=scheduler_address, metavar="ADDRESS", help=SCHEDULER_HELP
-    )
+    add_scheduler_option(parser)
     return parser.parse_args(argv)
 
 
