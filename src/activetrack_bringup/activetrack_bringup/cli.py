@@ -189,17 +189,23 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    # A multi-target scenario (a ``targets:`` list) has its own batch (imported only then) and
+    # summary.
+    run = run_batch
     if scenario.multi_target:
-        return _batch_multi(scenario, args)
+        from activetrack.multitarget.loop import run_multi_batch as run
     with Bar("batch", total=args.runs) as bar, _scheduler_errors():  # bar: on a terminal only
-        s = run_batch(
+        s = run(
             scenario,
             runs=args.runs,
             jobs=args.jobs,
             progress=bar if bar.shown else None,
             scheduler=args.scheduler,
         )
-    _print_summary(s)
+    if scenario.multi_target:
+        _print_multi_summary(s, scenario)
+    else:
+        _print_summary(s)
     print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
     if args.json:
         _write_json(args.json, s.to_json())
@@ -220,26 +226,6 @@ def _print_multi_summary(s, scenario) -> None:
         print(
             f"  target {tid:8s} RMSE {rmse:9.2f} m, bound {bound:9.2f} m, held {100 * held:5.1f}%"
         )
-
-
-def _batch_multi(scenario, args: argparse.Namespace) -> int:
-    """``activetrack batch`` on a multi-target scenario (a ``targets:`` list)."""
-    from activetrack.multitarget.loop import run_multi_batch
-    from activetrack_bringup.progress import Bar
-
-    with Bar("batch", total=args.runs) as bar, _scheduler_errors():  # bar: on a terminal only
-        s = run_multi_batch(
-            scenario,
-            runs=args.runs,
-            jobs=args.jobs,
-            progress=bar if bar.shown else None,
-            scheduler=args.scheduler,
-        )
-    _print_multi_summary(s, scenario)
-    print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
-    if args.json:
-        _write_json(args.json, s.to_json())
-    return 0
 
 
 class _CommandError(Exception):
