@@ -192,6 +192,27 @@ def _gated(ell: FloatArray, r: FloatArray, sensor: GaussianSensor) -> FloatArray
     return np.where((r >= sensor.r_min) & (r <= sensor.r_max), ell, -math.inf)
 
 
+def _compiled_information(
+    sensor: GaussianSensor, own: type, members: tuple[str, ...], kernel: str, **noise: float
+) -> InformationKernel | None:
+    """The compiled J_Z ``kernel`` of ``models._fisher_kernels`` with the sensor's ``noise``
+    parameters, pd, r_min and r_max bound in; None when the sensor's class overrides one of
+    ``own``'s ``members`` (the kernel computes ``own``'s form, not the override). numba is
+    imported on first use, not with the sensors."""
+    cls = type(sensor)
+    if any(getattr(cls, m) is not getattr(own, m) for m in members):
+        return None
+    from activetrack.models import _fisher_kernels
+
+    return partial(
+        getattr(_fisher_kernels, kernel),
+        **{k: float(v) for k, v in noise.items()},
+        pd=float(sensor.pd),
+        r_min=float(sensor.r_min),
+        r_max=float(sensor.r_max),
+    )
+
+
 class _PlanarSensor(GaussianSensor):
     """The built-in sensors: detection by the planar range alone, so the missed-detection
     likelihood of a particle array comes from column arithmetic (same numbers as
@@ -279,19 +300,11 @@ class _BearingFamily(_PlanarSensor):
         return scale * np.einsum("...mi,...mj,...m->...ij", g, g, w)
 
     def information_kernel(self) -> InformationKernel | None:
-        """The compiled closed form of eq. 8-9 (``models._fisher_kernels``; numba is imported
-        on first use, not with the sensors). None for a subclass that overrides
-        :meth:`fisher_information`: the kernel computes this class's form, not the override."""
-        if type(self).fisher_information is not _BearingFamily.fisher_information:
-            return None
-        from activetrack.models._fisher_kernels import bearing_information
-
-        return partial(
-            bearing_information,
-            sigma=float(self.sigma),
-            pd=float(self.pd),
-            r_min=float(self.r_min),
-            r_max=float(self.r_max),
+        """The compiled closed form of eq. 8-9 (``models._fisher_kernels``). None for a
+        subclass that overrides :meth:`fisher_information`: the kernel computes this class's
+        form, not the override."""
+        return _compiled_information(
+            self, _BearingFamily, ("fisher_information",), "bearing_information", sigma=self.sigma
         )
 
 
@@ -434,23 +447,14 @@ class RangeBearingSensor(_PlanarSensor):
         """The compiled closed form of eq. 8 for H = (range row, bearing row) and
         R = diag(sigma_r^2, sigma_b^2) (``models._fisher_kernels``), equal to the generic
         :meth:`fisher_information` to round-off. None for a subclass that overrides
-        :meth:`fisher_information` or :meth:`jacobian`: the kernel computes this class's form."""
-        own = RangeBearingSensor
-        if (
-            type(self).fisher_information is not own.fisher_information
-            or type(self).jacobian is not own.jacobian
-            or type(self).R is not own.R
-        ):
-            return None
-        from activetrack.models._fisher_kernels import range_bearing_information
-
-        return partial(
-            range_bearing_information,
-            sigma_r=float(self.sigma_r),
-            sigma_b=float(self.sigma_b),
-            pd=float(self.pd),
-            r_min=float(self.r_min),
-            r_max=float(self.r_max),
+        :meth:`fisher_information`, :meth:`jacobian` or :attr:`R`."""
+        return _compiled_information(
+            self,
+            RangeBearingSensor,
+            ("fisher_information", "jacobian", "R"),
+            "range_bearing_information",
+            sigma_r=self.sigma_r,
+            sigma_b=self.sigma_b,
         )
 
 
@@ -511,23 +515,14 @@ class RangeRateBearingSensor(_PlanarSensor):
         R = diag(sigma_r^2, sigma_rr^2, sigma_b^2) (``models._fisher_kernels``), equal to the
         generic :meth:`fisher_information` to round-off. None for a subclass that overrides
         :meth:`fisher_information`, :meth:`jacobian` or :attr:`R`."""
-        own = RangeRateBearingSensor
-        if (
-            type(self).fisher_information is not own.fisher_information
-            or type(self).jacobian is not own.jacobian
-            or type(self).R is not own.R
-        ):
-            return None
-        from activetrack.models._fisher_kernels import range_rate_bearing_information
-
-        return partial(
-            range_rate_bearing_information,
-            sigma_r=float(self.sigma_r),
-            sigma_rr=float(self.sigma_rr),
-            sigma_b=float(self.sigma_b),
-            pd=float(self.pd),
-            r_min=float(self.r_min),
-            r_max=float(self.r_max),
+        return _compiled_information(
+            self,
+            RangeRateBearingSensor,
+            ("fisher_information", "jacobian", "R"),
+            "range_rate_bearing_information",
+            sigma_r=self.sigma_r,
+            sigma_rr=self.sigma_rr,
+            sigma_b=self.sigma_b,
         )
 
 
