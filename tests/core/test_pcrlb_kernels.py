@@ -58,6 +58,17 @@ def _close(a: np.ndarray, b: np.ndarray) -> None:
     np.testing.assert_allclose(a, b, rtol=0.0, atol=1e-12 * scale)
 
 
+def _kernel_and_numpy(sensor, S: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sensor's J_Z through its compiled kernel (which it must have) and through its numpy
+    form, checked equal to 1e-12 of the largest entry: ``(auto, ref)``."""
+    assert information_kernel(sensor) is not None
+    auto = measurement_information(sensor, S, X)
+    ref = measurement_information(sensor, S, X, method="numpy")
+    assert auto.shape == ref.shape == (*S.shape[:-1], 4, 4)
+    _close(auto, ref)
+    return auto, ref
+
+
 @pytest.mark.parametrize(
     "sensor",
     [
@@ -70,11 +81,7 @@ def _close(a: np.ndarray, b: np.ndarray) -> None:
 @pytest.mark.parametrize("shape", [(1,), (9,), (5, 9), (3, 4, 5)])
 def test_bearing_kernel_equals_the_numpy_closed_form(sensor, shape):
     X, S = _samples(1000), _states(shape)
-    assert information_kernel(sensor) is not None
-    auto = measurement_information(sensor, S, X)
-    ref = measurement_information(sensor, S, X, method="numpy")
-    assert auto.shape == ref.shape == (*shape, 4, 4)
-    _close(auto, ref)
+    _, ref = _kernel_and_numpy(sensor, S, X)
     # The masks of eq. 8's I_r must bite in these cases: some samples in range, some not.
     if sensor.r_min > 0.0:
         flat = S.reshape(-1, 4)
@@ -101,11 +108,7 @@ def test_range_bearing_kernel_equals_the_generic_jacobian_form(sensor, shape):
     row), R diagonal) against its generic numpy form, G^T G with G = R^(-1/2) H, to 1e-12 of
     the largest entry; both terms matter (neither noise dominates the other here)."""
     X, S = _samples(1000), _states(shape)
-    assert information_kernel(sensor) is not None
-    auto = measurement_information(sensor, S, X)
-    ref = measurement_information(sensor, S, X, method="numpy")
-    assert auto.shape == ref.shape == (*shape, 4, 4)
-    _close(auto, ref)
+    _, ref = _kernel_and_numpy(sensor, S, X)
     base = getattr(sensor, "base", sensor)
     range_only = RangeBearingSensor(base.sigma_r, 1e9, base.pd, base.r_min, base.r_max)
     bearing_only = RangeBearingSensor(1e9, base.sigma_b, base.pd, base.r_min, base.r_max)
@@ -128,11 +131,7 @@ def test_range_rate_bearing_kernel_equals_the_generic_jacobian_form(sensor, shap
     J_Z, velocity block included: the compiled closed form equals the generic numpy form to
     1e-12 of the largest entry, and the velocity entries are not zero."""
     X, S = _samples(1000), _states(shape)
-    assert information_kernel(sensor) is not None
-    auto = measurement_information(sensor, S, X)
-    ref = measurement_information(sensor, S, X, method="numpy")
-    assert auto.shape == ref.shape == (*shape, 4, 4)
-    _close(auto, ref)
+    auto, ref = _kernel_and_numpy(sensor, S, X)
     assert float(np.abs(ref[..., 1, 1]).min()) > 0.0 and float(np.abs(ref[..., 0, 1]).max()) > 0.0
     np.testing.assert_array_equal(auto, np.swapaxes(auto, -1, -2))
 
