@@ -82,7 +82,7 @@ build_interfaces() {
     env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -c "$check"
     stamp_write "$name" "$h"
 }
-build_interfaces msgs_defs "$ROOT/src/msgs_defs" 'from msgs_defs.msg import BearingMeasurement'
+build_interfaces msgs_defs "$ROOT/src/msgs_defs" 'from msgs_defs.msg import Scan, TrackArray'
 # tf2_msgs has no ros-jazzy-tf2-msgs wheel on PyPI: TFMessage and TF2Error, wire-identical to
 # ROS 2 Jazzy's (for /tf), built like msgs_defs from interfaces/tf2_msgs.
 build_interfaces tf2_msgs "$ROOT/interfaces/tf2_msgs" 'from tf2_msgs.msg import TFMessage, TF2Error'

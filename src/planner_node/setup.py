@@ -22,7 +22,6 @@ setup(
     entry_points={
         "console_scripts": [
             "planner_node = planner_node.planner_node:main",
-            "multi_planner_node = planner_node.multi_planner_node:main",
         ]
     },
 )

@@ -22,7 +22,6 @@ setup(
     entry_points={
         "console_scripts": [
             "sim_node = sim_node.sim_node:main",
-            "multi_sim_node = sim_node.multi_sim_node:main",
         ]
     },
 )

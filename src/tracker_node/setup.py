@@ -22,7 +22,6 @@ setup(
     entry_points={
         "console_scripts": [
             "tracker_node = tracker_node.tracker_node:main",
-            "multi_tracker_node = tracker_node.multi_tracker_node:main",
         ]
     },
 )

@@ -25,9 +25,9 @@ _EXPORTS = {
     "Scenario": "activetrack.scenarios",
     "ScenarioError": "activetrack.scenarios",
     "run_batch": "activetrack.closed_loop.batch",
-    "run_once": "activetrack.closed_loop.batch",
+    "run_once": "activetrack.closed_loop.loop",
     "BatchSummary": "activetrack.closed_loop.batch",
-    "RunRecord": "activetrack.closed_loop.batch",
+    "RunRecord": "activetrack.closed_loop.record",
     "parallel_map": "activetrack.montecarlo",
     "register_sensor": "activetrack.scenarios.registry",
     "register_filter": "activetrack.filters.registry",
@@ -60,7 +60,9 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from activetrack.closed_loop.batch import BatchSummary, RunRecord, run_batch, run_once
+    from activetrack.closed_loop.batch import BatchSummary, run_batch
+    from activetrack.closed_loop.loop import run_once
+    from activetrack.closed_loop.record import RunRecord
     from activetrack.filters.registry import register_filter
     from activetrack.metrics import GospaResult, gospa, gospa_over_time, ospa, ospa_over_time
     from activetrack.montecarlo import parallel_map

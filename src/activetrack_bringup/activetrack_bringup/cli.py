@@ -35,10 +35,21 @@ EXPERIMENTS = ("hernandez", "multitarget", "ramdaras", "valverde", "vanderhook")
 LAYOUT = "docs/foxglove-layout.json"  # the Foxglove layout of a live run and of a bag
 
 
-def _print_summary(s, wall_time_s: float | None = None) -> None:
-    print(f"scenario {s.scenario}: {s.runs} run(s) x {s.steps} steps")
-    print(f"  RMSE       x {s.rmse_x:9.3f} m   y {s.rmse_y:9.3f} m   (time-averaged)")
-    print(f"  PCRLB      x {s.mean_bound_x:9.3f} m   y {s.mean_bound_y:9.3f} m   (time-averaged)")
+def _print_summary(s) -> None:
+    """A run or batch summary (BatchSummary): each target's time-averaged RMSE against its
+    PCRLB, GOSPA, track breaks and swaps, planning cost."""
+    n = len(s.target_ids)
+    print(f"scenario {s.scenario}: {s.runs} run(s) x {s.steps} steps, {n} target(s)")
+    print("  time-averaged RMSE and PCRLB (README: Errors and bounds)")
+    for i, tid in enumerate(s.target_ids):
+        held = "" if s.association == "known" else f", held {100 * s.held_fraction[i]:5.1f}%"
+        print(
+            f"  {tid:10s} RMSE x {s.time_avg_rmse_x[i]:9.3f} m y {s.time_avg_rmse_y[i]:9.3f} m, "
+            f"PCRLB x {s.time_avg_bound_x[i]:9.3f} m y {s.time_avg_bound_y[i]:9.3f} m{held}"
+        )
+    print(f"  GOSPA      {s.mean_gospa:9.2f} m (time-averaged)")
+    if s.association != "known":
+        print(f"  tracks     {s.breaks:.2f} breaks, {s.swaps:.2f} swaps per run")
     print(
         f"  planning   {s.evaluations_per_decision:.1f} evaluations/decision, "
         f"{1e3 * s.decision_time_s:.2f} ms/decision"
@@ -90,13 +101,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             live.stop()
     mode = "processes" if args.processes or args.nodes is not None else "one process"
     if result.summary is not None:
-        from activetrack.multitarget.loop import MultiBatchSummary  # loaded by the runner
-        from activetrack.scenarios import load_scenario
-
-        if isinstance(result.summary, MultiBatchSummary):
-            _print_multi_summary(result.summary, load_scenario(args.scenario))
-        else:
-            _print_summary(result.summary)
+        _print_summary(result.summary)
         print(f"  decisions  {len(result.summary.records[0].decisions)}")
     if not result.complete:
         print(
@@ -189,43 +194,19 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    # A multi-target scenario (a ``targets:`` list) has its own batch (imported only then) and
-    # summary.
-    run = run_batch
-    if scenario.multi_target:
-        from activetrack.multitarget.loop import run_multi_batch as run
     with Bar("batch", total=args.runs) as bar, _scheduler_errors():  # bar: on a terminal only
-        s = run(
+        s = run_batch(
             scenario,
             runs=args.runs,
             jobs=args.jobs,
             progress=bar if bar.shown else None,
             scheduler=args.scheduler,
         )
-    if scenario.multi_target:
-        _print_multi_summary(s, scenario)
-    else:
-        _print_summary(s)
+    _print_summary(s)
     print(f"  wall time  {s.wall_time_s:.2f} s; {s.clamps} clamped commands")
     if args.json:
         _write_json(args.json, s.to_json())
     return 0
-
-
-def _print_multi_summary(s, scenario) -> None:
-    """A multi-target summary (MultiBatchSummary): GOSPA, breaks and swaps, each target."""
-    print(f"scenario {s.scenario}: {s.runs} run(s) x {s.steps} steps, {len(s.target_ids)} targets")
-    ev = scenario.evaluation
-    print(
-        f"  GOSPA      {s.mean_gospa:9.2f} m (time-averaged; c = {ev.cutoff:g} m, p = {ev.order:g})"
-    )
-    print(f"  tracks     {s.breaks:.2f} breaks, {s.swaps:.2f} swaps per run")
-    for tid, rmse, bound, held in zip(
-        s.target_ids, s.target_rmse, s.target_bound, s.held_fraction, strict=True
-    ):
-        print(
-            f"  target {tid:8s} RMSE {rmse:9.2f} m, bound {bound:9.2f} m, held {100 * held:5.1f}%"
-        )
 
 
 class _CommandError(Exception):
@@ -349,44 +330,26 @@ def _cmd_bag_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_bag_retrack(args: argparse.Namespace) -> int:
-    from activetrack.scenarios import load_scenario
     from activetrack_bringup.retrack import retrack
 
     try:
-        if load_scenario(args.scenario).multi_target:
-            return _bag_retrack_multi(args)
         r = retrack(args.bag, args.scenario, filter_kind=args.filter, run=args.run)
     except (ValueError, OSError) as exc:  # BagError/RetrackError, ScenarioError
         return _error(exc)
     _warn(r.warnings)
-    print(f"replayed {r.epochs} epochs of {args.bag} into a fresh {r.replayed_filter} tracker")
-    print(f"  max |state difference| vs recorded track      {r.max_state_difference:.3g}")
-    print(f"  max |covariance difference| vs recorded track {r.max_covariance_difference:.3g}")
-    print(
-        f"  RMSE vs truth  recorded ({r.recorded_filter}): x {r.recorded_rmse[0]:.3f} "
-        f"y {r.recorded_rmse[1]:.3f} m"
-    )
-    print(
-        f"                 replayed ({r.replayed_filter}): x {r.replayed_rmse[0]:.3f} "
-        f"y {r.replayed_rmse[1]:.3f} m"
-    )
-    if args.json:
-        _write_json(args.json, r.to_json())
-    return 0
-
-
-def _bag_retrack_multi(args: argparse.Namespace) -> int:
-    """``bag retrack`` of a multi-target run: its scans into a fresh multi_tracker_node."""
-    from activetrack_bringup.retrack_multi import retrack_multi
-
-    if args.filter:
-        return _error("--filter: a multi-target run is retracked with its scenario's tracker")
-    r = retrack_multi(args.bag, args.scenario, run=args.run)
-    _warn(r.warnings)
     same = "identical to" if r.identical else "NOT identical to"
-    print(f"replayed {r.epochs} epochs of {args.bag} into a fresh multi-target tracker")
-    print(f"  track arrays {same} the recorded ones (max |mean difference| "
-          f"{r.max_mean_difference:.3g})")  # fmt: skip
+    print(f"replayed {r.epochs} epochs of {args.bag} into a fresh {r.replayed_filter} tracker")
+    print(f"  track arrays {same} the recorded ones")
+    print(f"  max |state difference| vs recorded tracks      {r.max_state_difference:.3g}")
+    print(f"  max |covariance difference| vs recorded tracks {r.max_covariance_difference:.3g}")
+    print("  time-averaged RMSE vs truth (README: Errors and bounds)")
+    for tid, (rx, ry), (px, py) in zip(
+        r.target_ids, r.recorded_time_avg_rmse, r.replayed_time_avg_rmse, strict=True
+    ):
+        print(
+            f"  {tid:10s} recorded ({r.recorded_filter}) x {rx:.3f} y {ry:.3f} m, "
+            f"replayed ({r.replayed_filter}) x {px:.3f} y {py:.3f} m"
+        )
     print(f"  GOSPA vs truth  recorded {r.recorded_gospa:.3f} m, replayed {r.replayed_gospa:.3f} m")
     if args.json:
         _write_json(args.json, r.to_json())

@@ -1,12 +1,20 @@
-"""The run's evaluator: the only reader of ground truth; rebuilds the run record from the
-graph's own outputs (the same trust filter and validation as the nodes) and keeps per-epoch
-arrays sized by the scenario once, never messages, so its memory does not grow with a run.
+"""The run's evaluator: the only reader of ground truth; rebuilds the run's
+:class:`~activetrack.closed_loop.record.RunRecord` from the graph's own outputs (truth arrays,
+scans, track arrays, platform states, commands, beams, selections and plan reports, each
+checked as the nodes check them), so that the runner scores it with the batch loop's code
+(:func:`activetrack.closed_loop.evaluation.evaluate_run`): in lockstep, `activetrack run`
+equals `activetrack batch` bit for bit, for every scenario.
 
-As each epoch closes it publishes the run's figures so far (``RunMetrics``: RMSE and the PCRLB
-along the flown paths, the summary's numbers) and markers of what only it knows or nobody
-draws (target truth and its path, the sensors that measured, each platform's planned next
-leg): what Foxglove shows live and from a bag (docs/live-view.md). Publishing reads nothing
-the result depends on."""
+What the sim knows and does not publish is rebuilt from what it does: which sensors scanned
+(the scans), and which sensor had which alive target in its field of view (the per-target
+bound's ``observed``) from each scan's field of view and the truth, with the simulator's own
+test. The detections' labels stay in the sim, so a run's plot shows the detections unlabelled.
+
+As each epoch closes it publishes the run's figures so far (``RunMetrics``: each target's error
+and PCRLB, GOSPA: the summary's numbers) and markers of what only it knows or nobody draws
+(the targets' truth and paths, the sensors that scanned, each platform's planned next leg):
+what Foxglove shows live and from a bag (docs/live-view.md). Publishing reads nothing the
+result depends on."""
 
 from __future__ import annotations
 
@@ -18,37 +26,57 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
 from visualization_msgs.msg import Marker, MarkerArray
 
-from activetrack.closed_loop.batch import PathBound, RunRecord, component_rngs
-from activetrack.closed_loop.data import PlanReportData
+from activetrack.closed_loop.components import component_rngs, scene_sensors, scene_targets
+from activetrack.closed_loop.evaluation import (
+    EpochAssessor,
+    TargetBound,
+    bound_counts,
+    bound_sensors,
+)
+from activetrack.closed_loop.record import RunRecord
+from activetrack.data import (
+    BeamCommand,
+    Command,
+    Decision,
+    PlanReportData,
+    Scan,
+    TrackSet,
+)
 from activetrack.planning.manoeuvre import step_platform
 from activetrack.scenarios.build import build_motion_model
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import (
     MAX_COORDINATE,
     MAX_SPEED,
-    MAX_STATE_VALUE,
-    TrackChecker,
+    TrackArrayChecker,
+    beam_from_msg,
     check_epoch_stamp,
     finite,
     header,
     marker,
     platform_from_msg,
     report_from_msg,
+    scan_from_msg,
+    selection_from_msg,
+    truth_array_from_msg,
 )
 from activetrack_ros.node_base import GraphNode, Rejected
+from msgs_defs.msg import BeamCommand as BeamCommandMsg
 from msgs_defs.msg import (
-    BearingMeasurement,
-    GroundTruth,
+    GroundTruthArray,
     ManoeuvreCommand,
-    Measurement,
     PlanReport,
     PlatformState,
-    PolarMeasurement,
     RunMetrics,
-    TrackEstimate,
+    SensorSelection,
+    TrackArray,
 )
+from msgs_defs.msg import Scan as ScanMsg
 
 NODE_NAMES = ("sim", "tracker", "planner")
+TRUTH_RGBA = (0.1, 0.75, 0.2, 1.0)
+LEG_RGBA = (1.0, 0.55, 0.0, 1.0)
+MEASURED_RGBA = (1.0, 0.85, 0.1, 0.45)
 
 
 class EpochTable:
@@ -80,24 +108,70 @@ class EpochTable:
         return self.values[: last + 1]
 
 
-TRUTH_RGBA = (0.1, 0.75, 0.2, 1.0)
-LEG_RGBA = (1.0, 0.55, 0.0, 1.0)
-MEASURED_RGBA = (1.0, 0.85, 0.1, 0.45)
+class EvaluatorNode(GraphNode):
+    """Collects a run per epoch (module docstring); ``record()`` gives it. Also the graph's
+    result messages checked as faults, the nodes' counters from /diagnostics, and when the sim
+    said it finished."""
 
-
-class ResultNode(GraphNode):
-    """What every run evaluator shares: the graph's result messages checked as faults, the
-    nodes' counters from /diagnostics, and when the sim said it finished."""
-
-    def __init__(self, node_name: str, scenario, *, report_grace_s: float = 1.0, **kwargs):
-        super().__init__(node_name, **kwargs)
+    def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
+        super().__init__("activetrack_evaluator", **kwargs)
         self.scenario = scenario
         self.report_grace_s = report_grace_s
         self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
         self.diagnostics_order: dict[str, tuple] = {}
         self.sim_finished_at: float | None = None
         self.faults: list[str] = []  # the graph's own result messages that failed validation
+        self.size_history(scenario)  # its metrics are per-epoch: a late viewer gets them all
+        K = scenario.steps
+        targets = scene_targets(scenario)
+        self.target_ids = tuple(t.id for t in targets)
+        self.target_index = {tid: i for i, tid in enumerate(self.target_ids)}
+        self.platform_index = {p.id: i for i, p in enumerate(scenario.platforms)}
+        self.sensors = scene_sensors(scenario)
+        self.sensor_index = {sid: i for i, sid in enumerate(self.sensors)}
+        self.steerable = tuple(sid for sid, (_, s) in self.sensors.items() if s.steerable)
+        self.controllable = tuple(p.id for p in scenario.platforms if p.controllable)
+        self.selects = scenario.planner.enabled and scenario.planner.selection.enabled
+        self.check_tracks = TrackArrayChecker(scenario)
+        self.truth = EpochTable(K + 1, (len(self.target_ids), 4))
+        self.platforms = EpochTable(K + 1, (4,), slots=len(scenario.platforms))
+        self.tracks: dict[int, TrackSet] = {}
+        self.scans: dict[int, dict[str, Scan]] = {}
+        self.announced = np.zeros(K + 1, dtype=int)  # scans the sim announced per epoch
+        self.commands: dict[int, dict[str, Command]] = {}
+        self.beams: dict[int, dict[str, BeamCommand]] = {}
+        self.selections: dict[int, tuple[str, ...]] = {}
+        self.reports: dict[int, PlanReportData] = {}
+        # The live view's inputs (docs/live-view.md): per-epoch metrics and markers; the
+        # summary's bound generator for one run, drawn as the evaluation draws.
+        self.assess = EpochAssessor(scenario)
+        rng = component_rngs(scenario.seed, None)[3]
+        sensors, self.bound_columns = bound_sensors(scenario)
+        self.bound_sensors = sensors
+        self.bounds = [TargetBound(t, sensors, scenario.dt, rng) for t in targets]
+        self.metrics_epoch = 1  # the next epoch to publish figures of
+        self.sums = np.zeros((4, len(targets)))  # error x, y (where held), bound x, y
+        self.held_epochs = np.zeros(len(targets))
+        self.bound_epochs = np.zeros(len(targets))
+        self.gospa_sum = 0.0
+        self.last_metrics: RunMetrics | None = None
+        self.command_epoch: dict[str, int] = {}  # the latest command's epoch per platform
+        self.undrawn: dict[tuple, ManoeuvreCommand] = {}  # (platform, epoch): awaits its state
+        self.marker_size = _marker_size(scenario)
+        self.metrics_pub = self.publisher(RunMetrics, topics.METRICS)
+        self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.subscribe(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics)
+        for msg_type, topic, callback in (
+            (GroundTruthArray, topics.GROUND_TRUTH, self.on_truth),
+            (TrackArray, topics.TRACKS, self.on_tracks),
+            (PlatformState, topics.PLATFORM_STATES, self.on_platform),
+            (ScanMsg, topics.SCANS, self.on_scan),
+            (ManoeuvreCommand, topics.MANOEUVRE_COMMANDS, self.on_command),
+            (BeamCommandMsg, topics.BEAM_COMMANDS, self.on_beam),
+            (SensorSelection, topics.SENSOR_SELECTION, self.on_selection),
+            (PlanReport, topics.PLAN_REPORT, self.on_report),
+        ):
+            self.subscribe(msg_type, topic, lambda m, cb=callback: self._result_input(cb, m))
 
     def _result_input(self, check, msg) -> None:
         """Run ``check(msg)``; a message of the graph's own that fails it (other than as a
@@ -108,6 +182,8 @@ class ResultNode(GraphNode):
             if self.graph_key is not None and r.reason != "duplicate":
                 self.faults.append(f"{type(msg).__name__} epoch {msg.epoch}: {r}")
             raise
+
+    # --- inputs ---------------------------------------------------------------------------
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         """Counters of the graph's nodes (only the graph's own statuses arrive with a key)."""
@@ -127,89 +203,77 @@ class ResultNode(GraphNode):
             if node == "sim" and status.message == "finished" and self.sim_finished_at is None:
                 self.sim_finished_at = time.monotonic()
 
-    # Plan reports may be missing for good (a planner that died); once the sim has finished
-    # and the reports stopped coming for report_grace_s, the run is complete without them.
-    # Between processes the runner gives more: a DDS participant that missed the planner's
-    # first announcements only learns of it at the next periodic one (about 3 s later).
-
-    def _reports_given_up(self) -> bool:
-        t = self.sim_finished_at
-        return t is not None and time.monotonic() - t > self.report_grace_s
-
-
-class EvaluatorNode(ResultNode):
-    """Collects truth, tracks, platform states and plan reports per epoch."""
-
-    def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
-        super().__init__("activetrack_evaluator", scenario, report_grace_s=report_grace_s, **kwargs)
-        self.size_history(scenario)  # its metrics are per-epoch: a late viewer gets them all
-        K = scenario.steps
-        self.platform_index = {p.id: i for i, p in enumerate(scenario.platforms)}
-        self.sensor_index = {
-            s.id: i for i, s in enumerate(s for p in scenario.platforms for s in p.sensors)
-        }
-        self.check_track = TrackChecker(scenario)
-        n = self.check_track.n
-        self.truth = EpochTable(K + 1, (4,))
-        self.means = EpochTable(K + 1, (n,))
-        self.covs = EpochTable(K + 1, (n, n))
-        self.platforms = EpochTable(K + 1, (4,), slots=len(scenario.platforms))  # pv
-        self.looked = np.zeros((K + 1, len(self.sensor_index)), dtype=bool)
-        self.reports: dict[int, PlanReportData] = {}
-        # The live view's inputs (docs/live-view.md): per-epoch metrics and markers.
-        self.kinematics = build_motion_model(scenario.tracker.motion or scenario.target.motion)
-        # The summary's bound generator for one run (batch.summarize), drawn as it draws.
-        self.bound = PathBound(scenario, component_rngs(scenario.seed, None)[3])
-        self.announced = np.zeros(K + 1, dtype=int)  # measurements the sim announced per epoch
-        self.metrics_epoch = 1  # the next epoch to publish figures of
-        self.sums = np.zeros(4)  # rmse_x, rmse_y, bound_x, bound_y over epochs so far
-        self.last_metrics: RunMetrics | None = None
-        self.command_epoch: dict[str, int] = {}  # the latest command's epoch per platform
-        self.undrawn: dict[tuple, ManoeuvreCommand] = {}  # (platform, epoch): awaits its state
-        self.marker_size = _marker_size(scenario)
-        self.metrics_pub = self.publisher(RunMetrics, topics.METRICS)
-        self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
-        self.subscribe(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS, self.on_command)
-        for msg_type, topic, callback in (
-            (GroundTruth, topics.GROUND_TRUTH, self.on_truth),
-            (TrackEstimate, topics.TRACK, self.on_track),
-            (PlatformState, topics.PLATFORM_STATES, self.on_platform),
-            (PlanReport, topics.PLAN_REPORT, self.on_report),
-        ):
-            self.subscribe(msg_type, topic, lambda m, cb=callback: self._result_input(cb, m))
-        self.subscribe(BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_measurement)
-        self.subscribe(PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_measurement)
-        self.subscribe(Measurement, topics.MEASUREMENTS, self.on_measurement)
-
-    @property
-    def tracks(self) -> EpochTable:
-        """Epochs with a track (``k in evaluator.tracks``, ``len(evaluator.tracks)``)."""
-        return self.means
-
-    # --- inputs ---------------------------------------------------------------------------
-
-    def on_truth(self, msg: GroundTruth) -> None:
-        check_epoch_stamp(msg, self.scenario, "truth")
-        pv = [msg.position.x, msg.velocity.x, msg.position.y, msg.velocity.y]
-        self.truth.put(msg.epoch, finite(pv, "truth", MAX_STATE_VALUE), f"truth of {msg.epoch}")
+    def on_truth(self, msg: GroundTruthArray) -> None:
+        truth = truth_array_from_msg(msg, self.scenario)
+        pv = np.full((len(self.target_ids), 4), math.nan)
+        for tid, row in zip(truth.ids, truth.pv, strict=True):
+            pv[self.target_index[tid]] = row
+        self.truth.put(truth.epoch, pv, f"truth array of {truth.epoch}")
         self._close_epochs()
 
-    def on_track(self, msg: TrackEstimate) -> None:
-        t = self.check_track(msg)
-        if t.epoch in self.means:
-            raise Rejected("duplicate", f"second track of epoch {t.epoch}")
-        self.means.put(t.epoch, t.mean, "track")
-        self.covs.put(t.epoch, t.cov, "track")
+    def on_tracks(self, msg: TrackArray) -> None:
+        tracks = self.check_tracks(msg)
+        if tracks.epoch in self.tracks:
+            raise Rejected("duplicate", f"second track array of epoch {tracks.epoch}")
+        self.tracks[tracks.epoch] = tracks
         self._close_epochs()
 
     def on_platform(self, msg: PlatformState) -> None:
         s = platform_from_msg(msg, self.scenario, self.platform_index)
         what = f"state of {s.platform_id!r} at {s.epoch}"
         self.platforms.put(s.epoch, s.pv, what, slot=self.platform_index[s.platform_id])
-        self.announced[s.epoch] = max(self.announced[s.epoch], msg.epoch_measurement_count)
+        self.announced[s.epoch] = max(self.announced[s.epoch], msg.epoch_scan_count)
         self._close_epochs()
         if (s.platform_id, s.epoch) in self.undrawn:
             self._draw_leg(self.undrawn.pop((s.platform_id, s.epoch)))
+
+    def on_scan(self, msg: ScanMsg) -> None:
+        scan = scan_from_msg(msg, self.scenario, self.sensors)
+        scans = self.scans.setdefault(scan.epoch, {})
+        if scan.sensor_id in scans:
+            raise Rejected("duplicate", f"second scan of {scan.sensor_id!r} at {scan.epoch}")
+        scans[scan.sensor_id] = scan
+        self._close_epochs()
+
+    def on_command(self, msg: ManoeuvreCommand) -> None:
+        what = f"command for {msg.platform_id!r}"
+        if msg.platform_id not in self.controllable or msg.epoch >= self.scenario.steps:
+            raise Rejected("bad_field", f"{what} at {msg.epoch}")
+        check_epoch_stamp(msg, self.scenario, what)
+        finite((msg.heading_change,), f"{what} heading_change", math.pi + 1e-9)
+        finite((msg.speed_change,), f"{what} speed_change", MAX_SPEED)
+        finite((msg.commanded_heading,), f"{what} heading", 4 * math.pi)
+        finite((msg.commanded_speed,), f"{what} speed", MAX_SPEED)
+        finite((msg.waypoint.x, msg.waypoint.y), f"{what} waypoint", MAX_COORDINATE)
+        commands = self.commands.setdefault(msg.epoch, {})
+        if msg.platform_id in commands:
+            raise Rejected("duplicate", f"second {what} at {msg.epoch}")
+        commands[msg.platform_id] = Command(
+            msg.platform_id,
+            msg.epoch,
+            msg.heading_change,
+            msg.speed_change,
+            msg.commanded_heading,
+            msg.commanded_speed,
+            msg.take_measurement if msg.gate_measurement else None,
+            (msg.waypoint.x, msg.waypoint.y) if msg.has_waypoint else None,
+        )
+        if self.command_epoch.get(msg.platform_id, -1) < msg.epoch:
+            self.command_epoch[msg.platform_id] = msg.epoch
+            self._draw_leg(msg)
+
+    def on_beam(self, msg: BeamCommandMsg) -> None:
+        beam = beam_from_msg(msg, self.scenario)
+        beams = self.beams.setdefault(beam.epoch, {})
+        if beam.sensor_id in beams:
+            raise Rejected("duplicate", f"second beam of {beam.sensor_id!r} at {beam.epoch}")
+        beams[beam.sensor_id] = beam
+
+    def on_selection(self, msg: SensorSelection) -> None:
+        ids = selection_from_msg(msg, self.scenario, self.sensors)
+        if msg.epoch >= self.scenario.steps or msg.epoch in self.selections:
+            raise Rejected("duplicate", f"second selection of epoch {msg.epoch}")
+        self.selections[msg.epoch] = ids
 
     def on_report(self, msg: PlanReport) -> None:
         report = report_from_msg(msg, self.scenario)
@@ -217,37 +281,19 @@ class EvaluatorNode(ResultNode):
             raise Rejected("duplicate", f"second plan report of epoch {report.epoch}")
         self.reports[report.epoch] = report
 
-    def on_measurement(self, msg) -> None:
-        i = self.sensor_index.get(msg.sensor_id)
-        if i is None or not 1 <= msg.epoch <= self.scenario.steps:
-            raise Rejected("bad_field", f"measurement of {msg.sensor_id!r} at {msg.epoch}")
-        self.looked[msg.epoch, i] = True
-        self._close_epochs()
-
-    def on_command(self, msg: ManoeuvreCommand) -> None:
-        """A platform's planned next leg, drawn from its state at the command's epoch (now, or
-        when that state arrives)."""
-        what = f"command for {msg.platform_id!r}"
-        if msg.platform_id not in self.platform_index or not 0 <= msg.epoch <= self.scenario.steps:
-            raise Rejected("bad_field", f"{what} at {msg.epoch}")
-        finite((msg.commanded_heading,), f"{what} heading", 4 * math.pi)
-        finite((msg.commanded_speed,), f"{what} speed", MAX_SPEED)
-        finite((msg.waypoint.x, msg.waypoint.y), f"{what} waypoint", MAX_COORDINATE)
-        if self.command_epoch.get(msg.platform_id, -1) >= msg.epoch:
-            return self.ignore("stale_command")  # a replay or a late delivery: not news
-        self.command_epoch[msg.platform_id] = msg.epoch
-        self._draw_leg(msg)
-
     # --- what the live view shows (docs/live-view.md) --------------------------------------
 
+    def _scans_in(self, k: int) -> bool:
+        return len(self.scans.get(k, {})) >= self.announced[k]
+
     def _epoch_closed(self, k: int) -> bool:
-        """Truth, track and every platform state of epoch k are in, and every measurement the
-        sim announced for it (or the tracker has moved on past it)."""
-        if k not in self.truth or k - 1 not in self.truth:  # k - 1: the path's last leg
+        """Truth (of k and k - 1: the path's last leg), tracks, every platform state and every
+        scan the sim announced of epoch k are in (or the tracker has moved on past it)."""
+        if k not in self.truth or k - 1 not in self.truth:
             return False
-        if k not in self.means or k not in self.platforms:
+        if k not in self.tracks or k not in self.platforms:
             return False
-        return int(self.looked[k].sum()) >= self.announced[k] or k + 1 in self.means
+        return self._scans_in(k) or k + 1 in self.tracks
 
     def _close_epochs(self) -> None:
         """Publish the figures and markers of each newly closed epoch, in order (the bound's
@@ -260,52 +306,94 @@ class EvaluatorNode(ResultNode):
             self.metrics_pub.publish(self.last_metrics)
             self.marker_pub.publish(self._epoch_markers(k, hdr))
 
+    def _looked(self, k: int) -> np.ndarray:
+        looked = np.zeros(len(self.sensors), dtype=bool)
+        for sid in self.scans.get(k, {}):
+            looked[self.sensor_index[sid]] = True
+        return looked
+
     def _metrics(self, k: int, hdr) -> RunMetrics:
         truth = self.truth.values[k]
-        est = self.kinematics.kinematics(self.means.values[k])
-        rmse = np.sqrt((est - truth) ** 2)[[0, 2]]  # summarize's RMSE of one run
-        try:
-            B = self.bound.step(self.platforms.values[k], self.looked[k])
-            bound = (math.sqrt(B[0, 0]), math.sqrt(B[2, 2]))  # std bound in x and y
-        except (ValueError, np.linalg.LinAlgError) as exc:  # e.g. an information not finite
-            self.counters.count("bound_unavailable")
-            self.log_limited("warning", "bound", f"no PCRLB at epoch {k}: {exc}")
-            bound = (math.nan, math.nan)
-        self.sums += (*rmse, *bound)
-        means = self.sums / k
+        tracks = self.tracks[k]
+        a = self.assess(truth, tracks, k)
+        means = {t.track_id: np.asarray(t.mean) for t in tracks.confirmed}
+        est = np.full_like(truth, math.nan)
+        for n, track_id in enumerate(a.held):
+            if track_id in means:
+                est[n] = means[int(track_id)]
+        error = np.abs(est - truth)[:, [0, 2]]  # the summary's RMSE of one run
+        looked = self._looked(k)
+        counts = bound_counts(self.bound_sensors, looked, self._observed_at(k))
+        paths = self.platforms.values[k][self.bound_columns]
+        bound = np.full((len(self.target_ids), 2), math.nan)
+        for n, b in enumerate(self.bounds):
+            try:
+                B = b.step(paths, counts[:, n])
+                bound[n] = math.sqrt(B[0, 0]), math.sqrt(B[2, 2])
+            except (ValueError, np.linalg.LinAlgError) as exc:  # e.g. an information not finite
+                self.counters.count("bound_unavailable")
+                self.log_limited("warning", "bound", f"no PCRLB at epoch {k}: {exc}")
+        held = ~np.isnan(error[:, 0])
+        self.held_epochs += held
+        self.sums[:2] += np.where(held[None], error.T, 0.0)
+        has_bound = ~np.isnan(bound[:, 0])
+        self.bound_epochs += has_bound
+        self.sums[2:] += np.where(has_bound[None], bound.T, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            avg_error = self.sums[:2] / self.held_epochs
+            avg_bound = self.sums[2:] / self.bound_epochs
+        self.gospa_sum += a.gospa
         return RunMetrics(
             header=hdr,
             epoch=k,
             steps=self.scenario.steps,
-            truth_position=Point(x=float(truth[0]), y=float(truth[2])),
-            estimate_position=Point(x=float(est[0]), y=float(est[2])),
-            rmse_x=float(rmse[0]),
-            rmse_y=float(rmse[1]),
-            position_error=math.hypot(*rmse),
-            bound_x=bound[0],
-            bound_y=bound[1],
-            position_bound=math.hypot(*bound),
-            mean_rmse_x=float(means[0]),
-            mean_rmse_y=float(means[1]),
-            mean_bound_x=float(means[2]),
-            mean_bound_y=float(means[3]),
-            measured_sensor_ids=[s for s, i in self.sensor_index.items() if self.looked[k, i]],
+            target_ids=list(self.target_ids),
+            truth_positions=[Point(x=float(x), y=float(y)) for x, y in truth[:, [0, 2]]],
+            estimate_positions=[Point(x=float(x), y=float(y)) for x, y in est[:, [0, 2]]],
+            error_x=error[:, 0].tolist(),
+            error_y=error[:, 1].tolist(),
+            position_error=np.hypot(error[:, 0], error[:, 1]).tolist(),
+            bound_x=bound[:, 0].tolist(),
+            bound_y=bound[:, 1].tolist(),
+            position_bound=np.hypot(bound[:, 0], bound[:, 1]).tolist(),
+            time_avg_rmse_x=avg_error[0].tolist(),
+            time_avg_rmse_y=avg_error[1].tolist(),
+            time_avg_bound_x=avg_bound[0].tolist(),
+            time_avg_bound_y=avg_bound[1].tolist(),
+            gospa=float(a.gospa),
+            localisation=float(a.localisation),
+            missed_targets=int(a.missed),
+            false_tracks=int(a.false),
+            mean_gospa=self.gospa_sum / k,
+            measured_sensor_ids=[s for s, i in self.sensor_index.items() if looked[i]],
         )
 
     def _epoch_markers(self, k: int, hdr) -> MarkerArray:
-        """The target's true position and path, and a disc under each platform whose sensors
-        measured at epoch k (the sensor selection's effect; removed when none did)."""
+        """Each alive target's true position and path (removed when it is gone), and a disc
+        under each platform whose sensors scanned at epoch k (the sensor selection's effect;
+        removed when none did)."""
         size = self.marker_size
-        now, before = self.truth.values[k][[0, 2]], self.truth.values[k - 1][[0, 2]]
-        truth = marker(hdr, "truth", 0, Marker.SPHERE, TRUTH_RGBA)
-        truth.pose.position = Point(x=float(now[0]), y=float(now[1]))
-        truth.scale.x = truth.scale.y = truth.scale.z = 2.0 * size
-        path = marker(hdr, "truth_path", k, Marker.LINE_STRIP, TRUTH_RGBA, (before, now))
-        path.scale.x = 0.5 * size  # line width
-        markers = [truth, path]
+        markers = []
+        for n in range(len(self.target_ids)):
+            now, before = self.truth.values[k, n][[0, 2]], self.truth.values[k - 1, n][[0, 2]]
+            truth = marker(hdr, "truth", n, Marker.SPHERE, TRUTH_RGBA)
+            if np.isnan(now[0]):
+                truth.action = Marker.DELETE
+            else:
+                truth.pose.position = Point(x=float(now[0]), y=float(now[1]))
+                truth.scale.x = truth.scale.y = truth.scale.z = 2.0 * size
+            markers.append(truth)
+            if not (np.isnan(now[0]) or np.isnan(before[0])):
+                path = marker(
+                    hdr, f"truth_path/{self.target_ids[n]}", k, Marker.LINE_STRIP, TRUTH_RGBA,
+                    (before, now),
+                )  # fmt: skip
+                path.scale.x = 0.5 * size  # line width
+                markers.append(path)
+        looked = self._looked(k)
         for j, p in enumerate(self.scenario.platforms):
             disc = marker(hdr, "measured", j, Marker.CYLINDER, MEASURED_RGBA)
-            if not any(self.looked[k, self.sensor_index[s.id]] for s in p.sensors):
+            if not any(looked[self.sensor_index[s.id]] for s in p.sensors):
                 disc.action = Marker.DELETE
             pv = self.platforms.values[k, j]
             disc.pose.position = Point(x=float(pv[0]), y=float(pv[2]))
@@ -339,62 +427,138 @@ class EvaluatorNode(ResultNode):
 
     # --- completion ---------------------------------------------------------------------------
 
+    # Plan reports (and commands, beams, selections) may be missing for good (a planner that
+    # died); once the sim has finished and they stopped coming for report_grace_s, the run is
+    # complete without them. Between processes the runner gives more: a DDS participant that
+    # missed the planner's first announcements only learns of it at the next periodic one.
+
+    def _reports_given_up(self) -> bool:
+        t = self.sim_finished_at
+        return t is not None and time.monotonic() - t > self.report_grace_s
+
     @property
     def expects_reports(self) -> bool:
-        """The planner reports a decision per epoch when it commands any platform."""
-        return self.scenario.planner.enabled and any(
-            p.controllable for p in self.scenario.platforms
+        """The planner reports a decision per epoch when it commands a platform or a beam, or
+        selects sensors."""
+        return self.scenario.planner.enabled and bool(
+            self.controllable or self.steerable or self.selects
+        )
+
+    def _decided(self, k: int) -> bool:
+        commands = self.commands.get(k, {})
+        beams = self.beams.get(k, {})
+        return (
+            all(p in commands for p in self.controllable)
+            and all(s in beams for s in self.steerable)
+            and (not self.selects or k in self.selections)
         )
 
     @property
     def complete(self) -> bool:
         K = self.scenario.steps
-        if len(self.means) <= K or len(self.truth) <= K:  # cheap test first: called often
+        if len(self.tracks) <= K or len(self.truth) <= K:  # cheap test first: called often
             return False
         return not self.missing()
 
     def missing(self) -> str:
         """What the evaluator still lacks (for a timeout message)."""
         K = self.scenario.steps
+        given_up = self._reports_given_up()
         lacks = {
             "truth": [k for k in range(K + 1) if k not in self.truth],
-            "track": [k for k in range(K + 1) if k not in self.means],
+            "track array": [k for k in range(K + 1) if k not in self.tracks],
             "platforms": [k for k in range(K + 1) if k not in self.platforms],
-            "plan report": [k for k in range(K) if k not in self.reports]
-            if self.expects_reports and not self._reports_given_up()
-            else [],
+            "scans": [k for k in range(1, K + 1) if k in self.platforms and not self._scans_in(k)],
+            "commands, beams or selection": []
+            if given_up
+            else [k for k in range(K) if not self._decided(k)],
+            "plan report": []
+            if given_up or not self.expects_reports
+            else [k for k in range(K) if k not in self.reports],
         }
         return lacks_text(lacks)
 
     def completed_epochs(self) -> int:
-        """The last epoch K' such that truth, track and platform states of 0..K' are all here."""
+        """The last epoch K' such that truth, tracks, platform states and scans of 0..K' are
+        all here."""
         k = -1
-        while k + 1 in self.truth and k + 1 in self.means and k + 1 in self.platforms:
+        while (
+            k + 1 in self.truth
+            and k + 1 in self.tracks
+            and k + 1 in self.platforms
+            and (k + 1 == 0 or self._scans_in(k + 1))
+        ):
             k += 1
         return k
 
     def record(self, wall_time_s: float, last_epoch: int | None = None) -> RunRecord:
+        """The run's record over epochs 0..last_epoch (default: all)."""
         K = self.scenario.steps if last_epoch is None else last_epoch
-        reports = [self.reports[k] for k in sorted(self.reports) if k < max(K, 1)]
+        truth = self.truth.rows(K).copy()
+        order = self.sensor_index
+        scans = [
+            sorted(self.scans.get(k, {}).values(), key=lambda s: order[s.sensor_id])
+            for k in range(1, K + 1)
+        ]
+        decisions = [self._decision(k) for k in range(K)]
+        looked = np.array([self._looked(k) for k in range(1, K + 1)], dtype=bool)
+        detected = np.zeros_like(looked)
+        for k, epoch_scans in enumerate(scans):
+            for scan in epoch_scans:
+                detected[k, order[scan.sensor_id]] = len(scan.Z) > 0
+        reports = [d.report for d in decisions if d.report is not None]
         return RunRecord(
-            truth=self.truth.rows(K).copy(),
-            estimate=self.means.rows(K).copy(),
-            estimate_cov=self.covs.rows(K).copy(),
-            platform_paths=self.platforms.rows(K).copy(),
+            target_ids=self.target_ids,
+            sensor_ids=tuple(self.sensors),
             platform_ids=tuple(self.platform_index),
-            decisions=reports,
-            measured=self.looked[1 : K + 1].copy(),
+            truth=truth,
+            tracks=[self.tracks[k] for k in range(K + 1)],
+            platform_paths=self.platforms.rows(K).copy(),
+            scans=scans,
+            looked=looked.reshape(K, len(self.sensors)),
+            detected=detected.reshape(K, len(self.sensors)),
+            observed=np.array([self._observed_at(k) for k in range(1, K + 1)], dtype=bool).reshape(
+                K, len(self.sensors), len(self.target_ids)
+            ),
+            decisions=decisions,
+            clamps=int(self.diagnostics.get("sim", {}).get("commands_clamped", 0)),
             wall_time_s=wall_time_s,
             planning_time_s=sum(r.wall_time_s for r in reports),
             evaluations=sum(r.evaluations for r in reports),
         )
 
+    def _decision(self, k: int) -> Decision:
+        commands = self.commands.get(k, {})
+        beams = self.beams.get(k, {})
+        return Decision(
+            k,
+            commands=tuple(commands[p] for p in self.controllable if p in commands),
+            beams=tuple(beams[s] for s in self.steerable if s in beams),
+            selected_sensor_ids=self.selections.get(k),
+            report=self.reports.get(k),
+        )
+
+    def _observed_at(self, k: int) -> np.ndarray:
+        """``(S, N)``: the scan of sensor s at epoch k had alive target n in its field of view
+        and range (the simulator's test, on the scan's own field of view and sensor position)."""
+        truth = self.truth.values[k]
+        out = np.zeros((len(self.sensors), len(self.target_ids)), dtype=bool)
+        alive = ~np.isnan(truth[:, 0])
+        for scan in self.scans.get(k, {}).values():
+            sensor = self.sensors[scan.sensor_id][1]
+            x, pv = truth[alive], np.asarray(scan.sensor_pv)
+            seen = alive.copy()
+            seen[alive] = scan.fov.contains(x, pv) & sensor.in_range(x, pv)
+            out[self.sensor_index[scan.sensor_id]] = seen
+        return out
+
 
 def _marker_size(scenario) -> float:
-    """A marker size for the scenario's scale: 1 % of the distance from the target's prior
-    mean to the farthest platform (Hernandez: ~20 m; Valverde: ~0.5 m), at least 0.1 m."""
-    model = build_motion_model(scenario.target.motion)
-    mean = model.kinematics(np.array(scenario.target.prior.mean))  # pv, whatever the state
+    """A marker size for the scenario's scale: 1 % of the distance from the first target's
+    prior mean to the farthest platform (Hernandez: ~20 m; Valverde: ~0.5 m), at least 0.1 m."""
+    target = scene_targets(scenario)[0]
+    model = build_motion_model(target.motion)
+    mean = model.kinematics(np.array(target.prior.mean))  # pv, whatever the state
     far = max(
         math.hypot(p.initial_state[0] - mean[0], p.initial_state[2] - mean[2])
         for p in scenario.platforms

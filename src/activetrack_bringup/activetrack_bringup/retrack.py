@@ -1,17 +1,21 @@
-"""Replay a recorded run's measurements into a fresh tracker and compare the tracks.
+"""Replay a recorded run's scans into a fresh tracker and compare the tracks
+(``activetrack bag retrack``), for every scenario.
 
-With the recorded configuration the replayed track equals the recorded one exactly (the
-tracker is deterministic for a seed); with another filter (``--filter``) the report compares
-both against the recorded ground truth.
+With the recorded configuration the replayed track arrays equal the recorded ones exactly (the
+tracker is deterministic for a seed: ids, status, states, covariances); with another filter
+(``--filter``) the report compares both against the recorded ground truth, with the run
+summary's vocabulary: each target's time-averaged RMSE (README "Errors and bounds") and the
+time-averaged GOSPA.
 
-The replay is a player (the run's platform states and measurements, their recorded bytes
-unchanged, epoch by epoch: epoch k once the track of k - 1 is out, as the simulator does in
-lockstep) -> a fresh ``TrackerNode`` -> a collector of its tracks. Before anything spins, the
-bag is checked against the scenario (sensor and platform ids, the recorded track's state, the
-epochs and steps, dt against the message stamps), so a wrong ``--scenario`` fails at once with
-one line (:class:`RetrackError`); while it spins, the wait is bounded: a tracker that rejects
-or drops replayed messages, closes an epoch incomplete or stops producing tracks ends the
-replay with the epoch it reached.
+The replay is a player (the run's platform states and scans, their recorded bytes re-signed
+with the replay's own key, epoch by epoch: epoch k once the track array of k - 1 is out, as
+the simulator does in lockstep) -> a fresh ``TrackerNode`` -> a collector of its track arrays.
+Before anything spins, the bag is checked against the scenario (sensor and platform ids, the
+recorded tracks' state, the epochs and steps, dt against the message stamps), so a wrong
+``--scenario`` fails at once with one line (:class:`RetrackError`); so does a bag recorded
+before scans carried every measurement. While it spins, the wait is bounded: a tracker that
+rejects or drops replayed messages, closes an epoch incomplete or stops producing tracks ends
+the replay with the epoch it reached.
 """
 
 from __future__ import annotations
@@ -23,60 +27,48 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
 
+from activetrack.closed_loop.components import scene_targets
+from activetrack.closed_loop.evaluation import EpochAssessor
+from activetrack.data import TrackSet
 from activetrack.filters import registry as filter_kinds
 from activetrack.scenarios import load_scenario
-from activetrack.scenarios.build import build_motion_model
 from activetrack_bringup.bag import bag_topic, installed_type_hash
 from activetrack_bringup.bag_io import BagError, open_bag
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_ros import graph as topics
-from activetrack_ros.convert import measurement_topic
+from activetrack_ros.convert import MessageError, TrackArrayChecker, truth_array_from_msg
 from activetrack_ros.graph import GRAPH_TOPICS, writer_qos
 from activetrack_ros.node_base import GraphNode
-from activetrack_ros.trust import GraphKey, is_signed_type
-from msgs_defs.msg import (
-    BearingMeasurement,
-    GroundTruth,
-    Measurement,
-    PlatformState,
-    PolarMeasurement,
-    TrackEstimate,
-)
+from activetrack_ros.trust import GraphKey
+from msgs_defs.msg import GroundTruthArray, PlatformState, TrackArray
+from msgs_defs.msg import Scan as ScanMsg
 from tracker_node.tracker_node import TrackerNode
 
-MEASUREMENT_TOPICS = (topics.BEARING_MEASUREMENTS, topics.POLAR_MEASUREMENTS, topics.MEASUREMENTS)
-REPLAYED_TOPICS = (*MEASUREMENT_TOPICS, topics.PLATFORM_STATES)
+REPLAYED_TOPICS = (topics.PLATFORM_STATES, topics.SCANS)  # in this order within an epoch
 STAMP_TOLERANCE = 1e-6  # s between a stamp and its epoch time k T (the tracker's own check)
-STALL_TIMEOUT = 10.0  # s without progress (a new track or a replayed message) ends the replay
+STALL_TIMEOUT = 10.0  # s without progress (a new track array) ends the replay
 # Tracker counters that mean the replay is not the recorded run.
 _TROUBLE = ("rejected.", "foreign.", "errors.", "dropped.", "incomplete_epochs")
+# Topics of bags recorded before every measurement travelled as a Scan (activetrack 0.1).
+_FORMER_MEASUREMENT_TOPICS = (
+    "activetrack/bearing_measurements",
+    "activetrack/polar_measurements",
+    "activetrack/measurements",
+)
 
 _CLASSES = {
-    topics.BEARING_MEASUREMENTS: BearingMeasurement,
-    topics.POLAR_MEASUREMENTS: PolarMeasurement,
-    topics.MEASUREMENTS: Measurement,
     topics.PLATFORM_STATES: PlatformState,
-    topics.TRACK: TrackEstimate,
-    topics.GROUND_TRUTH: GroundTruth,
+    topics.SCANS: ScanMsg,
+    topics.TRACKS: TrackArray,
+    topics.GROUND_TRUTH: GroundTruthArray,
 }
 
 
 class RetrackError(BagError):
     """The bag cannot be retracked with this scenario (one line, says why)."""
-
-
-def read_topic(bag, topic: str, msg_type) -> list:
-    """Deserialize every message of one topic of a bag (rclpy, exact); ``topic`` as the bag
-    names it or a graph topic under any namespace."""
-    with open_bag(bag) as b:
-        name = bag_topic(b, topic)
-        if name is None:
-            return []
-        return [deserialize_message(d, msg_type) for _, _, d in b.messages([name])]
 
 
 @dataclass
@@ -93,14 +85,20 @@ class RunData:
 
 
 def read_run(bag) -> RunData:
-    """The run's measurements, platform states, tracks and truth; RetrackError when the bag
-    has lost data, or a needed topic is unreadable or of another type (version)."""
+    """The run's scans, platform states, track arrays and truth; RetrackError when the bag has
+    lost data, or a needed topic is unreadable or of another type (version)."""
     with open_bag(bag) as b:
         lost = b.lost
         if lost:
             raise RetrackError(
-                f"{lost[0]} ({len(lost)} problem(s) with lost data): retrack needs every "
-                "measurement of the run"
+                f"{lost[0]} ({len(lost)} problem(s) with lost data): retrack needs every scan "
+                "of the run"
+            )
+        former = [t for t in _FORMER_MEASUREMENT_TOPICS if bag_topic(b, t)]
+        if former and not bag_topic(b, topics.SCANS):
+            raise RetrackError(
+                f"{bag} was recorded by activetrack 0.1 (measurements on {former[0]}, no "
+                f"{topics.SCANS}): this version replays scans only; retrack it with 0.1"
             )
         run = RunData(finished=all(s.finished for s in b.scans))
         run.warnings = [str(d) for d in b.damage]
@@ -114,7 +112,8 @@ def read_run(bag) -> RunData:
                 raise RetrackError(f"{bag}: topic {topic} cannot be read: {t.problem}")
             if t.msgtype != GRAPH_TOPICS[topic]:
                 raise RetrackError(
-                    f"{bag}: topic {topic} holds {t.msgtype}, not {GRAPH_TOPICS[topic]}"
+                    f"{bag}: topic {topic} holds {t.msgtype}, not {GRAPH_TOPICS[topic]} "
+                    "(recorded by another version of activetrack)"
                 )
             installed = installed_type_hash(t.msgtype)
             if t.rihs01 and installed and t.rihs01 != installed:
@@ -135,7 +134,7 @@ def read_run(bag) -> RunData:
                 if topic in REPLAYED_TOPICS:
                     run.raw.setdefault(msg.epoch, []).append((topic, data))
         _read_diagnostics(b, run)
-    for batch in run.raw.values():  # platform states first, then measurements (stable)
+    for batch in run.raw.values():  # platform states first, then scans (stable)
         batch.sort(key=lambda m: m[0] != topics.PLATFORM_STATES)
     return run
 
@@ -168,43 +167,45 @@ def _stamp(msg) -> float:
 def check_run(scenario, run: RunData, bag) -> int:
     """Check the bag against the scenario; return the last epoch to replay. RetrackError (one
     line) at the first mismatch."""
-    meas = [m for t in MEASUREMENT_TOPICS for m in run.messages[t]]
-    tracks = run.messages[topics.TRACK]
+    scans = run.messages[topics.SCANS]
+    tracks = run.messages[topics.TRACKS]
     used = run.scenario_name
     hint = f" (the run used scenario {used!r})" if used and used != scenario.name else ""
-    if not meas:
-        raise RetrackError(
-            f"{bag} holds no measurements ({', '.join(MEASUREMENT_TOPICS)}): nothing to retrack"
-        )
+    if not scans:
+        raise RetrackError(f"{bag} holds no scans ({topics.SCANS}): nothing to retrack")
     if not tracks:
-        raise RetrackError(f"{bag} holds no recorded track ({topics.TRACK}): nothing to compare")
-    _check_sensors(scenario, run, meas, hint)
-    _check_track(scenario, tracks[0], hint)
-    top = _check_timing(scenario, run, meas, hint)
-    return _last_replayable(scenario, run, meas, top, hint, bag)
+        raise RetrackError(f"{bag} holds no track arrays ({topics.TRACKS}): nothing to compare")
+    _check_sensors(scenario, run, scans, hint)
+    _check_tracks(scenario, tracks[0], hint)
+    top = _check_timing(scenario, run, scans, hint)
+    return _last_replayable(scenario, run, scans, top, hint, bag)
 
 
-def _check_sensors(scenario, run: RunData, meas: list, hint: str) -> None:
+def _check_sensors(scenario, run: RunData, scans: list, hint: str) -> None:
     """The bag's sensors, their kinds and platforms are the scenario's."""
     name = scenario.name
     states = run.messages[topics.PLATFORM_STATES]
     kinds = {s.id: s.kind for p in scenario.platforms for s in p.sensors}
     owner = {s.id: p.id for p in scenario.platforms for s in p.sensors}
     platforms = {p.id for p in scenario.platforms}
-    sensors = {m.sensor_id for m in meas}
+    sensors = {m.sensor_id for m in scans}
     if sensors - kinds.keys():
         raise RetrackError(
-            f"the bag's measurements come from sensors {sorted(sensors - kinds.keys())} that "
+            f"the bag's scans come from sensors {sorted(sensors - kinds.keys())} that "
             f"scenario {name} does not have (it has {sorted(kinds)}): wrong --scenario?{hint}"
         )
-    for topic in MEASUREMENT_TOPICS:
-        for m in run.messages[topic]:
-            if measurement_topic(kinds[m.sensor_id]) != topic:
-                raise RetrackError(
-                    f"sensor {m.sensor_id!r} measures on {topic} in the bag but is a "
-                    f"{kinds[m.sensor_id]} sensor in scenario {name}: wrong --scenario?{hint}"
-                )
-    seen = {m.platform_id for m in meas} | {s.platform_id for s in states}
+    for m in scans:
+        if m.sensor_kind != kinds[m.sensor_id]:
+            raise RetrackError(
+                f"sensor {m.sensor_id!r} is a {m.sensor_kind} sensor in the bag but a "
+                f"{kinds[m.sensor_id]} sensor in scenario {name}: wrong --scenario?{hint}"
+            )
+        if owner[m.sensor_id] != m.platform_id:
+            raise RetrackError(
+                f"sensor {m.sensor_id!r} is on platform {m.platform_id!r} in the bag, on "
+                f"{owner[m.sensor_id]!r} in scenario {name}: wrong --scenario?{hint}"
+            )
+    seen = {m.platform_id for m in scans} | {s.platform_id for s in states}
     if seen - platforms:
         raise RetrackError(
             f"the bag holds platforms {sorted(seen - platforms)} that scenario {name} does not "
@@ -216,48 +217,44 @@ def _check_sensors(scenario, run: RunData, meas: list, hint: str) -> None:
             f"scenario {name} has platforms {sorted(unseen)} that the bag's run does not have "
             f"(it has {sorted(platforms - unseen)}): wrong --scenario?{hint}"
         )
-    for m in meas:
-        if owner[m.sensor_id] != m.platform_id:
-            raise RetrackError(
-                f"sensor {m.sensor_id!r} is on platform {m.platform_id!r} in the bag, on "
-                f"{owner[m.sensor_id]!r} in scenario {name}: wrong --scenario?{hint}"
-            )
 
 
-def _check_track(scenario, track, hint: str) -> None:
-    """The recorded track has the scenario's state and target."""
-    name = scenario.name
-    motion = scenario.tracker.motion or scenario.target.motion
-    names = tuple(build_motion_model(motion).state_names)
-    if tuple(track.state_names) != names or len(track.state) != len(names):
+def _check_tracks(scenario, array, hint: str) -> None:
+    """The recorded tracks have the scenario's motion model and state."""
+    checker = TrackArrayChecker(scenario)
+    if array.motion_model != checker.motion_model or tuple(array.state_names) != (
+        checker.state_names
+    ):
         raise RetrackError(
-            f"the recorded track's state is ({', '.join(track.state_names)}), "
-            f"{len(track.state)} values; scenario {name}'s {motion.model} model has "
-            f"({', '.join(names)}): wrong --scenario?{hint}"
+            f"the recorded tracks' state is {array.motion_model} ({', '.join(array.state_names)}); "
+            f"scenario {scenario.name}'s is {checker.motion_model} "
+            f"({', '.join(checker.state_names)}): wrong --scenario?{hint}"
         )
-    if track.target_id != scenario.target.id:
+    targets = {t.id for t in scene_targets(scenario)}
+    origins = {t.origin for t in array.tracks if t.origin}
+    if origins - targets:
         raise RetrackError(
-            f"the recorded track is of target {track.target_id!r}, scenario {name} tracks "
-            f"{scenario.target.id!r}: wrong --scenario?{hint}"
+            f"the recorded tracks are of targets {sorted(origins)}, scenario {scenario.name} "
+            f"has {sorted(targets)}: wrong --scenario?{hint}"
         )
 
 
-def _check_timing(scenario, run: RunData, meas: list, hint: str) -> int:
+def _check_timing(scenario, run: RunData, scans: list, hint: str) -> int:
     """Steps, epochs and stamps fit the scenario's; returns the bag's last epoch."""
     name, steps, dt = scenario.name, scenario.steps, scenario.dt
     states = run.messages[topics.PLATFORM_STATES]
-    tracks = run.messages[topics.TRACK]
+    tracks = run.messages[topics.TRACKS]
     if run.steps is not None and run.steps != steps:
         raise RetrackError(
             f"the recorded run has {run.steps} steps (its simulator's diagnostics), scenario "
             f"{name} has {steps}: wrong --scenario?{hint}"
         )
-    top = max(m.epoch for group in (meas, states, tracks) for m in group)
+    top = max(m.epoch for group in (scans, states, tracks) for m in group)
     if top > steps:
         raise RetrackError(
             f"the bag holds epoch {top}, scenario {name} has {steps} steps: wrong --scenario?{hint}"
         )
-    for m in (*meas, *states):
+    for m in (*scans, *states):
         if abs(_stamp(m) - m.epoch * dt) > STAMP_TOLERANCE:
             implied = f"dt = {_stamp(m) / m.epoch:g} s" if m.epoch else "another time origin"
             raise RetrackError(
@@ -267,8 +264,8 @@ def _check_timing(scenario, run: RunData, meas: list, hint: str) -> int:
     return top
 
 
-def _last_replayable(scenario, run: RunData, meas: list, top: int, hint: str, bag) -> int:
-    """The last epoch with all platforms' states and the announced measurements; a warning in
+def _last_replayable(scenario, run: RunData, scans: list, top: int, hint: str, bag) -> int:
+    """The last epoch with all platforms' states and the announced scans; a warning in
     ``run.warnings`` when that is not the scenario's last."""
     name, steps = scenario.name, scenario.steps
     platforms = {p.id for p in scenario.platforms}
@@ -276,12 +273,12 @@ def _last_replayable(scenario, run: RunData, meas: list, top: int, hint: str, ba
     for s in run.messages[topics.PLATFORM_STATES]:
         per_epoch.setdefault(s.epoch, []).append(s)
     counts: dict[int, int] = {}
-    for m in meas:
+    for m in scans:
         counts[m.epoch] = counts.get(m.epoch, 0) + 1
     last = 0
     for k in range(1, steps + 1):
         got = per_epoch.get(k, [])
-        announced = max((s.epoch_measurement_count for s in got), default=0)
+        announced = max((s.epoch_scan_count for s in got), default=0)
         if {s.platform_id for s in got} != platforms or counts.get(k, 0) < announced:
             break
         last = k
@@ -291,8 +288,8 @@ def _last_replayable(scenario, run: RunData, meas: list, top: int, hint: str, ba
         lacks = (
             f"the platform states of {sorted(platforms - got)}"
             if got != platforms
-            else f"measurements ({counts.get(k, 0)} recorded, "
-            f"{max(s.epoch_measurement_count for s in per_epoch[k])} announced)"
+            else f"scans ({counts.get(k, 0)} recorded, "
+            f"{max(s.epoch_scan_count for s in per_epoch[k])} announced)"
         )
         raise RetrackError(
             f"the bag's run cannot be replayed past epoch {last} of scenario {name}'s {steps}: "
@@ -309,71 +306,98 @@ def _last_replayable(scenario, run: RunData, meas: list, top: int, hint: str, ba
     return last
 
 
-class _EpochPlayer(Node):
+class _EpochPlayer(GraphNode):
     """Publishes the recorded messages of one epoch at a time (graph QoS, like the simulator),
     signed with the replay's own key: the recording run's key is gone, and a writer elsewhere
     on the domain must not be able to feed the fresh tracker."""
 
     def __init__(self, raw: dict[int, list], key: GraphKey, **kwargs):
-        super().__init__("retrack_player", **kwargs)
+        super().__init__("retrack_player", graph_key=key, **kwargs)
         self.raw = raw
-        self.key = key
         self.pubs = {
-            t: self.create_publisher(_CLASSES[t], t, writer_qos(t))
-            for t in {t for batch in raw.values() for t, _ in batch}
+            t: self.create_publisher(_CLASSES[t], t, writer_qos(t)) for t in REPLAYED_TOPICS
         }
         self.published = 0
 
     def publish_epoch(self, k: int) -> None:
         for topic, data in self.raw.get(k, ()):
-            cls = _CLASSES[topic]
-            if is_signed_type(cls):  # re-serialised: drops any transport padding first
-                data = self.key.sign(serialize_message(deserialize_message(data, cls)))
-            self.pubs[topic].publish(data)
+            msg = deserialize_message(data, _CLASSES[topic])  # re-serialised: drops padding
+            self.pubs[topic].publish(self.graph_key.sign(serialize_message(msg)))
             self.published += 1
 
 
 class _TrackCollector(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("retrack_collector", **kwargs)
-        self.tracks: dict[int, TrackEstimate] = {}
-        self.subscribe(TrackEstimate, topics.TRACK, lambda m: self.tracks.__setitem__(m.epoch, m))
+        self.arrays: dict[int, TrackArray] = {}
+        self.subscribe(TrackArray, topics.TRACKS, lambda m: self.arrays.__setitem__(m.epoch, m))
 
 
 @dataclass
 class RetrackReport:
+    """``identical``: every replayed track array equals the recorded one (ids, status, states,
+    covariances); the largest state and covariance differences over tracks of the same id
+    (inf: the track sets differ); each target's time-averaged RMSE in x and y and the
+    time-averaged GOSPA of both against the recorded truth (NaN without truth)."""
+
     epochs: int
     recorded_filter: str
     replayed_filter: str
+    identical: bool
     max_state_difference: float
     max_covariance_difference: float
-    recorded_rmse: tuple[float, float]
-    replayed_rmse: tuple[float, float]
+    target_ids: tuple[str, ...]
+    recorded_time_avg_rmse: list[tuple[float, float]]
+    replayed_time_avg_rmse: list[tuple[float, float]]
+    recorded_gospa: float
+    replayed_gospa: float
     warnings: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict:
         return dict(self.__dict__)
 
 
-def _rmse(tracks: dict, truth: dict) -> tuple[float, float]:
-    """RMSE in x and y over the epochs k >= 1 (position entries named x/y or px/py)."""
-    ks = sorted(k for k in tracks if k in truth and k > 0)
-    if not ks:
-        return (math.nan, math.nan)
-    names = list(tracks[ks[0]].state_names)
-    ix = names.index("x") if "x" in names else names.index("px")
-    iy = names.index("y") if "y" in names else names.index("py")
-    err = np.array(
-        [
-            [tracks[k].state[ix] - truth[k].position.x, tracks[k].state[iy] - truth[k].position.y]
-            for k in ks
-        ]
-    )
-    return tuple(float(v) for v in np.sqrt((err**2).mean(axis=0)))
-
-
 def _trouble(counters) -> dict:
     return {k: v for k, v in counters.items() if v and k.startswith(_TROUBLE)}
+
+
+def _differences(a: TrackSet, b: TrackSet) -> tuple[bool, float, float]:
+    """(identical, max |state difference|, max |covariance difference|) over tracks of the
+    same id; inf when the ids differ."""
+    if [t.track_id for t in a.tracks] != [t.track_id for t in b.tracks]:
+        return False, math.inf, math.inf
+    pairs = list(zip(a.tracks, b.tracks, strict=True))
+    ds = max((float(np.abs(x.state - y.state).max()) for x, y in pairs), default=0.0)
+    dc = max((float(np.abs(x.state_cov - y.state_cov).max()) for x, y in pairs), default=0.0)
+    same = all(
+        x.status == y.status
+        and np.array_equal(x.state, y.state)
+        and np.array_equal(x.state_cov, y.state_cov)
+        for x, y in pairs
+    )
+    return same, ds, dc
+
+
+def _scores(scenario, tracks: dict[int, TrackSet], truth: dict, epochs: int):
+    """Each target's time-averaged RMSE (x, y) and the time-averaged GOSPA over 1..epochs."""
+    assess = EpochAssessor(scenario)
+    order = [t.id for t in scene_targets(scenario)]
+    errors, gospas = [], []
+    for k in range(1, epochs + 1):
+        pv = np.full((len(order), 4), math.nan)
+        for tid, row in zip(truth[k].ids, truth[k].pv, strict=True):
+            pv[order.index(tid)] = row
+        a = assess(pv, tracks[k], k)
+        means = {t.track_id: np.asarray(t.mean) for t in tracks[k].confirmed}
+        err = np.full((len(order), 2), math.nan)
+        for n, track_id in enumerate(a.held):
+            if track_id in means:
+                err[n] = np.abs(means[int(track_id)] - pv[n])[[0, 2]]
+        errors.append(err)
+        gospas.append(a.gospa)
+    with np.errstate(invalid="ignore"):
+        rmse = np.nanmean(np.array(errors), axis=0)  # one run: the mean absolute error
+    return [(float(x), float(y)) for x, y in rmse], float(np.mean(gospas))
 
 
 def retrack(
@@ -393,8 +417,14 @@ def retrack(
             raise RetrackError(f"--filter: {exc}") from None
     data = read_run(bag)
     last = check_run(scenario, data, bag)
-    recorded = {m.epoch: m for m in data.messages[topics.TRACK]}
-    truth = {m.epoch: m for m in data.messages[topics.GROUND_TRUTH]}
+    check = TrackArrayChecker(scenario)
+    try:
+        recorded = {m.epoch: check(m) for m in data.messages[topics.TRACKS]}
+        truth = {
+            m.epoch: truth_array_from_msg(m, scenario) for m in data.messages[topics.GROUND_TRUTH]
+        }
+    except MessageError as exc:
+        raise RetrackError(f"{bag}: {exc}: wrong --scenario?") from None
     params = [
         Parameter("scenario", value=str(scenario_path)),
         Parameter("run", value=-1 if run is None else run),
@@ -411,53 +441,50 @@ def retrack(
         def replayed_all() -> bool:
             k = state["next"]
             now = time.monotonic()
-            if k <= last and k - 1 in collector.tracks:
-                player.publish_epoch(k)  # lockstep: epoch k once the track of k - 1 is out
+            if k <= last and k - 1 in collector.arrays:
+                player.publish_epoch(k)  # lockstep: epoch k once the tracks of k - 1 are out
                 state.update(next=k + 1, at=now)
-            reached = max(collector.tracks, default=-1)
+            reached = max(collector.arrays, default=-1)
             trouble = _trouble(tracker.counters.counts)
             if trouble:
                 raise RetrackError(
                     f"the fresh tracker did not take the replay of epoch {reached + 1}: "
                     f"{trouble} (see its log above): wrong --scenario or --run?"
                 )
-            if last not in collector.tracks and now - state["at"] > stall_timeout:
+            if last not in collector.arrays and now - state["at"] > stall_timeout:
                 raise RetrackError(
-                    f"the fresh tracker stopped at epoch {reached}: no track for epoch "
+                    f"the fresh tracker stopped at epoch {reached}: no tracks for epoch "
                     f"{reached + 1} within {stall_timeout:g} s of its messages"
                 )
-            return last in collector.tracks
+            return last in collector.arrays
 
         if not graph.spin_until(replayed_all, timeout=timeout, step=0.0):
             raise RetrackError(
                 f"retrack timed out after {timeout:g} s at epoch "
-                f"{max(collector.tracks, default=0)} of {last}"
+                f"{max(collector.arrays, default=0)} of {last}"
             )
-        replayed = dict(collector.tracks)
-        warnings = data.warnings
-    common = sorted(k for k in set(recorded) & set(replayed) if k <= last)
-    ds = max(np.abs(np.subtract(recorded[k].state, replayed[k].state)).max() for k in common)
-    dc = (
-        max(
-            np.abs(np.subtract(recorded[k].covariance, replayed[k].covariance)).max()
-            for k in common
-        )
-        if all(len(recorded[k].covariance) == len(replayed[k].covariance) for k in common)
-        else np.nan
+        replayed = {k: check(m) for k, m in collector.arrays.items()}
+    common = [k for k in range(last + 1) if k in recorded and k in replayed]
+    compared = [_differences(recorded[k], replayed[k]) for k in common]
+    scored = all(k in truth and k in recorded for k in range(1, last + 1))
+    nan_rmse = [(math.nan, math.nan)] * len(scene_targets(scenario))
+    rec_rmse, rec_gospa = (
+        _scores(scenario, recorded, truth, last) if scored else (nan_rmse, math.nan)
+    )
+    rep_rmse, rep_gospa = (
+        _scores(scenario, replayed, truth, last) if scored else (nan_rmse, math.nan)
     )
     return RetrackReport(
-        epochs=len(common),
+        epochs=len(common) - 1,
         recorded_filter=recorded[common[0]].filter_kind,
         replayed_filter=replayed[common[0]].filter_kind,
-        max_state_difference=float(ds),
-        max_covariance_difference=float(dc),
-        recorded_rmse=_rmse({k: recorded[k] for k in common}, truth),
-        replayed_rmse=_rmse({k: replayed[k] for k in common}, truth),
-        warnings=warnings,
+        identical=len(common) == last + 1 and all(same for same, _, _ in compared),
+        max_state_difference=max(ds for _, ds, _ in compared),
+        max_covariance_difference=max(dc for _, _, dc in compared),
+        target_ids=tuple(t.id for t in scene_targets(scenario)),
+        recorded_time_avg_rmse=rec_rmse,
+        replayed_time_avg_rmse=rep_rmse,
+        recorded_gospa=rec_gospa,
+        replayed_gospa=rep_gospa,
+        warnings=data.warnings,
     )
-
-
-def measurement_topics_in(bag) -> list[str]:
-    """The measurement topics a bag holds."""
-    with open_bag(bag) as b:
-        return [t for t in MEASUREMENT_TOPICS if t in b.topics and b.topics[t].count]

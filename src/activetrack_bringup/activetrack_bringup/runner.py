@@ -24,29 +24,24 @@ from pathlib import Path
 
 from rclpy.parameter import Parameter
 
-from activetrack.closed_loop.batch import component_rngs, summarize
-from activetrack.multitarget.evaluation import evaluate_run
-from activetrack.multitarget.loop import MultiBatchSummary, summarize_multi
+from activetrack.closed_loop.batch import BatchSummary, summarize
+from activetrack.closed_loop.components import component_rngs
+from activetrack.closed_loop.evaluation import evaluate_run
 from activetrack.scenarios import load_scenario
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.inprocess import InProcessGraph
-from activetrack_bringup.multi_evaluator import MultiEvaluatorNode
 from activetrack_bringup.run_folder import run_dir_for
 from activetrack_bringup.supervisor import NodeDied, Supervisor
 from activetrack_ros.graph import history_depth
 from activetrack_ros.trust import KEY_BYTES, KEY_ENV, GraphKey
-from planner_node.multi_planner_node import MultiPlannerNode
 from planner_node.planner_node import PlannerNode
-from sim_node.multi_sim_node import MultiSimNode
 from sim_node.sim_node import SimNode
-from tracker_node.multi_tracker_node import MultiTrackerNode
 from tracker_node.tracker_node import TrackerNode
 
 NODES = {"sim": SimNode, "tracker": TrackerNode, "planner": PlannerNode}
 NODE_NAMES = tuple(NODES)  # the graph's nodes, as ``nodes`` (RunOptions) names them
-MULTI_NODES = {"sim": MultiSimNode, "tracker": MultiTrackerNode, "planner": MultiPlannerNode}
 
 # How long the evaluator waits for missing plan reports after the sim finished, with node
 # processes (DDS discovery between them): past one periodic discovery announcement.
@@ -235,11 +230,6 @@ def run_graph(
     opts = RunOptions(**options)
     opts.namespace = check_namespace(opts.namespace)
     scenario = load_scenario(scenario_path)  # fails before anything starts
-    if scenario.multi_target and opts.mode != "lockstep":
-        raise GraphSetupError(
-            f"scenario {scenario.name!r} is multi-target (targets:): it runs in lockstep mode "
-            "only (--mode lockstep)"
-        )
     if opts.processes and os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").upper() == "OFF":
         raise GraphSetupError(
             "--processes needs DDS discovery between processes on this host, but "
@@ -285,9 +275,8 @@ class _GraphRunner:
         self.quiet = {"context": self.graph.context, "start_parameter_services": False}
         if opts.namespace:
             self.quiet["namespace"] = opts.namespace
-        evaluator = MultiEvaluatorNode if scenario.multi_target else EvaluatorNode
         self.evaluator = self.graph.add(
-            evaluator(
+            EvaluatorNode(
                 scenario, graph_key=key, report_grace_s=REPORT_GRACE_PROCESSES_S
                 if opts.processes else 1.0, **self.quiet,
             )
@@ -339,17 +328,16 @@ class _GraphRunner:
             restartable = o.restartable or tuple(self.scenario.graph.restartable)
             self.supervisor = _start_processes(
                 self.params, o.sim_params, self.key, self.domain, restartable,
-                self.scenario.graph.max_restarts, o.namespace, self.scenario.multi_target,
+                self.scenario.graph.max_restarts, o.namespace,
                 NODE_NAMES if o.nodes is None else o.nodes,
             )  # fmt: skip
             graph.supervisor = self.supervisor  # for during_spin hooks (fault-injection tests)
         else:
-            classes = MULTI_NODES if self.scenario.multi_target else NODES
             for name in ("tracker", "planner"):
                 options = self._node_options(self.params[name])
-                self.nodes[name] = graph.add(classes[name](**options))
+                self.nodes[name] = graph.add(NODES[name](**options))
             sim = {**self.params["sim"], **(o.sim_params or {})}
-            self.nodes["sim"] = graph.add(classes["sim"](**self._node_options(sim)))
+            self.nodes["sim"] = graph.add(NODES["sim"](**self._node_options(sim)))
         if o.before_spin is not None:
             o.before_spin(graph)
 
@@ -359,9 +347,8 @@ class _GraphRunner:
         before the planner existed; RemoteNodesMissing after the run's timeout."""
         if not self.remote:
             return
-        prefix = "multi_" if self.scenario.multi_target else ""
         namespace = self.opts.namespace or "/"
-        wanted = {(f"{prefix}{name}_node", namespace) for name in self.remote}
+        wanted = {(f"{name}_node", namespace) for name in self.remote}
 
         def joined() -> bool:
             return wanted <= set(self.evaluator.get_node_names_and_namespaces())
@@ -446,27 +433,26 @@ class _GraphRunner:
         return result
 
 
-def _summary(scenario, record, wall: float, run: int | None):
-    """A run's summary with the batch loop's code: ``summarize`` of one target, or the
-    multi-target evaluation (GOSPA, breaks, swaps, per-target RMSE and bound) drawn from run
-    ``run``'s evaluator generator, as ``run_multi_batch`` draws it."""
-    if not scenario.multi_target:
-        return summarize(scenario, [record], wall)
+def _summary(scenario, record, wall: float, run: int | None) -> BatchSummary:
+    """A run's summary with the batch loop's code: its evaluation (each target's error and
+    bound, GOSPA, breaks, swaps) drawn from run ``run``'s evaluator generator, as
+    ``run_batch`` draws it."""
     evaluation = evaluate_run(scenario, record, component_rngs(scenario.seed, run)[3])
-    return summarize_multi(scenario, [record], [evaluation], wall)
+    return summarize(scenario, [record], [evaluation], wall)
 
 
-def _plots(scenario, summary, run_dir: Path) -> list:
-    """The run folder's figures (matplotlib: 0.7 s of imports, so only here)."""
-    if not scenario.multi_target:
-        from activetrack.plots import plot_run
+def _plots(scenario, summary: BatchSummary, run_dir: Path) -> list:
+    """The run folder's figures (matplotlib: 0.7 s of imports, so only here): the run in the
+    plane, each target's error against its bound, GOSPA over time."""
+    from activetrack.closed_loop.components import scene_sensors
+    from activetrack.plots import plot_errors, plot_gospa, plot_run
 
-        return plot_run(summary, run_dir)
-    from activetrack.multitarget.plots import plot_gospa
-    from activetrack.multitarget.plots import plot_run as plot_multi_run
-
-    tracks = plot_multi_run(scenario, summary.records[0], run_dir / "tracks.png")
-    return [tracks, plot_gospa({"run": summary.evaluations}, run_dir / "gospa.png")]
+    sensors = {sid: s for sid, (_, s) in scene_sensors(scenario).items()}
+    return [
+        plot_run(scenario.name, sensors, summary.records[0], run_dir / "trajectories.png"),
+        plot_errors(summary, run_dir / "rmse_vs_bound.png"),
+        plot_gospa({"run": summary.evaluations}, run_dir / "gospa.png"),
+    ]
 
 
 def _total(counts: dict, prefix: str) -> int:
@@ -487,14 +473,18 @@ def _judge(result: GraphRun) -> None:
         result.detail = "a metric is not finite: the track diverged or was corrupted"
 
 
-def _finite_metrics(summary) -> bool:
-    """RMSEs must be finite; bounds may be NaN only where none is computed (nonlinear
-    motion models), never infinite. A multi-target run: its GOSPA must be finite."""
-    if isinstance(summary, MultiBatchSummary):
-        return math.isfinite(summary.mean_gospa)
-    rmse_ok = all(math.isfinite(v) for v in (summary.rmse_x, summary.rmse_y))
-    bounds_ok = not any(math.isinf(v) for v in (summary.mean_bound_x, summary.mean_bound_y))
-    return rmse_ok and bounds_ok
+def _finite_metrics(summary: BatchSummary) -> bool:
+    """GOSPA must be finite, and so must the RMSE of a target its track always holds (known
+    association: a diverged filter shows there); bounds may be NaN only where none is computed
+    (nonlinear motion models), never infinite."""
+    if not math.isfinite(summary.mean_gospa):
+        return False
+    if summary.association == "known":
+        rmse = (*summary.time_avg_rmse_x, *summary.time_avg_rmse_y)
+        if not all(math.isfinite(v) for v in rmse):
+            return False
+    bounds = (*summary.time_avg_bound_x, *summary.time_avg_bound_y)
+    return not any(math.isinf(v) for v in bounds)
 
 
 def _domain_id() -> int:
@@ -509,14 +499,12 @@ def _start_processes(
     restartable,
     max_restarts: int,
     namespace,
-    multi_target: bool = False,
     names: tuple[str, ...] = NODE_NAMES,
 ) -> Supervisor:
-    """The nodes ``names``, each as its own OS process (its console entry point,
-    ``multi_*_node`` for a multi-target scenario), talking over DDS in the runner's domain: on
-    this host only when it runs them all, else with the caller's discovery settings
-    (ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_STATIC_PEERS), which reach the other hosts. The caller's
-    environment is not changed."""  # fmt: skip
+    """The nodes ``names``, each as its own OS process (its console entry point), talking
+    over DDS in the runner's domain: on this host only when it runs them all, else with the
+    caller's discovery settings (ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_STATIC_PEERS), which reach
+    the other hosts. The caller's environment is not changed."""
     env = dict(os.environ)
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
     env["ROS_DOMAIN_ID"] = str(domain)
@@ -526,12 +514,11 @@ def _start_processes(
     supervisor = Supervisor(
         env, max_restarts, log=lambda text: print(f"activetrack: {text}", file=sys.stderr)
     )
-    prefix = "multi_" if multi_target else ""
     for name, extra in (("tracker", {}), ("planner", {}), ("sim", sim_params or {})):
         if name not in names:
             continue
         supervisor.add(
-            f"{prefix}{name}_node", {**params[name], **extra}, restartable=name in restartable,
+            f"{name}_node", {**params[name], **extra}, restartable=name in restartable,
             namespace=namespace,
         )  # fmt: skip
     supervisor.start()

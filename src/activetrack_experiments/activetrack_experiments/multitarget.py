@@ -36,10 +36,10 @@ from pathlib import Path
 import numpy as np
 
 from activetrack.argtypes import add_scheduler_option, int_in_range
+from activetrack.closed_loop.batch import BatchSummary, run_batch
 from activetrack.limits import MAX_JOBS, MAX_RUNS
 from activetrack.montecarlo import Scheduler, available_jobs, check_jobs
 from activetrack.montecarlo_dask import connected
-from activetrack.multitarget.loop import MultiBatchSummary, run_multi_batch
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.schema import Scenario
 from activetrack_experiments.outputs import write_outputs
@@ -73,7 +73,7 @@ class ScenarioResult:
     """One scenario: each strategy's batch summary."""
 
     name: str
-    summaries: dict[str, MultiBatchSummary]
+    summaries: dict[str, BatchSummary]
 
     def mean(self, strategy: str) -> float:
         return self.summaries[strategy].mean_gospa
@@ -152,7 +152,7 @@ def reproduce(
             base = load_scenario(scenario_path(name, scenarios_dir))
             summaries = {}
             for strategy in STRATEGIES:
-                summaries[strategy] = run_multi_batch(
+                summaries[strategy] = run_batch(
                     strategy_scenario(base, strategy),
                     runs=runs,
                     jobs=jobs,

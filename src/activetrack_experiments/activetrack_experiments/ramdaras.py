@@ -43,7 +43,7 @@ from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.bounds.costs import position_determinant
 from activetrack.bounds.mre import mre_update
 from activetrack.checks import require_int
-from activetrack.closed_loop.batch import run_once
+from activetrack.closed_loop.loop import run_once
 from activetrack.limits import MAX_JOBS, MAX_RUNS
 from activetrack.montecarlo import (
     Progress,
@@ -157,24 +157,25 @@ class RunTrace:
 
 
 def run_traced(scenario: Scenario, run: int | None = None) -> RunTrace:
-    """One closed-loop run (:func:`activetrack.closed_loop.batch.run_once`) with the
+    """One closed-loop run (:func:`activetrack.closed_loop.loop.run_once`) with the
     planner's MRE covariance of each decision."""
     r = run_once(scenario, run)
+    estimate, cov = r.track_series()
     planner_cov = np.full((scenario.steps, 4, 4), np.nan)
     for k, decision in enumerate(r.decisions):
         if "mre_updated_cov" in decision.extra:
             planner_cov[k] = decision.extra["mre_updated_cov"]
     return RunTrace(
-        truth=r.truth,
-        estimate=r.estimate,
-        cov=r.estimate_cov,
+        truth=r.truth[:, 0],
+        estimate=estimate,
+        cov=cov,
         paths=r.platform_paths,
         platform_ids=r.platform_ids,
         sensor_ids=tuple(s.id for p in scenario.platforms for s in p.sensors),
-        measured=r.measured,
+        measured=r.looked,
         detected=r.detected,
         planner_cov=planner_cov,
-        tracker_missed=r.missed_detections,
+        tracker_missed=r.missed_detections(),
         wall_time_s=r.wall_time_s,
     )
 

@@ -1,17 +1,17 @@
 """The activetrack node graph in one table: topic names, message types and QoS.
 
-Topic names are relative (``activetrack/track``, ``clock``, ``tf``): a node started in a
-namespace (``--ros-args -r __ns:=/g1``) uses ``/g1/activetrack/track``, ``/g1/clock`` and
+Topic names are relative (``activetrack/tracks``, ``clock``, ``tf``): a node started in a
+namespace (``--ros-args -r __ns:=/g1``) uses ``/g1/activetrack/tracks``, ``/g1/clock`` and
 ``/g1/tf``, so several graphs share a DDS domain, and any name can be remapped
-(``-r activetrack/track:=/fleet/track``). Bags store the resolved (absolute) names;
+(``-r activetrack/tracks:=/fleet/tracks``). Bags store the resolved (absolute) names;
 :func:`find_topic` finds a graph topic among them whatever the namespace.
 
-Per-epoch topics (measurements, truth, platform states, tracks, commands, selections, plan
-reports; for multi-target scenarios scans, track arrays, beam commands and truth arrays) are
-reliable and transient-local with a deep history, so a node or recorder that joins late
-(another process still discovering, a restarted planner) still gets the run so far. Their
-messages carry the graph's authentication trailer (``activetrack_ros.trust``). The other topics
-are streams for people and tools (clock, diagnostics, markers, poses).
+Per-epoch topics (scans, truth, platform states, track arrays, commands, beam commands,
+selections, plan reports, metrics) are reliable and transient-local with a deep history, so a
+node or recorder that joins late (another process still discovering, a restarted planner)
+still gets the run so far. Their messages carry the graph's authentication trailer
+(``activetrack_ros.trust``). The other topics are streams for people and tools (clock,
+diagnostics, markers, poses).
 
 Readers keep every sample (KEEP_ALL): with a reliable writer a full reader makes the writer
 wait instead of overwriting, so a flood on a topic cannot push the graph's own messages out of
@@ -26,52 +26,41 @@ FIXED_FRAME = "world"
 
 CLOCK = "clock"
 PLATFORM_STATES = "activetrack/platform_states"
-BEARING_MEASUREMENTS = "activetrack/bearing_measurements"
-POLAR_MEASUREMENTS = "activetrack/polar_measurements"
-# Generic measurements (msgs_defs/Measurement): every sensor kind without a typed topic.
-MEASUREMENTS = "activetrack/measurements"
-GROUND_TRUTH = "activetrack/ground_truth"  # evaluators only: tracker and planner never read it
-TRACK = "activetrack/track"
+# Every sensor's scans of unlabelled detections (msgs_defs/Scan), one per looking sensor.
+SCANS = "activetrack/scans"
+# Every alive target's truth (msgs_defs/GroundTruthArray): evaluators only, tracker and planner
+# never read it.
+GROUND_TRUTH = "activetrack/ground_truth"
+TRACKS = "activetrack/tracks"  # msgs_defs/TrackArray: every live track with its id
 MANOEUVRE_COMMANDS = "activetrack/manoeuvre_commands"
+BEAM_COMMANDS = "activetrack/beam_commands"  # msgs_defs/BeamCommand, one per steerable sensor
 SENSOR_SELECTION = "activetrack/sensor_selection"
 PLAN_REPORT = "activetrack/plan_report"
 DIAGNOSTICS = "diagnostics"
-TRACK_POSE = "activetrack/track_pose"  # geometry_msgs/PoseWithCovarianceStamped
-PARTICLES = "activetrack/particles"  # geometry_msgs/PoseArray, subsampled PF cloud
+TRACK_POSE = "activetrack/track_pose"  # geometry_msgs/PoseWithCovarianceStamped per track
+PARTICLES = "activetrack/particles"  # geometry_msgs/PoseArray, subsampled particle clouds
 MARKERS = "activetrack/markers"  # visualization_msgs/MarkerArray
-# msgs_defs/RunMetrics: per-epoch RMSE and PCRLB from the runner's evaluator (live view, bags)
+# msgs_defs/RunMetrics: per-epoch errors, PCRLB and GOSPA from the runner's evaluator
 METRICS = "activetrack/metrics"
-# Multi-target scenarios (a targets: list): per-sensor scans of unlabelled detections, the
-# tracker's array of tracks with ids, the planner's beam pointings (one message per steerable
-# sensor), and every alive target's truth (evaluators only, like GROUND_TRUTH).
-SCANS = "activetrack/scans"  # msgs_defs/Scan
-TRACKS = "activetrack/tracks"  # msgs_defs/TrackArray
-BEAM_COMMANDS = "activetrack/beam_commands"  # msgs_defs/BeamCommand
-GROUND_TRUTH_ARRAY = "activetrack/ground_truth_array"  # msgs_defs/GroundTruthArray
-TF = "tf"  # tf2_msgs/TFMessage: platforms, target truth and estimate (docs/frames.md)
+TF = "tf"  # tf2_msgs/TFMessage: platforms, target truth and estimates (docs/frames.md)
 TF_STATIC = "tf_static"  # sensors on their platforms, latched
 
 # Every topic of the graph with its type (what `activetrack record` records by default).
 GRAPH_TOPICS = {
     CLOCK: "rosgraph_msgs/msg/Clock",
-    GROUND_TRUTH: "msgs_defs/msg/GroundTruth",
+    GROUND_TRUTH: "msgs_defs/msg/GroundTruthArray",
     PLATFORM_STATES: "msgs_defs/msg/PlatformState",
-    BEARING_MEASUREMENTS: "msgs_defs/msg/BearingMeasurement",
-    POLAR_MEASUREMENTS: "msgs_defs/msg/PolarMeasurement",
-    MEASUREMENTS: "msgs_defs/msg/Measurement",
-    TRACK: "msgs_defs/msg/TrackEstimate",
+    SCANS: "msgs_defs/msg/Scan",
+    TRACKS: "msgs_defs/msg/TrackArray",
     TRACK_POSE: "geometry_msgs/msg/PoseWithCovarianceStamped",
     PARTICLES: "geometry_msgs/msg/PoseArray",
     MANOEUVRE_COMMANDS: "msgs_defs/msg/ManoeuvreCommand",
+    BEAM_COMMANDS: "msgs_defs/msg/BeamCommand",
     SENSOR_SELECTION: "msgs_defs/msg/SensorSelection",
     PLAN_REPORT: "msgs_defs/msg/PlanReport",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
     MARKERS: "visualization_msgs/msg/MarkerArray",
     METRICS: "msgs_defs/msg/RunMetrics",
-    SCANS: "msgs_defs/msg/Scan",
-    TRACKS: "msgs_defs/msg/TrackArray",
-    BEAM_COMMANDS: "msgs_defs/msg/BeamCommand",
-    GROUND_TRUTH_ARRAY: "msgs_defs/msg/GroundTruthArray",
     TF: "tf2_msgs/msg/TFMessage",
     TF_STATIC: "tf2_msgs/msg/TFMessage",
 }
@@ -79,20 +68,15 @@ GRAPH_TOPICS = {
 # Transient-local per-epoch topics; their messages are authenticated (msgs_defs types).
 LATCHED_TOPICS = frozenset(
     {
-        BEARING_MEASUREMENTS,
-        POLAR_MEASUREMENTS,
-        MEASUREMENTS,
+        SCANS,
         PLAN_REPORT,
         GROUND_TRUTH,
         PLATFORM_STATES,
-        TRACK,
+        TRACKS,
         MANOEUVRE_COMMANDS,
+        BEAM_COMMANDS,
         SENSOR_SELECTION,
         METRICS,
-        SCANS,
-        TRACKS,
-        BEAM_COMMANDS,
-        GROUND_TRUTH_ARRAY,
     }
 )
 
@@ -154,7 +138,7 @@ def qos_for(topic: str, depth: int | None = None) -> QoSProfile:
 
 
 def graph_topic_of(name: str) -> str | None:
-    """The graph topic (relative name) that a resolved name like ``/g1/activetrack/track``
+    """The graph topic (relative name) that a resolved name like ``/g1/activetrack/tracks``
     stands for, or None."""
     for topic in GRAPH_TOPICS:
         if name == topic or name == "/" + topic or name.endswith("/" + topic):

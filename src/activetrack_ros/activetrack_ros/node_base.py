@@ -116,24 +116,8 @@ class GraphNode(Node):
         self.frame_id = values.get("frame_id", self.frame_id)
         return values
 
-    def use_scenario(self, scenario, multi_target: bool = False, mode: str | None = None) -> None:
-        """Take a scenario of the node's kind: a multi-target one (``targets:``) runs on the
-        ``multi_*_node`` executables, in lockstep ``mode`` only, a single-target one on the
-        others (ValueError naming the executable or mode to use); size the per-epoch
-        histories for it."""
-        if scenario.multi_target != multi_target:
-            kind = "multi-target (targets:)" if scenario.multi_target else "single-target"
-            node = self.get_name().removeprefix("multi_")
-            use = f"multi_{node}" if scenario.multi_target else node
-            raise ValueError(
-                f"scenario {scenario.name!r} is {kind}: run it with {use} (or `activetrack "
-                "run`, which picks the nodes)"
-            )
-        if multi_target and mode not in (None, "lockstep"):
-            raise ValueError(
-                "parameter 'mode' must be 'lockstep' for a multi-target scenario (free mode "
-                "runs single-target scenarios only)"
-            )
+    def use_scenario(self, scenario) -> None:
+        """Take the node's scenario: size the per-epoch histories for it."""
         self.size_history(scenario)
 
     def size_history(self, scenario) -> None:

@@ -1,33 +1,43 @@
-"""planner_node: PCRLB / modified-Riccati manoeuvre planning and sensor selection
-(activetrack.closed_loop.PlannerCore).
+"""planner_node: the scenario's planner (activetrack.closed_loop.planner: PCRLB and
+modified-Riccati manoeuvre planning, sensor selection, cautious localisation, planning across
+targets with beam assignment).
 
-Answers each track (epoch k) with a ManoeuvreCommand per controllable platform, a
-SensorSelection (when the scenario selects sensors) and a PlanReport, once it also holds every
-platform's state of epoch k. Renewal mode: every decision starts from the track's posterior.
-Only the graph's own tracker and simulator count (activetrack_ros.trust); bad messages are
-rejected, counted and logged; the node keeps running.
+Answers each track array (epoch k) with a ManoeuvreCommand per controllable platform, a
+BeamCommand per steerable sensor, a SensorSelection (when the scenario selects sensors) and a
+PlanReport, once it also holds every platform's state of epoch k. Renewal mode: every decision
+starts from the tracks' posteriors. Only the graph's own tracker and simulator count
+(activetrack_ros.trust); bad messages are rejected, counted and logged; the node keeps running.
 """
 
 from diagnostic_msgs.msg import DiagnosticArray
 
-from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.data import Command, PlatformSnapshot, TrackSnapshot
-from activetrack.closed_loop.planner import PlannerCore
+from activetrack.closed_loop.components import component_rngs
+from activetrack.closed_loop.planner import build_planner
+from activetrack.data import PlatformSnapshot, TrackSet
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics
-from activetrack_ros.convert import TrackChecker, header, platform_from_msg, report_msg
+from activetrack_ros.convert import (
+    TrackArrayChecker,
+    beam_msg,
+    command_msg,
+    header,
+    platform_from_msg,
+    report_msg,
+    selection_msg,
+)
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.params import FRAME_ID, RUN, SCENARIO
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import (
+    BeamCommand,
     ManoeuvreCommand,
     PlanReport,
     PlatformState,
     SensorSelection,
-    TrackEstimate,
+    TrackArray,
 )
 
-# Epochs whose platform states are kept while their track is awaited (oldest evicted first).
+# Epochs whose platform states are kept while their track array is awaited (oldest evicted).
 STATE_WINDOW = 64
 
 
@@ -38,27 +48,29 @@ class PlannerNode(GraphNode):
         self.scenario = load_scenario(p["scenario"])
         self.use_scenario(self.scenario)
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[2]
-        self.core = PlannerCore(self.scenario, rng)
-        self.check_track = TrackChecker(self.scenario)
-        self.track: TrackSnapshot | None = None
+        self.core = build_planner(self.scenario, rng)
+        self.check_tracks = TrackArrayChecker(self.scenario)
+        self.tracks: TrackSet | None = None
         self.platforms = AwaitedStates(self, self.scenario)
         self.last_decided = -1
 
         self.command_pub = self.publisher(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS)
+        self.beam_pub = self.publisher(BeamCommand, topics.BEAM_COMMANDS)
         self.selection_pub = self.publisher(SensorSelection, topics.SENSOR_SELECTION)
         self.report_pub = self.publisher(PlanReport, topics.PLAN_REPORT)
         self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
-        self.subscribe(TrackEstimate, topics.TRACK, self.on_track)
+        self.subscribe(TrackArray, topics.TRACKS, self.on_tracks)
         self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
 
-    def on_track(self, msg: TrackEstimate) -> None:
-        track = self.check_track(msg)
-        if track.epoch <= self.last_decided or (self.track and track.epoch < self.track.epoch):
-            # History replayed to a late joiner, not bad input: the latest track is what counts.
-            return self.ignore("old_track")
-        if self.track is not None and track.epoch == self.track.epoch:
-            raise Rejected("duplicate", f"second track of epoch {track.epoch}")
-        self.track = track
+    def on_tracks(self, msg: TrackArray) -> None:
+        tracks = self.check_tracks(msg)
+        latest = self.tracks.epoch if self.tracks is not None else -1
+        if tracks.epoch <= self.last_decided or tracks.epoch < latest:
+            # History replayed to a late joiner, not bad input: the latest tracks count.
+            return self.ignore("old_tracks")
+        if tracks.epoch == latest:
+            raise Rejected("duplicate", f"second track array of epoch {tracks.epoch}")
+        self.tracks = tracks
         self.try_decide()
 
     def on_platform(self, msg: PlatformState) -> None:
@@ -66,35 +78,43 @@ class PlannerNode(GraphNode):
             self.try_decide()
 
     def try_decide(self) -> None:
-        if self.track is None:
+        if self.tracks is None:
             return
-        k = self.track.epoch
+        k = self.tracks.epoch
         ordered = self.platforms.complete(k)
         if k <= self.last_decided or k >= self.scenario.steps or ordered is None:
             return
-        decision = self.core.decide(k, self.track, ordered)
+        decision = self.core.decide(k, self.tracks, ordered)
         self.last_decided = k
         self.platforms.decided(k)
-        hdr = header(k * self.scenario.dt, self.frame_id)
+        dt, frame = self.scenario.dt, self.frame_id
         for c in decision.commands:
-            self.command_pub.publish(command_msg(c, hdr))
+            self.command_pub.publish(command_msg(c, dt, frame))
+        for beam in decision.beams:
+            self.beam_pub.publish(beam_msg(beam, dt, frame))
         if decision.selected_sensor_ids is not None:
             self.selection_pub.publish(
-                SensorSelection(
-                    header=hdr,
-                    epoch=k,
-                    selected_sensor_ids=list(decision.selected_sensor_ids),
-                    candidate_sensor_ids=list(decision.candidate_sensor_ids),
-                    predicted_cost=[float(v) for v in decision.selection_costs],
-                    criterion=decision.selection_criterion,
+                selection_msg(
+                    k,
+                    dt,
+                    frame,
+                    decision.selected_sensor_ids,
+                    decision.candidate_sensor_ids,
+                    decision.selection_costs,
+                    decision.selection_criterion,
                 )
             )
+        hdr = header(k * dt, frame)
         if decision.report is not None:
             self.report_pub.publish(report_msg(decision.report, hdr))
         self.counters.count("decisions")
+        confirmed = len(self.tracks.confirmed)
         self.diag_pub.publish(
             self.diagnostics_array(
-                hdr, "activetrack/planner_node", self.scenario.name, f"decided epoch {k}"
+                hdr,
+                "activetrack/planner_node",
+                self.scenario.name,
+                f"decided epoch {k} for {confirmed} confirmed track(s)",
             )
         )
 
@@ -137,25 +157,6 @@ class AwaitedStates:
         """Drop the states of epochs up to k."""
         for e in [e for e in self.by_epoch if e <= k]:
             del self.by_epoch[e]
-
-
-def command_msg(c: Command, hdr) -> ManoeuvreCommand:
-    """A planner's Command as a ManoeuvreCommand stamped ``hdr`` (its decision epoch)."""
-    msg = ManoeuvreCommand(
-        header=hdr,
-        platform_id=c.platform_id,
-        epoch=c.epoch,
-        heading_change=c.heading_change,
-        speed_change=c.speed_change,
-        commanded_heading=c.commanded_heading,
-        commanded_speed=c.commanded_speed,
-        gate_measurement=c.take_measurement is not None,
-        take_measurement=bool(c.take_measurement),
-        has_waypoint=c.waypoint is not None,
-    )
-    if c.waypoint is not None:
-        msg.waypoint.x, msg.waypoint.y = (float(v) for v in c.waypoint)
-    return msg
 
 
 def main(args=None):

@@ -1,53 +1,58 @@
-"""sim_node: simulated target and sensor platforms (activetrack.closed_loop.Simulator).
+"""sim_node: the simulated targets and sensor platforms of a scenario, one target or many
+(activetrack.simulation.Simulator).
 
-Publishes /clock, ground truth (evaluators only), platform states and measurements: bearing and
-polar ones typed, those of any other sensor kind (a plugin's, docs/extending.md) as the generic
-``Measurement``; obeys ManoeuvreCommand (clamped to each platform's limits, logged and counted)
-and SensorSelection from the graph's planner (activetrack_ros.trust).
+Publishes /clock, every alive target's truth (``GroundTruthArray``, evaluators only), platform
+states and one ``Scan`` of unlabelled detections per looking sensor and epoch; obeys the
+planner's ManoeuvreCommand (clamped to each platform's limits, logged and counted),
+BeamCommand (a steerable sensor's pointing for the next epoch) and SensorSelection, from the
+graph's planner only (activetrack_ros.trust).
 
 Modes (parameter ``mode``):
-- ``lockstep`` (default): epoch k+1 is simulated only when every controllable platform's
-  command for epoch k has arrived, so a run is deterministic for a seed; a command missing
-  after ``command_timeout`` wall seconds means hold course (warned and counted).
-- ``free``: sim time runs at ``rate`` x wall time; commands apply to the current leg when they
-  arrive.
+- ``lockstep`` (default): epoch k+1 is simulated once every controllable platform's command,
+  every steerable sensor's beam and (with selection on) the selection of epoch k have arrived
+  (with none of them, once the track array of epoch k has), so a run is deterministic for a
+  seed; one missing after ``command_timeout`` wall seconds means hold course, keep the beam and
+  the selection (warned and counted).
+- ``free``: sim time runs at ``rate`` x wall time; commands, beams and selections apply to the
+  current leg when they arrive.
 """
 
 import math
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point, Vector3
+from geometry_msgs.msg import Point
 from rosgraph_msgs.msg import Clock
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
-from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.data import Command
-from activetrack.closed_loop.simulator import Simulator
+from activetrack.closed_loop.components import build_simulator, component_rngs, scene_sensors
+from activetrack.data import BeamCommand, Command
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import (
-    MAX_SPEED,
+    beam_from_msg,
     check_epoch_stamp,
-    finite,
+    command_from_msg,
     header,
     marker,
-    measurement_topic,
+    platform_state_msg,
+    scan_msg,
+    selection_from_msg,
+    truth_array_msg,
 )
 from activetrack_ros.frames import planar_transform, platform_frame, sensor_frame, truth_frame
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.params import COMMON, ParamSpec
 from activetrack_ros.spin import spin_node
+from msgs_defs.msg import BeamCommand as BeamCommandMsg
 from msgs_defs.msg import (
-    BearingMeasurement,
-    GroundTruth,
+    GroundTruthArray,
     ManoeuvreCommand,
-    Measurement,
     PlatformState,
-    PolarMeasurement,
+    Scan,
     SensorSelection,
-    TrackEstimate,
+    TrackArray,
 )
 
 PATH_CHUNK = 64  # points per path marker: each epoch republishes only the newest chunk
@@ -61,8 +66,8 @@ PARAMS = (
     ),
     ParamSpec(
         "command_timeout", 5.0,
-        "lockstep: wall seconds to wait for a platform's command before it holds course "
-        "(changeable while running)",
+        "lockstep: wall seconds to wait for a platform's command (or a beam, or the selection) "
+        "before it holds course (changeable while running)",
         read_only=False, low=1e-3, high=3600.0,
     ),
     ParamSpec(
@@ -89,7 +94,8 @@ class SimNode(GraphNode):
         self.timeout = p["command_timeout"]
         self.exit_when_done = p["exit_when_done"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[0]
-        self.sim = Simulator(self.scenario, rng)
+        self.sim = build_simulator(self.scenario, rng)
+        self.sensors = scene_sensors(self.scenario)
         changes.update(
             command_timeout=self._set_timeout,
             exit_when_done=self._set_exit_when_done,
@@ -100,22 +106,21 @@ class SimNode(GraphNode):
         )
         self.tf_pub = self.publisher(TFMessage, topics.TF)
         self.tf_static_pub = self.publisher(TFMessage, topics.TF_STATIC)
-
         self.clock_pub = self.publisher(Clock, topics.CLOCK)
-        self.truth_pub = self.publisher(GroundTruth, topics.GROUND_TRUTH)
+        self.truth_pub = self.publisher(GroundTruthArray, topics.GROUND_TRUTH)
         self.platform_pub = self.publisher(PlatformState, topics.PLATFORM_STATES)
-        self.bearing_pub = self.publisher(BearingMeasurement, topics.BEARING_MEASUREMENTS)
-        self.polar_pub = self.publisher(PolarMeasurement, topics.POLAR_MEASUREMENTS)
-        self.generic_pub = self.publisher(Measurement, topics.MEASUREMENTS)
+        self.scan_pub = self.publisher(Scan, topics.SCANS)
         self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.paths: dict[str, list[Point]] = {pid: [] for pid in self.sim.platforms}
         self.path_chunk = dict.fromkeys(self.sim.platforms, 0)
         self.subscribe(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS, self.on_command)
+        self.subscribe(BeamCommandMsg, topics.BEAM_COMMANDS, self.on_beam)
         self.subscribe(SensorSelection, topics.SENSOR_SELECTION, self.on_selection)
-        self.subscribe(TrackEstimate, topics.TRACK, self.on_track)
+        self.subscribe(TrackArray, topics.TRACKS, self.on_tracks)
 
         self.pending: dict[str, Command] = {}
+        self.beams: dict[str, BeamCommand] = {}
         self.selection: tuple[str, ...] | None = None
         self.selection_epoch = -1
         # Lockstep: with selection on, epoch k+1 also waits for the selection decided at k.
@@ -153,45 +158,47 @@ class SimNode(GraphNode):
             check_lockstep_epoch(epoch, self.sim.epoch, what)
 
     def on_command(self, msg: ManoeuvreCommand) -> None:
-        cmd = command_from_msg(msg, self.scenario, self.sim)
+        cmd = command_from_msg(msg, self.scenario, self.sim.epoch, self.sim.controllable_ids)
         what = f"command for {msg.platform_id!r}"
         self._check_epoch(msg.epoch, what)
-        if self.mode == "lockstep" and msg.platform_id in self.pending:
-            raise Rejected("duplicate", f"second {what} at epoch {msg.epoch}")
         if self.mode == "free":
             self.apply(cmd)
-        else:
-            self.pending[msg.platform_id] = cmd
-            if self.ready():
-                self.on_tick()  # the last command of the epoch: step now, not at the next tick
+            return
+        if msg.platform_id in self.pending:
+            raise Rejected("duplicate", f"second {what} at epoch {msg.epoch}")
+        self.pending[msg.platform_id] = cmd
+        self.step_if_ready()
+
+    def on_beam(self, msg: BeamCommandMsg) -> None:
+        beam = beam_from_msg(msg, self.scenario)
+        what = f"beam command of {beam.sensor_id!r}"
+        self._check_epoch(beam.epoch, what)
+        if self.mode == "free":
+            self.sim.apply_beam(BeamCommand(beam.sensor_id, self.sim.epoch, beam.bearing))
+            return
+        if beam.sensor_id in self.beams:
+            raise Rejected("duplicate", f"second {what} at epoch {beam.epoch}")
+        self.beams[beam.sensor_id] = beam
+        self.step_if_ready()
 
     def on_selection(self, msg: SensorSelection) -> None:
         if not self.expects_selection:
             raise Rejected("unexpected_selection", "the scenario does not select sensors")
-        check_epoch_stamp(msg, self.scenario, "selection")
-        ids = list(msg.selected_sensor_ids)
-        unknown = [s for s in ids if s not in self.sim.sensors]
-        if unknown:
-            raise Rejected("unknown_sensor", f"selection names {unknown[:5]}")
-        count = self.scenario.planner.selection.count
-        if len(set(ids)) != len(ids) or not 1 <= len(ids) <= count:
-            raise Rejected("bad_selection", f"selection must name 1..{count} distinct sensors")
+        ids = selection_from_msg(msg, self.scenario, self.sim.sensors)
         self._check_epoch(msg.epoch, "selection")
         if self.mode == "lockstep" and self.selection_epoch == msg.epoch:
             raise Rejected("duplicate", f"second selection at epoch {msg.epoch}")
-        self.selection = tuple(ids)
+        self.selection = ids
         self.selection_epoch = msg.epoch
-        if self.mode == "lockstep" and self.ready():
-            self.on_tick()
+        self.step_if_ready()
 
-    def on_track(self, msg: TrackEstimate) -> None:
-        # Only a lockstep signal when no platform is commanded: the sim never reads the estimate.
-        check_epoch_stamp(msg, self.scenario, "track")
+    def on_tracks(self, msg: TrackArray) -> None:
+        # Only a lockstep signal when nothing is commanded: the sim never reads the tracks.
+        check_epoch_stamp(msg, self.scenario, "track array")
         if msg.epoch > self.sim.epoch:
-            raise Rejected("future_epoch", f"track of epoch {msg.epoch} > sim {self.sim.epoch}")
+            raise Rejected("future_epoch", f"track array of epoch {msg.epoch} > {self.sim.epoch}")
         self.last_track_epoch = max(self.last_track_epoch, msg.epoch)
-        if self.mode == "lockstep" and not self.sim.controllable_ids and self.ready():
-            self.on_tick()
+        self.step_if_ready()
 
     # --- stepping ------------------------------------------------------------------------
 
@@ -208,9 +215,14 @@ class SimNode(GraphNode):
         k = self.sim.epoch
         if self.expects_selection and self.selection_epoch != k:
             return False
-        if not self.sim.controllable_ids:
+        if not self.sim.controllable_ids and not self.sim.steerable_ids:
             return self.last_track_epoch >= k
-        return all(pid in self.pending for pid in self.sim.controllable_ids)
+        commands = all(pid in self.pending for pid in self.sim.controllable_ids)
+        return commands and all(sid in self.beams for sid in self.sim.steerable_ids)
+
+    def step_if_ready(self) -> None:
+        if self.mode == "lockstep" and not self.done and not self.sim.finished and self.ready():
+            self.on_tick()  # the epoch's last answer: step now, not at the next tick
 
     def on_tick(self) -> None:
         if self.done:
@@ -229,116 +241,79 @@ class SimNode(GraphNode):
         if not self.ready():
             if time.monotonic() - self.epoch_started < self.timeout:
                 return
-            missing = [p for p in self.sim.controllable_ids if p not in self.pending]
-            for pid in missing:
-                self.pending[pid] = Command(pid, self.sim.epoch, 0.0, 0.0)
-            self.counters.count("command_timeouts", max(1, len(missing)))
-            self.get_logger().warning(
-                f"epoch {self.sim.epoch}: no command for {missing} after {self.timeout} s; "
-                "holding course"
-            )
+            self.hold_missing()
+        # The batch loop's order (activetrack.closed_loop.loop): commands, beams, selection.
         for pid in self.sim.controllable_ids:
             self.apply(self.pending[pid])
+        for sid in self.sim.steerable_ids:
+            if sid in self.beams:
+                self.sim.apply_beam(self.beams[sid])
         self.step()
+
+    def hold_missing(self) -> None:
+        """Past the timeout: hold course, keep the beams and the selection (warned, counted)."""
+        k = self.sim.epoch
+        missing = [p for p in self.sim.controllable_ids if p not in self.pending]
+        for pid in missing:
+            self.pending[pid] = Command(pid, k, 0.0, 0.0)
+        beams = [s for s in self.sim.steerable_ids if s not in self.beams]
+        selection = self.expects_selection and self.selection_epoch != k
+        self.counters.count("command_timeouts", max(1, len(missing) + len(beams) + selection))
+        self.get_logger().warning(
+            f"epoch {k}: no command for {missing}, no beam for {beams}"
+            f"{', no selection' if selection else ''} after {self.timeout} s; holding course"
+        )
 
     def step(self) -> None:
         if self.selection is not None and self.selection_epoch == self.sim.epoch:
             self.sim.apply_selection(self.selection)
         self.pending.clear()
-        measurements = self.sim.advance()
-        self.publish_epoch(measurements)
+        self.beams.clear()
+        self.publish_epoch(self.sim.advance())
         self.epoch_started = time.monotonic()
 
     # --- outputs -------------------------------------------------------------------------
 
-    def publish_epoch(self, measurements) -> None:
+    def publish_epoch(self, scans) -> None:
         t = self.sim.time
-        k = self.sim.epoch
         self.clock_pub.publish(Clock(clock=header(t, self.frame_id).stamp))
-        pv = self.sim.truth_pv()
-        self.truth_pub.publish(
-            GroundTruth(
-                header=header(t, self.frame_id),
-                target_id=self.scenario.target.id,
-                epoch=k,
-                state_names=list(self.sim.model.state_names),
-                state=[float(v) for v in self.sim.truth],
-                position=Point(x=float(pv[0]), y=float(pv[2])),
-                velocity=Vector3(x=float(pv[1]), y=float(pv[3])),
+        truth = self.sim.truth_set()
+        self.truth_pub.publish(truth_array_msg(truth, self.frame_id))
+        for scan in scans:
+            self.scan_pub.publish(
+                scan_msg(scan, self.scenario, len(scans), self.frame_id, self.sensors)
             )
-        )
-        for m in measurements:
-            self.publish_measurement(m, k, t, len(measurements))
-        for msg in platform_state_msgs(self.sim, len(measurements), self.frame_id):
-            self.platform_pub.publish(msg)
+            self.counters.count("scans_published")
+            self.counters.count("detections_published", len(scan.Z))
+            if len(scan.Z) == 0:
+                self.counters.count("empty_scans")
+        for s in self.sim.platform_snapshots():
+            self.platform_pub.publish(platform_state_msg(s, len(scans), self.frame_id))
         self.counters.count("epochs_published")
-        self.publish_frames(t, pv)
+        self.publish_frames(t, truth)
         self.publish_markers(t)
         self.publish_diagnostics()
 
-    def publish_frames(self, t: float, target_pv) -> None:
-        """Platforms and the target's truth in the fixed frame (activetrack_ros.frames)."""
+    def publish_frames(self, t: float, truth) -> None:
+        """Platforms and each alive target's truth in the fixed frame (docs/frames.md)."""
         hdr = header(t, self.frame_id)
         transforms = [
             planar_transform(hdr, platform_frame(s.platform_id), s.pv[0], s.pv[2], s.heading)
             for s in self.sim.platform_snapshots()
         ]
-        course = math.atan2(target_pv[3], target_pv[1])
-        target = truth_frame(self.scenario.target.id)
-        transforms.append(planar_transform(hdr, target, target_pv[0], target_pv[2], course))
+        for target_id, pv in zip(truth.ids, truth.pv, strict=True):
+            course = math.atan2(pv[3], pv[1])
+            transforms.append(planar_transform(hdr, truth_frame(target_id), pv[0], pv[2], course))
         self.tf_pub.publish(TFMessage(transforms=transforms))
 
     def publish_static_frames(self) -> None:
-        self.tf_static_pub.publish(static_frames(self.scenario))
-
-    def publish_measurement(self, m, epoch: int, t: float, count: int) -> None:
-        platform_id = self.sim.sensors[m.sensor_id][0]
-        s = m.sensor_state
-        common = dict(
-            header=header(t, self.frame_id),
-            platform_id=platform_id,
-            sensor_id=m.sensor_id,
-            epoch=epoch,
-            epoch_measurement_count=count,
-            sensor_position=Point(x=float(s[0]), y=float(s[2])),
-            sensor_velocity=Vector3(x=float(s[1]), y=float(s[3])),
-            detected=m.z is not None,
-        )
-        sensor = m.sensor
-        z = dict(zip(sensor.components, m.z, strict=True)) if m.z is not None else {}
-        topic = measurement_topic(sensor.kind)
-        if topic == topics.BEARING_MEASUREMENTS:
-            self.bearing_pub.publish(
-                BearingMeasurement(
-                    **common,
-                    bearing=float(z.get("bearing", 0.0)),
-                    sigma=float(sensor.sigma),
-                    ambiguous=sensor.kind == "ambiguous_bearing",
-                )
-            )
-        elif topic == topics.POLAR_MEASUREMENTS:
-            self.polar_pub.publish(
-                PolarMeasurement(
-                    **common,
-                    range=float(z.get("range", 0.0)),
-                    bearing=float(z.get("bearing", 0.0)),
-                    has_range_rate="range_rate" in sensor.components,
-                    range_rate=float(z.get("range_rate", 0.0)),
-                    covariance=[float(v) for v in sensor.R.ravel()],
-                )
-            )
-        else:  # any other kind: z in the order of sensor.components
-            self.generic_pub.publish(
-                Measurement(
-                    **common,
-                    sensor_kind=sensor.kind,
-                    z=[] if m.z is None else [float(v) for v in m.z],
-                    covariance=[float(v) for v in sensor.R.ravel()],
-                )
-            )
-        self.counters.count("measurements_published")
-        if m.z is None:
-            self.counters.count("missed_detections")
+        """Each sensor at its platform's origin (tf_static, one message)."""
+        transforms = [
+            planar_transform(header(0.0, platform_frame(p.id)), sensor_frame(s.id), 0, 0, 0)
+            for p in self.scenario.platforms
+            for s in p.sensors
+        ]
+        self.tf_static_pub.publish(TFMessage(transforms=transforms))
 
     def publish_markers(self, t: float) -> None:
         """Each platform's path as line strips of PATH_CHUNK points (namespace
@@ -360,7 +335,12 @@ class SimNode(GraphNode):
         self.marker_pub.publish(array)
 
     def publish_diagnostics(self, finished: bool = False) -> None:
-        self.diag_pub.publish(sim_diagnostics(self, finished))
+        sim = self.sim
+        message = "finished" if finished else f"epoch {sim.epoch}/{self.scenario.steps}"
+        hdr = header(sim.time, self.frame_id)
+        self.diag_pub.publish(
+            self.diagnostics_array(hdr, "activetrack/sim_node", self.scenario.name, message)
+        )
 
 
 def check_lockstep_epoch(epoch: int, current: int, what: str) -> None:
@@ -369,69 +349,6 @@ def check_lockstep_epoch(epoch: int, current: int, what: str) -> None:
         raise Rejected("stale_epoch", f"{what} for epoch {epoch} < {current}")
     if epoch > current:
         raise Rejected("future_epoch", f"{what} for epoch {epoch} > {current}")
-
-
-def static_frames(scenario) -> TFMessage:
-    """Each sensor at its platform's origin (tf_static, one message)."""
-    transforms = [
-        planar_transform(header(0.0, platform_frame(p.id)), sensor_frame(s.id), 0, 0, 0)
-        for p in scenario.platforms
-        for s in p.sensors
-    ]
-    return TFMessage(transforms=transforms)
-
-
-def sim_diagnostics(node, finished: bool) -> DiagnosticArray:
-    """A sim node's status: its epoch (or finished) and its counters."""
-    sim, scenario = node.sim, node.scenario
-    message = "finished" if finished else f"epoch {sim.epoch}/{scenario.steps}"
-    hdr = header(sim.time, node.frame_id)
-    return node.diagnostics_array(hdr, "activetrack/sim_node", scenario.name, message)
-
-
-def command_from_msg(msg: ManoeuvreCommand, scenario, sim: Simulator) -> Command:
-    """A ManoeuvreCommand for one of ``sim``'s controllable platforms as a Command of the
-    current epoch, every field checked (Rejected naming it); the epoch itself is the mode's
-    business."""
-    what = f"command for {msg.platform_id!r}"
-    if msg.platform_id not in sim.controllable_ids:
-        raise Rejected(
-            "unknown_platform", f"{msg.platform_id!r} is not one of {list(sim.controllable_ids)}"
-        )
-    check_epoch_stamp(msg, scenario, what)
-    # A heading change beyond half a turn or a speed change beyond the platform's whole speed
-    # range is not a command to clamp but garbage: reject it.
-    finite((msg.heading_change,), f"{what} heading_change", math.pi + 1e-9)
-    v_max = next(p for p in scenario.platforms if p.id == msg.platform_id).limits.v_max
-    finite((msg.speed_change,), f"{what} speed_change", min(v_max, MAX_SPEED))
-    return Command(
-        msg.platform_id,
-        sim.epoch,
-        msg.heading_change,
-        msg.speed_change,
-        take_measurement=msg.take_measurement if msg.gate_measurement else None,
-    )
-
-
-def platform_state_msgs(sim: Simulator, count: int, frame_id: str) -> list[PlatformState]:
-    """Every platform's state at the sim's epoch; ``count``: what the sim published at it
-    (measurements, or scans of a multi-target run)."""
-    hdr = header(sim.time, frame_id)
-    return [
-        PlatformState(
-            header=hdr,
-            platform_id=s.platform_id,
-            epoch=sim.epoch,
-            sensor_ids=list(s.sensor_ids),
-            sensor_kinds=list(s.sensor_kinds),
-            position=Point(x=float(s.pv[0]), y=float(s.pv[2])),
-            velocity=Vector3(x=float(s.pv[1]), y=float(s.pv[3])),
-            heading=s.heading,
-            speed=s.speed,
-            epoch_measurement_count=count,
-        )
-        for s in sim.platform_snapshots()
-    ]
 
 
 def main(args=None):

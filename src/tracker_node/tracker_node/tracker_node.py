@@ -1,19 +1,20 @@
-"""tracker_node: the scenario's filter (EKF, particle filter or a registered one) on the
-bearing, polar and generic measurements (activetrack.closed_loop.TrackerCore).
+"""tracker_node: the scenario's tracker (any registered filter per track, known or JPDA
+association, track management: activetrack.tracking.Tracker) on the sim's scans.
 
 An epoch k is announced by the simulator's platform states of epoch k (one per platform, each
-saying how many measurements the sim published at k); the tracker updates once it holds them
-all, sorted in scenario order, and publishes the track. Each measurement must agree with its
-platform's announced position. An epoch that stays incomplete for ``epoch_timeout`` seconds is
-closed with what arrived (warned and counted), like a missing command in the simulator, so
-nothing can stall the tracker. In lockstep mode only epoch last + 1 is accepted. Outputs:
-``TrackEstimate`` (with the planner's posterior samples for a PF),
-``geometry_msgs/PoseWithCovarianceStamped`` and a subsampled particle cloud
-(``geometry_msgs/PoseArray``) for standard tools. Bad messages are rejected, counted and logged
-(activetrack_ros.node_base); the node keeps running.
+saying how many scans the sim published at k); the tracker updates once it holds them all,
+sorted in scenario order, and publishes every live track with its id and covariance
+(``TrackArray``, with the planner's posterior samples for a particle filter). Each scan must
+agree with its platform's announced position. An epoch that stays incomplete for
+``epoch_timeout`` seconds is closed with what arrived (warned and counted), like a missing
+command in the simulator, so nothing can stall the tracker. In lockstep mode only epoch last + 1
+is accepted. For standard tools: each confirmed track's pose with covariance
+(``geometry_msgs/PoseWithCovarianceStamped``) and tf frame, a subsampled particle cloud
+(``geometry_msgs/PoseArray``), a 2-sigma ellipse and an id label per confirmed track
+(``MarkerArray``). Bad messages are rejected, counted and logged (activetrack_ros.node_base);
+the node keeps running.
 """
 
-import array
 import math
 import time
 from dataclasses import dataclass, field
@@ -25,31 +26,24 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from activetrack import limits
-from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.data import PlatformSnapshot
-from activetrack.closed_loop.tracker import TrackerCore, pose_of
+from activetrack.closed_loop.components import build_tracker, component_rngs, scene_sensors
+from activetrack.data import PlatformSnapshot, Scan, TrackSet
 from activetrack.filters import filter_names
-from activetrack.filters.measurement import Measurement
 from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_scenario, with_tracker_overrides
 from activetrack_ros import graph as topics
-from activetrack_ros.convert import MeasurementChecker, header, marker, platform_from_msg
+from activetrack_ros.convert import marker, platform_from_msg, scan_from_msg, track_array_msg
 from activetrack_ros.frames import estimate_frame, planar_transform
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.params import COMMON, ParamSpec
 from activetrack_ros.spin import spin_node
-from msgs_defs.msg import (
-    BearingMeasurement,
-    PlatformState,
-    PolarMeasurement,
-    TrackEstimate,
-)
-from msgs_defs.msg import (
-    Measurement as MeasurementMsg,
-)
+from msgs_defs.msg import PlatformState, TrackArray
+from msgs_defs.msg import Scan as ScanMsg
 
 FREE_WINDOW = 64  # free mode: epochs ahead of the last update that may be collected at once
-POSITION_TOLERANCE = 1e-6  # m between a measurement's sensor position and its platform state
+POSITION_TOLERANCE = 1e-6  # m between a scan's sensor position and its platform state
+CONFIRMED_RGBA = (0.9, 0.1, 0.1, 1.0)
+_XY = np.ix_([0, 2], [0, 2])
 
 
 @dataclass
@@ -57,9 +51,9 @@ class OpenEpoch:
     """What has arrived for one epoch that is not processed yet."""
 
     opened: float  # time.monotonic() of the first message
-    measurements: dict[str, Measurement] = field(default_factory=dict)
+    scans: dict[str, Scan] = field(default_factory=dict)
     states: dict[str, PlatformSnapshot] = field(default_factory=dict)
-    announced: dict[str, int] = field(default_factory=dict)  # platform id -> measurement count
+    announced: int = 0  # scans the sim published at the epoch
 
 
 PARAMS = (
@@ -84,6 +78,12 @@ FILTER = ParamSpec(
 )
 
 
+def track_frame(track) -> str:
+    """The tf frame of a track's estimate: its target's for a track from a prior, else one
+    named by its id."""
+    return estimate_frame(track.origin or f"track{track.track_id}")
+
+
 class TrackerNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("tracker_node", **kwargs)
@@ -99,28 +99,25 @@ class TrackerNode(GraphNode):
         self.epoch_timeout = p["epoch_timeout"]
         self.cloud_size = p["cloud_size"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[1]
-        self.core = TrackerCore(self.scenario, rng)
-        # Scenario order of the sensors: measurements of an epoch are applied in this order.
-        self.sensor_order = {sid: i for i, sid in enumerate(self.core.sensors)}
+        self.core = build_tracker(self.scenario, rng)
+        self.sensors = scene_sensors(self.scenario)
+        # Scenario order of the sensors: scans of an epoch are applied in this order.
+        self.sensor_order = {sid: i for i, sid in enumerate(self.sensors)}
         self.platform_ids = {p.id for p in self.scenario.platforms}
-        owner = {s.id: p.id for p in self.scenario.platforms for s in p.sensors}
-        self.check = MeasurementChecker(self.scenario, self.core.sensors, owner)
-        self.owner = owner
         self.epochs: dict[int, OpenEpoch] = {}
         self.last_epoch = 0
+        self.drawn: set[int] = set()  # track ids with markers up
 
-        self.track_pub = self.publisher(TrackEstimate, topics.TRACK)
+        self.tracks_pub = self.publisher(TrackArray, topics.TRACKS)
         self.pose_pub = self.publisher(PoseWithCovarianceStamped, topics.TRACK_POSE)
         self.cloud_pub = self.publisher(PoseArray, topics.PARTICLES)
         self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.tf_pub = self.publisher(TFMessage, topics.TF)
-        self.subscribe(BearingMeasurement, topics.BEARING_MEASUREMENTS, self.on_bearing)
-        self.subscribe(PolarMeasurement, topics.POLAR_MEASUREMENTS, self.on_polar)
-        self.subscribe(MeasurementMsg, topics.MEASUREMENTS, self.on_measurement)
+        self.subscribe(ScanMsg, topics.SCANS, self.on_scan)
         self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
         self.guarded_timer(0.05, self.on_tick)
-        self.publish_track(self.core.snapshot())  # epoch 0: the prior
+        self.publish_tracks(self.core.snapshot())  # epoch 0: the priors' tracks
 
     def _set_cloud_size(self, size: int) -> None:
         self.cloud_size = size
@@ -130,14 +127,13 @@ class TrackerNode(GraphNode):
 
     # --- inputs --------------------------------------------------------------------------
 
-    def on_bearing(self, msg: BearingMeasurement) -> None:
-        self.add_measurement(msg.epoch, self.check.bearing(msg))
-
-    def on_polar(self, msg: PolarMeasurement) -> None:
-        self.add_measurement(msg.epoch, self.check.polar(msg))
-
-    def on_measurement(self, msg: MeasurementMsg) -> None:
-        self.add_measurement(msg.epoch, self.check.generic(msg))
+    def on_scan(self, msg: ScanMsg) -> None:
+        scan = scan_from_msg(msg, self.scenario, self.sensors)
+        epoch = self.open_epoch(scan.epoch, f"scan of {scan.sensor_id!r}")
+        if scan.sensor_id in epoch.scans:
+            raise Rejected("duplicate", f"second scan of {scan.sensor_id!r} at {scan.epoch}")
+        epoch.scans[scan.sensor_id] = scan
+        self.close_ready()
 
     def on_platform(self, msg: PlatformState) -> None:
         snap = platform_from_msg(msg, self.scenario, self.platform_ids)
@@ -147,14 +143,7 @@ class TrackerNode(GraphNode):
         if snap.platform_id in epoch.states:
             raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
         epoch.states[snap.platform_id] = snap
-        epoch.announced[snap.platform_id] = msg.epoch_measurement_count
-        self.close_ready()
-
-    def add_measurement(self, k: int, m: Measurement) -> None:
-        epoch = self.open_epoch(k, f"measurement of {m.sensor_id!r}")
-        if m.sensor_id in epoch.measurements:
-            raise Rejected("duplicate", f"second measurement of {m.sensor_id!r} at {k}")
-        epoch.measurements[m.sensor_id] = m
+        epoch.announced = max(epoch.announced, msg.epoch_scan_count)
         self.close_ready()
 
     def open_epoch(self, k: int, what: str) -> OpenEpoch:
@@ -170,10 +159,8 @@ class TrackerNode(GraphNode):
     # --- epochs --------------------------------------------------------------------------
 
     def complete(self, epoch: OpenEpoch) -> bool:
-        """Every platform announced the epoch and every announced measurement is here."""
-        if epoch.states.keys() != self.platform_ids:
-            return False
-        return len(epoch.measurements) >= max(epoch.announced.values())
+        """Every platform announced the epoch and every announced scan is here."""
+        return epoch.states.keys() == self.platform_ids and len(epoch.scans) >= epoch.announced
 
     def close_ready(self) -> None:
         """Process complete epochs in order; in free mode a complete later epoch also closes
@@ -191,111 +178,110 @@ class TrackerNode(GraphNode):
         if not self.epochs:
             return
         k = min(self.epochs)
-        waited = time.monotonic() - self.epochs[k].opened
-        if waited >= self.epoch_timeout:
+        if time.monotonic() - self.epochs[k].opened >= self.epoch_timeout:
             self.process(k, complete=False)
             self.close_ready()
 
     def process(self, k: int, complete: bool) -> None:
         epoch = self.epochs.pop(k)
         if not complete:
-            what = f"{len(epoch.measurements)} measurements, states of {sorted(epoch.states)}"
-            note_incomplete(self, k, epoch.opened, what)
-        ordered = sorted(epoch.measurements.values(), key=lambda m: self.sensor_order[m.sensor_id])
-        used = where_their_platforms_are(
-            self, k, ordered, epoch.states, lambda m: m.sensor_state, self.owner.__getitem__
-        )
-        snapshot = self.core.step(k, k * self.scenario.dt, used)
+            self.counters.count("incomplete_epochs")
+            self.log_limited(
+                "warning",
+                "incomplete",
+                f"epoch {k} closed incomplete after {time.monotonic() - epoch.opened:.2f} s: "
+                f"{len(epoch.scans)} scans, states of {sorted(epoch.states)}",
+            )
+        ordered = sorted(epoch.scans.values(), key=lambda s: self.sensor_order[s.sensor_id])
+        used = []
+        for scan in ordered:  # each where its platform says it is
+            state = epoch.states.get(self.sensors[scan.sensor_id][0])
+            if state is not None and not np.allclose(
+                scan.sensor_pv, state.pv, rtol=0, atol=POSITION_TOLERANCE
+            ):
+                self.reject(
+                    "inconsistent", f"{scan.sensor_id!r} at {k} is not where its platform is"
+                )
+                continue
+            used.append(scan)
+        tracks = self.core.step(k, k * self.scenario.dt, used)
         self.last_epoch = k
         for e in [e for e in self.epochs if e <= k]:
             del self.epochs[e]
         self.counters.count("updates")
-        self.counters.count("missed_detections", sum(m.z is None for m in used))
+        self.counters.count("detections", tracks.detections)
+        self.counters.count("empty_scans", sum(len(s.Z) == 0 for s in used))
         if not used:
-            self.counters.count("epochs_without_measurements")
-        self.publish_track(snapshot)
+            self.counters.count("epochs_without_scans")
+        self.publish_tracks(tracks)
 
     # --- outputs -------------------------------------------------------------------------
 
-    def publish_track(self, snap) -> None:
-        hdr = header(snap.epoch * self.scenario.dt, self.frame_id)
-        samples = snap.samples
-        self.track_pub.publish(
-            TrackEstimate(
-                header=hdr,
-                target_id=self.scenario.target.id,
-                epoch=snap.epoch,
-                filter_kind=snap.filter_kind,
-                motion_model=snap.motion_model,
-                state_names=list(snap.state_names),
-                state=[float(v) for v in snap.mean],
-                covariance=[float(v) for v in snap.cov.ravel()],
-                update_count=snap.update_count,
-                missed_detections=snap.missed_detections,
-                nis=float(snap.nis),
-                ess=float(snap.ess),
-                particle_count=snap.particle_count,
-                # array('d') from the raw buffer: a 10,000 x 4 list would cost ~25 ms per epoch.
-                particle_samples=array.array("d")
-                if samples is None
-                else array.array("d", np.ascontiguousarray(samples, dtype=float).tobytes()),
-                sample_count=0 if samples is None else len(samples),
-            )
+    def publish_tracks(self, tracks: TrackSet) -> None:
+        msg = track_array_msg(tracks, self.frame_id)
+        self.tracks_pub.publish(msg)
+        hdr = msg.header
+        markers, transforms, now = [], [], set()
+        for t in tracks.confirmed:
+            xy = np.asarray(t.mean)[[0, 2]]
+            P_xy = np.asarray(t.cov)[_XY]
+            course = math.atan2(t.mean[3], t.mean[1])
+            self.pose_pub.publish(_pose(hdr, xy, course, P_xy))
+            transforms.append(planar_transform(hdr, track_frame(t), xy[0], xy[1], course))
+            points = covariance_ellipse(xy, P_xy, 2.0)
+            ellipse = marker(hdr, "tracks", t.track_id, Marker.LINE_STRIP, CONFIRMED_RGBA, points)
+            ellipse.scale.x = 5.0  # line width, m
+            label = marker(hdr, "track_ids", t.track_id, Marker.TEXT_VIEW_FACING, CONFIRMED_RGBA)
+            label.pose.position.x, label.pose.position.y = float(xy[0]), float(xy[1])
+            label.scale.z = 50.0  # text height, m
+            label.text = str(t.track_id)
+            markers += [ellipse, label]
+            now.add(t.track_id)
+        for gone in sorted(self.drawn - now):  # deleted or no longer confirmed
+            for ns in ("tracks", "track_ids"):
+                m = marker(hdr, ns, gone, Marker.LINE_STRIP, CONFIRMED_RGBA)
+                m.action = Marker.DELETE
+                markers.append(m)
+        self.drawn = now
+        if transforms:
+            self.tf_pub.publish(TFMessage(transforms=transforms))
+        self.marker_pub.publish(MarkerArray(markers=markers))
+        self.publish_cloud(hdr, tracks)
+        ess = [t.ess for t in tracks.tracks if not math.isnan(t.ess)]
+        message = (
+            f"epoch {tracks.epoch} {tracks.filter_kind}: {len(tracks.confirmed)} confirmed of "
+            f"{len(tracks.tracks)} tracks, {tracks.detections} detections"
+            + (f", lowest ESS {min(ess):.0f}" if ess else "")
         )
-        x, y, course, P_xy = pose_of(snap, self.core.model)
-        pose = PoseWithCovarianceStamped(header=hdr)
-        pose.pose.pose.position.x, pose.pose.pose.position.y = x, y
-        pose.pose.pose.orientation.z = math.sin(course / 2)
-        pose.pose.pose.orientation.w = math.cos(course / 2)
-        cov6 = [0.0] * 36  # (x, y, z, roll, pitch, yaw), row-major
-        cov6[0], cov6[1], cov6[6], cov6[7] = (float(v) for v in P_xy.ravel())
-        pose.pose.covariance = cov6
-        self.pose_pub.publish(pose)
-        target = estimate_frame(self.scenario.target.id)
-        self.tf_pub.publish(TFMessage(transforms=[planar_transform(hdr, target, x, y, course)]))
-        # 2-sigma position ellipse of the track.
-        points = covariance_ellipse((x, y), P_xy, 2.0)
-        ellipse = marker(hdr, "track", 0, Marker.LINE_STRIP, (0.9, 0.1, 0.1, 1.0), points)
-        ellipse.scale.x = 5.0  # line width, m
-        self.marker_pub.publish(MarkerArray(markers=[ellipse]))
-        if samples is not None and self.cloud_size > 0:
-            step = max(1, len(samples) // self.cloud_size)
-            cloud = PoseArray(header=hdr)
-            for x in self.core.model.kinematics(samples[::step]):
-                p = Pose()
-                p.position.x, p.position.y = float(x[0]), float(x[2])
-                cloud.poses.append(p)
-            self.cloud_pub.publish(cloud)
-        message = f"epoch {snap.epoch} {snap.filter_kind}: ESS {snap.ess:.0f} NIS {snap.nis:.2f}"
         self.diag_pub.publish(
             self.diagnostics_array(hdr, "activetrack/tracker_node", self.scenario.name, message)
         )
 
-
-def where_their_platforms_are(node, k: int, items, states, sensor_pv, owner) -> list:
-    """The epoch's ``items`` (measurements or scans) whose sensor position ``sensor_pv(item)``
-    is its platform's announced one (``states``: platform id -> state; ``owner``: sensor id
-    -> platform id); each other one is rejected (counted and logged) as inconsistent."""
-    kept = []
-    for item in items:
-        state = states.get(owner(item.sensor_id))
-        if state is not None and not np.allclose(
-            sensor_pv(item), state.pv, rtol=0, atol=POSITION_TOLERANCE
-        ):
-            node.reject("inconsistent", f"{item.sensor_id!r} at {k} is not where its platform is")
-            continue
-        kept.append(item)
-    return kept
+    def publish_cloud(self, hdr, tracks: TrackSet) -> None:
+        """The particle tracks' posterior samples, subsampled to about ``cloud_size`` each."""
+        clouds = [t.samples for t in tracks.tracks if t.samples is not None]
+        if not clouds or self.cloud_size <= 0:
+            return
+        cloud = PoseArray(header=hdr)
+        for samples in clouds:
+            step = max(1, len(samples) // self.cloud_size)
+            for x in self.core.model.kinematics(samples[::step]):
+                p = Pose()
+                p.position.x, p.position.y = float(x[0]), float(x[2])
+                cloud.poses.append(p)
+        self.cloud_pub.publish(cloud)
 
 
-def note_incomplete(node, k: int, opened: float, what: str) -> None:
-    """An epoch closed before all it announced arrived: counted and logged (rate-limited)."""
-    node.counters.count("incomplete_epochs")
-    node.log_limited(
-        "warning",
-        "incomplete",
-        f"epoch {k} closed incomplete after {time.monotonic() - opened:.2f} s: {what}",
-    )
+def _pose(hdr, xy, course: float, P_xy) -> PoseWithCovarianceStamped:
+    """A track's position with its covariance, heading along its velocity."""
+    pose = PoseWithCovarianceStamped(header=hdr)
+    pose.pose.pose.position.x, pose.pose.pose.position.y = float(xy[0]), float(xy[1])
+    pose.pose.pose.orientation.z = math.sin(course / 2)
+    pose.pose.pose.orientation.w = math.cos(course / 2)
+    cov6 = [0.0] * 36  # (x, y, z, roll, pitch, yaw), row-major
+    cov6[0], cov6[1], cov6[6], cov6[7] = (float(v) for v in np.ravel(P_xy))
+    pose.pose.covariance = cov6
+    return pose
 
 
 def main(args=None):

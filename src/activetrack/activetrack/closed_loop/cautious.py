@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from activetrack.angles import wrap_angle
-from activetrack.closed_loop.data import Command, PlatformSnapshot, TrackSnapshot
+from activetrack.data import Command, PlatformSnapshot, TrackEstimate
 from activetrack.models.sensors import AmbiguousBearingSensor, BearingSensor
 from activetrack.planning.cautious import CautiousPlanner
 from activetrack.scenarios.build import build_sensor
@@ -56,14 +56,16 @@ class CautiousController:
         self.awaiting = False  # a measurement was requested for the next epoch
         self.done = False
 
-    def decide(self, epoch: int, track: TrackSnapshot, robot: PlatformSnapshot) -> Command:
+    def decide(self, epoch: int, track: TrackEstimate, robot: PlatformSnapshot) -> Command:
         position = robot.pv[[0, 2]]
         if self.awaiting:  # the track now holds the measurement taken at this epoch
             self.awaiting = False
             self.measurements += 1
             self.waypoint = None
         if self.waypoint is None and not self.done:
-            action = self.planner.next_action(track.mean, track.cov, position, self.measurements)
+            action = self.planner.next_action(
+                track.state, track.state_cov, position, self.measurements
+            )
             self.done = action.done
             self.waypoint = None if action.done else np.asarray(action.waypoint, dtype=float)
             self.dwell_left = self.dwell_epochs

@@ -28,7 +28,6 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from activetrack.closed_loop.data import Decision, PlatformSnapshot, TrackSnapshot
 from activetrack.closed_loop.strategies import (
     MRE_REPORT_COSTS,
     CautiousLocalisation,
@@ -48,9 +47,16 @@ from activetrack.closed_loop.strategies import (
     TraceSelection,
     sensor_entries,
 )
+from activetrack.data import Decision, PlatformSnapshot, TrackSet
 from activetrack.scenarios.schema import Scenario, SelectionConfig
 
-__all__ = ["MRE_REPORT_COSTS", "SELECTION_STRATEGIES", "PlannerCore", "build_strategies"]
+__all__ = [
+    "MRE_REPORT_COSTS",
+    "SELECTION_STRATEGIES",
+    "PlannerCore",
+    "build_planner",
+    "build_strategies",
+]
 
 # planner.selection.strategy -> the strategy object (sensors, selection section, generator).
 SelectionFactory = Callable[
@@ -105,11 +111,14 @@ class PlannerCore:
         self.strategies = build_strategies(scenario, rng)
 
     def decide(
-        self, epoch: int, track: TrackSnapshot, snapshots: Sequence[PlatformSnapshot]
+        self, epoch: int, tracks: TrackSet, snapshots: Sequence[PlatformSnapshot]
     ) -> Decision:
         """Commands for the leg epoch -> epoch+1 (hold course when the planner is off) and the
-        sensors that measure at epoch+1 (None: all of them)."""
+        sensors that measure at epoch+1 (None: all of them), from the scene's one track."""
         start = time.perf_counter()
+        if len(tracks.tracks) != 1:
+            raise ValueError(f"tracks: the single-target planner needs one track, got {tracks}")
+        track = tracks.tracks[0]
         platforms = {s.platform_id: s for s in snapshots}
         missing = [pid for pid in self.platform_ids if pid not in platforms]
         if missing:
@@ -119,3 +128,17 @@ class PlannerCore:
             context = DecisionContext(epoch, track, platforms, self.scenario.dt, part)
             part = part.then(strategy.decide(context))
         return part.decision(epoch, time.perf_counter() - start)
+
+
+def build_planner(scenario: Scenario, rng: np.random.Generator):  # type: ignore[no-untyped-def]
+    """The scenario's planner, drawing from ``rng``: the papers' strategies for a scene of one
+    target whose detections are known to be its own (no clutter) and no steerable beam,
+    planning across tracks with beam assignment otherwise."""
+    from activetrack.closed_loop.components import known_association
+
+    beams = any(s.beam_width is not None for p in scenario.platforms for s in p.sensors)
+    if beams or not known_association(scenario):
+        from activetrack.multitarget.planner import MultiTargetPlanner
+
+        return MultiTargetPlanner(scenario, rng)
+    return PlannerCore(scenario, rng)

@@ -33,12 +33,12 @@ import numpy as np
 from activetrack.bounds.costs import position_determinant, trace_cost
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.closed_loop.cautious import CautiousController
-from activetrack.closed_loop.data import (
+from activetrack.data import (
     Command,
     Decision,
     PlanReportData,
     PlatformSnapshot,
-    TrackSnapshot,
+    TrackEstimate,
 )
 from activetrack.models.base import SensorModel, as_linear
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
@@ -171,7 +171,7 @@ class DecisionContext:
     the interval dt, and what the strategies before this one decided (``so_far``)."""
 
     epoch: int
-    track: TrackSnapshot
+    track: TrackEstimate
     platforms: Mapping[str, PlatformSnapshot]
     dt: float
     so_far: DecisionPart = DecisionPart()
@@ -219,10 +219,11 @@ class LinearDynamics:
         return cls(linear.transition_matrix(dt), linear.process_noise(dt), dt)
 
 
-def _require_pv(track: TrackSnapshot) -> None:
-    if track.mean.shape != (4,):
+def _require_pv(track: TrackEstimate) -> None:
+    if track.state.shape != (4,):
         raise ValueError(
-            f"track: renewal planning needs a pv track (x, xdot, y, ydot), got {track.state_names}"
+            f"track: renewal planning needs a pv track (x, xdot, y, ydot), got a state of "
+            f"{track.state.shape[0]} entries"
         )
 
 
@@ -254,7 +255,7 @@ class PcrlbPlanning:
         self._open_loop_belief: TargetBelief | None = None
 
     def _belief(
-        self, epoch: int, track: TrackSnapshot, platforms: list[PlannerPlatform]
+        self, epoch: int, track: TrackEstimate, platforms: list[PlannerPlatform]
     ) -> TargetBelief:
         d = self.dynamics
         if self.open_loop:
@@ -270,8 +271,8 @@ class PcrlbPlanning:
             return self._open_loop_belief
         _require_pv(track)
         if track.samples is not None:
-            return TargetBelief(covariance_bound(track.cov), track.samples)
-        return TargetBelief.from_gaussian(track.mean, track.cov, self.mc_samples, self.rng)
+            return TargetBelief(covariance_bound(track.state_cov), track.samples)
+        return TargetBelief.from_gaussian(track.state, track.state_cov, self.mc_samples, self.rng)
 
     def decide(self, context: DecisionContext) -> DecisionPart:
         states = {pid: snap.pv for pid, snap in context.platforms.items()}
@@ -345,7 +346,7 @@ class MrePrediction:
             x, P = self._posterior
         else:
             _require_pv(context.track)
-            x, P = context.track.mean, context.track.cov
+            x, P = context.track.state, context.track.state_cov
         d = self.dynamics
         return DecisionPart(prediction=TargetPrediction.from_posterior(x, P, d.F, d.Q))
 

@@ -59,13 +59,23 @@ __all__ = [
 
 
 def _ekf(
-    model: MotionModel, x0: FloatArray, P0: FloatArray, config: Any, rng: np.random.Generator
+    model: MotionModel,
+    x0: FloatArray,
+    P0: FloatArray,
+    config: Any,
+    rng: np.random.Generator,
+    t0: float = 0.0,
 ) -> TrackingFilter:
-    return ExtendedKalmanFilter(model, x0, P0)
+    return ExtendedKalmanFilter(model, x0, P0, t0=t0)
 
 
 def _pf(
-    model: MotionModel, x0: FloatArray, P0: FloatArray, config: Any, rng: np.random.Generator
+    model: MotionModel,
+    x0: FloatArray,
+    P0: FloatArray,
+    config: Any,
+    rng: np.random.Generator,
+    t0: float = 0.0,
 ) -> TrackingFilter:
     """The particle options of the scenario's tracker block (TrackerConfig)."""
     return ParticleFilter(
@@ -78,6 +88,7 @@ def _pf(
         ess_threshold=config.ess_threshold,
         roughening=config.roughening,
         min_range=config.min_range,
+        t0=t0,
     )
 
 

@@ -45,11 +45,13 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite, require_spd
+from activetrack.filters.jpda import pda_residuals, pda_update
 from activetrack.filters.measurement import (
     Measurement,
     UpdateInfo,
     check_measurement_times,
     check_predict_time,
+    pda_weights,
 )
 from activetrack.kernels import ekf_kernels
 from activetrack.models.base import MotionModel, as_linear
@@ -220,6 +222,28 @@ class ExtendedKalmanFilter:
             dof=dof,
             nis_per_measurement=tuple(nis_each),
             log_likelihood=log_lik,
+            sensor_ids=tuple(m.sensor_id for m in measurements),
+        )
+        self.last_info = info
+        return info
+
+    def update_pda(self, measurements: Sequence[Measurement], beta: ArrayLike) -> UpdateInfo:
+        """The PDAF update (Bar-Shalom, Daum & Huang 2009 eq. 23-27; with JPDA's marginals,
+        :mod:`activetrack.filters.jpda`) with one scan's detections ``measurements`` (one
+        sensor, one platform state) and their association probabilities ``beta`` ``(m + 1,)``:
+        ``beta[0]`` that none of them is the target's, ``beta[j]`` that detection j is.
+        Residuals linearised once at the predicted mean (:func:`~activetrack.filters.jpda.
+        pda_residuals`); ``beta[0] = 1`` leaves the prediction."""
+        check_measurement_times(measurements, self._t)
+        b = pda_weights(measurements, beta)
+        if b[0] < 1.0:
+            sensor, s = measurements[0].sensor, measurements[0].sensor_state
+            Z = np.stack([np.asarray(m.z, dtype=float) for m in measurements])
+            H, nu = pda_residuals(self._x, self._P, Z, sensor, s, self.model)
+            self._x, self._P = pda_update(self._x, self._P, H, sensor.R, nu, b)
+        info = UpdateInfo(
+            time=self._t,
+            n_detections=len(measurements),
             sensor_ids=tuple(m.sensor_id for m in measurements),
         )
         self.last_info = info

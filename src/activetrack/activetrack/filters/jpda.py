@@ -58,10 +58,12 @@ __all__ = [
     "JPDAResult",
     "gate",
     "gate_probability",
+    "jpda_association",
     "jpda_probabilities",
     "jpda_update",
     "likelihood_ratios",
     "mahalanobis2",
+    "pda_residuals",
     "pda_update",
     "predict_measurements",
 ]
@@ -283,6 +285,59 @@ class JPDAResult:
     likelihood_ratios: FloatArray
 
 
+def jpda_association(
+    means: ArrayLike,
+    covs: ArrayLike,
+    z: ArrayLike,
+    sensor: SensorModel,
+    sensor_state: ArrayLike,
+    model: MotionModel,
+    *,
+    clutter_density: float,
+    gamma: float,
+    pd: ArrayLike | None = None,
+    max_events: int = DEFAULT_MAX_EVENTS,
+) -> JPDAResult:
+    """The JPDA association of ``T`` predicted tracks (``means`` ``(T, n)``, ``covs``
+    ``(T, n, n)``) with one scan ``z`` ``(m, d)`` of ``sensor`` at ``sensor_state`` (pv
+    ``(4,)``): gate, likelihood ratios and the marginal probabilities ``beta``; the tracks keep
+    their predictions (``means``, ``covs`` returned as given). Each track's filter then takes
+    its row of ``beta`` (``update_pda`` of the filters; :func:`jpda_update` for Gaussian tracks
+    held as arrays). Arguments as :func:`jpda_update`."""
+    X = np.asarray(means, dtype=float)
+    P = np.asarray(covs, dtype=float)
+    zhat, _, S = predict_measurements(X, P, sensor, sensor_state, model)
+    T, d = zhat.shape
+    Z = _as_measurements(z, d)
+    nu = _residuals(Z, zhat, sensor.residual)
+    pd_t = _per_track("pd", sensor.pd if pd is None else pd, T)
+    l, mask = likelihood_ratios(nu, S, pd_t, clutter_density, gamma)
+    beta = jpda_probabilities(l, pd_t, gate_probability(gamma, d), max_events=max_events)
+    return JPDAResult(X, P, beta, mask, l)
+
+
+def pda_residuals(
+    x: ArrayLike,
+    P: ArrayLike,
+    z: ArrayLike,
+    sensor: SensorModel,
+    sensor_state: ArrayLike,
+    model: MotionModel,
+) -> tuple[FloatArray, FloatArray]:
+    """``(H, nu)`` of one track for :func:`pda_update`: the Jacobian ``(d, n)`` at the mean
+    ``x`` ``(n,)`` and the wrapped residuals ``(m, d)`` of the detections ``z`` ``(m, d)``
+    (the same operations as for a batch of tracks in :func:`jpda_update`)."""
+    zhat, H, _ = predict_measurements(
+        np.asarray(x, dtype=float)[None],
+        np.asarray(P, dtype=float)[None],
+        sensor,
+        sensor_state,
+        model,
+    )
+    Z = _as_measurements(z, zhat.shape[1])
+    return H[0], _residuals(Z, zhat, sensor.residual)[0]
+
+
 def jpda_update(
     means: ArrayLike,
     covs: ArrayLike,
@@ -303,19 +358,23 @@ def jpda_update(
     ``pd``: per-track or scalar detection probability (default ``sensor.pd``).  One track is
     the PDAF.  Tracks with no gated measurement keep their prediction (``beta_0 = 1``).
     """
-    X = np.asarray(means, dtype=float)
-    P = np.asarray(covs, dtype=float)
-    zhat, H, S = predict_measurements(X, P, sensor, sensor_state, model)
-    T, d = zhat.shape
-    Z = _as_measurements(z, d)
-    nu = _residuals(Z, zhat, sensor.residual)
-    pd_t = _per_track("pd", sensor.pd if pd is None else pd, T)
-    l, mask = likelihood_ratios(nu, S, pd_t, clutter_density, gamma)
-    beta = jpda_probabilities(l, pd_t, gate_probability(gamma, d), max_events=max_events)
+    a = jpda_association(
+        means,
+        covs,
+        z,
+        sensor,
+        sensor_state,
+        model,
+        clutter_density=clutter_density,
+        gamma=gamma,
+        pd=pd,
+        max_events=max_events,
+    )
     R = np.asarray(sensor.R, dtype=float)
-    new_X = X.copy()
-    new_P = P.copy()
-    for t in range(T):
-        if beta[t, 0] < 1.0:
-            new_X[t], new_P[t] = pda_update(X[t], P[t], H[t], R, nu[t], beta[t])
-    return JPDAResult(new_X, new_P, beta, mask, l)
+    new_X = a.means.copy()
+    new_P = a.covs.copy()
+    for t in range(a.means.shape[0]):
+        if a.beta[t, 0] < 1.0:
+            H, nu = pda_residuals(a.means[t], a.covs[t], z, sensor, sensor_state, model)
+            new_X[t], new_P[t] = pda_update(a.means[t], a.covs[t], H, R, nu, a.beta[t])
+    return JPDAResult(new_X, new_P, a.beta, a.gated, a.likelihood_ratios)

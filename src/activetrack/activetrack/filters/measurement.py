@@ -21,11 +21,13 @@ from activetrack.arraytypes import FloatArray
 from activetrack.models.base import SensorModel
 
 __all__ = [
+    "AssociatingFilter",
     "Measurement",
     "TrackingFilter",
     "UpdateInfo",
     "check_measurement_times",
     "check_predict_time",
+    "pda_weights",
 ]
 
 # Slack for comparing measurement stamps with the filter time (float round-off in t0 + k*T).
@@ -137,6 +139,40 @@ class TrackingFilter(Protocol):
     def update(self, measurements: Sequence[Measurement]) -> UpdateInfo: ...
 
     def step(self, t: float, measurements: Sequence[Measurement]) -> UpdateInfo: ...
+
+
+class AssociatingFilter(TrackingFilter, Protocol):
+    """A filter that can also take a scan whose detections' origin is uncertain (clutter,
+    other targets): the tracker's JPDA gives it each detection's association probability.
+    What a filter needs for a scene of several targets or clutter (docs/extending.md)."""
+
+    def update_pda(self, measurements: Sequence[Measurement], beta: FloatArray) -> UpdateInfo:
+        """``beta[0]``: none of the detections is the target's; ``beta[j]``: detection j is
+        (the PDA update, Bar-Shalom, Daum & Huang 2009)."""
+        ...
+
+
+def pda_weights(measurements: Sequence[Measurement], beta: object) -> FloatArray:
+    """``beta`` ``(m + 1,)`` of a PDA update checked against its ``m`` detections: finite,
+    in [0, 1], summing to 1; the detections all of one sensor at one platform state, each
+    with a ``z``."""
+    b = np.asarray(beta, dtype=float)
+    m = len(measurements)
+    if b.shape != (m + 1,) or not np.isfinite(b).all() or (b < 0.0).any() or (b > 1.0).any():
+        raise ValueError(f"beta must be ({m + 1},) probabilities in [0, 1], got {beta!r}")
+    if abs(float(b.sum()) - 1.0) > 1e-9:
+        raise ValueError(f"beta must sum to 1, got {float(b.sum())!r}")
+    for i, meas in enumerate(measurements):
+        if not isinstance(meas, Measurement) or meas.z is None:
+            raise ValueError(f"measurements[{i}]: a PDA update takes detections (z given)")
+        first = measurements[0]
+        if meas.sensor is not first.sensor or not np.array_equal(
+            meas.sensor_state, first.sensor_state
+        ):
+            raise ValueError(
+                f"measurements[{i}]: a PDA update takes one scan (one sensor, one platform state)"
+            )
+    return b
 
 
 def check_predict_time(t: float, current: float) -> float:

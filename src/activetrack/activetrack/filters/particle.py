@@ -49,6 +49,7 @@ from activetrack.filters.measurement import (
     UpdateInfo,
     check_measurement_times,
     check_predict_time,
+    pda_weights,
 )
 from activetrack.filters.resampling import roughen, systematic_resample
 from activetrack.kernels import moment_kernels, particle_kernels
@@ -347,6 +348,54 @@ class ParticleFilter:
         check_measurement_times(measurements, self._t)
         with np.errstate(divide="ignore", invalid="ignore"):
             ell, const, n_missed = self._log_likelihood(measurements)
+        return self._weigh(measurements, ell, const, n_missed)
+
+    def update_pda(self, measurements: Sequence[Measurement], beta: ArrayLike) -> UpdateInfo:
+        """One scan whose detections' origin is uncertain, weighted by its association
+        probabilities ``beta`` ``(m + 1,)`` (``beta[0]``: none is the target's): the posterior
+        is the mixture over the hypotheses, ``beta_0`` times the prediction plus ``beta_j``
+        times the posterior given z_j (the JPDA particle filter of Vermaak, Godsill & Perez,
+        IEEE TAES 41(1), 2005, sec. IV)::
+
+            w_i  <-  w_i (beta_0 + sum_j beta_j p(z_j | x_i) / p(z_j | Z_{k-1})),
+            p(z_j | Z_{k-1}) = sum_i w_i p(z_j | x_i),
+
+        then resampled as :meth:`update`. The detections are one sensor's at one platform
+        state (``sensor.log_likelihood``: angle residuals wrapped)."""
+        check_measurement_times(measurements, self._t)
+        b = pda_weights(measurements, beta)
+        if b[0] >= 1.0:  # no detection can be the target's: nothing learnt
+            return self._weigh(measurements, None, 0.0, 0)
+        terms = [np.full(self._X.shape[0], math.log(b[0])) if b[0] > 0.0 else None]
+        pv = None
+        logw_prior = self._logw if self._logw is not None else np.log(self._w)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for bj, m in zip(b[1:], measurements, strict=True):
+                if bj <= 0.0:
+                    continue
+                if pv is None:
+                    pv = self._X if self._pv_state else self.model.kinematics(self._X)
+                ell, _ = m.sensor.log_likelihood(m.z, pv, m.sensor_state)
+                ell = np.where(np.isnan(ell), -math.inf, ell)
+                evidence = np.logaddexp.reduce(logw_prior + ell)  # log p(z_j | Z_{k-1}) - c
+                if not math.isfinite(evidence):  # no particle explains z_j
+                    continue
+                terms.append(math.log(bj) + ell - evidence)
+            present = [t for t in terms if t is not None]
+            if not present:
+                return self._weigh(measurements, None, 0.0, 0)
+            mixture = present[0] if len(present) == 1 else np.logaddexp.reduce(present, axis=0)
+        return self._weigh(measurements, mixture, 0.0, 0)
+
+    def _weigh(
+        self,
+        measurements: Sequence[Measurement],
+        ell: FloatArray | None,
+        const: float,
+        n_missed: int,
+    ) -> UpdateInfo:
+        """Multiply the weights by ``exp(ell + const)`` ``(N,)`` (None: unchanged), normalise,
+        resample if due (:meth:`update`)."""
         ids = tuple([m.sensor_id for m in measurements])
         n_det = len(measurements) - n_missed
         common = partial(

@@ -8,7 +8,8 @@ A filter is registered under a name with a factory that builds it for one run::
     register_filter("ukf", make_ukf, description="unscented Kalman filter (filterpy)")
 
 The factory gets the tracker's motion model, the prior mean ``x0`` ``(n,)`` and covariance
-``P0`` ``(n, n)``, the scenario's ``tracker:`` block (``config``,
+``P0`` ``(n, n)`` (and, if it takes the keyword ``t0``, their time: tracks started from
+detections after epoch 0 need it), the scenario's ``tracker:`` block (``config``,
 :class:`activetrack.scenarios.schema.TrackerConfig`: a filter reads the options it has, e.g.
 the PF its ``particles``) and the tracker's random generator ``rng`` (the filter's only source
 of randomness, so a run is reproducible), and returns an object with the members of
@@ -25,6 +26,7 @@ register the same way (``activetrack.filters``). See docs/extending.md, "A filte
 
 from __future__ import annotations
 
+import inspect
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -143,6 +145,13 @@ def filter_kind(name: str) -> FilterKind:
     return found
 
 
+def _takes_t0(factory: FilterFactory) -> bool:
+    try:
+        return "t0" in inspect.signature(factory).parameters
+    except (TypeError, ValueError):  # a callable without a signature
+        return False
+
+
 def make_filter(
     name: str,
     model: MotionModel,
@@ -150,12 +159,23 @@ def make_filter(
     P0: FloatArray,
     config: Any,
     rng: np.random.Generator,
+    t0: float = 0.0,
 ) -> TrackingFilter:
     """Build the filter registered as ``name`` with its factory (module docstring) and check
     that it offers the :class:`TrackingFilter` members (and, if ``particle_based``,
-    ``particles`` and ``weights``)."""
+    ``particles`` and ``weights``). ``t0``: the time of ``x0``, ``P0`` (a track started from
+    a detection at a later epoch); passed as the keyword ``t0`` to a factory that takes it,
+    and refused (ValueError) for one that does not unless 0."""
     entry = filter_kind(name)
-    built = entry.factory(model, x0, P0, config, rng)
+    if _takes_t0(entry.factory):
+        built = entry.factory(model, x0, P0, config, rng, t0=t0)  # type: ignore[call-arg]
+    elif t0 == 0.0:
+        built = entry.factory(model, x0, P0, config, rng)
+    else:
+        raise ValueError(
+            f"filter {name!r}: its factory takes no keyword t0, so it cannot start a track at "
+            f"t0 = {t0} (a track from a detection after epoch 0); add t0=0.0 to the factory"
+        )
     missing = [m for m in _MEMBERS if not hasattr(built, m)]
     if entry.particle_based and not isinstance(built, ParticlePosterior):
         missing += [m for m in ("particles", "weights") if not hasattr(built, m)]

@@ -41,6 +41,7 @@ from activetrack.arraytypes import ArrayLike, BoolArray, FloatArray
 from activetrack.checks import require_in_range, symmetrize
 from activetrack.linalg import whitener
 from activetrack.models._common import check_rng, relative_geometry
+from activetrack.models.fov import FieldOfView
 
 __all__ = [
     "GaussianSensor",
@@ -218,6 +219,24 @@ class SensorModel(Protocol):
         states ``(..., 4)``: ``(..., 4, 4)``, or ``(..., n, n)`` with respect to a model state
         when d pv / dx ``(M, 4, n)`` is given. Inputs are taken as checked (the caller,
         ``bounds.pcrlb.measurement_information``, validates them)."""
+        ...
+
+    def clutter_volume(self, fov: FieldOfView) -> float | None:
+        """The volume of the field of view in measurement units (rad, m rad, ...): what a
+        uniform clutter density is per; None when the sensor has no clutter model."""
+        ...
+
+    def uniform_measurements(self, u: FloatArray, fov: FieldOfView) -> FloatArray:
+        """Measurements uniform over the field of view from unit draws ``u`` ``(m, dim_z)``
+        in [0, 1): the false alarms of a sensor with a clutter model, ``(m, dim_z)``."""
+        ...
+
+    def inverse_position(
+        self, z: FloatArray, sensor_pv: FloatArray
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """The position ``(2,)`` (x, y) one detection ``z`` fixes, seen from ``sensor_pv``,
+        and its covariance ``(2, 2)`` (the inverse measurement, linearised): what starts a
+        track from a detection; None when one detection fixes no position (a bearing)."""
         ...
 
 
@@ -399,6 +418,21 @@ class GaussianSensor(ABC):
     def information_kernel(self) -> InformationKernel | None:
         """The compiled form of :meth:`fisher_information` in pv, or None (the generic sensor
         has none: ``bounds.pcrlb`` then uses :meth:`fisher_information`)."""
+        return None
+
+    def clutter_volume(self, fov: FieldOfView) -> float | None:
+        """None: the generic sensor has no clutter model (a sensor that has one overrides
+        this and :meth:`uniform_measurements`)."""
+        return None
+
+    def uniform_measurements(self, u: FloatArray, fov: FieldOfView) -> FloatArray:
+        """The generic sensor has no clutter model (:meth:`clutter_volume` is None)."""
+        raise NotImplementedError(f"sensor kind {self.kind!r} has no clutter model")
+
+    def inverse_position(
+        self, z: FloatArray, sensor_pv: FloatArray
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """None: the generic sensor fixes no position from one detection."""
         return None
 
 

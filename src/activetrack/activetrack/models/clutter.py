@@ -30,8 +30,7 @@ import numpy as np
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.bounds.irf import information_reduction_factor
 from activetrack.models.base import InformationKernel, SensorModel
-from activetrack.multitarget.data import FieldOfView
-from activetrack.scenarios.multitarget_config import fov_volume
+from activetrack.models.fov import FieldOfView
 
 __all__ = ["ClutteredSensor"]
 
@@ -41,7 +40,10 @@ _TWO_PI = 2.0 * math.pi
 @dataclass(frozen=True)
 class ClutteredSensor:
     """``base`` observed in clutter of ``clutter_density`` (per unit of z) within a field of
-    view; ``gate_sigmas`` is the association gate (the IRF's ``g``)."""
+    view; ``gate_sigmas`` is the association gate (the IRF's ``g``). ``gated``: the tracker
+    associates this sensor's detections through a gate (JPDA); False when every detection is
+    known to be the one target's (no clutter, one target), and then the information factor
+    is ``pd`` itself (no gate, no clutter: nothing reduces the information)."""
 
     base: SensorModel
     clutter_density: float = 0.0
@@ -49,6 +51,7 @@ class ClutteredSensor:
     fov_centre: float = 0.0
     fov_width: float | None = None
     beam_width: float | None = None
+    gated: bool = True
 
     def __getattr__(self, name: str) -> Any:
         # Everything not defined here (kind, R, measure, residual, ...) is the base sensor's.
@@ -62,7 +65,10 @@ class ClutteredSensor:
 
     @property
     def information_factor(self) -> float:
-        """The IRF ``q`` that replaces ``pd`` in J_Z (cached in :mod:`activetrack.bounds.irf`)."""
+        """The IRF ``q`` that replaces ``pd`` in J_Z (cached in :mod:`activetrack.bounds.irf`);
+        ``pd`` itself for a sensor whose detections are not gated."""
+        if not self.gated:
+            return float(self.base.pd)
         R = np.atleast_2d(np.asarray(self.base.R, dtype=float))
         whitened = self.clutter_density * math.sqrt(float(np.linalg.det(R)))
         return information_reduction_factor(
@@ -86,25 +92,39 @@ class ClutteredSensor:
         return FieldOfView(0.0, _TWO_PI, r_min, r_max)
 
     def clutter_volume(self, fov: FieldOfView) -> float:
-        """The field of view's volume in measurement units (rad, or m rad)."""
-        r_max = fov.r_max if math.isfinite(fov.r_max) else fov.r_min
-        return fov_volume(self.base.kind, fov.width, fov.r_min, r_max)
+        """The field of view's volume in measurement units (the base sensor's
+        ``clutter_volume``: rad, m rad, ...); ValueError for a sensor without a clutter
+        model."""
+        volume = self.base.clutter_volume(fov)
+        if volume is None:
+            raise ValueError(f"sensor kind {self.base.kind!r} has no clutter model")
+        return float(volume)
+
+    def detect(
+        self,
+        target_pv: ArrayLike,
+        sensor_pv: ArrayLike,
+        rng: np.random.Generator,
+        fov: FieldOfView | None = None,
+    ) -> np.ndarray:
+        """Whether the target is detected: inside the detection ranges and the field of view
+        ``fov`` (None: all around), and a Bernoulli(pd) draw, one per state whether inside or
+        not (the draws do not depend on where the target is), bool ``(...)``."""
+        inside = np.asarray(self.base.in_range(target_pv, sensor_pv), dtype=bool)
+        if fov is not None and not fov.all_around:
+            inside = inside & fov.contains(np.asarray(target_pv), np.asarray(sensor_pv))
+        return inside & (rng.random(inside.shape) < float(self.base.pd))
 
     def sample_clutter(self, fov: FieldOfView, rng: np.random.Generator) -> FloatArray:
         """Poisson(lambda V) false alarms uniform over ``fov`` in measurement space,
-        ``(m, dim_z)``: bearing (wrapped) for a bearing sensor, (range, bearing) for a
-        range-bearing one. Draws the count, then the points, from ``rng``."""
+        ``(m, dim_z)`` (the base sensor's ``uniform_measurements``). Draws the count, then the
+        points, from ``rng``; nothing without clutter."""
         d = int(self.base.dim_z)
         if self.clutter_density <= 0.0:
             return np.empty((0, d))
         m = int(rng.poisson(self.clutter_density * self.clutter_volume(fov)))
         u = rng.random((m, d))
-        bearing = np.remainder(fov.centre + (u[:, -1] - 0.5) * fov.width + math.pi, _TWO_PI)
-        bearing = bearing - math.pi
-        if self.base.kind == "range_bearing":
-            r = fov.r_min + u[:, 0] * (fov.r_max - fov.r_min)
-            return np.column_stack([r, bearing])
-        return bearing[:, None]
+        return np.asarray(self.base.uniform_measurements(u, fov), dtype=float).reshape(m, d)
 
     def fisher_information(
         self,
@@ -153,7 +173,9 @@ class ClutteredSensor:
         return lambda X, S: scale * kernel(X, S)
 
     @classmethod
-    def wrap(cls, base: SensorModel, cfg: Any, gate_sigmas: float) -> ClutteredSensor:
+    def wrap(
+        cls, base: SensorModel, cfg: Any, gate_sigmas: float, gated: bool = True
+    ) -> ClutteredSensor:
         """From a validated ``sensors:`` entry ``cfg`` (its clutter and field-of-view fields)."""
         return cls(
             base,
@@ -162,4 +184,5 @@ class ClutteredSensor:
             float(cfg.fov_centre),
             cfg.fov_width,
             cfg.beam_width,
+            gated,
         )

@@ -53,6 +53,7 @@ from activetrack.models.base import (
     SensorModel,
     _miss_term,
 )
+from activetrack.models.fov import FieldOfView
 
 __all__ = [
     "AmbiguousBearingSensor",
@@ -313,12 +314,37 @@ def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
     return (a[..., None, :] @ b[..., :, None])[..., 0, 0]
 
 
+def _uniform_bearings(u: FloatArray, fov: FieldOfView) -> FloatArray:
+    """Bearings uniform over the field of view's sector from unit draws ``u`` ``(m,)``,
+    wrapped to [-pi, pi)."""
+    return np.remainder(fov.centre + (u - 0.5) * fov.width + math.pi, _TWO_PI) - math.pi
+
+
+def _position_fix(
+    r: float, b: float, var_r: float, var_b: float, sensor_pv: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Position ``p = s + r (cos b, sin b)`` and ``J diag(var_r, var_b) J^T`` (J = dp / d(r,
+    b)) of a range-bearing fix seen from ``sensor_pv``."""
+    cb, sb = math.cos(b), math.sin(b)
+    J = np.array([[cb, -r * sb], [sb, r * cb]])
+    xy = np.array([sensor_pv[0] + r * cb, sensor_pv[2] + r * sb])
+    return xy, J @ np.diag([var_r, var_b]) @ J.T
+
+
 @dataclass(frozen=True)
 class BearingSensor(_BearingFamily):
     """Bearing-only sensor, z = atan2(dy, dx) + v, v ~ N(0, sigma^2) (Hernandez eq. 5, 9;
     Ramdaras eq. 6-7).  sigma in radians."""
 
     kind: ClassVar[str] = "bearing"
+
+    def clutter_volume(self, fov: FieldOfView) -> float:
+        """The sector's width [rad]: clutter is uniform in bearing over it."""
+        return fov.width
+
+    def uniform_measurements(self, u: FloatArray, fov: FieldOfView) -> FloatArray:
+        """Bearings uniform over the sector, ``(m, 1)``."""
+        return _uniform_bearings(u[:, -1], fov)[:, None]
 
     def measure(self, target_pv: ArrayLike, sensor_pv: ArrayLike) -> FloatArray:
         """Noise-free bearing (eq. 5), ``(..., 1)``."""
@@ -392,6 +418,23 @@ class RangeBearingSensor(_PlanarSensor):
         object.__setattr__(self, "sigma_r", require_positive("sigma_r", self.sigma_r))
         object.__setattr__(self, "sigma_b", require_positive("sigma_b", self.sigma_b))
         self.validate_detection()
+
+    def clutter_volume(self, fov: FieldOfView) -> float:
+        """Sector width [rad] times the range interval [m] (0 for an unbounded range: clutter
+        needs a finite ``r_max``)."""
+        r_max = fov.r_max if math.isfinite(fov.r_max) else fov.r_min
+        return fov.width * (r_max - fov.r_min)
+
+    def uniform_measurements(self, u: FloatArray, fov: FieldOfView) -> FloatArray:
+        """(range, bearing) uniform over the range interval and the sector, ``(m, 2)``."""
+        r = fov.r_min + u[:, 0] * (fov.r_max - fov.r_min)
+        return np.column_stack([r, _uniform_bearings(u[:, -1], fov)])
+
+    def inverse_position(
+        self, z: FloatArray, sensor_pv: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """``p = s + r (cos b, sin b)`` and ``J R J^T`` (J = dp / dz)."""
+        return _position_fix(float(z[0]), float(z[1]), self.sigma_r**2, self.sigma_b**2, sensor_pv)
 
     @property
     def R(self) -> FloatArray:
@@ -484,6 +527,12 @@ class RangeRateBearingSensor(_PlanarSensor):
         object.__setattr__(self, "sigma_rr", require_positive("sigma_rr", self.sigma_rr))
         object.__setattr__(self, "sigma_b", require_positive("sigma_b", self.sigma_b))
         self.validate_detection()
+
+    def inverse_position(
+        self, z: FloatArray, sensor_pv: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The range and bearing's position fix ``s + r (cos b, sin b)``, ``J R_rb J^T``."""
+        return _position_fix(float(z[0]), float(z[2]), self.sigma_r**2, self.sigma_b**2, sensor_pv)
 
     @property
     def R(self) -> FloatArray:

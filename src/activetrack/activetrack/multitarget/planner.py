@@ -1,7 +1,7 @@
 """Planning across targets: platform manoeuvres against every confirmed track, and steerable
 beams assigned to tracks (issue 14, sec. 4).
 
-``MultiTargetPlanner(scenario, rng).decide(epoch, tracks, platforms) -> MultiDecision``.
+``MultiTargetPlanner(scenario, rng).decide(epoch, tracks, platforms) -> Decision``.
 
 Sensors are the scenario's, each in clutter (:class:`activetrack.models.clutter.ClutteredSensor`):
 its information is the PCRLB's J_Z with the information reduction factor q in place of pd and
@@ -73,10 +73,17 @@ from activetrack.bounds.pcrlb import (
     propagate_samples,
 )
 from activetrack.checks import symmetrize
-from activetrack.closed_loop.data import Command, PlanReportData, PlatformSnapshot
 from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.data import (
+    BeamCommand,
+    Command,
+    Decision,
+    PlanReportData,
+    PlatformSnapshot,
+    TrackEstimate,
+    TrackSet,
+)
 from activetrack.models.clutter import ClutteredSensor
-from activetrack.multitarget.data import BeamCommand, MultiDecision, TrackEstimate, TrackSet
 from activetrack.planning.assignment import (
     aggregate_costs,
     assign_beams,
@@ -299,7 +306,7 @@ class MultiTargetPlanner:
 
     def decide(
         self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]
-    ) -> MultiDecision:
+    ) -> Decision:
         """Commands for the leg epoch -> epoch+1, beam pointings for epoch+1, the report."""
         start = time.perf_counter()
         snaps = {s.platform_id: s for s in platforms}
@@ -602,7 +609,7 @@ class MultiTargetPlanner:
 
     def _decision(
         self, ep: _Epoch, next_pv: np.ndarray, costs: np.ndarray, objective: float, wall: float
-    ) -> MultiDecision:
+    ) -> Decision:
         beams, assignment = [], {}
         for i, s in enumerate(self.sensors):
             if not s.steerable:
@@ -632,18 +639,18 @@ class MultiTargetPlanner:
             evaluations=ep.evaluations,
             wall_time_s=wall,
         )
-        return MultiDecision(
+        return Decision(
             ep.epoch,
-            tuple(self._commands(ep.platforms, ep.epoch, ep.plans)),
-            tuple(beams),
-            report,
-            {
+            commands=tuple(self._commands(ep.platforms, ep.epoch, ep.plans)),
+            beams=tuple(beams),
+            report=report,
+            extra={
                 "track_costs": dict(zip(ids, (float(c) for c in costs), strict=True)),
                 "assignment": assignment,
             },
         )
 
-    def _sweep(self, epoch: int, planners: list[PlannerPlatform], start: float) -> MultiDecision:
+    def _sweep(self, epoch: int, planners: list[PlannerPlatform], start: float) -> Decision:
         """No confirmed track: hold course, every beam one beam width on from where it was."""
         beams, assignment = [], {}
         for s in self.sensors:
@@ -669,6 +676,10 @@ class MultiTargetPlanner:
             for j, p in enumerate(planners)
             if self.controllable[j]
         )
-        return MultiDecision(
-            epoch, commands, tuple(beams), report, {"track_costs": {}, "assignment": assignment}
+        return Decision(
+            epoch,
+            commands=commands,
+            beams=tuple(beams),
+            report=report,
+            extra={"track_costs": {}, "assignment": assignment},
         )

@@ -1,7 +1,7 @@
-"""Track state and M-of-N track management of the multi-target tracker.
+"""Tracks and their management: M-of-N confirmation and deletion, probability of existence.
 
-A :class:`Track` is one Gaussian (JPDA-EKF) or one particle cloud (:class:`ParticleCloud`) with
-its id, status and look history. :class:`TrackManager` holds the live tracks and applies the
+A :class:`Track` is one filter (any registered one: activetrack.filters.registry) with its id,
+status and look history. :class:`TrackManager` holds the live tracks and applies the
 rules of ``tracker.tracks`` (:class:`~activetrack.scenarios.multitarget_config.
 TrackManagementConfig`) once per epoch (M-of-N confirmation and deletion: Blackman & Popoli,
 *Design and Analysis of Modern Tracking Systems*, 1999):
@@ -51,9 +51,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from activetrack.arraytypes import FloatArray
-from activetrack.filters.resampling import effective_sample_size, roughen, systematic_resample
+from activetrack.checks import symmetrize
+from activetrack.data import CONFIRMED, TENTATIVE, TrackEstimate
+from activetrack.filters.measurement import TrackingFilter
 from activetrack.models.base import MotionModel
-from activetrack.multitarget.data import CONFIRMED, TENTATIVE, TrackEstimate
 from activetrack.scenarios.multitarget_config import TrackManagementConfig
 
 __all__ = [
@@ -63,7 +64,6 @@ __all__ = [
     "EXISTENCE_DELETE",
     "EXISTENCE_INIT",
     "EXISTENCE_SURVIVAL",
-    "ParticleCloud",
     "Track",
     "TrackManager",
     "existence_update",
@@ -118,94 +118,56 @@ def existence_update(
 
 
 @dataclass
-class ParticleCloud:
-    """A weighted particle set: ``X`` ``(N, 4)`` pv particles, normalised weights ``w``
-    ``(N,)`` and ``ess`` of the last weighting (before resampling; N at the start)."""
-
-    X: FloatArray
-    w: FloatArray
-    ess: float
-
-    @classmethod
-    def draw(
-        cls, mean: FloatArray, cov: FloatArray, n: int, rng: np.random.Generator
-    ) -> ParticleCloud:
-        """``n`` equally weighted draws from ``N(mean, cov)``."""
-        X = mean + rng.standard_normal((n, mean.shape[0])) @ np.linalg.cholesky(cov).T
-        return cls(X, np.full(n, 1.0 / n), float(n))
-
-    def moments(self) -> tuple[FloatArray, FloatArray]:
-        """Weighted mean ``(4,)`` and covariance ``(4, 4)``."""
-        mean = self.w @ self.X
-        D = self.X - mean
-        P = (D.T * self.w) @ D
-        return mean, 0.5 * (P + P.T)
-
-    def predict(self, model: MotionModel, dt: float, rng: np.random.Generator) -> None:
-        """Draw every particle from the transition prior over ``dt`` (the bootstrap proposal)."""
-        if dt > 0.0:
-            self.X = np.asarray(model.sample(self.X, dt, rng), dtype=float)
-
-    def weigh(self, log_likelihood: FloatArray) -> bool:
-        """Multiply the weights by ``exp(log_likelihood)`` ``(N,)`` (log-sum-exp normalised).
-        False, weights unchanged, when no particle has a positive finite weight (collapse)."""
-        with np.errstate(divide="ignore"):
-            logw = np.log(self.w) + log_likelihood
-        logw = np.where(np.isnan(logw), -math.inf, logw)
-        top = float(np.max(logw))
-        if not math.isfinite(top):
-            return False
-        w = np.exp(logw - top)
-        self.w = w / w.sum()
-        self.ess = effective_sample_size(self.w)
-        return True
-
-    def resample_if_due(
-        self, mode: str, ess_threshold: float, roughening: float, rng: np.random.Generator
-    ) -> None:
-        """Systematic resampling every time (``"always"``) or when ESS < threshold N
-        (``"ess"``), then Gordon's roughening (:mod:`activetrack.filters.resampling`)."""
-        N = self.w.shape[0]
-        if mode == "always" or self.ess < ess_threshold * N:
-            self.X = np.take(self.X, systematic_resample(self.w, rng), axis=0)
-            roughen(self.X, roughening, rng)
-            self.w = np.full(N, 1.0 / N)
-
-    def samples(self, count: int, rng: np.random.Generator) -> FloatArray:
-        """``min(count, N)`` equally weighted samples: a systematic resample, thinned evenly."""
-        idx = systematic_resample(self.w, rng)
-        take = np.linspace(0, idx.shape[0] - 1, min(count, idx.shape[0])).astype(int)
-        return self.X[idx[take]]
-
-
-@dataclass
 class Track:
-    """One track: pv ``mean`` ``(4,)`` and ``cov`` ``(4, 4)`` (for a particle track the
-    cloud's moments, kept in step by :meth:`sync`), status, and its M-of-N history."""
+    """One track: its filter (the tracker's registered filter, any state), status and M-of-N
+    history. ``mean`` / ``cov`` are the filter's pv kinematics ``(4,)`` / ``(4, 4)`` (the
+    filter's own moments for a pv model), ``state`` / ``state_cov`` its moments in the model's
+    state."""
 
     track_id: int
     status: str
-    mean: FloatArray
-    cov: FloatArray
+    filter: TrackingFilter
+    model: MotionModel
     born: int  # epoch it was started
     origin: str = ""
     priority: float = 1.0
-    cloud: ParticleCloud | None = None
+    particle_based: bool = False
     looks: int = 0
     hits: int = 0
     run_of_misses: int = 0
+    missed_detections: int = 0  # scans that covered it without a detection of it
     window: deque[bool] = field(default_factory=deque)  # hit per look, the last confirm_n
     samples: FloatArray | None = None
     existence: float = 1.0  # IPDA probability of existence (module docstring)
+    nis: float = math.nan
+    ess: float = math.nan
 
     @property
     def confirmed(self) -> bool:
         return self.status == CONFIRMED
 
-    def sync(self) -> None:
-        """Mean and covariance from the particle cloud (no-op for a Gaussian track)."""
-        if self.cloud is not None:
-            self.mean, self.cov = self.cloud.moments()
+    @property
+    def state(self) -> FloatArray:
+        return np.asarray(self.filter.mean, dtype=float)
+
+    @property
+    def state_cov(self) -> FloatArray:
+        return np.asarray(self.filter.cov, dtype=float)
+
+    @property
+    def mean(self) -> FloatArray:
+        """pv mean ``(4,)``."""
+        x = self.state
+        return x if self.model.state_is_pv else np.asarray(self.model.kinematics(x), dtype=float)
+
+    @property
+    def cov(self) -> FloatArray:
+        """pv covariance ``(4, 4)``."""
+        P = self.state_cov
+        if self.model.state_is_pv:
+            return P
+        K = np.asarray(self.model.kinematics_jacobian(self.state), dtype=float)
+        return symmetrize(K @ P @ K.T)
 
     def record_look(self, hit: bool, cfg: TrackManagementConfig) -> None:
         """Count one look (hit or not) and confirm a tentative track that reached M of N."""
@@ -241,17 +203,29 @@ class Track:
 
     def estimate(self, epoch: int) -> TrackEstimate:
         """The track as the tracker reports it."""
+        state, state_cov = self.state, self.state_cov
+        if self.model.state_is_pv:
+            mean, cov = state, state_cov
+        else:
+            mean, cov = self.mean, self.cov
+        particles = getattr(self.filter, "weights", None) if self.particle_based else None
         return TrackEstimate(
             track_id=self.track_id,
             status=self.status,
-            mean=self.mean.copy(),
-            cov=self.cov.copy(),
+            mean=mean,
+            cov=cov,
+            state=state,
+            state_cov=state_cov,
             origin=self.origin,
             priority=self.priority,
             age=epoch - self.born,
             hits=self.hits,
             misses=self.looks - self.hits,
-            ess=self.cloud.ess if self.cloud is not None else math.nan,
+            missed_detections=self.missed_detections,
+            existence=self.existence,
+            nis=self.nis,
+            ess=self.ess,
+            particle_count=0 if particles is None else len(particles),
             samples=None if self.samples is None else self.samples.copy(),
         )
 

@@ -1,0 +1,1 @@
+"""The simulated world: targets, platforms and their sensors' scans (:mod:`.simulator`)."""

@@ -1,0 +1,442 @@
+"""The tracker: one filter per track (any registered one), fed with the epoch's scans.
+
+One call of :meth:`Tracker.step` per epoch, with all of the epoch's scans, in the scenario's
+sensor order:
+
+1. every scan is checked first (sensor, epoch, time, shapes, finiteness); a bad one raises
+   ValueError naming the field and leaves the tracker untouched (no track, no draw);
+2. every track's filter predicts to the epoch's time (its motion model);
+3. the scans update the tracks, by the scene's association:
+
+   - **known** (one target, known to exist from epoch 0 on, and no clutter: every detection is
+     the target's): the track's filter takes the epoch's scans as its measurements, a scan
+     without a detection as "looked, saw nothing" (``filter.step``; Hernandez sec. 2.3, the
+     papers' single-target tracking);
+   - **JPDA** (several targets, births or clutter): each scan, in turn, updates the tracks
+     whose predicted position is inside its field of view. The chi-square gate
+     ``gamma = gate_sigmas^2`` of each track's predicted measurement (its filter's moments,
+     linearised at the mean), the likelihood ratios and the JPDA marginals ``beta`` (Bar-Shalom,
+     Daum & Huang 2009; :func:`activetrack.filters.jpda.jpda_association`) over each cluster of
+     tracks that share gated detections (exact: the joint events factorise over clusters; a
+     cluster whose events could exceed :data:`~activetrack.filters.jpda.DEFAULT_MAX_EVENTS`
+     is split into one PDA per track, counted in ``split_clusters``); each track's filter then
+     takes its row of ``beta`` (``update_pda``: the PDAF update of the EKF, the JPDA weighting
+     of the particle filter, a plugin's own). Zero clutter and ``Pd = 1`` go through the floor
+     and cap of :mod:`activetrack.filters.clutter_likelihood`. Before the update the same
+     predicted measurements give each track's probability of existence its LM-IPDA update
+     (:func:`~activetrack.tracking.management.existence_update`; once per epoch first its
+     survival), with Pd times the probability that the target lies in the scan's bearing
+     sector. Detections no track gated start tentative tracks at once, where the sensor fixes
+     a position from one detection (``inverse_position`` of the sensor: a range-bearing
+     radar does, a bearing sensor does not): position from the inverse measurement, velocity
+     0, covariance ``J R J^T`` and ``init_speed_std^2``; at most ``max_tracks`` live tracks,
+     the rest counted in ``not_started``. Then M-of-N confirmation, existence, deletion and
+     coalescence (:mod:`.management`).
+
+Tracks from the priors of the targets present at epoch 0 start confirmed, ids 1, 2, ... in
+scenario order; later tracks take the next id; ids are never reused. The tracker draws only
+from its ``rng``: the filters' own draws (particles, resampling) and the planner's samples.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from activetrack.arraytypes import BoolArray, FloatArray
+from activetrack.data import CONFIRMED, TENTATIVE, Scan, TrackSet
+from activetrack.filters.clutter_likelihood import effective_clutter_density, effective_pd
+from activetrack.filters.jpda import (
+    DEFAULT_MAX_EVENTS,
+    gate_probability,
+    jpda_association,
+    likelihood_ratios,
+    predict_measurements,
+)
+from activetrack.filters.measurement import TIME_TOLERANCE, Measurement, TrackingFilter
+from activetrack.filters.resampling import systematic_resample
+from activetrack.models.base import MotionModel
+from activetrack.models.clutter import ClutteredSensor
+from activetrack.scenarios.multitarget_config import TrackManagementConfig
+from activetrack.tracking.management import (
+    EXISTENCE_INIT,
+    EXISTENCE_SURVIVAL,
+    Track,
+    TrackManager,
+    existence_update,
+)
+
+__all__ = ["FilterSpec", "TrackPrior", "Tracker"]
+
+
+@dataclass(frozen=True)
+class FilterSpec:
+    """The tracker's filter: its registered ``kind``, whether its posterior is a particle set
+    (``particle_based``: the planner gets samples of it) and ``make(x0, P0, t0)``, a new
+    filter from a Gaussian in the model's state at time ``t0`` (drawing from the tracker's
+    generator)."""
+
+    kind: str
+    particle_based: bool
+    make: Callable[[FloatArray, FloatArray, float], TrackingFilter]
+
+
+@dataclass(frozen=True)
+class TrackPrior:
+    """A target present at epoch 0: its id, prior ``mean`` ``(n,)`` and ``cov`` ``(n, n)`` in
+    the model's state, and its planner ``priority``."""
+
+    target_id: str
+    mean: FloatArray
+    cov: FloatArray
+    priority: float = 1.0
+
+
+@dataclass(frozen=True)
+class _Checked:
+    """A scan that passed the checks: its sensor, detections ``(m, dim_z)`` and pv ``(4,)``."""
+
+    scan: Scan
+    sensor: ClutteredSensor
+    Z: FloatArray
+    s: FloatArray
+
+
+class Tracker:
+    """The tracks of a scene (module docstring).
+
+    model: the filters' motion model (``motion_name`` its scenario name); filter: the
+    registered filter to run per track; sensors: the scene's sensors by id in scenario order;
+    priors: the targets present at epoch 0; known_association: one target, no clutter (module
+    docstring), else JPDA with ``management`` (gate, M-of-N, deletion, initiation);
+    planner_samples: posterior samples per particle track for the planner; rng: the
+    tracker's only source of randomness.
+    """
+
+    def __init__(
+        self,
+        model: MotionModel,
+        motion_name: str,
+        filter: FilterSpec,
+        sensors: Mapping[str, ClutteredSensor],
+        priors: Sequence[TrackPrior],
+        *,
+        known_association: bool,
+        management: TrackManagementConfig,
+        planner_samples: int,
+        new_track_priority: float,
+        rng: np.random.Generator,
+    ):
+        if known_association and len(priors) != 1:
+            raise ValueError(
+                f"priors: known association tracks exactly one target, got {len(priors)}"
+            )
+        self.model = model
+        self.motion_name = motion_name
+        self.filter = filter
+        self.sensors = dict(sensors)
+        self.known_association = known_association
+        self.planner_samples = planner_samples
+        self.new_track_priority = new_track_priority
+        self.rng = rng
+        self.gamma = management.gate_sigmas**2
+        self.book = TrackManager(management)
+        self.epoch = 0
+        self.time = 0.0
+        self.updates = 0
+        self.split_clusters = 0  # clusters updated as independent PDAs (events beyond the cap)
+        self._counts = (0, 0)  # detections, unassociated of the last step
+        self._aged: set[int] = set()  # tracks whose existence was predicted this epoch
+        for prior in priors:
+            self._start(prior.mean, prior.cov, 0, CONFIRMED, prior.target_id, prior.priority)
+        self._draw_samples()
+
+    # --- the epoch ---------------------------------------------------------------------------
+    def step(self, epoch: int, t: float, scans: Sequence[Scan]) -> TrackSet:
+        """Predict to ``t``, update with the epoch's ``scans``, manage the tracks; the
+        :class:`TrackSet` after it. ValueError (state unchanged) for a bad scan."""
+        t, checked = self._check(epoch, t, scans)
+        if self.known_association:
+            detections = self._step_known(t, checked)
+            unassociated = 0
+        else:
+            detections, unassociated = self._step_jpda(epoch, t, checked)
+        self.epoch, self.time = epoch, t
+        self.updates += 1
+        self._counts = (detections, unassociated)
+        self._draw_samples()
+        return self.snapshot()
+
+    def snapshot(self) -> TrackSet:
+        """Every live track after the last step, by id. Pure: it draws nothing, so looking at
+        the tracks (a notebook, a second caller) never changes a later result."""
+        estimates = tuple(track.estimate(self.epoch) for track in self.book.live())
+        return TrackSet(
+            self.epoch,
+            self.time,
+            self.filter.kind,
+            self.motion_name,
+            tuple(self.model.state_names),
+            estimates,
+            self.updates,
+            *self._counts,
+        )
+
+    @property
+    def not_started(self) -> int:
+        """Detections that would have started a track beyond ``max_tracks``."""
+        return self.book.not_started
+
+    @property
+    def counters(self) -> Counter[str]:
+        """What the tracker did that changes its result: deletions by reason, detections not
+        started, clusters split (``split_clusters``)."""
+        out = Counter({f"deleted.{k}": v for k, v in self.book.deleted.items()})
+        out["not_started"] = self.book.not_started
+        out["split_clusters"] = self.split_clusters
+        return out
+
+    # --- known association: the papers' single target -----------------------------------------
+    def _step_known(self, t: float, checked: list[_Checked]) -> int:
+        """The one track's filter on the epoch's scans (module docstring)."""
+        track = self.book.live()[0]
+        measurements = []
+        for i, c in enumerate(checked):
+            if c.Z.shape[0] > 1:
+                raise ValueError(
+                    f"scans[{i}].Z: a scene of one target without clutter has at most one "
+                    f"detection per scan, got {c.Z.shape[0]}"
+                )
+            z = c.Z[0] if c.Z.shape[0] else None
+            measurements.append(Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id))
+        info = track.filter.step(t, measurements)
+        if checked:
+            track.looks += 1
+            track.hits += info.n_detections > 0
+        track.missed_detections += info.n_missed
+        track.nis, track.ess = info.nis, info.ess
+        return info.n_detections
+
+    # --- JPDA ----------------------------------------------------------------------------------
+    def _step_jpda(self, epoch: int, t: float, checked: list[_Checked]) -> tuple[int, int]:
+        for track in self.book.live():
+            track.filter.predict(t)
+        self._aged.clear()
+        looked: dict[int, bool] = {}  # track id -> hit, for the tracks looked at
+        detections = unassociated = 0
+        for c in checked:
+            tracks, mask = self._update(c, t)
+            for track, row in zip(tracks, mask, strict=True):
+                looked[track.track_id] = looked.get(track.track_id, False) or bool(row.any())
+                track.missed_detections += not row.any()
+            free = ~mask.any(axis=0)
+            detections += c.Z.shape[0]
+            unassociated += int(free.sum())
+            for z in c.Z[free]:
+                started = self._start_from_detection(z, c, epoch, t)
+                if started is None:
+                    break
+                looked[started.track_id] = True
+        self.book.end_epoch(looked)
+        return detections, unassociated
+
+    def _update(self, c: _Checked, t: float) -> tuple[list[Track], BoolArray]:
+        """Update the tracks inside the scan's field of view; them and their gate ``(T, m)``."""
+        live = self.book.live()
+        pv = np.array([track.mean for track in live]).reshape(-1, 4)
+        inside = c.scan.fov.contains(pv, c.s)
+        tracks = [track for track, ok in zip(live, inside, strict=True) if ok]
+        if not tracks:
+            return [], np.zeros((0, c.Z.shape[0]), dtype=bool)
+        means = np.array([track.state for track in tracks])
+        covs = np.array([track.state_cov for track in tracks])
+        base = c.sensor.base
+        zhat, _, S = predict_measurements(means, covs, base, c.s, self.model)
+        nu = np.asarray(base.residual(c.Z[None, :, :], zhat[:, None, :]), dtype=float)
+        ratios, mask = likelihood_ratios(
+            nu, S, 1.0, effective_clutter_density(c.sensor.clutter_density), self.gamma
+        )
+        for track in tracks:
+            if track.track_id not in self._aged:
+                track.existence *= EXISTENCE_SURVIVAL
+                self._aged.add(track.track_id)
+        pv_means = pv[inside]
+        pv_covs = np.array([track.cov for track in tracks])
+        psi = existence_update(
+            np.array([track.existence for track in tracks]),
+            ratios,
+            effective_pd(c.sensor.pd) * c.scan.fov.coverage(pv_means, pv_covs, c.s),
+            gate_probability(self.gamma, int(base.dim_z)),
+        )
+        for track, p in zip(tracks, psi, strict=True):
+            track.existence = float(p)
+        self._jpda(tracks, means, covs, mask, c, t)
+        return tracks, mask
+
+    def _jpda(
+        self,
+        tracks: list[Track],
+        means: FloatArray,
+        covs: FloatArray,
+        mask: BoolArray,
+        c: _Checked,
+        t: float,
+    ) -> None:
+        """The JPDA marginals per cluster; each track's filter takes its row of them."""
+        for rows, cols in _clusters(mask):
+            events = float(np.prod(1.0 + mask[np.ix_(rows, cols)].sum(axis=1)))
+            if events <= DEFAULT_MAX_EVENTS:
+                groups = [rows]
+            else:
+                groups = [rows[[k]] for k in range(rows.size)]
+                self.split_clusters += 1
+            for group in groups:
+                used = cols[mask[np.ix_(group, cols)].any(axis=0)]
+                a = jpda_association(
+                    means[group],
+                    covs[group],
+                    c.Z[used],
+                    c.sensor.base,
+                    c.s,
+                    self.model,
+                    clutter_density=effective_clutter_density(c.sensor.clutter_density),
+                    gamma=self.gamma,
+                    pd=effective_pd(c.sensor.pd),
+                )
+                detections = [
+                    Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
+                ]
+                for k, row in enumerate(group):
+                    info = tracks[row].filter.update_pda(detections, a.beta[k])  # type: ignore[attr-defined]
+                    tracks[row].ess = info.ess
+
+    # --- track starts ------------------------------------------------------------------------
+    def _start(
+        self,
+        mean: FloatArray,
+        cov: FloatArray,
+        born: int,
+        status: str,
+        origin: str,
+        priority: float,
+        t: float = 0.0,
+    ) -> Track:
+        """A new track with the next id: a filter started from N(mean, cov) at time ``t``."""
+        new = self.filter.make(np.asarray(mean, dtype=float), np.asarray(cov, dtype=float), t)
+        track = Track(
+            self.book.new_id(),
+            status,
+            new,
+            self.model,
+            born,
+            origin,
+            priority,
+            self.filter.particle_based,
+        )
+        self.book.add(track)
+        return track
+
+    def _start_from_detection(
+        self, z: FloatArray, c: _Checked, epoch: int, t: float
+    ) -> Track | None:
+        """A tentative track at the position the detection fixes (the sensor's inverse
+        measurement, :meth:`inverse_position`), or None: the sensor fixes none (a bearing) or
+        the tracker is full (counted in ``not_started``)."""
+        fix = c.sensor.base.inverse_position(z, c.s)
+        if fix is None:
+            return None
+        if self.book.full:
+            self.book.not_started += 1
+            return None
+        xy, P_xy = fix
+        mean = np.array([xy[0], 0.0, xy[1], 0.0])
+        cov = np.diag(np.full(4, self.book.cfg.init_speed_std**2))
+        cov[np.ix_([0, 2], [0, 2])] = P_xy
+        track = self._start(mean, cov, epoch, TENTATIVE, "", self.new_track_priority, t)
+        track.existence = EXISTENCE_INIT
+        return track
+
+    def _draw_samples(self) -> None:
+        """The planner's equally weighted samples of every particle track: a systematic
+        resample of its weighted particles, thinned evenly to ``planner_samples``."""
+        if not self.filter.particle_based:
+            return
+        for track in self.book.live():
+            posterior = track.filter
+            weights = posterior.weights  # type: ignore[attr-defined]
+            count = len(weights)
+            idx = systematic_resample(weights, self.rng)
+            take = np.linspace(0, count - 1, min(self.planner_samples, count)).astype(int)
+            track.samples = posterior.particles[idx[take]]  # type: ignore[attr-defined]
+
+    # --- checks ------------------------------------------------------------------------------
+    def _check(self, epoch: int, t: float, scans: Sequence[Scan]) -> tuple[float, list[_Checked]]:
+        """Every scan checked before anything changes: ``(t, checked scans)``."""
+        if (
+            isinstance(epoch, bool)
+            or not isinstance(epoch, int | np.integer)
+            or epoch <= self.epoch
+        ):
+            raise ValueError(
+                f"epoch: must be an integer > the last epoch {self.epoch}, got {epoch!r}"
+            )
+        t = float(t)
+        if not (math.isfinite(t) and t >= self.time - TIME_TOLERANCE):
+            raise ValueError(f"t: must be finite and >= the last time {self.time}, got {t!r}")
+        out: list[_Checked] = []
+        for i, scan in enumerate(scans):
+            sensor = self.sensors.get(scan.sensor_id)
+            if sensor is None:
+                raise ValueError(
+                    f"scans[{i}].sensor_id: must be one of {sorted(self.sensors)}, "
+                    f"got {scan.sensor_id!r}"
+                )
+            if any(c.scan.sensor_id == scan.sensor_id for c in out):
+                raise ValueError(f"scans[{i}].sensor_id: {scan.sensor_id!r} has two scans")
+            if scan.epoch != epoch:
+                raise ValueError(f"scans[{i}].epoch: must be {epoch}, got {scan.epoch!r}")
+            if not abs(float(scan.time) - t) <= TIME_TOLERANCE:
+                raise ValueError(f"scans[{i}].time: must equal t = {t}, got {scan.time!r}")
+            out.append(_Checked(scan, sensor, _detections(i, scan, sensor), _platform(i, scan)))
+        return max(t, self.time), out
+
+
+def _detections(i: int, scan: Scan, sensor: ClutteredSensor) -> FloatArray:
+    """The scan's detections as ``(m, dim_z)``, checked (an empty array of any shape: m = 0)."""
+    d = int(sensor.base.dim_z)
+    Z = np.asarray(scan.Z, dtype=float)
+    if Z.size == 0 and Z.ndim in (1, 2):
+        return np.zeros((0, d))
+    if Z.ndim != 2 or Z.shape[1] != d:
+        raise ValueError(f"scans[{i}].Z: must have shape (m, {d}), got {Z.shape}")
+    if not np.isfinite(Z).all():
+        raise ValueError(f"scans[{i}].Z: must be finite (no NaN or inf)")
+    return Z
+
+
+def _platform(i: int, scan: Scan) -> FloatArray:
+    s = np.asarray(scan.sensor_pv, dtype=float)
+    if s.shape != (4,) or not np.isfinite(s).all():
+        raise ValueError(f"scans[{i}].sensor_pv: must be a finite pv of shape (4,), got {s!r}")
+    return s
+
+
+def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Tracks linked through shared gated detections: ``(rows, cols)`` per cluster (tracks
+    without a gated detection are in none). The JPDA's joint events factorise over them."""
+    label = np.arange(mask.shape[0])
+    for j in range(mask.shape[1]):
+        rows = np.flatnonzero(mask[:, j])
+        if rows.size > 1:
+            joined = np.isin(label, label[rows])
+            label[joined] = label[rows].min()
+    gated = mask.any(axis=1)
+    out = []
+    for lab in np.unique(label[gated]):
+        rows = np.flatnonzero((label == lab) & gated)
+        out.append((rows, np.flatnonzero(mask[rows].any(axis=0))))
+    return out
