@@ -1,10 +1,13 @@
 """The planner of the closed loop: one decision per epoch from the tracker's posterior.
 
-:class:`PlannerCore` is the facade the batch loop and the ROS planner node call,
-``PlannerCore(scenario, rng).decide(epoch, track, snapshots) -> Decision``. It runs the
+:class:`PlannerCore` is the one planner the batch loop and the ROS planner node call,
+``build_planner(scenario, rng).decide(epoch, tracks, snapshots) -> Decision``. It runs the
 strategies :func:`build_strategies` composes from the scenario's ``planner`` section
 (:mod:`activetrack.closed_loop.strategies`):
 
+- a scene of several targets, clutter or steerable beams: MultiTargetPlanning (manoeuvres
+  against every confirmed track, beams assigned to tracks; ``enabled: false`` holds course
+  and still points the beams);
 - ``enabled: false``: HoldCourse;
 - ``search: cautious``: CautiousLocalisation (Vander Hook et al.);
 - ``cost: pcrlb`` without selection: PcrlbPlanning (Hernandez);
@@ -40,6 +43,7 @@ from activetrack.closed_loop.strategies import (
     MrePositioning,
     MrePrediction,
     MreSelection,
+    MultiTargetPlanning,
     PcrlbPlanning,
     PlannerStrategy,
     RandomSelection,
@@ -72,8 +76,13 @@ SELECTION_STRATEGIES: dict[str, SelectionFactory] = {
 
 def build_strategies(scenario: Scenario, rng: np.random.Generator) -> tuple[PlannerStrategy, ...]:
     """The strategies a scenario's planner runs, in order (table in the module docstring)."""
+    from activetrack.closed_loop.components import known_association
+
     cfg = scenario.planner
     controllable = tuple(p.id for p in scenario.platforms if p.controllable)
+    beams = any(s.beam_width is not None for p in scenario.platforms for s in p.sensors)
+    if beams or not known_association(scenario):
+        return (MultiTargetPlanning(scenario, rng),)
     if not cfg.enabled:
         return (HoldCourse(controllable),)
     if controllable and cfg.search == "cautious":
@@ -113,32 +122,20 @@ class PlannerCore:
     def decide(
         self, epoch: int, tracks: TrackSet, snapshots: Sequence[PlatformSnapshot]
     ) -> Decision:
-        """Commands for the leg epoch -> epoch+1 (hold course when the planner is off) and the
-        sensors that measure at epoch+1 (None: all of them), from the scene's one track."""
+        """Commands for the leg epoch -> epoch+1 (hold course when the planner is off), beam
+        pointings and the sensors that measure at epoch+1 (None: all of them)."""
         start = time.perf_counter()
-        if len(tracks.tracks) != 1:
-            raise ValueError(f"tracks: the single-target planner needs one track, got {tracks}")
-        track = tracks.tracks[0]
         platforms = {s.platform_id: s for s in snapshots}
         missing = [pid for pid in self.platform_ids if pid not in platforms]
         if missing:
             raise ValueError(f"platform states missing for {missing}")
         part = DecisionPart()
         for strategy in self.strategies:
-            context = DecisionContext(epoch, track, platforms, self.scenario.dt, part)
+            context = DecisionContext(epoch, tracks, platforms, self.scenario.dt, part)
             part = part.then(strategy.decide(context))
         return part.decision(epoch, time.perf_counter() - start)
 
 
-def build_planner(scenario: Scenario, rng: np.random.Generator):  # type: ignore[no-untyped-def]
-    """The scenario's planner, drawing from ``rng``: the papers' strategies for a scene of one
-    target whose detections are known to be its own (no clutter) and no steerable beam,
-    planning across tracks with beam assignment otherwise."""
-    from activetrack.closed_loop.components import known_association
-
-    beams = any(s.beam_width is not None for p in scenario.platforms for s in p.sensors)
-    if beams or not known_association(scenario):
-        from activetrack.multitarget.planner import MultiTargetPlanner
-
-        return MultiTargetPlanner(scenario, rng)
+def build_planner(scenario: Scenario, rng: np.random.Generator) -> PlannerCore:
+    """The scenario's planner, drawing from ``rng`` (:func:`build_strategies`)."""
     return PlannerCore(scenario, rng)

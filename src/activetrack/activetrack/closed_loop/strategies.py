@@ -34,11 +34,13 @@ from activetrack.bounds.costs import position_determinant, trace_cost
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.closed_loop.cautious import CautiousController
 from activetrack.data import (
+    BeamCommand,
     Command,
     Decision,
     PlanReportData,
     PlatformSnapshot,
     TrackEstimate,
+    TrackSet,
 )
 from activetrack.models.base import SensorModel, as_linear
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
@@ -78,6 +80,7 @@ __all__ = [
     "MrePositioning",
     "MrePrediction",
     "MreSelection",
+    "MultiTargetPlanning",
     "PcrlbPlanning",
     "PlannerStrategy",
     "RandomSelection",
@@ -128,6 +131,7 @@ class DecisionPart:
     """What one strategy (or all of them so far, merged by :meth:`then`) decided."""
 
     commands: tuple[Command, ...] = ()
+    beams: tuple[BeamCommand, ...] = ()
     planned_pv: Mapping[str, np.ndarray] = field(default_factory=dict)  # platform pv at k+1
     prediction: TargetPrediction | None = None
     selection: SensorChoice | None = None
@@ -136,10 +140,11 @@ class DecisionPart:
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     def then(self, later: DecisionPart) -> DecisionPart:
-        """This part followed by ``later``: commands appended, evaluations summed, mappings
-        merged; a later prediction, selection or report replaces an earlier one."""
+        """This part followed by ``later``: commands and beams appended, evaluations summed,
+        mappings merged; a later prediction, selection or report replaces an earlier one."""
         return DecisionPart(
             commands=self.commands + later.commands,
+            beams=self.beams + later.beams,
             planned_pv={**self.planned_pv, **later.planned_pv},
             prediction=later.prediction if later.prediction is not None else self.prediction,
             selection=later.selection if later.selection is not None else self.selection,
@@ -162,19 +167,36 @@ class DecisionPart:
                 selection_costs=sel.costs,
                 selection_criterion=sel.label,
             )
-        return Decision(epoch, self.commands, report=report, extra=dict(self.extra), **chosen)
+        return Decision(
+            epoch,
+            self.commands,
+            self.beams,
+            report=report,
+            extra=dict(self.extra),
+            **chosen,
+        )
 
 
 @dataclass(frozen=True)
 class DecisionContext:
-    """The inputs of one decision at ``epoch``: the track, every platform's snapshot by id,
-    the interval dt, and what the strategies before this one decided (``so_far``)."""
+    """The inputs of one decision at ``epoch``: the tracker's output, every platform's
+    snapshot by id, the interval dt, and what the strategies before this one decided
+    (``so_far``)."""
 
     epoch: int
-    track: TrackEstimate
+    tracks: TrackSet
     platforms: Mapping[str, PlatformSnapshot]
     dt: float
     so_far: DecisionPart = DecisionPart()
+
+    @property
+    def track(self) -> TrackEstimate:
+        """The track of the scene's one target (the papers' strategies plan for it)."""
+        if len(self.tracks.tracks) != 1:
+            raise ValueError(
+                f"tracks: a single-target strategy needs one track, got {len(self.tracks.tracks)}"
+            )
+        return self.tracks.tracks[0]
 
     def next_pv(self, platform_id: str) -> np.ndarray:
         """The platform's pv at k+1: as planned so far, else coasting at its velocity."""
@@ -321,6 +343,24 @@ class CautiousLocalisation:
             predicted_costs=(float(c.measurements), float(c.done)),
         )
         return DecisionPart(commands=(command,), report=report)
+
+
+class MultiTargetPlanning:
+    """Manoeuvres against every confirmed track and steerable beams assigned to tracks
+    (:class:`activetrack.multitarget.planner.MultiTargetPlanner`): the strategy of a scene
+    of several targets, clutter or beams."""
+
+    def __init__(self, scenario: Scenario, rng: np.random.Generator):
+        from activetrack.multitarget.planner import MultiTargetPlanner
+
+        self.planner = MultiTargetPlanner(scenario, rng)
+
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        d = self.planner.decide(context.epoch, context.tracks, list(context.platforms.values()))
+        evaluations = d.report.evaluations if d.report is not None else 0
+        return DecisionPart(
+            d.commands, d.beams, report=d.report, evaluations=evaluations, extra=d.extra
+        )
 
 
 # --- Ramdaras: MRE prediction, positioning, selection, outlook ----------------------------------
