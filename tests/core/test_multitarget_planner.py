@@ -20,10 +20,10 @@ import math
 import numpy as np
 import pytest
 
-from activetrack.bounds.irf import information_reduction_factor
 from activetrack.bounds.pcrlb import covariance_bound, predicted_information, propagate_samples
 from activetrack.closed_loop.data import PlatformSnapshot, heading_speed
 from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.models.irf import information_reduction_factor
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
 from activetrack.multitarget.data import TrackEstimate, TrackSet
 from activetrack.multitarget.planner import MultiTargetPlanner

@@ -6,7 +6,7 @@ sensor's detection ranges (``I(x) = 1``), its detection is ``z = h(x) + v``, ``v
 and the false alarms are Poisson with density ``lambda`` per unit of z, uniform over the field
 of view (Bar-Shalom, Daum & Huang, "The probabilistic data association filter", IEEE Control
 Systems Magazine 29(6), 2009, the PDAF's assumptions and measurement likelihood; Niu, Willett
-& Bar-Shalom 2001, sec. II, the model of :mod:`activetrack.bounds.irf`).  Summing over "no
+& Bar-Shalom 2001, sec. II, the model of :mod:`activetrack.models.irf`).  Summing over "no
 detection is the target's" and "z_j is", and dividing by the clutter-only likelihood, which
 does not depend on ``x``::
 
@@ -37,7 +37,7 @@ import numpy as np
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_in_range, require_nonnegative
 from activetrack.models.base import SensorModel
-from activetrack.multitarget.data import FieldOfView
+from activetrack.models.fov import FieldOfView
 
 __all__ = [
     "CLUTTER_FLOOR",

@@ -12,7 +12,7 @@ multi-target measurement model:
   ``r_max - r_min`` [m] for a range-bearing one), ``lambda = clutter_density``;
 - Fisher information: the clutter-free ``H^T R^-1 H`` scaled by the information reduction
   factor ``q(Pd, lambda sqrt(det R), g, dim_z)`` (Niu, Willett & Bar-Shalom 2001; Hernandez,
-  Farina & Ristic 2006, :mod:`activetrack.bounds.irf`) in place of the ``pd`` factor of
+  Farina & Ristic 2006, :mod:`activetrack.models.irf`) in place of the ``pd`` factor of
   Hernandez eq. 8, and zero outside the field of view. With no clutter and a wide gate q = pd
   to within the gate's tail, so the bound is that of the clutter-free sensor.
 
@@ -28,14 +28,46 @@ from typing import Any
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
-from activetrack.bounds.irf import information_reduction_factor
 from activetrack.models.base import InformationKernel, SensorModel
-from activetrack.multitarget.data import FieldOfView
-from activetrack.scenarios.multitarget_config import fov_volume
+from activetrack.models.fov import FieldOfView
+from activetrack.models.irf import information_reduction_factor
 
-__all__ = ["ClutteredSensor"]
+__all__ = [
+    "CLUTTER_KINDS",
+    "INITIATING_KINDS",
+    "ClutteredSensor",
+    "fov_volume",
+    "has_clutter_model",
+    "starts_tracks",
+]
 
 _TWO_PI = 2.0 * math.pi
+
+# The sensor kinds whose measurement space the clutter model knows (a sector of bearings, times a
+# range interval for a range-bearing sensor), and those whose detections start tracks (they fix
+# a position: the inverse measurement). The kind questions of the multi-target model, asked here
+# on the sensor side and nowhere else (the scenario rules and the tracker call the functions).
+CLUTTER_KINDS = ("bearing", "range_bearing")
+INITIATING_KINDS = ("range_bearing",)
+
+
+def has_clutter_model(sensor: SensorModel) -> bool:
+    """Whether clutter and a field of view are modelled for ``sensor`` (``CLUTTER_KINDS``)."""
+    return sensor.kind in CLUTTER_KINDS
+
+
+def starts_tracks(sensor: SensorModel) -> bool:
+    """Whether a detection of ``sensor`` can start a track (``INITIATING_KINDS``)."""
+    return sensor.kind in INITIATING_KINDS
+
+
+def fov_volume(sensor: SensorModel, width: float, r_min: float, r_max: float) -> float:
+    """Volume of ``sensor``'s field of view in its measurement space: the bearing sector
+    ``width`` [rad] for a bearing sensor, times the range interval [m] for a range-bearing one
+    (infinite for an unbounded range)."""
+    if sensor.kind == "range_bearing":
+        return width * (r_max - r_min)
+    return width
 
 
 @dataclass(frozen=True)
@@ -62,7 +94,7 @@ class ClutteredSensor:
 
     @property
     def information_factor(self) -> float:
-        """The IRF ``q`` that replaces ``pd`` in J_Z (cached in :mod:`activetrack.bounds.irf`)."""
+        """The IRF ``q`` that replaces ``pd`` in J_Z (cached in :mod:`activetrack.models.irf`)."""
         R = np.atleast_2d(np.asarray(self.base.R, dtype=float))
         whitened = self.clutter_density * math.sqrt(float(np.linalg.det(R)))
         return information_reduction_factor(
@@ -88,7 +120,7 @@ class ClutteredSensor:
     def clutter_volume(self, fov: FieldOfView) -> float:
         """The field of view's volume in measurement units (rad, or m rad)."""
         r_max = fov.r_max if math.isfinite(fov.r_max) else fov.r_min
-        return fov_volume(self.base.kind, fov.width, fov.r_min, r_max)
+        return fov_volume(self.base, fov.width, fov.r_min, r_max)
 
     def sample_clutter(self, fov: FieldOfView, rng: np.random.Generator) -> FloatArray:
         """Poisson(lambda V) false alarms uniform over ``fov`` in measurement space,

@@ -60,7 +60,7 @@ from activetrack.filters.jpda import (
 )
 from activetrack.filters.measurement import TIME_TOLERANCE
 from activetrack.models.base import as_linear
-from activetrack.models.clutter import ClutteredSensor
+from activetrack.models.clutter import INITIATING_KINDS, ClutteredSensor
 from activetrack.multitarget.data import CONFIRMED, TENTATIVE, FieldOfView, Scan, TrackSet
 from activetrack.multitarget.tracks import (
     EXISTENCE_INIT,
@@ -77,8 +77,6 @@ from activetrack.scenarios.schema import Scenario
 __all__ = ["INITIATING_KINDS", "MultiTargetTracker"]
 
 FILTERS = ("ekf", "pf")
-# Sensor kinds whose detections start tracks (they fix a position: the inverse measurement).
-INITIATING_KINDS = ("range_bearing",)
 _XY = np.ix_([0, 2], [0, 2])
 
 
