@@ -42,15 +42,11 @@ from activetrack.closed_loop.data import (
 )
 from activetrack.models.base import SensorModel, as_linear
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
-from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlatformLimits
 from activetrack.planning.planner import (
     PlannerPlatform,
-    PlanSettings,
     TargetBelief,
     advance_belief,
     plan,
-    platforms_from_scenario,
 )
 from activetrack.planning.selection import (
     POSITIONING_SEARCHES,
@@ -63,7 +59,14 @@ from activetrack.planning.selection import (
     select_fixed,
     select_random,
 )
-from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.build import (
+    build_motion_model,
+    build_sensor,
+    plan_settings,
+    planner_platforms,
+    platform_limits,
+    search_settings,
+)
 from activetrack.scenarios.schema import Scenario
 
 __all__ = [
@@ -246,7 +249,7 @@ class PcrlbPlanning:
 
     def __init__(self, scenario: Scenario, dynamics: LinearDynamics, rng: np.random.Generator):
         self.scenario = scenario
-        self.settings = PlanSettings.from_config(scenario.planner)
+        self.settings = plan_settings(scenario.planner)
         self.open_loop = scenario.planner.mode == "open_loop"
         self.mc_samples = scenario.planner.mc_samples
         self.dynamics = dynamics
@@ -275,7 +278,7 @@ class PcrlbPlanning:
 
     def decide(self, context: DecisionContext) -> DecisionPart:
         states = {pid: snap.pv for pid, snap in context.platforms.items()}
-        platforms = platforms_from_scenario(self.scenario, states)
+        platforms = planner_platforms(self.scenario, states)
         belief = self._belief(context.epoch, context.track, platforms)
         d = self.dynamics
         result = plan(platforms, belief, self.settings, F=d.F, Q=d.Q, dt=d.dt, rng=self.rng)
@@ -364,7 +367,7 @@ class MrePositioning:
     def __init__(self, scenario: Scenario, sensors: Sequence[SensorEntry], dt: float):
         cfg = scenario.planner
         self.criterion = get_criterion(cfg.criterion, POSITIONING, what="planner.criterion").name
-        self.search = SearchSettings.from_config(cfg)
+        self.search = search_settings(cfg)
         if self.search.search not in POSITIONING_SEARCHES:
             raise ValueError(
                 f"planner.search must be one of {POSITIONING_SEARCHES} with cost 'mre', "
@@ -375,7 +378,7 @@ class MrePositioning:
         self.platforms = tuple(
             (
                 p.id,
-                PlatformLimits.from_config(p.limits, dt),
+                platform_limits(p.limits, dt),
                 tuple(s.model for s in sensors if s.platform_id == p.id),
             )
             for p in scenario.platforms

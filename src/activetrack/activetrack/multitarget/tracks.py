@@ -2,7 +2,7 @@
 
 A :class:`Track` is one Gaussian (JPDA-EKF) or one particle cloud (:class:`ParticleCloud`) with
 its id, status and look history. :class:`TrackManager` holds the live tracks and applies the
-rules of ``tracker.tracks`` (:class:`~activetrack.scenarios.multitarget_config.
+rules of ``tracker.tracks`` (:class:`~activetrack.scenarios.schema.
 TrackManagementConfig`) once per epoch (M-of-N confirmation and deletion: Blackman & Popoli,
 *Design and Analysis of Modern Tracking Systems*, 1999):
 
@@ -54,7 +54,7 @@ from activetrack.arraytypes import FloatArray
 from activetrack.filters.resampling import effective_sample_size, roughen, systematic_resample
 from activetrack.models.base import MotionModel
 from activetrack.multitarget.data import CONFIRMED, TENTATIVE, TrackEstimate
-from activetrack.scenarios.multitarget_config import TrackManagementConfig
+from activetrack.scenarios.schema import TrackManagementConfig
 
 __all__ = [
     "COALESCE_D2",
