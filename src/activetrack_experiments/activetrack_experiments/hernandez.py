@@ -59,7 +59,7 @@ from activetrack.montecarlo import (
     check_jobs,
     parallel_map,
 )
-from activetrack.montecarlo_dask import connected
+from activetrack.montecarlo.dask import connected
 from activetrack.planning import (
     PlannerPlatform,
     TargetBelief,

@@ -38,7 +38,7 @@ import numpy as np
 from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.limits import MAX_JOBS, MAX_RUNS
 from activetrack.montecarlo import Scheduler, available_jobs, check_jobs
-from activetrack.montecarlo_dask import connected
+from activetrack.montecarlo.dask import connected
 from activetrack.multitarget.loop import MultiBatchSummary, run_multi_batch
 from activetrack.scenarios import load_scenario, with_changes
 from activetrack.scenarios.schema import Scenario
