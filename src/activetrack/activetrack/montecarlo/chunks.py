@@ -11,7 +11,7 @@ import itertools
 from collections.abc import Callable, Sequence
 from typing import TypeVar
 
-__all__ = ["CHUNKS_PER_WORKER", "even_chunks", "run_chunk"]
+__all__ = ["CHUNKS_PER_WORKER", "apply_chunk", "even_chunks"]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -32,7 +32,7 @@ def even_chunks(items: Sequence[T], workers: int) -> list[list[T]]:
     return [list(items[a:b]) for a, b in itertools.pairwise(bounds)]
 
 
-def run_chunk(chunk: tuple[Callable[[T], R], list[T]]) -> list[R]:
+def apply_chunk(chunk: tuple[Callable[[T], R], list[T]]) -> list[R]:
     """``[fn(t) for t in tasks]`` of one chunk ``(fn, tasks)``."""
     fn, tasks = chunk
     return [fn(t) for t in tasks]

@@ -9,7 +9,7 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import TypeVar
 
-from activetrack.montecarlo.chunks import even_chunks, run_chunk
+from activetrack.montecarlo.chunks import apply_chunk, even_chunks
 
 __all__ = ["available_jobs", "local_map"]
 
@@ -32,5 +32,5 @@ def local_map(fn: Callable[[T], R], items: Sequence[T], jobs: int) -> Iterator[R
         return
     context = multiprocessing.get_context("fork")
     with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        done = pool.map(run_chunk, [(fn, chunk) for chunk in even_chunks(items, workers)])
+        done = pool.map(apply_chunk, [(fn, chunk) for chunk in even_chunks(items, workers)])
         yield from itertools.chain.from_iterable(done)
