@@ -14,7 +14,7 @@ import yaml
 
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.closed_loop.batch import run_batch
-from activetrack.planning import PlanSettings, TargetBelief, plan, platforms_from_scenario
+from activetrack.planning import TargetBelief, plan
 from activetrack.planning.criteria import (
     Criterion,
     criterion_names,
@@ -24,7 +24,7 @@ from activetrack.planning.criteria import (
 )
 from activetrack.planning.selection import TargetPrediction, sensor_costs
 from activetrack.scenarios import build_motion_model
-from activetrack.scenarios.build import build_sensor
+from activetrack.scenarios.build import build_sensor, plan_settings, planner_platforms
 from activetrack.scenarios.load import ScenarioError, parse_scenario
 
 SCENARIOS = Path(__file__).parents[2] / "scenarios"
@@ -112,8 +112,8 @@ def test_pcrlb_planning_minimises_the_registered_criterion(registered):
     belief = TargetBelief.from_gaussian(
         np.array(prior.mean), prior.covariance(), 200, np.random.default_rng(3)
     )
-    settings = PlanSettings.from_config(scenario.planner)
-    result = plan(platforms_from_scenario(scenario), belief, settings, F=F, Q=Q, dt=scenario.dt)
+    settings = plan_settings(scenario.planner)
+    result = plan(planner_platforms(scenario), belief, settings, F=F, Q=Q, dt=scenario.dt)
     want = largest_position_eigenvalue(covariance_bound(result.J_next))
     assert result.report.objective == pytest.approx(float(want), rel=1e-12)
 

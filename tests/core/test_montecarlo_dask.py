@@ -1,4 +1,4 @@
-"""Monte Carlo on a Dask cluster (activetrack.montecarlo_dask): the same numbers as the local
+"""Monte Carlo on a Dask cluster (activetrack.montecarlo.dask): the same numbers as the local
 worker processes and as one process, on an in-process cluster of two worker processes; the
 tasks carry the client's registrations; a wrong scheduler fails at once, naming --scheduler.
 """
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 import activetrack as at
-from activetrack import montecarlo_dask
+import activetrack.montecarlo.dask as montecarlo_dask
 from activetrack.allocator import allocator_tuned
 from activetrack.closed_loop.batch import run_batch
 from activetrack.montecarlo import even_chunks, parallel_map
-from activetrack.montecarlo_dask import SchedulerError, WorkerSetupError, check_scheduler
+from activetrack.montecarlo.dask import SchedulerError, WorkerSetupError, check_scheduler
 from activetrack.multitarget.loop import run_multi_batch
 from activetrack_bringup.cli import main as cli_main
 from activetrack_experiments import vanderhook

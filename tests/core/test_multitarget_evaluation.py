@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.special import gammainc
 
-from activetrack.bounds.irf import information_reduction_factor
 from activetrack.bounds.pcrlb import covariance_bound, gaussian_samples, pcrlb_trajectory
+from activetrack.models.irf import information_reduction_factor
 from activetrack.models.motion import NearlyConstantVelocity
 from activetrack.multitarget.bounds import alive_mask, target_bounds
 from activetrack.multitarget.data import (

@@ -20,10 +20,10 @@ import math
 import numpy as np
 import pytest
 
-from activetrack.bounds.irf import information_reduction_factor
 from activetrack.bounds.pcrlb import covariance_bound, predicted_information, propagate_samples
 from activetrack.closed_loop.data import PlatformSnapshot, heading_speed
 from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.models.irf import information_reduction_factor
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
 from activetrack.multitarget.data import TrackEstimate, TrackSet
 from activetrack.multitarget.planner import MultiTargetPlanner
@@ -39,10 +39,10 @@ from activetrack.planning.assignment import (
 )
 from activetrack.planning.criteria import get_criterion
 from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlatformLimits
-from activetrack.planning.planner import PlannerPlatform, PlanSettings, TargetBelief, plan
+from activetrack.planning.planner import PlannerPlatform, TargetBelief, plan
 from activetrack.planning.selection import TargetPrediction, expected_update, plan_positions
 from activetrack.scenarios import parse_scenario
+from activetrack.scenarios.build import plan_settings, platform_limits
 
 LIMITS = {"dpsi_max": 0.6, "dv_max": 10.0, "v_min": 30.0, "v_max": 120.0}
 TARGET = {
@@ -342,9 +342,9 @@ def test_one_track_pcrlb_equals_plan():
         sc = scenario(platforms, {"search": search, "horizon": R}, gate=10.0)
         d = decide(sc, [track(1, mean, cov, samples=X)])
         dyn = LinearDynamics.of(sc)
-        limits = PlatformLimits.from_config(sc.platforms[0].limits, sc.dt)
+        limits = platform_limits(sc.platforms[0].limits, sc.dt)
         pp = PlannerPlatform("p1", snapshots(sc)[0].pv, (BearingSensor(0.02, pd=0.8),), limits)
-        settings = PlanSettings.from_config(sc.planner)
+        settings = plan_settings(sc.planner)
         belief = TargetBelief(covariance_bound(cov), X)
         rng = np.random.default_rng(0)
         want = plan([pp], belief, settings, F=dyn.F, Q=dyn.Q, dt=sc.dt, rng=rng)
@@ -379,7 +379,7 @@ def test_one_track_mre_equals_multi_step_positioning():
         sc = scenario(platforms, planner)
         d = decide(sc, [track(1, mean, cov)])
         dyn, s = LinearDynamics.of(sc), snapshots(sc)[0]
-        limits = PlatformLimits.from_config(sc.platforms[0].limits, sc.dt)
+        limits = platform_limits(sc.platforms[0].limits, sc.dt)
         single = RangeBearingSensor(20.0, 0.02, pd=q, r_max=20000.0)
         pp = PlannerPlatform("p1", s.pv, (single,), limits, heading=s.heading, speed=s.speed)
         prediction = TargetPrediction.from_posterior(mean, cov, dyn.F, dyn.Q)

@@ -87,8 +87,8 @@ PIP_ONLY = {
     "zstandard": "zstandard",
     "foxglove": "foxglove-sdk",
     "filterpy": "filterpy",
-    "distributed": "distributed",  # Dask's cluster client (activetrack.montecarlo_dask)
-    "dask": "dask",  # its configuration (activetrack.montecarlo_dask)
+    "distributed": "distributed",  # Dask's cluster client (activetrack.montecarlo.dask)
+    "dask": "dask",  # its configuration (activetrack.montecarlo.dask)
     "llvmlite": "llvmlite",  # numba's LLVM binding (activetrack.kernels.pcg64's intrinsic)
 }
 # Declared but not imported, on purpose: (package, rosdep key or pip name) -> why.

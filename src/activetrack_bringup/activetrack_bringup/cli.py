@@ -217,7 +217,7 @@ class _CommandError(Exception):
 def _scheduler_errors():
     """A Dask cluster that fails once the command runs (no worker joined, a worker without a
     module or with other versions): an ``error: --scheduler ...`` line, exit code 2."""
-    from activetrack.montecarlo_dask import SchedulerError, WorkerSetupError
+    from activetrack.montecarlo.dask import SchedulerError, WorkerSetupError
 
     try:
         yield

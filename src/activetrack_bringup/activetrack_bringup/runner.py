@@ -27,7 +27,7 @@ from rclpy.parameter import Parameter
 from activetrack.closed_loop.batch import BatchSummary, summarize
 from activetrack.closed_loop.components import component_rngs
 from activetrack.closed_loop.evaluation import evaluate_run
-from activetrack.scenarios import load_scenario
+from activetrack.scenarios import first_epochs, load_scenario
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.evaluator import EvaluatorNode
@@ -408,16 +408,18 @@ class _GraphRunner:
         scenario, evaluator = self.scenario, self.evaluator
         complete = self.status == "complete"
         last = scenario.steps if complete else evaluator.completed_epochs()
-        partial = scenario if complete else scenario.model_copy(update={"steps": max(last, 0)})
         record = evaluator.record(wall, last) if last >= 1 else None
-        summary = _summary(partial, record, wall, self.opts.run) if record is not None else None
+        summary = None
+        if record is not None:  # the epochs run (an interrupted run: the first ones)
+            partial = scenario if complete else first_epochs(scenario, last)
+            summary = _summary(partial, record, wall, self.opts.run)
         diagnostics = self.diagnostics()
         result = GraphRun(
             summary=summary,
             run_dir=run_dir,
             bag=bag_path,
             wall_time_s=wall,
-            real_time_factor=partial.duration / wall,
+            real_time_factor=scenario.dt * max(last, 0) / wall,
             diagnostics=diagnostics,
             complete=complete,
             status=self.status,

@@ -3,17 +3,22 @@ and the planner, each drawing from its own generator (:func:`component_rngs`).""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from activetrack.filters.registry import filter_kind, make_filter
 from activetrack.kernels import expect_particle_work
+from activetrack.models.base import as_linear
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.rules import known_association
 from activetrack.scenarios.schema import Scenario, TargetConfig
 from activetrack.simulation.simulator import SimPlatform, SimTarget, Simulator
 from activetrack.tracking.tracker import FilterSpec, Tracker, TrackPrior
 
 __all__ = [
+    "LinearDynamics",
     "build_simulator",
     "build_tracker",
     "component_rngs",
@@ -21,6 +26,27 @@ __all__ = [
     "scene_sensors",
     "scene_targets",
 ]
+
+
+@dataclass(frozen=True)
+class LinearDynamics:
+    """The target's linear pv dynamics over one interval dt: F, Q ``(4, 4)`` (Hernandez
+    eq. 2, Ramdaras eq. 3-4), which PCRLB planning and the MRE need."""
+
+    F: np.ndarray
+    Q: np.ndarray
+    dt: float
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> LinearDynamics:
+        model = build_motion_model(scenario.target.motion)
+        if not model.is_linear:
+            raise ValueError(
+                f"planner: PCRLB / MRE planning needs linear target dynamics (ncv, ncv_discrete, "
+                f"constant_turn), got motion {scenario.target.motion.model!r}"
+            )
+        linear, dt = as_linear(model), scenario.dt
+        return cls(linear.transition_matrix(dt), linear.process_noise(dt), dt)
 
 
 def component_rngs(seed: int, run: int | None = None) -> tuple[np.random.Generator, ...]:
@@ -31,7 +57,7 @@ def component_rngs(seed: int, run: int | None = None) -> tuple[np.random.Generat
 
 def scene_targets(scenario: Scenario) -> list[TargetConfig]:
     """The scenario's targets in order (one or many)."""
-    return list(scenario.targets or [scenario.target])
+    return list(scenario.targets)
 
 
 def scene_sensors(scenario: Scenario) -> dict[str, tuple[str, ClutteredSensor]]:
@@ -44,14 +70,6 @@ def scene_sensors(scenario: Scenario) -> dict[str, tuple[str, ClutteredSensor]]:
         for p in scenario.platforms
         for s in p.sensors
     }
-
-
-def known_association(scenario: Scenario) -> bool:
-    """Whether every detection is known to be the one target's: one target, present from
-    epoch 0 to the end, and no sensor with clutter (tracking: :mod:`activetrack.tracking`)."""
-    targets = scene_targets(scenario)
-    clutter = any(s.clutter_density > 0 for p in scenario.platforms for s in p.sensors)
-    return len(targets) == 1 and targets[0].birth == 0 and targets[0].death is None and not clutter
 
 
 def build_simulator(scenario: Scenario, rng: np.random.Generator) -> Simulator:

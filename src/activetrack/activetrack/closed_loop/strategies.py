@@ -33,6 +33,7 @@ import numpy as np
 from activetrack.bounds.costs import position_determinant, trace_cost
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.closed_loop.cautious import CautiousController
+from activetrack.closed_loop.components import LinearDynamics
 from activetrack.data import (
     BeamCommand,
     Command,
@@ -42,17 +43,13 @@ from activetrack.data import (
     TrackEstimate,
     TrackSet,
 )
-from activetrack.models.base import SensorModel, as_linear
+from activetrack.models.base import SensorModel
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
-from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlatformLimits
 from activetrack.planning.planner import (
     PlannerPlatform,
-    PlanSettings,
     TargetBelief,
     advance_belief,
     plan,
-    platforms_from_scenario,
 )
 from activetrack.planning.selection import (
     POSITIONING_SEARCHES,
@@ -65,7 +62,13 @@ from activetrack.planning.selection import (
     select_fixed,
     select_random,
 )
-from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.build import (
+    build_sensor,
+    plan_settings,
+    planner_platforms,
+    platform_limits,
+    search_settings,
+)
 from activetrack.scenarios.schema import Scenario
 
 __all__ = [
@@ -75,7 +78,6 @@ __all__ = [
     "DecisionPart",
     "FixedSelection",
     "HoldCourse",
-    "LinearDynamics",
     "MreOutlook",
     "MrePositioning",
     "MrePrediction",
@@ -131,13 +133,13 @@ class DecisionPart:
     """What one strategy (or all of them so far, merged by :meth:`then`) decided."""
 
     commands: tuple[Command, ...] = ()
-    beams: tuple[BeamCommand, ...] = ()
     planned_pv: Mapping[str, np.ndarray] = field(default_factory=dict)  # platform pv at k+1
     prediction: TargetPrediction | None = None
     selection: SensorChoice | None = None
     report: PlanReportData | None = None
     evaluations: int = 0
     extra: Mapping[str, Any] = field(default_factory=dict)
+    beams: tuple[BeamCommand, ...] = ()
 
     def then(self, later: DecisionPart) -> DecisionPart:
         """This part followed by ``later``: commands and beams appended, evaluations summed,
@@ -220,27 +222,6 @@ class PlannerStrategy(Protocol):
     def decide(self, context: DecisionContext) -> DecisionPart: ...
 
 
-@dataclass(frozen=True)
-class LinearDynamics:
-    """The target's linear pv dynamics over one interval dt: F, Q ``(4, 4)`` (Hernandez
-    eq. 2, Ramdaras eq. 3-4), which PCRLB planning and the MRE need."""
-
-    F: np.ndarray
-    Q: np.ndarray
-    dt: float
-
-    @classmethod
-    def of(cls, scenario: Scenario) -> LinearDynamics:
-        model = build_motion_model(scenario.target.motion)
-        if not model.is_linear:
-            raise ValueError(
-                f"planner: PCRLB / MRE planning needs linear target dynamics (ncv, ncv_discrete, "
-                f"constant_turn), got motion {scenario.target.motion.model!r}"
-            )
-        linear, dt = as_linear(model), scenario.dt
-        return cls(linear.transition_matrix(dt), linear.process_noise(dt), dt)
-
-
 def _require_pv(track: TrackEstimate) -> None:
     if track.state.shape != (4,):
         raise ValueError(
@@ -269,7 +250,7 @@ class PcrlbPlanning:
 
     def __init__(self, scenario: Scenario, dynamics: LinearDynamics, rng: np.random.Generator):
         self.scenario = scenario
-        self.settings = PlanSettings.from_config(scenario.planner)
+        self.settings = plan_settings(scenario.planner)
         self.open_loop = scenario.planner.mode == "open_loop"
         self.mc_samples = scenario.planner.mc_samples
         self.dynamics = dynamics
@@ -298,7 +279,7 @@ class PcrlbPlanning:
 
     def decide(self, context: DecisionContext) -> DecisionPart:
         states = {pid: snap.pv for pid, snap in context.platforms.items()}
-        platforms = platforms_from_scenario(self.scenario, states)
+        platforms = planner_platforms(self.scenario, states)
         belief = self._belief(context.epoch, context.track, platforms)
         d = self.dynamics
         result = plan(platforms, belief, self.settings, F=d.F, Q=d.Q, dt=d.dt, rng=self.rng)
@@ -359,7 +340,7 @@ class MultiTargetPlanning:
         d = self.planner.decide(context.epoch, context.tracks, list(context.platforms.values()))
         evaluations = d.report.evaluations if d.report is not None else 0
         return DecisionPart(
-            d.commands, d.beams, report=d.report, evaluations=evaluations, extra=d.extra
+            d.commands, report=d.report, evaluations=evaluations, extra=d.extra, beams=d.beams
         )
 
 
@@ -405,7 +386,7 @@ class MrePositioning:
     def __init__(self, scenario: Scenario, sensors: Sequence[SensorEntry], dt: float):
         cfg = scenario.planner
         self.criterion = get_criterion(cfg.criterion, POSITIONING, what="planner.criterion").name
-        self.search = SearchSettings.from_config(cfg)
+        self.search = search_settings(cfg)
         if self.search.search not in POSITIONING_SEARCHES:
             raise ValueError(
                 f"planner.search must be one of {POSITIONING_SEARCHES} with cost 'mre', "
@@ -416,7 +397,7 @@ class MrePositioning:
         self.platforms = tuple(
             (
                 p.id,
-                PlatformLimits.from_config(p.limits, dt),
+                platform_limits(p.limits, dt),
                 tuple(s.model for s in sensors if s.platform_id == p.id),
             )
             for p in scenario.platforms

@@ -73,7 +73,7 @@ from activetrack.bounds.pcrlb import (
     propagate_samples,
 )
 from activetrack.checks import symmetrize
-from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.closed_loop.components import LinearDynamics
 from activetrack.data import (
     BeamCommand,
     Command,
@@ -93,15 +93,14 @@ from activetrack.planning.assignment import (
     random_assignment,
 )
 from activetrack.planning.criteria import PCRLB, POSITIONING, Criterion, get_criterion
-from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlatformLimits, hold_course, rollout
+from activetrack.planning.manoeuvre import hold_course, rollout
 from activetrack.planning.planner import PlannerPlatform
 from activetrack.planning.selection import (
     TargetPrediction,
     expected_update,
     search_horizon,
 )
-from activetrack.scenarios.build import build_scan_sensors
+from activetrack.scenarios.build import build_scan_sensors, platform_limits, search_settings
 from activetrack.scenarios.schema import PlannerConfig, Scenario
 
 __all__ = ["MultiTargetPlanner"]
@@ -276,7 +275,7 @@ class MultiTargetPlanner:
         )
         self.controllable = tuple(p.controllable for p in scenario.platforms)
         self.limits = tuple(
-            PlatformLimits.from_config(p.limits, self.dt)
+            platform_limits(p.limits, self.dt)
             if cfg.enabled and p.controllable and p.limits is not None
             else None
             for p in scenario.platforms
@@ -289,7 +288,7 @@ class MultiTargetPlanner:
                 f"assignment 'mre', got {cfg.criterion!r}"
             )
         steering = any(lim is not None for lim in self.limits)
-        self.search = SearchSettings.from_config(cfg) if steering else None
+        self.search = search_settings(cfg) if steering else None
         self.horizon = cfg.horizon if steering else 1
         self.mc_samples = cfg.mc_samples
         self.max_iterations = cfg.max_sensor_iterations

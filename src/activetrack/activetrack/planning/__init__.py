@@ -36,7 +36,6 @@ from activetrack.planning.planner import (
     TargetBelief,
     advance_belief,
     plan,
-    platforms_from_scenario,
 )
 from activetrack.planning.searches import (
     SEARCHES,
@@ -73,7 +72,6 @@ __all__ = [
     "optimise_platform",
     "plan",
     "platform_information",
-    "platforms_from_scenario",
     "quadrant_search",
     "register_criterion",
     "rollout",

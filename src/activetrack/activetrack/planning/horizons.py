@@ -16,7 +16,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import Any
 
 import numpy as np
 
@@ -76,20 +75,6 @@ class SearchSettings:
             raise ValueError(f"quadrant_patience must be an integer >= 1 or None, got {p!r}")
         if not (np.isfinite(self.evolution_tol) and self.evolution_tol >= 0):
             raise ValueError(f"evolution_tol must be finite and >= 0, got {self.evolution_tol!r}")
-
-    @classmethod
-    def from_config(cls, cfg: Any, **overrides: Any) -> SearchSettings:
-        """From a scenario ``PlannerConfig`` (search, grid_size, quadrant_divisions,
-        quadrant_patience, sector_levels); keyword ``overrides`` replace any field."""
-        fields: dict[str, Any] = {
-            "search": cfg.search,
-            "grid_size": cfg.grid_size,
-            "quadrant_divisions": cfg.quadrant_divisions,
-            "quadrant_patience": cfg.quadrant_patience,
-            "sector_levels": cfg.sector_levels,
-        }
-        fields.update(overrides)
-        return cls(**fields)
 
     def evaluations_per_platform(self, horizon: int) -> int:
         """Cost evaluations of one platform's R-step optimisation (at most, for the quadrant

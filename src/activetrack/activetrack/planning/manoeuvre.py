@@ -9,7 +9,7 @@ annular sector; the searches explore it through the unit square u = (u_psi, u_v)
 
 so u = (0.5, .) is "straight ahead". Ramdaras' limits (sec. 5: longitudinal acceleration a_max,
 heading rate psi_rate_max) enter as dv_max = a_max T and dpsi_max = psi_rate_max T
-(``PlatformLimits.from_config``).
+(``activetrack.scenarios.build.platform_limits``).
 
 Manoeuvres are stored physically as ``(dpsi, v')`` pairs, shape ``(..., 2)``.
 """
@@ -18,15 +18,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from activetrack.angles import wrap_angle
 from activetrack.arraytypes import ArrayLike, FloatArray
-
-if TYPE_CHECKING:
-    from activetrack.scenarios.schema import ManoeuvreLimits
 
 __all__ = [
     "PlatformLimits",
@@ -61,12 +57,6 @@ class PlatformLimits:
                 f"limits: need 0 <= v_min <= v_max and v_max > 0, got v_min={self.v_min}, "
                 f"v_max={self.v_max}"
             )
-
-    @classmethod
-    def from_config(cls, cfg: ManoeuvreLimits, dt: float) -> PlatformLimits:
-        """From a scenario ``ManoeuvreLimits`` (either limit pair) for decisions dt apart."""
-        dpsi_max, dv_max = cfg.per_epoch(dt)
-        return cls(min(float(dpsi_max), math.pi), float(dv_max), cfg.v_min, cfg.v_max)
 
 
 def speed_interval(speed: ArrayLike, limits: PlatformLimits) -> tuple[FloatArray, FloatArray]:

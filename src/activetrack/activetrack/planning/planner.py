@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -46,7 +46,6 @@ from activetrack.planning.multisensor import coordinate_platforms
 
 if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
-    from activetrack.scenarios.schema import PlannerConfig, Scenario
 
 __all__ = [
     "PlanReport",
@@ -57,7 +56,6 @@ __all__ = [
     "TargetBelief",
     "advance_belief",
     "plan",
-    "platforms_from_scenario",
 ]
 
 
@@ -202,28 +200,6 @@ class PlanSettings:
         if not isinstance(self.search, SearchSettings):
             raise ValueError("settings.search must be a SearchSettings")
 
-    @classmethod
-    def from_config(cls, cfg: PlannerConfig, **overrides: Any) -> PlanSettings:
-        """From a scenario ``PlannerConfig``; keyword ``overrides`` replace fields of this class
-        or of :class:`SearchSettings` (e.g. ``horizon=2``, ``search="grid"``, ``grid_size=21``)."""
-        if getattr(cfg, "cost", "pcrlb") != "pcrlb":
-            raise ValueError(f"planner.cost must be 'pcrlb' for this planner, got {cfg.cost!r}")
-        search_fields = set(SearchSettings.__dataclass_fields__)
-        search: dict[str, Any] = {}
-        top: dict[str, Any] = {
-            "criterion": cfg.criterion,
-            "horizon": cfg.horizon,
-            "max_sensor_iterations": cfg.max_sensor_iterations,
-        }
-        for key, value in overrides.items():
-            if key in search_fields:
-                search[key] = value
-            elif key in top:
-                top[key] = value
-            else:
-                raise ValueError(f"overrides: unknown setting {key!r}")
-        return cls(search=SearchSettings.from_config(cfg, **search), **top)
-
 
 @dataclass(frozen=True)
 class PlannedManoeuvre:
@@ -359,7 +335,7 @@ def plan(
     if not isinstance(belief, TargetBelief):
         raise ValueError("belief must be a TargetBelief")
     if not isinstance(settings, PlanSettings):
-        raise ValueError("settings must be a PlanSettings (see PlanSettings.from_config)")
+        raise ValueError("settings must be a PlanSettings (see scenarios.build.plan_settings)")
     if rng is not None and not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator or None, got {type(rng)}")
     F, Q, dt = _check_dynamics(F, Q, dt)
@@ -407,26 +383,3 @@ def advance_belief(
     X = propagate_samples(belief.samples, F, Q, 1, rng)[0]
     J_Z = sum(platform_information(p.sensors, p.pv, X) for p in platforms_next)
     return TargetBelief(pcrlb_step(belief.J, F, Q, J_Z), X)
-
-
-def platforms_from_scenario(
-    scenario: Scenario, states: Mapping[str, ArrayLike] | None = None
-) -> list[PlannerPlatform]:
-    """PlannerPlatforms from a scenario's platforms (limits per epoch of ``scenario.dt``);
-    ``states`` maps platform id to a pv overriding the initial state."""
-    from activetrack.scenarios.build import build_sensor
-
-    out = []
-    for cfg in scenario.platforms:
-        limits = (
-            PlatformLimits.from_config(cfg.limits, scenario.dt)
-            if cfg.controllable and cfg.limits is not None
-            else None
-        )
-        pv = cfg.initial_state if states is None or cfg.id not in states else states[cfg.id]
-        out.append(
-            PlannerPlatform(
-                cfg.id, np.asarray(pv, float), tuple(build_sensor(s) for s in cfg.sensors), limits
-            )
-        )
-    return out

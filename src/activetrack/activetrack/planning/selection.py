@@ -140,7 +140,7 @@ def expected_update(
     (1 - pd) P + pd P_{k|k} (the bracket of eq. 23); ``use_pd=False``: the Kalman update, eq. 22.
 
     ``detection`` ``(S,)`` in [0, 1] replaces each sensor's pd (e.g. the information reduction
-    factor q of a sensor in clutter, :mod:`activetrack.bounds.irf`, times a field-of-view
+    factor q of a sensor in clutter, :mod:`activetrack.models.irf`, times a field-of-view
     indicator). Inside a sensor's [r_min, r_max] gap the detection probability is 0 (no update).
     """
     P, x = _check_inputs(P_pred, x_pred)

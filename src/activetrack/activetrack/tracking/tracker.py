@@ -61,11 +61,11 @@ from activetrack.filters.measurement import TIME_TOLERANCE, Measurement, Trackin
 from activetrack.filters.resampling import systematic_resample
 from activetrack.models.base import MotionModel
 from activetrack.models.clutter import ClutteredSensor
-from activetrack.scenarios.multitarget_config import TrackManagementConfig
 from activetrack.tracking.management import (
     EXISTENCE_INIT,
     EXISTENCE_SURVIVAL,
     Track,
+    TrackManagementConfig,
     TrackManager,
     existence_update,
 )
