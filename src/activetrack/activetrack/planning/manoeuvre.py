@@ -211,13 +211,10 @@ class PlannerPlatform:
         return cast(float, self.heading), cast(float, self.speed)
 
     def path(self, dt: float, steps: int, plan: np.ndarray | None = None) -> FloatArray:
-        """pv at epochs k+1..k+steps ``(steps, 4)`` flying ``plan`` ``(steps, 2)``; without a
-        plan, holding course: :func:`hold_course` if controllable, else constant-velocity legs
-        along the pv velocity."""
-        if plan is None and self.limits is None:
+        """pv at epochs k+1..k+steps ``(steps, 4)`` flying ``plan`` ``(steps, 2)``, or without
+        one constant-velocity legs along the pv velocity (how a platform without limits
+        holds course)."""
+        if plan is None:
             legs = np.arange(1, int(steps) + 1)[:, None] * dt
             return self.pv + legs * np.array([self.pv[1], 0.0, self.pv[3], 0.0])
-        heading, speed = self.heading_and_speed
-        if plan is None:
-            plan = hold_course(speed, cast(PlatformLimits, self.limits), steps)
-        return rollout(self.pv, heading, plan, dt)[0]
+        return rollout(self.pv, self.heading_and_speed[0], plan, dt)[0]
