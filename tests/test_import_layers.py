@@ -273,14 +273,7 @@ def _shown_cycle(component: list[str], edges: list[Edge]) -> str:
 # Each entry names work in progress elsewhere; the test fails when an entry is no longer needed,
 # so the list shrinks as that work lands.
 
-# Circles inside planning/, open while the planning rework (one horizon search, PlannerPlatform
-# down to planning.manoeuvre, warm_up beside the search it drives) is under way:
-ALLOWED_CYCLES: list[set[str]] = [
-    # _kernels.warm_up drives the search; the search loads the kernels.
-    {"activetrack.planning._kernels", "activetrack.planning.searches"},
-    # multisensor needs PlannerPlatform from planner; planner calls coordinate_platforms.
-    {"activetrack.planning.multisensor", "activetrack.planning.planner"},
-]
+ALLOWED_CYCLES: list[set[str]] = []
 
 # Upward edges (source, target) from modules being rewritten (closed_loop/, multitarget/): none.
 ALLOWED_UPWARD: set[tuple[str, str]] = set()

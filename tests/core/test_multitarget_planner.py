@@ -28,7 +28,6 @@ from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeR
 from activetrack.multitarget.data import TrackEstimate, TrackSet
 from activetrack.multitarget.planner import MultiTargetPlanner
 from activetrack.planning.assignment import (
-    aggregate_costs,
     assign_beams,
     assignment_value,
     beam_coverage,
@@ -39,6 +38,7 @@ from activetrack.planning.assignment import (
 )
 from activetrack.planning.criteria import get_criterion
 from activetrack.planning.horizons import SearchSettings
+from activetrack.planning.objective import aggregate_costs
 from activetrack.planning.planner import PlannerPlatform, TargetBelief, plan
 from activetrack.planning.selection import TargetPrediction, expected_update, plan_positions
 from activetrack.scenarios import parse_scenario

@@ -204,8 +204,6 @@ ALLOWED: dict[str, tuple[str, ...]] = {
     "closed_loop/cautious.py": (
         "isinstance(..., ['AmbiguousBearingSensor', 'BearingSensor'])",  # :34
     ),
-    # PlannerPlatform checks that it holds sensor models by their kind (planning rework).
-    "planning/planner.py": ("hasattr(..., 'kind')",),  # :89
     # A scan message's sensor_kind checked against the scenario's sensor (validation of the
     # message, not a question about what the sensor is).
     "activetrack_ros/convert.py": ("a sensor kind compared",),  # :363 msg.sensor_kind

@@ -25,17 +25,17 @@ Cost of a confirmed track (tentative ones do not count), ``planner.cost``:
   multiplies its detection factor too (the PCRLB's J_Z keeps the beam on target, as
   :class:`ClutteredSensor` defines it).
 
-Costs over tracks combine by ``planner.targets.aggregate`` (:mod:`activetrack.planning.
-assignment`): ``worst`` (max) or ``weighted_sum`` (the tracks' priorities). The manoeuvre
-searches add ``TIE_BREAK`` times the sum to ``worst``, so that the other tracks decide when no
-candidate moves the worst one.
+Costs over tracks combine by ``planner.targets.aggregate`` (:class:`activetrack.planning.
+objective.TrackAggregate`): ``worst`` (max) or ``weighted_sum`` (the tracks' priorities). The
+manoeuvre searches add ``TIE_BREAK`` times the sum to ``worst``, so that the other tracks
+decide when no candidate moves the worst one.
 
 Manoeuvres (``planner.enabled``): each controllable platform in turn, the others flying their
 current plans (Hernandez sec. 4.1, until no plan changes or ``max_sensor_iterations``
-passes), searches its R-leg manoeuvre sequence (:func:`activetrack.planning.selection.
-search_horizon`, the searches of :mod:`activetrack.planning.searches` over the manoeuvre
-parametrisation of :mod:`activetrack.planning.manoeuvre`). Objective: pcrlb the sum over the
-legs (eq. 15-16, as :func:`activetrack.planning.planner.plan`), mre the cost after leg R
+passes: :func:`activetrack.planning.multisensor.coordinate_platforms`), searches its R-leg
+manoeuvre sequence (:func:`activetrack.planning.horizons.search_horizon`). Objective
+(:mod:`activetrack.planning.objective`): pcrlb the sum over the legs (eq. 15-16, as
+:func:`activetrack.planning.planner.plan`), mre the cost after leg R
 (:func:`activetrack.planning.selection.plan_positions` says why). Only the first manoeuvre is
 flown. During the search a beam counts for the track it serves now: its previous track if
 still confirmed, else the track nearest its platform. Planner off: every controllable platform
@@ -85,38 +85,28 @@ from activetrack.data import (
 )
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.planning.assignment import (
-    aggregate_costs,
     assign_beams,
     beam_coverage,
     coverage_after_misses,
     nearest_assignment,
     random_assignment,
 )
-from activetrack.planning.criteria import PCRLB, POSITIONING, Criterion, get_criterion
-from activetrack.planning.manoeuvre import hold_course, rollout
-from activetrack.planning.planner import PlannerPlatform
-from activetrack.planning.selection import (
-    TargetPrediction,
-    expected_update,
-    search_horizon,
+from activetrack.planning.criteria import PCRLB, POSITIONING, get_criterion
+from activetrack.planning.manoeuvre import PlannerPlatform
+from activetrack.planning.multisensor import coordinate_platforms
+from activetrack.planning.objective import (
+    TIE_BREAK,
+    CovarianceTerm,
+    InformationTerm,
+    Objective,
+    TrackAggregate,
+    aggregate_costs,
 )
+from activetrack.planning.selection import TargetPrediction, expected_update
 from activetrack.scenarios.build import build_scan_sensors, platform_limits, search_settings
 from activetrack.scenarios.schema import PlannerConfig, Scenario
 
 __all__ = ["MultiTargetPlanner"]
-
-# Plans closer than this (rad, m/s) count as unchanged (as planning.multisensor).
-_SAME_PLAN_ATOL = 1e-9
-# "worst" searches minimise max_t c_t + TIE_BREAK sum_t c_t: when no candidate moves the worst
-# track (e.g. no sensor of the platform serves it) the others still decide, instead of the
-# search's first candidate (a hard turn) winning a tie.
-TIE_BREAK = 1e-6
-
-
-def _search_cost(costs: np.ndarray, weights: np.ndarray, aggregate: str, tie: float) -> np.ndarray:
-    """The aggregate of per-track costs ``(..., T)``, plus the tie-break for ``worst``."""
-    total = aggregate_costs(costs, weights, aggregate)
-    return total + tie * np.sum(costs, axis=-1) if aggregate == "worst" else total
 
 
 def _in_view(sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray) -> np.ndarray:
@@ -168,22 +158,17 @@ class _PcrlbStage:
     samples: list[np.ndarray]
     fixed: np.ndarray
     own: tuple[tuple[ClutteredSensor, np.ndarray], ...]
-    criterion: Criterion
-    weights: np.ndarray
-    aggregate: str
-    tie: float = TIE_BREAK
 
-    def advance(self, J: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
+    def prepare(self, J: np.ndarray, level: int) -> np.ndarray:
+        return predicted_information(J, self.F, self.Q)  # once per J_prev
+
+    def advance(self, J_pred: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
         J_Z = np.zeros((*pv.shape[:-1], len(self.samples), 4, 4))
         for t, X in enumerate(self.samples):
             for sensor, serves in self.own:
                 if serves[t]:
                     J_Z[..., t, :, :] += sensor.fisher_information(X[level], pv)
-        return predicted_information(J, self.F, self.Q) + self.fixed[level] + J_Z
-
-    def cost(self, J: np.ndarray, level: int) -> np.ndarray:
-        c = self.criterion.of_information(J)
-        return _search_cost(c, self.weights, self.aggregate, self.tie)
+        return J_pred + self.fixed[level] + J_Z
 
 
 @dataclass
@@ -201,14 +186,11 @@ class _MreStage:
     fixed: list[list[list[tuple[_Sensor, np.ndarray]]]]
     own: tuple[tuple[_Sensor, np.ndarray], ...]
     missed: np.ndarray
-    criterion: Criterion
-    weights: np.ndarray
-    aggregate: str
-    tie: float = TIE_BREAK
+
+    def prepare(self, P: np.ndarray, level: int) -> np.ndarray:
+        return P if level == 0 else symmetrize(P)
 
     def advance(self, P: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
-        if level > 0:
-            P = symmetrize(P)
         out = np.empty((*pv.shape[:-1], self.x.shape[1], 4, 4))
         for t, x in enumerate(self.x[level]):
             P0 = Pt = P[..., t, :, :]
@@ -223,18 +205,16 @@ class _MreStage:
             out[..., t, :, :] = self.F @ Pt @ self.F.T + self.Q
         return out
 
-    def cost(self, P: np.ndarray, level: int) -> np.ndarray:
-        c = [self.criterion.of_covariance(P[..., t, :, :], x) for t, x in enumerate(self.x[level])]
-        return _search_cost(np.stack(c, axis=-1), self.weights, self.aggregate, self.tie)
-
 
 @dataclass
 class _Epoch:
     """One decision's working set: the platforms at k, the confirmed tracks, their
-    predictions and (pcrlb) samples, their miss factors ``(T,)`` (:meth:`MultiTargetPlanner.
-    _note_looks`), which tracks each sensor serves ``(S, T)``, the platforms' paths ``(R, 4)``
-    over the horizon."""
+    predictions, the CV predictions ``x`` ``(R, T, 4)`` (mre) or samples (pcrlb), their miss
+    factors ``(T,)`` (:meth:`MultiTargetPlanner._note_looks`), which tracks each sensor serves
+    ``(S, T)``, the platforms' paths ``(R, 4)`` over the horizon (a :class:`PlatformStages`
+    of the coordinator with the planner's stages)."""
 
+    planner: MultiTargetPlanner
     epoch: int
     platforms: list[PlannerPlatform]
     tracks: tuple[TrackEstimate, ...]
@@ -242,10 +222,17 @@ class _Epoch:
     weights: np.ndarray
     missed: np.ndarray
     serves: np.ndarray
-    paths: list[np.ndarray]
+    x: np.ndarray | None = None
     samples: list[np.ndarray] = field(default_factory=list)
+    paths: dict[int, np.ndarray] = field(default_factory=dict)
     plans: dict[int, np.ndarray] = field(default_factory=dict)  # controllable platforms' (R, 2)
     evaluations: int = 0
+
+    def follow(self, i: int, path: np.ndarray) -> None:
+        self.paths[i] = path
+
+    def stage(self, j: int | None) -> _PcrlbStage | _MreStage:
+        return self.planner._stage(self, j)
 
 
 def _cost_kind(cfg: PlannerConfig) -> str:
@@ -328,7 +315,7 @@ class MultiTargetPlanner:
             return self._sweep(epoch, planners, start)
         ep = self._epoch(epoch, planners, tracks.confirmed)
         objective = self._manoeuvres(ep)
-        next_pv = np.stack([path[0] for path in ep.paths])
+        next_pv = np.stack([ep.paths[j][0] for j in range(len(planners))])
         self._assign(ep, next_pv)
         costs = self._track_costs(ep, next_pv)
         return self._decision(ep, next_pv, costs, objective, time.perf_counter() - start)
@@ -356,6 +343,7 @@ class MultiTargetPlanner:
         d, R = self.dynamics, self.horizon
         predictions = [TargetPrediction.from_posterior(t.mean, t.cov, d.F, d.Q) for t in tracks]
         ep = _Epoch(
+            self,
             epoch,
             planners,
             tracks,
@@ -363,7 +351,6 @@ class MultiTargetPlanner:
             np.array([t.priority for t in tracks], dtype=float),
             np.array([self.miss_factor.get(t.track_id, (1.0, 0))[0] for t in tracks]),
             self._serving_now(planners, tracks, predictions),
-            [self._hold_path(p) for p in planners],
         )
         if self.cost_kind == "pcrlb":
             for t in tracks:
@@ -371,6 +358,11 @@ class MultiTargetPlanner:
                 if X is None:
                     X = gaussian_samples(t.mean, t.cov, self.mc_samples, self.rng)
                 ep.samples.append(propagate_samples(X, d.F, d.Q, R, self.rng))
+        else:
+            x = [np.stack([p.x for p in predictions])]  # x_{k+1+r|k} = F^r x_{k+1|k}
+            for _ in range(1, R):
+                x.append(x[-1] @ d.F.T)
+            ep.x = np.stack(x)
         return ep
 
     def _serving_now(
@@ -391,14 +383,6 @@ class MultiTargetPlanner:
                 t = ids.index(last) if last in ids else int(nearest_assignment(pv[::2], xy)[0])
                 serves[i] = np.arange(len(tracks)) == t
         return serves
-
-    def _hold_path(self, p: PlannerPlatform) -> np.ndarray:
-        """The platform's pv at k+1..k+R holding course ``(R, 4)``."""
-        if p.limits is None:
-            steps = np.arange(1, self.horizon + 1)[:, None] * self.dt
-            return p.pv + steps * np.array([p.pv[1], 0.0, p.pv[3], 0.0])
-        heading, speed = p.heading_and_speed
-        return rollout(p.pv, heading, hold_course(speed, p.limits, self.horizon), self.dt)[0]
 
     # --- manoeuvres -----------------------------------------------------------------------
 
@@ -430,14 +414,7 @@ class MultiTargetPlanner:
                     fixed[r, t] += s.model.fisher_information(ep.samples[t][r], path[r])
         d = self.dynamics
         return _PcrlbStage(
-            d.F,
-            d.Q,
-            ep.samples,
-            fixed,
-            tuple((s.model, serves) for s, serves in own),
-            self.criterion,
-            ep.weights,
-            self.aggregate,
+            d.F, d.Q, ep.samples, fixed, tuple((s.model, serves) for s, serves in own)
         )
 
     def _mre_stage(
@@ -446,10 +423,7 @@ class MultiTargetPlanner:
         own: list[tuple[_Sensor, np.ndarray]],
         others: list[tuple[_Sensor, np.ndarray]],
     ) -> _MreStage:
-        d = self.dynamics
-        x = [np.stack([p.x for p in ep.predictions])]  # x_{k+1+r|k} = F^r x_{k+1|k}
-        for _ in range(1, self.horizon):
-            x.append(x[-1] @ d.F.T)
+        d, x = self.dynamics, cast(np.ndarray, ep.x)
         updates: list[list[list[tuple[_Sensor, np.ndarray]]]] = [
             [[] for _ in ep.tracks] for _ in range(self.horizon)
         ]
@@ -457,72 +431,42 @@ class MultiTargetPlanner:
             for r in range(self.horizon):
                 for t in np.flatnonzero(serves):
                     updates[r][t].append((s, ep.paths[s.platform][r]))
-        return _MreStage(
-            d.F,
-            d.Q,
-            np.stack(x),
-            updates,
-            tuple(own),
-            ep.missed,
-            self.criterion,
-            ep.weights,
-            self.aggregate,
-        )
+        return _MreStage(d.F, d.Q, x, updates, tuple(own), ep.missed)
+
+    def _objective(self, ep: _Epoch, tie_break: float) -> Objective:
+        """The aggregate over the tracks of the criterion of their J (pcrlb, summed over the
+        legs: eq. 15-16) or P (mre, after leg R: :func:`activetrack.planning.selection.
+        plan_positions` says why); ``tie_break`` for ``worst`` (:data:`TIE_BREAK`)."""
+        tracks = TrackAggregate(self.aggregate, ep.weights, tie_break)
+        if self.cost_kind == "pcrlb":
+            return Objective((InformationTerm(self.criterion, tracks),))
+        return Objective((CovarianceTerm(self.criterion, cast(np.ndarray, ep.x), tracks),))
 
     def _manoeuvres(self, ep: _Epoch) -> float:
-        """Coordinate-wise search of the controllable platforms' plans (Hernandez sec. 4.1):
-        ``ep.plans`` and ``ep.paths`` take them. Returns the objective with everybody's plans;
-        a platform is searched again only when another one changed its plan since."""
+        """Coordinate-wise search of the controllable platforms' plans (Hernandez sec. 4.1,
+        :func:`coordinate_platforms`): ``ep.plans`` and ``ep.paths`` take them. Returns the
+        objective with everybody's plans (no tie-break)."""
         state0 = self._state0(ep)
-        for j, p in enumerate(ep.platforms):
-            if p.limits is not None:
-                ep.plans[j] = hold_course(p.heading_and_speed[1], p.limits, self.horizon)
-        changed_at, clock = [0] * len(ep.platforms), 0
-        searched_at: dict[int, int] = {}
-        for _ in range(self.max_iterations if ep.plans else 0):
-            changed = False
-            for j in ep.plans:
-                others = [c for i, c in enumerate(changed_at) if i != j]
-                if j in searched_at and all(c <= searched_at[j] for c in others):
-                    continue
-                best = self._search(ep, j, state0)
-                clock += 1
-                searched_at[j] = clock
-                if not np.allclose(best, ep.plans[j], rtol=0.0, atol=_SAME_PLAN_ATOL):
-                    p = ep.platforms[j]
-                    ep.plans[j] = best
-                    ep.paths[j] = rollout(p.pv, p.heading_and_speed[0], best, self.dt)[0]
-                    changed_at[j] = clock
-                    changed = True
-            if not changed:
-                break
-        return self._objective(ep, state0)
-
-    def _search(self, ep: _Epoch, j: int, state0: np.ndarray) -> np.ndarray:
-        assert self.search is not None  # set whenever a platform is steered
-        best = search_horizon(
-            self._stage(ep, j),
+        result = coordinate_platforms(
+            ep.platforms,
+            ep,
+            self._objective(ep, TIE_BREAK),
             state0,
-            ep.platforms[j],
             self.dt,
             self.search,
             self.horizon,
-            summed=self.cost_kind == "pcrlb",
-            rng=self.rng,
+            self.max_iterations,
+            self.rng,
         )
-        ep.evaluations += best.evaluations
-        return best.plan
-
-    def _objective(self, ep: _Epoch, state0: np.ndarray) -> float:
-        """The aggregate over the horizon (summed or after leg R) with everybody's plans."""
-        stage, state, total = self._stage(ep, None), state0, 0.0
-        stage.tie = 0.0
+        ep.plans = {j: plan for j, plan in enumerate(result.plans) if plan is not None}
+        ep.evaluations = result.evaluations
+        # Every platform on its path: the states along the legs (no candidate of anyone).
+        stage, state, states = ep.stage(None), state0, []
         dummy = np.zeros((1, 1, 4))
         for r in range(self.horizon):
-            state = stage.advance(state, r, dummy)
-            if self.cost_kind == "pcrlb" or r == self.horizon - 1:
-                total += float(stage.cost(state, r)[0, 0])
-        return total
+            state = stage.advance(stage.prepare(state, r), r, dummy)
+            states.append(state)
+        return self._objective(ep, 0.0).along(states)
 
     # --- beams and the outcome --------------------------------------------------------------
 

@@ -1,4 +1,4 @@
-"""Sensor-to-track assignment of steerable beams, and costs aggregated over tracks.
+"""Sensor-to-track assignment of steerable beams.
 
 A steerable sensor (a beam ``beam_width`` wide) observes one track per epoch. Given the
 per-pair costs ``C[s, t]`` (track t's cost if sensor s serves it) and ``c0[t]`` (its cost if
@@ -44,14 +44,13 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
+from activetrack.planning.objective import aggregate_costs, check_aggregate
 from activetrack.planning.selection import TargetPrediction, expected_update
 
 if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
 
 __all__ = [
-    "AGGREGATES",
-    "aggregate_costs",
     "assign_beams",
     "assignment_value",
     "beam_coverage",
@@ -61,8 +60,6 @@ __all__ = [
     "random_assignment",
     "round_assignment",
 ]
-
-AGGREGATES = ("worst", "weighted_sum")
 
 
 def _linear_sum_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -129,21 +126,6 @@ def coverage_after_misses(coverage: ArrayLike, miss_factor: ArrayLike) -> np.nda
     return np.divide(num, den, out=np.zeros(np.broadcast(num, den).shape), where=den > 0.0)
 
 
-def _check_aggregate(aggregate: str) -> str:
-    if aggregate not in AGGREGATES:
-        raise ValueError(f"aggregate must be one of {AGGREGATES}, got {aggregate!r}")
-    return aggregate
-
-
-def aggregate_costs(costs: ArrayLike, weights: ArrayLike, aggregate: str) -> np.ndarray:
-    """Per-track costs ``(..., T)`` to one: ``"worst"`` max_t, ``"weighted_sum"`` sum_t w_t c_t
-    (``weights`` ``(T,)``, the tracks' priorities)."""
-    c = np.asarray(costs, dtype=float)
-    if _check_aggregate(aggregate) == "worst":
-        return np.max(c, axis=-1)
-    return np.sum(c * np.asarray(weights, dtype=float), axis=-1)
-
-
 def _check_round(C: ArrayLike, c0: ArrayLike, weights: ArrayLike) -> tuple[np.ndarray, ...]:
     C = np.asarray(C, dtype=float)
     c0 = np.asarray(c0, dtype=float)
@@ -177,7 +159,7 @@ def round_assignment(C: ArrayLike, c0: ArrayLike, weights: ArrayLike, aggregate:
     ``C`` ``(S, T)``: track t's cost served by sensor s; ``c0`` ``(T,)``: unserved;
     ``weights`` ``(T,)`` > 0."""
     C, c0, w = _check_round(C, c0, weights)
-    if _check_aggregate(aggregate) == "worst":
+    if check_aggregate(aggregate) == "worst":
         rows, cols = _minimax(C, c0, C - c0)
     else:
         rows, cols = _linear_sum_assignment(w * (C - c0))
