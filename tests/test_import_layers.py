@@ -80,7 +80,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
         ),
     ),
     ("monte carlo", ("activetrack.montecarlo",)),
-    ("loops", ("activetrack.closed_loop", "activetrack.multitarget", "activetrack.plots")),
+    ("loops", ("activetrack.closed_loop", "activetrack.plots")),
     ("package API", ("activetrack", "activetrack.argtypes")),
 ]
 

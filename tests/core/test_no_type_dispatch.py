@@ -200,10 +200,6 @@ WIDE = _wide_files()
 # Kind questions still asked, file by file: what is asked (the line at this writing). The test
 # fails when a file asks another question, or no longer asks one listed here (then remove it).
 ALLOWED: dict[str, tuple[str, ...]] = {
-    # The cautious strategy takes the robot's bearing sensor by class.
-    "closed_loop/cautious.py": (
-        "isinstance(..., ['AmbiguousBearingSensor', 'BearingSensor'])",  # :34
-    ),
     # A scan message's sensor_kind checked against the scenario's sensor (validation of the
     # message, not a question about what the sensor is).
     "activetrack_ros/convert.py": ("a sensor kind compared",),  # :363 msg.sensor_kind

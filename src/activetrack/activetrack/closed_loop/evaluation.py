@@ -54,7 +54,7 @@ from activetrack.bounds.pcrlb import (
     pcrlb_step,
     propagate_samples,
 )
-from activetrack.closed_loop.components import known_association, scene_sensors, scene_targets
+from activetrack.closed_loop.components import scene_sensors, scene_targets
 from activetrack.closed_loop.record import RunRecord
 from activetrack.data import TrackSet
 from activetrack.metrics import gospa, ospa
@@ -208,7 +208,7 @@ class EpochAssessor:
 
     def __init__(self, scenario: Scenario):
         self.evaluation = scenario.evaluation
-        self.known = known_association(scenario)
+        self.known = scenario.known_association
         self.index = {t.id: n for n, t in enumerate(scene_targets(scenario))}
 
     def __call__(self, truth: FloatArray, tracks: TrackSet, k: int = 0) -> EpochAssessment:

@@ -16,7 +16,6 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike
 from activetrack.models.base import MotionModel, SensorModel
-from activetrack.models.clutter import ClutteredSensor
 from activetrack.models.motion import (
     CircularMotion,
     CircularMotionKnownOmega,
@@ -51,7 +50,6 @@ from activetrack.scenarios.schema import (
 
 __all__ = [
     "build_motion_model",
-    "build_scan_sensors",
     "build_sensor",
     "plan_settings",
     "planner_platforms",
@@ -86,19 +84,6 @@ def build_sensor(cfg: SensorConfigBase) -> SensorModel:
     """The sensor object a validated ``sensors:`` entry describes (its registered kind's
     ``build``)."""
     return cast(SensorModel, sensor_kind(cfg.kind).build(cfg))
-
-
-def build_scan_sensors(scenario: Scenario) -> dict[str, tuple[str, ClutteredSensor]]:
-    """Every sensor of a multi-target scenario by id, in scenario order: ``(platform id, the
-    sensor in clutter)`` with its field of view and the tracker's gate
-    (``tracker.tracks.gate_sigmas``), the one table the simulator, tracker, planner and the
-    message conversions use."""
-    gate = scenario.tracker.tracks.gate_sigmas
-    return {
-        s.id: (p.id, ClutteredSensor.wrap(build_sensor(s), s, gate))
-        for p in scenario.platforms
-        for s in p.sensors
-    }
 
 
 # --- the planner's inputs ----------------------------------------------------------------------

@@ -472,15 +472,6 @@ def _sensor_problems(s: Scenario) -> Problems:
     return out
 
 
-def known_association(s: Scenario) -> bool:
-    """Whether every detection is known to be the one target's (one target present from
-    epoch 0 to the end, no sensor with clutter): the tracker then runs its filter on them
-    directly; otherwise it associates them (JPDA) and manages tracks (activetrack.tracking)."""
-    t = s.targets[0]
-    clutter = any(c.clutter_density > 0 for p in s.platforms for c in p.sensors)
-    return len(s.targets) == 1 and t.birth == 0 and t.death is None and not clutter
-
-
 def _clutter_problems(where: str, cfg: Any) -> Problems:
     sensor = build_sensor(cfg)
     if not has_clutter_model(sensor):
@@ -539,7 +530,7 @@ def _scene_problems(s: Scenario) -> Problems:
             out.append((f"targets.{i}.death", f"must be > birth ({t.birth}), got {t.death}"))
     beams = any(c.beam_width is not None for p in s.platforms for c in p.sensors)
     cfg = s.planner
-    if known_association(s):
+    if s.known_association:
         if beams and cfg.enabled and (cfg.search == "cautious" or cfg.selection.enabled):
             out.append(
                 (

@@ -539,6 +539,16 @@ class Scenario(Strict):
         return self.dt * self.steps
 
     @property
+    def known_association(self) -> bool:
+        """Whether every detection is known to be the one target's: one target present from
+        epoch 0 to the end and no sensor with clutter. The tracker then runs its filter on the
+        detections directly; otherwise it associates them (JPDA) and manages tracks
+        (activetrack.tracking), and the planner plans across tracks."""
+        t = self.targets[0]
+        clutter = any(c.clutter_density > 0 for p in self.platforms for c in p.sensors)
+        return len(self.targets) == 1 and t.birth == 0 and t.death is None and not clutter
+
+    @property
     def target(self) -> TargetConfig:
         """The first target: a one-target scenario's, and whose motion the tracker assumes
         unless ``tracker.motion`` says otherwise."""

@@ -1,7 +1,9 @@
 """Planning across targets: platform manoeuvres against every confirmed track, and steerable
-beams assigned to tracks (issue 14, sec. 4).
+beams assigned to tracks.
 
-``MultiTargetPlanner(scenario, rng).decide(epoch, tracks, platforms) -> Decision``.
+``MultiTargetPlanner(platforms, dynamics, settings, rng)``, a strategy of the one planner
+(:class:`activetrack.planning.decision.Planner`); ``plan(epoch, tracks, platforms) ->
+Decision`` alone.
 
 Sensors are the scenario's, each in clutter (:class:`activetrack.models.clutter.ClutteredSensor`):
 its information is the PCRLB's J_Z with the information reduction factor q in place of pd and
@@ -73,7 +75,6 @@ from activetrack.bounds.pcrlb import (
     propagate_samples,
 )
 from activetrack.checks import symmetrize
-from activetrack.closed_loop.components import LinearDynamics
 from activetrack.data import (
     BeamCommand,
     Command,
@@ -91,8 +92,10 @@ from activetrack.planning.assignment import (
     nearest_assignment,
     random_assignment,
 )
-from activetrack.planning.criteria import PCRLB, POSITIONING, get_criterion
-from activetrack.planning.manoeuvre import PlannerPlatform
+from activetrack.planning.criteria import POSITIONING, get_criterion
+from activetrack.planning.decision import DecisionContext, DecisionPart
+from activetrack.planning.horizons import SearchSettings
+from activetrack.planning.manoeuvre import PlannerPlatform, PlatformLimits
 from activetrack.planning.multisensor import coordinate_platforms
 from activetrack.planning.objective import (
     TIE_BREAK,
@@ -103,10 +106,9 @@ from activetrack.planning.objective import (
     aggregate_costs,
 )
 from activetrack.planning.selection import TargetPrediction, expected_update
-from activetrack.scenarios.build import build_scan_sensors, platform_limits, search_settings
-from activetrack.scenarios.schema import PlannerConfig, Scenario
+from activetrack.planning.strategies import LinearDynamics
 
-__all__ = ["MultiTargetPlanner"]
+__all__ = ["AcrossTargetsSettings", "MultiTargetPlanner", "ScenePlatform"]
 
 
 def _in_view(sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray) -> np.ndarray:
@@ -235,52 +237,76 @@ class _Epoch:
         return self.planner._stage(self, j)
 
 
-def _cost_kind(cfg: PlannerConfig) -> str:
-    """``planner.cost``, or the other kind when the criterion does not apply to it (only
-    possible with the planner off or no controllable platform: the schema checks the rest)."""
-    crit = get_criterion(cfg.criterion, PCRLB, POSITIONING, what="planner.criterion")
-    if cfg.cost == "pcrlb" and not crit.applies_to(PCRLB):
-        return "mre"
-    if cfg.cost == "mre" and not crit.applies_to(POSITIONING):
-        return "pcrlb"
-    return cfg.cost
+@dataclass(frozen=True)
+class AcrossTargetsSettings:
+    """How the planner across targets plans (a scenario's ``planner:`` section, built by
+    :func:`activetrack.closed_loop.components.build_planner`): ``cost_kind`` ``"pcrlb"`` or
+    ``"mre"`` (``planner.cost``, or the other kind when the criterion applies only to it),
+    ``criterion`` (:mod:`activetrack.planning.criteria`), ``horizon`` R, ``search`` (None: no
+    platform is steered), ``mc_samples``, ``max_iterations`` (Hernandez sec. 4.1),
+    ``aggregate`` (``"worst"`` | ``"weighted_sum"``) and ``assignment`` (``"mre"`` |
+    ``"random"`` | ``"nearest"``) of ``planner.targets``."""
+
+    cost_kind: str
+    criterion: str
+    horizon: int
+    search: SearchSettings | None
+    mc_samples: int
+    max_iterations: int
+    aggregate: str
+    assignment: str
+
+
+@dataclass(frozen=True)
+class ScenePlatform:
+    """A platform of the scene as the planner across targets knows it: its id, its sensors in
+    the scene (``(sensor id, sensor)``, field of view, clutter and gate), whether it is
+    controllable and its per-epoch limits when the planner steers it (None: it holds
+    course)."""
+
+    platform_id: str
+    sensors: tuple[tuple[str, ClutteredSensor], ...]
+    controllable: bool = False
+    limits: PlatformLimits | None = None
 
 
 class MultiTargetPlanner:
-    """Manoeuvres and beam pointings against every confirmed track (module docstring); draws
-    only from its own ``rng``."""
+    """Manoeuvres and beam pointings against every confirmed track (module docstring), a
+    strategy of :class:`activetrack.planning.decision.Planner`; draws only from its own
+    ``rng``."""
 
-    def __init__(self, scenario: Scenario, rng: np.random.Generator):
-        cfg = scenario.planner
+    def __init__(
+        self,
+        platforms: Sequence[ScenePlatform],
+        dynamics: LinearDynamics,
+        settings: AcrossTargetsSettings,
+        rng: np.random.Generator,
+    ):
         self.rng = rng
-        self.dynamics = LinearDynamics.of(scenario)
-        self.dt = scenario.dt
-        self.platform_ids = tuple(p.id for p in scenario.platforms)
+        self.dynamics = dynamics
+        self.dt = dynamics.dt
+        self.platform_ids = tuple(p.platform_id for p in platforms)
         self.sensors = tuple(
-            _Sensor(sid, self.platform_ids.index(pid), model, model.information_factor)
-            for sid, (pid, model) in build_scan_sensors(scenario).items()
+            _Sensor(sid, i, model, model.information_factor)
+            for i, p in enumerate(platforms)
+            for sid, model in p.sensors
         )
-        self.controllable = tuple(p.controllable for p in scenario.platforms)
-        self.limits = tuple(
-            platform_limits(p.limits, self.dt)
-            if cfg.enabled and p.controllable and p.limits is not None
-            else None
-            for p in scenario.platforms
-        )
-        self.cost_kind = _cost_kind(cfg)
-        self.criterion = get_criterion(cfg.criterion)
-        if cfg.targets.assignment == "mre" and not self.criterion.applies_to(POSITIONING):
+        self.controllable = tuple(p.controllable for p in platforms)
+        self.limits = tuple(p.limits for p in platforms)
+        self.cost_kind = settings.cost_kind
+        self.criterion = get_criterion(settings.criterion)
+        if settings.assignment == "mre" and not self.criterion.applies_to(POSITIONING):
             raise ValueError(
                 f"planner.criterion must apply to MRE positioning with planner.targets."
-                f"assignment 'mre', got {cfg.criterion!r}"
+                f"assignment 'mre', got {settings.criterion!r}"
             )
         steering = any(lim is not None for lim in self.limits)
-        self.search = search_settings(cfg) if steering else None
-        self.horizon = cfg.horizon if steering else 1
-        self.mc_samples = cfg.mc_samples
-        self.max_iterations = cfg.max_sensor_iterations
-        self.aggregate = cfg.targets.aggregate
-        self.assignment = cfg.targets.assignment
+        self.search = settings.search if steering else None
+        self.horizon = settings.horizon if steering else 1
+        self.mc_samples = settings.mc_samples
+        self.max_iterations = settings.max_iterations
+        self.aggregate = settings.aggregate
+        self.assignment = settings.assignment
         self.last_track: dict[str, int] = {}  # beam sensor id -> track id it served last
         self.last_bearing: dict[str, float] = {}
         # Track id -> (M of coverage_after_misses since its last hit, its hits then); and the
@@ -288,11 +314,18 @@ class MultiTargetPlanner:
         self.miss_factor: dict[int, tuple[float, int]] = {}
         self.looks: dict[int, tuple[int, int, float]] = {}
 
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        """The strategy's part (:class:`activetrack.planning.decision.PlannerStrategy`):
+        :meth:`plan` of the context's tracks and platforms."""
+        d = self.plan(context.epoch, context.tracks, list(context.platforms.values()))
+        evaluations = d.report.evaluations if d.report is not None else 0
+        return DecisionPart(
+            d.commands, report=d.report, evaluations=evaluations, extra=d.extra, beams=d.beams
+        )
+
     # --- the decision ---------------------------------------------------------------------
 
-    def decide(
-        self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]
-    ) -> Decision:
+    def plan(self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]) -> Decision:
         """Commands for the leg epoch -> epoch+1, beam pointings for epoch+1, the report."""
         start = time.perf_counter()
         snaps = {s.platform_id: s for s in platforms}
