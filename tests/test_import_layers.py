@@ -275,7 +275,7 @@ def _shown_cycle(component: list[str], edges: list[Edge]) -> str:
 
 ALLOWED_CYCLES: list[set[str]] = []
 
-# Upward edges (source, target) from modules being rewritten (closed_loop/, multitarget/): none.
+# Upward edges (source, target) still allowed: none.
 ALLOWED_UPWARD: set[tuple[str, str]] = set()
 
 

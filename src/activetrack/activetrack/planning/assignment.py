@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike
+from activetrack.models.fov import sector_coverage
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
 from activetrack.planning.objective import aggregate_costs, check_aggregate
 from activetrack.planning.selection import TargetPrediction, expected_update
@@ -71,9 +72,6 @@ def _linear_sum_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(rows), np.asarray(cols)
 
 
-_erf = np.vectorize(math.erf, otypes=[float])
-
-
 def beam_coverage(
     beam_width: float, x: np.ndarray, P: np.ndarray, sensor_pv: np.ndarray
 ) -> np.ndarray:
@@ -82,27 +80,6 @@ def beam_coverage(
     the sector centred on x). x ``(4,)``, P ``(..., 4, 4)`` broadcasting against the sensors;
     returns ``(...)``."""
     return sector_coverage(beam_width, 0.0, x, P, sensor_pv)
-
-
-def sector_coverage(
-    width: float, offset: ArrayLike, x: np.ndarray, P: np.ndarray, sensor_pv: np.ndarray
-) -> np.ndarray:
-    """Probability that a target N(x, P) lies inside a bearing sector ``width`` wide whose
-    centre is ``offset`` [rad] off the bearing of x, seen from sensor pvs: with the linearised
-    bearing variance sigma_b^2 = h P h^T (h = (-dy, 0, dx, 0) / r^2),
-    (erf((w/2 - offset) / (sqrt(2) sigma_b)) + erf((w/2 + offset) / (sqrt(2) sigma_b))) / 2.
-    x ``(..., 4)``, P ``(..., 4, 4)``, sensor_pv ``(..., 4)`` and offset broadcast; returns
-    ``(...)``."""
-    pv = np.asarray(sensor_pv, dtype=float)
-    x = np.asarray(x, dtype=float)
-    dx, dy = x[..., 0] - pv[..., 0], x[..., 2] - pv[..., 2]
-    r2 = np.maximum(dx * dx + dy * dy, 1e-300)
-    z = np.zeros_like(dx)
-    h = np.stack([-dy / r2, z, dx / r2, z], axis=-1)
-    var = np.einsum("...i,...ij,...j->...", h, np.asarray(P, dtype=float), h)
-    spread = np.sqrt(np.maximum(var, 1e-300)) * math.sqrt(2.0)
-    half, off = 0.5 * width, np.asarray(offset, dtype=float)
-    return np.asarray(0.5 * (_erf((half - off) / spread) + _erf((half + off) / spread)))
 
 
 def coverage_after_misses(coverage: ArrayLike, miss_factor: ArrayLike) -> np.ndarray:
