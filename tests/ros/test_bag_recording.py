@@ -162,6 +162,26 @@ def test_metadata_yaml_is_rosbag2_version_9(run_bag):
         }
 
 
+def test_a_lockstep_bag_starts_at_sim_time_0(run_bag):
+    """A start of 0 is a start: metadata.yaml, the MCAP statistics, rosbags and bag info all
+    give start 0 and duration steps x dt (rosbags' end is exclusive: one nanosecond more)."""
+    scenario = load_scenario(SCENARIO)
+    duration_ns = round(scenario.steps * scenario.dt * 1e9)
+    assert duration_ns == 40_000_000_000
+    meta = yaml.safe_load((run_bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["starting_time"]["nanoseconds_since_epoch"] == 0
+    assert meta["duration"]["nanoseconds"] == duration_ns
+    assert meta["files"][0]["starting_time"]["nanoseconds_since_epoch"] == 0
+    assert meta["files"][0]["duration"]["nanoseconds"] == duration_ns
+    with open(run_bag / "bag.mcap", "rb") as f:
+        stats = make_reader(f).get_summary().statistics
+    assert (stats.message_start_time, stats.message_end_time) == (0, duration_ns)
+    with Reader(run_bag) as reader:
+        assert (reader.start_time, reader.duration) == (0, duration_ns + 1)
+        assert min(t for _, t, _ in reader.messages()) == 0
+    assert bag_info(run_bag)["duration_s"] == duration_ns * 1e-9
+
+
 # --- a recorder killed with SIGKILL -----------------------------------------------------
 
 CHILD = """
