@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -21,6 +22,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from activetrack.closed_loop.batch import PathBound, RunRecord, component_rngs
 from activetrack.closed_loop.data import PlanReportData
 from activetrack.planning.manoeuvre import step_platform
+from activetrack.scenarios import load_scenario
 from activetrack.scenarios.build import build_motion_model
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import (
@@ -36,6 +38,7 @@ from activetrack_ros.convert import (
     report_from_msg,
 )
 from activetrack_ros.node_base import GraphNode, Rejected
+from activetrack_ros.params import FRAME_ID, RUN, SCENARIO, ParamSpec
 from msgs_defs.msg import (
     BearingMeasurement,
     GroundTruth,
@@ -85,19 +88,54 @@ LEG_RGBA = (1.0, 0.55, 0.0, 1.0)
 MEASURED_RGBA = (1.0, 0.85, 0.1, 0.45)
 
 
+def evaluator_params(scenario_given: bool, report_grace_s: float) -> tuple[ParamSpec, ...]:
+    """An evaluator's parameters (what ``ros2 param describe`` shows of it). ``scenario`` is
+    required unless the runner hands the node its scenario (and names the file)."""
+    return (
+        replace(SCENARIO, required=not scenario_given),
+        RUN,
+        FRAME_ID,
+        ParamSpec(
+            "report_grace", float(report_grace_s),
+            "seconds to wait for missing plan reports once the sim has finished",
+            low=0.0, high=3600.0,
+        ),
+        ParamSpec(
+            "summary", "",
+            "standalone evaluator (activetrack_evaluator): write the run's summary.json here "
+            "when it completes (empty: none; under activetrack run the runner writes it)",
+        ),
+        ParamSpec(
+            "exit_when_done", False,
+            "standalone evaluator: exit once the run is complete (changeable)", read_only=False,
+        ),
+    )  # fmt: skip
+
+
 class ResultNode(GraphNode):
     """What every run evaluator shares: the graph's result messages checked as faults, the
-    nodes' counters from /diagnostics, and when the sim said it finished."""
+    nodes' counters from /diagnostics, and when the sim said it finished.
+
+    ``scenario``: the run's scenario, or None to load the file its ``scenario`` parameter
+    names (a standalone evaluator)."""
 
     def __init__(self, node_name: str, scenario, *, report_grace_s: float = 1.0, **kwargs):
         super().__init__(node_name, **kwargs)
-        self.scenario = scenario
-        self.report_grace_s = report_grace_s
+        changes = {"exit_when_done": self._set_exit_when_done}
+        p = self.declare_params(evaluator_params(scenario is not None, report_grace_s), changes)
+        self.scenario = scenario if scenario is not None else load_scenario(p["scenario"])
+        self.run_index = None if p["run"] < 0 else p["run"]
+        self.report_grace_s = p["report_grace"]
+        self.summary_path = p["summary"]
+        self.exit_when_done = p["exit_when_done"]
         self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
         self.diagnostics_order: dict[str, tuple] = {}
         self.sim_finished_at: float | None = None
         self.faults: list[str] = []  # the graph's own result messages that failed validation
         self.subscribe(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics)
+
+    def _set_exit_when_done(self, value: bool) -> None:
+        self.exit_when_done = value
 
     def _result_input(self, check, msg) -> None:
         """Run ``check(msg)``; a message of the graph's own that fails it (other than as a
@@ -142,6 +180,7 @@ class EvaluatorNode(ResultNode):
 
     def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
         super().__init__("activetrack_evaluator", scenario, report_grace_s=report_grace_s, **kwargs)
+        scenario = self.scenario
         self.size_history(scenario)  # its metrics are per-epoch: a late viewer gets them all
         K = scenario.steps
         self.platform_index = {p.id: i for i, p in enumerate(scenario.platforms)}

@@ -188,7 +188,6 @@ def attach(server: LiveServer, graph_key, namespace: str = ""):
                 server,
                 graph_key=graph_key,
                 context=graph.context,
-                start_parameter_services=False,
                 **options,
             )
         )

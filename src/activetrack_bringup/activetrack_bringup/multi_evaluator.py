@@ -64,6 +64,7 @@ class MultiEvaluatorNode(ResultNode):
 
     def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
         super().__init__("activetrack_evaluator", scenario, report_grace_s=report_grace_s, **kwargs)
+        scenario = self.scenario
         self.size_history(scenario)
         K = scenario.steps
         self.target_ids = tuple(t.id for t in scenario.targets)

@@ -29,6 +29,7 @@ from activetrack_ros import graph as topics
 from activetrack_ros.convert import check_epoch_stamp, header
 from activetrack_ros.convert_multi import beam_from_msg, scan_msg, truth_array_msg
 from activetrack_ros.frames import planar_transform, platform_frame, truth_frame
+from activetrack_ros.hold import FirstEpochHold
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import (
@@ -85,8 +86,13 @@ class MultiSimNode(GraphNode):
         self.done = False
         self.epoch_started = time.monotonic()
         self.publish_static_frames()
-        self.publish_epoch([])
+        self.hold = FirstEpochHold(self, p, self._first_epoch, changes)
         self.guarded_timer(p["tick"], self.on_tick)
+
+    def _first_epoch(self) -> None:
+        """Epoch 0, now (at start-up, or when a held first epoch is released)."""
+        self.publish_epoch([])
+        self.epoch_started = time.monotonic()
 
     def _set_timeout(self, seconds: float) -> None:
         self.timeout = seconds
@@ -138,7 +144,7 @@ class MultiSimNode(GraphNode):
             self.on_tick()  # the epoch's last answer: step now, not at the next tick
 
     def on_tick(self) -> None:
-        if self.done:
+        if self.done or self.hold.waiting:
             return
         if self.sim.finished:
             self.done = True

@@ -120,7 +120,8 @@ class TrackerNode(GraphNode):
         self.subscribe(MeasurementMsg, topics.MEASUREMENTS, self.on_measurement)
         self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
         self.guarded_timer(0.05, self.on_tick)
-        self.publish_track(self.core.snapshot())  # epoch 0: the prior
+        self.prior_views = self.core.snapshot()  # epoch 0: the prior
+        self.publish_track(self.prior_views, views=False)
 
     def _set_cloud_size(self, size: int) -> None:
         self.cloud_size = size
@@ -141,6 +142,12 @@ class TrackerNode(GraphNode):
 
     def on_platform(self, msg: PlatformState) -> None:
         snap = platform_from_msg(msg, self.scenario, self.platform_ids)
+        if self.prior_views is not None:
+            # The prior's views (tf, pose, particles, markers: volatile) go out with the sim's
+            # epoch 0, not at start-up, when no reader in another process has matched them
+            # yet (a viewer that --wait-for held the run for would miss them).
+            prior, self.prior_views = self.prior_views, None
+            self.publish_views(prior)
         if snap.epoch <= self.last_epoch:
             return self.ignore("old_epoch")  # epoch 0, or history replayed to a late joiner
         epoch = self.open_epoch(snap.epoch, "platform state")
@@ -217,7 +224,8 @@ class TrackerNode(GraphNode):
 
     # --- outputs -------------------------------------------------------------------------
 
-    def publish_track(self, snap) -> None:
+    def publish_track(self, snap, views: bool = True) -> None:
+        """The track (latched) and, with ``views``, its views (:meth:`publish_views`)."""
         hdr = header(snap.epoch * self.scenario.dt, self.frame_id)
         samples = snap.samples
         self.track_pub.publish(
@@ -242,6 +250,13 @@ class TrackerNode(GraphNode):
                 sample_count=0 if samples is None else len(samples),
             )
         )
+        if views:
+            self.publish_views(snap)
+
+    def publish_views(self, snap) -> None:
+        """What tools show of a track: pose, tf, 2-sigma ellipse, particles, diagnostics."""
+        hdr = header(snap.epoch * self.scenario.dt, self.frame_id)
+        samples = snap.samples
         x, y, course, P_xy = pose_of(snap, self.core.model)
         pose = PoseWithCovarianceStamped(header=hdr)
         pose.pose.pose.position.x, pose.pose.pose.position.y = x, y
