@@ -18,6 +18,9 @@ activetrack bag retrack BAG --scenario S
                                         replay a run's measurements into a fresh tracker
 activetrack bag recover BAG             rebuild a readable bag from a damaged/unfinished one
 activetrack reproduce NAME [ARGS...]    reproduce a paper's tables (hernandez, ...)
+activetrack ros graph|echo|hz|param|tf|bag [--namespace NS] [--domain D]
+                                        ROS 2 command-line stand-ins on a running graph
+                                        (docs/ros-tools.md)
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import sys
 from pathlib import Path
 
 from activetrack_bringup import cli_types, interrupts
+from activetrack_bringup.ros_tools.cli import add_ros_parser
 
 EXPERIMENTS = ("hernandez", "multitarget", "ramdaras", "valverde", "vanderhook")
 WAIT_TIMEOUT_S = 60.0  # --wait-for's default --wait-timeout
@@ -573,6 +577,7 @@ def build_parser() -> argparse.ArgumentParser:
     play.set_defaults(func=_cmd_play)
 
     _add_bag_parser(sub)
+    add_ros_parser(sub, _add_bag_parser)
 
     rep = sub.add_parser("reproduce", help="reproduce a paper's tables and figures")
     rep.add_argument("name", choices=EXPERIMENTS)
