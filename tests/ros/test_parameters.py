@@ -33,6 +33,7 @@ CHANGEABLE = {
         "exit_when_done",
         "wait_for_subscribers",
         "wait_for_topic",
+        "wait_for_nodes",
     },
     "tracker_node": {"cloud_size", "epoch_timeout"},
     "planner_node": set(),

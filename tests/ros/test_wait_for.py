@@ -222,3 +222,21 @@ def test_a_bad_wait_for_stops_the_sim_at_start_up():
     )  # fmt: skip
     assert proc.returncode == 2, proc.stderr
     assert "parameter 'wait_for_topic' must match" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_sim_waits_for_the_nodes_it_names(graph):
+    """wait_for_nodes (the launch file's evaluator and recorder): any other subscriber does
+    not release it, the named one does, inside the graph's own names too."""
+    params = [Parameter("scenario", value=SCENARIO),
+              Parameter("wait_for_nodes", value="activetrack_recorder")]  # fmt: skip
+    sim = graph.add(SimNode(context=graph.context, parameter_overrides=params))
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    other = graph.add(Node("other", context=graph.context))
+    other.create_subscription(Clock, "clock", lambda _m: None, qos)
+    graph.spin_until(lambda: False, timeout=0.5)
+    assert sim.hold.state == "held"
+    clocks = []
+    named = graph.add(Node("activetrack_recorder", context=graph.context))
+    named.create_subscription(Clock, "clock", clocks.append, qos)
+    assert graph.spin_until(lambda: clocks, timeout=10.0)  # after SETTLE_S
+    assert sim.hold.state == "started" and clocks[0].clock.sec == 0

@@ -43,7 +43,14 @@ WAIT_FOR_TOPIC = ParamSpec(
     "in the node's namespace; empty: do not wait; changeable until the run starts)",
     read_only=False, pattern=r"[A-Za-z_~/][A-Za-z0-9_/~]*",
 )  # fmt: skip
-WAIT_FOR = (WAIT_FOR_SUBSCRIBERS, WAIT_FOR_TOPIC)
+WAIT_FOR_NODES = ParamSpec(
+    "wait_for_nodes", "",
+    "hold the first epoch until these nodes of the namespace (names separated by spaces) "
+    "subscribe to the graph's topics: the launch file names the evaluator and recorder it "
+    "starts, which must see the run from its start (changeable until the run starts)",
+    read_only=False, pattern=r"[A-Za-z_][A-Za-z0-9_]*( +[A-Za-z_][A-Za-z0-9_]*)*",
+)  # fmt: skip
+WAIT_FOR = (WAIT_FOR_SUBSCRIBERS, WAIT_FOR_TOPIC, WAIT_FOR_NODES)
 SETTLE_S = 3.5  # once satisfied: one Fast DDS announcement and heartbeat period, and a margin
 MATCH_WAIT_S = 2.0  # after settling: the longest wait for discovered readers to match
 STARTED = "the wait_for parameters hold the first epoch only: the run has started"
@@ -57,10 +64,21 @@ GRAPH_NODE_NAMES = frozenset((*_NODES, *(f"multi_{n}" for n in _NODES), *_RUNNER
 
 @dataclass(frozen=True)
 class WaitFor:
-    """``count`` outside subscriber nodes of any graph topic, or one of ``topic``."""
+    """``count`` outside subscriber nodes of any graph topic, one of ``topic``, and the
+    subscriber nodes ``nodes`` (names, in or outside the graph): all that are given."""
 
     count: int = 0
     topic: str = ""
+    nodes: tuple[str, ...] = ()
+
+    @classmethod
+    def of_params(cls, p: dict) -> WaitFor:
+        names = tuple(p[WAIT_FOR_NODES.name].split())
+        return cls(p[WAIT_FOR_SUBSCRIBERS.name], p[WAIT_FOR_TOPIC.name], names)
+
+    @property
+    def any(self) -> bool:
+        return bool(self.count or self.topic or self.nodes)
 
     @classmethod
     def parse(cls, text: str) -> WaitFor | None:
@@ -86,21 +104,23 @@ class WaitFor:
     def describe(self, namespace: str) -> str:
         what = []
         if self.count:
-            what.append(f"{self.count} subscriber node(s) of the graph's topics")
+            what.append(f"{self.count} subscriber node(s) of the graph's topics outside the graph")
         if self.topic:
-            what.append(f"a subscriber of {resolve(self.topic, namespace)}")
-        return " and ".join(what) + " outside the graph"
+            what.append(f"a subscriber of {resolve(self.topic, namespace)} outside the graph")
+        if self.nodes:
+            what.append(f"the nodes {list(self.nodes)} as subscribers of the graph's topics")
+        return " and ".join(what)
 
     def satisfied(self, node, namespace: str) -> bool:
-        """Whether ``node``'s participant sees the outside subscribers asked for."""
-        if self.topic and not outside_subscribers(
-            node, namespace, [resolve(self.topic, namespace)]
-        ):
+        """Whether ``node``'s participant sees the subscribers asked for."""
+        if self.topic and not subscribers(node, namespace, [resolve(self.topic, namespace)]):
             return False
-        if not self.count:
-            return True
-        readers = outside_subscribers(node, namespace)
-        return len(set().union(*readers.values())) >= self.count
+        every = set().union(*subscribers(node, namespace, outside=False).values())
+        ns = namespace or "/"
+        if any((ns, name) not in every for name in self.nodes):
+            return False
+        outside = {(n_ns, n) for n_ns, n in every if not (n_ns == ns and n in GRAPH_NODE_NAMES)}
+        return len(outside) >= self.count
 
 
 def resolve(topic: str, namespace: str) -> str:
@@ -108,9 +128,12 @@ def resolve(topic: str, namespace: str) -> str:
     return expand_topic_name(topic, "activetrack_wait_for", namespace or "/")
 
 
-def outside_subscribers(node, namespace: str, topics=None) -> dict[str, set[tuple[str, str]]]:
-    """Resolved topic (default: every graph topic) -> the (namespace, name) of the nodes
-    outside the graph that subscribe to it, as ``node``'s participant sees the graph now."""
+def subscribers(
+    node, namespace: str, topics=None, outside: bool = True
+) -> dict[str, set[tuple[str, str]]]:
+    """Resolved topic (default: every graph topic) -> the (namespace, name) of the nodes that
+    subscribe to it (``outside``: only nodes outside the graph), as ``node``'s participant
+    sees the graph now."""
     ns = namespace or "/"
     names = topics if topics is not None else [resolve(t, namespace) for t in GRAPH_TOPICS]
     found: dict[str, set[tuple[str, str]]] = {}
@@ -118,7 +141,7 @@ def outside_subscribers(node, namespace: str, topics=None) -> dict[str, set[tupl
         readers = {
             (info.node_namespace, info.node_name)
             for info in node.get_subscriptions_info_by_topic(name)
-            if not (info.node_namespace == ns and info.node_name in GRAPH_NODE_NAMES)
+            if not (outside and info.node_namespace == ns and info.node_name in GRAPH_NODE_NAMES)
         }
         if readers:
             found[name] = readers
@@ -134,34 +157,28 @@ class FirstEpochHold:
         self.node = node
         self._start = start
         self._changes = changes
-        self.wait = WaitFor(params[WAIT_FOR_SUBSCRIBERS.name], params[WAIT_FOR_TOPIC.name])
+        self.wait = WaitFor.of_params(params)
         self.state = "started"  # held | settling | started
         self._settled = self._deadline = 0.0
-        if not self.held_for:
+        if not self.wait.any:
             self._fix()
             start()
         else:
             self.state = "held"
-            changes[WAIT_FOR_SUBSCRIBERS.name] = self._set_count
-            changes[WAIT_FOR_TOPIC.name] = self._set_topic
+            for spec in WAIT_FOR:
+                changes[spec.name] = self._changed
             node.get_logger().info(
                 f"holding the first epoch until {self.wait.describe(node.get_namespace())}"
             )
-
-    @property
-    def held_for(self) -> bool:
-        return bool(self.wait.count or self.wait.topic)
 
     def _fix(self) -> None:
         for spec in WAIT_FOR:
             self._changes[spec.name] = STARTED
 
-    def _set_count(self, value: int) -> None:
-        self.wait = WaitFor(value, self.wait.topic)
-        self.state = "held"
-
-    def _set_topic(self, value: str) -> None:
-        self.wait = WaitFor(self.wait.count, value)
+    def _changed(self, _value) -> None:
+        """A wait_for parameter changed (post-set: the node holds the new values)."""
+        node = self.node
+        self.wait = WaitFor.of_params({s.name: node.get_parameter(s.name).value for s in WAIT_FOR})
         self.state = "held"
 
     @property
@@ -171,7 +188,7 @@ class FirstEpochHold:
         if self.state == "started":
             return False
         now = time.monotonic()
-        if self.state == "held" and not self.held_for:  # released by hand: no viewer to wait for
+        if self.state == "held" and not self.wait.any:  # released by hand: no viewer to wait for
             self.state, self._settled, self._deadline = "settling", now, now
         elif self.state == "held" and self.wait.satisfied(self.node, self.node.get_namespace()):
             self.state, self._settled = "settling", now + SETTLE_S
