@@ -121,7 +121,7 @@ class TrackerNode(GraphNode):
         self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
         self.guarded_timer(0.05, self.on_tick)
         self.prior_views = self.core.snapshot()  # epoch 0: the prior
-        self.publish_track(self.prior_views, views=False)
+        self.publish_estimate(self.prior_views)
 
     def _set_cloud_size(self, size: int) -> None:
         self.cloud_size = size
@@ -224,8 +224,13 @@ class TrackerNode(GraphNode):
 
     # --- outputs -------------------------------------------------------------------------
 
-    def publish_track(self, snap, views: bool = True) -> None:
-        """The track (latched) and, with ``views``, its views (:meth:`publish_views`)."""
+    def publish_track(self, snap) -> None:
+        """The track (latched) and its views."""
+        self.publish_estimate(snap)
+        self.publish_views(snap)
+
+    def publish_estimate(self, snap) -> None:
+        """The track message (latched, per epoch: what the planner and evaluator read)."""
         hdr = header(snap.epoch * self.scenario.dt, self.frame_id)
         samples = snap.samples
         self.track_pub.publish(
@@ -250,8 +255,6 @@ class TrackerNode(GraphNode):
                 sample_count=0 if samples is None else len(samples),
             )
         )
-        if views:
-            self.publish_views(snap)
 
     def publish_views(self, snap) -> None:
         """What tools show of a track: pose, tf, 2-sigma ellipse, particles, diagnostics."""
