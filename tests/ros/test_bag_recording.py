@@ -182,6 +182,31 @@ def test_a_lockstep_bag_starts_at_sim_time_0(run_bag):
     assert bag_info(run_bag)["duration_s"] == duration_ns * 1e-9
 
 
+def test_a_bag_whose_metadata_misstates_its_span_is_named_and_recovered(run_bag, tmp_path):
+    """A bag written before that fix (metadata.yaml: start 10 s, duration 30 s for messages at
+    0-40 s): bag info names the disagreement, bag recover rewrites metadata.yaml."""
+    from activetrack_bringup.bag_recover import recover
+
+    bag = tmp_path / "old"
+    shutil.copytree(run_bag, bag)
+    meta_path = bag / "metadata.yaml"
+    meta = yaml.safe_load(meta_path.read_text())
+    info = meta["rosbag2_bagfile_information"]
+    info["starting_time"]["nanoseconds_since_epoch"] = 10_000_000_000
+    info["duration"]["nanoseconds"] = 30_000_000_000
+    meta_path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    found = bag_info(bag)
+    assert not found["intact"] and [d["kind"] for d in found["damage"]] == ["metadata"]
+    assert found["damage"][0]["what"] == (
+        f"{meta_path} gives start 10 s and duration 30 s; the messages start at 0 s and span 40 s"
+    )
+    assert recover(bag).changed
+    fixed = yaml.safe_load(meta_path.read_text())["rosbag2_bagfile_information"]
+    assert fixed["starting_time"]["nanoseconds_since_epoch"] == 0
+    assert fixed["duration"]["nanoseconds"] == 40_000_000_000
+    assert bag_info(bag)["intact"]
+
+
 # --- a recorder killed with SIGKILL -----------------------------------------------------
 
 CHILD = """
