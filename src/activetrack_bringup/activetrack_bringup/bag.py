@@ -223,6 +223,10 @@ class BagRecorder(Node):
     writer's clock can shift log times by less than an epoch, never reorder or stretch the
     run (``clock_refused`` counts the values not taken). ``depth``: the history depth written
     as the per-epoch topics' offered QoS (the run's, graph.history_depth).
+
+    The arguments are the defaults of read-only parameters (``bag``, ``topics``, ``depth``,
+    ``clock_lead``: :func:`recorder_params`), so ``param describe`` shows what the recorder
+    does and a standalone recorder (``activetrack_recorder``) takes them from ``--ros-args``.
     """
 
     TICK_S = 0.25  # timer period: closes chunks older than 0.5 s, rewrites metadata.yaml (1 s)

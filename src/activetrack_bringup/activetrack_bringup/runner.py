@@ -37,7 +37,7 @@ from activetrack_bringup.ros_network import RosNetwork, ros_network
 from activetrack_bringup.run_folder import run_dir_for
 from activetrack_bringup.supervisor import NodeDied, Supervisor
 from activetrack_ros.graph import history_depth
-from activetrack_ros.hold import WaitFor
+from activetrack_ros.hold import MATCH_WAIT_S, SETTLE_S, WaitFor
 from activetrack_ros.trust import KEY_BYTES, KEY_ENV, GraphKey
 from planner_node.multi_planner_node import MultiPlannerNode
 from planner_node.planner_node import PlannerNode
@@ -242,8 +242,8 @@ def run_graph(
     several graphs share a domain), ``nodes`` (with processes: the node processes started here,
     default all; the others run on other hosts, docs/multi-host.md), ``tracker_params``
     (tracker node parameters), ``wait_for`` (``N`` or a topic: hold the first epoch until that
-    many outside subscribers, or one of the topic, have joined; activetrack_bringup.wait_for)
-    within ``wait_timeout`` s, ``announce(network)`` (called with the run's RosNetwork before
+    many outside subscribers, or one of the topic, have joined; activetrack_ros.hold) within
+    ``wait_timeout`` s, ``announce(network)`` (called with the run's RosNetwork before
     the graph starts). Raises RunIncomplete when the run stops early, ScenarioError,
     FileExistsError or GraphSetupError before anything starts.
     """
@@ -412,7 +412,7 @@ class _GraphRunner:
 
     def _check_started(self) -> None:
         """``--wait-for``: the held sim must start its first epoch within ``wait_timeout``
-        seconds of the run's start (ViewersMissing), i.e. its viewers must have joined."""
+        seconds of the run's start, and the settling after they joined (ViewersMissing)."""
         if self.sim_started:
             return
         sim = self.nodes.get("sim")
@@ -420,7 +420,8 @@ class _GraphRunner:
             self.sim_started = sim.hold.state == "started"
         else:  # a node process: its first platform states have reached the evaluator
             self.sim_started = self.evaluator.counters.counts.get("received.PlatformState", 0) > 0
-        if not self.sim_started and time.monotonic() - self.start > self.opts.wait_timeout:
+        allowed = self.opts.wait_timeout + SETTLE_S + MATCH_WAIT_S
+        if not self.sim_started and time.monotonic() - self.start > allowed:
             raise ViewersMissing(
                 f"--wait-for: {self.wait.describe(self.opts.namespace)} did not join within "
                 f"{self.opts.wait_timeout:g} s (--wait-timeout); the run did not start"
