@@ -1,7 +1,7 @@
 """Hostile traffic on the graph's DDS domain, category by category, and a flood from another
 process: did the graph survive, was its result unchanged, was every foreign message counted?
 
-For each category of activetrack_bringup.adversary (malformed fields, plausible forgeries,
+For each category of tests/tools/adversary.py (malformed fields, plausible forgeries,
 replays of the graph's own messages, raw garbage, random messages), a lockstep run of a short
 scenario in one process with a foreign node publishing that category at epoch 2, compared
 with a clean run of the same seed. Then a flood: another process publishes random messages at
@@ -27,9 +27,15 @@ from pathlib import Path
 import numpy as np
 
 from activetrack.scenarios import load_scenario
-from activetrack_bringup.adversary import CATEGORIES, READERS, TOPIC_OF, ForeignNode, uncounted
 from activetrack_bringup.runner import RunIncomplete, run_graph
 from msgs_defs.msg import BearingMeasurement, ManoeuvreCommand, PlatformState, TrackEstimate
+
+# The test tooling (tests/tools: foreign traffic, message examples) is not shipped with the
+# package; the benchmark imports it from the checkout and runs the flooder as a script.
+TOOLS = Path(__file__).resolve().parents[1] / "tests" / "tools"
+ADVERSARY = TOOLS / "adversary.py"
+sys.path.insert(0, str(TOOLS))
+from adversary import CATEGORIES, READERS, TOPIC_OF, ForeignNode, uncounted  # noqa: E402
 
 SHORT = "tests/ros/data/short_two_sensors.yaml"
 LONG = "scenarios/hernandez_3sensor_two.yaml"
@@ -81,7 +87,7 @@ def flood_row(rate: float, seconds: float, tmp: Path) -> dict:
     flooded = (BearingMeasurement, PlatformState, TrackEstimate, ManoeuvreCommand)
     readers = [f"{TOPIC_OF[t]}={len(READERS[t.__name__])}" for t in flooded]
     clean = run_graph(LONG, run_dir=tmp / "flood_clean", record=False, plots=False)
-    cmd = [sys.executable, "-m", "activetrack_bringup.adversary", "--rate", str(rate)]
+    cmd = [sys.executable, str(ADVERSARY), "--rate", str(rate)]
     proc = subprocess.Popen(
         [*cmd, "--duration", str(seconds), *readers], env=env, stdout=subprocess.PIPE, text=True
     )

@@ -162,6 +162,51 @@ def test_metadata_yaml_is_rosbag2_version_9(run_bag):
         }
 
 
+def test_a_lockstep_bag_starts_at_sim_time_0(run_bag):
+    """A start of 0 is a start: metadata.yaml, the MCAP statistics, rosbags and bag info all
+    give start 0 and duration steps x dt (rosbags' end is exclusive: one nanosecond more)."""
+    scenario = load_scenario(SCENARIO)
+    duration_ns = round(scenario.steps * scenario.dt * 1e9)
+    assert duration_ns == 40_000_000_000
+    meta = yaml.safe_load((run_bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["starting_time"]["nanoseconds_since_epoch"] == 0
+    assert meta["duration"]["nanoseconds"] == duration_ns
+    assert meta["files"][0]["starting_time"]["nanoseconds_since_epoch"] == 0
+    assert meta["files"][0]["duration"]["nanoseconds"] == duration_ns
+    with open(run_bag / "bag.mcap", "rb") as f:
+        stats = make_reader(f).get_summary().statistics
+    assert (stats.message_start_time, stats.message_end_time) == (0, duration_ns)
+    with Reader(run_bag) as reader:
+        assert (reader.start_time, reader.duration) == (0, duration_ns + 1)
+        assert min(t for _, t, _ in reader.messages()) == 0
+    assert bag_info(run_bag)["duration_s"] == duration_ns * 1e-9
+
+
+def test_a_bag_whose_metadata_misstates_its_span_is_named_and_recovered(run_bag, tmp_path):
+    """A bag written before that fix (metadata.yaml: start 10 s, duration 30 s for messages at
+    0-40 s): bag info names the disagreement, bag recover rewrites metadata.yaml."""
+    from activetrack_bringup.bag_recover import recover
+
+    bag = tmp_path / "old"
+    shutil.copytree(run_bag, bag)
+    meta_path = bag / "metadata.yaml"
+    meta = yaml.safe_load(meta_path.read_text())
+    info = meta["rosbag2_bagfile_information"]
+    info["starting_time"]["nanoseconds_since_epoch"] = 10_000_000_000
+    info["duration"]["nanoseconds"] = 30_000_000_000
+    meta_path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    found = bag_info(bag)
+    assert not found["intact"] and [d["kind"] for d in found["damage"]] == ["metadata"]
+    assert found["damage"][0]["what"] == (
+        f"{meta_path} gives start 10 s and duration 30 s; the messages start at 0 s and span 40 s"
+    )
+    assert recover(bag).changed
+    fixed = yaml.safe_load(meta_path.read_text())["rosbag2_bagfile_information"]
+    assert fixed["starting_time"]["nanoseconds_since_epoch"] == 0
+    assert fixed["duration"]["nanoseconds"] == 40_000_000_000
+    assert bag_info(bag)["intact"]
+
+
 # --- a recorder killed with SIGKILL -----------------------------------------------------
 
 CHILD = """

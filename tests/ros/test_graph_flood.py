@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from activetrack_ros import graph as topics
 
 # Three-step planning with 2 sensors: ~8 s in one process, longer than the 2 s flood.
 SCENARIO = "scenarios/hernandez_2sensor_three.yaml"
+ADVERSARY = Path(__file__).parents[1] / "tools" / "adversary.py"  # run in its own process
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 # Flooded topic -> the graph's readers of it in a run without a bag.
@@ -36,7 +38,7 @@ def test_a_flood_from_another_process_is_counted_and_changes_nothing(tmp_path, l
     clean = run_graph(SCENARIO, run_dir=tmp_path / "clean", record=False, plots=False)
     env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
     readers = [f"{t}={len(r)}" for t, r in READERS.items()]
-    command = [sys.executable, "-m", "activetrack_bringup.adversary", "--rate", "2000"]
+    command = [sys.executable, str(ADVERSARY), "--rate", "2000"]
     flooder = subprocess.Popen(
         [*command, "--duration", "2", *readers],
         env=env,

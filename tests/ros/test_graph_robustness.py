@@ -4,13 +4,13 @@ graph's own failures stop the run at once instead of stalling it; a dying planne
 
 import numpy as np
 import pytest
+from adversary import CATEGORIES, READERS, ForeignNode, uncounted
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rclpy.parameter import Parameter
 from strategies import message
 
 from activetrack.scenarios import load_scenario
-from activetrack_bringup.adversary import CATEGORIES, READERS, ForeignNode, uncounted
 from activetrack_bringup.runner import RunIncomplete, run_graph
 from activetrack_ros.trust import GraphKey
 from msgs_defs.msg import (

@@ -228,6 +228,78 @@ def test_command_line_with_foxglove_gives_the_same_summary(tmp_path, capsys):
     assert _summary_numbers(tmp_path / "a.json") == _summary_numbers(tmp_path / "b.json")
 
 
+class ClosingClient(threading.Thread):
+    """Subscribes to the clock and reads until the server closes: how it closed."""
+
+    def __init__(self, url: str):
+        super().__init__(daemon=True)
+        self.url = url
+        self.statuses: list[dict] = []
+        self.closed = None  # websockets' ConnectionClosed
+        self.failure: BaseException | None = None
+
+    def run(self) -> None:
+        from websockets.exceptions import ConnectionClosed
+
+        deadline = time.monotonic() + 30
+        while True:  # the run starts its server after a second or two of imports
+            try:
+                ws = connect(self.url, subprotocols=[SUBPROTOCOL], open_timeout=5)
+                break
+            except OSError as exc:
+                if time.monotonic() > deadline:
+                    self.failure = exc
+                    return
+                time.sleep(0.1)
+        try:
+            with ws:
+                while True:
+                    data = ws.recv(timeout=60)
+                    if not isinstance(data, str):
+                        continue
+                    msg = json.loads(data)
+                    if msg["op"] == "advertise":
+                        clock = next(c for c in msg["channels"] if c["topic"] == "/clock")
+                        request = [{"id": 1, "channelId": clock["id"]}]
+                        ws.send(json.dumps({"op": "subscribe", "subscriptions": request}))
+                    elif msg["op"] == "status":
+                        self.statuses.append(msg)
+        except ConnectionClosed as closed:
+            self.closed = closed
+        except BaseException as exc:
+            self.failure = exc
+
+
+@pytest.mark.parametrize("interrupted", [False, True])
+def test_the_live_view_closes_with_a_close_frame(tmp_path, capsys, monkeypatch, interrupted):
+    """A client connected through a run sees it end with a status message and a WebSocket
+    close frame, not a dropped connection: at the end of the run, and after Ctrl-C."""
+    with socket.socket() as s:  # a free port for the run's server
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    client = ClosingClient(f"ws://127.0.0.1:{port}")
+    client.start()
+    if interrupted:  # Ctrl-C at the first epoch (the client subscribed before it)
+        import activetrack_bringup.runner as runner_module
+
+        real = runner_module._GraphRunner._check_started
+
+        def interrupt(self):
+            real(self)
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(runner_module._GraphRunner, "_check_started", interrupt)
+    args = ["run", SCENARIO, "--foxglove", "--port", str(port), "--foxglove-wait", "30",
+            "--no-plots", "--no-bag", "--out", str(tmp_path / "run")]  # fmt: skip
+    assert cli_main(args) == (130 if interrupted else 0)
+    client.join(30)
+    assert client.failure is None, client.failure
+    assert client.closed is not None and client.closed.rcvd is not None  # a close frame came
+    # foxglove-sdk's close frame carries no code (1005 on this side); 1000/1001 would do too
+    assert client.closed.rcvd.code in (1000, 1001, 1005)
+    assert [s["message"] for s in client.statuses] == [live_view.STOPPED]
+
+
 def test_a_port_in_use_fails_before_the_run(tmp_path, capsys):
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))

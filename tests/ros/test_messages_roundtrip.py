@@ -4,10 +4,9 @@ import math
 
 import numpy as np
 import pytest
+from message_examples import MESSAGE_TYPES, example_messages
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
-
-from activetrack_bringup.examples import MESSAGE_TYPES, example_messages
 
 EXAMPLES = example_messages()
 

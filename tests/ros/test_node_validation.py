@@ -6,13 +6,13 @@ import random
 import time
 
 import pytest
+from adversary import CATEGORIES, Context, D, ForeignNode
 from hypothesis import HealthCheck, given, settings
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from strategies import message
 
 from activetrack.scenarios import load_scenario
-from activetrack_bringup.adversary import CATEGORIES, Context, D, ForeignNode
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.runner import run_graph
 from activetrack_ros.trust import GraphKey

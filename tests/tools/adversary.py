@@ -22,10 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from message_examples import TOPIC_OF as MESSAGE_TOPIC_OF
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 
-from activetrack_bringup import examples
 from activetrack_ros import graph as topics
 from activetrack_ros.trust import GraphKey, is_signed_type
 from msgs_defs.msg import (
@@ -41,7 +41,7 @@ from msgs_defs.msg import (
 )
 
 # Every topic the graph reads: the msgs_defs ones and /diagnostics.
-TOPIC_OF = {**examples.TOPIC_OF, DiagnosticArray: topics.DIAGNOSTICS}
+TOPIC_OF = {**MESSAGE_TOPIC_OF, DiagnosticArray: topics.DIAGNOSTICS}
 
 # Which of the graph's readers take each type (the runner's evaluator included; the recorder,
 # which only stores bytes, not): what a foreign message on that type's topic must be counted by.
@@ -460,7 +460,7 @@ def flood(
 
 
 def main(argv=None) -> int:
-    """python -m activetrack_bringup.adversary --rate R --duration S TOPIC=READERS ..."""
+    """python tests/tools/adversary.py --rate R --duration S TOPIC=READERS ..."""
     import argparse
     import json
 
