@@ -229,7 +229,13 @@ class EpochAssessor:
         held = np.full(truth.shape[0], NOT_HELD, dtype=int)
         if self.known:  # the track is the target's by construction
             for t in confirmed:
-                held[self.index[t.origin]] = t.track_id
+                n = self.index.get(t.origin)
+                if n is None:
+                    raise ValueError(
+                        f"record.tracks[{k}]: track {t.track_id} has origin {t.origin!r}; with "
+                        f"known association every track is a target's {sorted(self.index)}"
+                    )
+                held[n] = t.track_id
         else:
             for i, j in split.assignment:
                 held[targets[i]] = confirmed[j].track_id
