@@ -22,10 +22,9 @@ import pytest
 
 from activetrack.bounds.irf import information_reduction_factor
 from activetrack.bounds.pcrlb import covariance_bound, predicted_information, propagate_samples
-from activetrack.closed_loop.data import PlatformSnapshot, heading_speed
 from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet, heading_speed
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
-from activetrack.multitarget.data import TrackEstimate, TrackSet
 from activetrack.multitarget.planner import MultiTargetPlanner
 from activetrack.planning.assignment import (
     aggregate_costs,
@@ -80,12 +79,12 @@ def snapshots(sc):
 
 def track(i, mean, cov, status="confirmed", priority=1.0, samples=None):
     m, P = np.asarray(mean, float), np.asarray(cov, float)
-    return TrackEstimate(i, status, m, P, priority=priority, samples=samples)
+    return TrackEstimate(i, status, m, P, m, P, priority=priority, samples=samples)
 
 
 def decide(sc, tracks, seed=0, epoch=0):
     planner = MultiTargetPlanner(sc, np.random.default_rng(seed))
-    return planner.decide(epoch, TrackSet(epoch, 0.0, "ekf", tuple(tracks)), snapshots(sc))
+    return planner.decide(epoch, TrackSet(epoch, 0.0, "ekf", tracks=tuple(tracks)), snapshots(sc))
 
 
 # --- the aggregate ----------------------------------------------------------------------------
@@ -273,7 +272,7 @@ def test_a_beam_leaves_a_track_where_it_found_nothing():
     served, factors = [], []
     for k, (hits, misses) in enumerate([(5, 0), (5, 1), (5, 2), (6, 2)]):
         tracks = (dataclasses.replace(t1, hits=hits, misses=misses), t2)
-        d = planner.decide(k, TrackSet(k, 5.0 * k, "ekf", tracks), snapshots(sc))
+        d = planner.decide(k, TrackSet(k, 5.0 * k, "ekf", tracks=tracks), snapshots(sc))
         served.append(d.extra["assignment"]["s1"])
         factors.append(planner.miss_factor.get(1, (1.0, 0))[0])
     assert served == [1, 1, 2, 1]
@@ -290,8 +289,10 @@ def test_a_beam_leaves_a_track_where_it_found_nothing():
     want = get_criterion("det_pos").of_covariance(p.F @ P @ p.F.T + p.Q, p.x)
     tracks = (dataclasses.replace(t1, hits=5, misses=1), t2)
     again = MultiTargetPlanner(sc, np.random.default_rng(0))
-    again.decide(0, TrackSet(0, 0.0, "ekf", (dataclasses.replace(t1, hits=5), t2)), snapshots(sc))
-    d = again.decide(1, TrackSet(1, 5.0, "ekf", tracks), snapshots(sc))
+    again.decide(
+        0, TrackSet(0, 0.0, "ekf", tracks=(dataclasses.replace(t1, hits=5), t2)), snapshots(sc)
+    )
+    d = again.decide(1, TrackSet(1, 5.0, "ekf", tracks=tracks), snapshots(sc))
     assert d.extra["track_costs"][1] == pytest.approx(float(want), rel=1e-9)
 
 
@@ -308,7 +309,7 @@ def test_random_assignment_is_seeded_balanced_and_uniform():
 
     def run(seed):
         planner = MultiTargetPlanner(sc, np.random.default_rng(seed))
-        ts = TrackSet(0, 0.0, "ekf", tuple(tracks))
+        ts = TrackSet(0, 0.0, "ekf", tracks=tuple(tracks))
         out = [
             tuple(planner.decide(k, ts, snapshots(sc)).extra["assignment"].values())
             for k in range(6)
@@ -462,7 +463,9 @@ def test_no_confirmed_track_sweeps_the_beams_and_holds_course():
     beam.update(beam_width=0.5, r_max=20000.0, clutter_density=1e-5)
     sc = scenario([platform("p1", [0.0, 30.0, 0.0, 30.0], [beam], controllable=True)])
     planner = MultiTargetPlanner(sc, np.random.default_rng(0))
-    tentative = TrackSet(0, 0.0, "ekf", (track(7, [500, 0, 500, 0], np.eye(4), "tentative"),))
+    tentative = TrackSet(
+        0, 0.0, "ekf", tracks=(track(7, [500, 0, 500, 0], np.eye(4), "tentative"),)
+    )
     bearings = []
     for k in range(3):
         d = planner.decide(k, tentative, snapshots(sc))
@@ -470,7 +473,7 @@ def test_no_confirmed_track_sweeps_the_beams_and_holds_course():
         assert d.report.search == "sweep" and d.extra["assignment"] == {"s1": -1}
         bearings.append(d.beams[0].bearing)
     assert bearings == pytest.approx([math.pi / 4, math.pi / 4 + 0.5, math.pi / 4 + 1.0])
-    confirmed = TrackSet(3, 0.0, "ekf", (track(7, [500, 0, 500, 0], np.eye(4)),))
+    confirmed = TrackSet(3, 0.0, "ekf", tracks=(track(7, [500, 0, 500, 0], np.eye(4)),))
     d = planner.decide(3, confirmed, snapshots(sc))
     assert d.beams[0].track_id == 7 and d.report.search == "quadrant"
     pointed = d.beams[0].bearing
