@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 
 from activetrack.bounds.mre import mre_recursion
-from activetrack.closed_loop.data import PlatformSnapshot, TrackSnapshot
 from activetrack.closed_loop.strategies import (
     DecisionContext,
     DecisionPart,
     MrePositioning,
     sensor_entries,
 )
+from activetrack.data import CONFIRMED, PlatformSnapshot, TrackEstimate
 from activetrack.models.motion import NearlyConstantVelocityDiscrete
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor
 from activetrack.planning.criteria import get_criterion
@@ -148,7 +148,8 @@ def test_the_strategy_flies_the_first_manoeuvre_of_the_r_leg_plan():
         pv = np.array(p.initial_state)
         heading, speed = math.atan2(pv[3], pv[1]), math.hypot(pv[1], pv[3])
         snaps[p.id] = PlatformSnapshot(p.id, 0, 0.0, pv, heading, speed)
-    track = TrackSnapshot(0, 0.0, "ekf", "ncv_discrete", ("x",) * 4, prior.mean, prior.covariance())
+    mean, cov = np.array(prior.mean), prior.covariance()
+    track = TrackEstimate(1, CONFIRMED, mean, cov, mean, cov, origin="t1")
     part = strategy.decide(
         DecisionContext(0, track, snaps, 1.0, DecisionPart(prediction=prediction))
     )
