@@ -175,6 +175,13 @@ def test_a_batch_does_not_depend_on_the_worker_count():
     assert one.run_gospa == two.run_gospa
     assert one.gospa_t == two.gospa_t
     assert len(one.run_gospa) == 3 and one.mean_gospa == pytest.approx(np.mean(one.run_gospa))
+    # The tables hold one row per target and epoch (per run: and run), as for one target.
+    N, K = 3, s.steps
+    assert one.rmse_t.shape == one.bound_t.shape == (N, K, 2)
+    rows = one.table()
+    assert len(rows) == N * K and [r["target"] for r in rows[::K]] == ["t1", "t2", "t3"]
+    np.testing.assert_array_equal([r["rmse_x_m"] for r in rows], one.rmse_t[..., 0].ravel())
+    assert len(one.run_table()) == 3 * N * K
 
 
 def test_batch_prints_gospa_for_a_multitarget_scenario(tmp_path, capsys):
