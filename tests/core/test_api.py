@@ -26,13 +26,22 @@ def serial(scenario):
     return at.run_batch(scenario, runs=3, jobs=1)
 
 
-def test_results_do_not_depend_on_jobs(scenario, serial):
-    parallel = at.run_batch(scenario, runs=3, jobs=2)
+@pytest.mark.parametrize("name, steps", [("default.yaml", 8), ("mt_bearings_crossing.yaml", 10)])
+def test_results_do_not_depend_on_jobs(name, steps):
+    """One target or three (clutter, beams): the same runs on one process or two."""
+    scenario = at.load_scenario(ROOT / "scenarios" / name).model_copy(update={"steps": steps})
+    serial, parallel = (at.run_batch(scenario, runs=3, jobs=jobs) for jobs in (1, 2))
     for a, b in zip(serial.records, parallel.records, strict=True):
-        np.testing.assert_array_equal(a.track_series()[0], b.track_series()[0])
+        for ta, tb in zip(a.tracks, b.tracks, strict=True):
+            assert [t.track_id for t in ta.tracks] == [t.track_id for t in tb.tracks]
+            for x, y in zip(ta.tracks, tb.tracks, strict=True):
+                np.testing.assert_array_equal(x.state, y.state)
+                np.testing.assert_array_equal(x.state_cov, y.state_cov)
         np.testing.assert_array_equal(a.platform_paths, b.platform_paths)
+        assert [d.beams for d in a.decisions] == [d.beams for d in b.decisions]
     np.testing.assert_array_equal(serial.rmse_t, parallel.rmse_t)
     np.testing.assert_array_equal(serial.bound_t, parallel.bound_t)
+    assert serial.run_gospa == parallel.run_gospa and serial.gospa_t == parallel.gospa_t
 
 
 def test_runs_match_run_once(scenario, serial):

@@ -168,12 +168,10 @@ def test_a_run_is_a_function_of_seed_and_run_only():
     assert not np.allclose(a.truth[1:], c.truth[1:])
 
 
-def test_a_batch_does_not_depend_on_the_worker_count():
+def test_a_batch_summary_holds_gospa_and_a_row_per_target_and_epoch():
+    # (one process or two: test_api.test_results_do_not_depend_on_jobs)
     s = _short(CROSSING, 10)
     one = run_batch(s, runs=3, jobs=1)
-    two = run_batch(s, runs=3, jobs=2)
-    assert one.run_gospa == two.run_gospa
-    assert one.gospa_t == two.gospa_t
     assert len(one.run_gospa) == 3 and one.mean_gospa == pytest.approx(np.mean(one.run_gospa))
     # The tables hold one row per target and epoch (per run: and run), as for one target.
     N, K = 3, s.steps
