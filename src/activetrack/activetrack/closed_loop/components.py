@@ -91,7 +91,7 @@ def build_tracker(scenario: Scenario, rng: np.random.Generator) -> Tracker:
     if kind.particle_based:  # a long run loads the PF kernels now, not in mid-run
         expect_particle_work(scenario.steps * cfg.particles)
 
-    def make(x0: np.ndarray, P0: np.ndarray, t0: float):  # type: ignore[no-untyped-def]
+    def make(x0: np.ndarray, P0: np.ndarray, t0: float):
         return make_filter(cfg.filter, model, x0, P0, cfg, rng, t0)
 
     priors = [

@@ -130,7 +130,7 @@ class PlannerCore:
         return part.decision(epoch, time.perf_counter() - start)
 
 
-def build_planner(scenario: Scenario, rng: np.random.Generator):  # type: ignore[no-untyped-def]
+def build_planner(scenario: Scenario, rng: np.random.Generator):
     """The scenario's planner, drawing from ``rng``: the papers' strategies for a scene of one
     target whose detections are known to be its own (no clutter) and no steerable beam,
     planning across tracks with beam assignment otherwise."""

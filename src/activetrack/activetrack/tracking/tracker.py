@@ -310,7 +310,7 @@ class Tracker:
                     Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
                 ]
                 for k, row in enumerate(group):
-                    info = tracks[row].filter.update_pda(detections, a.beta[k])  # type: ignore[attr-defined]
+                    info = tracks[row].filter.update_pda(detections, a.beta[k])
                     tracks[row].ess = info.ess
 
     # --- track starts ------------------------------------------------------------------------
