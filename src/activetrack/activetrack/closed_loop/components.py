@@ -152,7 +152,7 @@ def build_tracker(scenario: Scenario, rng: np.random.Generator) -> Tracker:
     if kind.particle_based:  # a long run loads the PF kernels now, not in mid-run
         expect_particle_work(scenario.steps * cfg.particles)
 
-    def make(x0: np.ndarray, P0: np.ndarray, t0: float):  # type: ignore[no-untyped-def]
+    def make(x0: np.ndarray, P0: np.ndarray, t0: float):
         return make_filter(cfg.filter, model, x0, P0, cfg, rng, t0)
 
     priors = [
@@ -204,7 +204,7 @@ def build_strategies(scenario: Scenario, rng: np.random.Generator) -> tuple[Plan
     controllable = tuple(p.id for p in scenario.platforms if p.controllable)
     beams = any(s.beam_width is not None for p in scenario.platforms for s in p.sensors)
     if beams or not scenario.known_association:
-        return (_across_targets(scenario, rng),)
+        return (build_across_targets(scenario, rng),)
     if not cfg.enabled:
         return (HoldCourse(controllable),)
     if controllable and cfg.search == "cautious":
@@ -296,7 +296,7 @@ def _cost_kind(cfg: PlannerConfig) -> str:
     return cfg.cost
 
 
-def _across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiTargetPlanner:
+def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiTargetPlanner:
     """Planning across targets for the scene: its platforms with their sensors in the scene
     and, where the planner steers them, their limits."""
     cfg = scenario.planner
