@@ -310,8 +310,7 @@ def test_random_assignment_is_seeded_balanced_and_uniform():
         planner = build_across_targets(sc, np.random.default_rng(seed))
         ts = TrackSet(0, 0.0, "ekf", tracks=tuple(tracks))
         out = [
-            tuple(planner.plan(k, ts, snapshots(sc)).extra["assignment"].values())
-            for k in range(6)
+            tuple(planner.plan(k, ts, snapshots(sc)).extra["assignment"].values()) for k in range(6)
         ]
         assert all(len(set(a)) == 3 for a in out)  # three beams, three different tracks
         return out
