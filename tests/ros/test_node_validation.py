@@ -2,6 +2,7 @@
 misconfigured node) is stopped field by field, and no input whatsoever makes a callback raise.
 """
 
+import math
 import random
 import time
 
@@ -15,6 +16,7 @@ from activetrack.scenarios import load_scenario
 from activetrack_bringup.adversary import CATEGORIES, Context, D, ForeignNode
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.runner import run_graph
+from activetrack_ros.convert import header
 from activetrack_ros.trust import GraphKey
 from msgs_defs.msg import (
     BeamCommand,
@@ -194,6 +196,29 @@ def test_an_insider_with_bad_data_is_rejected_for_the_right_reason(name, genuine
     verdict = VERDICTS[name].get("evaluator")
     if verdict and verdict.startswith("rejected.") and type_key in RESULT_INPUTS:
         assert nodes["evaluator"].faults
+
+
+def test_the_evaluator_takes_a_command_to_hold_course(nodes, genuine):
+    """A planner that is off commands no change and gives no resulting heading or speed (NaN:
+    not given): the evaluator takes it as the graph's own valid result, no fault."""
+    evaluator = nodes["evaluator"]
+    for raw in genuine.seen[PlatformState]:
+        state = deserialize_message(raw, PlatformState)
+        if state.epoch == 0:
+            evaluator.guarded(evaluator._result_input, evaluator.on_platform, state)
+    hold = ManoeuvreCommand(
+        header=header(0.0), platform_id="p1", epoch=0, heading_change=0.0, speed_change=0.0,
+        commanded_heading=math.nan, commanded_speed=math.nan,
+    )  # fmt: skip
+    before = dict(evaluator.counters.counts)
+    evaluator.guarded(evaluator._result_input, evaluator.on_command, hold)
+    assert evaluator.counters.counts == before and not evaluator.faults
+    assert evaluator.commands[0]["p1"].heading_change == 0.0
+    bad = ManoeuvreCommand(
+        header=header(0.0), platform_id="p2", epoch=0, commanded_heading=math.inf
+    )
+    evaluator.guarded(evaluator._result_input, evaluator.on_command, bad)
+    assert evaluator.counters.counts["rejected.non_finite"] == 1 and evaluator.faults
 
 
 def test_an_incomplete_epoch_is_closed_after_the_timeout(graph, genuine):
