@@ -457,10 +457,13 @@ def flood(
     readers: dict[str, int],
     seed: int = 0,
     wait: float = 30.0,
+    settle: float = 2.0,
 ) -> Counter:
     """Publish random messages (no key) round-robin on ``readers``' topics at ``rate`` per
     second for ``duration`` seconds, once each topic has its expected number of matched
-    readers (``{topic: n}``); returns what was sent per message type."""
+    readers (``{topic: n}``) and ``settle`` seconds more (a writer matches a reader before the
+    reader matches the writer: what it sends in between is lost at that reader, uncounted);
+    returns what was sent per message type."""
     import rclpy
 
     rclpy.init()
@@ -475,6 +478,7 @@ def flood(
         if time.monotonic() > deadline:
             raise TimeoutError(f"readers not matched within {wait} s: {readers}")
         time.sleep(0.01)
+    time.sleep(settle)
     rng = random.Random(seed)
     # A pool of random messages per topic, serialised once: the flood is then as fast as DDS.
     pool = {
