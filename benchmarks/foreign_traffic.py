@@ -29,19 +29,21 @@ import numpy as np
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.adversary import CATEGORIES, READERS, TOPIC_OF, ForeignNode, uncounted
 from activetrack_bringup.runner import RunIncomplete, run_graph
-from msgs_defs.msg import BearingMeasurement, ManoeuvreCommand, PlatformState, TrackEstimate
+from msgs_defs.msg import ManoeuvreCommand, PlatformState, Scan, TrackArray
 
 SHORT = "tests/ros/data/short_two_sensors.yaml"
 LONG = "scenarios/hernandez_3sensor_two.yaml"
 
 
 def same(a, b) -> bool:
+    """Bit for bit: truth, platform paths, the sensors that looked, the track (state and
+    covariance at every epoch) and the plan reports' predicted costs."""
     ra, rb = a.summary.records[0], b.summary.records[0]
-    fields = ("truth", "platform_paths", "estimate", "estimate_cov", "measured")
-    arrays = all(np.array_equal(getattr(ra, f), getattr(rb, f)) for f in fields)
-    return arrays and [d.predicted_costs for d in ra.decisions] == [
-        d.predicted_costs for d in rb.decisions
-    ]
+    floats = [(ra.truth, rb.truth), (ra.platform_paths, rb.platform_paths)]
+    floats += zip(ra.track_series(), rb.track_series(), strict=True)
+    arrays = all(np.array_equal(x, y, equal_nan=True) for x, y in floats)
+    costs = [[d.report and d.report.predicted_costs for d in r.decisions] for r in (ra, rb)]
+    return arrays and np.array_equal(ra.looked, rb.looked) and costs[0] == costs[1]
 
 
 def errors(run) -> int:
@@ -78,7 +80,7 @@ def flood_row(rate: float, seconds: float, tmp: Path) -> dict:
     env.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.update({k: env[k] for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")})
-    flooded = (BearingMeasurement, PlatformState, TrackEstimate, ManoeuvreCommand)
+    flooded = (Scan, PlatformState, TrackArray, ManoeuvreCommand)
     readers = [f"{TOPIC_OF[t]}={len(READERS[t.__name__])}" for t in flooded]
     clean = run_graph(LONG, run_dir=tmp / "flood_clean", record=False, plots=False)
     cmd = [sys.executable, "-m", "activetrack_bringup.adversary", "--rate", str(rate)]

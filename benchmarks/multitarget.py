@@ -51,7 +51,7 @@ gated hypotheses, which it enumerates in full (itertools.product) when the targe
 
 Part 2, the sensor manager: on scenario (b) (``scenarios/mt_radars_beams.yaml``: three radars
 with steerable 0.1 rad beams on moving platforms, five targets, clutter), three strategies on
-the same seeded runs (``run_multi_once(scenario, run, planner_factory)``: the same simulator
+the same seeded runs (``run_once(scenario, run, planner_factory)``: the same simulator
 and tracker draws until the decisions differ), judged by the same evaluation
 (``evaluate_run``, time-averaged GOSPA):
 
@@ -124,17 +124,24 @@ import numpy as np
 from activetrack.allocator import tune_allocator
 from activetrack.angles import wrap_angle
 from activetrack.argtypes import int_in_range
-from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.data import Command, PlanReportData, PlatformSnapshot
+from activetrack.closed_loop.components import component_rngs
+from activetrack.closed_loop.evaluation import evaluate_run
+from activetrack.closed_loop.loop import run_once
 from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.data import (
+    BeamCommand,
+    Command,
+    Decision,
+    PlanReportData,
+    PlatformSnapshot,
+    TrackEstimate,
+    TrackSet,
+)
 from activetrack.filters.jpda import gate_probability, jpda_update
 from activetrack.metrics import gospa
 from activetrack.models import NearlyConstantVelocity, RangeBearingSensor
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.montecarlo import parallel_map
-from activetrack.multitarget.data import BeamCommand, MultiDecision, TrackEstimate, TrackSet
-from activetrack.multitarget.evaluation import evaluate_run
-from activetrack.multitarget.loop import run_multi_once
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.build import build_sensor
 from activetrack.scenarios.schema import Scenario
@@ -537,7 +544,7 @@ class StoneSoupBeamManager:
     """Stone Soup's ``BruteForceSensorManager`` with its ``UncertaintyRewardFunction`` (sum over
     tracks of ||P_pred||_F - ||P_upd||_F, EKF updates, sensors in turn) pointing scenario (b)'s
     steerable beams; every controllable platform holds course. The loop's planner seam
-    (:class:`activetrack.multitarget.loop.MultiPlanner`); ``rng`` is not drawn from.
+    (``PlannerLike`` of :mod:`activetrack.closed_loop.loop`); ``rng`` is not drawn from.
 
     Each epoch: our confirmed tracks become Stone Soup ``GaussianState`` tracks at t_k; each
     beam becomes a rotating radar at its platform's hold-course position at t_k+1 (one turn per
@@ -585,7 +592,7 @@ class StoneSoupBeamManager:
 
     def decide(
         self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]
-    ) -> MultiDecision:
+    ) -> Decision:
         """Beam pointings for epoch+1 (module docstring), hold course for every platform."""
         start = time.perf_counter()
         snaps = {s.platform_id: s for s in platforms}
@@ -614,7 +621,9 @@ class StoneSoupBeamManager:
             wall_time_s=time.perf_counter() - start,
         )  # fmt: skip
         assignment = {b.sensor_id: b.track_id for b in beams}
-        return MultiDecision(epoch, commands, tuple(beams), report, {"assignment": assignment})
+        return Decision(
+            epoch, commands, tuple(beams), report=report, extra={"assignment": assignment}
+        )
 
     def _sensor(self, b: _Beam, pv: np.ndarray, offered: list[Pointing], when: datetime):
         """Stone Soup's rotating radar for beam ``b`` at ``pv`` offering ``offered``."""
@@ -728,7 +737,7 @@ def run_manager(task: tuple[Scenario, int, str, int]) -> ManagerRun:
         scenario = hold_course(scenario)
     if strategy == "stonesoup":
         factory = functools.partial(StoneSoupBeamManager, candidates=candidates)
-    record = run_multi_once(scenario, run, factory)
+    record = run_once(scenario, run, factory)
     # The bound's samples do not enter GOSPA: a few keep the evaluation cheap.
     ev = evaluate_run(scenario, record, component_rngs(scenario.seed, run)[3], n_samples=8)
     return ManagerRun(
