@@ -124,10 +124,9 @@ import numpy as np
 from activetrack.allocator import tune_allocator
 from activetrack.angles import wrap_angle
 from activetrack.argtypes import int_in_range
-from activetrack.closed_loop.components import component_rngs
+from activetrack.closed_loop.components import component_rngs, target_dynamics
 from activetrack.closed_loop.evaluation import evaluate_run
 from activetrack.closed_loop.loop import run_once
-from activetrack.closed_loop.strategies import LinearDynamics
 from activetrack.data import (
     BeamCommand,
     Command,
@@ -568,7 +567,7 @@ class StoneSoupBeamManager:
 
         if isinstance(candidates, bool) or not isinstance(candidates, int) or candidates < 1:
             raise ValueError(f"candidates: must be an integer >= 1, got {candidates!r}")
-        d = LinearDynamics.of(scenario)
+        d = target_dynamics(scenario)
         self.F, self.dt, self.candidates = d.F, scenario.dt, candidates
         transition = LinearGaussianTimeInvariantTransitionModel(
             transition_matrix=d.F, covariance_matrix=d.Q

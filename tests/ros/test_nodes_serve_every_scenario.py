@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from rclpy.parameter import Parameter
 
-from activetrack.multitarget.planner import MultiTargetPlanner
+from activetrack.planning.across_targets import MultiTargetPlanner
 from activetrack.scenarios import load_scenario
 from planner_node.planner_node import PlannerNode
 from sim_node.sim_node import SimNode
