@@ -22,7 +22,6 @@ On the command line::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -31,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import add_scheduler_option, int_in_range
+from activetrack.argtypes import int_in_range
 from activetrack.bounds.pcrlb import (
     covariance_bound,
     gaussian_samples,
@@ -43,22 +42,13 @@ from activetrack.geometry import covariance_ellipse
 from activetrack.kernels import expect_particle_work
 from activetrack.limits import (
     MAX_GRID_SIZE,
-    MAX_JOBS,
     MAX_PARTICLES,
     MAX_PLANNER_BATCH,
-    MAX_RUNS,
     MAX_SAMPLES,
     MAX_SEARCH_EVALUATIONS,
     MAX_SEED,
 )
-from activetrack.montecarlo import (
-    Progress,
-    Scheduler,
-    TaskProgress,
-    available_jobs,
-    check_jobs,
-    parallel_map,
-)
+from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.montecarlo_dask import connected
 from activetrack.planning import (
     PlannerPlatform,
@@ -72,10 +62,12 @@ from activetrack.plots import new_figure
 from activetrack.scenarios import Scenario, build_motion_model, load_scenario
 from activetrack.scenarios.schema import PlannerConfig
 from activetrack_experiments.paths import find_scenarios_dir, scenario_path
+from activetrack_experiments.reproduction import Reproduction, RunsOption, map_groups
 
 __all__ = [
     "PAPER_TABLE1",
     "PAPER_TABLE2",
+    "REPRODUCTION",
     "CaseResult",
     "HernandezResults",
     "PlannedCase",
@@ -570,14 +562,12 @@ def _plan_and_track(
     if runs == 0:
         return results, extra
     run_tasks = [
-        _RunTask(sc, res.plan.paths, r, particles, sd)
+        [_RunTask(sc, res.plan.paths, r, particles, sd) for r in range(runs)]
         for sc, res, sd in zip(scenarios, results, seeds, strict=True)
-        for r in range(runs)
     ]
-    expect_particle_work(len(run_tasks) * scenarios[0].steps * particles)  # before the fork
-    out = parallel_map(_timed_track_run, run_tasks, jobs, tasks.of_map(), scheduler)
-    for i, res in enumerate(results):
-        part = out[i * runs : (i + 1) * runs]
+    expect_particle_work(len(scenarios) * runs * scenarios[0].steps * particles)  # before fork
+    parts = map_groups(_timed_track_run, run_tasks, jobs, tasks.of_map(), scheduler)
+    for res, part in zip(results, parts, strict=True):
         res.rmse = _rmse([sq for sq, _ in part])
         res.runs, res.particles = runs, particles
         res.tracking_time_s = sum(t for _, t in part)
@@ -887,35 +877,17 @@ def save_figures(res: HernandezResults, out: str | Path, jobs: int = 1) -> list[
 # Command line
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
-        prog="activetrack reproduce hernandez",
-        description="Reproduce Hernandez (2004) Tables 1-2 and Figs. 2-3.",
-    )
-    add = ap.add_argument
-    add(
-        "--runs",
-        type=int_in_range(0, MAX_RUNS, note="0: the bounds only"),
-        default=100,
-        help="Monte Carlo PF runs per case (100; 0: the bounds only)",
-    )
-    add(
-        "--particles",
-        type=int_in_range(1, MAX_PARTICLES),
-        default=10000,
-        help="PF particles (10,000)",
-    )
+def _options(parser: argparse.ArgumentParser) -> None:
+    add = parser.add_argument
+    add("--particles", type=int_in_range(1, MAX_PARTICLES), default=10000, help="PF particles")
     add(
         "--mc-samples",
         type=int_in_range(1, MAX_SAMPLES),
-        default=None,
         help="planner Monte Carlo samples (scenario: 1000)",
     )
     add("--sensors", default="1,2,3", help="sensor counts, e.g. 1,2,3")
     add("--horizons", default="1,2", help="planning horizons, 1 and/or 2")
-    add(
-        "--search", default=None, choices=SEARCHES, help="override the scenarios' search (quadrant)"
-    )
+    add("--search", choices=SEARCHES, help="override the scenarios' search (quadrant)")
     add(
         "--grid-size",
         type=int_in_range(2, MAX_GRID_SIZE),
@@ -923,55 +895,31 @@ def _build_parser() -> argparse.ArgumentParser:
         help="grid of the comparison (101)",
     )
     add("--no-comparison", action="store_true", help="skip the quadrant vs 101x101 grid comparison")
-    add("--seed", type=int_in_range(0, MAX_SEED), default=None, help="seed (scenario seed)")
-    add(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="PF worker processes",
+    add("--seed", type=int_in_range(0, MAX_SEED), help="seed (scenario seed)")
+    add("--scenarios", help="directory with hernandez_*.yaml")
+
+
+def _check_cli(args: argparse.Namespace) -> None:
+    """Adds ``sensor_counts`` and ``horizon_list`` (:func:`check_options`)."""
+    args.sensor_counts, args.horizon_list = check_options(
+        sensors=args.sensors.split(","),
+        horizons=args.horizons.split(","),
+        search=args.search,
+        grid_size=args.grid_size,
+        mc_samples=args.mc_samples,
+        comparison=not args.no_comparison,
     )
-    add_scheduler_option(ap)
-    add("--json", default=None, help="write the numbers to this JSON file")
-    add("--out", default="runs/reproduce-hernandez", help="figure directory")
-    add("--no-figures", action="store_true", help="do not write PNG figures")
-    add("--scenarios", default=None, help="directory with hernandez_*.yaml")
-    return ap
-
-
-def _parse(argv: list[str]) -> argparse.Namespace:
-    """Parsed options, with ``sensor_counts`` and ``horizon_list`` (usage error if invalid)."""
-    ap = _build_parser()
-    args = ap.parse_args(argv)
-    try:
-        args.sensor_counts, args.horizon_list = check_options(
-            sensors=args.sensors.split(","),
-            horizons=args.horizons.split(","),
-            search=args.search,
-            grid_size=args.grid_size,
-            mc_samples=args.mc_samples,
-            comparison=not args.no_comparison,
-        )
-    except ValueError as exc:
-        ap.error(str(exc))
-    return args
 
 
 def _print_progress(case: CaseResult) -> None:
     print(format_progress(case), file=sys.stderr, flush=True)
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    """Entry point of ``activetrack reproduce hernandez`` (``task_progress``: see
-    :func:`reproduce`; the command line's progress bar)."""
-    args = _parse(sys.argv[1:] if argv is None else argv)
-    res = reproduce(
-        runs=args.runs,
+def _arguments(args: argparse.Namespace) -> dict:
+    """The arguments of :func:`reproduce` the options set (besides the runs and workers)."""
+    return dict(
         particles=args.particles,
         seed=args.seed,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
         comparison=not args.no_comparison,
         scenarios_dir=args.scenarios,
         sensors=args.sensor_counts,
@@ -980,18 +928,33 @@ def main(
         grid_size=args.grid_size,
         mc_samples=args.mc_samples,
         progress=_print_progress,
-        task_progress=task_progress,
     )
-    print(format_results(res))
+
+
+def _document(res: HernandezResults, figures: list[Path], wall_time_s: float) -> dict:
+    """``res.to_json()`` with the figure files, if any."""
     doc = res.to_json()
-    if not args.no_figures:
-        files = save_figures(res, args.out, jobs=args.jobs)
-        doc["figures"] = [str(f) for f in files]
-        print("\nfigures: " + ", ".join(str(f) for f in files))
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(doc, indent=1))
-    return 0
+    if figures:
+        doc["figures"] = [str(f) for f in figures]
+    return doc
+
+
+REPRODUCTION = Reproduction(
+    name="hernandez",
+    description="Reproduce Hernandez (2004) Tables 1-2 and Figs. 2-3.",
+    runs=RunsOption(
+        0, 100, "Monte Carlo PF runs per case (100; 0: the bounds only)", "0: the bounds only"
+    ),
+    reproduce=reproduce,
+    report=format_results,
+    figures=lambda res, args: save_figures(res, args.out, jobs=args.jobs),
+    options=_options,
+    check=_check_cli,
+    arguments=_arguments,
+    document=_document,
+)
+_parse = REPRODUCTION.parse
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":

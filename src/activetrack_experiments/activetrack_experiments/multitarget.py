@@ -22,7 +22,7 @@ In a notebook::
 On the command line (``python -m activetrack_experiments.multitarget`` is the same)::
 
     activetrack reproduce multitarget [--runs N] [--jobs J | --scheduler ADDRESS]
-        [--scenario NAME ...] [--json PATH] [--out DIR]
+        [--scenario NAME ...] [--json PATH] [--out DIR] [--no-figures]
 """
 
 from __future__ import annotations
@@ -35,17 +35,25 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.closed_loop.batch import BatchSummary, run_batch
-from activetrack.limits import MAX_JOBS, MAX_RUNS
-from activetrack.montecarlo import Scheduler, available_jobs, check_jobs
+from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs
 from activetrack.montecarlo_dask import connected
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.schema import Scenario
-from activetrack_experiments.outputs import write_outputs
 from activetrack_experiments.paths import scenario_path
+from activetrack_experiments.reproduction import Reproduction, RunsOption
 
-__all__ = ["SCENARIOS", "STRATEGIES", "MultiTargetResult", "reproduce", "strategy_scenario"]
+__all__ = [
+    "REPRODUCTION",
+    "SCENARIOS",
+    "STRATEGIES",
+    "MultiTargetResult",
+    "format_report",
+    "main",
+    "reproduce",
+    "save_figures",
+    "strategy_scenario",
+]
 
 SCENARIOS = ("mt_bearings_crossing", "mt_radars_beams", "mt_appear_disappear")
 STRATEGIES = ("planner", "hold_course", "random_assignment")
@@ -146,7 +154,7 @@ def reproduce(
     worker processes or the Dask cluster ``scheduler`` (the numbers do not depend on either)."""
     check_jobs(jobs, scheduler)
     result = MultiTargetResult(runs)
-    total, done = len(scenarios) * len(STRATEGIES), 0
+    tasks = TaskProgress(len(scenarios) * len(STRATEGIES), task_progress)
     with connected(scheduler) as cluster:
         for name in scenarios:
             base = load_scenario(scenario_path(name, scenarios_dir))
@@ -159,9 +167,7 @@ def reproduce(
                     keep_records=False,
                     scheduler=cluster,
                 )
-                done += 1
-                if task_progress is not None:
-                    task_progress(done, total)
+                tasks.advance()
             result.scenarios.append(ScenarioResult(name, summaries))
     return result
 
@@ -192,28 +198,6 @@ def format_report(res: MultiTargetResult) -> str:
     return "\n".join(lines)
 
 
-def _parse(argv):
-    parser = argparse.ArgumentParser(
-        prog="activetrack reproduce multitarget", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument(
-        "--runs", type=int_in_range(1, MAX_RUNS), default=100, help="Monte Carlo runs per row"
-    )
-    parser.add_argument(
-        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
-    )
-    parser.add_argument("--json", type=Path, default=None, help="write the results as JSON")
-    parser.add_argument("--out", type=Path, default=Path("runs/reproduce-multitarget"))
-    parser.add_argument(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="worker processes (the numbers do not depend on it)",
-    )
-    add_scheduler_option(parser)
-    return parser.parse_args(argv)
-
-
 def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
     """GOSPA vs time per scenario, the three strategies."""
     from activetrack.plots import new_figure, write_figures
@@ -236,20 +220,23 @@ def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
     )
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    args = _parse(argv)
-    res = reproduce(
-        args.runs,
-        scenarios=tuple(args.scenario or SCENARIOS),
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        task_progress=task_progress,
+def _options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
     )
-    print(format_report(res))
-    write_outputs(save_figures(res, args.out), res.to_json(), args.out, args.json)
-    return 0
+
+
+REPRODUCTION = Reproduction(
+    name="multitarget",
+    description=__doc__.splitlines()[0],
+    runs=RunsOption(1, 100, "Monte Carlo runs per row (100)"),
+    reproduce=reproduce,
+    report=format_report,
+    figures=lambda res, args: save_figures(res, args.out),
+    options=_options,
+    arguments=lambda args: dict(scenarios=tuple(args.scenario or SCENARIOS)),
+)
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":

@@ -29,8 +29,6 @@ On the command line::
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -39,26 +37,19 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.bounds.costs import position_determinant
 from activetrack.bounds.mre import mre_update
 from activetrack.checks import require_int
 from activetrack.closed_loop.loop import run_once
-from activetrack.limits import MAX_JOBS, MAX_RUNS
-from activetrack.montecarlo import (
-    Progress,
-    Scheduler,
-    TaskProgress,
-    available_jobs,
-    check_jobs,
-    parallel_map,
-)
+from activetrack.limits import MAX_RUNS
+from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs
 from activetrack.planning.selection import expected_update
 from activetrack.plots import new_figure, write_figures
 from activetrack.scenarios import build_motion_model, load_scenario
 from activetrack.scenarios.build import build_sensor
 from activetrack.scenarios.schema import Scenario
 from activetrack_experiments.paths import scenario_path
+from activetrack_experiments.reproduction import Reproduction, RunsOption, map_groups, split
 
 PAPER = "Ramdaras, Absil, van Genderen, ICCRTS 2010"
 # (key, scenario file, label). Case 1 (3, 9) is the Case 1 of Fig. 10-12.
@@ -231,13 +222,8 @@ def run_groups(
     for _, runs in groups:
         if runs < 1:
             raise ValueError(f"runs must be >= 1, got {runs}")
-    tasks = [(scenario.model_dump(), r) for scenario, runs in groups for r in range(runs)]
-    traces = parallel_map(_run_task, tasks, jobs, progress, scheduler)
-    out, start = [], 0
-    for _, runs in groups:
-        out.append(traces[start : start + runs])
-        start += runs
-    return out
+    tasks = [[(scenario.model_dump(), r) for r in range(runs)] for scenario, runs in groups]
+    return map_groups(_run_task, tasks, jobs, progress, scheduler)
 
 
 def run_runs(
@@ -706,14 +692,13 @@ def reproduce(
     groups = [(s.scenario, s.runs) for s in specs]
     tasks = TaskProgress(sum(runs for _, runs in groups), task_progress)
     traced = run_groups(groups, jobs, tasks.of_map(), scheduler)
-    n_cases, n_crit = len(case_specs), len(crit_specs)
-    results = [s.summarize(t) for s, t in zip(case_specs, traced[:n_cases], strict=True)]
-    criteria = [
-        s.summarize(t) for s, t in zip(crit_specs, traced[n_cases : n_cases + n_crit], strict=True)
-    ]
+    sizes = [len(case_specs), len(crit_specs), len(bound_specs)]
+    case_traces, crit_traces, bound_traces = split(traced, sizes)
+    results = [s.summarize(t) for s, t in zip(case_specs, case_traces, strict=True)]
+    criteria = [s.summarize(t) for s, t in zip(crit_specs, crit_traces, strict=True)]
     checks = [
         summarize_bound(s.case, s.scenario, t, draws)
-        for s, t in zip(bound_specs, traced[n_cases + n_crit :], strict=True)
+        for s, t in zip(bound_specs, bound_traces, strict=True)
     ]
     return RamdarasResults(
         runs=runs,
@@ -928,67 +913,37 @@ def save_figures(res: RamdarasResults, out: str | Path) -> list[Path]:
 # --- command line ------------------------------------------------------------------------------
 
 
-def _parse(argv):
-    ap = argparse.ArgumentParser(
-        prog="activetrack reproduce ramdaras",
-        description="Reproduce Ramdaras et al. (2010) sec. 5-6: MRE sensor selection and "
-        "positioning, Cases 1-3 and Pd < 1 variants.",
-    )
-    ap.add_argument(
-        "--runs",
-        type=int_in_range(1, MAX_RUNS),
-        default=None,
-        help="Monte Carlo runs per case (20)",
-    )
-    ap.add_argument("--quick", action="store_true", help="3 runs, fewer baselines")
-    ap.add_argument("--cases", default=None, help="comma-separated case keys (default: all)")
-    ap.add_argument(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="worker processes",
-    )
-    add_scheduler_option(ap)
-    ap.add_argument("--json", default=None, help="write the numbers to this JSON file")
-    ap.add_argument("--out", default="runs/reproduce-ramdaras", help="figure directory")
-    ap.add_argument("--no-figures", action="store_true", help="do not write PNG figures")
-    ap.add_argument("--scenarios", default=None, help="directory with ramdaras_*.yaml")
-    args = ap.parse_args(argv)
-    if args.runs is None:
-        args.runs = 3 if args.quick else 20
+def _options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true", help="3 runs, fewer baselines")
+    parser.add_argument("--cases", help="comma-separated case keys (default: all)")
+    parser.add_argument("--scenarios", help="directory with ramdaras_*.yaml")
+
+
+def _check_cli(args: argparse.Namespace) -> None:
+    """Adds ``case_keys``, the cases of ``--cases``."""
     keys = list(CASE_KEYS)
     args.case_keys = keys if args.cases is None else [c.strip() for c in args.cases.split(",")]
     bad = [c for c in args.case_keys if c not in keys]
     if bad:
-        ap.error(f"--cases: unknown {bad}; choose from {keys}")
-    return args
+        raise ValueError(f"--cases: unknown {bad}; choose from {keys}")
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    args = _parse(sys.argv[1:] if argv is None else argv)
-    t0 = time.perf_counter()
-    res = reproduce(
-        args.runs,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        quick=args.quick,
-        cases=args.case_keys,
-        scenarios_dir=args.scenarios,
-        task_progress=task_progress,
-    )
-    print(format_report(res))
-    files = [] if args.no_figures else save_figures(res, args.out)
-    if files:
-        print()
-        print("Figures: " + ", ".join(str(f) for f in files))
-    wall = time.perf_counter() - t0
-    print(f"wall time {wall:.1f} s")
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(res.to_json(files, wall), indent=2))
-    return 0
+REPRODUCTION = Reproduction(
+    name="ramdaras",
+    description="Reproduce Ramdaras et al. (2010) sec. 5-6: MRE sensor selection and "
+    "positioning, Cases 1-3 and Pd < 1 variants.",
+    runs=RunsOption(1, None, "Monte Carlo runs per case (20; 3 with --quick)"),
+    reproduce=reproduce,
+    report=format_report,
+    figures=lambda res, args: save_figures(res, args.out),
+    options=_options,
+    check=_check_cli,
+    arguments=lambda args: dict(
+        quick=args.quick, cases=args.case_keys, scenarios_dir=args.scenarios
+    ),
+    document=lambda res, figures, wall_time_s: res.to_json(figures, wall_time_s),
+)
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":

@@ -33,15 +33,13 @@ In a notebook::
 On the command line (``python -m activetrack_experiments.valverde`` is the same)::
 
     activetrack reproduce valverde [--runs N] [--steps K] [--seed S]
-        [--jobs J | --scheduler ADDRESS] [--json PATH] [--out DIR] [--quick] [--no-plots]
+        [--jobs J | --scheduler ADDRESS] [--json PATH] [--out DIR] [--quick] [--no-figures]
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
@@ -50,24 +48,19 @@ from pathlib import Path
 import numpy as np
 
 from activetrack.angles import wrap_angle
-from activetrack.argtypes import add_scheduler_option, int_in_range
+from activetrack.argtypes import int_in_range
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import nominal_path, taylor_crlb
 from activetrack.bounds.tichavsky import tichavsky_pcrlb
 from activetrack.checks import require_int, symmetrize
 from activetrack.filters import ekf_over_runs
-from activetrack.limits import MAX_JOBS, MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
+from activetrack.limits import MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
 from activetrack.models.motion import CircularMotion, ConstantTurn
 from activetrack.models.sensors import RangeBearingSensor
-from activetrack.montecarlo import (
-    Scheduler,
-    TaskProgress,
-    available_jobs,
-    check_jobs,
-    parallel_map,
-)
+from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.observability import observability_rank
 from activetrack.plots import new_figure, write_figures
+from activetrack_experiments.reproduction import Reproduction, RunsOption
 
 MODELS = ("circular", "constant_turn")
 CASES = ("crlb", "pcrb")
@@ -715,71 +708,42 @@ def save_figures(res: ValverdeResults, out: str | Path, series_row: int = 3) -> 
 # --- command line ------------------------------------------------------------------------------
 
 
-def _parse(argv):
-    p = argparse.ArgumentParser(
-        prog="activetrack reproduce valverde",
-        description="Valverde USBL tracking: EKF MSE vs CRLB / PCRB (Tables I-V, Figs. 2-8).",
-    )
-    p.add_argument(
-        "--runs",
-        type=int_in_range(2, MAX_RUNS, note="the Monte Carlo error needs two runs"),
-        default=None,
-        help="Monte Carlo runs (default 1000)",
-    )
-    p.add_argument(
-        "--steps",
-        type=int_in_range(1, MAX_STEPS),
-        default=None,
-        help="epochs (default 252, two laps)",
-    )
-    p.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0)
-    p.add_argument(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="worker processes (the numbers do not depend on it)",
-    )
-    add_scheduler_option(p)
-    p.add_argument("--json", help="write the table rows to this JSON file")
-    p.add_argument("--out", default="runs/reproduce-valverde", help="figure directory")
-    p.add_argument("--quick", action="store_true", help="50 runs, one lap")
-    p.add_argument("--no-plots", action="store_true")
-    args = p.parse_args(argv)
+def _options(parser: argparse.ArgumentParser) -> None:
+    add = parser.add_argument
+    add("--steps", type=int_in_range(1, MAX_STEPS), help="epochs (default 252, two laps)")
+    add("--seed", type=int_in_range(0, MAX_SEED), default=0, help="seed of the draws (0)")
+    add("--quick", action="store_true", help="50 runs, one lap")
+    add("--no-plots", dest="no_figures", action="store_true", help="as --no-figures")
+
+
+def _check_cli(args: argparse.Namespace) -> None:
+    """Sets the runs and epochs (by ``--quick``) and bounds their product."""
     if args.runs is None:
         args.runs = 50 if args.quick else 1000
     if args.steps is None:
         args.steps = 126 if args.quick else 252
     if args.runs * args.steps > MAX_RUN_EPOCHS:
-        p.error(
+        raise ValueError(
             f"--runs x --steps must be <= {MAX_RUN_EPOCHS:.1e} (the runs are held in memory "
             f"together), got {args.runs} x {args.steps}"
         )
-    return args
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    args = _parse(sys.argv[1:] if argv is None else argv)
-    res = reproduce(
-        args.runs,
-        seed=args.seed,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        steps=args.steps,
-        task_progress=task_progress,
-    )
-    print(format_report(res))
-    print(f"Monte Carlo and bounds: {res.mc_time_s:.1f} s")
-    if not args.no_plots:
-        files = save_figures(res, args.out)
-        print(f"figures in {args.out}: " + ", ".join(f.name for f in files))
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(res.to_json(), indent=2))
-        print(f"table rows in {args.json}")
-    return 0
+REPRODUCTION = Reproduction(
+    name="valverde",
+    description="Valverde USBL tracking: EKF MSE vs CRLB / PCRB (Tables I-V, Figs. 2-8).",
+    runs=RunsOption(
+        2, None, "Monte Carlo runs (default 1000)", "the Monte Carlo error needs two runs"
+    ),
+    reproduce=reproduce,
+    report=format_report,
+    figures=lambda res, args: save_figures(res, args.out),
+    options=_options,
+    check=_check_cli,
+    arguments=lambda args: dict(seed=args.seed, steps=args.steps),
+)
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

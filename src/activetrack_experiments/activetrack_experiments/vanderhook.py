@@ -24,7 +24,7 @@ In a notebook::
 On the command line (``python -m activetrack_experiments.vanderhook`` is the same)::
 
     activetrack reproduce vanderhook [--runs N] [--seed S] [--jobs J | --scheduler ADDRESS]
-        [--json PATH] [--out DIR] [--quick]
+        [--json PATH] [--out DIR] [--no-figures] [--quick]
 """
 
 from __future__ import annotations
@@ -38,18 +38,11 @@ from typing import Any
 
 import numpy as np
 
-from activetrack.argtypes import add_scheduler_option, int_in_range
+from activetrack.argtypes import int_in_range
 from activetrack.checks import require_int
-from activetrack.limits import MAX_JOBS, MAX_RUNS, MAX_SEED
+from activetrack.limits import MAX_RUNS, MAX_SEED
 from activetrack.models.sensors import AmbiguousBearingSensor
-from activetrack.montecarlo import (
-    Progress,
-    Scheduler,
-    TaskProgress,
-    available_jobs,
-    check_jobs,
-    parallel_map,
-)
+from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.planning.cautious import CautiousPlanner, caution_gamma
 from activetrack.planning.cautious_bounds import (
     cautious_schedule,
@@ -59,7 +52,7 @@ from activetrack.planning.cautious_bounds import (
     time_upper_bound,
 )
 from activetrack.plots import new_figure, write_figures
-from activetrack_experiments.outputs import write_outputs
+from activetrack_experiments.reproduction import Reproduction, RunsOption, split
 from activetrack_experiments.vanderhook_sim import (
     SIGMA_S_DEFAULT,
     LocalisationBatch,
@@ -68,6 +61,7 @@ from activetrack_experiments.vanderhook_sim import (
 
 __all__ = [
     "PAPER_TABLE1",
+    "REPRODUCTION",
     "ExampleRun",
     "FailureRow",
     "SimTask",
@@ -471,8 +465,7 @@ def reproduce(
     every = [t for g in groups for t in g]
     tasks = TaskProgress(len(set(every)), task_progress)
     batches = simulate_all(every, jobs, tasks.of_map(), scheduler)
-    ends = np.cumsum([len(g) for g in groups])
-    ex, t1, fail, fail_two = (batches[e - len(g) : e] for g, e in zip(groups, ends, strict=True))
+    ex, t1, fail, fail_two = split(batches, [len(g) for g in groups])
     return VanderHookResults(
         runs=runs,
         seed=seed,
@@ -623,42 +616,31 @@ def save_figures(res: VanderHookResults, out: str | Path) -> list[Path]:
 # --- command line ------------------------------------------------------------------------------
 
 
-def _parse(argv):
-    parser = argparse.ArgumentParser(
-        prog="activetrack reproduce vanderhook", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument(
-        "--runs", type=int_in_range(1, MAX_RUNS), default=4000, help="Monte Carlo runs per row"
-    )
-    parser.add_argument("--json", type=Path, default=None, help="write the results as JSON")
-    parser.add_argument("--out", type=Path, default=Path("runs/reproduce-vanderhook"))
+def _options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="400 runs, fewer beta values")
-    parser.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0)
     parser.add_argument(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="worker processes (the numbers do not depend on it)",
+        "--seed", type=int_in_range(0, MAX_SEED), default=0, help="seed of the draws (0)"
     )
-    add_scheduler_option(parser)
-    return parser.parse_args(argv)
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    args = _parse(argv)
-    res = reproduce(
-        None if args.quick else args.runs,
-        seed=args.seed,
-        quick=args.quick,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        task_progress=task_progress,
-    )
-    print(format_report(res))
-    write_outputs(save_figures(res, args.out), res.to_json(), args.out, args.json)
-    return 0
+def _quick_runs(args: argparse.Namespace) -> None:
+    """``--quick`` runs 400 localisations per batch, whatever ``--runs`` says."""
+    if args.quick:
+        args.runs = None
+
+
+REPRODUCTION = Reproduction(
+    name="vanderhook",
+    description=__doc__.splitlines()[0],
+    runs=RunsOption(1, 4000, "Monte Carlo runs per row (4000)"),
+    reproduce=reproduce,
+    report=format_report,
+    figures=lambda res, args: save_figures(res, args.out),
+    options=_options,
+    check=_quick_runs,
+    arguments=lambda args: dict(seed=args.seed, quick=args.quick),
+)
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":
