@@ -171,14 +171,23 @@ def run_traced(scenario: Scenario, run: int | None = None) -> RunTrace:
     )
 
 
-def _recursion_inputs(scenario: Scenario, trace: RunTrace):
-    """F, Q, ``{sensor id: (platform id, sensor)}``, platform column of ``trace.paths`` and
-    P_{0|0}: what a covariance recursion along a run starts from."""
+def _recursion_inputs(scenario: Scenario, trace: RunTrace, mask: np.ndarray):
+    """F, Q, P_{0|0} and, for each epoch k = 1..K, the ``(sensor, platform pv at k)`` of the
+    sensors that ``mask[k - 1]`` (K, S) marks (``trace.measured`` or ``trace.detected``): what a
+    covariance recursion along a run uses."""
     model = build_motion_model(scenario.target.motion)
     F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
     sensors = {s.id: (p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors}
     column = {pid: j for j, pid in enumerate(trace.platform_ids)}
-    return F, Q, sensors, column, scenario.target.prior.covariance()
+    epochs = [
+        [
+            (sensors[sid][1], trace.paths[k, column[sensors[sid][0]]])
+            for j, sid in enumerate(trace.sensor_ids)
+            if mask[k - 1, j]
+        ]
+        for k in range(1, scenario.steps + 1)
+    ]
+    return F, Q, scenario.target.prior.covariance(), epochs
 
 
 def mre_path_bound(scenario: Scenario, trace: RunTrace) -> np.ndarray:
@@ -191,14 +200,13 @@ def mre_path_bound(scenario: Scenario, trace: RunTrace) -> np.ndarray:
     P -> (P^-1 + H^T R^-1 H)^-1 is concave and monotone, so by Jensen E[P_{k|k}] <= P^MRE_{k|k}
     (equality when pd = 1).
     """
-    F, Q, sensors, column, P = _recursion_inputs(scenario, trace)
+    F, Q, P, epochs = _recursion_inputs(scenario, trace, trace.measured)
     out = []
-    for k in range(1, scenario.steps + 1):
+    for k, used in enumerate(epochs, start=1):
         P = F @ P @ F.T + Q
-        use = [sid for j, sid in enumerate(trace.sensor_ids) if trace.measured[k - 1, j]]
-        if use:
-            models = [sensors[s][1] for s in use]
-            pvs = np.stack([trace.paths[k, column[sensors[s][0]]] for s in use])
+        if used:
+            models = [sensor for sensor, _ in used]
+            pvs = np.stack([s for _, s in used])
             P = expected_update(0.5 * (P + P.T), trace.truth[k], models, pvs)
         out.append(P)
     return np.array(out)
@@ -420,17 +428,14 @@ def detection_average(
     """E[P_{k|k}] over ``draws`` detection sequences for a run's truth and schedule
     ``(K, 4, 4)``: the Riccati recursion with H at the true states and each measuring sensor
     detecting with its pd, vectorised over the draws (mre_update with pd in {0, 1})."""
-    F, Q, sensors, column, P0 = _recursion_inputs(scenario, trace)
+    F, Q, P0, epochs = _recursion_inputs(scenario, trace, trace.measured)
     P = np.broadcast_to(P0, (int(draws), 4, 4)).copy()
     out = []
-    for k in range(1, scenario.steps + 1):
+    for k, used in enumerate(epochs, start=1):
         P = F @ P @ F.T + Q
-        for j, sid in enumerate(trace.sensor_ids):
-            if trace.measured[k - 1, j]:
-                pid, sensor = sensors[sid]
-                s = trace.paths[k, column[pid]]
-                hit = sensor.in_range(trace.truth[k], s) & (rng.random(int(draws)) < sensor.pd)
-                P = mre_update(P, sensor.jacobian(trace.truth[k], s), sensor.R, hit.astype(float))
+        for sensor, s in used:
+            hit = sensor.in_range(trace.truth[k], s) & (rng.random(int(draws)) < sensor.pd)
+            P = mre_update(P, sensor.jacobian(trace.truth[k], s), sensor.R, hit.astype(float))
         out.append(P.mean(axis=0))
     return np.array(out)
 
@@ -546,15 +551,12 @@ def bound_check(
 def detection_average_realized(scenario: Scenario, trace: RunTrace) -> np.ndarray:
     """The Riccati recursion of a run's own detections with H at the truth ``(K, 4, 4)``:
     what the EKF's P_{k|k} is up to its linearisation at the estimate."""
-    F, Q, sensors, column, P = _recursion_inputs(scenario, trace)
+    F, Q, P, epochs = _recursion_inputs(scenario, trace, trace.detected)
     out = []
-    for k in range(1, scenario.steps + 1):
+    for k, used in enumerate(epochs, start=1):
         P = F @ P @ F.T + Q
-        for j, sid in enumerate(trace.sensor_ids):
-            if trace.detected[k - 1, j]:
-                pid, sensor = sensors[sid]
-                s = trace.paths[k, column[pid]]
-                P = mre_update(P, sensor.jacobian(trace.truth[k], s), sensor.R, 1.0)
+        for sensor, s in used:
+            P = mre_update(P, sensor.jacobian(trace.truth[k], s), sensor.R, 1.0)
         out.append(P)
     return np.array(out)
 
