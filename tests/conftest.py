@@ -7,8 +7,15 @@ concurrent test runs should a test switch discovery back on for child processes.
 """
 
 import os
+import sys
+from pathlib import Path
 
 from activetrack.allocator import tune_allocator
+
+# Test tooling that users do not run (foreign traffic, message examples): importable by every
+# test (``import adversary``) and run as scripts by the ones that need another process.
+TOOLS = Path(__file__).parent / "tools"
+sys.path.insert(0, str(TOOLS))
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "OFF"
 tune_allocator()  # as the command line does: the suite runs 4x less system time

@@ -36,5 +36,12 @@ setup(
     maintainer_email="dev@activetrack.invalid",
     description="See package.xml.",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["activetrack = activetrack_bringup.cli:main"]},
+    entry_points={
+        "console_scripts": [
+            "activetrack = activetrack_bringup.cli:main",
+            # the runner's evaluator and recorder as nodes of their own (the launch file's)
+            "activetrack_evaluator = activetrack_bringup.standalone:evaluator_main",
+            "activetrack_recorder = activetrack_bringup.standalone:recorder_main",
+        ]
+    },
 )

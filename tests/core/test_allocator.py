@@ -52,7 +52,7 @@ def test_tuning_is_opt_in_and_yields_to_the_user():
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc only")
 def test_a_variable_set_by_dask_does_not_block_the_tuning_once_named():
     """A Dask worker's MALLOC_TRIM_THRESHOLD_ (its nanny's default): refused until the Monte
-    Carlo task names it as not the user's (activetrack.montecarlo_dask)."""
+    Carlo task names it as not the user's (activetrack.montecarlo.dask)."""
     code = (
         "import activetrack.allocator as a; print(a.tune_allocator()); "
         "print(a.tune_allocator(ignore=('MALLOC_TRIM_THRESHOLD_',)), a.allocator_tuned())"

@@ -14,7 +14,7 @@ import pytest
 from scipy.special import gammainc
 from scipy.stats import poisson
 
-from activetrack.bounds.irf import (
+from activetrack.models.irf import (
     information_reduction_factor,
     irf_cache_clear,
     irf_cache_info,

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from linear_sensor import LinearPositionSensor
 
-from activetrack.bounds.irf import information_reduction_factor
 from activetrack.bounds.pcrlb import pcrlb_step
 from activetrack.filters.jpda import (
     gate,
@@ -20,6 +19,7 @@ from activetrack.filters.jpda import (
     pda_update,
     predict_measurements,
 )
+from activetrack.models.irf import information_reduction_factor
 from activetrack.models.motion import NearlyConstantVelocity
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor
 

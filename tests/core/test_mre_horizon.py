@@ -15,26 +15,29 @@ import math
 import numpy as np
 import pytest
 
-from activetrack.bounds.mre import mre_recursion
-from activetrack.closed_loop.data import PlatformSnapshot, TrackSnapshot
-from activetrack.closed_loop.strategies import (
-    DecisionContext,
-    DecisionPart,
-    MrePositioning,
-    sensor_entries,
-)
+from activetrack.bounds.mre import mre_recursion, mre_update
+from activetrack.closed_loop.components import build_strategies
+from activetrack.data import CONFIRMED, PlatformSnapshot, TrackEstimate, TrackSet
 from activetrack.models.motion import NearlyConstantVelocityDiscrete
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor
 from activetrack.planning.criteria import get_criterion
+from activetrack.planning.decision import DecisionContext, DecisionPart
 from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlatformLimits, rollout
+from activetrack.planning.manoeuvre import (
+    PlatformLimits,
+    rollout,
+    step_platform,
+    unit_to_manoeuvre,
+)
 from activetrack.planning.planner import PlannerPlatform
 from activetrack.planning.selection import (
+    PositioningResult,
     TargetPrediction,
     expected_update,
     plan_positions,
     position_platform,
 )
+from activetrack.planning.strategies import MrePositioning
 from activetrack.scenarios import ScenarioError, load_scenario, parse_scenario
 
 MODEL = NearlyConstantVelocityDiscrete(5.0, 5.0)
@@ -60,13 +63,37 @@ def _random_case(rng, n_sensors):
     return PlannerPlatform("p", pv, sensors[:n_sensors], LIMITS), prediction
 
 
+def _one_step(platform, prediction, criterion, search):
+    """Ramdaras sec. 4's one-step positioning written out: ``search`` over the reachable
+    envelope, a candidate's cost eq. 23 with the platform's sensors there, then ``criterion``."""
+    crit = get_criterion(criterion)
+    p, (heading, speed) = prediction, platform.heading_and_speed
+
+    def candidates(u):
+        m = unit_to_manoeuvre(u, speed, platform.limits)
+        nxt, psi = step_platform(platform.pv, heading, m, 1.0)
+        return m, nxt, psi
+
+    def cost_fn(rows, u):
+        _, nxt, _ = candidates(u)
+        P = p.P
+        for sensor in platform.sensors:
+            pd = float(sensor.pd) * sensor.in_range(p.x, nxt)
+            P = mre_update(P, sensor.jacobian(p.x, nxt), sensor.R, pd)
+        return crit.of_covariance(p.F @ P @ p.F.T + p.Q, p.x)
+
+    result = search.lockstep_search()(cost_fn, 1)
+    m, nxt, psi = candidates(result.u[0])
+    return PositioningResult(m, nxt, float(psi), float(result.cost[0]), result.evaluations)
+
+
 def test_one_leg_is_the_one_step_positioning_bit_for_bit():
     rng = np.random.default_rng(3)
     for case in range(4):
         platform, prediction = _random_case(rng, 1 + case % 2)
         for search in SEARCHES:
             for criterion in ("det_pos", "trace", "heading"):
-                a = position_platform(platform, prediction, 1.0, criterion=criterion, search=search)
+                a = _one_step(platform, prediction, criterion, search)
                 b = plan_positions(
                     platform, prediction, 1.0, criterion=criterion, search=search, horizon=1
                 )
@@ -140,7 +167,8 @@ def _case3(**planner):
 
 def test_the_strategy_flies_the_first_manoeuvre_of_the_r_leg_plan():
     scenario = _case3(horizon=2, sector_levels=3)
-    strategy = MrePositioning(scenario, sensor_entries(scenario), scenario.dt)
+    strategies = build_strategies(scenario, np.random.default_rng(0))
+    strategy = next(s for s in strategies if isinstance(s, MrePositioning))
     prior = scenario.target.prior
     prediction = TargetPrediction.from_posterior(prior.mean, prior.covariance(), F, Q)
     snaps = {}
@@ -148,9 +176,16 @@ def test_the_strategy_flies_the_first_manoeuvre_of_the_r_leg_plan():
         pv = np.array(p.initial_state)
         heading, speed = math.atan2(pv[3], pv[1]), math.hypot(pv[1], pv[3])
         snaps[p.id] = PlatformSnapshot(p.id, 0, 0.0, pv, heading, speed)
-    track = TrackSnapshot(0, 0.0, "ekf", "ncv_discrete", ("x",) * 4, prior.mean, prior.covariance())
+    mean, cov = np.array(prior.mean), prior.covariance()
+    track = TrackEstimate(1, CONFIRMED, mean, cov, mean, cov, origin="t1")
     part = strategy.decide(
-        DecisionContext(0, track, snaps, 1.0, DecisionPart(prediction=prediction))
+        DecisionContext(
+            0,
+            TrackSet(0, 0.0, "ekf", tracks=(track,)),
+            snaps,
+            1.0,
+            DecisionPart(prediction=prediction),
+        )
     )
     search = SearchSettings("sector", sector_levels=3)
     for command, (pid, limits, models) in zip(part.commands, strategy.platforms, strict=True):

@@ -192,10 +192,11 @@ def test_prediction_matches_advance_belief_and_renewal_from_particles():
 
 
 def test_ramdaras_limits_map_to_per_epoch_limits():
+    from activetrack.scenarios.build import platform_limits
     from activetrack.scenarios.schema import ManoeuvreLimits
 
     cfg = ManoeuvreLimits(a_max=2.0, psi_rate_max=0.05, v_min=5.0, v_max=15.0)
-    lim = PlatformLimits.from_config(cfg, 5.0)
+    lim = platform_limits(cfg, 5.0)
     assert (lim.dpsi_max, lim.dv_max, lim.v_min, lim.v_max) == (0.25, 10.0, 5.0, 15.0)
     lo, hi = speed_interval(12.0, lim)
     assert (float(lo), float(hi)) == (5.0, 15.0)
@@ -253,12 +254,13 @@ def test_bad_planner_inputs_raise_value_error_naming_the_argument():
         SearchSettings(search="cautious")
     with pytest.raises(ValueError, match="grid_size"):
         SearchSettings(grid_size=1)
+    from activetrack.scenarios.build import plan_settings
     from activetrack.scenarios.schema import PlannerConfig
 
     with pytest.raises(ValueError, match="planner.cost"):
-        PlanSettings.from_config(PlannerConfig(cost="mre"))
+        plan_settings(PlannerConfig(cost="mre"))
     with pytest.raises(ValueError, match="overrides"):
-        PlanSettings.from_config(PlannerConfig(), bogus=1)
+        plan_settings(PlannerConfig(), bogus=1)
 
 
 @pytest.mark.parametrize("criterion", ["trace", "det_pos"])

@@ -17,6 +17,7 @@ from activetrack.planning import (
     quadrant_search,
     sector_search,
 )
+from activetrack.scenarios.build import plan_settings
 
 
 def bowl(centre):
@@ -100,7 +101,7 @@ def test_evolution_search_finds_a_4d_minimum():
 def test_quadrant_decision_within_a_few_percent_of_the_101_grid():
     platforms, belief, F, Q = hernandez_decision()
     quad = plan(platforms, belief, PlanSettings(), F=F, Q=Q, dt=5.0)
-    grid_settings = PlanSettings.from_config(_cfg(), search="grid", grid_size=101)
+    grid_settings = plan_settings(_cfg(), search="grid", grid_size=101)
     grid = plan(platforms, belief, grid_settings, F=F, Q=Q, dt=5.0)
     assert quad.report.evaluations <= 34
     assert grid.report.evaluations == 101 * 101

@@ -27,7 +27,14 @@ READ_ONLY = {
 }
 RCLPY_OWN = {"use_sim_time", "start_type_description_service"}
 CHANGEABLE = {
-    "sim_node": {"rate", "command_timeout", "exit_when_done"},
+    "sim_node": {
+        "rate",
+        "command_timeout",
+        "exit_when_done",
+        "wait_for_subscribers",
+        "wait_for_topic",
+        "wait_for_nodes",
+    },
     "tracker_node": {"cloud_size", "epoch_timeout"},
     "planner_node": set(),
 }
@@ -158,7 +165,7 @@ def test_params_file_sets_node_and_wildcard_parameters(tmp_path):
         g.add(Node("probe", context=g.context)).create_subscription(
             PoseWithCovarianceStamped, "activetrack/track_pose", seen.append, 10
         )
-        tracker.publish_track(tracker.core.snapshot())
+        tracker.publish_tracks(tracker.core.snapshot())
         assert g.spin_until(lambda: seen, timeout=5.0)
         assert seen[0].header.frame_id == "map"
 
@@ -184,4 +191,94 @@ def test_a_bad_params_file_stops_the_node_before_it_publishes(tmp_path, line, me
     )
     assert proc.returncode == 2, proc.stderr
     assert message in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_an_integer_for_a_float_parameter_is_taken_at_run_time(graph, nodes):
+    """What the README promises for start-up holds for `ros2 param set /sim_node rate 5` too:
+    the integer is taken as that float (rclpy alone refuses it as the wrong type)."""
+    made, clients = nodes
+    sim = made["sim_node"]
+    result = _call(
+        graph,
+        clients["sim_node"].set_parameters(
+            [Parameter("rate", value=5), Parameter("command_timeout", value=3)]
+        ),
+    ).results
+    assert [r.successful for r in result] == [True, True], [r.reason for r in result]
+    assert (sim.rate, sim.timeout) == (5.0, 3.0)
+    assert isinstance(sim.rate, float) and isinstance(sim.timeout, float)
+    got = _call(graph, clients["sim_node"].get_parameters(["rate", "command_timeout"])).values
+    double = ParameterType.PARAMETER_DOUBLE
+    assert [(v.type, v.double_value) for v in got] == [(double, 5.0), (double, 3.0)]
+    # Out of range stays refused as an integer too; an integer parameter takes no float.
+    r = _call(graph, clients["sim_node"].set_parameters([Parameter("rate", value=0)])).results[0]
+    assert not r.successful and "out of range" in r.reason and sim.rate == 5.0
+    tracker = clients["tracker_node"]
+    r = _call(graph, tracker.set_parameters([Parameter("cloud_size", value=7.0)])).results[0]
+    assert not r.successful and "type" in r.reason
+
+
+@pytest.fixture
+def every_node(graph, nodes, tmp_path):
+    """The three nodes, the evaluator and the recorder, with parameter clients for all."""
+    from activetrack.scenarios import load_scenario
+    from activetrack_bringup.bag import BagRecorder
+    from activetrack_bringup.evaluator import EvaluatorNode
+
+    made, clients = nodes
+    made = dict(made)
+    made["activetrack_evaluator"] = graph.add(
+        EvaluatorNode(load_scenario(SCENARIO), context=graph.context)
+    )
+    made["activetrack_recorder"] = graph.add(BagRecorder(tmp_path / "bag", context=graph.context))
+    tool = graph.add(Node("param_tool_2", context=graph.context))
+    clients = {name: AsyncParameterClient(tool, name) for name in made}
+    for c in clients.values():
+        assert c.wait_for_services(timeout_sec=5.0)
+    return made, clients
+
+
+def test_use_sim_time_is_described_and_refused_on_every_node(graph, every_node):
+    """rclpy's use_sim_time, writable and undescribed by default, froze a free run's clock
+    when set: on every node of the graph it is read-only, described, and stays false."""
+    made, clients = every_node
+    for name, client in clients.items():
+        d = _call(graph, client.describe_parameters(["use_sim_time"])).descriptors[0]
+        assert d.read_only and "wall time" in d.description, name
+        assert d.type == ParameterType.PARAMETER_BOOL
+        r = _call(graph, client.set_parameters([Parameter("use_sim_time", value=True)]))
+        assert not r.results[0].successful and "read-only" in r.results[0].reason, name
+        got = _call(graph, client.get_parameters(["use_sim_time"])).values[0]
+        assert got.bool_value is False and not made[name].get_clock().ros_time_is_active
+
+
+def test_evaluator_and_recorder_answer_parameter_services(graph, every_node, tmp_path):
+    _, clients = every_node
+    expected = {
+        "activetrack_evaluator": {
+            "scenario", "run", "frame_id", "report_grace", "summary", "exit_when_done",
+        },
+        "activetrack_recorder": {"bag", "topics", "depth", "clock_lead"},
+    }  # fmt: skip
+    for name, ours in expected.items():
+        listed = set(_call(graph, clients[name].list_parameters()).result.names) - RCLPY_OWN
+        assert listed == ours, name
+        for d in _call(graph, clients[name].describe_parameters(sorted(ours))).descriptors:
+            assert len(d.description) > 20, (name, d.name)
+            assert d.read_only == (d.name != "exit_when_done"), (name, d.name)
+    bag = _call(graph, clients["activetrack_recorder"].get_parameters(["bag"])).values[0]
+    assert bag.string_value == str(tmp_path / "bag")
+
+
+def test_use_sim_time_true_at_start_up_stops_the_node():
+    exe = Path(sys.executable).parent / "sim_node"
+    proc = subprocess.run(
+        [str(exe), "--ros-args", "-p", f"scenario:={SCENARIO}", "-p", "use_sim_time:=true"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 2, proc.stderr
+    assert "parameter 'use_sim_time' must be false for sim_node" in proc.stderr
     assert "Traceback" not in proc.stderr

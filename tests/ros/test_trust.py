@@ -6,9 +6,9 @@ import sys
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from message_examples import MESSAGE_TYPES, example_messages
 from rclpy.serialization import deserialize_message, serialize_message
 
-from activetrack_bringup.examples import MESSAGE_TYPES, example_messages
 from activetrack_bringup.interrupts import Terminated
 from activetrack_ros.convert import header
 from activetrack_ros.node_base import GraphNode, RateLimitedLog, Rejected

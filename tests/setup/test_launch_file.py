@@ -4,8 +4,10 @@ package named ``launch`` is unrelated):
 - it imports launch APIs only (AST);
 - run against stand-ins of those APIs that record every call, it starts each node from an
   executable that is a console script of that package (setup.py), and every parameter it passes
-  is one the node declares (the nodes are built in-process on a scenario and asked);
-- every launch configuration it reads is a declared launch argument;
+  is one the node declares (the nodes are built in-process on a scenario and asked), with the
+  node's own default as the argument's default;
+- every launch configuration it reads is a declared launch argument, and every option of
+  ``activetrack run`` is one of its arguments or named here with the reason it is not;
 - setup.py installs it into share/activetrack_bringup/launch (data_files).
 """
 
@@ -30,6 +32,33 @@ NODE_CLASSES = {
     "sim_node": "sim_node.sim_node:SimNode",
     "tracker_node": "tracker_node.tracker_node:TrackerNode",
     "planner_node": "planner_node.planner_node:PlannerNode",
+    "activetrack_evaluator": "activetrack_bringup.standalone:activetrack_evaluator",
+    "activetrack_recorder": "activetrack_bringup.standalone:activetrack_recorder",
+}
+# Each option of `activetrack run` (argparse dest): the launch arguments that carry it, or why
+# launch has none. A new option fails test_every_run_option_is_a_launch_argument until added.
+RUN_OPTIONS = {
+    "scenario": ("scenario",),
+    "namespace": ("namespace",),
+    "run": ("run",),
+    "mode": ("mode",),
+    "rate": ("rate",),
+    "filter": ("filter",),
+    "wait_for": ("wait_for_subscribers", "wait_for_topic"),
+    "no_bag": ("recorder",),
+    "json": ("summary",),
+}
+NOT_IN_LAUNCH = {
+    "processes": "launch always starts one process per node",
+    "nodes": "launch starts every node; on other hosts, launch there",
+    "out": "a run folder is the runner's: bag and summary take their own paths",
+    "no_plots": "the PNG plots are drawn by the runner from its summary",
+    "timeout": "the runner's wall-clock limit; a launch runs until stopped (exit)",
+    "wait_timeout": "the runner's limit of --wait-for; under launch the sim waits until told",
+    "foxglove": "the live view is the runner's (foxglove_bridge on a full install)",
+    "port": "the live view's",
+    "host": "the live view's",
+    "foxglove_wait": "the live view's",
 }
 
 
@@ -142,9 +171,62 @@ def _nodes(calls) -> list[Recorded]:
     return nodes
 
 
-def test_starts_the_three_nodes(launched):
+def test_starts_the_graph_the_evaluator_and_the_recorder(launched):
     started = sorted((n.kwargs["package"], n.kwargs["executable"]) for n in _nodes(launched))
-    assert started == sorted((p, p) for p in NODE_CLASSES)
+    bringup = "activetrack_bringup"
+    assert started == sorted(
+        (bringup if name.startswith("activetrack_") else name, name) for name in NODE_CLASSES
+    )
+    optional = {
+        n.kwargs["executable"]: n.kwargs["condition"].args[0].args
+        for n in _nodes(launched)
+        if "condition" in n.kwargs
+    }
+    assert optional == {"activetrack_evaluator": ("evaluator",),
+                        "activetrack_recorder": ("recorder",)}  # fmt: skip
+
+
+def _arguments(calls) -> dict[str, str | None]:
+    """Declared launch argument -> its default (None: required)."""
+    return {
+        a.args[0]: a.kwargs.get("default_value")
+        for a in _made(calls, "launch.actions.DeclareLaunchArgument")
+    }
+
+
+def test_every_run_option_is_a_launch_argument(launched):
+    from activetrack_bringup.cli import build_parser
+
+    run = next(
+        p for a in build_parser()._subparsers._group_actions for n, p in a.choices.items()
+        if n == "run"
+    )  # fmt: skip
+    options = {a.dest for a in run._actions if a.dest != "help"}
+    assert options == set(RUN_OPTIONS) | set(NOT_IN_LAUNCH), "map each run option here"
+    assert not set(RUN_OPTIONS) & set(NOT_IN_LAUNCH)
+    declared = _arguments(launched)
+    carried = {a for names in RUN_OPTIONS.values() for a in names}
+    assert carried <= set(declared)
+    # ... and each launch argument carries a run option, or a setting of the graph's nodes.
+    assert set(declared) - carried == {"frame_id", "exit", "evaluator", "bag"}
+
+
+def test_exit_ends_the_launch_when_the_run_is_done(launched):
+    handlers = _made(launched, "launch.actions.RegisterEventHandler")
+    targets = {}
+    for h in handlers:
+        on_exit = h.args[0]
+        assert on_exit.api == "launch.event_handlers.OnProcessExit"
+        target = on_exit.kwargs["target_action"].kwargs["executable"]
+        (emit,) = on_exit.kwargs["on_exit"]
+        assert emit.kwargs["event"].api == "launch.events.Shutdown"
+        condition = h.kwargs["condition"].args[0]  # IfCondition(AndSubstitution(exit, when))
+        assert condition.api == "launch.substitutions.AndSubstitution"
+        targets[target] = condition.args
+    exit_arg, when = targets["activetrack_evaluator"]
+    assert exit_arg.args == ("exit",) and when.args == ("evaluator",)
+    exit_arg, when = targets["sim_node"]
+    assert exit_arg.args == ("exit",) and when.api == "launch.substitutions.NotSubstitution"
 
 
 def test_every_executable_is_a_console_script_of_its_package(launched):
@@ -171,7 +253,7 @@ def test_namespace_and_launch_arguments(launched):
 
 
 @pytest.fixture(scope="module")
-def declared_parameters():
+def declared_parameters(tmp_path_factory):
     """The parameters each node declares, asked from the nodes themselves on a scenario."""
     pytest.importorskip("rclpy", reason="needs the workspace venv (make setup)")
     from rclpy.parameter import Parameter
@@ -179,31 +261,74 @@ def declared_parameters():
     from activetrack_bringup.inprocess import InProcessGraph
 
     out = {}
+    bag = tmp_path_factory.mktemp("launch") / "bag"
     with InProcessGraph() as graph:
         for package, target in NODE_CLASSES.items():
             module, _, cls = target.partition(":")
             node_class = getattr(importlib.import_module(module), cls)
+            given = (
+                ("bag", str(bag)) if package == "activetrack_recorder" else ("scenario", SCENARIO)
+            )
             node = graph.add(
                 node_class(
                     context=graph.context,
-                    parameter_overrides=[Parameter("scenario", value=SCENARIO)],
+                    parameter_overrides=[Parameter(given[0], value=given[1])],
                     start_parameter_services=False,
                 )
             )
-            out[package] = set(node._parameters)
+            out[package] = {n: p.value for n, p in node._parameters.items()}
     return out
 
 
 def test_every_parameter_is_declared_by_its_node(launched, declared_parameters):
+    defaults = _arguments(launched)
     for node in _nodes(launched):
-        package = node.kwargs["package"]
-        passed = set()
+        name = node.kwargs["executable"]
+        passed = {}
         for entry in node.kwargs.get("parameters", []):
-            assert isinstance(entry, dict), f"{package}: parameters given other than by name"
-            passed |= set(entry)
-        assert {"scenario", "run"} <= passed
-        unknown = passed - declared_parameters[package]
-        assert not unknown, f"{package} declares no parameter {unknown}"
+            assert isinstance(entry, dict), f"{name}: parameters given other than by name"
+            passed |= entry
+        assert name == "activetrack_recorder" or {"scenario", "run"} <= set(passed)
+        unknown = set(passed) - set(declared_parameters[name])
+        assert not unknown, f"{name} declares no parameter {unknown}"
+        # A launch argument's default is the node's (scenario and bag: required).
+        for param, value in passed.items():
+            typed = _perform(value, defaults)
+            if typed is None or param == "bag" or value.args[0].api.endswith("Expression"):
+                continue  # a required argument, or one computed from several
+            assert typed == declared_parameters[name][param], (name, param)
+
+
+def _perform(value, arguments: dict):
+    """A recorded ParameterValue evaluated as launch would, given the arguments' values (None
+    if a required one has none): LaunchConfiguration, AndSubstitution, NotSubstitution,
+    PythonExpression."""
+
+    def text(sub) -> str | None:
+        kind = sub.api.rsplit(".", 1)[1]
+        if kind == "LaunchConfiguration":
+            return arguments[sub.args[0]]
+        if kind == "PythonExpression":  # launch evaluates the concatenated text
+            return str(eval("".join(p if isinstance(p, str) else text(p) for p in sub.args[0])))
+        parts = [text(a) for a in sub.args]
+        if None in parts:
+            return None
+        truth = [{"true": True, "false": False}[p] for p in parts]
+        return str(all(truth) if kind == "AndSubstitution" else not truth[0]).lower()
+
+    (sub,) = value.args
+    raw, value_type = text(sub), value.kwargs["value_type"]
+    if raw is None:
+        return None
+    return {"true": True, "false": False}[raw] if value_type is bool else value_type(raw)
+
+
+def test_run_rate_range_is_the_sims(declared_parameters):
+    from activetrack_bringup.cli_types import SIM_RATE_RANGE
+    from sim_node.sim_node import PARAMS
+
+    rate = next(p for p in PARAMS if p.name == "rate")
+    assert SIM_RATE_RANGE == (rate.low, rate.high)
 
 
 def test_setup_installs_the_launch_file():
@@ -237,3 +362,77 @@ def test_setup_installs_the_launch_file():
         rel = str(path.relative_to(BRINGUP))
         assert ("share/activetrack_bringup/launch", rel) in installed, f"{rel} is not installed"
         assert path.is_file()
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_the_launch_description_runs_the_graph_evaluator_and_recorder(launched, tmp_path):
+    """What ros2 launch would start, started here from the recorded description (each node's
+    parameters as a params file, as launch_ros passes them), in a namespace with exit:=true: the
+    evaluator writes the summary of the whole run, equal to activetrack batch, and exits; the
+    recorder's bag holds the run from sim time 0."""
+    import json
+    import os
+    import signal
+    import subprocess
+
+    import yaml
+
+    from activetrack.closed_loop.batch import run_batch
+    from activetrack.scenarios import load_scenario
+    from activetrack_bringup.bag import bag_info
+    from activetrack_ros.trust import GraphKey
+
+    scenario = str(ROOT / "tests" / "ros" / "data" / "short_two_sensors.yaml")
+    given = {"scenario": scenario, "namespace": "l27", "exit": "true",
+             "summary": str(tmp_path / "summary.json"), "bag": str(tmp_path / "bag")}  # fmt: skip
+    values = {**_arguments(launched), **given}
+    env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ACTIVETRACK_GRAPH_KEY"] = GraphKey.generate().hex()
+    procs = {}
+    logs = {}
+    try:
+        for node in _nodes(launched):
+            name = node.kwargs["executable"]
+            logs[name] = open(tmp_path / f"{name}.log", "w")
+            params = {}
+            for entry in node.kwargs["parameters"]:
+                params |= {param: _perform(value, values) for param, value in entry.items()}
+            path = tmp_path / f"{name}.yaml"
+            path.write_text(yaml.safe_dump({"/**": {"ros__parameters": params}}))
+            exe = Path(sys.executable).parent / name
+            procs[name] = subprocess.Popen(
+                [str(exe), "--ros-args", "-r", f"__ns:=/{values['namespace']}",
+                 "--params-file", str(path)],
+                env=env, stdout=subprocess.DEVNULL, stderr=logs[name], text=True,
+            )  # fmt: skip
+        evaluator = procs["activetrack_evaluator"]
+        assert evaluator.wait(timeout=120) == 0, (
+            tmp_path / "activetrack_evaluator.log"
+        ).read_text()
+        assert procs["sim_node"].poll() is None  # with an evaluator, the sim waits for Shutdown
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)  # what launch's Shutdown sends
+        for proc in procs.values():
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    batch = run_batch(load_scenario(scenario)).to_json()
+    for key in (
+        "time_avg_rmse_x",
+        "time_avg_rmse_y",
+        "time_avg_bound_x",
+        "time_avg_bound_y",
+        "rmse_x_t",
+        "rmse_y_t",
+        "mean_gospa",
+    ):
+        assert summary[key] == batch[key], key
+    info = bag_info(tmp_path / "bag")
+    assert info["intact"] and info["duration_s"] == 40.0
+    assert info["topics"]["/l27/activetrack/platform_states"]["count"] == 2 * 9

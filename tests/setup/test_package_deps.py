@@ -87,8 +87,8 @@ PIP_ONLY = {
     "zstandard": "zstandard",
     "foxglove": "foxglove-sdk",
     "filterpy": "filterpy",
-    "distributed": "distributed",  # Dask's cluster client (activetrack.montecarlo_dask)
-    "dask": "dask",  # its configuration (activetrack.montecarlo_dask)
+    "distributed": "distributed",  # Dask's cluster client (activetrack.montecarlo.dask)
+    "dask": "dask",  # its configuration (activetrack.montecarlo.dask)
     "llvmlite": "llvmlite",  # numba's LLVM binding (activetrack.kernels.pcg64's intrinsic)
 }
 # Declared but not imported, on purpose: (package, rosdep key or pip name) -> why.
@@ -330,3 +330,12 @@ def test_imports_are_found(tmp_path):
         "activetrack_experiments",
         "geometry_msgs",
     }
+
+
+def test_test_tooling_stays_out_of_the_shipped_packages():
+    """Foreign traffic and message examples are test tooling users do not run: they live in
+    tests/tools (tests and benchmarks import them from there), not in an installed package."""
+    tools = {"adversary", "message_examples", "examples"}
+    shipped = sorted(str(p.relative_to(SRC)) for p in SRC.rglob("*.py") if p.stem in tools)
+    assert not shipped, f"test tooling in the shipped packages: {shipped}"
+    assert {p.stem for p in (SRC.parent / "tests" / "tools").glob("*.py")} >= tools - {"examples"}

@@ -10,7 +10,7 @@ thresholds makes freed blocks reusable. Results do not change, only speed.
 Applied once when ``activetrack`` is imported, on glibc only; skipped when the user set any
 ``MALLOC_*`` variable (theirs wins) or ``ACTIVETRACK_MALLOC_TUNING=0``. A Dask worker's
 ``MALLOC_TRIM_THRESHOLD_`` comes from Dask's own defaults, not from the user: the Monte Carlo
-tasks name it in ``ignore`` (activetrack.montecarlo_dask).
+tasks name it in ``ignore`` (activetrack.montecarlo.dask).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ _applied: bool | None = None
 
 def allocator_tuned() -> bool:
     """Whether :func:`tune_allocator` applied the tuning in this process (a Dask worker does
-    the same for a client that did: activetrack.montecarlo_dask)."""
+    the same for a client that did: activetrack.montecarlo.dask)."""
     return bool(_applied)
 
 

@@ -84,9 +84,9 @@ SCHEDULER_HELP = (
 
 def scheduler_address(text: str) -> str:
     """The ``--scheduler`` type: a Dask scheduler address that answers (``tcp://host:port``),
-    checked by :func:`activetrack.montecarlo_dask.check_scheduler`, so a wrong or unreachable
+    checked by :func:`activetrack.montecarlo.dask.check_scheduler`, so a wrong or unreachable
     one is a usage error (``error: argument --scheduler: cannot reach ...``) before any work."""
-    from activetrack.montecarlo_dask import SchedulerError, check_scheduler
+    from activetrack.montecarlo.dask import SchedulerError, check_scheduler
 
     try:
         return check_scheduler(text)

@@ -103,7 +103,7 @@ class Scan:
     time: float
     sensor_pv: np.ndarray
     Z: np.ndarray
-    fov: FieldOfView = FieldOfView()  # noqa: RUF009 (frozen: one shared default is safe)
+    fov: FieldOfView = FieldOfView()
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,14 @@ from rosgraph_msgs.msg import Clock
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, check_rate, open_bag
 from activetrack_ros import graph as topics
-from activetrack_ros.graph import GRAPH_TOPICS, reader_qos, writer_qos
+from activetrack_ros.graph import (
+    GRAPH_TOPICS,
+    MAX_HISTORY_DEPTH,
+    graph_topic_of,
+    reader_qos,
+    writer_qos,
+)
+from activetrack_ros.params import ParamSpec, declare, fix_use_sim_time, warn_unknown
 from activetrack_ros.trust import is_signed_type
 
 
@@ -163,6 +170,42 @@ def first_stamp_ns(data: bytes) -> int:
     return sec * 1_000_000_000 + nanosec
 
 
+def recorder_params(path, topic_types, depth, clock_lead) -> tuple[ParamSpec, ...]:
+    """A recorder's parameters, defaulting to its constructor's arguments."""
+    return (
+        ParamSpec(
+            "bag", "" if path is None else str(path),
+            "the rosbag2 directory to write (must not exist yet)", required=True,
+        ),
+        ParamSpec(
+            "topics", " ".join(topic_types or ()),
+            "graph topics recorded, relative names separated by spaces (empty: all of them)",
+        ),
+        ParamSpec(
+            "depth", int(depth or 0),
+            "history depth written as the per-epoch topics' offered QoS (0: the tools' default)",
+            low=0, high=MAX_HISTORY_DEPTH,
+        ),
+        ParamSpec(
+            "clock_lead", float(clock_lead),
+            "with a graph key: seconds a /clock may lead the newest stamp of the graph's own "
+            "messages to be taken as the log time",
+            low=0.0, high=1e9,
+        ),
+    )  # fmt: skip
+
+
+def recorded_topics(names: str) -> dict[str, str]:
+    """Graph topic -> type for a recorder's ``topics`` parameter ('' : every graph topic)."""
+    if not names.strip():
+        return dict(GRAPH_TOPICS)
+    unknown = [t for t in names.split() if graph_topic_of(t) is None]
+    if unknown:
+        raise ValueError(f"parameter 'topics' must name graph topics {sorted(GRAPH_TOPICS)}; "
+                         f"got {unknown}")  # fmt: skip
+    return {graph_topic_of(t): GRAPH_TOPICS[graph_topic_of(t)] for t in names.split()}
+
+
 class BagRecorder(Node):
     """Subscribes to topics (raw CDR) and writes them to a rosbag2 directory (MCAP) that stays
     readable while it grows; ``close()`` finishes it (summary, final metadata.yaml).
@@ -180,13 +223,17 @@ class BagRecorder(Node):
     writer's clock can shift log times by less than an epoch, never reorder or stretch the
     run (``clock_refused`` counts the values not taken). ``depth``: the history depth written
     as the per-epoch topics' offered QoS (the run's, graph.history_depth).
+
+    The arguments are the defaults of read-only parameters (``bag``, ``topics``, ``depth``,
+    ``clock_lead``: :func:`recorder_params`), so ``param describe`` shows what the recorder
+    does and a standalone recorder (``activetrack_recorder``) takes them from ``--ros-args``.
     """
 
     TICK_S = 0.25  # timer period: closes chunks older than 0.5 s, rewrites metadata.yaml (1 s)
 
     def __init__(
         self,
-        path: str | Path,
+        path: str | Path | None = None,
         topic_types: dict[str, str] | None = None,
         *,
         graph_key=None,
@@ -195,8 +242,16 @@ class BagRecorder(Node):
         **kwargs,
     ):
         super().__init__("activetrack_recorder", **kwargs)
-        self.path = Path(path)
-        self.topic_types = dict(topic_types or GRAPH_TOPICS)
+        try:  # the arguments are the parameters' defaults: a standalone recorder sets them
+            fix_use_sim_time(self)
+            p = declare(self, recorder_params(path, topic_types, depth, clock_lead))
+            warn_unknown(self)
+            self.topic_types = recorded_topics(p["topics"])
+        except ValueError:
+            super().destroy_node()
+            raise
+        self.path = Path(p["bag"])
+        depth, clock_lead = p["depth"] or None, p["clock_lead"]
         schemas = graph_schemas(self.topic_types.values())
         names = {t: self.resolve_topic_name(t) for t in self.topic_types}
         specs = [

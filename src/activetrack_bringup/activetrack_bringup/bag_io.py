@@ -404,6 +404,22 @@ class Bag:
             self._meta(f"{meta} does not list topics {', '.join(unlisted)} (stale or damaged)")
         if recording and not unfinished:
             self._meta(f"{meta} is from a recording in progress (stale: the file was closed)")
+        if not (recording or unfinished):
+            self._compare_span(info, meta)
+
+    def _compare_span(self, info: dict, meta: Path) -> None:
+        """A closed bag's metadata.yaml gives its messages' start and duration (bags written
+        before a start of 0 counted as a start said 10 s later: `bag recover` rewrites them)."""
+        start = (info.get("starting_time") or {}).get("nanoseconds_since_epoch")
+        duration = (info.get("duration") or {}).get("nanoseconds")
+        if not self.message_count or not all(isinstance(v, int) for v in (start, duration)):
+            return
+        if abs(start - self.start_time) > 1 or abs(duration - self.duration_ns) > 1:
+            self._meta(
+                f"{meta} gives start {start * 1e-9:.9g} s and duration {duration * 1e-9:.9g} s; "
+                f"the messages start at {self.start_time * 1e-9:.9g} s and span "
+                f"{self.duration_ns * 1e-9:.9g} s"
+            )
 
     def _meta(self, text: str) -> None:
         self.damage.append(Damage(METADATA, text))

@@ -2,6 +2,7 @@
 
 activetrack run SCENARIO [--processes] [--mode lockstep|free] [--json PATH]
                 [--foxglove [--port P] [--host H]] [--nodes [NAME ...]]
+                [--rate R] [--filter NAME] [--wait-for N|TOPIC [--wait-timeout S]]
                                         the ROS node graph, closed loop, with a run folder
                                         (and a live view in Foxglove; --nodes: only these
                                         node processes here, the others on other hosts)
@@ -17,6 +18,9 @@ activetrack bag retrack BAG --scenario S
                                         replay a run's measurements into a fresh tracker
 activetrack bag recover BAG             rebuild a readable bag from a damaged/unfinished one
 activetrack reproduce NAME [ARGS...]    reproduce a paper's tables (hernandez, ...)
+activetrack ros graph|echo|hz|param|tf|bag [--namespace NS] [--domain D]
+                                        ROS 2 command-line stand-ins on a running graph
+                                        (docs/ros-tools.md)
 """
 
 from __future__ import annotations
@@ -30,8 +34,10 @@ import sys
 from pathlib import Path
 
 from activetrack_bringup import cli_types, interrupts
+from activetrack_bringup.ros_tools.cli import add_ros_parser
 
 EXPERIMENTS = ("hernandez", "multitarget", "ramdaras", "valverde", "vanderhook")
+WAIT_TIMEOUT_S = 60.0  # --wait-for's default --wait-timeout
 LAYOUT = "docs/foxglove-layout.json"  # the Foxglove layout of a live run and of a bag
 
 
@@ -67,6 +73,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from activetrack_bringup.progress import Bar, epoch_hook
     from activetrack_bringup.runner import GraphSetupError, RunIncomplete, run_graph
 
+    if args.rate is not None and args.mode != "free":
+        return _error("--rate: sim seconds per wall second apply in free mode only (--mode free)")
+    if args.wait_timeout is not None and args.wait_for is None:
+        return _error("--wait-timeout needs --wait-for")
     try:
         live, view = _start_live_view(args)  # before the run: a port in use fails at once
     except ValueError as exc:  # LiveViewError, a bad namespace
@@ -87,6 +97,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
             **view,
             namespace=args.namespace,
             nodes=args.nodes,
+            sim_params={} if args.rate is None else {"rate": args.rate},
+            tracker_params={} if args.filter is None else {"filter": args.filter},
+            wait_for=args.wait_for,
+            wait_timeout=args.wait_timeout or WAIT_TIMEOUT_S,
+            announce=_announce(args),
         )
         code = 0
     except (ScenarioError, FileExistsError, GraphSetupError) as exc:
@@ -130,6 +145,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return code
 
 
+def _announce(args: argparse.Namespace):
+    """The run's ``announce`` hook: where its nodes talk (printed before the graph starts, so
+    that ROS tools can join), and what ``--wait-for`` waits for."""
+
+    def announce(network) -> None:
+        print(f"  ROS        {network.describe()}", flush=True)
+        if args.wait_for is not None:
+            print(
+                f"  waiting up to {args.wait_timeout or WAIT_TIMEOUT_S:g} s for --wait-for "
+                f"{args.wait_for} before the first epoch",
+                flush=True,
+            )
+
+    return announce
+
+
 def _start_live_view(args: argparse.Namespace):
     """``--foxglove``: the live view's server, listening already, and the run_graph options
     that add its node to the graph (docs/live-view.md); (None, {}) without it."""
@@ -159,6 +190,32 @@ def _start_live_view(args: argparse.Namespace):
         server.stop()
         raise
     return server, {"graph_key": key, "before_spin": live_view.attach(server, key, namespace)}
+
+
+def _add_node_setting_args(run) -> None:
+    """``activetrack run ... [--rate R] [--filter NAME] [--wait-for N|TOPIC [--wait-timeout
+    S]]``: node settings the launch file takes too (tests/setup/test_launch_file.py)."""
+    run.add_argument(
+        "--rate",
+        type=cli_types.sim_rate,
+        help="free mode: sim seconds per wall second (the sim's rate parameter; default 1)",
+    )
+    run.add_argument(
+        "--filter", help="the tracker's filter: ekf, pf or a plugin's (default: the scenario's)"
+    )
+    run.add_argument(
+        "--wait-for",
+        metavar="N|TOPIC",
+        help="hold the first epoch until N nodes outside the graph subscribe to its topics, or "
+        "one subscribes to TOPIC (a viewer that must see the start)",
+    )
+    run.add_argument(
+        "--wait-timeout",
+        type=cli_types.timeout,
+        metavar="S",
+        help=f"--wait-for: fail if they have not joined after S seconds (default "
+        f"{WAIT_TIMEOUT_S:g})",
+    )
 
 
 def _add_live_view_args(run) -> None:
@@ -217,7 +274,7 @@ class _CommandError(Exception):
 def _scheduler_errors():
     """A Dask cluster that fails once the command runs (no worker joined, a worker without a
     module or with other versions): an ``error: --scheduler ...`` line, exit code 2."""
-    from activetrack.montecarlo_dask import SchedulerError, WorkerSetupError
+    from activetrack.montecarlo.dask import SchedulerError, WorkerSetupError
 
     try:
         yield
@@ -447,6 +504,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--timeout", type=cli_types.timeout, default=600.0, help="wall seconds (default 600)"
     )
     run.add_argument("--json", help="also write the summary to this JSON file")
+    _add_node_setting_args(run)
     _add_live_view_args(run)
     run.set_defaults(func=_cmd_run)
 
@@ -482,6 +540,7 @@ def build_parser() -> argparse.ArgumentParser:
     play.set_defaults(func=_cmd_play)
 
     _add_bag_parser(sub)
+    add_ros_parser(sub, _add_bag_parser)
 
     rep = sub.add_parser("reproduce", help="reproduce a paper's tables and figures")
     rep.add_argument("name", choices=EXPERIMENTS)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -41,8 +42,10 @@ from activetrack.data import (
     PlanReportData,
     Scan,
     TrackSet,
+    heading_speed,
 )
 from activetrack.planning.manoeuvre import step_platform
+from activetrack.scenarios import load_scenario
 from activetrack.scenarios.build import build_motion_model
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import (
@@ -61,6 +64,7 @@ from activetrack_ros.convert import (
     truth_array_from_msg,
 )
 from activetrack_ros.node_base import GraphNode, Rejected
+from activetrack_ros.params import FRAME_ID, RUN, SCENARIO, ParamSpec
 from msgs_defs.msg import BeamCommand as BeamCommandMsg
 from msgs_defs.msg import (
     GroundTruthArray,
@@ -108,15 +112,48 @@ class EpochTable:
         return self.values[: last + 1]
 
 
+def evaluator_params(scenario_given: bool, report_grace_s: float) -> tuple[ParamSpec, ...]:
+    """An evaluator's parameters (what ``ros2 param describe`` shows of it). ``scenario`` is
+    required unless the runner hands the node its scenario (and names the file)."""
+    return (
+        replace(SCENARIO, required=not scenario_given),
+        RUN,
+        FRAME_ID,
+        ParamSpec(
+            "report_grace", float(report_grace_s),
+            "seconds to wait for missing plan reports once the sim has finished",
+            low=0.0, high=3600.0,
+        ),
+        ParamSpec(
+            "summary", "",
+            "standalone evaluator (activetrack_evaluator): write the run's summary.json here "
+            "when it completes (empty: none; under activetrack run the runner writes it)",
+        ),
+        ParamSpec(
+            "exit_when_done", False,
+            "standalone evaluator: exit once the run is complete (changeable)", read_only=False,
+        ),
+    )  # fmt: skip
+
+
 class EvaluatorNode(GraphNode):
     """Collects a run per epoch (module docstring); ``record()`` gives it. Also the graph's
     result messages checked as faults, the nodes' counters from /diagnostics, and when the sim
     said it finished."""
 
     def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
+        """``scenario``: the run's scenario, or None to load the file its ``scenario``
+        parameter names (a standalone evaluator)."""
         super().__init__("activetrack_evaluator", **kwargs)
+        changes = {"exit_when_done": self._set_exit_when_done}
+        p = self.declare_params(evaluator_params(scenario is not None, report_grace_s), changes)
+        if scenario is None:
+            scenario = load_scenario(p["scenario"])
         self.scenario = scenario
-        self.report_grace_s = report_grace_s
+        self.run_index = None if p["run"] < 0 else p["run"]
+        self.report_grace_s = p["report_grace"]
+        self.summary_path = p["summary"]
+        self.exit_when_done = p["exit_when_done"]
         self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
         self.diagnostics_order: dict[str, tuple] = {}
         self.sim_finished_at: float | None = None
@@ -173,6 +210,9 @@ class EvaluatorNode(GraphNode):
         ):
             self.subscribe(msg_type, topic, lambda m, cb=callback: self._result_input(cb, m))
 
+    def _set_exit_when_done(self, value: bool) -> None:
+        self.exit_when_done = value
+
     def _result_input(self, check, msg) -> None:
         """Run ``check(msg)``; a message of the graph's own that fails it (other than as a
         duplicate) is a fault of the graph: the runner stops the run instead of waiting."""
@@ -215,7 +255,9 @@ class EvaluatorNode(GraphNode):
         tracks = self.check_tracks(msg)
         if tracks.epoch in self.tracks:
             raise Rejected("duplicate", f"second track array of epoch {tracks.epoch}")
-        self.tracks[tracks.epoch] = tracks
+        # Without the planner's posterior samples: a run keeps results, not messages (a PF
+        # track's samples are kB an epoch; the record and the figures never read them).
+        self.tracks[tracks.epoch] = tracks.without_samples()
         self._close_epochs()
 
     def on_platform(self, msg: PlatformState) -> None:
@@ -242,8 +284,11 @@ class EvaluatorNode(GraphNode):
         check_epoch_stamp(msg, self.scenario, what)
         finite((msg.heading_change,), f"{what} heading_change", math.pi + 1e-9)
         finite((msg.speed_change,), f"{what} speed_change", MAX_SPEED)
-        finite((msg.commanded_heading,), f"{what} heading", 4 * math.pi)
-        finite((msg.commanded_speed,), f"{what} speed", MAX_SPEED)
+        # NaN: not given (a command to hold course, Command's default); else a real value.
+        if not math.isnan(msg.commanded_heading):
+            finite((msg.commanded_heading,), f"{what} heading", 4 * math.pi)
+        if not math.isnan(msg.commanded_speed):
+            finite((msg.commanded_speed,), f"{what} speed", MAX_SPEED)
         finite((msg.waypoint.x, msg.waypoint.y), f"{what} waypoint", MAX_COORDINATE)
         commands = self.commands.setdefault(msg.epoch, {})
         if msg.platform_id in commands:
@@ -410,9 +455,12 @@ class EvaluatorNode(GraphNode):
             self.undrawn[msg.platform_id, msg.epoch] = msg  # drawn when that state arrives
             return
         pv = self.platforms.values[msg.epoch, j]
-        end, _ = step_platform(
-            pv, msg.commanded_heading, (0.0, msg.commanded_speed), self.scenario.dt
-        )
+        heading, speed = msg.commanded_heading, msg.commanded_speed
+        if math.isnan(heading) or math.isnan(speed):  # not given: the changes say where
+            now_heading, now_speed = heading_speed(pv)
+            heading = now_heading + msg.heading_change if math.isnan(heading) else heading
+            speed = now_speed + msg.speed_change if math.isnan(speed) else speed
+        end, _ = step_platform(pv, heading, (0.0, speed), self.scenario.dt)
         hdr = header(msg.epoch * self.scenario.dt, self.frame_id)
         size = self.marker_size
         leg = marker(hdr, "next_leg", j, Marker.ARROW, LEG_RGBA, (pv[[0, 2]], end[[0, 2]]))

@@ -41,6 +41,7 @@ SERVER_NAME = "activetrack"
 NODE_NAME = "activetrack_live_view"
 # Messages buffered per client: a lockstep run publishes in bursts far faster than real time.
 BACKLOG = 16384
+STOPPED = "activetrack: the run is over, the live view stops (its bag holds the whole run)"
 
 
 class LiveViewError(ValueError):
@@ -125,6 +126,12 @@ class LiveServer:
         self.server.broadcast_time(time_ns)
 
     def stop(self) -> None:
+        """Tell the clients the run is over (a Foxglove status message), unadvertise the
+        channels and stop: the server sends each client a WebSocket close frame (foxglove-sdk
+        sends it without a status code, which RFC 6455 allows: clients report 1005)."""
+        from foxglove.websocket import StatusLevel
+
+        self.server.publish_status(STOPPED, StatusLevel.Info, id="activetrack-stopped")
         for channel in self.channels.values():
             channel.close()
         self.server.stop()
@@ -188,7 +195,6 @@ def attach(server: LiveServer, graph_key, namespace: str = ""):
                 server,
                 graph_key=graph_key,
                 context=graph.context,
-                start_parameter_services=False,
                 **options,
             )
         )

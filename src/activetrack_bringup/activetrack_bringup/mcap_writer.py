@@ -106,9 +106,10 @@ class McapWriter:
         self._chunk_end = 0
         self._chunk_opened_mono = 0  # monotonic clock then (the timer's age: no clock jumps)
         self._seq: dict[int, int] = defaultdict(int)
-        # What is on disk (complete chunks): counts per channel and time range.
+        # What is on disk (complete chunks): counts per channel and time range (None: no
+        # message yet; a start of 0, e.g. sim time 0, is a start like any other).
         self.flushed_counts: dict[int, int] = defaultdict(int)
-        self.flushed_start = 0
+        self.flushed_start: int | None = None
         self.flushed_end = 0
         self.written = 0  # messages handed to write()
         self.started = False
@@ -219,7 +220,7 @@ class McapWriter:
         counts = self.flushed_counts
         for channel_id, entries in index.items():
             counts[channel_id] += len(entries) // 2
-        if not self.flushed_start or start < self.flushed_start:
+        if self.flushed_start is None or start < self.flushed_start:
             self.flushed_start = start
         self.flushed_end = max(self.flushed_end, end)
 
@@ -339,7 +340,7 @@ class McapWriter:
                     chunk_count=len(self._chunk_indexes),
                     message_count=sum(counts.values()),
                     message_end_time=self.flushed_end,
-                    message_start_time=self.flushed_start,
+                    message_start_time=0 if self.flushed_start is None else self.flushed_start,
                     metadata_count=self._metadata_count,
                     schema_count=len(self._schemas),
                 )

@@ -27,14 +27,16 @@ from rclpy.parameter import Parameter
 from activetrack.closed_loop.batch import BatchSummary, summarize
 from activetrack.closed_loop.components import component_rngs
 from activetrack.closed_loop.evaluation import evaluate_run
-from activetrack.scenarios import load_scenario
+from activetrack.scenarios import first_epochs, load_scenario
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.inprocess import InProcessGraph
+from activetrack_bringup.ros_network import RosNetwork, ros_network
 from activetrack_bringup.run_folder import run_dir_for
 from activetrack_bringup.supervisor import NodeDied, Supervisor
 from activetrack_ros.graph import history_depth
+from activetrack_ros.hold import MATCH_WAIT_S, SETTLE_S, WaitFor
 from activetrack_ros.trust import KEY_BYTES, KEY_ENV, GraphKey
 from planner_node.planner_node import PlannerNode
 from sim_node.sim_node import SimNode
@@ -54,6 +56,10 @@ class GraphSetupError(ValueError):
 
 class RemoteNodesMissing(RuntimeError):
     """Nodes meant to run on other hosts did not join the graph in time."""
+
+
+class ViewersMissing(RuntimeError):
+    """The outside subscribers ``--wait-for`` asked for did not join in time."""
 
 
 class GraphFault(RuntimeError):
@@ -88,6 +94,7 @@ class GraphRun:
     epochs_completed: int = 0
     foreign: dict = field(default_factory=dict)  # node -> foreign messages dropped
     restarts: dict = field(default_factory=dict)
+    network: RosNetwork | None = None  # the DDS domain and discovery range of the run
 
     def to_json(self) -> dict:
         d = self.summary.to_json() if self.summary is not None else {}
@@ -103,6 +110,7 @@ class GraphRun:
             diagnostics=self.diagnostics,
             foreign_messages_dropped=self.foreign,
             restarts=self.restarts,
+            ros=self.network.to_json() if self.network is not None else None,
         )
         return _json_safe(d)
 
@@ -205,6 +213,10 @@ class RunOptions:
     restartable: tuple[str, ...] | None = None
     namespace: str = ""
     nodes: tuple[str, ...] | None = None
+    tracker_params: dict | None = None
+    wait_for: str | None = None
+    wait_timeout: float = 60.0
+    announce: object = None
 
 
 def run_graph(
@@ -223,18 +235,23 @@ def run_graph(
     fault-injection tests), ``restartable`` (node names, default the scenario's
     ``graph.restartable``), ``namespace`` (every node, the evaluator and the recorder in it:
     several graphs share a domain), ``nodes`` (with processes: the node processes started here,
-    default all; the others run on other hosts, docs/multi-host.md). Raises RunIncomplete when
-    the run stops early, ScenarioError, FileExistsError or GraphSetupError before anything
-    starts.
+    default all; the others run on other hosts, docs/multi-host.md), ``tracker_params``
+    (tracker node parameters), ``wait_for`` (``N`` or a topic: hold the first epoch until that
+    many outside subscribers, or one of the topic, have joined; activetrack_ros.hold) within
+    ``wait_timeout`` s, ``announce(network)`` (called with the run's RosNetwork before
+    the graph starts). Raises RunIncomplete when the run stops early, ScenarioError,
+    FileExistsError or GraphSetupError before anything starts.
     """
     opts = RunOptions(**options)
     opts.namespace = check_namespace(opts.namespace)
+    _check_wait_for(opts)
     scenario = load_scenario(scenario_path)  # fails before anything starts
     if opts.processes and os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").upper() == "OFF":
         raise GraphSetupError(
             "--processes needs DDS discovery between processes on this host, but "
             "ROS_AUTOMATIC_DISCOVERY_RANGE is OFF: set it to LOCALHOST (or unset it)"
         )
+    _check_filter(scenario, opts)
     graph_key = _check_remote(opts, graph_key)
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name)
     bag_path = run_dir / "bag" if opts.record else None
@@ -242,6 +259,8 @@ def run_graph(
         raise FileExistsError(f"{bag_path} exists already: choose another run folder (--out)")
     run_dir.mkdir(parents=True, exist_ok=True)
     runner = _GraphRunner(scenario, str(scenario_path), opts, graph_key or GraphKey.generate())
+    if opts.announce is not None:
+        opts.announce(runner.network)
     with interrupts.raising(), runner.graph:
         runner.run(bag_path)
         with interrupts.deferred():
@@ -257,6 +276,33 @@ def run_graph(
     return result
 
 
+def _check_filter(scenario, opts: RunOptions) -> None:
+    """A tracker ``filter`` must be registered once the scenario (and its plugins) loaded."""
+    from activetrack.filters import filter_names
+
+    name = (opts.tracker_params or {}).get("filter")
+    if name is None:
+        return
+    if name not in filter_names():
+        raise GraphSetupError(f"--filter must be one of {list(filter_names())}, got {name!r}")
+
+
+def _check_wait_for(opts: RunOptions) -> WaitFor | None:
+    """``wait_for`` parsed; it needs the sim started here (GraphSetupError otherwise)."""
+    if opts.wait_for is None:
+        return None
+    try:
+        wait = WaitFor.parse(str(opts.wait_for))
+    except ValueError as exc:
+        raise GraphSetupError(str(exc)) from None
+    if opts.nodes is not None and "sim" not in opts.nodes:
+        raise GraphSetupError(
+            "--wait-for holds the first epoch of the sim started here: add sim to --nodes (a "
+            "sim on another host holds with -p wait_for_subscribers:=N or wait_for_topic:=T)"
+        )
+    return wait
+
+
 class _GraphRunner:
     """One run: the in-process graph (evaluator, recorder and, unless processes, the nodes),
     the supervised node processes, and how the run ended."""
@@ -266,19 +312,28 @@ class _GraphRunner:
         self.opts = opts
         self.key = key
         self.params = _node_params(scenario_path, opts.run, opts.mode)
+        self.params["tracker"].update(opts.tracker_params or {})
+        # --wait-for: the sim holds its first epoch (activetrack_ros.hold)
+        self.wait = WaitFor.parse(str(opts.wait_for or ""))
+        self.sim_started = self.wait is None
+        if self.wait is not None:
+            self.params["sim"].update(self.wait.params())
         self.remote = remote_nodes(opts.nodes)  # started on other hosts, not here
+        self.network = ros_network(opts.processes, not self.remote)
         # The node processes' domain; in one process the context needs no domain of its own.
-        self.domain = _domain_id() if opts.processes else None
+        self.domain = self.network.domain_id if opts.processes else None
         self.graph = InProcessGraph(domain_id=self.domain)
-        # No parameter services in one process: nobody can call them, and they cost imports at
-        # start and entities in every executor wait.
-        self.quiet = {"context": self.graph.context, "start_parameter_services": False}
+        # Every node answers parameter services, in one process too (its graph is on the
+        # caller's domain, where ROS tools see it): measured, they cost no wall time a run shows
+        # (default scenario, 6 pairs: +28 ms median of 3.5 s, within the noise).
+        self.common = {"context": self.graph.context}
         if opts.namespace:
-            self.quiet["namespace"] = opts.namespace
+            self.common["namespace"] = opts.namespace
+        named = [Parameter(k, value=self.params["planner"][k]) for k in ("scenario", "run")]
         self.evaluator = self.graph.add(
             EvaluatorNode(
                 scenario, graph_key=key, report_grace_s=REPORT_GRACE_PROCESSES_S
-                if opts.processes else 1.0, **self.quiet,
+                if opts.processes else 1.0, parameter_overrides=named, **self.common,
             )
         )  # fmt: skip
         self.recorder: BagRecorder | None = None
@@ -305,7 +360,7 @@ class _GraphRunner:
             self._end("node_died", str(exc), 1)
         except GraphFault as exc:
             self._end("graph_fault", f"the graph published invalid {exc}", 1)
-        except RemoteNodesMissing as exc:
+        except (RemoteNodesMissing, ViewersMissing) as exc:
             self._end("timeout", str(exc), 1)
         finally:
             with interrupts.deferred():  # a second Ctrl-C must not leave the bag open
@@ -320,7 +375,7 @@ class _GraphRunner:
             self.recorder = graph.add(
                 BagRecorder(
                     bag_path, graph_key=self.key, depth=history_depth(self.scenario),
-                    clock_lead=2 * self.scenario.dt, **self.quiet,
+                    clock_lead=2 * self.scenario.dt, **self.common,
                 )
             )  # fmt: skip
         if o.processes:
@@ -340,6 +395,23 @@ class _GraphRunner:
             self.nodes["sim"] = graph.add(NODES["sim"](**self._node_options(sim)))
         if o.before_spin is not None:
             o.before_spin(graph)
+
+    def _check_started(self) -> None:
+        """``--wait-for``: the held sim must start its first epoch within ``wait_timeout``
+        seconds of the run's start, and the settling after they joined (ViewersMissing)."""
+        if self.sim_started:
+            return
+        sim = self.nodes.get("sim")
+        if sim is not None:
+            self.sim_started = sim.hold.state == "started"
+        else:  # a node process: its first platform states have reached the evaluator
+            self.sim_started = self.evaluator.counters.counts.get("received.PlatformState", 0) > 0
+        allowed = self.opts.wait_timeout + SETTLE_S + MATCH_WAIT_S
+        if not self.sim_started and time.monotonic() - self.start > allowed:
+            raise ViewersMissing(
+                f"--wait-for: {self.wait.describe(self.opts.namespace)} did not join within "
+                f"{self.opts.wait_timeout:g} s (--wait-timeout); the run did not start"
+            )
 
     def _await_remote(self) -> None:
         """Nodes on other hosts: wait until each has joined the graph (DDS discovery) before
@@ -362,13 +434,14 @@ class _GraphRunner:
 
     def _node_options(self, params: dict) -> dict:
         overrides = [Parameter(k, value=v) for k, v in params.items()]
-        return {**self.quiet, "graph_key": self.key, "parameter_overrides": overrides}
+        return {**self.common, "graph_key": self.key, "parameter_overrides": overrides}
 
     def _finished(self) -> bool:
         if self.supervisor is not None:
             self.supervisor.poll()
         if self.evaluator.faults:
             raise GraphFault("; ".join(self.evaluator.faults[:3]))
+        self._check_started()
         if self.opts.during_spin is not None:
             self.opts.during_spin(self.graph)
         return self.evaluator.complete
@@ -408,16 +481,18 @@ class _GraphRunner:
         scenario, evaluator = self.scenario, self.evaluator
         complete = self.status == "complete"
         last = scenario.steps if complete else evaluator.completed_epochs()
-        partial = scenario if complete else scenario.model_copy(update={"steps": max(last, 0)})
         record = evaluator.record(wall, last) if last >= 1 else None
-        summary = _summary(partial, record, wall, self.opts.run) if record is not None else None
+        summary = None
+        if record is not None:  # the epochs run (an interrupted run: the first ones)
+            partial = scenario if complete else first_epochs(scenario, last)
+            summary = run_summary(partial, record, wall, self.opts.run)
         diagnostics = self.diagnostics()
         result = GraphRun(
             summary=summary,
             run_dir=run_dir,
             bag=bag_path,
             wall_time_s=wall,
-            real_time_factor=partial.duration / wall,
+            real_time_factor=scenario.dt * max(last, 0) / wall,
             diagnostics=diagnostics,
             complete=complete,
             status=self.status,
@@ -425,6 +500,7 @@ class _GraphRunner:
             epochs_completed=max(last, 0),
             foreign={n: _total(c, "foreign.") for n, c in diagnostics.items()},
             restarts=self.supervisor.restarts if self.supervisor is not None else {},
+            network=self.network,
         )
         _judge(result)
         if self.opts.plots and result.status == "complete" and summary is not None:
@@ -433,7 +509,7 @@ class _GraphRunner:
         return result
 
 
-def _summary(scenario, record, wall: float, run: int | None) -> BatchSummary:
+def run_summary(scenario, record, wall: float, run: int | None) -> BatchSummary:
     """A run's summary with the batch loop's code: its evaluation (each target's error and
     bound, GOSPA, breaks, swaps) drawn from run ``run``'s evaluator generator, as
     ``run_batch`` draws it."""
@@ -485,10 +561,6 @@ def _finite_metrics(summary: BatchSummary) -> bool:
             return False
     bounds = (*summary.time_avg_bound_x, *summary.time_avg_bound_y)
     return not any(math.isinf(v) for v in bounds)
-
-
-def _domain_id() -> int:
-    return int(os.environ.get("ROS_DOMAIN_ID", str(100 + os.getpid() % 100)))
 
 
 def _start_processes(

@@ -49,17 +49,16 @@ from activetrack.limits import (
     MAX_SEED,
 )
 from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
-from activetrack.montecarlo_dask import connected
+from activetrack.montecarlo.dask import connected
 from activetrack.planning import (
     PlannerPlatform,
-    PlanSettings,
     TargetBelief,
     plan,
     platform_information,
-    platforms_from_scenario,
 )
 from activetrack.plots import new_figure
 from activetrack.scenarios import Scenario, build_motion_model, load_scenario
+from activetrack.scenarios.build import plan_settings, planner_platforms
 from activetrack.scenarios.schema import PlannerConfig
 from activetrack_experiments.paths import find_scenarios_dir, scenario_path
 from activetrack_experiments.reproduction import Reproduction, RunsOption, map_groups
@@ -159,14 +158,14 @@ def plan_case(
     dt, K = scenario.dt, scenario.steps
     F, Q = model.transition_matrix(dt), model.process_noise(dt)
     overrides = {k: v for k, v in (("search", search), ("grid_size", grid_size)) if v is not None}
-    settings = PlanSettings.from_config(scenario.planner, **overrides)
+    settings = plan_settings(scenario.planner, **overrides)
     rng = np.random.default_rng(scenario.seed if seed is None else seed)
     M = scenario.planner.mc_samples if mc_samples is None else mc_samples
     prior = scenario.target.prior
     C0 = prior.covariance()
     X0 = gaussian_samples(np.asarray(prior.mean), C0, M, rng)
     samples = propagate_samples(X0, F, Q, K, rng)  # prior samples at k = 1..K (sec. 3.2)
-    platforms = platforms_from_scenario(scenario)
+    platforms = planner_platforms(scenario)
     ids = [p.platform_id for p in platforms]
     case = PlannedCase(len(platforms), settings.horizon, settings.search.search, ids, *[None] * 4)
     J = covariance_bound(C0)  # eq. 4: J_0 = C_0^{-1}
@@ -216,7 +215,7 @@ def _track_run(task: _RunTask) -> np.ndarray:
     scenario, paths = task.scenario, task.paths
     model = build_motion_model(scenario.target.motion)
     dt, K = scenario.dt, scenario.steps
-    platforms = platforms_from_scenario(scenario)
+    platforms = planner_platforms(scenario)
     prior = scenario.target.prior
     mean0, C0 = np.asarray(prior.mean, dtype=float), prior.covariance()
     sim_rng, pf_rng = (
@@ -516,7 +515,7 @@ def _plan_order(task: tuple[Scenario, dict]) -> tuple[int, int]:
     decision time), then more sensors first; the grid search (10,201 candidates) counts as a
     two-step case of one sensor."""
     scenario, kw = task
-    sensors = len(platforms_from_scenario(scenario))
+    sensors = len(planner_platforms(scenario))
     horizon = 2 if kw.get("search") == "grid" else scenario.planner.horizon
     return (-horizon, -sensors)
 

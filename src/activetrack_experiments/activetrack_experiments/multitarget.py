@@ -37,8 +37,8 @@ import numpy as np
 
 from activetrack.closed_loop.batch import BatchSummary, run_batch
 from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs
-from activetrack.montecarlo_dask import connected
-from activetrack.scenarios import load_scenario
+from activetrack.montecarlo.dask import connected
+from activetrack.scenarios import load_scenario, with_changes
 from activetrack.scenarios.schema import Scenario
 from activetrack_experiments.paths import scenario_path
 from activetrack_experiments.reproduction import Reproduction, RunsOption
@@ -63,17 +63,13 @@ REQUIRED_IMPROVEMENT = 0.20
 
 def strategy_scenario(scenario: Scenario, strategy: str) -> Scenario:
     """The scenario with the planner set up for ``strategy`` (one of :data:`STRATEGIES`)."""
-    planner = scenario.planner
     if strategy == "planner":
         return scenario
     if strategy == "hold_course":
-        planner = planner.model_copy(update={"enabled": False})
-    elif strategy == "random_assignment":
-        targets = planner.targets.model_copy(update={"assignment": "random"})
-        planner = planner.model_copy(update={"targets": targets})
-    else:
-        raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
-    return scenario.model_copy(update={"planner": planner})
+        return with_changes(scenario, planner={"enabled": False})
+    if strategy == "random_assignment":
+        return with_changes(scenario, planner={"targets": {"assignment": "random"}})
+    raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
 
 
 @dataclass

@@ -45,7 +45,7 @@ from activetrack.limits import MAX_RUNS
 from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs
 from activetrack.planning.selection import expected_update
 from activetrack.plots import new_figure, write_figures
-from activetrack.scenarios import build_motion_model, load_scenario
+from activetrack.scenarios import build_motion_model, load_scenario, parse_scenario
 from activetrack.scenarios.build import build_sensor
 from activetrack.scenarios.schema import Scenario
 from activetrack_experiments.paths import scenario_path
@@ -118,7 +118,7 @@ def variant(
     if seed is not None:
         d["seed"] = int(seed)
     d["name"] = f"{scenario.name}-{strategy}" + (f"-{criterion}" if criterion else "")
-    return Scenario.model_validate(d)
+    return parse_scenario(d, d["name"])
 
 
 @dataclass
@@ -214,7 +214,7 @@ def mre_path_bound(scenario: Scenario, trace: RunTrace) -> np.ndarray:
 
 def _run_task(args) -> RunTrace:
     scenario_dict, run = args
-    return run_traced(Scenario.model_validate(scenario_dict), run)
+    return run_traced(parse_scenario(scenario_dict, scenario_dict["name"]), run)
 
 
 def run_groups(

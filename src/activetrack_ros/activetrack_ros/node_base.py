@@ -94,6 +94,7 @@ class GraphNode(Node):
 
     def __init__(self, node_name: str, *, graph_key: GraphKey | None = None, **kwargs):
         super().__init__(node_name, **kwargs)
+        params.fix_use_sim_time(self)
         self.graph_key = graph_key if graph_key is not None else GraphKey.from_environment()
         self.counters = NodeCounters()
         self.log_limited = RateLimitedLog(self.get_logger())

@@ -165,12 +165,56 @@ def warn_unknown(node) -> None:
         )
 
 
+# rclpy declares use_sim_time on every node (False, undescribed, writable). The graph's nodes
+# stamp their messages with simulated time themselves and their timers must keep wall time:
+# /clock stands still while lockstep waits for them, so on sim time they would never fire
+# (setting it true froze a free run's clock; setting it back made sim time jump).
+USE_SIM_TIME = "use_sim_time"
+USE_SIM_TIME_DESCRIPTION = (
+    "fixed false: the node stamps messages with simulated time itself and its timers keep "
+    "wall time (/clock stands still while lockstep waits); tools that follow the run (RViz, "
+    "a recorder) take use_sim_time:=true"
+)
+
+
+def fix_use_sim_time(node) -> None:
+    """Make ``use_sim_time`` read-only and described on a graph node: a change is refused
+    (rclpy: "Trying to set a read-only parameter"), and ``true`` given at start-up (``-p``, a
+    params file's ``/**`` section) is a ValueError naming the parameter (exit 2)."""
+    if node.get_parameter(USE_SIM_TIME).value is not False:
+        raise ValueError(
+            f"parameter '{USE_SIM_TIME}' must be false for {node.get_name()}: "
+            f"{USE_SIM_TIME_DESCRIPTION}"
+        )
+    node.set_descriptor(
+        USE_SIM_TIME,
+        ParameterDescriptor(
+            type=ParameterType.PARAMETER_BOOL,
+            description=USE_SIM_TIME_DESCRIPTION,
+            read_only=True,
+            additional_constraints="must stay false",
+        ),
+    )
+
+
 def on_change(node, specs: tuple[ParamSpec, ...], apply: dict[str, Callable | str]) -> None:
     """Accept run-time changes of the mutable parameters (checked, then ``apply[name](value)``
     after they are set) and refuse every other change with a reason (``apply[name]`` may be
-    that reason, for a change the node's present state cannot take). rclpy refuses read-only
-    ones itself ("parameter ... cannot be set because it is read-only")."""
+    that reason, for a change the node's present state cannot take; the dict may change while
+    the node runs). rclpy refuses read-only ones itself ("Trying to set a read-only
+    parameter"). An integer for a float parameter is taken as that float."""
     by_name = {s.name: s for s in specs}
+    floats = {s.name for s in specs if s.type is float}
+
+    def as_float(params: list[Parameter]) -> list[Parameter]:
+        """An integer for a float parameter (``ros2 param set /sim_node rate 5``) is taken as
+        that float, as at start-up; rclpy would refuse it as the wrong type."""
+        return [
+            Parameter(p.name, value=float(p.value))
+            if p.name in floats and p.type_ == Parameter.Type.INTEGER
+            else p
+            for p in params
+        ]
 
     def validate(params: list[Parameter]) -> SetParametersResult:
         for p in params:
@@ -196,5 +240,6 @@ def on_change(node, specs: tuple[ParamSpec, ...], apply: dict[str, Callable | st
                 apply[p.name](float(value) if by_name[p.name].type is float else value)
                 node.get_logger().info(f"parameter '{p.name}' set to {value!r}")
 
+    node.add_pre_set_parameters_callback(as_float)
     node.add_on_set_parameters_callback(validate)
     node.add_post_set_parameters_callback(applied)

@@ -1,4 +1,4 @@
-"""planner_node: the scenario's planner (activetrack.closed_loop.planner: PCRLB and
+"""planner_node: the scenario's planner (activetrack.closed_loop.components.build_planner: PCRLB and
 modified-Riccati manoeuvre planning, sensor selection, cautious localisation, planning across
 targets with beam assignment).
 
@@ -11,8 +11,7 @@ starts from the tracks' posteriors. Only the graph's own tracker and simulator c
 
 from diagnostic_msgs.msg import DiagnosticArray
 
-from activetrack.closed_loop.components import component_rngs
-from activetrack.closed_loop.planner import build_planner
+from activetrack.closed_loop.components import build_planner, component_rngs
 from activetrack.data import PlatformSnapshot, TrackSet
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics

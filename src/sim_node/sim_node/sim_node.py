@@ -42,6 +42,7 @@ from activetrack_ros.convert import (
     truth_array_msg,
 )
 from activetrack_ros.frames import planar_transform, platform_frame, sensor_frame, truth_frame
+from activetrack_ros.hold import WAIT_FOR, FirstEpochHold
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.params import COMMON, ParamSpec
 from activetrack_ros.spin import spin_node
@@ -79,6 +80,7 @@ PARAMS = (
         "exit after the last epoch (else keep serving the latched topics; changeable)",
         read_only=False,
     ),
+    *WAIT_FOR,
 )  # fmt: skip
 
 
@@ -131,8 +133,14 @@ class SimNode(GraphNode):
         self.epoch_started = time.monotonic()
         self.clock_origin = (time.monotonic(), 0.0)  # free mode: (wall, sim) at the last rate
         self.publish_static_frames()
-        self.publish_epoch([])
+        self.hold = FirstEpochHold(self, p, self._first_epoch, changes)
         self.guarded_timer(p["tick"], self.on_tick)
+
+    def _first_epoch(self) -> None:
+        """Epoch 0, now (at start-up, or when a held first epoch is released)."""
+        self.clock_origin = (time.monotonic(), self.sim.time)
+        self.publish_epoch([])
+        self.epoch_started = time.monotonic()
 
     # --- run-time parameter changes (activetrack_ros.params) -------------------------------
 
@@ -225,7 +233,7 @@ class SimNode(GraphNode):
             self.on_tick()  # the epoch's last answer: step now, not at the next tick
 
     def on_tick(self) -> None:
-        if self.done:
+        if self.done or self.hold.waiting:
             return
         if self.sim.finished:
             self.done = True

@@ -117,7 +117,11 @@ class TrackerNode(GraphNode):
         self.subscribe(ScanMsg, topics.SCANS, self.on_scan)
         self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
         self.guarded_timer(0.05, self.on_tick)
-        self.publish_tracks(self.core.snapshot())  # epoch 0: the priors' tracks
+        # Epoch 0, the priors' tracks: the track array now (latched), its views (tf, pose,
+        # particles, markers: volatile) with the sim's epoch 0 (on_platform), when readers in
+        # other processes (a viewer the run waited for) have matched them.
+        prior = self.core.snapshot()
+        self.prior_views = (prior, self.publish_estimate(prior))
 
     def _set_cloud_size(self, size: int) -> None:
         self.cloud_size = size
@@ -137,6 +141,9 @@ class TrackerNode(GraphNode):
 
     def on_platform(self, msg: PlatformState) -> None:
         snap = platform_from_msg(msg, self.scenario, self.platform_ids)
+        if self.prior_views is not None:  # the sim's epoch 0 (__init__)
+            prior, self.prior_views = self.prior_views, None
+            self.publish_views(*prior)
         if snap.epoch <= self.last_epoch:
             return self.ignore("old_epoch")  # epoch 0, or history replayed to a late joiner
         epoch = self.open_epoch(snap.epoch, "platform state")
@@ -218,9 +225,19 @@ class TrackerNode(GraphNode):
     # --- outputs -------------------------------------------------------------------------
 
     def publish_tracks(self, tracks: TrackSet) -> None:
+        """The track array (latched) and its views."""
+        self.publish_views(tracks, self.publish_estimate(tracks))
+
+    def publish_estimate(self, tracks: TrackSet):
+        """The track array (latched, per epoch: what the planner and evaluator read); returns
+        its header."""
         msg = track_array_msg(tracks, self.frame_id)
         self.tracks_pub.publish(msg)
-        hdr = msg.header
+        return msg.header
+
+    def publish_views(self, tracks: TrackSet, hdr) -> None:
+        """What tools show of the tracks: pose, tf, 2-sigma ellipses and ids, particles,
+        diagnostics."""
         markers, transforms, now = [], [], set()
         for t in tracks.confirmed:
             xy = np.asarray(t.mean)[[0, 2]]

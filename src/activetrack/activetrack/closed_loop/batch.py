@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.closed_loop.components import component_rngs, known_association
+from activetrack.closed_loop.components import component_rngs
 from activetrack.closed_loop.evaluation import RunEvaluation, evaluate_run
 from activetrack.closed_loop.loop import run_once
 from activetrack.closed_loop.record import RunRecord
@@ -234,7 +234,7 @@ def summarize(
         runs=runs,
         steps=scenario.steps,
         dt=scenario.dt,
-        association="known" if known_association(scenario) else "jpda",
+        association="known" if scenario.known_association else "jpda",
         target_ids=tuple(records[0].target_ids),
         time_avg_rmse_x=_floats(_nan_mean(rmse_x_t, axis=1)),
         time_avg_rmse_y=_floats(_nan_mean(rmse_y_t, axis=1)),

@@ -1,26 +1,95 @@
 """The closed loop's components built from a validated scenario: the simulator, the tracker
-and the planner, each drawing from its own generator (:func:`component_rngs`)."""
+and the planner, each drawing from its own generator (:func:`component_rngs`). The components
+take built objects, never the scenario; these builders are where a scenario file becomes them.
+
+The planner (:func:`build_planner`) runs the strategies the scenario's ``planner`` section
+asks for (:class:`activetrack.planning.decision.Planner`), in order:
+
+- a scene of several targets, births and deaths, clutter or steerable beams: planning across
+  targets (:class:`~activetrack.planning.across_targets.MultiTargetPlanner`: manoeuvres
+  against every confirmed track, beams assigned to tracks; ``enabled: false`` holds course and
+  still points the beams);
+- ``enabled: false``: HoldCourse;
+- ``search: cautious``: CautiousLocalisation (Vander Hook et al.);
+- ``cost: pcrlb`` without selection: PcrlbPlanning (Hernandez);
+- ``cost: mre`` and/or ``selection.enabled`` (Ramdaras): MrePrediction, then for the
+  controllable platforms PcrlbPlanning (``cost: pcrlb``) or MrePositioning (``cost: mre``),
+  then the selection strategy of ``selection.strategy`` (``SELECTION_STRATEGIES``), then
+  MreOutlook (the plan report).
+
+MRE covariance (docs/ramdaras.md): in renewal mode each decision starts from the track,
+P_{k+1|k} = F P_{k|k} F^T + Q and x_{k+1|k} = F x_{k|k} (Ramdaras Fig. 5: the filter's
+P_{k|k} feeds the positioning and selection). In open-loop mode the planner keeps its own
+recursion from the prior: P_{k+1|k+1} = (1 - pd) P_{k+1|k} + pd P^(j)_{k+1|k+1} for the
+selected sensors at their planned positions, linearised at the noise-free predicted mean (the
+MRE bound the tests compare the filter against).
+"""
 
 from __future__ import annotations
+
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from activetrack.filters.registry import filter_kind, make_filter
 from activetrack.kernels import expect_particle_work
+from activetrack.models.base import as_linear
 from activetrack.models.clutter import ClutteredSensor
-from activetrack.scenarios.build import build_motion_model, build_sensor
-from activetrack.scenarios.schema import Scenario, TargetConfig
+from activetrack.planning.across_targets import (
+    AcrossTargetsSettings,
+    MultiTargetPlanner,
+    ScenePlatform,
+)
+from activetrack.planning.cautious import CautiousController, CautiousPlanner
+from activetrack.planning.criteria import PCRLB, POSITIONING, get_criterion
+from activetrack.planning.decision import Planner, PlannerStrategy
+from activetrack.planning.strategies import (
+    CautiousLocalisation,
+    FixedSelection,
+    HoldCourse,
+    LinearDynamics,
+    MreOutlook,
+    MrePositioning,
+    MrePrediction,
+    MreSelection,
+    PcrlbPlanning,
+    PlatformSpec,
+    RandomSelection,
+    SensorEntry,
+    TraceSelection,
+)
+from activetrack.scenarios.build import (
+    build_motion_model,
+    build_sensor,
+    plan_settings,
+    platform_limits,
+    search_settings,
+)
+from activetrack.scenarios.schema import PlannerConfig, Scenario, SelectionConfig, TargetConfig
 from activetrack.simulation.simulator import SimPlatform, SimTarget, Simulator
 from activetrack.tracking.tracker import FilterSpec, Tracker, TrackPrior
 
 __all__ = [
+    "build_planner",
     "build_simulator",
     "build_tracker",
     "component_rngs",
-    "known_association",
     "scene_sensors",
     "scene_targets",
+    "target_dynamics",
 ]
+
+
+def target_dynamics(scenario: Scenario) -> LinearDynamics:
+    """The first target's linear pv dynamics over one interval dt (the planners' F and Q)."""
+    model = build_motion_model(scenario.target.motion)
+    if not model.is_linear:
+        raise ValueError(
+            f"planner: PCRLB / MRE planning needs linear target dynamics (ncv, ncv_discrete, "
+            f"constant_turn), got motion {scenario.target.motion.model!r}"
+        )
+    linear, dt = as_linear(model), scenario.dt
+    return LinearDynamics(linear.transition_matrix(dt), linear.process_noise(dt), dt)
 
 
 def component_rngs(seed: int, run: int | None = None) -> tuple[np.random.Generator, ...]:
@@ -31,27 +100,19 @@ def component_rngs(seed: int, run: int | None = None) -> tuple[np.random.Generat
 
 def scene_targets(scenario: Scenario) -> list[TargetConfig]:
     """The scenario's targets in order (one or many)."""
-    return list(scenario.targets or [scenario.target])
+    return list(scenario.targets)
 
 
 def scene_sensors(scenario: Scenario) -> dict[str, tuple[str, ClutteredSensor]]:
     """Every sensor by id in scenario order: (platform id, the sensor in the scene: its field
     of view, clutter, and the tracker's gate unless the association is known)."""
     gate = scenario.tracker.tracks.gate_sigmas
-    gated = not known_association(scenario)
+    gated = not scenario.known_association
     return {
         s.id: (p.id, ClutteredSensor.wrap(build_sensor(s), s, gate, gated))
         for p in scenario.platforms
         for s in p.sensors
     }
-
-
-def known_association(scenario: Scenario) -> bool:
-    """Whether every detection is known to be the one target's: one target, present from
-    epoch 0 to the end, and no sensor with clutter (tracking: :mod:`activetrack.tracking`)."""
-    targets = scene_targets(scenario)
-    clutter = any(s.clutter_density > 0 for p in scenario.platforms for s in p.sensors)
-    return len(targets) == 1 and targets[0].birth == 0 and targets[0].death is None and not clutter
 
 
 def build_simulator(scenario: Scenario, rng: np.random.Generator) -> Simulator:
@@ -91,7 +152,7 @@ def build_tracker(scenario: Scenario, rng: np.random.Generator) -> Tracker:
     if kind.particle_based:  # a long run loads the PF kernels now, not in mid-run
         expect_particle_work(scenario.steps * cfg.particles)
 
-    def make(x0: np.ndarray, P0: np.ndarray, t0: float):  # type: ignore[no-untyped-def]
+    def make(x0: np.ndarray, P0: np.ndarray, t0: float):
         return make_filter(cfg.filter, model, x0, P0, cfg, rng, t0)
 
     priors = [
@@ -110,9 +171,156 @@ def build_tracker(scenario: Scenario, rng: np.random.Generator) -> Tracker:
         FilterSpec(cfg.filter, kind.particle_based, make),
         {sid: sensor for sid, (_, sensor) in scene_sensors(scenario).items()},
         priors,
-        known_association=known_association(scenario),
+        known_association=scenario.known_association,
         management=cfg.tracks,
         planner_samples=cfg.planner_samples,
         new_track_priority=scenario.planner.targets.new_track_priority,
         rng=rng,
     )
+
+
+# --- the planner -------------------------------------------------------------------------------
+
+# planner.selection.strategy -> the strategy object (sensors, selection section, generator).
+SelectionFactory = Callable[
+    [Sequence[SensorEntry], SelectionConfig, np.random.Generator], PlannerStrategy
+]
+SELECTION_STRATEGIES: dict[str, SelectionFactory] = {
+    "mre": lambda sensors, cfg, rng: MreSelection(sensors, cfg.criterion, cfg.count),
+    "trace": lambda sensors, cfg, rng: TraceSelection(sensors, cfg.count),
+    "random": lambda sensors, cfg, rng: RandomSelection(sensors, cfg.criterion, cfg.count, rng),
+    "fixed": lambda sensors, cfg, rng: FixedSelection(sensors, cfg.criterion, cfg.fixed_sensor),
+}
+
+
+def build_planner(scenario: Scenario, rng: np.random.Generator) -> Planner:
+    """The scenario's planner (module docstring), drawing from ``rng``."""
+    return Planner(build_strategies(scenario, rng), _ids(scenario), scenario.dt)
+
+
+def build_strategies(scenario: Scenario, rng: np.random.Generator) -> tuple[PlannerStrategy, ...]:
+    """The strategies a scenario's planner runs, in order (module docstring)."""
+    cfg = scenario.planner
+    controllable = tuple(p.id for p in scenario.platforms if p.controllable)
+    beams = any(s.beam_width is not None for p in scenario.platforms for s in p.sensors)
+    if beams or not scenario.known_association:
+        return (build_across_targets(scenario, rng),)
+    if not cfg.enabled:
+        return (HoldCourse(controllable),)
+    if controllable and cfg.search == "cautious":
+        # Stop-and-measure localisation replaces manoeuvre planning.
+        return (CautiousLocalisation(_cautious_controller(scenario)),)
+    mre = (cfg.cost == "mre" and bool(controllable)) or cfg.selection.enabled
+    if not controllable and not mre:
+        return (HoldCourse(()),)
+    dynamics = target_dynamics(scenario)
+    platforms = _platform_specs(scenario)
+    prior = None
+    if cfg.mode == "open_loop":
+        prior = (np.array(scenario.target.prior.mean), scenario.target.prior.covariance())
+
+    def pcrlb() -> PcrlbPlanning:
+        return PcrlbPlanning(
+            plan_settings(cfg), platforms, dynamics, rng, mc_samples=cfg.mc_samples,
+            open_loop_prior=prior,
+        )  # fmt: skip
+
+    if not mre:
+        return (pcrlb(),)
+    sensors = tuple(
+        SensorEntry(s.id, p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors
+    )
+    predictor = MrePrediction(dynamics, prior)
+    stages: list[PlannerStrategy] = [predictor]
+    if controllable and cfg.cost == "pcrlb":
+        stages.append(pcrlb())
+    elif controllable:
+        search = search_settings(cfg)
+        stages.append(MrePositioning(cfg.criterion, search, platforms, dynamics.dt, cfg.horizon))
+    criterion = cfg.criterion
+    if cfg.selection.enabled:
+        stages.append(SELECTION_STRATEGIES[cfg.selection.strategy](sensors, cfg.selection, rng))
+        criterion = cfg.selection.criterion
+    search_name = cfg.search if controllable and cfg.cost == "mre" else "none"
+    stages.append(MreOutlook(_ids(scenario), sensors, predictor, criterion, search_name))
+    return tuple(stages)
+
+
+def _ids(scenario: Scenario) -> tuple[str, ...]:
+    """The scenario's platform ids, in order."""
+    return tuple(p.id for p in scenario.platforms)
+
+
+def _platform_specs(scenario: Scenario) -> tuple[PlatformSpec, ...]:
+    """Each platform's sensor models and, when controllable, its limits per epoch."""
+    return tuple(
+        PlatformSpec(
+            p.id,
+            tuple(build_sensor(s) for s in p.sensors),
+            platform_limits(p.limits, scenario.dt)
+            if p.controllable and p.limits is not None
+            else None,
+        )
+        for p in scenario.platforms
+    )
+
+
+def _cautious_controller(scenario: Scenario) -> CautiousController:
+    """The one robot's stop-and-measure controller (the rules checked its one bearing sensor
+    and its limits)."""
+    robot = next(p for p in scenario.platforms if p.controllable)
+    c = scenario.planner.cautious
+    if robot.limits is None:
+        raise ValueError(f"platform {robot.id!r} is controllable but has no limits")
+    planner = CautiousPlanner(
+        sigma_s=robot.sensors[0].sigma,
+        prior_cov=scenario.target.prior.covariance(),
+        beta=c.beta,
+        c_d=c.c_d,
+        t_m=c.t_m,
+        r_min=c.r_min,
+        max_measurements=c.max_measurements,
+        tail=c.tail,
+    )
+    return CautiousController(robot.id, robot.limits.v_max, scenario.dt, planner)
+
+
+def _cost_kind(cfg: PlannerConfig) -> str:
+    """``planner.cost``, or the other kind when the criterion does not apply to it (only
+    possible with the planner off or no controllable platform: the rules check the rest)."""
+    crit = get_criterion(cfg.criterion, PCRLB, POSITIONING, what="planner.criterion")
+    if cfg.cost == "pcrlb" and not crit.applies_to(PCRLB):
+        return "mre"
+    if cfg.cost == "mre" and not crit.applies_to(POSITIONING):
+        return "pcrlb"
+    return cfg.cost
+
+
+def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiTargetPlanner:
+    """Planning across targets for the scene: its platforms with their sensors in the scene
+    and, where the planner steers them, their limits."""
+    cfg = scenario.planner
+    sensors = scene_sensors(scenario)
+    platforms = [
+        ScenePlatform(
+            p.id,
+            tuple((s.id, sensors[s.id][1]) for s in p.sensors),
+            p.controllable,
+            platform_limits(p.limits, scenario.dt)
+            if cfg.enabled and p.controllable and p.limits is not None
+            else None,
+        )
+        for p in scenario.platforms
+    ]
+    steering = any(p.limits is not None for p in platforms)
+    settings = AcrossTargetsSettings(
+        cost_kind=_cost_kind(cfg),
+        criterion=cfg.criterion,
+        horizon=cfg.horizon,
+        search=search_settings(cfg) if steering else None,
+        mc_samples=cfg.mc_samples,
+        max_iterations=cfg.max_sensor_iterations,
+        aggregate=cfg.targets.aggregate,
+        assignment=cfg.targets.assignment,
+    )
+    return MultiTargetPlanner(platforms, target_dynamics(scenario), settings, rng)

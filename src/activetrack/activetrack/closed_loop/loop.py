@@ -16,6 +16,7 @@ from typing import Protocol
 import numpy as np
 
 from activetrack.closed_loop.components import (
+    build_planner,
     build_simulator,
     build_tracker,
     component_rngs,
@@ -29,7 +30,7 @@ __all__ = ["PlannerLike", "apply_decision", "run_once"]
 
 
 class PlannerLike(Protocol):
-    """What the loop asks of a planner (:class:`activetrack.closed_loop.planner.Planner`, or
+    """What the loop asks of a planner (:class:`activetrack.planning.decision.Planner`, or
     another one to compare against: the benchmarks' Stone Soup sensor manager)."""
 
     def decide(
@@ -57,8 +58,6 @@ def run_once(
 ) -> RunRecord:
     """One closed-loop run with the generators of (seed, run); the planner is
     ``planner_factory(scenario, planner_rng)`` (default: the scenario's)."""
-    from activetrack.closed_loop.planner import build_planner
-
     sim_rng, trk_rng, plan_rng, _ = component_rngs(scenario.seed, run)
     start = time.perf_counter()
     sim = build_simulator(scenario, sim_rng)

@@ -42,6 +42,7 @@ __all__ = [
     "FilterFactory",
     "FilterKind",
     "ParticlePosterior",
+    "built_in_filters",
     "filter_kind",
     "filter_names",
     "make_filter",
@@ -135,6 +136,11 @@ def unregister_filter(name: str) -> None:
 def filter_names() -> tuple[str, ...]:
     """The registered filter names, in registration order."""
     return tuple(_FILTERS)
+
+
+def built_in_filters() -> tuple[str, ...]:
+    """The built-in filter names (``ekf``, ``pf``: registered by :mod:`activetrack.filters`)."""
+    return tuple(name for name in _FILTERS if name in _BUILT_IN)
 
 
 def filter_kind(name: str) -> FilterKind:

@@ -71,7 +71,8 @@ MODES = ("auto", "numpy", "compiled")
 # Particle updates (particles x steps) after which "auto" loads numba: 5e6 is ~500 steps of
 # 10,000 particles, ~0.5 s of the numpy path.
 AUTO_WORK = 5_000_000
-# The modules with compiled kernels; each has a warm_up() that calls every kernel once.
+# The modules whose warm_up() calls every compiled kernel once (the planner's, of
+# planning._kernels, beside the search that drives them).
 KERNEL_MODULES = (
     "activetrack.kernels.pcg64",
     "activetrack.kernels.particle",
@@ -79,7 +80,7 @@ KERNEL_MODULES = (
     "activetrack.kernels.moments",
     "activetrack.models._fisher_kernels",
     "activetrack.bounds._kernels",
-    "activetrack.planning._kernels",
+    "activetrack.planning.horizons",
 )
 _PREFERRED: ContextVar[bool] = ContextVar("activetrack_prefer_kernels", default=False)
 

@@ -12,7 +12,7 @@ multi-target measurement model:
   ``r_max - r_min`` [m] for a range-bearing one), ``lambda = clutter_density``;
 - Fisher information: the clutter-free ``H^T R^-1 H`` scaled by the information reduction
   factor ``q(Pd, lambda sqrt(det R), g, dim_z)`` (Niu, Willett & Bar-Shalom 2001; Hernandez,
-  Farina & Ristic 2006, :mod:`activetrack.bounds.irf`) in place of the ``pd`` factor of
+  Farina & Ristic 2006, :mod:`activetrack.models.irf`) in place of the ``pd`` factor of
   Hernandez eq. 8, and zero outside the field of view. With no clutter and a wide gate q = pd
   to within the gate's tail, so the bound is that of the clutter-free sensor.
 
@@ -28,13 +28,45 @@ from typing import Any
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
-from activetrack.bounds.irf import information_reduction_factor
 from activetrack.models.base import InformationKernel, SensorModel
 from activetrack.models.fov import FieldOfView
+from activetrack.models.irf import information_reduction_factor
 
-__all__ = ["ClutteredSensor"]
+__all__ = [
+    "ClutteredSensor",
+    "fov_volume",
+    "has_clutter_model",
+    "starts_tracks",
+]
 
 _TWO_PI = 2.0 * math.pi
+
+# A target 1 km ahead of a sensor at the origin: where the capabilities below are probed.
+_PROBE_TARGET = np.array([1000.0, 0.0, 0.0, 0.0])
+_ORIGIN = np.zeros(4)
+
+
+def has_clutter_model(sensor: SensorModel) -> bool:
+    """Whether ``sensor`` models clutter over a field of view (its ``clutter_volume`` is not
+    None: it knows its measurement space)."""
+    return sensor.clutter_volume(FieldOfView()) is not None
+
+
+def starts_tracks(sensor: SensorModel) -> bool:
+    """Whether one detection of ``sensor`` fixes a position (its ``inverse_position`` of a
+    measurement is not None), so that it can start a track."""
+    z = np.asarray(sensor.measure(_PROBE_TARGET, _ORIGIN), dtype=float).reshape(-1)
+    return sensor.inverse_position(z, _ORIGIN) is not None
+
+
+def fov_volume(sensor: SensorModel, width: float, r_min: float, r_max: float) -> float:
+    """Volume of ``sensor``'s field of view in its measurement space (its ``clutter_volume``
+    of the sector ``width`` [rad] and ranges [r_min, r_max] [m]; infinite for an unbounded
+    range where the range is measured); ValueError for a sensor without a clutter model."""
+    volume = sensor.clutter_volume(FieldOfView(0.0, width, r_min, r_max))
+    if volume is None:
+        raise ValueError(f"sensor kind {sensor.kind!r} has no clutter model")
+    return float(volume)
 
 
 @dataclass(frozen=True)
@@ -65,7 +97,7 @@ class ClutteredSensor:
 
     @property
     def information_factor(self) -> float:
-        """The IRF ``q`` that replaces ``pd`` in J_Z (cached in :mod:`activetrack.bounds.irf`);
+        """The IRF ``q`` that replaces ``pd`` in J_Z (cached in :mod:`activetrack.models.irf`);
         ``pd`` itself for a sensor whose detections are not gated."""
         if not self.gated:
             return float(self.base.pd)

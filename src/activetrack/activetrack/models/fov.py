@@ -1,5 +1,10 @@
-"""Where a sensor looks: its field of view at one epoch (a bearing sector and a range
-interval), the geometry every scan, clutter draw and track update in a scene asks about."""
+"""Where a sensor looks: the field of view of one scan, as plain geometry.
+
+A bearing sector ``centre +- width / 2`` [rad, world frame, from +x counter-clockwise] and the
+ranges ``[r_min, r_max]`` [m]; ``width`` 2 pi is all around. Every scan carries one (the
+simulator draws clutter over it, the tracker and the bounds count a target inside it);
+:class:`activetrack.models.clutter.ClutteredSensor` says where its sensor looks.
+"""
 
 from __future__ import annotations
 

@@ -420,10 +420,9 @@ class RangeBearingSensor(_PlanarSensor):
         self.validate_detection()
 
     def clutter_volume(self, fov: FieldOfView) -> float:
-        """Sector width [rad] times the range interval [m] (0 for an unbounded range: clutter
-        needs a finite ``r_max``)."""
-        r_max = fov.r_max if math.isfinite(fov.r_max) else fov.r_min
-        return fov.width * (r_max - fov.r_min)
+        """Sector width [rad] times the range interval [m] (infinite for an unbounded range:
+        clutter needs a finite ``r_max``)."""
+        return fov.width * (fov.r_max - fov.r_min)
 
     def uniform_measurements(self, u: FloatArray, fov: FieldOfView) -> FloatArray:
         """(range, bearing) uniform over the range interval and the sector, ``(m, 2)``."""

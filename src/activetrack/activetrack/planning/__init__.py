@@ -1,14 +1,15 @@
 """PCRLB manoeuvre planning (Hernandez 2004 sec. 3-4; Ramdaras 2010 sec. 4).
 
 ``plan(platforms, belief, settings, F=..., Q=..., dt=...)`` is the entry point; see
-:mod:`activetrack.planning.planner`. Building blocks: the manoeuvre model (``manoeuvre``),
-batched PCRLB costs (``costs``), the searches (``searches``), the horizons (``horizons``) and
-the multi-platform iteration (``multisensor``). The criteria of every planner (PCRLB planning,
-MRE positioning and selection) live in one registry, ``criteria``; MRE positioning and
-selection (Ramdaras) in ``selection``.
+:mod:`activetrack.planning.planner`. Building blocks, shared by every planner: the manoeuvre
+model and the platforms (``manoeuvre``), the searches over one leg (``searches``), the horizon
+search (``horizons``), the objective, a weighted sum of terms (``objective``), and the
+coordination of several platforms (``multisensor``); the PCRLB over the horizon (``costs``).
+The criteria of every planner (PCRLB planning, MRE positioning and selection) live in one
+registry, ``criteria``; MRE positioning and selection (Ramdaras) in ``selection``.
 """
 
-from activetrack.planning.costs import HorizonModel, criterion_cost, platform_information
+from activetrack.planning.costs import HorizonModel, platform_information
 from activetrack.planning.criteria import (
     Criterion,
     criterion_names,
@@ -16,8 +17,9 @@ from activetrack.planning.criteria import (
     register_criterion,
     unregister_criterion,
 )
-from activetrack.planning.horizons import SearchSettings, optimise_platform
+from activetrack.planning.horizons import HorizonPlan, HorizonStage, SearchSettings, search_horizon
 from activetrack.planning.manoeuvre import (
+    PlannerPlatform,
     PlatformLimits,
     hold_course,
     manoeuvre_to_unit,
@@ -26,17 +28,22 @@ from activetrack.planning.manoeuvre import (
     step_platform,
     unit_to_manoeuvre,
 )
-from activetrack.planning.multisensor import Coordination, coordinate_platforms
+from activetrack.planning.multisensor import Coordination, PlatformStages, coordinate_platforms
+from activetrack.planning.objective import (
+    CovarianceTerm,
+    InformationTerm,
+    Objective,
+    Term,
+    TrackAggregate,
+)
 from activetrack.planning.planner import (
     PlannedManoeuvre,
-    PlannerPlatform,
     PlanReport,
     PlanResult,
     PlanSettings,
     TargetBelief,
     advance_belief,
     plan,
-    platforms_from_scenario,
 )
 from activetrack.planning.searches import (
     SEARCHES,
@@ -50,33 +57,39 @@ from activetrack.planning.searches import (
 __all__ = [
     "SEARCHES",
     "Coordination",
+    "CovarianceTerm",
     "Criterion",
     "HorizonModel",
+    "HorizonPlan",
+    "HorizonStage",
+    "InformationTerm",
+    "Objective",
     "PlanReport",
     "PlanResult",
     "PlanSettings",
     "PlannedManoeuvre",
     "PlannerPlatform",
     "PlatformLimits",
+    "PlatformStages",
     "SearchResult",
     "SearchSettings",
     "TargetBelief",
+    "Term",
+    "TrackAggregate",
     "advance_belief",
     "coordinate_platforms",
-    "criterion_cost",
     "criterion_names",
     "evolution_search",
     "get_criterion",
     "grid_search",
     "hold_course",
     "manoeuvre_to_unit",
-    "optimise_platform",
     "plan",
     "platform_information",
-    "platforms_from_scenario",
     "quadrant_search",
     "register_criterion",
     "rollout",
+    "search_horizon",
     "sector_search",
     "speed_interval",
     "step_platform",

@@ -1,5 +1,5 @@
 """Compiled helpers of the planner's inner loop: the bookkeeping of the lockstep quadrant search
-(``searches.quadrant_search``) and the candidate legs of the dynamic programme
+(``searches.quadrant_search``) and the candidate legs of the horizon search
 (``horizons``: ``manoeuvre.unit_to_manoeuvre`` then ``manoeuvre.step_platform``).
 
 The search itself (Hernandez sec. 4.1) is unchanged: these functions do, for all problems of a
@@ -9,7 +9,8 @@ with the lowest average corner cost, halving the square). Comparisons and arithm
 the numpy version operation for operation (first index on ties, NaN first as ``np.argmin``), so
 the search takes the same decisions. Payloads are flattened to ``(..., P)`` rows here.
 
-numba compiles on first use and caches the machine code next to this file (``cache=True``).
+numba compiles on first use and caches the machine code next to this file (``cache=True``);
+``horizons.warm_up`` calls each kernel once, as the planner does.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import numpy as np
 
 from activetrack.arraytypes import FloatArray
 
-__all__ = ["candidate_legs", "quadrant_accept", "quadrant_points", "warm_up"]
+__all__ = ["candidate_legs", "quadrant_accept", "quadrant_points"]
 
 IntArray = np.ndarray
 _TWO_PI = 2.0 * np.pi
@@ -188,17 +189,3 @@ def quadrant_accept(
     for r in keep:
         _split(r, values, payload, origin, side)
     return keep
-
-
-def warm_up() -> None:
-    """Compile (or load) the kernels of this module (``activetrack.kernels.warm_up``), with
-    the argument types the planner passes (a payload and none)."""
-    from activetrack.planning.searches import quadrant_search
-
-    def cost_fn(rows: IntArray, u: FloatArray) -> tuple[FloatArray, FloatArray]:
-        return u[..., 0] + u[..., 1], u.copy()
-
-    quadrant_search(cost_fn, 2, divisions=2)
-    quadrant_search(lambda rows, u: u[..., 0] * u[..., 1], 1, divisions=2)
-    rows, one = np.zeros(1, dtype=np.int64), np.ones(1)
-    candidate_legs(np.full((1, 1, 2), 0.5), rows, np.zeros((1, 4)), one, one, one, 0.1, 1.0)

@@ -1,4 +1,4 @@
-"""Sensor-to-track assignment of steerable beams, and costs aggregated over tracks.
+"""Sensor-to-track assignment of steerable beams.
 
 A steerable sensor (a beam ``beam_width`` wide) observes one track per epoch. Given the
 per-pair costs ``C[s, t]`` (track t's cost if sensor s serves it) and ``c0[t]`` (its cost if
@@ -43,15 +43,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike
+from activetrack.models.fov import sector_coverage
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
+from activetrack.planning.objective import aggregate_costs, check_aggregate
 from activetrack.planning.selection import TargetPrediction, expected_update
 
 if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
 
 __all__ = [
-    "AGGREGATES",
-    "aggregate_costs",
     "assign_beams",
     "assignment_value",
     "beam_coverage",
@@ -61,8 +61,6 @@ __all__ = [
     "random_assignment",
     "round_assignment",
 ]
-
-AGGREGATES = ("worst", "weighted_sum")
 
 
 def _linear_sum_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -74,9 +72,6 @@ def _linear_sum_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(rows), np.asarray(cols)
 
 
-_erf = np.vectorize(math.erf, otypes=[float])
-
-
 def beam_coverage(
     beam_width: float, x: np.ndarray, P: np.ndarray, sensor_pv: np.ndarray
 ) -> np.ndarray:
@@ -85,27 +80,6 @@ def beam_coverage(
     the sector centred on x). x ``(4,)``, P ``(..., 4, 4)`` broadcasting against the sensors;
     returns ``(...)``."""
     return sector_coverage(beam_width, 0.0, x, P, sensor_pv)
-
-
-def sector_coverage(
-    width: float, offset: ArrayLike, x: np.ndarray, P: np.ndarray, sensor_pv: np.ndarray
-) -> np.ndarray:
-    """Probability that a target N(x, P) lies inside a bearing sector ``width`` wide whose
-    centre is ``offset`` [rad] off the bearing of x, seen from sensor pvs: with the linearised
-    bearing variance sigma_b^2 = h P h^T (h = (-dy, 0, dx, 0) / r^2),
-    (erf((w/2 - offset) / (sqrt(2) sigma_b)) + erf((w/2 + offset) / (sqrt(2) sigma_b))) / 2.
-    x ``(..., 4)``, P ``(..., 4, 4)``, sensor_pv ``(..., 4)`` and offset broadcast; returns
-    ``(...)``."""
-    pv = np.asarray(sensor_pv, dtype=float)
-    x = np.asarray(x, dtype=float)
-    dx, dy = x[..., 0] - pv[..., 0], x[..., 2] - pv[..., 2]
-    r2 = np.maximum(dx * dx + dy * dy, 1e-300)
-    z = np.zeros_like(dx)
-    h = np.stack([-dy / r2, z, dx / r2, z], axis=-1)
-    var = np.einsum("...i,...ij,...j->...", h, np.asarray(P, dtype=float), h)
-    spread = np.sqrt(np.maximum(var, 1e-300)) * math.sqrt(2.0)
-    half, off = 0.5 * width, np.asarray(offset, dtype=float)
-    return np.asarray(0.5 * (_erf((half - off) / spread) + _erf((half + off) / spread)))
 
 
 def coverage_after_misses(coverage: ArrayLike, miss_factor: ArrayLike) -> np.ndarray:
@@ -127,21 +101,6 @@ def coverage_after_misses(coverage: ArrayLike, miss_factor: ArrayLike) -> np.nda
     num = c * M
     den = num + (1.0 - c)
     return np.divide(num, den, out=np.zeros(np.broadcast(num, den).shape), where=den > 0.0)
-
-
-def _check_aggregate(aggregate: str) -> str:
-    if aggregate not in AGGREGATES:
-        raise ValueError(f"aggregate must be one of {AGGREGATES}, got {aggregate!r}")
-    return aggregate
-
-
-def aggregate_costs(costs: ArrayLike, weights: ArrayLike, aggregate: str) -> np.ndarray:
-    """Per-track costs ``(..., T)`` to one: ``"worst"`` max_t, ``"weighted_sum"`` sum_t w_t c_t
-    (``weights`` ``(T,)``, the tracks' priorities)."""
-    c = np.asarray(costs, dtype=float)
-    if _check_aggregate(aggregate) == "worst":
-        return np.max(c, axis=-1)
-    return np.sum(c * np.asarray(weights, dtype=float), axis=-1)
 
 
 def _check_round(C: ArrayLike, c0: ArrayLike, weights: ArrayLike) -> tuple[np.ndarray, ...]:
@@ -177,7 +136,7 @@ def round_assignment(C: ArrayLike, c0: ArrayLike, weights: ArrayLike, aggregate:
     ``C`` ``(S, T)``: track t's cost served by sensor s; ``c0`` ``(T,)``: unserved;
     ``weights`` ``(T,)`` > 0."""
     C, c0, w = _check_round(C, c0, weights)
-    if _check_aggregate(aggregate) == "worst":
+    if check_aggregate(aggregate) == "worst":
         rows, cols = _minimax(C, c0, C - c0)
     else:
         rows, cols = _linear_sum_assignment(w * (C - c0))

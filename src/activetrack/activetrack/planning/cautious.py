@@ -33,11 +33,13 @@ from activetrack.checks import (
     require_spd,
     symmetrize,
 )
+from activetrack.data import Command, PlatformSnapshot, TrackEstimate
 
 __all__ = [
     "TAILS",
     "AmbiguousUpdate",
     "CautiousAction",
+    "CautiousController",
     "CautiousPlanner",
     "ambiguous_bearing_update",
     "caution_gamma",
@@ -331,3 +333,67 @@ class CautiousPlanner:
         if s.shape == (4,):
             s = s[[0, 2]]
         return ambiguous_bearing_update(x_hat, P, z, s, self.sigma_s)
+
+
+# --- stop-and-measure control of the robot ----------------------------------------------------
+
+_ARRIVED = 1e-6  # m: a robot this close to its waypoint is on it
+
+
+class CautiousController:
+    """Per-epoch commands for the one robot ``robot_id`` (top speed ``v_max``, decisions
+    ``dt`` apart) from the beta-cautious ``planner``; no randomness."""
+
+    def __init__(self, robot_id: str, v_max: float, dt: float, planner: CautiousPlanner):
+        self.robot_id = robot_id
+        self.dt = dt
+        self.v_max = v_max
+        self.dwell_epochs = max(1, math.ceil(float(planner.t_m) / dt))
+        self.planner = planner
+        self.waypoint: np.ndarray | None = None
+        self.dwell_left = 0
+        self.measurements = 0
+        self.awaiting = False  # a measurement was requested for the next epoch
+        self.done = False
+
+    def decide(self, epoch: int, track: TrackEstimate, robot: PlatformSnapshot) -> Command:
+        position = robot.pv[[0, 2]]
+        if self.awaiting:  # the track now holds the measurement taken at this epoch
+            self.awaiting = False
+            self.measurements += 1
+            self.waypoint = None
+        if self.waypoint is None and not self.done:
+            action = self.planner.next_action(
+                track.state, track.state_cov, position, self.measurements
+            )
+            self.done = action.done
+            self.waypoint = None if action.done else np.asarray(action.waypoint, dtype=float)
+            self.dwell_left = self.dwell_epochs
+        if self.done:
+            return self._command(epoch, robot, robot.heading, 0.0, take=False)
+        offset = self.waypoint - position
+        distance = float(np.hypot(*offset))
+        if distance > _ARRIVED:  # drive straight at the waypoint, arriving exactly on it
+            heading = math.atan2(offset[1], offset[0])
+            return self._command(
+                epoch, robot, heading, min(self.v_max, distance / self.dt), take=False
+            )
+        self.dwell_left -= 1  # stopped on the waypoint; the last dwell epoch ends in a measurement
+        take = self.dwell_left <= 0
+        self.awaiting = take
+        return self._command(epoch, robot, robot.heading, 0.0, take=take)
+
+    def _command(
+        self, epoch: int, robot: PlatformSnapshot, heading: float, speed: float, take: bool
+    ) -> Command:
+        w = self.waypoint
+        return Command(
+            self.robot_id,
+            epoch,
+            float(wrap_angle(heading - robot.heading)),
+            speed - robot.speed,
+            heading,
+            speed,
+            take_measurement=take,
+            waypoint=None if w is None else (float(w[0]), float(w[1])),
+        )

@@ -1,21 +1,22 @@
-"""PCRLB costs of candidate manoeuvres over a planning horizon (glue to ``activetrack.bounds``).
+"""The PCRLB of one target over a planning horizon for the platforms' candidate manoeuvres
+(glue to ``activetrack.bounds``).
 
-A :class:`HorizonModel` holds what one decision at epoch k needs: the linear target dynamics
-(F, Q), the target samples at epochs k+1..k+R (Hernandez sec. 3.2: the prior, or the tracker's
-posterior for renewals, pushed through the dynamics) and the information the platforms that are
-*not* being optimised contribute at those epochs. Scoring candidates for the platform being
-optimised is then one batched PCRLB step (Hernandez eq. 3 with eq. 8-9)::
+A :class:`HorizonModel` holds what one platform's search at epoch k needs: the linear target
+dynamics (F, Q), the target samples at epochs k+1..k+R (Hernandez sec. 3.2: the prior, or the
+tracker's posterior for renewals, pushed through the dynamics) and the information the platforms
+that are *not* being optimised contribute at those epochs. Scoring candidates for the platform
+being optimised is then one batched PCRLB step (Hernandez eq. 3 with eq. 8-9)::
 
     J_{k+r} = (Q + F J_{k+r-1}^{-1} F^T)^{-1} + J_Z^fixed(k+r) + J_Z^platform(k+r; candidates)
 
-and a criterion of J^{-1} that applies to PCRLB planning (:mod:`activetrack.planning.criteria`:
-``"b_k"``, eq. 10, ``"trace"``, ``"det_pos"``, Ramdaras eq. 24, or a registered one).
-Every candidate J computed counts as one cost evaluation.
+(a stage of :func:`activetrack.planning.horizons.search_horizon`; the objective takes a
+criterion of J^{-1}, :class:`activetrack.planning.objective.InformationTerm`).
+:class:`FleetInformation` keeps every platform's J_Z along its current path for the platform
+coordinator (:func:`activetrack.planning.multisensor.coordinate_platforms`).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -26,19 +27,15 @@ from activetrack.bounds.pcrlb import (
     check_dynamics,
     information_function,
     measurement_information,
+    pcrlb_step,
     predicted_information,
 )
-from activetrack.planning.criteria import PCRLB, get_criterion
 
 if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
+    from activetrack.planning.manoeuvre import PlannerPlatform
 
-__all__ = ["HorizonModel", "InformationCache", "criterion_cost", "platform_information"]
-
-
-def criterion_cost(criterion: str, J: np.ndarray) -> np.ndarray:
-    """Criterion ``criterion`` of the bound J^{-1} for information matrices ``(..., 4, 4)``."""
-    return get_criterion(criterion, PCRLB).of_information(J)
+__all__ = ["FleetInformation", "HorizonModel", "InformationCache", "platform_information"]
 
 
 def platform_information(
@@ -73,11 +70,13 @@ class InformationCache:
 
 
 class HorizonModel:
-    """Batched PCRLB steps and costs over epochs k+1..k+R for one platform being optimised.
+    """Batched PCRLB steps over epochs k+1..k+R of one target for the platform being optimised
+    (a :class:`activetrack.planning.horizons.HorizonStage`): the state is J ``(..., 1, 4, 4)``,
+    one track.
 
     F, Q: ``(4, 4)`` target dynamics (eq. 2). samples: ``(R, M, 4)`` target samples at
     k+1..k+R. fixed_information: ``(R, 4, 4)`` J_Z of all other platforms at those epochs.
-    sensors: the optimised platform's sensors. ``evaluations`` counts candidate PCRLB steps.
+    sensors: the optimised platform's sensors.
 
     ``cache``: an optional :class:`InformationCache` shared by the models of one platform within
     a decision (the coordinate descent over platforms optimises a platform again with the
@@ -93,34 +92,23 @@ class HorizonModel:
         samples: np.ndarray,
         fixed_information: ArrayLike,
         sensors: Sequence[SensorModel],
-        criterion: str = "b_k",
         cache: InformationCache | None = None,
     ):
-        self._criterion = get_criterion(criterion, PCRLB)
         self.F, self.Q = check_dynamics(F, Q, 4)  # once: the steps below trust them
         self.samples = np.asarray(samples, dtype=float)
-        self.fixed = np.asarray(fixed_information, dtype=float)
+        self.fixed = np.asarray(fixed_information, dtype=float)[:, None]  # (R, 1, 4, 4)
         self.sensors = tuple(sensors)
-        self.criterion = criterion
-        self.evaluations = 0
         # Each sensor's J_Z of flat candidate batches (N, 4) -> (N, 4, 4): its compiled kernel
         # where it has one (bounds.pcrlb.information_function), resolved once per model.
         self._information = [information_function(s) for s in self.sensors]
         self._cache = cache
 
-    @property
-    def horizon(self) -> int:
-        return self.samples.shape[0]
-
-    def step(self, J_prev: np.ndarray, r: int, pv: np.ndarray) -> np.ndarray:
-        """J at epoch k+1+r with the platform at ``pv`` ``(..., 4)``; J_prev broadcasts
-        ``(..., 4, 4)``. Hernandez eq. 3."""
-        return self.update(self.predict(J_prev), r, pv)
-
-    def predict(self, J_prev: np.ndarray) -> np.ndarray:
+    def prepare(self, J_prev: np.ndarray, level: int) -> np.ndarray:
         """The prediction part of eq. 3, (Q + F J_prev^{-1} F^T)^{-1}: it depends on J_prev
-        only, so a search computes it once per J_prev and scores all candidates against it."""
-        return predicted_information(np.asarray(J_prev, dtype=float), self.F, self.Q)
+        only, so a search computes it once per J_prev and scores all candidates against it.
+        ``(..., 1, 4, 4)``, one stack of matrices (compiled where the kernels are on)."""
+        J_prev = np.asarray(J_prev, dtype=float)
+        return predicted_information(J_prev.reshape(-1, 4, 4), self.F, self.Q).reshape(J_prev.shape)
 
     def platform_information(self, r: int, pv: np.ndarray) -> np.ndarray:
         """The platform's own J_Z at epoch k+1+r for pv states ``(..., 4)``: ``(..., 4, 4)``
@@ -137,14 +125,51 @@ class HorizonModel:
                 cache.put(key, J_Z)
         return J_Z.reshape(*pv.shape[:-1], 4, 4)
 
-    def update(self, J_pred: np.ndarray, r: int, pv: np.ndarray) -> np.ndarray:
-        """``J_pred`` (from :meth:`predict`) plus J_Z at epoch k+1+r with the platform at
-        ``pv`` ``(..., 4)`` and the others' fixed information."""
-        pv = np.asarray(pv, dtype=float)
-        J_Z = self.fixed[r] + self.platform_information(r, pv)
-        self.evaluations += math.prod(pv.shape[:-1])
+    def advance(self, J_pred: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
+        """J at epoch k+1+level: ``J_pred`` (from :meth:`prepare`) plus the others' fixed J_Z
+        and the platform's own at pv ``(..., 4)``: ``(..., 1, 4, 4)``."""
+        J_Z = self.fixed[level] + self.platform_information(level, pv)[..., None, :, :]
         return J_pred + J_Z
 
-    def cost(self, J: np.ndarray) -> np.ndarray:
-        """The criterion of J^{-1}, ``(..., 4, 4) -> (...)``."""
-        return self._criterion.of_information(J)
+
+class FleetInformation:
+    """Every platform's J_Z at k+1..k+R along its current path (eq. 8-9) over the target
+    ``samples`` ``(R, M, 4)``, and the :class:`HorizonModel` of the platform being optimised with
+    the others' information fixed (the platform coordinator's stages,
+    :class:`activetrack.planning.multisensor.PlatformStages`)."""
+
+    def __init__(
+        self,
+        platforms: Sequence[PlannerPlatform],
+        F: np.ndarray,
+        Q: np.ndarray,
+        samples: np.ndarray,
+    ):
+        self.platforms, self.F, self.Q, self.samples = tuple(platforms), F, Q, samples
+        self.information = [np.zeros((len(samples), 4, 4)) for _ in self.platforms]
+        # Each platform's own J_Z of candidate batches, kept across its optimisations in this
+        # decision (HorizonModel's cache): a later pass often scores the same candidates again. A
+        # single controllable platform is optimised once: nothing to share.
+        shared = sum(p.limits is not None for p in self.platforms) > 1
+        self.caches = [InformationCache() if shared else None for _ in self.platforms]
+
+    def follow(self, i: int, path: np.ndarray) -> None:
+        p, X = self.platforms[i], self.samples
+        self.information[i] = np.stack(
+            [platform_information(p.sensors, path[r], X[r]) for r in range(len(X))]
+        )
+
+    def stage(self, j: int) -> HorizonModel:
+        info, n = self.information, len(self.platforms)
+        fixed = sum(info[i] for i in range(n) if i != j) if n > 1 else np.zeros_like(info[j])
+        return HorizonModel(
+            self.F, self.Q, self.samples, fixed, self.platforms[j].sensors, self.caches[j]
+        )
+
+    def bound_information(self, J0: np.ndarray) -> np.ndarray:
+        """J at epochs k+1..k+R ``(R, 4, 4)`` from J0 with every platform on its path (eq. 3)."""
+        out, J = [], np.asarray(J0, dtype=float)
+        for J_Z in sum(self.information, np.zeros_like(self.information[0])):
+            J = pcrlb_step(J, self.F, self.Q, J_Z)
+            out.append(J)
+        return np.stack(out)

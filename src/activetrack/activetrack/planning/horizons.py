@@ -1,14 +1,32 @@
-"""Planning horizons for one platform (the others' manoeuvres fixed).
+"""The horizon search: one platform's best R-leg manoeuvre sequence for an objective, the other
+platforms' manoeuvres fixed (Hernandez sec. 3.3-4, eq. 11-16; Ramdaras sec. 7's multi-step
+positioning). Every planner that steers a platform uses it.
 
-- Single step (Hernandez eq. 11): a_k = argmin b_{k+1}.
-- Two-step dynamic programming (eq. 13-15): for each candidate a_k the inner search finds
-  a_{k+1} | a_k minimising b_{k+2} (eq. 13-14), and a_k minimises b_{k+1} + b_{k+2}(a_k) (eq. 15).
-  The same recursion nests for any R (eq. 16), with the inner searches of all outer candidates
-  of a stage run in lockstep (one batched PCRLB call per stage and level).
-- R-step by evolution (eq. 16, sec. 3.3.4): differential evolution over all R manoeuvres.
+Two objects say what is searched:
 
-Manoeuvres are returned physically, ``(R, 2)`` rows of (dpsi, v'); only the first is flown
-(receding horizon), the rest is the plan the objective assumed.
+- a stage (:class:`HorizonStage`): how a candidate manoeuvre changes the state at each leg, e.g.
+  the PCRLB information J by Hernandez eq. 3 (:class:`activetrack.planning.costs.HorizonModel`)
+  or the MRE covariance by Ramdaras eq. 23 (:class:`activetrack.planning.selection.MreStage`),
+  one per track;
+- the objective (:class:`activetrack.planning.objective.Objective`): what those states cost,
+  summed over the legs or after the last.
+
+The searches (:class:`SearchSettings`, over the manoeuvre parametrisation of
+:mod:`activetrack.planning.manoeuvre`):
+
+- Single step (eq. 11): a_k = argmin cost(state_{k+1}).
+- Lockstep searches (grid, quadrant, sector) nest one search per leg, the dynamic programme of
+  eq. 13-15: for each candidate a_k the inner search finds a_{k+1} | a_k, and a_k minimises its
+  own cost plus the inner optimum; the same recursion nests for any R (eq. 16). The inner
+  searches of all outer candidates of a search stage run in lockstep (one batched stage call per
+  search stage and level), and each J_prev's share of the work (:meth:`HorizonStage.prepare`)
+  is done once for all its candidates.
+- ``"evolution"``: differential evolution over all R manoeuvres at once (eq. 16, sec. 3.3.4),
+  seeded with "hold course", drawing from the caller's generator.
+
+Every candidate state a leg produces counts as one cost evaluation. Manoeuvres are returned
+physically, ``(R, 2)`` rows of (dpsi, v'); only the first is flown (receding horizon), the rest
+is the plan the objective assumed.
 """
 
 from __future__ import annotations
@@ -16,13 +34,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import Any
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from activetrack.kernels import kernels_enabled
-from activetrack.planning.costs import HorizonModel
+from activetrack.kernels import kernels_enabled, prefer_kernels
 from activetrack.planning.manoeuvre import (
+    PlannerPlatform,
     PlatformLimits,
     hold_course,
     manoeuvre_to_unit,
@@ -39,7 +57,17 @@ from activetrack.planning.searches import (
     sector_search,
 )
 
-__all__ = ["SearchSettings", "optimise_platform"]
+if TYPE_CHECKING:
+    from activetrack.planning.objective import Objective
+
+__all__ = [
+    "HorizonPlan",
+    "HorizonStage",
+    "SearchSettings",
+    "check_horizon",
+    "search_horizon",
+    "warm_up",
+]
 
 # A batched search: (cost_fn, n_problems) -> SearchResult (activetrack.planning.searches).
 LockstepSearch = Callable[..., SearchResult]
@@ -77,20 +105,6 @@ class SearchSettings:
         if not (np.isfinite(self.evolution_tol) and self.evolution_tol >= 0):
             raise ValueError(f"evolution_tol must be finite and >= 0, got {self.evolution_tol!r}")
 
-    @classmethod
-    def from_config(cls, cfg: Any, **overrides: Any) -> SearchSettings:
-        """From a scenario ``PlannerConfig`` (search, grid_size, quadrant_divisions,
-        quadrant_patience, sector_levels); keyword ``overrides`` replace any field."""
-        fields: dict[str, Any] = {
-            "search": cfg.search,
-            "grid_size": cfg.grid_size,
-            "quadrant_divisions": cfg.quadrant_divisions,
-            "quadrant_patience": cfg.quadrant_patience,
-            "sector_levels": cfg.sector_levels,
-        }
-        fields.update(overrides)
-        return cls(**fields)
-
     def evaluations_per_platform(self, horizon: int) -> int:
         """Cost evaluations of one platform's R-step optimisation (at most, for the quadrant
         search with patience): per_stage^R for the nested lockstep searches, the population
@@ -119,50 +133,119 @@ class SearchSettings:
         raise ValueError(f"search {self.search!r} has no lockstep form")
 
 
-def _dynamic_programme(
-    model: HorizonModel,
-    level: int,
-    J_prev: np.ndarray,
-    pv: np.ndarray,
-    heading: np.ndarray,
-    speed: np.ndarray,
-    limits: PlatformLimits,
+class HorizonStage(Protocol):
+    """How one platform's candidate manoeuvres change a state leg by leg. The state is an array
+    whose trailing axes the stage owns (J or P of every track, ``(T, 4, 4)``); ``state0`` at
+    epoch k is shared by every candidate, the states of later legs carry leading axes."""
+
+    def prepare(self, state: np.ndarray, level: int) -> np.ndarray:
+        """What leg ``level`` starts from, computed once for all its candidates: from
+        ``state0`` (level 0) or the states ``(B, ...)`` of B problems, leading axes kept (e.g.
+        the prediction part of Hernandez eq. 3, which depends on J_prev only)."""
+        ...
+
+    def advance(self, prepared: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
+        """The states after leg ``level`` (epoch k+1+level) from ``prepared`` (as returned at
+        level 0, else ``(b, 1, ...)``) with the platform at pv ``(b, C, 4)``: ``(b, C, ...)``."""
+        ...
+
+
+@dataclass(frozen=True)
+class HorizonPlan:
+    """The best manoeuvre sequence ``(R, 2)`` of (dpsi, v'), its objective and the cost
+    evaluations spent (every candidate state of every leg)."""
+
+    plan: np.ndarray
+    objective: float
+    evaluations: int
+
+
+def check_horizon(horizon: int) -> int:
+    """``horizon`` R as an int if it is an integer >= 1, else ValueError."""
+    if isinstance(horizon, bool) or not isinstance(horizon, int | np.integer) or horizon < 1:
+        raise ValueError(f"horizon must be an integer >= 1, got {horizon!r}")
+    return int(horizon)
+
+
+def search_horizon(
+    stage: HorizonStage,
+    objective: Objective,
+    state0: np.ndarray,
+    platform: PlannerPlatform,
     dt: float,
-    search: LockstepSearch,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Best manoeuvres for epochs k+level..k+R-1 of B problems, and their summed cost.
+    settings: SearchSettings,
+    horizon: int,
+    rng: np.random.Generator | None = None,
+) -> HorizonPlan:
+    """The controllable ``platform``'s best R-leg manoeuvre sequence: the ``objective`` of the
+    states ``stage`` advances from ``state0`` (eq. 11 for R = 1, eq. 15 for R = 2, eq. 16 in
+    general), by ``settings``' search (module docstring); ``rng`` seeds the evolution."""
+    R = check_horizon(horizon)
+    if platform.limits is None:
+        raise ValueError(f"platform {platform.platform_id!r} must be controllable (have limits)")
+    if settings.search == "evolution":
+        return _evolve(stage, objective, state0, platform, platform.limits, dt, settings, R, rng)
+    nested = _Nested(stage, objective, platform.limits, dt, settings.lockstep_search(), R)
+    heading, speed = platform.heading_and_speed
+    plan, value = nested.best(0, state0, platform.pv[None], np.array([heading]), np.array([speed]))
+    return HorizonPlan(plan[0], float(value[0]), nested.evaluations)
 
-    J_prev ``(B, 4, 4)``, pv ``(B, 4)``, heading and speed ``(B,)`` at epoch k+level.
-    Returns the plans ``(B, R - level, 2)`` and the values ``(B,)`` (eq. 13-15 nested).
-    """
-    R = model.horizon
-    J_pred = model.predict(J_prev)  # (B, 4, 4): the same for every stage of the search
-    legs = _candidate_legs(pv, heading, speed, limits, dt)
 
-    def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        man, pv1, h1 = legs(rows, u)  # (b, C, 2), (b, C, 4), (b, C)
-        J1 = model.update(J_pred[rows, None], level, pv1)  # (b, C, 4, 4)
-        costs = model.cost(J1)
-        plan = man[:, :, None, :]
-        if level + 1 < R:
-            b, C = costs.shape
-            tail, value = _dynamic_programme(
-                model,
+class _Nested:
+    """The lockstep searches nested one per leg (Hernandez eq. 13-16)."""
+
+    def __init__(
+        self,
+        stage: HorizonStage,
+        objective: Objective,
+        limits: PlatformLimits,
+        dt: float,
+        search: LockstepSearch,
+        horizon: int,
+    ):
+        self.stage, self.objective, self.search = stage, objective, search
+        self.limits, self.dt, self.horizon = limits, dt, horizon
+        self.evaluations = 0
+
+    def best(
+        self,
+        level: int,
+        state: np.ndarray,
+        pv: np.ndarray,
+        heading: np.ndarray,
+        speed: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Best manoeuvres for legs ``level``..R-1 of B problems and their objectives: plans
+        ``(B, R - level, 2)``, values ``(B,)``. pv ``(B, 4)``, heading and speed ``(B,)`` at
+        epoch k+level; ``state`` is ``state0`` at level 0, else ``(B, ...)``."""
+        R, stage = self.horizon, self.stage
+        prepared = stage.prepare(state, level)
+        legs = _candidate_legs(pv, heading, speed, self.limits, self.dt)
+
+        def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            man, pv1, h1 = legs(rows, u)  # (b, C, 2), (b, C, 4), (b, C)
+            b, C = man.shape[:2]
+            S1 = stage.advance(prepared if level == 0 else prepared[rows][:, None], level, pv1)
+            self.evaluations += b * C
+            costs = self.objective.leg_cost(S1, level, R)
+            plan = man[:, :, None, :]
+            if level + 1 == R:
+                return (np.zeros((b, C)) if costs is None else costs), plan
+            if S1.shape[:2] != (b, C):  # a state that no candidate changes
+                S1 = np.broadcast_to(S1, (b, C, *S1.shape[2:]))
+            tail, value = self.best(
                 level + 1,
-                J1.reshape(-1, 4, 4),
+                S1.reshape(b * C, *S1.shape[2:]),
                 pv1.reshape(-1, 4),
                 h1.reshape(-1),
                 man[..., 1].reshape(-1),
-                limits,
-                dt,
-                search,
             )
-            costs = costs + value.reshape(b, C)
-            plan = np.concatenate([plan, tail.reshape(b, C, R - level - 1, 2)], axis=2)
-        return costs, plan
+            value = value.reshape(b, C)
+            costs = value if costs is None else costs + value
+            return costs, np.concatenate([plan, tail.reshape(b, C, R - level - 1, 2)], axis=2)
 
-    result = search(cost_fn, len(speed))
-    return result.payload(), result.cost
+        result = self.search(cost_fn, len(speed))
+        return result.payload(), result.cost
 
 
 # (rows (b,), u (b, C, 2)) -> manoeuvres (b, C, 2), pv (b, C, 4), headings (b, C)
@@ -191,37 +274,41 @@ def _candidate_legs(
     return lambda rows, u: candidate_legs(u, rows, pv, heading, v_lo, v_hi, limits.dpsi_max, dt)
 
 
-def _evolution(
-    model: HorizonModel,
-    J0: np.ndarray,
-    pv: np.ndarray,
-    heading: float,
-    speed: float,
+def _evolve(
+    stage: HorizonStage,
+    objective: Objective,
+    state0: np.ndarray,
+    platform: PlannerPlatform,
     limits: PlatformLimits,
     dt: float,
     settings: SearchSettings,
+    R: int,
     rng: np.random.Generator | None,
-) -> tuple[np.ndarray, float]:
-    """All R manoeuvres at once by differential evolution (eq. 16)."""
-    R = model.horizon
+) -> HorizonPlan:
+    """All R manoeuvres at once by differential evolution (Hernandez eq. 16, sec. 3.3.4)."""
+    heading, speed = platform.heading_and_speed
+    evaluations = 0
 
     def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        u = u[0].reshape(-1, R, 2)  # (P, R, 2)
-        P = u.shape[0]
-        p, h, v = np.broadcast_to(pv, (P, 4)), np.full(P, heading), np.full(P, speed)
-        J, total, plan = J0, np.zeros(P), np.empty((P, R, 2))
+        nonlocal evaluations
+        u = u[0].reshape(-1, R, 2)  # (n, R, 2): the population
+        n = u.shape[0]
+        p, h = np.broadcast_to(platform.pv, (1, n, 4)), np.full((1, n), heading)
+        v = np.full(n, speed)
+        state, total, plan = state0, np.zeros((1, n)), np.empty((1, n, R, 2))
         for r in range(R):
-            plan[:, r] = unit_to_manoeuvre(u[:, r], v, limits)
-            p, h = step_platform(p, h, plan[:, r], dt)
-            v = plan[:, r, 1]
-            J = model.step(J, r, p)
-            total += model.cost(J)
-        return total[None], plan[None]
+            plan[0, :, r] = unit_to_manoeuvre(u[:, r], v, limits)
+            p, h = step_platform(p, h, plan[:, :, r], dt)
+            v = plan[0, :, r, 1]
+            state = stage.advance(stage.prepare(state, r), r, p)
+            costs = objective.leg_cost(state, r, R)
+            if costs is not None:
+                total = total + costs
+        evaluations += n * R
+        return total, plan
 
-    # Seed the population with "hold course" so the search starts from a feasible default.
     hold = hold_course(speed, limits, R)
-    speeds = np.concatenate([[speed], hold[:-1, 1]])
-    x0 = manoeuvre_to_unit(hold, speeds, limits).reshape(-1)
+    x0 = manoeuvre_to_unit(hold, np.concatenate([[speed], hold[:-1, 1]]), limits).reshape(-1)
     result = evolution_search(
         cost_fn,
         2 * R,
@@ -231,38 +318,20 @@ def _evolution(
         tol=settings.evolution_tol,
         x0=x0,
     )
-    return result.payload()[0], float(result.cost[0])
+    return HorizonPlan(result.payload()[0], float(result.cost[0]), evaluations)
 
 
-def optimise_platform(
-    model: HorizonModel,
-    J0: np.ndarray,
-    pv: np.ndarray,
-    heading: float,
-    speed: float,
-    limits: PlatformLimits,
-    dt: float,
-    settings: SearchSettings,
-    rng: np.random.Generator | None = None,
-) -> tuple[np.ndarray, float]:
-    """Best R-step manoeuvre plan ``(R, 2)`` of (dpsi, v') for one platform and its objective
-    sum_{r=1..R} cost(J_{k+r}) (eq. 11 for R = 1, eq. 15 for R = 2, eq. 16 in general).
+def warm_up() -> None:
+    """Compile (or load) the planner's kernels (``planning._kernels``, through
+    ``activetrack.kernels.warm_up``) with the argument types the planner passes (a payload and
+    none)."""
+    from activetrack.planning._kernels import candidate_legs
 
-    J0: information at epoch k ``(4, 4)``; pv, heading, speed: the platform at epoch k.
-    ``settings.search == "evolution"`` uses differential evolution, any other search the
-    (nested) dynamic programme.
-    """
-    if settings.search == "evolution":
-        return _evolution(model, J0, pv, heading, speed, limits, dt, settings, rng)
-    plan, value = _dynamic_programme(
-        model,
-        0,
-        np.asarray(J0, dtype=float)[None],
-        np.asarray(pv, dtype=float)[None],
-        np.array([heading], dtype=float),
-        np.array([speed], dtype=float),
-        limits,
-        dt,
-        settings.lockstep_search(),
-    )
-    return plan[0], float(value[0])
+    def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return u[..., 0] + u[..., 1], u.copy()
+
+    with prefer_kernels():  # the compiled bookkeeping, whatever the mode
+        quadrant_search(cost_fn, 2, divisions=2)
+        quadrant_search(lambda rows, u: u[..., 0] * u[..., 1], 1, divisions=2)
+    rows, one = np.zeros(1, dtype=np.int64), np.ones(1)
+    candidate_legs(np.full((1, 1, 2), 0.5), rows, np.zeros((1, 4)), one, one, one, 0.1, 1.0)

@@ -9,26 +9,30 @@ annular sector; the searches explore it through the unit square u = (u_psi, u_v)
 
 so u = (0.5, .) is "straight ahead". Ramdaras' limits (sec. 5: longitudinal acceleration a_max,
 heading rate psi_rate_max) enter as dv_max = a_max T and dpsi_max = psi_rate_max T
-(``PlatformLimits.from_config``).
+(``activetrack.scenarios.build.platform_limits``).
 
-Manoeuvres are stored physically as ``(dpsi, v')`` pairs, shape ``(..., 2)``.
+Manoeuvres are stored physically as ``(dpsi, v')`` pairs, shape ``(..., 2)``. A
+:class:`PlannerPlatform` is a platform at the decision epoch (pv, sensors, limits), as every
+planner takes it.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from activetrack.angles import wrap_angle
 from activetrack.arraytypes import ArrayLike, FloatArray
+from activetrack.checks import require_finite
 
 if TYPE_CHECKING:
-    from activetrack.scenarios.schema import ManoeuvreLimits
+    from activetrack.models.base import SensorModel
 
 __all__ = [
+    "PlannerPlatform",
     "PlatformLimits",
     "hold_course",
     "rollout",
@@ -61,12 +65,6 @@ class PlatformLimits:
                 f"limits: need 0 <= v_min <= v_max and v_max > 0, got v_min={self.v_min}, "
                 f"v_max={self.v_max}"
             )
-
-    @classmethod
-    def from_config(cls, cfg: ManoeuvreLimits, dt: float) -> PlatformLimits:
-        """From a scenario ``ManoeuvreLimits`` (either limit pair) for decisions dt apart."""
-        dpsi_max, dv_max = cfg.per_epoch(dt)
-        return cls(min(float(dpsi_max), math.pi), float(dv_max), cfg.v_min, cfg.v_max)
 
 
 def speed_interval(speed: ArrayLike, limits: PlatformLimits) -> tuple[FloatArray, FloatArray]:
@@ -150,3 +148,68 @@ def hold_course(speed: float, limits: PlatformLimits, steps: int) -> FloatArray:
         lo, hi = speed_interval(out[r - 1, 1], limits)
         out[r, 1] = float(np.clip(out[r - 1, 1], lo, hi))
     return out
+
+
+@dataclass(frozen=True)
+class PlannerPlatform:
+    """A platform at the decision epoch. ``limits=None``: not controllable (holds course).
+
+    heading (rad from +x) and speed default to those of the pv velocity; give heading
+    explicitly for a platform at rest.
+    """
+
+    platform_id: str
+    pv: np.ndarray
+    sensors: tuple[SensorModel, ...]
+    limits: PlatformLimits | None = None
+    heading: float | None = None
+    speed: float | None = None
+
+    def __post_init__(self) -> None:
+        pv = require_finite("platforms.pv", self.pv)
+        if pv.shape != (4,):
+            raise ValueError(f"platforms.pv must be a pv vector of shape (4,), got {pv.shape}")
+        object.__setattr__(self, "pv", pv)
+        sensors = tuple(self.sensors)
+        # What planning asks of a sensor: its information and its measurement model.
+        needed = ("fisher_information", "jacobian", "R")
+        if not sensors or not all(all(hasattr(s, m) for m in needed) for s in sensors):
+            raise ValueError(
+                f"platforms.sensors of {self.platform_id!r} must hold at least one sensor model"
+            )
+        object.__setattr__(self, "sensors", sensors)
+        if self.limits is not None and not isinstance(self.limits, PlatformLimits):
+            raise ValueError("platforms.limits must be a PlatformLimits or None")
+        speed = math.hypot(pv[1], pv[3]) if self.speed is None else float(self.speed)
+        if not (math.isfinite(speed) and speed >= 0.0):
+            raise ValueError(f"platforms.speed must be finite and >= 0, got {self.speed!r}")
+        if self.heading is None:
+            if speed == 0.0 and self.limits is not None:
+                raise ValueError(
+                    f"platforms.heading is required for platform {self.platform_id!r} at rest"
+                )
+            heading = math.atan2(pv[3], pv[1])
+        else:
+            heading = float(self.heading)
+            if not math.isfinite(heading):
+                raise ValueError(f"platforms.heading must be finite, got {self.heading!r}")
+        object.__setattr__(self, "heading", heading)
+        object.__setattr__(self, "speed", speed)
+
+    @property
+    def controllable(self) -> bool:
+        return self.limits is not None
+
+    @property
+    def heading_and_speed(self) -> tuple[float, float]:
+        """(heading, speed) as resolved on construction (never None)."""
+        return cast(float, self.heading), cast(float, self.speed)
+
+    def path(self, dt: float, steps: int, plan: np.ndarray | None = None) -> FloatArray:
+        """pv at epochs k+1..k+steps ``(steps, 4)`` flying ``plan`` ``(steps, 2)``, or without
+        one constant-velocity legs along the pv velocity (how a platform without limits
+        holds course)."""
+        if plan is None:
+            legs = np.arange(1, int(steps) + 1)[:, None] * dt
+            return self.pv + legs * np.array([self.pv[1], 0.0, self.pv[3], 0.0])
+        return rollout(self.pv, self.heading_and_speed[0], plan, dt)[0]

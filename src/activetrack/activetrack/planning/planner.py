@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,15 +38,15 @@ from activetrack.bounds.pcrlb import (
 )
 from activetrack.checks import require_finite, require_positive, require_psd, require_spd
 from activetrack.kernels import prefer_kernels
-from activetrack.planning.costs import platform_information
+from activetrack.planning.costs import FleetInformation, platform_information
 from activetrack.planning.criteria import PCRLB, get_criterion
 from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlatformLimits
+from activetrack.planning.manoeuvre import PlannerPlatform
 from activetrack.planning.multisensor import coordinate_platforms
+from activetrack.planning.objective import InformationTerm, Objective
 
 if TYPE_CHECKING:
-    from activetrack.models.base import SensorModel
-    from activetrack.scenarios.schema import PlannerConfig, Scenario
+    pass
 
 __all__ = [
     "PlanReport",
@@ -57,7 +57,6 @@ __all__ = [
     "TargetBelief",
     "advance_belief",
     "plan",
-    "platforms_from_scenario",
 ]
 
 
@@ -65,60 +64,6 @@ __all__ = [
 # before numba is loaded (activetrack.kernels): two-step quadrant search (34^2 = 1,156) and
 # beyond, the grid; not the single-step searches (34, 41 or 5 candidates).
 HEAVY_DECISION = 1000
-
-
-@dataclass(frozen=True)
-class PlannerPlatform:
-    """A platform at the decision epoch. ``limits=None``: not controllable (holds course).
-
-    heading (rad from +x) and speed default to those of the pv velocity; give heading
-    explicitly for a platform at rest.
-    """
-
-    platform_id: str
-    pv: np.ndarray
-    sensors: tuple[SensorModel, ...]
-    limits: PlatformLimits | None = None
-    heading: float | None = None
-    speed: float | None = None
-
-    def __post_init__(self) -> None:
-        pv = require_finite("platforms.pv", self.pv)
-        if pv.shape != (4,):
-            raise ValueError(f"platforms.pv must be a pv vector of shape (4,), got {pv.shape}")
-        object.__setattr__(self, "pv", pv)
-        sensors = tuple(self.sensors)
-        if not sensors or not all(hasattr(s, "kind") and hasattr(s, "R") for s in sensors):
-            raise ValueError(
-                f"platforms.sensors of {self.platform_id!r} must hold at least one sensor model"
-            )
-        object.__setattr__(self, "sensors", sensors)
-        if self.limits is not None and not isinstance(self.limits, PlatformLimits):
-            raise ValueError("platforms.limits must be a PlatformLimits or None")
-        speed = math.hypot(pv[1], pv[3]) if self.speed is None else float(self.speed)
-        if not (math.isfinite(speed) and speed >= 0.0):
-            raise ValueError(f"platforms.speed must be finite and >= 0, got {self.speed!r}")
-        if self.heading is None:
-            if speed == 0.0 and self.limits is not None:
-                raise ValueError(
-                    f"platforms.heading is required for platform {self.platform_id!r} at rest"
-                )
-            heading = math.atan2(pv[3], pv[1])
-        else:
-            heading = float(self.heading)
-            if not math.isfinite(heading):
-                raise ValueError(f"platforms.heading must be finite, got {self.heading!r}")
-        object.__setattr__(self, "heading", heading)
-        object.__setattr__(self, "speed", speed)
-
-    @property
-    def controllable(self) -> bool:
-        return self.limits is not None
-
-    @property
-    def heading_and_speed(self) -> tuple[float, float]:
-        """(heading, speed) as resolved on construction (never None)."""
-        return cast(float, self.heading), cast(float, self.speed)
 
 
 @dataclass(frozen=True)
@@ -201,28 +146,6 @@ class PlanSettings:
                 raise ValueError(f"settings.{name} must be an integer >= 1, got {value!r}")
         if not isinstance(self.search, SearchSettings):
             raise ValueError("settings.search must be a SearchSettings")
-
-    @classmethod
-    def from_config(cls, cfg: PlannerConfig, **overrides: Any) -> PlanSettings:
-        """From a scenario ``PlannerConfig``; keyword ``overrides`` replace fields of this class
-        or of :class:`SearchSettings` (e.g. ``horizon=2``, ``search="grid"``, ``grid_size=21``)."""
-        if getattr(cfg, "cost", "pcrlb") != "pcrlb":
-            raise ValueError(f"planner.cost must be 'pcrlb' for this planner, got {cfg.cost!r}")
-        search_fields = set(SearchSettings.__dataclass_fields__)
-        search: dict[str, Any] = {}
-        top: dict[str, Any] = {
-            "criterion": cfg.criterion,
-            "horizon": cfg.horizon,
-            "max_sensor_iterations": cfg.max_sensor_iterations,
-        }
-        for key, value in overrides.items():
-            if key in search_fields:
-                search[key] = value
-            elif key in top:
-                top[key] = value
-            else:
-                raise ValueError(f"overrides: unknown setting {key!r}")
-        return cls(search=SearchSettings.from_config(cfg, **search), **top)
 
 
 @dataclass(frozen=True)
@@ -359,39 +282,43 @@ def plan(
     if not isinstance(belief, TargetBelief):
         raise ValueError("belief must be a TargetBelief")
     if not isinstance(settings, PlanSettings):
-        raise ValueError("settings must be a PlanSettings (see PlanSettings.from_config)")
+        raise ValueError("settings must be a PlanSettings (see scenarios.build.plan_settings)")
     if rng is not None and not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator or None, got {type(rng)}")
     F, Q, dt = _check_dynamics(F, Q, dt)
     R = int(settings.horizon)
     samples = propagate_samples(belief.samples, F, Q, R, rng)  # (R, M, 4) at k+1..k+R
+    fleet = FleetInformation(platforms, F, Q, samples)
+    # One target, one term: the criterion of the bound summed over the legs (eq. 11, 15-16).
+    objective = Objective((InformationTerm(get_criterion(settings.criterion, PCRLB)),))
     # Heavy decisions pay for numba's start-up: take the compiled kernels (activetrack.kernels).
     with prefer_kernels(settings.search.evaluations_per_platform(R) >= HEAVY_DECISION):
         result = coordinate_platforms(
             platforms,
-            belief.J,
-            samples,
-            F,
-            Q,
+            fleet,
+            objective,
+            belief.J[None],
             dt,
-            settings.criterion,
             settings.search,
+            R,
             settings.max_sensor_iterations,
             rng,
         )
+        J = fleet.bound_information(belief.J)  # (R, 4, 4) with everybody's plans
+        value = objective.along([J_r[None] for J_r in J])  # one track
     manoeuvres = _manoeuvres(platforms, result.plans, dt)
     report = PlanReport(
         criterion=settings.criterion,
         search=settings.search.search,
         horizon=R,
-        objective=result.objective,
-        predicted=_predicted_costs(result.J[0]),
+        objective=value,
+        predicted=_predicted_costs(J[0]),
         evaluations=result.evaluations,
         iterations=result.iterations,
         converged=result.converged,
         wall_time_s=time.perf_counter() - start,
     )
-    return PlanResult(manoeuvres, report, result.J[0])
+    return PlanResult(manoeuvres, report, J[0])
 
 
 def advance_belief(
@@ -407,26 +334,3 @@ def advance_belief(
     X = propagate_samples(belief.samples, F, Q, 1, rng)[0]
     J_Z = sum(platform_information(p.sensors, p.pv, X) for p in platforms_next)
     return TargetBelief(pcrlb_step(belief.J, F, Q, J_Z), X)
-
-
-def platforms_from_scenario(
-    scenario: Scenario, states: Mapping[str, ArrayLike] | None = None
-) -> list[PlannerPlatform]:
-    """PlannerPlatforms from a scenario's platforms (limits per epoch of ``scenario.dt``);
-    ``states`` maps platform id to a pv overriding the initial state."""
-    from activetrack.scenarios.build import build_sensor
-
-    out = []
-    for cfg in scenario.platforms:
-        limits = (
-            PlatformLimits.from_config(cfg.limits, scenario.dt)
-            if cfg.controllable and cfg.limits is not None
-            else None
-        )
-        pv = cfg.initial_state if states is None or cfg.id not in states else states[cfg.id]
-        out.append(
-            PlannerPlatform(
-                cfg.id, np.asarray(pv, float), tuple(build_sensor(s) for s in cfg.sensors), limits
-            )
-        )
-    return out

@@ -16,9 +16,10 @@ in eq. 26).
   independently searches its reachable envelope (the unit square of
   :mod:`activetrack.planning.manoeuvre`) with the nine-sector search (``d_max`` = levels); the
   cost of a candidate position is the criterion of eq. 23 with all of the platform's sensors
-  there. Several epochs ahead (sec. 7's future work): :func:`plan_positions`, eq. 23 iterated
-  over R legs with the constant-velocity prediction of the target, by :func:`search_horizon`
-  (nested searches, one per leg), which the multi-target planner shares.
+  there; several epochs ahead (sec. 7's future work): :func:`plan_positions`, eq. 23 iterated
+  over R legs with the constant-velocity prediction of the target (:class:`MreStage`). Both are
+  the horizon search of every planner (:func:`activetrack.planning.horizons.search_horizon`,
+  nested searches, one per leg) with the criterion as the objective.
 - Selection (sec. 3, eq. 27): :func:`select_by_criterion`, j = argmin_j C^(j) over every sensor
   at its planned position. Baselines (Ramdaras and Absil 2007a): :func:`select_random` (the
   caller's generator), :func:`select_fixed`, and :func:`select_by_trace`, the trace of the
@@ -33,7 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Protocol, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -42,16 +43,9 @@ from activetrack.bounds.costs import trace_cost
 from activetrack.bounds.mre import mre_predict, mre_update
 from activetrack.checks import require_finite, require_spd, symmetrize
 from activetrack.planning.criteria import POSITIONING, SELECTION, Criterion, get_criterion
-from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import (
-    PlatformLimits,
-    hold_course,
-    manoeuvre_to_unit,
-    step_platform,
-    unit_to_manoeuvre,
-)
-from activetrack.planning.planner import PlannerPlatform
-from activetrack.planning.searches import evolution_search
+from activetrack.planning.horizons import SearchSettings, check_horizon, search_horizon
+from activetrack.planning.manoeuvre import PlannerPlatform, PlatformLimits, step_platform
+from activetrack.planning.objective import CovarianceTerm, Objective
 
 if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
@@ -59,8 +53,6 @@ if TYPE_CHECKING:
 __all__ = [
     "DEFAULT_POSITIONING_SEARCH",
     "POSITIONING_SEARCHES",
-    "HorizonPlan",
-    "HorizonStage",
     "MreStage",
     "PositioningResult",
     "SelectionResult",
@@ -68,7 +60,6 @@ __all__ = [
     "expected_update",
     "plan_positions",
     "position_platform",
-    "search_horizon",
     "select_by_criterion",
     "select_by_trace",
     "select_fixed",
@@ -140,7 +131,7 @@ def expected_update(
     (1 - pd) P + pd P_{k|k} (the bracket of eq. 23); ``use_pd=False``: the Kalman update, eq. 22.
 
     ``detection`` ``(S,)`` in [0, 1] replaces each sensor's pd (e.g. the information reduction
-    factor q of a sensor in clutter, :mod:`activetrack.bounds.irf`, times a field-of-view
+    factor q of a sensor in clutter, :mod:`activetrack.models.irf`, times a field-of-view
     indicator). Inside a sensor's [r_min, r_max] gap the detection probability is 0 (no update).
     """
     P, x = _check_inputs(P_pred, x_pred)
@@ -361,43 +352,9 @@ def position_platform(
     ``criterion``. Candidates of a stage are scored in one batched
     :func:`activetrack.bounds.mre.mre_update` call per sensor.
     """
-    if _check_horizon(horizon) > 1:
-        return plan_positions(
-            platform, prediction, dt, criterion=criterion, search=search, horizon=horizon
-        )
-    limits = _positioning_limits(platform, search)
-    crit = _mre_criterion(criterion)
-    P_pred, x_pred, F, Q = prediction.P, prediction.x, prediction.F, prediction.Q
-    crit.of_covariance(P_pred, x_pred)  # fails early where the criterion is undefined
-    pv, sensors = platform.pv, platform.sensors
-    heading, speed = platform.heading_and_speed
-
-    def candidates(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        m = unit_to_manoeuvre(u, speed, limits)
-        nxt, psi = step_platform(pv, heading, m, dt)
-        return m, nxt, psi
-
-    def cost_fn(rows: np.ndarray, u: np.ndarray) -> np.ndarray:
-        _, nxt, _ = candidates(u)  # (b, C, 4)
-        # Eq. 23 with the platform's sensors applied in turn (mre_predict without re-checking
-        # the inputs at every stage of the search).
-        P = P_pred
-        for sensor in sensors:
-            pd = float(sensor.pd) * sensor.in_range(x_pred, nxt)
-            P = mre_update(P, sensor.jacobian(x_pred, nxt), sensor.R, pd)
-        return crit.of_covariance(F @ P @ F.T + Q, x_pred)
-
-    result = search.lockstep_search()(cost_fn, 1)
-    m, nxt, psi = candidates(result.u[0])
-    return PositioningResult(
-        m, nxt, float(psi), float(result.cost[0]), result.evaluations, plan=m[None]
+    return plan_positions(
+        platform, prediction, dt, criterion=criterion, search=search, horizon=horizon
     )
-
-
-def _check_horizon(horizon: int) -> int:
-    if isinstance(horizon, bool) or not isinstance(horizon, int | np.integer) or horizon < 1:
-        raise ValueError(f"horizon must be an integer >= 1, got {horizon!r}")
-    return int(horizon)
 
 
 def _positioning_limits(platform: PlannerPlatform, search: SearchSettings) -> PlatformLimits:
@@ -411,190 +368,33 @@ def _positioning_limits(platform: PlannerPlatform, search: SearchSettings) -> Pl
 # --- several epochs ahead (Ramdaras sec. 7: "multiple time steps ahead sensor positioning") ----
 
 
-class HorizonStage(Protocol):
-    """What a horizon search scores: a state per candidate manoeuvre sequence, advanced leg by
-    leg, and its cost. The state is an array whose trailing axes the stage owns (a covariance
-    ``(4, 4)``, one per track ``(T, 4, 4)``, ...); ``state0`` at epoch k is shared by every
-    candidate, later states carry leading candidate axes that broadcast against pv's."""
-
-    def advance(self, state: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
-        """The state after leg ``level`` (epoch k+1+level) with the platform at pv ``(b, C, 4)``;
-        returns ``(b, C, ...)``."""
-        ...
-
-    def cost(self, state: np.ndarray, level: int) -> np.ndarray:
-        """The cost of states ``(b, C, ...)`` reached by leg ``level``: ``(b, C)``."""
-        ...
-
-
-@dataclass(frozen=True)
-class HorizonPlan:
-    """The best manoeuvre sequence ``(R, 2)`` of (dpsi, v'), its objective and the cost
-    evaluations spent (every scored candidate of every leg)."""
-
-    plan: np.ndarray
-    objective: float
-    evaluations: int
-
-
-def search_horizon(
-    stage: HorizonStage,
-    state0: np.ndarray,
-    platform: PlannerPlatform,
-    dt: float,
-    search: SearchSettings,
-    horizon: int,
-    *,
-    summed: bool,
-    rng: np.random.Generator | None = None,
-) -> HorizonPlan:
-    """The controllable ``platform``'s best R-leg manoeuvre sequence for ``stage``.
-
-    Objective: the sum of the stage costs of legs 1..R (``summed``, Hernandez eq. 15-16) or the
-    cost after leg R only. Lockstep searches (grid, quadrant, sector) nest one search per leg
-    (the dynamic programme of Hernandez eq. 13-15: the inner searches of all outer candidates
-    of a stage in one batch, so ``per_stage^R`` evaluations); ``"evolution"`` searches all R
-    manoeuvres at once (eq. 16, sec. 3.3.4), seeded with "hold course", drawing from ``rng``.
-    """
-    R = _check_horizon(horizon)
-    if platform.limits is None:
-        raise ValueError(f"platform {platform.platform_id!r} must be controllable (have limits)")
-    heading, speed = platform.heading_and_speed
-    if search.search == "evolution":
-        return _evolve(stage, state0, platform, dt, search, R, summed, rng)
-    plan, value, evaluations = _nested_search(
-        _Legs(stage, platform.limits, dt, search, R, summed),
-        0,
-        state0,
-        platform.pv[None],
-        np.array([heading]),
-        np.array([speed]),
-    )
-    return HorizonPlan(plan[0], float(value[0]), evaluations)
-
-
-@dataclass(frozen=True)
-class _Legs:
-    """What every level of the nested search shares."""
-
-    stage: HorizonStage
-    limits: PlatformLimits
-    dt: float
-    search: SearchSettings
-    horizon: int
-    summed: bool
-
-
-def _nested_search(
-    legs: _Legs,
-    level: int,
-    state: np.ndarray,
-    pv: np.ndarray,
-    heading: np.ndarray,
-    speed: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """Best manoeuvres for legs ``level``..R-1 of B problems: plans ``(B, R - level, 2)``, their
-    objectives ``(B,)`` and the evaluations. pv ``(B, 4)``, heading and speed ``(B,)``; state
-    shared at level 0, else ``(B, ...)``."""
-    R, inner = legs.horizon, [0]
-
-    def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        man = unit_to_manoeuvre(u, speed[rows, None], legs.limits)  # (b, C, 2)
-        pv1, h1 = step_platform(pv[rows, None, :], heading[rows, None], man, legs.dt)
-        S1 = legs.stage.advance(state if level == 0 else state[rows][:, None], level, pv1)
-        last = level + 1 == R
-        costs = legs.stage.cost(S1, level) if legs.summed or last else np.zeros(man.shape[:2])
-        plan = man[:, :, None, :]
-        if not last:
-            b, C = man.shape[:2]
-            S1 = np.broadcast_to(S1, (b, C, *S1.shape[2:]))
-            tail, value, n = _nested_search(
-                legs,
-                level + 1,
-                S1.reshape(b * C, *S1.shape[2:]),
-                pv1.reshape(-1, 4),
-                h1.reshape(-1),
-                man[..., 1].reshape(-1),
-            )
-            inner[0] += n
-            costs = costs + value.reshape(b, C)
-            plan = np.concatenate([plan, tail.reshape(b, C, R - level - 1, 2)], axis=2)
-        return costs, plan
-
-    result = legs.search.lockstep_search()(cost_fn, len(speed))
-    return result.payload(), result.cost, result.evaluations + inner[0]
-
-
-def _evolve(
-    stage: HorizonStage,
-    state0: np.ndarray,
-    platform: PlannerPlatform,
-    dt: float,
-    search: SearchSettings,
-    R: int,
-    summed: bool,
-    rng: np.random.Generator | None,
-) -> HorizonPlan:
-    """All R manoeuvres at once by differential evolution (Hernandez eq. 16)."""
-    limits = cast(PlatformLimits, platform.limits)
-    heading, speed = platform.heading_and_speed
-
-    def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        u = u[0].reshape(-1, R, 2)  # (P, R, 2)
-        n = u.shape[0]
-        p, h = np.broadcast_to(platform.pv, (1, n, 4)), np.full((1, n), heading)
-        v = np.full(n, speed)
-        state, total, plan = state0, np.zeros((1, n)), np.empty((1, n, R, 2))
-        for r in range(R):
-            plan[0, :, r] = unit_to_manoeuvre(u[:, r], v, limits)
-            p, h = step_platform(p, h, plan[:, :, r], dt)
-            v = plan[0, :, r, 1]
-            state = stage.advance(state, r, p)
-            if summed or r == R - 1:
-                total = total + stage.cost(state, r)
-        return total, plan
-
-    hold = hold_course(speed, limits, R)
-    x0 = manoeuvre_to_unit(hold, np.concatenate([[speed], hold[:-1, 1]]), limits).reshape(-1)
-    result = evolution_search(
-        cost_fn,
-        2 * R,
-        rng,
-        popsize=search.evolution_popsize,
-        maxiter=search.evolution_maxiter,
-        tol=search.evolution_tol,
-        x0=x0,
-    )
-    return HorizonPlan(result.payload()[0], float(result.cost[0]), result.evaluations)
-
-
 @dataclass(frozen=True)
 class MreStage:
-    """One platform's sensors over R legs of eq. 23 (a :class:`HorizonStage`).
+    """One platform's sensors over R legs of eq. 23 (a :class:`activetrack.planning.horizons.
+    HorizonStage`) for one target.
 
-    The state is P_{k+1+r|k+r} ``(..., 4, 4)``: at leg r the platform's sensors update it in
-    turn at the constant-velocity prediction x_{k+1+r|k} = F^r x_{k+1|k} (``x`` ``(R, 4)``,
-    zero-mean innovations, as :func:`activetrack.bounds.mre.mre_recursion`), then eq. 23
-    predicts one interval on; the cost is ``criterion`` of that at x_{k+1+r|k}. With R = 1
-    this is :func:`position_platform`'s cost, operation for operation."""
+    The state is P_{k+1+r|k+r} ``(..., 1, 4, 4)`` (one track): at leg r the platform's sensors
+    update it in turn at the constant-velocity prediction x_{k+1+r|k} = F^r x_{k+1|k} (``x``
+    ``(R, 4)``, zero-mean innovations, as :func:`activetrack.bounds.mre.mre_recursion`), then
+    eq. 23 predicts one interval on. With R = 1 and the criterion of that
+    (:class:`activetrack.planning.objective.CovarianceTerm`) this is the one-step positioning's
+    cost, operation for operation."""
 
     sensors: tuple[SensorModel, ...]
     x: np.ndarray
     F: np.ndarray
     Q: np.ndarray
-    criterion: Criterion
+
+    def prepare(self, P: np.ndarray, level: int) -> np.ndarray:
+        # F P F^T + Q of the previous leg, round-off asymmetry removed.
+        return P if level == 0 else symmetrize(P)
 
     def advance(self, P: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
-        if level > 0:
-            P = symmetrize(P)  # F P F^T + Q of the previous leg, round-off asymmetry removed
-        x = self.x[level]
+        P, x = P[..., 0, :, :], self.x[level]
         for sensor in self.sensors:
             pd = float(sensor.pd) * sensor.in_range(x, pv)
             P = mre_update(P, sensor.jacobian(x, pv), sensor.R, pd)
-        return self.F @ P @ self.F.T + self.Q
-
-    def cost(self, P: np.ndarray, level: int) -> np.ndarray:
-        return self.criterion.of_covariance(P, self.x[level])
+        return (self.F @ P @ self.F.T + self.Q)[..., None, :, :]
 
 
 def plan_positions(
@@ -609,8 +409,9 @@ def plan_positions(
     """Multi-step MRE positioning (Ramdaras sec. 7, future work): the controllable
     ``platform``'s manoeuvres over R = ``horizon`` legs minimising ``criterion`` of the MRE
     covariance after the last leg, P_{k+R+1|k+R} of eq. 23 iterated along the platform's path
-    with the constant-velocity prediction of the target (:class:`MreStage`). The first
-    manoeuvre is flown (receding horizon).
+    with the constant-velocity prediction of the target (:class:`MreStage`), by
+    :func:`activetrack.planning.horizons.search_horizon`. The first manoeuvre is flown
+    (receding horizon).
 
     The objective is the criterion after leg R, not the sum over the legs: the covariance at
     k+R already holds every expected update along the path, so a sum would count the early
@@ -618,15 +419,16 @@ def plan_positions(
     is what looking further ahead is for (e.g. a bearing sensor crossing the line of sight over
     several legs). With R = 1 it is :func:`position_platform`'s cost and choice.
     """
-    R = _check_horizon(horizon)
+    R = check_horizon(horizon)
     _positioning_limits(platform, search)
     crit = _mre_criterion(criterion)
     p = prediction
     x = np.stack([np.linalg.matrix_power(p.F, r) @ p.x for r in range(R)])
     for xr in x:
         crit.of_covariance(p.P, xr)  # fails early where the criterion is undefined
-    stage = MreStage(tuple(platform.sensors), x, p.F, p.Q, crit)
-    best = search_horizon(stage, p.P, platform, dt, search, R, summed=False)
+    stage = MreStage(tuple(platform.sensors), x, p.F, p.Q)
+    objective = Objective((CovarianceTerm(crit, x[:, None]),))
+    best = search_horizon(stage, objective, p.P[None], platform, dt, search, R)
     heading = platform.heading_and_speed[0]
     nxt, psi = step_platform(platform.pv, heading, best.plan[0], dt)
     return PositioningResult(

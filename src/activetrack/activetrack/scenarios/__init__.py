@@ -1,11 +1,16 @@
-"""Scenario files: schema, loading with clear errors, the sensor-kind registry and builders for
-the core objects."""
+"""Scenario files, in layers: the field types and schema (``fields``, ``schema``: the file's
+data), the sensor-kind registry (``registry``), the rules that ask the registries and the
+components (``rules``), the builders of the core objects (``build``) and the loader (``load``:
+parse, schema, rules). Importing this package registers the built-in sensor kinds."""
 
 from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.fields import SensorConfigBase
 from activetrack.scenarios.load import (
     ScenarioError,
+    first_epochs,
     load_scenario,
     parse_scenario,
+    with_changes,
     with_tracker_overrides,
 )
 from activetrack.scenarios.registry import (
@@ -15,7 +20,7 @@ from activetrack.scenarios.registry import (
     sensor_kind,
     unregister_sensor,
 )
-from activetrack.scenarios.schema import Scenario, SensorConfigBase
+from activetrack.scenarios.schema import Scenario
 
 __all__ = [
     "Scenario",
@@ -24,11 +29,13 @@ __all__ = [
     "SensorKind",
     "build_motion_model",
     "build_sensor",
+    "first_epochs",
     "load_scenario",
     "parse_scenario",
     "register_sensor",
     "registered_kinds",
     "sensor_kind",
     "unregister_sensor",
+    "with_changes",
     "with_tracker_overrides",
 ]

@@ -1,10 +1,21 @@
-"""Build core objects (motion models, sensors) from validated scenario configuration."""
+"""Builders: the core objects a validated scenario describes.
+
+Motion models, sensors (alone, or in clutter with their field of view) and the planner's
+inputs (platforms, limits, search and plan settings). The components take these objects; the
+scenario file's shape stays here. The built-in sensor kinds are registered below, with the
+same call a plugin makes (:func:`activetrack.scenarios.registry.register_sensor`).
+"""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import math
+from collections.abc import Mapping
+from typing import Any, cast
 
-from activetrack.models.base import MotionModel
+import numpy as np
+
+from activetrack.arraytypes import ArrayLike
+from activetrack.models.base import MotionModel, SensorModel
 from activetrack.models.motion import (
     CircularMotion,
     CircularMotionKnownOmega,
@@ -12,21 +23,45 @@ from activetrack.models.motion import (
     NearlyConstantVelocity,
     NearlyConstantVelocityDiscrete,
 )
-from activetrack.scenarios.registry import build_sensor
+from activetrack.models.sensors import (
+    AmbiguousBearingSensor,
+    BearingSensor,
+    RangeBearingSensor,
+    RangeRateBearingSensor,
+)
+from activetrack.planning import PlannerPlatform, PlanSettings, PlatformLimits, SearchSettings
+from activetrack.scenarios.fields import SensorConfigBase
+from activetrack.scenarios.registry import register_sensor, sensor_kind
 from activetrack.scenarios.schema import (
+    AmbiguousBearingSensorConfig,
+    BearingSensorConfig,
     CircularKnownOmegaMotion,
     CircularMotionConfig,
     ConstantTurnMotion,
+    ManoeuvreLimits,
     MotionConfig,
     NcvDiscreteMotion,
     NcvMotion,
+    PlannerConfig,
+    RangeBearingSensorConfig,
+    RangeRateBearingSensorConfig,
     Scenario,
 )
 
-if TYPE_CHECKING:
-    from activetrack.models.clutter import ClutteredSensor
+__all__ = [
+    "build_motion_model",
+    "build_sensor",
+    "plan_settings",
+    "planner_platforms",
+    "platform_limits",
+    "search_settings",
+]
 
-__all__ = ["build_motion_model", "build_scan_sensors", "build_sensor"]
+# The built-in kinds, registered like any other (the order is that of the error messages).
+register_sensor(BearingSensor, BearingSensorConfig)
+register_sensor(AmbiguousBearingSensor, AmbiguousBearingSensorConfig)
+register_sensor(RangeBearingSensor, RangeBearingSensorConfig)
+register_sensor(RangeRateBearingSensor, RangeRateBearingSensorConfig)
 
 
 def build_motion_model(cfg: MotionConfig) -> MotionModel:
@@ -45,16 +80,75 @@ def build_motion_model(cfg: MotionConfig) -> MotionModel:
     raise ValueError(f"motion.model: unknown {cfg.model!r}")
 
 
-def build_scan_sensors(scenario: Scenario) -> dict[str, tuple[str, ClutteredSensor]]:
-    """Every sensor of a multi-target scenario by id, in scenario order: ``(platform id, the
-    sensor in clutter)`` with its field of view and the tracker's gate
-    (``tracker.tracks.gate_sigmas``), the one table the simulator, tracker, planner and the
-    message conversions use."""
-    from activetrack.models.clutter import ClutteredSensor  # it imports the scenario package
+def build_sensor(cfg: SensorConfigBase) -> SensorModel:
+    """The sensor object a validated ``sensors:`` entry describes (its registered kind's
+    ``build``)."""
+    return cast(SensorModel, sensor_kind(cfg.kind).build(cfg))
 
-    gate = scenario.tracker.tracks.gate_sigmas
-    return {
-        s.id: (p.id, ClutteredSensor.wrap(build_sensor(s), s, gate))
-        for p in scenario.platforms
-        for s in p.sensors
+
+# --- the planner's inputs ----------------------------------------------------------------------
+
+
+def platform_limits(cfg: ManoeuvreLimits, dt: float) -> PlatformLimits:
+    """A platform's ``limits:`` (either pair, Hernandez or Ramdaras) for decisions ``dt``
+    seconds apart (activetrack.planning.manoeuvre: dv_max = a_max T, dpsi_max = psi_rate_max T)."""
+    dpsi_max, dv_max = cfg.per_epoch(dt)
+    return PlatformLimits(min(float(dpsi_max), math.pi), float(dv_max), cfg.v_min, cfg.v_max)
+
+
+def search_settings(cfg: PlannerConfig, **overrides: Any) -> SearchSettings:
+    """The search of a ``planner:`` block (search, grid_size, quadrant_divisions,
+    quadrant_patience, sector_levels); keyword ``overrides`` replace any field."""
+    fields: dict[str, Any] = {
+        "search": cfg.search,
+        "grid_size": cfg.grid_size,
+        "quadrant_divisions": cfg.quadrant_divisions,
+        "quadrant_patience": cfg.quadrant_patience,
+        "sector_levels": cfg.sector_levels,
     }
+    fields.update(overrides)
+    return SearchSettings(**fields)
+
+
+def plan_settings(cfg: PlannerConfig, **overrides: Any) -> PlanSettings:
+    """The PCRLB planner's settings of a ``planner:`` block; keyword ``overrides`` replace
+    fields of :class:`PlanSettings` or of :class:`SearchSettings` (e.g. ``horizon=2``,
+    ``search="grid"``, ``grid_size=21``)."""
+    if getattr(cfg, "cost", "pcrlb") != "pcrlb":
+        raise ValueError(f"planner.cost must be 'pcrlb' for this planner, got {cfg.cost!r}")
+    search_fields = set(SearchSettings.__dataclass_fields__)
+    search: dict[str, Any] = {}
+    top: dict[str, Any] = {
+        "criterion": cfg.criterion,
+        "horizon": cfg.horizon,
+        "max_sensor_iterations": cfg.max_sensor_iterations,
+    }
+    for key, value in overrides.items():
+        if key in search_fields:
+            search[key] = value
+        elif key in top:
+            top[key] = value
+        else:
+            raise ValueError(f"overrides: unknown setting {key!r}")
+    return PlanSettings(search=search_settings(cfg, **search), **top)
+
+
+def planner_platforms(
+    scenario: Scenario, states: Mapping[str, ArrayLike] | None = None
+) -> list[PlannerPlatform]:
+    """The planner's platforms of a scenario (limits per epoch of ``scenario.dt``);
+    ``states`` maps platform id to a pv overriding the initial state."""
+    out = []
+    for cfg in scenario.platforms:
+        limits = (
+            platform_limits(cfg.limits, scenario.dt)
+            if cfg.controllable and cfg.limits is not None
+            else None
+        )
+        pv = cfg.initial_state if states is None or cfg.id not in states else states[cfg.id]
+        out.append(
+            PlannerPlatform(
+                cfg.id, np.asarray(pv, float), tuple(build_sensor(s) for s in cfg.sensors), limits
+            )
+        )
+    return out

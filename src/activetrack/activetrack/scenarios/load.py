@@ -5,6 +5,10 @@ Whatever a file holds, :func:`load_scenario` returns a valid :class:`Scenario` o
 too deeply, an alias bomb, not a mapping, a ``plugins`` entry that cannot be imported, or the
 list of invalid fields.
 
+Validation is parse, then the schema (:mod:`.schema`: the file's shape), then the rules
+(:mod:`.rules`: names the registries hold, rules across sections). A scenario that differs from
+a valid one goes the same way: :func:`with_changes`.
+
 The modules of a file's ``plugins:`` list are imported before its other fields are validated
 (:mod:`activetrack.scenarios.plugins`): importing runs their code, so a scenario file that names
 plugins is as trusted as a Python script (docs/extending.md).
@@ -13,13 +17,16 @@ plugins is as trusted as a Python script (docs/extending.md).
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import yaml
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 from pydantic_core import ErrorDetails
 
 from activetrack.scenarios.plugins import PluginError, import_plugins
+from activetrack.scenarios.rules import name_problems, scenario_problems
 from activetrack.scenarios.schema import Scenario
 
 # A scenario file is a few kB; these bound what a malformed or hostile one can cost.
@@ -30,6 +37,11 @@ MAX_ERROR_LINES = 20  # invalid fields listed before "... and N more"
 _SHOW_INPUT = 60  # characters of an offending value shown in a message
 
 _FIELD_MESSAGE = re.compile(r"([A-Za-z_][\w.]*): (.+)", re.DOTALL)
+
+
+# "targets.0" as a field name (at the start of an error line, or after a space: messages name
+# fields too), and what follows it.
+_ONE_TARGET = re.compile(r"(^|\s)targets\.0(\.|:|\b)")
 
 
 class ScenarioError(ValueError):
@@ -65,9 +77,35 @@ def _describe(err: ErrorDetails) -> list[str]:
     return [f"  {'.'.join(loc) or '(top level)'}: {msg}"]
 
 
+def _lines(problems: list[tuple[str, str]]) -> list[str]:
+    """``  field: message`` per rule problem, as the schema's errors read."""
+    return [f"  {field}: {message}" for field, message in problems]
+
+
+def _as_written(lines: list[str], data: dict) -> list[str]:
+    """Error lines naming the fields as the file does: a file that gives its one target as
+    ``target:`` reads ``target.prior`` where the scenario says ``targets.0.prior``."""
+    if "target" not in data or "targets" in data:
+        return lines
+    return [_ONE_TARGET.sub(r"\1target\2", line) for line in lines]
+
+
+def _validated(data: dict) -> tuple[Scenario | None, list[str]]:
+    """The scenario of ``data`` and no error lines, or None and every invalid field."""
+    try:
+        scenario = Scenario.model_validate(data)
+    except ValidationError as exc:
+        lines = [line for e in exc.errors() for line in _describe(e)]
+        return None, _as_written(lines + _lines(name_problems(data)), data)
+    names = name_problems(data)  # the rules across sections need registered names
+    lines = _as_written(_lines(names or scenario_problems(scenario)), data)
+    return (None, lines) if lines else (scenario, [])
+
+
 def parse_scenario(data: object, source: str = "<dict>") -> Scenario:
-    """Validate a scenario given as a dict (already parsed YAML). Its ``plugins`` are imported
-    first (they may register the sensor kinds, filters and criteria the rest names)."""
+    """Validate a scenario given as a dict (already parsed YAML): the schema, then the rules.
+    Its ``plugins`` are imported first (they may register the sensor kinds, filters and
+    criteria the rest names)."""
     if not isinstance(data, dict):
         raise ScenarioError(
             f"{source}: a scenario must be a mapping of fields (name:, dt:, ...), "
@@ -79,12 +117,7 @@ def parse_scenario(data: object, source: str = "<dict>") -> Scenario:
         except PluginError as exc:
             raise ScenarioError(f"{source}: {exc}") from None
     try:
-        return Scenario.model_validate(data)
-    except ValidationError as exc:
-        lines = [line for e in exc.errors() for line in _describe(e)]
-        if len(lines) > MAX_ERROR_LINES:
-            lines = [*lines[:MAX_ERROR_LINES], f"  ... and {len(lines) - MAX_ERROR_LINES} more"]
-        raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(lines)) from None
+        scenario, lines = _validated(data)
     except RecursionError:
         raise ScenarioError(f"{source}: invalid scenario: nested too deeply") from None
     except Exception as exc:  # a check of ours failed unexpectedly: still one clear error
@@ -92,6 +125,11 @@ def parse_scenario(data: object, source: str = "<dict>") -> Scenario:
             f"{source}: invalid scenario (internal check failed: {type(exc).__name__}: "
             f"{_shown(str(exc))})"
         ) from None
+    if scenario is None:
+        if len(lines) > MAX_ERROR_LINES:
+            lines = [*lines[:MAX_ERROR_LINES], f"  ... and {len(lines) - MAX_ERROR_LINES} more"]
+        raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(lines))
+    return scenario
 
 
 def _read_text(path: Path) -> str:
@@ -197,6 +235,29 @@ def load_scenario(path: str | Path) -> Scenario:
     return parse_scenario(data, str(path))
 
 
+def _merged(base: dict, changes: Mapping[str, Any]) -> dict:
+    """``base`` with ``changes``: a mapping merges into a section, anything else replaces."""
+    out = dict(base)
+    for key, value in changes.items():
+        if isinstance(value, BaseModel):
+            value = value.model_dump()
+        if isinstance(value, Mapping) and isinstance(out.get(key), dict):
+            value = _merged(out[key], value)
+        out[key] = value
+    return out
+
+
+def with_changes(scenario: Scenario, **changes: Any) -> Scenario:
+    """The scenario with ``changes``, validated as a file is (schema and rules; ScenarioError
+    naming the fields otherwise). A mapping merges into its section, e.g.
+    ``with_changes(s, steps=5, planner={"targets": {"assignment": "random"}})``; a section
+    given as a pydantic model, a list or a value replaces the old one."""
+    if not changes:
+        return scenario
+    data = _merged(scenario.model_dump(), changes)
+    return parse_scenario(data, f"{scenario.name} (with {_shown(changes)})")
+
+
 def with_tracker_overrides(scenario: Scenario, **overrides: object) -> Scenario:
     """The scenario with tracker settings replaced (None values are ignored), re-validated."""
     changes = {k: v for k, v in overrides.items() if v is not None}
@@ -205,3 +266,13 @@ def with_tracker_overrides(scenario: Scenario, **overrides: object) -> Scenario:
     data = scenario.model_dump()
     data["tracker"].update(changes)
     return parse_scenario(data, f"{scenario.name} (tracker overrides {changes})")
+
+
+def first_epochs(scenario: Scenario, steps: int) -> Scenario:
+    """The valid ``scenario`` cut to its first ``steps`` epochs (1 <= steps <= its own), to
+    summarise an interrupted run. Not re-validated on purpose: a target born after the cut keeps
+    its birth, which a file of ``steps`` epochs could not hold (``targets.i.birth < steps``);
+    every other rule holds for the cut scenario as it did for the whole one."""
+    if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= scenario.steps:
+        raise ValueError(f"steps must be an integer in [1, {scenario.steps}], got {steps!r}")
+    return scenario.model_copy(update={"steps": steps})

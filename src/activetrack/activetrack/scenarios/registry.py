@@ -2,7 +2,7 @@
 
 A kind is the sensor class (contract :class:`activetrack.models.base.SensorModel`; its class
 attribute ``kind`` is the name) together with its scenario configuration: a pydantic model
-deriving from :class:`activetrack.scenarios.schema.SensorConfigBase` (id, pd, r_min, r_max)
+deriving from :class:`activetrack.scenarios.fields.SensorConfigBase` (id, pd, r_min, r_max)
 with ``kind: Literal["<kind>"]`` and the sensor's own fields, validated on load::
 
     class RangeSensorConfig(SensorConfigBase):
@@ -13,9 +13,13 @@ with ``kind: Literal["<kind>"]`` and the sensor's own fields, validated on load:
 
 From then on a ``sensors:`` entry of that kind loads (the schema's sensor entries are the
 discriminated union, on ``kind``, of the registered configs; an unknown kind's error lists the
-registered ones) and :func:`build_sensor` makes the sensor: by default
-``RangeSensor(**fields)`` with every config field but ``id`` and ``kind``, or ``build(config)``
-when one is given. The built-in kinds register the same way (``scenarios.schema``).
+registered ones) and :func:`activetrack.scenarios.build.build_sensor` makes the sensor: by
+default ``RangeSensor(**fields)`` with every config field but the scene's (``SCENE_FIELDS``),
+or ``build(config)`` when one is given. The built-in kinds register the same way
+(``scenarios.build``).
+
+The registry is scenario data: it holds classes and calls, and imports no component (a sensor
+class is checked for the members of the contract by name).
 """
 
 from __future__ import annotations
@@ -23,18 +27,14 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Annotated, Any, Literal, Union, get_args, get_origin
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel, Field
 
-from activetrack.models.base import SensorModel
-
-if TYPE_CHECKING:
-    from activetrack.scenarios.schema import SensorConfigBase
+from activetrack.scenarios.fields import SensorConfigBase
 
 __all__ = [
     "SensorKind",
-    "build_sensor",
     "on_registry_change",
     "register_sensor",
     "registered_kinds",
@@ -44,8 +44,9 @@ __all__ = [
 ]
 
 _KIND_NAME = re.compile(r"[a-z][a-z0-9_]*")
-# What a sensor class must offer (SensorModel's members that exist on the class itself; pd,
-# r_min and r_max are dataclass fields, guaranteed by the config's base class).
+# What a sensor class must offer (the members of activetrack.models.base.SensorModel that exist
+# on the class itself; pd, r_min and r_max are dataclass fields, guaranteed by the config's
+# base class).
 _CLASS_MEMBERS = (
     "components",
     "R",
@@ -65,12 +66,13 @@ _CLASS_MEMBERS = (
 
 @dataclass(frozen=True)
 class SensorKind:
-    """One registered kind: its sensor class, its config model and how to build the sensor."""
+    """One registered kind: its sensor class, its config model and how to build the sensor
+    (``build(config)``: a sensor model, contract ``activetrack.models.base.SensorModel``)."""
 
     kind: str
     sensor_class: type
     config_class: type[BaseModel]
-    build: Callable[[Any], SensorModel]
+    build: Callable[[Any], Any]
 
 
 _KINDS: dict[str, SensorKind] = {}
@@ -82,21 +84,18 @@ _LISTENERS: list[Callable[[], None]] = []
 SCENE_FIELDS = ("id", "kind", "clutter_density", "fov_centre", "fov_width", "beam_width")
 
 
-def _default_build(sensor_class: type) -> Callable[[Any], SensorModel]:
-    def build(cfg: BaseModel) -> SensorModel:
+def _default_build(sensor_class: type) -> Callable[[Any], Any]:
+    def build(cfg: BaseModel) -> Any:
         fields = {k: getattr(cfg, k) for k in type(cfg).model_fields if k not in SCENE_FIELDS}
-        sensor: SensorModel = sensor_class(**fields)
-        return sensor
+        return sensor_class(**fields)
 
     return build
 
 
 def _check_config(kind: str, config_class: type) -> None:
-    from activetrack.scenarios.schema import SensorConfigBase
-
     if not (isinstance(config_class, type) and issubclass(config_class, SensorConfigBase)):
         raise ValueError(
-            f"config_class must be a subclass of activetrack.scenarios.schema.SensorConfigBase, "
+            f"config_class must be a subclass of activetrack.scenarios.SensorConfigBase, "
             f"got {config_class!r}"
         )
     field = config_class.model_fields.get("kind")
@@ -112,7 +111,7 @@ def register_sensor(
     sensor_class: type,
     config_class: type[SensorConfigBase],
     *,
-    build: Callable[[Any], SensorModel] | None = None,
+    build: Callable[[Any], Any] | None = None,
 ) -> SensorKind:
     """Make the sensor kind ``sensor_class.kind`` available to scenario files (module docstring).
 
@@ -169,14 +168,12 @@ def sensor_kind(kind: str) -> SensorKind:
         ) from None
 
 
-def build_sensor(cfg: SensorConfigBase) -> SensorModel:
-    """The sensor object a validated ``sensors:`` entry describes."""
-    return sensor_kind(cfg.kind).build(cfg)
-
-
 def sensor_config_union() -> Any:
-    """The type of a ``sensors:`` entry: the registered configs, discriminated on ``kind``."""
+    """The type of a ``sensors:`` entry: the registered configs, discriminated on ``kind``
+    (None while no kind is registered)."""
     configs = tuple(entry.config_class for entry in _KINDS.values())
+    if not configs:
+        return None
     if len(configs) == 1:
         return configs[0]
     return Annotated[Union[configs], Field(discriminator="kind")]  # noqa: UP007

@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -41,9 +42,21 @@ from activetrack.data import (
 )
 from activetrack.models.base import MotionModel
 from activetrack.models.clutter import ClutteredSensor
-from activetrack.scenarios.schema import ManoeuvreLimits
 
-__all__ = ["ApplyResult", "SimPlatform", "SimTarget", "Simulator"]
+__all__ = ["ApplyResult", "ManoeuvreLimits", "SimPlatform", "SimTarget", "Simulator"]
+
+
+class ManoeuvreLimits(Protocol):
+    """A platform's limits (a scenario's ``limits:``, :class:`activetrack.scenarios.schema.
+    ManoeuvreLimits`, or any object with them): the largest heading and speed changes per
+    decision interval dt, and the speed range."""
+
+    @property
+    def v_min(self) -> float: ...
+    @property
+    def v_max(self) -> float: ...
+    def per_epoch(self, dt: float) -> tuple[float, float]: ...
+
 
 # Excess over a limit below this (relative) is float round-off, not a clamp worth reporting.
 _CLAMP_SLACK = 1e-9

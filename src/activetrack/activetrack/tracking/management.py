@@ -2,7 +2,7 @@
 
 A :class:`Track` is one filter (any registered one: activetrack.filters.registry) with its id,
 status and look history. :class:`TrackManager` holds the live tracks and applies the
-rules of ``tracker.tracks`` (:class:`~activetrack.scenarios.multitarget_config.
+rules of ``tracker.tracks`` (:class:`~activetrack.scenarios.schema.
 TrackManagementConfig`) once per epoch (M-of-N confirmation and deletion: Blackman & Popoli,
 *Design and Analysis of Modern Tracking Systems*, 1999):
 
@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 from collections import Counter, deque
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -55,7 +56,27 @@ from activetrack.checks import symmetrize
 from activetrack.data import CONFIRMED, TENTATIVE, TrackEstimate
 from activetrack.filters.measurement import TrackingFilter
 from activetrack.models.base import MotionModel
-from activetrack.scenarios.multitarget_config import TrackManagementConfig
+
+
+class TrackManagementConfig(Protocol):
+    """The M-of-N and deletion settings (a scenario's ``tracker.tracks``,
+    :class:`activetrack.scenarios.schema.TrackManagementConfig`, or any object with them)."""
+
+    @property
+    def gate_sigmas(self) -> float: ...
+    @property
+    def confirm_m(self) -> int: ...
+    @property
+    def confirm_n(self) -> int: ...
+    @property
+    def delete_misses(self) -> int: ...
+    @property
+    def init_speed_std(self) -> float: ...
+    @property
+    def max_position_std(self) -> float: ...
+    @property
+    def max_tracks(self) -> int: ...
+
 
 __all__ = [
     "COALESCE_D2",

@@ -3,7 +3,7 @@
 ``parallel_map(fn, tasks, scheduler="tcp://host:8786")`` sends the tasks to the workers of a
 running Dask distributed scheduler (``dask scheduler`` / ``dask worker``, docs/dask.md) instead
 of forking local worker processes. The tasks are cut into chunks as for the local pool
-(:func:`activetrack.montecarlo.even_chunks`, four per worker thread); each chunk travels as
+(:func:`activetrack.montecarlo.chunks.even_chunks`, four per worker thread); each chunk travels as
 one pickled payload and comes back as the list of its results, which are handed out in task
 order. Every task carries its own seed, so the results are bit-identical to ``jobs=1`` and to
 the local pool.
@@ -39,6 +39,8 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import TYPE_CHECKING, Any, TypeAlias, cast
 from urllib.parse import urlsplit
+
+from activetrack.montecarlo.chunks import even_chunks
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -148,8 +150,6 @@ def dask_map(fn: Callable[[Any], Any], tasks: Sequence[Any], scheduler: Schedule
 
 def _map_on(client: Client, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[Any]:
     from distributed.protocol.pickle import dumps
-
-    from activetrack.montecarlo import even_chunks
 
     context = client_context()
     chunks = even_chunks(tasks, _worker_threads(client))
@@ -283,13 +283,14 @@ def _install(reg: Registrations) -> None:
         unregister_sensor,
     )
 
-    for kind in reg.sensors:
-        if kind.kind in registered_kinds():
-            now = sensor_kind(kind.kind)
-            if (now.sensor_class, now.config_class) == (kind.sensor_class, kind.config_class):
+    current = {name: sensor_kind(name) for name in registered_kinds()}
+    for entry in reg.sensors:
+        now = current.get(entry.kind)
+        if now is not None:
+            if (now.sensor_class, now.config_class) == (entry.sensor_class, entry.config_class):
                 continue
-            unregister_sensor(kind.kind)
-        register_sensor(kind.sensor_class, kind.config_class, build=kind.build)
+            unregister_sensor(entry.kind)
+        register_sensor(entry.sensor_class, entry.config_class, build=entry.build)
     for entry in reg.filters:
         if entry.name not in filter_names() or current_filter(entry.name) != entry:
             _unless_built_in(register_filter, entry.name, entry.factory,

@@ -1,11 +1,6 @@
-"""Planner strategies: the small objects a closed-loop decision is composed of.
-
-Every strategy implements :class:`PlannerStrategy`, one method: ``decide(context) ->
-DecisionPart``. :class:`activetrack.closed_loop.planner.PlannerCore` runs the strategies the
-scenario asks for (``build_strategies`` there) in order; each sees the epoch's inputs and what
-the strategies before it decided (``context.so_far``: planned positions, the MRE prediction,
-the selection) and adds its part: commands, planned platform positions at k+1, a selection, a
-plan report, cost evaluations, extra data.
+"""Planner strategies of the papers: the parts a one-target decision is composed of
+(:class:`activetrack.planning.decision.Planner` runs them in order; planning across targets
+is :mod:`activetrack.planning.across_targets`).
 
 - :class:`HoldCourse`: hold course and speed (planner off);
 - :class:`PcrlbPlanning`: manoeuvres minimising a PCRLB criterion (Hernandez sec. 3-4);
@@ -18,40 +13,29 @@ plan report, cost evaluations, extra data.
   (Ramdaras and Absil 2007a);
 - :class:`MreOutlook`: the MRE plan report, eq. 23 with the chosen sensors.
 
+Each takes built objects (settings, dynamics, sensors, platforms' limits): the builder
+(:func:`activetrack.closed_loop.components.build_planner`) makes them from a scenario.
 Criteria are looked up in :mod:`activetrack.planning.criteria`. Only :class:`PcrlbPlanning`
 and :class:`RandomSelection` draw random numbers, from the planner's generator, in that order.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from activetrack.bounds.costs import position_determinant, trace_cost
 from activetrack.bounds.pcrlb import covariance_bound
-from activetrack.closed_loop.cautious import CautiousController
-from activetrack.data import (
-    Command,
-    Decision,
-    PlanReportData,
-    PlatformSnapshot,
-    TrackEstimate,
-)
-from activetrack.models.base import SensorModel, as_linear
+from activetrack.data import Command, PlanReportData, TrackEstimate
+from activetrack.models.base import SensorModel
+from activetrack.planning.cautious import CautiousController
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
+from activetrack.planning.decision import DecisionContext, DecisionPart, SensorChoice
 from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlatformLimits
-from activetrack.planning.planner import (
-    PlannerPlatform,
-    PlanSettings,
-    TargetBelief,
-    advance_belief,
-    plan,
-    platforms_from_scenario,
-)
+from activetrack.planning.manoeuvre import PlannerPlatform, PlatformLimits
+from activetrack.planning.planner import PlanSettings, TargetBelief, advance_belief, plan
 from activetrack.planning.selection import (
     POSITIONING_SEARCHES,
     SelectionResult,
@@ -63,14 +47,10 @@ from activetrack.planning.selection import (
     select_fixed,
     select_random,
 )
-from activetrack.scenarios.build import build_motion_model, build_sensor
-from activetrack.scenarios.schema import Scenario
 
 __all__ = [
     "MRE_REPORT_COSTS",
     "CautiousLocalisation",
-    "DecisionContext",
-    "DecisionPart",
     "FixedSelection",
     "HoldCourse",
     "LinearDynamics",
@@ -79,123 +59,14 @@ __all__ = [
     "MrePrediction",
     "MreSelection",
     "PcrlbPlanning",
-    "PlannerStrategy",
+    "PlatformSpec",
     "RandomSelection",
-    "SensorChoice",
     "SensorEntry",
     "TraceSelection",
-    "sensor_entries",
 ]
 
 # Cost names of the plan report in MRE mode (predicted for the epoch decided for, k+1).
 MRE_REPORT_COSTS = ("objective", "det_pos", "trace", "det_pos_updated", "trace_updated")
-
-
-# --- what strategies exchange ----------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class SensorEntry:
-    """One sensor of the scenario: its id, the platform carrying it and its model."""
-
-    sensor_id: str
-    platform_id: str
-    model: SensorModel
-
-
-def sensor_entries(scenario: Scenario) -> tuple[SensorEntry, ...]:
-    """Every sensor of the scenario, in scenario order (the order of selections and costs)."""
-    return tuple(
-        SensorEntry(s.id, p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors
-    )
-
-
-@dataclass(frozen=True)
-class SensorChoice:
-    """A sensor selection for epoch k+1: the chosen sensors (indices into the scenario's
-    sensors, ascending, and their ids), every candidate's id and cost, and the label
-    ``"<strategy>/<cost name>"``."""
-
-    indices: tuple[int, ...]
-    sensor_ids: tuple[str, ...]
-    candidate_ids: tuple[str, ...]
-    costs: tuple[float, ...]
-    label: str
-
-
-@dataclass(frozen=True)
-class DecisionPart:
-    """What one strategy (or all of them so far, merged by :meth:`then`) decided."""
-
-    commands: tuple[Command, ...] = ()
-    planned_pv: Mapping[str, np.ndarray] = field(default_factory=dict)  # platform pv at k+1
-    prediction: TargetPrediction | None = None
-    selection: SensorChoice | None = None
-    report: PlanReportData | None = None
-    evaluations: int = 0
-    extra: Mapping[str, Any] = field(default_factory=dict)
-
-    def then(self, later: DecisionPart) -> DecisionPart:
-        """This part followed by ``later``: commands appended, evaluations summed, mappings
-        merged; a later prediction, selection or report replaces an earlier one."""
-        return DecisionPart(
-            commands=self.commands + later.commands,
-            planned_pv={**self.planned_pv, **later.planned_pv},
-            prediction=later.prediction if later.prediction is not None else self.prediction,
-            selection=later.selection if later.selection is not None else self.selection,
-            report=later.report if later.report is not None else self.report,
-            evaluations=self.evaluations + later.evaluations,
-            extra={**self.extra, **later.extra},
-        )
-
-    def decision(self, epoch: int, wall_time_s: float) -> Decision:
-        """The :class:`Decision`; the report counts the evaluations of every part."""
-        report = self.report
-        if report is not None:
-            report = replace(report, evaluations=self.evaluations, wall_time_s=wall_time_s)
-        sel = self.selection
-        chosen: dict[str, Any] = {}
-        if sel is not None:
-            chosen = dict(
-                selected_sensor_ids=sel.sensor_ids,
-                candidate_sensor_ids=sel.candidate_ids,
-                selection_costs=sel.costs,
-                selection_criterion=sel.label,
-            )
-        return Decision(epoch, self.commands, report=report, extra=dict(self.extra), **chosen)
-
-
-@dataclass(frozen=True)
-class DecisionContext:
-    """The inputs of one decision at ``epoch``: the track, every platform's snapshot by id,
-    the interval dt, and what the strategies before this one decided (``so_far``)."""
-
-    epoch: int
-    track: TrackEstimate
-    platforms: Mapping[str, PlatformSnapshot]
-    dt: float
-    so_far: DecisionPart = DecisionPart()
-
-    def next_pv(self, platform_id: str) -> np.ndarray:
-        """The platform's pv at k+1: as planned so far, else coasting at its velocity."""
-        planned = self.so_far.planned_pv.get(platform_id)
-        if planned is not None:
-            return np.asarray(planned, dtype=float)
-        pv = np.asarray(self.platforms[platform_id].pv, dtype=float)
-        return pv + self.dt * np.array([pv[1], 0.0, pv[3], 0.0])
-
-    @property
-    def prediction(self) -> TargetPrediction:
-        """The MRE prediction for k+1 (an :class:`MrePrediction` must run first)."""
-        if self.so_far.prediction is None:
-            raise RuntimeError("planner: an MRE strategy ran without MrePrediction before it")
-        return self.so_far.prediction
-
-
-class PlannerStrategy(Protocol):
-    """A part of the planner: reads the context, returns its part of the decision."""
-
-    def decide(self, context: DecisionContext) -> DecisionPart: ...
 
 
 @dataclass(frozen=True)
@@ -207,16 +78,24 @@ class LinearDynamics:
     Q: np.ndarray
     dt: float
 
-    @classmethod
-    def of(cls, scenario: Scenario) -> LinearDynamics:
-        model = build_motion_model(scenario.target.motion)
-        if not model.is_linear:
-            raise ValueError(
-                f"planner: PCRLB / MRE planning needs linear target dynamics (ncv, ncv_discrete, "
-                f"constant_turn), got motion {scenario.target.motion.model!r}"
-            )
-        linear, dt = as_linear(model), scenario.dt
-        return cls(linear.transition_matrix(dt), linear.process_noise(dt), dt)
+
+@dataclass(frozen=True)
+class PlatformSpec:
+    """A platform as the planner knows it between decisions: its id, its sensors' models and
+    its per-epoch limits (None: not steered, it holds course)."""
+
+    platform_id: str
+    sensors: tuple[SensorModel, ...]
+    limits: PlatformLimits | None = None
+
+
+@dataclass(frozen=True)
+class SensorEntry:
+    """One sensor of the scene: its id, the platform carrying it and its model."""
+
+    sensor_id: str
+    platform_id: str
+    model: SensorModel
 
 
 def _require_pv(track: TrackEstimate) -> None:
@@ -245,11 +124,21 @@ class PcrlbPlanning:
     :func:`activetrack.planning.planner.plan`: renewal (each decision from the track's
     posterior, footnote 2) or open loop (from the prior and the known dynamics, sec. 3.2)."""
 
-    def __init__(self, scenario: Scenario, dynamics: LinearDynamics, rng: np.random.Generator):
-        self.scenario = scenario
-        self.settings = PlanSettings.from_config(scenario.planner)
-        self.open_loop = scenario.planner.mode == "open_loop"
-        self.mc_samples = scenario.planner.mc_samples
+    def __init__(
+        self,
+        settings: PlanSettings,
+        platforms: Sequence[PlatformSpec],
+        dynamics: LinearDynamics,
+        rng: np.random.Generator,
+        *,
+        mc_samples: int,
+        open_loop_prior: tuple[np.ndarray, np.ndarray] | None = None,
+    ):
+        self.settings = settings
+        self.platforms = tuple(platforms)
+        self.open_loop = open_loop_prior is not None
+        self.prior = open_loop_prior
+        self.mc_samples = mc_samples
         self.dynamics = dynamics
         self.rng = rng
         self._open_loop_belief: TargetBelief | None = None
@@ -260,9 +149,10 @@ class PcrlbPlanning:
         d = self.dynamics
         if self.open_loop:
             if self._open_loop_belief is None:
-                prior = self.scenario.target.prior
+                assert self.prior is not None  # open loop: given
+                mean, cov = self.prior
                 self._open_loop_belief = TargetBelief.from_gaussian(
-                    np.array(prior.mean), prior.covariance(), self.mc_samples, self.rng
+                    mean, cov, self.mc_samples, self.rng
                 )
             elif epoch > 0:
                 self._open_loop_belief = advance_belief(
@@ -275,8 +165,15 @@ class PcrlbPlanning:
         return TargetBelief.from_gaussian(track.state, track.state_cov, self.mc_samples, self.rng)
 
     def decide(self, context: DecisionContext) -> DecisionPart:
-        states = {pid: snap.pv for pid, snap in context.platforms.items()}
-        platforms = platforms_from_scenario(self.scenario, states)
+        platforms = [
+            PlannerPlatform(
+                p.platform_id,
+                np.asarray(context.platforms[p.platform_id].pv, float),
+                p.sensors,
+                p.limits,
+            )
+            for p in self.platforms
+        ]
         belief = self._belief(context.epoch, context.track, platforms)
         d = self.dynamics
         result = plan(platforms, belief, self.settings, F=d.F, Q=d.Q, dt=d.dt, rng=self.rng)
@@ -303,10 +200,10 @@ class PcrlbPlanning:
 
 class CautiousLocalisation:
     """Stop-and-measure localisation of a target by one robot (Vander Hook et al., Alg. 1)
-    through :class:`activetrack.closed_loop.cautious.CautiousController`."""
+    through :class:`activetrack.planning.cautious.CautiousController`."""
 
-    def __init__(self, scenario: Scenario):
-        self.controller = CautiousController(scenario)
+    def __init__(self, controller: CautiousController):
+        self.controller = controller
 
     def decide(self, context: DecisionContext) -> DecisionPart:
         c = self.controller
@@ -333,16 +230,22 @@ class MrePrediction:
     recursion from the prior, P_{k+1|k+1} = (1 - pd) P_{k+1|k} + pd P^(j)_{k+1|k+1} for the
     chosen sensors, which :class:`MreOutlook` feeds back through :meth:`commit`."""
 
-    def __init__(self, scenario: Scenario, dynamics: LinearDynamics):
-        self.open_loop = scenario.planner.mode == "open_loop"
-        self.prior = scenario.target.prior
+    def __init__(
+        self,
+        dynamics: LinearDynamics,
+        open_loop_prior: tuple[np.ndarray, np.ndarray] | None = None,
+    ):
+        self.open_loop = open_loop_prior is not None
+        self.prior = open_loop_prior
         self.dynamics = dynamics
         self._posterior: tuple[np.ndarray, np.ndarray] | None = None
 
     def decide(self, context: DecisionContext) -> DecisionPart:
         if self.open_loop:
             if self._posterior is None:
-                self._posterior = (np.array(self.prior.mean, dtype=float), self.prior.covariance())
+                assert self.prior is not None  # open loop: given
+                mean, cov = self.prior
+                self._posterior = (np.array(mean, dtype=float), np.array(cov, dtype=float))
             x, P = self._posterior
         else:
             _require_pv(context.track)
@@ -362,25 +265,25 @@ class MrePositioning:
     ``planner.horizon`` R >= 2 the first of R manoeuvres minimising it after R legs (sec. 7's
     multi-step positioning, :func:`activetrack.planning.selection.plan_positions`)."""
 
-    def __init__(self, scenario: Scenario, sensors: Sequence[SensorEntry], dt: float):
-        cfg = scenario.planner
-        self.criterion = get_criterion(cfg.criterion, POSITIONING, what="planner.criterion").name
-        self.search = SearchSettings.from_config(cfg)
-        if self.search.search not in POSITIONING_SEARCHES:
+    def __init__(
+        self,
+        criterion: str,
+        search: SearchSettings,
+        platforms: Sequence[PlatformSpec],
+        dt: float,
+        horizon: int = 1,
+    ):
+        self.criterion = get_criterion(criterion, POSITIONING, what="planner.criterion").name
+        self.search = search
+        if search.search not in POSITIONING_SEARCHES:
             raise ValueError(
                 f"planner.search must be one of {POSITIONING_SEARCHES} with cost 'mre', "
-                f"got {cfg.search!r}"
+                f"got {search.search!r}"
             )
         self.dt = dt
-        self.horizon = cfg.horizon
+        self.horizon = horizon
         self.platforms = tuple(
-            (
-                p.id,
-                PlatformLimits.from_config(p.limits, dt),
-                tuple(s.model for s in sensors if s.platform_id == p.id),
-            )
-            for p in scenario.platforms
-            if p.controllable and p.limits is not None
+            (p.platform_id, p.limits, p.sensors) for p in platforms if p.limits is not None
         )
 
     def decide(self, context: DecisionContext) -> DecisionPart:
@@ -517,13 +420,13 @@ class MreOutlook:
 
     def __init__(
         self,
-        scenario: Scenario,
+        platform_ids: Sequence[str],
         sensors: Sequence[SensorEntry],
         predictor: MrePrediction,
         criterion: str,
         search: str,
     ):
-        self.platform_ids = tuple(p.id for p in scenario.platforms)
+        self.platform_ids = tuple(platform_ids)
         self.sensors = tuple(sensors)
         self.predictor = predictor
         self.criterion = get_criterion(criterion, POSITIONING, SELECTION)

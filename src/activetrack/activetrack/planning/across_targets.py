@@ -1,7 +1,9 @@
 """Planning across targets: platform manoeuvres against every confirmed track, and steerable
-beams assigned to tracks (issue 14, sec. 4).
+beams assigned to tracks.
 
-``MultiTargetPlanner(scenario, rng).decide(epoch, tracks, platforms) -> Decision``.
+``MultiTargetPlanner(platforms, dynamics, settings, rng)``, a strategy of the one planner
+(:class:`activetrack.planning.decision.Planner`); ``plan(epoch, tracks, platforms) ->
+Decision`` alone.
 
 Sensors are the scenario's, each in clutter (:class:`activetrack.models.clutter.ClutteredSensor`):
 its information is the PCRLB's J_Z with the information reduction factor q in place of pd and
@@ -25,17 +27,17 @@ Cost of a confirmed track (tentative ones do not count), ``planner.cost``:
   multiplies its detection factor too (the PCRLB's J_Z keeps the beam on target, as
   :class:`ClutteredSensor` defines it).
 
-Costs over tracks combine by ``planner.targets.aggregate`` (:mod:`activetrack.planning.
-assignment`): ``worst`` (max) or ``weighted_sum`` (the tracks' priorities). The manoeuvre
-searches add ``TIE_BREAK`` times the sum to ``worst``, so that the other tracks decide when no
-candidate moves the worst one.
+Costs over tracks combine by ``planner.targets.aggregate`` (:class:`activetrack.planning.
+objective.TrackAggregate`): ``worst`` (max) or ``weighted_sum`` (the tracks' priorities). The
+manoeuvre searches add ``TIE_BREAK`` times the sum to ``worst``, so that the other tracks
+decide when no candidate moves the worst one.
 
 Manoeuvres (``planner.enabled``): each controllable platform in turn, the others flying their
 current plans (Hernandez sec. 4.1, until no plan changes or ``max_sensor_iterations``
-passes), searches its R-leg manoeuvre sequence (:func:`activetrack.planning.selection.
-search_horizon`, the searches of :mod:`activetrack.planning.searches` over the manoeuvre
-parametrisation of :mod:`activetrack.planning.manoeuvre`). Objective: pcrlb the sum over the
-legs (eq. 15-16, as :func:`activetrack.planning.planner.plan`), mre the cost after leg R
+passes: :func:`activetrack.planning.multisensor.coordinate_platforms`), searches its R-leg
+manoeuvre sequence (:func:`activetrack.planning.horizons.search_horizon`). Objective
+(:mod:`activetrack.planning.objective`): pcrlb the sum over the legs (eq. 15-16, as
+:func:`activetrack.planning.planner.plan`), mre the cost after leg R
 (:func:`activetrack.planning.selection.plan_positions` says why). Only the first manoeuvre is
 flown. During the search a beam counts for the track it serves now: its previous track if
 still confirmed, else the track nearest its platform. Planner off: every controllable platform
@@ -73,7 +75,6 @@ from activetrack.bounds.pcrlb import (
     propagate_samples,
 )
 from activetrack.checks import symmetrize
-from activetrack.closed_loop.strategies import LinearDynamics
 from activetrack.data import (
     BeamCommand,
     Command,
@@ -85,39 +86,29 @@ from activetrack.data import (
 )
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.planning.assignment import (
-    aggregate_costs,
     assign_beams,
     beam_coverage,
     coverage_after_misses,
     nearest_assignment,
     random_assignment,
 )
-from activetrack.planning.criteria import PCRLB, POSITIONING, Criterion, get_criterion
+from activetrack.planning.criteria import POSITIONING, get_criterion
+from activetrack.planning.decision import DecisionContext, DecisionPart
 from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlatformLimits, hold_course, rollout
-from activetrack.planning.planner import PlannerPlatform
-from activetrack.planning.selection import (
-    TargetPrediction,
-    expected_update,
-    search_horizon,
+from activetrack.planning.manoeuvre import PlannerPlatform, PlatformLimits
+from activetrack.planning.multisensor import coordinate_platforms
+from activetrack.planning.objective import (
+    TIE_BREAK,
+    CovarianceTerm,
+    InformationTerm,
+    Objective,
+    TrackAggregate,
+    aggregate_costs,
 )
-from activetrack.scenarios.build import build_scan_sensors
-from activetrack.scenarios.schema import PlannerConfig, Scenario
+from activetrack.planning.selection import TargetPrediction, expected_update
+from activetrack.planning.strategies import LinearDynamics
 
-__all__ = ["MultiTargetPlanner"]
-
-# Plans closer than this (rad, m/s) count as unchanged (as planning.multisensor).
-_SAME_PLAN_ATOL = 1e-9
-# "worst" searches minimise max_t c_t + TIE_BREAK sum_t c_t: when no candidate moves the worst
-# track (e.g. no sensor of the platform serves it) the others still decide, instead of the
-# search's first candidate (a hard turn) winning a tie.
-TIE_BREAK = 1e-6
-
-
-def _search_cost(costs: np.ndarray, weights: np.ndarray, aggregate: str, tie: float) -> np.ndarray:
-    """The aggregate of per-track costs ``(..., T)``, plus the tie-break for ``worst``."""
-    total = aggregate_costs(costs, weights, aggregate)
-    return total + tie * np.sum(costs, axis=-1) if aggregate == "worst" else total
+__all__ = ["AcrossTargetsSettings", "MultiTargetPlanner", "ScenePlatform"]
 
 
 def _in_view(sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray) -> np.ndarray:
@@ -169,22 +160,17 @@ class _PcrlbStage:
     samples: list[np.ndarray]
     fixed: np.ndarray
     own: tuple[tuple[ClutteredSensor, np.ndarray], ...]
-    criterion: Criterion
-    weights: np.ndarray
-    aggregate: str
-    tie: float = TIE_BREAK
 
-    def advance(self, J: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
+    def prepare(self, J: np.ndarray, level: int) -> np.ndarray:
+        return predicted_information(J, self.F, self.Q)  # once per J_prev
+
+    def advance(self, J_pred: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
         J_Z = np.zeros((*pv.shape[:-1], len(self.samples), 4, 4))
         for t, X in enumerate(self.samples):
             for sensor, serves in self.own:
                 if serves[t]:
                     J_Z[..., t, :, :] += sensor.fisher_information(X[level], pv)
-        return predicted_information(J, self.F, self.Q) + self.fixed[level] + J_Z
-
-    def cost(self, J: np.ndarray, level: int) -> np.ndarray:
-        c = self.criterion.of_information(J)
-        return _search_cost(c, self.weights, self.aggregate, self.tie)
+        return J_pred + self.fixed[level] + J_Z
 
 
 @dataclass
@@ -202,14 +188,11 @@ class _MreStage:
     fixed: list[list[list[tuple[_Sensor, np.ndarray]]]]
     own: tuple[tuple[_Sensor, np.ndarray], ...]
     missed: np.ndarray
-    criterion: Criterion
-    weights: np.ndarray
-    aggregate: str
-    tie: float = TIE_BREAK
+
+    def prepare(self, P: np.ndarray, level: int) -> np.ndarray:
+        return P if level == 0 else symmetrize(P)
 
     def advance(self, P: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
-        if level > 0:
-            P = symmetrize(P)
         out = np.empty((*pv.shape[:-1], self.x.shape[1], 4, 4))
         for t, x in enumerate(self.x[level]):
             P0 = Pt = P[..., t, :, :]
@@ -224,18 +207,16 @@ class _MreStage:
             out[..., t, :, :] = self.F @ Pt @ self.F.T + self.Q
         return out
 
-    def cost(self, P: np.ndarray, level: int) -> np.ndarray:
-        c = [self.criterion.of_covariance(P[..., t, :, :], x) for t, x in enumerate(self.x[level])]
-        return _search_cost(np.stack(c, axis=-1), self.weights, self.aggregate, self.tie)
-
 
 @dataclass
 class _Epoch:
     """One decision's working set: the platforms at k, the confirmed tracks, their
-    predictions and (pcrlb) samples, their miss factors ``(T,)`` (:meth:`MultiTargetPlanner.
-    _note_looks`), which tracks each sensor serves ``(S, T)``, the platforms' paths ``(R, 4)``
-    over the horizon."""
+    predictions, the CV predictions ``x`` ``(R, T, 4)`` (mre) or samples (pcrlb), their miss
+    factors ``(T,)`` (:meth:`MultiTargetPlanner._note_looks`), which tracks each sensor serves
+    ``(S, T)``, the platforms' paths ``(R, 4)`` over the horizon (a :class:`PlatformStages`
+    of the coordinator with the planner's stages)."""
 
+    planner: MultiTargetPlanner
     epoch: int
     platforms: list[PlannerPlatform]
     tracks: tuple[TrackEstimate, ...]
@@ -243,58 +224,89 @@ class _Epoch:
     weights: np.ndarray
     missed: np.ndarray
     serves: np.ndarray
-    paths: list[np.ndarray]
+    x: np.ndarray | None = None
     samples: list[np.ndarray] = field(default_factory=list)
+    paths: dict[int, np.ndarray] = field(default_factory=dict)
     plans: dict[int, np.ndarray] = field(default_factory=dict)  # controllable platforms' (R, 2)
     evaluations: int = 0
 
+    def follow(self, i: int, path: np.ndarray) -> None:
+        self.paths[i] = path
 
-def _cost_kind(cfg: PlannerConfig) -> str:
-    """``planner.cost``, or the other kind when the criterion does not apply to it (only
-    possible with the planner off or no controllable platform: the schema checks the rest)."""
-    crit = get_criterion(cfg.criterion, PCRLB, POSITIONING, what="planner.criterion")
-    if cfg.cost == "pcrlb" and not crit.applies_to(PCRLB):
-        return "mre"
-    if cfg.cost == "mre" and not crit.applies_to(POSITIONING):
-        return "pcrlb"
-    return cfg.cost
+    def stage(self, j: int | None) -> _PcrlbStage | _MreStage:
+        return self.planner._stage(self, j)
+
+
+@dataclass(frozen=True)
+class AcrossTargetsSettings:
+    """How the planner across targets plans (a scenario's ``planner:`` section, built by
+    :func:`activetrack.closed_loop.components.build_planner`): ``cost_kind`` ``"pcrlb"`` or
+    ``"mre"`` (``planner.cost``, or the other kind when the criterion applies only to it),
+    ``criterion`` (:mod:`activetrack.planning.criteria`), ``horizon`` R, ``search`` (None: no
+    platform is steered), ``mc_samples``, ``max_iterations`` (Hernandez sec. 4.1),
+    ``aggregate`` (``"worst"`` | ``"weighted_sum"``) and ``assignment`` (``"mre"`` |
+    ``"random"`` | ``"nearest"``) of ``planner.targets``."""
+
+    cost_kind: str
+    criterion: str
+    horizon: int
+    search: SearchSettings | None
+    mc_samples: int
+    max_iterations: int
+    aggregate: str
+    assignment: str
+
+
+@dataclass(frozen=True)
+class ScenePlatform:
+    """A platform of the scene as the planner across targets knows it: its id, its sensors in
+    the scene (``(sensor id, sensor)``, field of view, clutter and gate), whether it is
+    controllable and its per-epoch limits when the planner steers it (None: it holds
+    course)."""
+
+    platform_id: str
+    sensors: tuple[tuple[str, ClutteredSensor], ...]
+    controllable: bool = False
+    limits: PlatformLimits | None = None
 
 
 class MultiTargetPlanner:
-    """Manoeuvres and beam pointings against every confirmed track (module docstring); draws
-    only from its own ``rng``."""
+    """Manoeuvres and beam pointings against every confirmed track (module docstring), a
+    strategy of :class:`activetrack.planning.decision.Planner`; draws only from its own
+    ``rng``."""
 
-    def __init__(self, scenario: Scenario, rng: np.random.Generator):
-        cfg = scenario.planner
+    def __init__(
+        self,
+        platforms: Sequence[ScenePlatform],
+        dynamics: LinearDynamics,
+        settings: AcrossTargetsSettings,
+        rng: np.random.Generator,
+    ):
         self.rng = rng
-        self.dynamics = LinearDynamics.of(scenario)
-        self.dt = scenario.dt
-        self.platform_ids = tuple(p.id for p in scenario.platforms)
+        self.dynamics = dynamics
+        self.dt = dynamics.dt
+        self.platform_ids = tuple(p.platform_id for p in platforms)
         self.sensors = tuple(
-            _Sensor(sid, self.platform_ids.index(pid), model, model.information_factor)
-            for sid, (pid, model) in build_scan_sensors(scenario).items()
+            _Sensor(sid, i, model, model.information_factor)
+            for i, p in enumerate(platforms)
+            for sid, model in p.sensors
         )
-        self.controllable = tuple(p.controllable for p in scenario.platforms)
-        self.limits = tuple(
-            PlatformLimits.from_config(p.limits, self.dt)
-            if cfg.enabled and p.controllable and p.limits is not None
-            else None
-            for p in scenario.platforms
-        )
-        self.cost_kind = _cost_kind(cfg)
-        self.criterion = get_criterion(cfg.criterion)
-        if cfg.targets.assignment == "mre" and not self.criterion.applies_to(POSITIONING):
+        self.controllable = tuple(p.controllable for p in platforms)
+        self.limits = tuple(p.limits for p in platforms)
+        self.cost_kind = settings.cost_kind
+        self.criterion = get_criterion(settings.criterion)
+        if settings.assignment == "mre" and not self.criterion.applies_to(POSITIONING):
             raise ValueError(
                 f"planner.criterion must apply to MRE positioning with planner.targets."
-                f"assignment 'mre', got {cfg.criterion!r}"
+                f"assignment 'mre', got {settings.criterion!r}"
             )
         steering = any(lim is not None for lim in self.limits)
-        self.search = SearchSettings.from_config(cfg) if steering else None
-        self.horizon = cfg.horizon if steering else 1
-        self.mc_samples = cfg.mc_samples
-        self.max_iterations = cfg.max_sensor_iterations
-        self.aggregate = cfg.targets.aggregate
-        self.assignment = cfg.targets.assignment
+        self.search = settings.search if steering else None
+        self.horizon = settings.horizon if steering else 1
+        self.mc_samples = settings.mc_samples
+        self.max_iterations = settings.max_iterations
+        self.aggregate = settings.aggregate
+        self.assignment = settings.assignment
         self.last_track: dict[str, int] = {}  # beam sensor id -> track id it served last
         self.last_bearing: dict[str, float] = {}
         # Track id -> (M of coverage_after_misses since its last hit, its hits then); and the
@@ -302,11 +314,18 @@ class MultiTargetPlanner:
         self.miss_factor: dict[int, tuple[float, int]] = {}
         self.looks: dict[int, tuple[int, int, float]] = {}
 
+    def decide(self, context: DecisionContext) -> DecisionPart:
+        """The strategy's part (:class:`activetrack.planning.decision.PlannerStrategy`):
+        :meth:`plan` of the context's tracks and platforms."""
+        d = self.plan(context.epoch, context.tracks, list(context.platforms.values()))
+        evaluations = d.report.evaluations if d.report is not None else 0
+        return DecisionPart(
+            d.commands, report=d.report, evaluations=evaluations, extra=d.extra, beams=d.beams
+        )
+
     # --- the decision ---------------------------------------------------------------------
 
-    def decide(
-        self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]
-    ) -> Decision:
+    def plan(self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]) -> Decision:
         """Commands for the leg epoch -> epoch+1, beam pointings for epoch+1, the report."""
         start = time.perf_counter()
         snaps = {s.platform_id: s for s in platforms}
@@ -329,7 +348,7 @@ class MultiTargetPlanner:
             return self._sweep(epoch, planners, start)
         ep = self._epoch(epoch, planners, tracks.confirmed)
         objective = self._manoeuvres(ep)
-        next_pv = np.stack([path[0] for path in ep.paths])
+        next_pv = np.stack([ep.paths[j][0] for j in range(len(planners))])
         self._assign(ep, next_pv)
         costs = self._track_costs(ep, next_pv)
         return self._decision(ep, next_pv, costs, objective, time.perf_counter() - start)
@@ -357,6 +376,7 @@ class MultiTargetPlanner:
         d, R = self.dynamics, self.horizon
         predictions = [TargetPrediction.from_posterior(t.mean, t.cov, d.F, d.Q) for t in tracks]
         ep = _Epoch(
+            self,
             epoch,
             planners,
             tracks,
@@ -364,7 +384,6 @@ class MultiTargetPlanner:
             np.array([t.priority for t in tracks], dtype=float),
             np.array([self.miss_factor.get(t.track_id, (1.0, 0))[0] for t in tracks]),
             self._serving_now(planners, tracks, predictions),
-            [self._hold_path(p) for p in planners],
         )
         if self.cost_kind == "pcrlb":
             for t in tracks:
@@ -372,6 +391,11 @@ class MultiTargetPlanner:
                 if X is None:
                     X = gaussian_samples(t.mean, t.cov, self.mc_samples, self.rng)
                 ep.samples.append(propagate_samples(X, d.F, d.Q, R, self.rng))
+        else:
+            x = [np.stack([p.x for p in predictions])]  # x_{k+1+r|k} = F^r x_{k+1|k}
+            for _ in range(1, R):
+                x.append(x[-1] @ d.F.T)
+            ep.x = np.stack(x)
         return ep
 
     def _serving_now(
@@ -392,14 +416,6 @@ class MultiTargetPlanner:
                 t = ids.index(last) if last in ids else int(nearest_assignment(pv[::2], xy)[0])
                 serves[i] = np.arange(len(tracks)) == t
         return serves
-
-    def _hold_path(self, p: PlannerPlatform) -> np.ndarray:
-        """The platform's pv at k+1..k+R holding course ``(R, 4)``."""
-        if p.limits is None:
-            steps = np.arange(1, self.horizon + 1)[:, None] * self.dt
-            return p.pv + steps * np.array([p.pv[1], 0.0, p.pv[3], 0.0])
-        heading, speed = p.heading_and_speed
-        return rollout(p.pv, heading, hold_course(speed, p.limits, self.horizon), self.dt)[0]
 
     # --- manoeuvres -----------------------------------------------------------------------
 
@@ -431,14 +447,7 @@ class MultiTargetPlanner:
                     fixed[r, t] += s.model.fisher_information(ep.samples[t][r], path[r])
         d = self.dynamics
         return _PcrlbStage(
-            d.F,
-            d.Q,
-            ep.samples,
-            fixed,
-            tuple((s.model, serves) for s, serves in own),
-            self.criterion,
-            ep.weights,
-            self.aggregate,
+            d.F, d.Q, ep.samples, fixed, tuple((s.model, serves) for s, serves in own)
         )
 
     def _mre_stage(
@@ -447,10 +456,7 @@ class MultiTargetPlanner:
         own: list[tuple[_Sensor, np.ndarray]],
         others: list[tuple[_Sensor, np.ndarray]],
     ) -> _MreStage:
-        d = self.dynamics
-        x = [np.stack([p.x for p in ep.predictions])]  # x_{k+1+r|k} = F^r x_{k+1|k}
-        for _ in range(1, self.horizon):
-            x.append(x[-1] @ d.F.T)
+        d, x = self.dynamics, cast(np.ndarray, ep.x)
         updates: list[list[list[tuple[_Sensor, np.ndarray]]]] = [
             [[] for _ in ep.tracks] for _ in range(self.horizon)
         ]
@@ -458,72 +464,42 @@ class MultiTargetPlanner:
             for r in range(self.horizon):
                 for t in np.flatnonzero(serves):
                     updates[r][t].append((s, ep.paths[s.platform][r]))
-        return _MreStage(
-            d.F,
-            d.Q,
-            np.stack(x),
-            updates,
-            tuple(own),
-            ep.missed,
-            self.criterion,
-            ep.weights,
-            self.aggregate,
-        )
+        return _MreStage(d.F, d.Q, x, updates, tuple(own), ep.missed)
+
+    def _objective(self, ep: _Epoch, tie_break: float) -> Objective:
+        """The aggregate over the tracks of the criterion of their J (pcrlb, summed over the
+        legs: eq. 15-16) or P (mre, after leg R: :func:`activetrack.planning.selection.
+        plan_positions` says why); ``tie_break`` for ``worst`` (:data:`TIE_BREAK`)."""
+        tracks = TrackAggregate(self.aggregate, ep.weights, tie_break)
+        if self.cost_kind == "pcrlb":
+            return Objective((InformationTerm(self.criterion, tracks),))
+        return Objective((CovarianceTerm(self.criterion, cast(np.ndarray, ep.x), tracks),))
 
     def _manoeuvres(self, ep: _Epoch) -> float:
-        """Coordinate-wise search of the controllable platforms' plans (Hernandez sec. 4.1):
-        ``ep.plans`` and ``ep.paths`` take them. Returns the objective with everybody's plans;
-        a platform is searched again only when another one changed its plan since."""
+        """Coordinate-wise search of the controllable platforms' plans (Hernandez sec. 4.1,
+        :func:`coordinate_platforms`): ``ep.plans`` and ``ep.paths`` take them. Returns the
+        objective with everybody's plans (no tie-break)."""
         state0 = self._state0(ep)
-        for j, p in enumerate(ep.platforms):
-            if p.limits is not None:
-                ep.plans[j] = hold_course(p.heading_and_speed[1], p.limits, self.horizon)
-        changed_at, clock = [0] * len(ep.platforms), 0
-        searched_at: dict[int, int] = {}
-        for _ in range(self.max_iterations if ep.plans else 0):
-            changed = False
-            for j in ep.plans:
-                others = [c for i, c in enumerate(changed_at) if i != j]
-                if j in searched_at and all(c <= searched_at[j] for c in others):
-                    continue
-                best = self._search(ep, j, state0)
-                clock += 1
-                searched_at[j] = clock
-                if not np.allclose(best, ep.plans[j], rtol=0.0, atol=_SAME_PLAN_ATOL):
-                    p = ep.platforms[j]
-                    ep.plans[j] = best
-                    ep.paths[j] = rollout(p.pv, p.heading_and_speed[0], best, self.dt)[0]
-                    changed_at[j] = clock
-                    changed = True
-            if not changed:
-                break
-        return self._objective(ep, state0)
-
-    def _search(self, ep: _Epoch, j: int, state0: np.ndarray) -> np.ndarray:
-        assert self.search is not None  # set whenever a platform is steered
-        best = search_horizon(
-            self._stage(ep, j),
+        result = coordinate_platforms(
+            ep.platforms,
+            ep,
+            self._objective(ep, TIE_BREAK),
             state0,
-            ep.platforms[j],
             self.dt,
             self.search,
             self.horizon,
-            summed=self.cost_kind == "pcrlb",
-            rng=self.rng,
+            self.max_iterations,
+            self.rng,
         )
-        ep.evaluations += best.evaluations
-        return best.plan
-
-    def _objective(self, ep: _Epoch, state0: np.ndarray) -> float:
-        """The aggregate over the horizon (summed or after leg R) with everybody's plans."""
-        stage, state, total = self._stage(ep, None), state0, 0.0
-        stage.tie = 0.0
+        ep.plans = {j: plan for j, plan in enumerate(result.plans) if plan is not None}
+        ep.evaluations = result.evaluations
+        # Every platform on its path: the states along the legs (no candidate of anyone).
+        stage, state, states = ep.stage(None), state0, []
         dummy = np.zeros((1, 1, 4))
         for r in range(self.horizon):
-            state = stage.advance(state, r, dummy)
-            if self.cost_kind == "pcrlb" or r == self.horizon - 1:
-                total += float(stage.cost(state, r)[0, 0])
-        return total
+            state = stage.advance(stage.prepare(state, r), r, dummy)
+            states.append(state)
+        return self._objective(ep, 0.0).along(states)
 
     # --- beams and the outcome --------------------------------------------------------------
 

@@ -7,7 +7,8 @@ the experiments package go through :func:`parallel_map`.
 
 Two backends: local worker processes (forked, ``jobs`` of them; the default) and the workers
 of a Dask distributed cluster (``scheduler="tcp://host:8786"`` or a ``distributed.Client``;
-:mod:`activetrack.montecarlo_dask`, docs/dask.md). The results are the same on either.
+:mod:`activetrack.montecarlo.dask`, docs/dask.md). The results are the same on either; both
+cut the tasks into the same chunks (:mod:`activetrack.montecarlo.chunks`).
 
 Progress: the library never prints. ``parallel_map(..., progress=f)`` calls ``f(done)`` in the
 calling process as tasks finish (1, 2, ..., N, in task order); :class:`TaskProgress` adds up
@@ -17,45 +18,25 @@ draws its progress bars from these callbacks; the results never depend on them.
 
 from __future__ import annotations
 
-import itertools
-import multiprocessing
-import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from typing import TypeVar
 
-from activetrack.montecarlo_dask import Scheduler, check_scheduler  # stdlib-only until used
+from activetrack.montecarlo.dask import Scheduler, check_scheduler, dask_map  # stdlib-only
+from activetrack.montecarlo.local import local_map
 
-__all__ = [
-    "Progress",
-    "Scheduler",
-    "TaskProgress",
-    "available_jobs",
-    "check_jobs",
-    "even_chunks",
-    "parallel_map",
-]
+__all__ = ["Progress", "TaskProgress", "check_jobs", "parallel_map"]
 
 T = TypeVar("T")
 R = TypeVar("R")
-
-# Chunks of tasks per worker (process or Dask worker thread): the tail a chunk leaves against
-# the round trips of many small ones.
-CHUNKS_PER_WORKER = 4
 
 # Called with the number of tasks done so far (1, 2, ..., N).
 Progress = Callable[[int], None]
 
 
-def available_jobs() -> int:
-    """The processors this process may run on (the affinity mask, not the machine's count)."""
-    return len(os.sched_getaffinity(0))
-
-
 def check_jobs(jobs: int, scheduler: Scheduler | None = None) -> int:
     """``jobs`` if it is a usable worker count (an int >= 1), else a ValueError naming it; with
     a ``scheduler`` address, also that it answers (a SchedulerError, a ValueError, otherwise:
-    :func:`activetrack.montecarlo_dask.check_scheduler`), so a reproduction fails before its
+    :func:`activetrack.montecarlo.dask.check_scheduler`), so a reproduction fails before its
     first task rather than at its first map."""
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs: must be an integer >= 1, got {jobs!r}")
@@ -82,38 +63,14 @@ def parallel_map(
 
     ``scheduler`` (an address ``tcp://host:port`` or a ``distributed.Client``): the tasks run
     on that Dask cluster's workers instead, however many it has (``jobs`` is not used); the
-    tasks carry this process's registrations (:mod:`activetrack.montecarlo_dask`). A bad
-    address raises :class:`activetrack.montecarlo_dask.SchedulerError` before any task runs.
+    tasks carry this process's registrations (:mod:`activetrack.montecarlo.dask`). A bad
+    address raises :class:`activetrack.montecarlo.dask.SchedulerError` before any task runs.
     """
     check_jobs(jobs)
     items: Sequence[T] = list(tasks)
     if scheduler is not None:
-        from activetrack.montecarlo_dask import dask_map
-
         return _collect(dask_map(fn, items, scheduler), progress)
-    workers = min(jobs, len(items))
-    if workers <= 1:
-        return _collect((fn(t) for t in items), progress)
-    context = multiprocessing.get_context("fork")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        done = pool.map(_run_chunk, [(fn, chunk) for chunk in even_chunks(items, workers)])
-        return _collect(itertools.chain.from_iterable(done), progress)
-
-
-def even_chunks(items: Sequence[T], workers: int) -> list[list[T]]:
-    """``items`` cut, in order, into ``min(len(items), CHUNKS_PER_WORKER * workers)`` chunks
-    whose sizes differ by one at most: fewer round trips than one task at a time, and no short
-    last chunk that leaves a worker idle while another finishes (100 tasks on 2 workers: eight
-    chunks of 12-13, not eight of 12 and one of 4)."""
-    parts = max(1, min(len(items), CHUNKS_PER_WORKER * workers))
-    size, extra = divmod(len(items), parts)
-    bounds = [i * size + min(i, extra) for i in range(parts + 1)]
-    return [list(items[a:b]) for a, b in itertools.pairwise(bounds)]
-
-
-def _run_chunk(chunk: tuple[Callable[[T], R], list[T]]) -> list[R]:
-    fn, tasks = chunk
-    return [fn(t) for t in tasks]
+    return _collect(local_map(fn, items, jobs), progress)
 
 
 def _collect(results: Iterator[R], progress: Progress | None) -> list[R]:

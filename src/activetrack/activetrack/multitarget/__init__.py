@@ -1,1 +1,0 @@
-"""Planning across targets (moving into :mod:`activetrack.planning`)."""

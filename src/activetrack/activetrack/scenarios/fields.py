@@ -1,0 +1,206 @@
+"""The field types of scenario files and the base of every sensor entry.
+
+The lowest layer of the scenario package: bounded numbers (:mod:`activetrack.limits`),
+identifiers, the strict base model, the state layout of each motion model and
+:class:`SensorConfigBase`. It imports no component, so the schema, the sensor-kind registry and
+a plugin's sensor config can all build on it. Units: metres, seconds, radians.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import TYPE_CHECKING, Annotated, Any, Self
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from activetrack.limits import (
+    MAX_ACCELERATION,
+    MAX_ANGLE,
+    MAX_BEARING_SIGMA,
+    MAX_CLUTTER_DENSITY,
+    MAX_DT,
+    MAX_DWELL,
+    MAX_GRID_SIZE,
+    MAX_HORIZON,
+    MAX_ID_LENGTH,
+    MAX_MEASUREMENTS,
+    MAX_PARTICLES,
+    MAX_POSITION,
+    MAX_PRIOR_VARIANCE,
+    MAX_Q,
+    MAX_QUADRANT_DIVISIONS,
+    MAX_RANGE,
+    MAX_ROUGHENING,
+    MAX_SAMPLES,
+    MAX_SECTOR_LEVELS,
+    MAX_SEED,
+    MAX_SENSOR_ITERATIONS,
+    MAX_SENSORS,
+    MAX_SPEED,
+    MAX_STEPS,
+    MAX_TURN_RATE,
+    MIN_DT,
+    MIN_SIGMA,
+)
+
+
+def float_range(
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    gt: float | None = None,
+    lt: float | None = None,
+) -> Any:
+    """The bounds of a finite float field (``Annotated[float, float_range(...)]``)."""
+    return Field(ge=lo, le=hi, gt=gt, lt=lt, allow_inf_nan=False)
+
+
+FiniteFloat = Annotated[float, float_range()]
+# Magnitudes (activetrack.limits).
+Speed = Annotated[float, float_range(0, MAX_SPEED)]  # m/s
+PositiveSpeed = Annotated[float, float_range(gt=0, hi=MAX_SPEED)]
+Acceleration = Annotated[float, float_range(0, MAX_ACCELERATION)]  # m/s^2
+NoisePsd = Annotated[float, float_range(0, MAX_Q)]  # m^2/s^3
+TurnRate = Annotated[float, float_range(-MAX_TURN_RATE, MAX_TURN_RATE)]  # rad/s
+TurnRateStd = Annotated[float, float_range(0, MAX_TURN_RATE)]
+PositiveTurnRate = Annotated[float, float_range(gt=0, hi=MAX_TURN_RATE)]
+# rad; a turn beyond pi is one the other way
+HeadingChange = Annotated[float, float_range(gt=0, hi=math.pi)]
+RangeM = Annotated[float, float_range(0, MAX_RANGE)]  # m
+BearingSigma = Annotated[float, float_range(MIN_SIGMA, MAX_BEARING_SIGMA)]  # rad
+RangeSigma = Annotated[float, float_range(MIN_SIGMA, MAX_RANGE)]  # m
+RateSigma = Annotated[float, float_range(MIN_SIGMA, MAX_SPEED)]  # m/s
+Variance = Annotated[float, float_range(0, MAX_PRIOR_VARIANCE)]
+Covariance = Annotated[float, float_range(-MAX_PRIOR_VARIANCE, MAX_PRIOR_VARIANCE)]
+Dt = Annotated[float, float_range(MIN_DT, MAX_DT)]  # s
+Dwell = Annotated[float, float_range(0, MAX_DWELL)]  # s
+Roughening = Annotated[float, float_range(0, MAX_ROUGHENING)]
+
+
+def int_range(lo: int, hi: int) -> Any:
+    """The bounds of an integer field (``Annotated[int, int_range(lo, hi)]``)."""
+    return Field(ge=lo, le=hi)
+
+
+Particles = Annotated[int, int_range(1, MAX_PARTICLES)]
+Samples = Annotated[int, int_range(1, MAX_SAMPLES)]
+SensorCount = Annotated[int, int_range(1, MAX_SENSORS)]
+Horizon = Annotated[int, int_range(1, MAX_HORIZON)]
+GridSize = Annotated[int, int_range(3, MAX_GRID_SIZE)]
+Divisions = Annotated[int, int_range(1, MAX_QUADRANT_DIVISIONS)]
+SectorLevels = Annotated[int, int_range(1, MAX_SECTOR_LEVELS)]
+SensorIterations = Annotated[int, int_range(1, MAX_SENSOR_ITERATIONS)]
+Measurements = Annotated[int, int_range(1, MAX_MEASUREMENTS)]
+Seed = Annotated[int, int_range(0, MAX_SEED)]
+Steps = Annotated[int, int_range(1, MAX_STEPS)]
+
+
+# Scenario names become folder names (runs/<name>-<time>), ids go into messages and plots.
+_IDENTIFIER = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]*")
+
+
+def check_identifier(what: str, value: str, max_length: int) -> str:
+    """``value`` if it is a name safe for folders and messages, else a ValueError."""
+    if not (len(value) <= max_length and _IDENTIFIER.fullmatch(value)):
+        shown = value if len(value) <= 40 else value[:40] + "..."
+        raise ValueError(
+            f"{what} must be 1-{max_length} characters of letters, digits, '_', '-' and '.', "
+            f"not starting with '.', got {shown!r}"
+        )
+    return value
+
+
+class Strict(BaseModel):
+    """A section of a scenario file: unknown keys are errors, values are frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# --- states ------------------------------------------------------------------------------------
+
+PV = ("x", "xdot", "y", "ydot")
+# State of each motion model (the cores' ``state_names``): the layout of a prior's mean and of
+# an initial state in the file.
+MOTION_STATE = {
+    "ncv": PV,
+    "ncv_discrete": PV,
+    "constant_turn": PV,
+    "circular": ("psi", "px", "py", "omega", "v"),
+    "circular_known_omega": ("psi", "px", "py", "v"),
+}
+MOTION_STATE_DIM = {model: len(names) for model, names in MOTION_STATE.items()}
+# Linear dynamics on a pv state: what PCRLB / MRE planning and the cautious planner need.
+PV_MODELS = ("ncv", "ncv_discrete", "constant_turn")
+STATE_BOUND = {
+    "x": MAX_POSITION,
+    "y": MAX_POSITION,
+    "px": MAX_POSITION,
+    "py": MAX_POSITION,
+    "xdot": MAX_SPEED,
+    "ydot": MAX_SPEED,
+    "v": MAX_SPEED,
+    "psi": MAX_ANGLE,
+    "omega": MAX_TURN_RATE,
+}
+
+
+def check_state(values: Any, names: tuple[str, ...]) -> None:
+    """Each entry within the bound of its state component (``STATE_BOUND``)."""
+    for i, (value, name) in enumerate(zip(values, names, strict=False)):
+        bound = STATE_BOUND[name]
+        if abs(value) > bound:
+            raise ValueError(
+                f"entry {i} ({name}) must be within +-{bound:g} (activetrack.limits), got {value!r}"
+            )
+
+
+def position_of(values: Any, model: str) -> tuple[float, float]:
+    """The (x, y) position in a state of motion model ``model``."""
+    names = MOTION_STATE[model]
+    ix = names.index("x") if "x" in names else names.index("px")
+    iy = names.index("y") if "y" in names else names.index("py")
+    return float(values[ix]), float(values[iy])
+
+
+# --- sensors -----------------------------------------------------------------------------------
+
+
+class SensorConfigBase(Strict):
+    """Fields of every sensor kind: its id and detection model (pd inside [r_min, r_max],
+    Hernandez sec. 2.3, Ramdaras eq. 14-22). A kind's config derives from this, adds
+    ``kind: Literal["<kind>"]`` and its own fields, and is registered with its sensor class
+    (:func:`activetrack.scenarios.registry.register_sensor`)."""
+
+    id: str
+    pd: Annotated[float, Field(gt=0, le=1)] = 1.0
+    r_min: RangeM = 0.0
+    r_max: Annotated[float, Field(gt=0)] = math.inf  # inf: no maximum range
+    # Multi-target scenarios only (scenarios.rules): Poisson false alarms per unit of z (per
+    # rad; per m rad for range-bearing) over the field of view, which is a bearing sector
+    # fov_width wide centred fov_centre off the platform's heading (None: all around), or a
+    # steerable beam beam_width wide the planner points at one track per epoch.
+    clutter_density: Annotated[float, float_range(0, MAX_CLUTTER_DENSITY)] = 0.0
+    fov_centre: Annotated[float, float_range(-math.pi, math.pi)] = 0.0
+    fov_width: Annotated[float, float_range(gt=0, hi=2 * math.pi)] | None = None
+    beam_width: Annotated[float, float_range(gt=0, hi=2 * math.pi)] | None = None
+    if TYPE_CHECKING:
+        kind: str  # a field of every subclass, as Literal["<kind>"]
+
+        # The kind's own fields (sigma, sigma_r, ...): the registry decides which at run time.
+        def __getattr__(self, name: str) -> Any: ...
+
+    @field_validator("id")
+    @classmethod
+    def _id(cls, value: str) -> str:
+        return check_identifier("a sensor id", value, MAX_ID_LENGTH)
+
+    @model_validator(mode="after")
+    def _ranges(self) -> Self:
+        if math.isfinite(self.r_max) and self.r_max > MAX_RANGE:
+            raise ValueError(
+                f"r_max: must be <= {MAX_RANGE:g} m or .inf (no maximum), got {self.r_max!r}"
+            )
+        if not self.r_min < self.r_max:
+            raise ValueError(f"r_max: must be greater than r_min ({self.r_min}), got {self.r_max}")
+        return self

@@ -1,0 +1,582 @@
+"""The rules of a scenario file that ask the registries and the components.
+
+The schema (:mod:`.schema`) checks the file's shape; these rules run after it, in the loader
+(:func:`activetrack.scenarios.load.parse_scenario`), one layer above the components they ask:
+the filter and criterion registries for the names a file gives, the planner's criteria, searches
+and cautious strategy, and the sensors (built from their entries) for what they measure and
+whether clutter is modelled for them. Every rule is one the cores would otherwise break on when
+built or in their first epochs, so a scenario that loads runs. Each violation is a
+``(field, message)`` pair; the loader prints one ``field: message`` line each.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from activetrack.filters.registry import filter_kind, filter_names, make_filter
+from activetrack.limits import (
+    MAX_CLUTTER_PER_SCAN,
+    MAX_DURATION,
+    MAX_PLANNER_BATCH,
+    MAX_SEARCH_EVALUATIONS,
+    MIN_PARTICLES_FOR_PLANNING,
+)
+from activetrack.models.base import as_linear
+from activetrack.models.clutter import fov_volume, has_clutter_model, starts_tracks
+from activetrack.planning.cautious import caution_gamma, sigma_beta
+from activetrack.planning.criteria import PCRLB, POSITIONING, criterion_names, get_criterion
+from activetrack.planning.selection import POSITIONING_SEARCHES
+from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.fields import MOTION_STATE, PV_MODELS, position_of
+from activetrack.scenarios.registry import registered_kinds, sensor_kind
+from activetrack.scenarios.schema import CautiousConfig, PlannerConfig, PlatformConfig, Scenario
+
+__all__ = ["name_problems", "scenario_problems"]
+
+Problems = list[tuple[str, str]]
+
+
+def _one_of(names: tuple[str, ...]) -> str:
+    """``'a', 'b' or 'c'``: the allowed values as pydantic lists a Literal's."""
+    shown = [repr(n) for n in names]
+    return shown[0] if len(shown) == 1 else f"{', '.join(shown[:-1])} or {shown[-1]}"
+
+
+# --- names the registries hold -----------------------------------------------------------------
+
+
+def _filter_problem(value: str) -> str | None:
+    names = filter_names()
+    if value in names:
+        return None
+    shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
+    return f"must be one of {_one_of(names)}, got {shown}"
+
+
+def _criterion_problem(value: str, *uses: str) -> str | None:
+    """A planner criterion that applies to one of ``uses`` (the registry,
+    activetrack.planning.criteria, decides: a registered criterion is accepted at once)."""
+    names = criterion_names(*uses)
+    return None if value in names else f"must be one of {_one_of(names)}"
+
+
+# The fields whose allowed values a registry holds, and the check of each.
+_NAMED_FIELDS = (
+    (("tracker", "filter"), _filter_problem),
+    (("planner", "criterion"), lambda v: _criterion_problem(v, "pcrlb", "positioning")),
+    (("planner", "selection", "criterion"), lambda v: _criterion_problem(v, "selection")),
+)
+
+
+def name_problems(data: object) -> Problems:
+    """The filter and criterion names a scenario's data (the parsed file) gives that are not
+    registered. Read from the data, not a validated scenario, so that the loader reports them
+    with the schema's errors too; entries that are absent (the defaults, built-in names) or
+    not text (the schema's error) are left alone."""
+    out = []
+    for path, check in _NAMED_FIELDS:
+        node: Any = data
+        for key in path:
+            node = node.get(key) if isinstance(node, Mapping) else None
+        problem = check(node) if isinstance(node, str) else None
+        if problem is not None:
+            out.append((".".join(path), problem))
+    return out
+
+
+def _particle_based(name: str) -> bool:
+    """Whether the registered filter ``name`` is a particle filter (its posterior a weighted
+    particle set: the particle options and rules apply)."""
+    return filter_kind(name).particle_based
+
+
+# --- across sections ---------------------------------------------------------------------------
+
+
+def scenario_problems(s: Scenario) -> Problems:
+    """``(field, message)`` for every violated rule across sections (empty: none) of a
+    scenario the schema validated and whose names (:func:`name_problems`) are registered."""
+    out = []
+    if s.dt * s.steps > MAX_DURATION:
+        out.append(
+            (
+                "steps",
+                f"dt * steps must be <= {MAX_DURATION:g} s (ROS stamps hold int32 seconds), "
+                f"got {s.dt:g} * {s.steps} = {s.dt * s.steps:.3g} s",
+            )
+        )
+    target_model = s.target.motion.model
+    # The filters start from the targets' priors, so they must estimate the same state.
+    tracker_model = s.tracker.motion.model if s.tracker.motion is not None else target_model
+    for i, t in enumerate(s.targets):
+        model = t.motion.model
+        if MOTION_STATE[tracker_model] != MOTION_STATE[model]:
+            same = [m for m, names in MOTION_STATE.items() if names == MOTION_STATE[model]]
+            field = "tracker.motion.model" if i == 0 else f"targets.{i}.motion.model"
+            out.append(
+                (
+                    field,
+                    f"must estimate the target's state {MOTION_STATE[model]} (the prior is "
+                    f"given in it): one of {same} for targets.{i}.motion.model {model!r}, "
+                    f"got {tracker_model!r}",
+                )
+            )
+    # Range 0 at epoch 0: bearings (and their Jacobians in the EKF and the MRE) are undefined.
+    for n, t in enumerate(s.targets):
+        starts = [(f"targets.{n}.prior.mean", t.prior.mean)]
+        if t.initial_state is not None:
+            starts.append((f"targets.{n}.initial_state", t.initial_state))
+        for i, p in enumerate(s.platforms):
+            blind = [sensor.id for sensor in p.sensors if sensor.r_min == 0.0]
+            here = (p.initial_state[0], p.initial_state[2])
+            for label, state in starts:
+                if blind and position_of(state, t.motion.model) == here:
+                    out.append(
+                        (
+                            f"platforms.{i}.initial_state",
+                            f"the platform starts on the target's position ({label}), where "
+                            f"bearings are undefined (range 0): move it, or give its sensors "
+                            f"{blind} an r_min > 0",
+                        )
+                    )
+    out += _scene_problems(s)
+    if s.planner.enabled:
+        out += _planner_problems(s)
+    return out
+
+
+def _planner_problems(s: Scenario) -> Problems:
+    cfg = s.planner
+    sel = cfg.selection
+    out = []
+    robots = [(i, p) for i, p in enumerate(s.platforms) if p.controllable]
+    target_model = s.target.motion.model
+    if cfg.search == "cautious":
+        out += _cautious_problems(s, robots)
+        uses_track = True
+    else:
+        out += _steering_problems(s, robots)
+        uses_track = (bool(robots) or sel.enabled) and cfg.mode == "renewal"
+    if sel.enabled:
+        out += _selection_problems(s)
+    # Criteria of the MRE (e.g. Ramdaras eq. 25-26) evaluated at the predicted target state.
+    criteria = []
+    if sel.enabled and cfg.search != "cautious":
+        criteria.append(("planner.selection.criterion", sel.criterion))
+    if cfg.cost == "mre" and robots and cfg.search != "cautious":
+        criteria.append(("planner.criterion", cfg.criterion))
+    if criteria and target_model in PV_MODELS:
+        out += _criterion_problems(s, criteria)
+    particles = _particle_based(s.tracker.filter)
+    if uses_track and particles and s.tracker.particles < MIN_PARTICLES_FOR_PLANNING:
+        out.append(
+            (
+                "tracker.particles",
+                f"must be >= {MIN_PARTICLES_FOR_PLANNING} with filter {s.tracker.filter!r} "
+                f"when the planner works from the track (its covariance must stay "
+                f"invertible), got {s.tracker.particles}",
+            )
+        )
+    return out
+
+
+def _steering_problems(s: Scenario, robots: list[tuple[int, PlatformConfig]]) -> Problems:
+    """PCRLB planning or MRE positioning of the controllable platforms (not cautious)."""
+    cfg = s.planner
+    target_model = s.target.motion.model
+    out = []
+    if cfg.cost == "mre" and cfg.search not in POSITIONING_SEARCHES:
+        out.append(
+            (
+                "planner.search",
+                f"must be one of {POSITIONING_SEARCHES} with cost 'mre', got {cfg.search!r}",
+            )
+        )
+    positioning = criterion_names(POSITIONING)
+    if cfg.cost == "mre" and robots and cfg.criterion not in positioning:
+        out.append(
+            (
+                "planner.criterion",
+                f"must be one of {positioning} with cost 'mre', got {cfg.criterion!r}",
+            )
+        )
+    if cfg.cost == "mre" and cfg.horizon != 1 and cfg.search in POSITIONING_SEARCHES:
+        # Multi-step positioning nests one search per leg (planning.selection.plan_positions):
+        # per_stage^R evaluations, per_call^R candidate covariances (4 x 4) scored together.
+        per_stage, per_call = _search_size(cfg)
+        R = cfg.horizon
+        if per_stage**R > MAX_SEARCH_EVALUATIONS or 16 * per_call**R > MAX_PLANNER_BATCH:
+            out.append(
+                (
+                    "planner.horizon",
+                    f"search {cfg.search!r} with cost 'mre' and horizon {R} costs "
+                    f"{per_stage}^{R} = {float(per_stage**R):.3g} cost evaluations per "
+                    f"platform and decision, {per_call}^{R} covariances scored together; at "
+                    f"most {MAX_SEARCH_EVALUATIONS:.0e} and {MAX_PLANNER_BATCH // 16:.3g} "
+                    f"(activetrack.limits): lower the horizon or the search's size",
+                )
+            )
+    if (robots or cfg.selection.enabled) and target_model not in PV_MODELS:
+        out.append(
+            (
+                "target.motion.model",
+                f"planning and sensor selection need linear pv dynamics, one of {PV_MODELS}, "
+                f"got {target_model!r} (or set planner.enabled: false)",
+            )
+        )
+    if robots and cfg.cost == "pcrlb":
+        out += _pcrlb_problems(s, robots, criterion_names(PCRLB))
+    return out
+
+
+def _selection_problems(s: Scenario) -> Problems:
+    """Sensor selection (Ramdaras eq. 27) among the scenario's sensors."""
+    sel = s.planner.selection
+    sensor_ids = [sensor.id for p in s.platforms for sensor in p.sensors]
+    out = []
+    if sel.count > len(sensor_ids):
+        out.append(
+            (
+                "planner.selection.count",
+                f"must be <= {len(sensor_ids)} (the number of sensors), got {sel.count}",
+            )
+        )
+    if sel.strategy == "fixed":
+        if sel.fixed_sensor not in sensor_ids:
+            out.append(
+                (
+                    "planner.selection.fixed_sensor",
+                    f"must be one of {sensor_ids} with strategy 'fixed', got {sel.fixed_sensor!r}",
+                )
+            )
+        if sel.count != 1:
+            out.append(
+                (
+                    "planner.selection.count",
+                    f"must be 1 with strategy 'fixed', got {sel.count}",
+                )
+            )
+    return out
+
+
+def _cautious_problems(s: Scenario, robots: list[tuple[int, PlatformConfig]]) -> Problems:
+    """Vander Hook's beta-cautious planner (closed_loop.cautious, planning.cautious)."""
+    cfg = s.planner
+    c = cfg.cautious
+    out = []
+    names = [p.id for _, p in robots]
+    if len(robots) != 1:
+        out.append(
+            (
+                "planner.search",
+                f"'cautious' needs exactly one controllable platform (the robot), got "
+                f"{len(robots)}: {names}",
+            )
+        )
+    if cfg.cost != "pcrlb":
+        out.append(("planner.cost", "must be left at 'pcrlb' with search 'cautious', got 'mre'"))
+    if cfg.horizon != 1:
+        out.append(
+            (
+                "planner.horizon",
+                f"must be 1 with search 'cautious' (Algorithm 1 is greedy), got {cfg.horizon}",
+            )
+        )
+    if cfg.mode != "renewal":
+        out.append(
+            (
+                "planner.mode",
+                "must be 'renewal' with search 'cautious' (it plans from the track), "
+                f"got {cfg.mode!r}",
+            )
+        )
+    if cfg.selection.enabled:
+        out.append(
+            (
+                "planner.selection.enabled",
+                "sensor selection is not available with search 'cautious'",
+            )
+        )
+    if s.target.motion.model not in PV_MODELS:
+        out.append(
+            (
+                "target.motion.model",
+                f"search 'cautious' needs a pv motion model, one of {PV_MODELS}, "
+                f"got {s.target.motion.model!r}",
+            )
+        )
+    if c.tail == "one_sided" and c.beta > 0.5:
+        out.append(
+            ("planner.cautious.beta", f"must be in (0, 0.5] with tail 'one_sided', got {c.beta}")
+        )
+        return out
+    if len(robots) == 1:
+        out += _cautious_robot_problems(c, *robots[0])
+    return out
+
+
+def _bearing_only_kinds() -> tuple[str, ...]:
+    """The registered kinds whose sensors measure one bearing (components ``("bearing",)``)."""
+    return tuple(
+        kind
+        for kind in registered_kinds()
+        if tuple(getattr(sensor_kind(kind).sensor_class, "components", ())) == ("bearing",)
+    )
+
+
+def _cautious_robot_problems(c: CautiousConfig, i: int, robot: PlatformConfig) -> Problems:
+    """The robot's one bearing sensor and the beta-cautious strategy's existence for it."""
+    out = []
+    sensors = [build_sensor(cfg) for cfg in robot.sensors]
+    if len(sensors) != 1 or tuple(sensors[0].components) != ("bearing",):
+        out.append(
+            (
+                f"platforms.{i}.sensors",
+                f"search 'cautious' needs exactly one sensor of kind {_bearing_only_kinds()} "
+                f"on the robot, got {[cfg.kind for cfg in robot.sensors]}",
+            )
+        )
+        return out
+    # The bearing's standard deviation (sqrt of R: exactly sigma for the built-in kinds).
+    sigma = math.sqrt(float(np.atleast_2d(np.asarray(sensors[0].R, dtype=float))[0, 0]))
+    sb = sigma_beta(c.beta, c.tail)
+    if not sb > sigma:
+        out.append(
+            (
+                f"platforms.{i}.sensors.0.sigma",
+                f"must be < sigma_beta(beta={c.beta}, {c.tail}) = {sb:.6g} rad for a "
+                f"beta-cautious strategy to exist (Vander Hook sec. III), got {sigma}",
+            )
+        )
+    elif math.isinf(caution_gamma(c.beta, sigma, c.tail)) and c.r_min <= 0.0:
+        out.append(
+            (
+                "planner.cautious.r_min",
+                "must be > 0 when sigma_beta is infinite (tail 'one_sided', beta 0.5)",
+            )
+        )
+    return out
+
+
+def _pcrlb_problems(
+    s: Scenario, robots: list[tuple[int, PlatformConfig]], criteria: tuple[str, ...]
+) -> Problems:
+    """PCRLB manoeuvre planning (planning.planner, planning.horizons)."""
+    cfg = s.planner
+    out = []
+    if cfg.criterion not in criteria:
+        out.append(
+            (
+                "planner.criterion",
+                f"must be one of {criteria} with cost 'pcrlb', got {cfg.criterion!r}",
+            )
+        )
+    for i, p in robots:
+        if math.hypot(p.initial_state[1], p.initial_state[3]) == 0.0:
+            out.append(
+                (
+                    f"platforms.{i}.initial_state",
+                    "a platform steered by PCRLB planning needs a nonzero initial velocity "
+                    "(its heading)",
+                )
+            )
+        v_min = p.limits.v_min if p.limits is not None else 0.0  # limits: given when controllable
+        if v_min <= 0.0:
+            out.append(
+                (
+                    f"platforms.{i}.limits.v_min",
+                    "must be > 0 for a platform steered by PCRLB planning (at rest it would "
+                    f"have no heading), got {v_min}",
+                )
+            )
+    R = cfg.horizon
+    if cfg.search == "evolution":
+        batch = _EVOLUTION_POPSIZE * 2 * R
+    else:
+        per_stage, per_call = _search_size(cfg)
+        if per_stage**R > MAX_SEARCH_EVALUATIONS:
+            out.append(
+                (
+                    "planner.horizon",
+                    f"search {cfg.search!r} with horizon {R} costs {per_stage}^{R} = "
+                    f"{float(per_stage**R):.3g} cost evaluations per platform and decision; "
+                    f"at most {MAX_SEARCH_EVALUATIONS:.0e} (activetrack.limits): lower the "
+                    f"horizon or the search's size",
+                )
+            )
+            return out
+        batch = per_call**R
+    pf_renewal = _particle_based(s.tracker.filter) and cfg.mode == "renewal"
+    samples = min(s.tracker.planner_samples, s.tracker.particles) if pf_renewal else cfg.mc_samples
+    field = "tracker.planner_samples" if pf_renewal else "planner.mc_samples"
+    if batch * samples > MAX_PLANNER_BATCH:
+        out.append(
+            (
+                field,
+                f"{samples} samples x {batch} candidates scored together (search "
+                f"{cfg.search!r}, horizon {R}) exceeds {MAX_PLANNER_BATCH:.1e} "
+                f"(about 1 GB, activetrack.limits): use at most {MAX_PLANNER_BATCH // batch} "
+                f"samples",
+            )
+        )
+    return out
+
+
+def _criterion_problems(s: Scenario, criteria: Problems) -> Problems:
+    """Criteria undefined at the predicted target state (the registry's ``state_problem``:
+    heading of a target at rest; range, Doppler and bearing taken from the origin, Ramdaras
+    eq. 26, with the target there). Checked at the first prediction."""
+    F = as_linear(build_motion_model(s.target.motion)).transition_matrix(s.dt)
+    x = F @ np.asarray(s.target.prior.mean, dtype=float)
+    out = []
+    for field, name in criteria:
+        problem = get_criterion(name).state_problem
+        reason = problem(x) if problem is not None else None
+        if reason:
+            out.append((field, f"{name!r} {reason} (target.prior.mean)"))
+    return out
+
+
+# Per-stage candidates of the searches (activetrack.planning.searches) for the size rules.
+_GRID_CHUNK = 2048  # grid_search scores at most this many points per problem and call
+_EVOLUTION_POPSIZE = 15  # SearchSettings.evolution_popsize (scipy: popsize x dimensions)
+
+
+def _search_size(cfg: PlannerConfig) -> tuple[int, int]:
+    """(cost evaluations of one search stage, candidates scored per call) for a DP search."""
+    if cfg.search == "grid":
+        return cfg.grid_size**2, min(cfg.grid_size**2, _GRID_CHUNK)
+    if cfg.search == "quadrant":
+        return 9 + 5 * (cfg.quadrant_divisions - 1), 9
+    return 16 + 12 * (cfg.sector_levels - 1) + 1, 16  # sector
+
+
+# --- multi-target scenarios (a targets: list) --------------------------------------------------
+
+
+def _sensor_problems(s: Scenario) -> Problems:
+    """Clutter and fields of view: only for the sensors that model them (asked of the sensor,
+    activetrack.models.clutter), bounded per scan."""
+    out: Problems = []
+    for i, p in enumerate(s.platforms):
+        for j, cfg in enumerate(p.sensors):
+            where = f"platforms.{i}.sensors.{j}"
+            if cfg.fov_width is not None and cfg.beam_width is not None:
+                out.append((f"{where}.beam_width", "give fov_width or beam_width, not both"))
+            if cfg.clutter_density > 0:
+                out += _clutter_problems(where, cfg)
+    return out
+
+
+def _clutter_problems(where: str, cfg: Any) -> Problems:
+    sensor = build_sensor(cfg)
+    if not has_clutter_model(sensor):
+        return [
+            (
+                f"{where}.clutter_density",
+                f"sensor kind {cfg.kind!r} has no clutter model (its clutter_volume is None; "
+                "docs/extending.md): keep clutter_density 0",
+            )
+        ]
+    width = cfg.beam_width or cfg.fov_width or 2.0 * math.pi
+    volume = fov_volume(sensor, width, cfg.r_min, cfg.r_max)
+    if not math.isfinite(volume):
+        return [
+            (
+                f"{where}.r_max",
+                "must be finite for a range-bearing sensor with clutter (the clutter is uniform "
+                "over [r_min, r_max])",
+            )
+        ]
+    mean = cfg.clutter_density * volume
+    if mean > MAX_CLUTTER_PER_SCAN:
+        return [
+            (
+                f"{where}.clutter_density",
+                f"the mean false alarms per scan (density x field of view {mean:.3g}) must be "
+                f"<= {MAX_CLUTTER_PER_SCAN:g}",
+            )
+        ]
+    return []
+
+
+def _filter_associates(s: Scenario) -> bool:
+    """Whether the tracker's filter has an ``update_pda`` (the JPDA's update): one is built
+    from the first target's prior to ask it (the registry's factory, a throwaway generator)."""
+    t = s.targets[0]
+    model = build_motion_model(s.tracker.motion or t.motion)
+    mean, cov = np.array(t.prior.mean, dtype=float), t.prior.covariance()
+    built = make_filter(s.tracker.filter, model, mean, cov, s.tracker, np.random.default_rng(0))
+    return callable(getattr(built, "update_pda", None))
+
+
+def _scene_problems(s: Scenario) -> Problems:
+    """``(field, message)`` for every violated rule of the scene: the targets' lifetimes, the
+    sensors' clutter and fields of view, and what associating detections (JPDA: several
+    targets, births and deaths, or clutter) asks of the targets, the filter and the planner."""
+    out = _sensor_problems(s)
+    ids = [t.id for t in s.targets]
+    dupes = sorted({v for v in ids if ids.count(v) > 1})
+    if dupes:
+        out.append(("targets", f"target ids must be unique, repeated: {dupes}"))
+    for i, t in enumerate(s.targets):
+        if t.birth >= s.steps:
+            out.append((f"targets.{i}.birth", f"must be < steps ({s.steps}), got {t.birth}"))
+        if t.death is not None and t.death <= t.birth:
+            out.append((f"targets.{i}.death", f"must be > birth ({t.birth}), got {t.death}"))
+    beams = any(c.beam_width is not None for p in s.platforms for c in p.sensors)
+    cfg = s.planner
+    if s.known_association:
+        if beams and cfg.enabled and (cfg.search == "cautious" or cfg.selection.enabled):
+            out.append(
+                (
+                    "planner",
+                    "steerable beams are pointed by planning across tracks; search 'cautious' "
+                    "and planner.selection plan for one target without beams",
+                )
+            )
+        return out
+    why = "when detections are associated (several targets, births and deaths, or clutter)"
+    for i, t in enumerate(s.targets):
+        if t.motion.model not in ("ncv", "ncv_discrete"):
+            out.append(
+                (
+                    f"targets.{i}.motion.model",
+                    f"must be an NCV pv model ('ncv', 'ncv_discrete') {why}, "
+                    f"got {t.motion.model!r}",
+                )
+            )
+    initiating = any(starts_tracks(build_sensor(c)) for p in s.platforms for c in p.sensors)
+    if any(t.birth > 0 for t in s.targets) and not initiating:
+        out.append(
+            (
+                "targets",
+                "a target born after epoch 0 needs a sensor that fixes a position from one "
+                "detection (e.g. range_bearing) to start its track (bearings-only tracks start "
+                "from the priors of the targets present at epoch 0)",
+            )
+        )
+    if not _filter_associates(s):
+        out.append(
+            (
+                "tracker.filter",
+                f"must be a filter that takes associated detections (an update_pda, as the "
+                f"built-in 'ekf' and 'pf' have; docs/extending.md) {why}, "
+                f"got {s.tracker.filter!r}",
+            )
+        )
+    if cfg.enabled and (cfg.search == "cautious" or cfg.selection.enabled):
+        out.append(
+            (
+                "planner",
+                "search 'cautious' and planner.selection plan for one target whose detections "
+                "are known to be its own (no clutter, no births or deaths)",
+            )
+        )
+    if cfg.enabled and cfg.mode != "renewal":
+        out.append(("planner.mode", f"must be 'renewal' {why}"))
+    return out
