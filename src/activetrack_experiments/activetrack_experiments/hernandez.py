@@ -48,7 +48,7 @@ from activetrack.limits import (
     MAX_SEARCH_EVALUATIONS,
     MAX_SEED,
 )
-from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
+from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.montecarlo.dask import connected
 from activetrack.planning import (
     PlannerPlatform,
@@ -56,7 +56,7 @@ from activetrack.planning import (
     plan,
     platform_information,
 )
-from activetrack.plots import new_figure
+from activetrack.plots import new_figure, write_figures
 from activetrack.scenarios import Scenario, build_motion_model, load_scenario
 from activetrack.scenarios.build import plan_settings, planner_platforms
 from activetrack.scenarios.schema import PlannerConfig
@@ -79,7 +79,6 @@ __all__ = [
     "prior_samples",
     "reproduce",
     "save_figures",
-    "track_case",
 ]
 
 # Hernandez Table 1: (sensors, horizon) -> (bound_x, bound_y, pf_rmse_x, pf_rmse_y), metres.
@@ -237,25 +236,6 @@ def _track_run(task: _RunTask) -> np.ndarray:
         pf.step(k * dt, ms)
         out[k - 1] = (pf.mean - truth) ** 2
     return out
-
-
-def track_case(
-    scenario: Scenario,
-    paths: np.ndarray,
-    runs: int,
-    particles: int,
-    seed: int,
-    jobs: int = 1,
-    progress: Progress | None = None,
-    scheduler: Scheduler | None = None,
-) -> np.ndarray:
-    """PF RMSE per epoch (K, 2) in x and y over ``runs`` seeded runs (run r: SeedSequence
-    ([seed, r]) split into truth/measurement and filter generators), on ``jobs`` processes
-    or the Dask cluster ``scheduler``; the result does not depend on either (nor on
-    ``progress``, called with the runs done)."""
-    tasks = [_RunTask(scenario, paths, r, particles, seed) for r in range(runs)]
-    expect_particle_work(runs * scenario.steps * particles)  # kernels loaded before the fork
-    return _rmse(parallel_map(_track_run, tasks, jobs, progress, scheduler))
 
 
 def _rmse(squared_errors: Sequence[np.ndarray]) -> np.ndarray:
@@ -678,20 +658,11 @@ def _sensors_label(n: int) -> str:
     return f"{n} sensor" + ("s" if n > 1 else "")
 
 
-def _table1_row(res: HernandezResults, axis: int) -> str:
-    name = ("x-coordinate", "y-coordinate")[axis]
-    row = f"{name:14s}"
-    for n in SENSOR_COUNTS:
-        for R in HORIZONS:
-            c = res.case(n, R)
-            if c is None:
-                row += f"{'-':^21s}"
-                continue
-            b = (c.bound_x, c.bound_y)[axis]
-            e = (c.pf_rmse_x, c.pf_rmse_y)[axis]
-            cell = f"{b:.1f} ({e:.1f})" if e is not None else f"{b:.1f}"
-            row += f"{cell:^21s}"
-    return row
+def _table1_cell(c: CaseResult | None, axis: int) -> str:
+    if c is None:
+        return "-"
+    b, e = (c.bound_x, c.bound_y)[axis], (c.pf_rmse_x, c.pf_rmse_y)[axis]
+    return f"{b:.1f} ({e:.1f})" if e is not None else f"{b:.1f}"
 
 
 def _format_table1(res: HernandezResults) -> str:
@@ -701,14 +672,12 @@ def _format_table1(res: HernandezResults) -> str:
         f"{'':14s}" + "".join(f"{_sensors_label(n):^42s}" for n in SENSOR_COUNTS),
         f"{'Direction':14s}" + "".join(f"{'Single-Step':^21s}{'Two-Step':^21s}" for _ in range(3)),
     ]
-    for axis in (0, 1):
-        lines.append(_table1_row(res, axis))
-        row = f"{'  paper':14s}"
-        for n in SENSOR_COUNTS:
-            for R in HORIZONS:
-                p = PAPER_TABLE1[(n, R)]
-                row += f"{f'{p[axis]:.1f} ({p[2 + axis]:.1f})':^21s}"
-        lines.append(row)
+    keys = [(n, R) for n in SENSOR_COUNTS for R in HORIZONS]
+    for axis, name in ((0, "x-coordinate"), (1, "y-coordinate")):
+        ours = [_table1_cell(res.case(*key), axis) for key in keys]
+        paper = [f"{p[axis]:.1f} ({p[2 + axis]:.1f})" for p in map(PAPER_TABLE1.get, keys)]
+        for label, cells in ((name, ours), ("  paper", paper)):
+            lines.append(f"{label:14s}" + "".join(f"{cell:^21s}" for cell in cells))
     return "\n".join(lines)
 
 
@@ -765,12 +734,6 @@ def _new_figure(nrows: int, ncols: int, figsize: tuple[float, float]):
     return fig, fig.subplots(nrows, ncols)
 
 
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path
-
-
 def _ellipse(ax, centre, P, scale=10.0, **kw):
     """Outline of the 1-sigma ellipse of the position block of P, magnified ``scale`` times."""
     pts = covariance_ellipse(centre, P[np.ix_([0, 2], [0, 2])], scale)
@@ -786,12 +749,11 @@ def _plot_paths(ax, case: PlannedCase, title: str) -> None:
         _ellipse(ax, tm[k, [0, 2]], case.P[k - 1], color="tab:red", lw=0.7)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(title, fontsize=9)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
+    ax.set(xlabel="x (m)", ylabel="y (m)")
     ax.legend(fontsize=7)
 
 
-def _figure2(res: HernandezResults, out: Path) -> Path:
+def _figure2(res: HernandezResults):
     """Fig. 2: prior samples, quadrant and grid paths with 10x PCRLB ellipses, b_k."""
     fig, axs = _new_figure(2, 2, (11, 9))
     X = res.prior_samples
@@ -804,14 +766,13 @@ def _figure2(res: HernandezResults, out: Path) -> Path:
     _plot_paths(axs[1, 0], res.comparison.grid, "(c) 101x101 grid search, 10x PCRLB ellipses")
     for case, lab in ((quad, "quadrant"), (res.comparison.grid, "grid 101x101")):
         axs[1, 1].plot(res.times, case.bounds.max(axis=1), label=lab)
-    axs[1, 1].set_xlabel("time (s)")
-    axs[1, 1].set_ylabel("b_k (m)")
+    axs[1, 1].set(xlabel="time (s)", ylabel="b_k (m)")
     axs[1, 1].set_title("(d) RMSE bound b_k (eq. 10)", fontsize=9)
     axs[1, 1].legend()
-    return _save(fig, out / "fig2_1sensor_quadrant_vs_grid.png")
+    return fig
 
 
-def _figure3(res: HernandezResults, out: Path) -> Path:
+def _figure3(res: HernandezResults):
     """Fig. 3: 2-sensor paths single vs two-step, y bound and y PF RMSE."""
     fig, axs = _new_figure(2, 2, (11, 9))
     _plot_paths(axs[0, 0], res.case(2, 1).plan, "(a) 2 sensors, single-step")
@@ -824,13 +785,12 @@ def _figure3(res: HernandezResults, out: Path) -> Path:
     axs[1, 0].set_title("(c) y RMSE bound", fontsize=9)
     axs[1, 1].set_title("(d) y PF RMSE", fontsize=9)
     for ax in axs[1]:
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel("m")
+        ax.set(xlabel="time (s)", ylabel="m")
         ax.legend()
-    return _save(fig, out / "fig3_2sensors_single_vs_two.png")
+    return fig
 
 
-def _figure_all(res: HernandezResults, out: Path) -> Path:
+def _figure_all(res: HernandezResults):
     """All cases: b_k and the max(x, y) PF RMSE against time."""
     fig, axs = _new_figure(1, 2, (12, 4.5))
     for c in res.cases:
@@ -841,35 +801,36 @@ def _figure_all(res: HernandezResults, out: Path) -> Path:
     axs[0].set_title("b_k = max(x, y) RMSE bound")
     axs[1].set_title("max(x, y) PF RMSE")
     for ax in axs:
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel("m")
-        ax.set_yscale("log")
+        ax.set(xlabel="time (s)", ylabel="m", yscale="log")
         ax.legend(fontsize=7)
-    return _save(fig, out / "bounds_and_rmse_all_cases.png")
+    return fig
 
 
-_FIGURES = {"fig2": _figure2, "fig3": _figure3, "all": _figure_all}
+_FIGURES = {
+    "fig2": ("fig2_1sensor_quadrant_vs_grid.png", _figure2),
+    "fig3": ("fig3_2sensors_single_vs_two.png", _figure3),
+    "all": ("bounds_and_rmse_all_cases.png", _figure_all),
+}
 
 
 def _render(task: tuple[str, HernandezResults, Path]) -> Path:
     """One figure of :func:`save_figures` (a task of its map)."""
     name, res, out = task
-    return _FIGURES[name](res, out)
+    file, draw = _FIGURES[name]
+    return write_figures([(file, lambda: draw(res))], out, dpi=110)[0]
 
 
 def save_figures(res: HernandezResults, out: str | Path, jobs: int = 1) -> list[Path]:
     """Write the PNG figures into ``out``: Fig. 2 (with the comparison and the 1-sensor
     single-step case), Fig. 3 (with both 2-sensor cases) and all cases; returns the files.
     ``jobs``: render them on that many processes (about 0.4 s each)."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     names = []
     if res.comparison is not None and res.case(1, 1) is not None:
         names.append("fig2")
     if res.case(2, 1) is not None and res.case(2, 2) is not None:
         names.append("fig3")
     names.append("all")
-    return parallel_map(_render, [(name, res, out) for name in names], jobs)
+    return parallel_map(_render, [(name, res, Path(out)) for name in names], jobs)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -939,12 +900,11 @@ def _document(res: HernandezResults, figures: list[Path], wall_time_s: float) ->
 
 
 REPRODUCTION = Reproduction(
-    name="hernandez",
-    description="Reproduce Hernandez (2004) Tables 1-2 and Figs. 2-3.",
-    runs=RunsOption(
+    "hernandez",
+    "Reproduce Hernandez (2004) Tables 1-2 and Figs. 2-3.",
+    RunsOption(
         0, 100, "Monte Carlo PF runs per case (100; 0: the bounds only)", "0: the bounds only"
     ),
-    reproduce=reproduce,
     report=format_results,
     figures=lambda res, args: save_figures(res, args.out, jobs=args.jobs),
     options=_options,

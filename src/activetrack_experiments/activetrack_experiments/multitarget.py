@@ -205,9 +205,11 @@ def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
             s = sc.summaries[strategy]
             t = s.dt * np.arange(1, s.steps + 1)
             ax.plot(t, s.gospa_t, label=f"{strategy} ({s.mean_gospa:.0f} m)")
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("GOSPA [m]")
-        ax.set_title(f"{sc.name}: mean GOSPA over {res.runs} runs")
+        ax.set(
+            xlabel="time [s]",
+            ylabel="GOSPA [m]",
+            title=f"{sc.name}: mean GOSPA over {res.runs} runs",
+        )
         ax.legend()
         return fig
 
@@ -223,12 +225,9 @@ def _options(parser: argparse.ArgumentParser) -> None:
 
 
 REPRODUCTION = Reproduction(
-    name="multitarget",
-    description=__doc__.splitlines()[0],
-    runs=RunsOption(1, 100, "Monte Carlo runs per row (100)"),
-    reproduce=reproduce,
-    report=format_report,
-    figures=lambda res, args: save_figures(res, args.out),
+    "multitarget",
+    __doc__.splitlines()[0],
+    RunsOption(1, 100, "Monte Carlo runs per row (100)"),
     options=_options,
     arguments=lambda args: dict(scenarios=tuple(args.scenario or SCENARIOS)),
 )

@@ -234,14 +234,6 @@ def run_groups(
     return map_groups(_run_task, tasks, jobs, progress, scheduler)
 
 
-def run_runs(
-    scenario: Scenario, runs: int, jobs: int = 1, scheduler: Scheduler | None = None
-) -> list[RunTrace]:
-    """``runs`` seeded runs (run r: SeedSequence([seed, r])), in ``jobs`` processes or on the
-    Dask cluster ``scheduler``."""
-    return run_groups([(scenario, runs)], jobs, scheduler=scheduler)[0]
-
-
 @dataclass
 class CaseResult:
     """Monte Carlo summary of one case under one strategy (and criterion)."""
@@ -294,21 +286,8 @@ class CaseResult:
         ``count_per_run_<sensor>`` column per sensor and the tracker's missed count."""
         counts = {f"count_{s}": n for s, n in self.selection_counts.items()}
         per_run = {f"count_per_run_{s}": n / self.runs for s, n in self.selection_counts.items()}
-        return {
-            "case": self.case,
-            "strategy": self.strategy,
-            "criterion": self.criterion,
-            "runs": self.runs,
-            **counts,
-            **per_run,
-            "mean_det_pos": self.mean_det_pos,
-            "std_det_pos": self.std_det_pos,
-            "mre_bound_mean_det_pos": float(self.bound_det_t.mean()),
-            "missed_detections": self.missed,
-            "tracker_missed_detections": self.tracker_missed,
-            "measurements": self.measured,
-            "switch_rate": self.switch_rate,
-        }
+        scalars = {k: v for k, v in self.to_json().items() if not isinstance(v, dict | list)}
+        return {**scalars, **counts, **per_run, "tracker_missed_detections": self.tracker_missed}
 
 
 def summarize_case(case: str, strategy: str, criterion: str, scenario, traces) -> CaseResult:
@@ -356,20 +335,17 @@ class _Spec:
 
 
 def _case_spec(
-    case,
-    strategy="mre",
-    *,
-    runs=1,
-    criterion=None,
-    mode=None,
-    steps=None,
-    seed=None,
-    scenarios_dir=None,
-    scenario=None,
+    case, strategy="mre", *, runs=1, criterion=None, scenarios_dir=None, scenario=None, **change
 ) -> _Spec:
+    """The group of ``case`` (its scenario file, or ``scenario``) as :func:`variant` changes it
+    (``change``: mode, steps, seed)."""
     base = load_case(case, scenarios_dir) if scenario is None else scenario
-    sc = variant(base, strategy, criterion=criterion, mode=mode, steps=steps, seed=seed)
+    sc = variant(base, strategy, criterion=criterion, **change)
     return _Spec(case, strategy, criterion, sc, int(runs))
+
+
+def _run_spec(spec: _Spec, jobs: int, scheduler: Scheduler | None) -> list[RunTrace]:
+    return run_groups([(spec.scenario, spec.runs)], jobs, scheduler=scheduler)[0]
 
 
 def run_case(
@@ -385,18 +361,11 @@ def run_case(
     scenarios_dir=None,
     scheduler: Scheduler | None = None,
 ) -> CaseResult:
-    """Load a case, apply the variant, run it ``runs`` times and summarise."""
-    spec = _case_spec(
-        case,
-        strategy,
-        runs=runs,
-        criterion=criterion,
-        mode=mode,
-        steps=steps,
-        seed=seed,
-        scenarios_dir=scenarios_dir,
-    )
-    return spec.summarize(run_runs(spec.scenario, spec.runs, jobs, scheduler))
+    """Load a case, apply the variant, run it ``runs`` times (run r: SeedSequence([seed, r]))
+    in ``jobs`` processes or on the Dask cluster ``scheduler``, and summarise."""
+    kw = dict(criterion=criterion, mode=mode, steps=steps, seed=seed, scenarios_dir=scenarios_dir)
+    spec = _case_spec(case, strategy, runs=runs, **kw)
+    return spec.summarize(_run_spec(spec, jobs, scheduler))
 
 
 def margins(results: list[CaseResult]) -> list[dict]:
@@ -485,20 +454,6 @@ class BoundCheck:
         }
 
 
-def _bound_spec(case, runs, *, steps=None, seed=None, scenarios_dir=None, scenario=None) -> _Spec:
-    """Open-loop MRE planning: the schedule does not depend on the detections."""
-    return _case_spec(
-        case,
-        "mre",
-        runs=runs,
-        mode="open_loop",
-        steps=steps,
-        seed=seed,
-        scenarios_dir=scenarios_dir,
-        scenario=scenario,
-    )
-
-
 def summarize_bound(case: str, scenario: Scenario, traces, draws: int = DRAWS) -> BoundCheck:
     """Compare the filter of open-loop MRE runs (``traces``) with the MRE (see
     :class:`BoundCheck`)."""
@@ -542,10 +497,11 @@ def bound_check(
     scenarios_dir=None,
     scheduler: Scheduler | None = None,
 ) -> BoundCheck:
-    """Run ``case`` with open-loop MRE planning and compare the filter with the MRE."""
-    spec = _bound_spec(case, runs, steps=steps, seed=seed, scenarios_dir=scenarios_dir)
-    traces = run_runs(spec.scenario, spec.runs, jobs, scheduler)
-    return summarize_bound(case, spec.scenario, traces, draws)
+    """Run ``case`` with open-loop MRE planning (the schedule does not depend on the
+    detections) and compare the filter with the MRE."""
+    kw = dict(steps=steps, seed=seed, scenarios_dir=scenarios_dir)
+    spec = _case_spec(case, runs=runs, mode="open_loop", **kw)
+    return summarize_bound(case, spec.scenario, _run_spec(spec, jobs, scheduler), draws)
 
 
 def detection_average_realized(scenario: Scenario, trace: RunTrace) -> np.ndarray:
@@ -647,7 +603,7 @@ def _specs(
         for c in (CRITERIA if CRITERIA_CASE in keys else ())
     ]
     checks = [
-        _bound_spec(case, bound_runs, scenario=loaded[case], **kw)
+        _case_spec(case, runs=bound_runs, mode="open_loop", scenario=loaded[case], **kw)
         for case in PD_CASES
         if case in keys
     ]
@@ -931,13 +887,10 @@ def _check_cli(args: argparse.Namespace) -> None:
 
 
 REPRODUCTION = Reproduction(
-    name="ramdaras",
-    description="Reproduce Ramdaras et al. (2010) sec. 5-6: MRE sensor selection and "
+    "ramdaras",
+    "Reproduce Ramdaras et al. (2010) sec. 5-6: MRE sensor selection and "
     "positioning, Cases 1-3 and Pd < 1 variants.",
-    runs=RunsOption(1, None, "Monte Carlo runs per case (20; 3 with --quick)"),
-    reproduce=reproduce,
-    report=format_report,
-    figures=lambda res, args: save_figures(res, args.out),
+    RunsOption(1, None, "Monte Carlo runs per case (20; 3 with --quick)"),
     options=_options,
     check=_check_cli,
     arguments=lambda args: dict(

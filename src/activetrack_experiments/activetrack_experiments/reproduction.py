@@ -1,25 +1,20 @@
 """What every paper reproduction shares: the command line ``activetrack reproduce NAME`` and the
 Monte Carlo plumbing.
 
-A paper's module computes (``reproduce(runs=, jobs=, scheduler=, task_progress=, ...)``
-returns a results object whose ``to_json()`` is the JSON document), formats (the report it
-prints) and draws (``save_figures``). Its command line is a :class:`Reproduction` that names
-these, the options it adds and how they map to the other arguments of ``reproduce``; the driver
-adds the options every paper takes (``--runs`` with the paper's range and default, ``--jobs``,
-``--scheduler``, ``--json``, ``--out``, ``--no-figures``), runs, prints the report, writes the
-figures with the document beside them (``OUT/results.json``) and the document to ``--json``::
-
-    def _options(parser):
-        parser.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0)
+A paper's module ``activetrack_experiments.NAME`` computes (``reproduce(runs=, jobs=,
+scheduler=, task_progress=, ...)`` returns results whose ``to_json()`` is the JSON document),
+formats (``format_report(res)``, the text it prints) and draws (``save_figures(res, out)``).
+Its command line is a :class:`Reproduction` of the module, with the options it adds and the
+arguments of ``reproduce`` they set; the driver adds the options every paper takes (``--runs``
+with the paper's range and default, ``--jobs``, ``--scheduler``, ``--json``, ``--out``,
+``--no-figures``), runs, prints the report, writes the figures with the document beside them
+(``OUT/results.json``) and the document to ``--json``::
 
     REPRODUCTION = Reproduction(
-        name="fifth",  # activetrack reproduce fifth
-        description="Reproduce Fifth (2030) Table 1.",
-        runs=RunsOption(1, 100, "Monte Carlo runs per row (100)"),
-        reproduce=reproduce,
-        report=format_report,
-        figures=lambda res, args: save_figures(res, args.out),
-        options=_options,
+        "fifth",  # activetrack_experiments.fifth: activetrack reproduce fifth
+        "Reproduce Fifth (2030) Table 1.",
+        RunsOption(1, 100, "Monte Carlo runs per row (100)"),
+        options=lambda ap: ap.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0),
         arguments=lambda args: dict(seed=args.seed),
     )
     main = REPRODUCTION.main
@@ -33,29 +28,18 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from importlib import import_module
 from pathlib import Path
-from typing import Generic, Protocol, TypeVar
+from typing import Any, TypeVar
 
 from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.limits import MAX_JOBS, MAX_RUNS
 from activetrack.montecarlo import Progress, Scheduler, available_jobs, parallel_map
 
-__all__ = ["Reproduction", "Results", "RunsOption", "map_groups", "split"]
+__all__ = ["Reproduction", "RunsOption", "map_groups", "split"]
 
 T = TypeVar("T")
 V = TypeVar("V")
-
-# Called with (tasks done, tasks in all): the command line's progress bar.
-TaskReport = Callable[[int, int], None]
-
-
-class Results(Protocol):
-    """What a paper's ``reproduce`` returns: its JSON document, tables and arrays."""
-
-    def to_json(self) -> dict: ...
-
-
-R = TypeVar("R", bound=Results)
 
 
 @dataclass(frozen=True)
@@ -69,58 +53,46 @@ class RunsOption:
     note: str = ""
 
 
-def _no_options(parser: argparse.ArgumentParser) -> None:
-    pass
-
-
-def _no_check(args: argparse.Namespace) -> None:
-    pass
-
-
-def _no_arguments(args: argparse.Namespace) -> dict:
-    return {}
-
-
-def _to_json(res: Results, figures: list[Path], wall_time_s: float) -> dict:
-    return res.to_json()
-
-
 @dataclass(frozen=True)
-class Reproduction(Generic[R]):
+class Reproduction:
     """One paper's command line; :meth:`main` is its entry point.
 
-    ``name``: ``activetrack reproduce NAME``, figures in ``runs/reproduce-NAME`` by default;
-    ``description``: the first line of ``--help``; ``reproduce``: the paper's, called with
-    ``runs``, ``jobs``, ``scheduler``, ``task_progress`` and ``arguments(args)``; ``report(res)``:
-    the text printed; ``figures(res, args)`` writes the figures into ``args.out`` and returns
-    the files; ``options(parser)`` adds the paper's own options; ``check(args)`` completes and
-    checks them (a ValueError is a usage error, exit code 2, whose message names the option);
-    ``document(res, figures, wall_time_s)``: the JSON document (``res.to_json()``).
+    ``name``: of the paper's module ``activetrack_experiments.NAME`` and of ``activetrack
+    reproduce NAME`` (figures in ``runs/reproduce-NAME`` by default); ``description``: the
+    first line of ``--help``; ``reproduce`` (default: the module's): called with ``runs``,
+    ``jobs``, ``scheduler``, ``task_progress`` and ``arguments(args)``; ``report(res)``
+    (default: the module's ``format_report``): the text printed; ``figures(res, args)``
+    (default: the module's ``save_figures(res, args.out)``) writes the figures into
+    ``args.out`` and returns the files; ``options(parser)`` adds the paper's own options;
+    ``check(args)`` completes and checks them (a ValueError is a usage error, exit code 2, whose
+    message names the option); ``document(res, figures, wall_time_s)``: the JSON document
+    (default ``res.to_json()``).
     """
 
     name: str
     description: str
     runs: RunsOption
-    reproduce: Callable[..., R]
-    report: Callable[[R], str]
-    figures: Callable[[R, argparse.Namespace], list[Path]]
-    options: Callable[[argparse.ArgumentParser], None] = _no_options
-    check: Callable[[argparse.Namespace], None] = _no_check
-    arguments: Callable[[argparse.Namespace], dict] = _no_arguments
-    document: Callable[[R, list[Path], float], dict] = _to_json
+    reproduce: Callable[..., Any] | None = None
+    report: Callable[[Any], str] | None = None
+    figures: Callable[[Any, argparse.Namespace], list[Path]] | None = None
+    options: Callable[[argparse.ArgumentParser], Any] | None = None
+    check: Callable[[argparse.Namespace], None] | None = None
+    arguments: Callable[[argparse.Namespace], dict] = lambda args: {}
+    document: Callable[[Any, list[Path], float], dict] | None = None
+
+    def _paper(self, attr: str, given: Callable | None = None) -> Callable:
+        """``given``, else the paper module's function ``attr``."""
+        return given or getattr(import_module(f"activetrack_experiments.{self.name}"), attr)
 
     def parser(self) -> argparse.ArgumentParser:
         ap = argparse.ArgumentParser(
             prog=f"activetrack reproduce {self.name}", description=self.description
         )
         runs = self.runs
-        ap.add_argument(
-            "--runs",
-            type=int_in_range(runs.lo, MAX_RUNS, note=runs.note),
-            default=runs.default,
-            help=runs.help,
-        )
-        self.options(ap)
+        runs_type = int_in_range(runs.lo, MAX_RUNS, note=runs.note)
+        ap.add_argument("--runs", type=runs_type, default=runs.default, help=runs.help)
+        if self.options is not None:
+            self.options(ap)
         ap.add_argument(
             "--jobs",
             type=int_in_range(1, MAX_JOBS),
@@ -143,13 +115,17 @@ class Reproduction(Generic[R]):
         ap = self.parser()
         args = ap.parse_args(argv)
         try:
-            self.check(args)
+            if self.check is not None:
+                self.check(args)
         except ValueError as exc:
             ap.error(str(exc))
         return args
 
     def main(
-        self, argv: Sequence[str] | None = None, *, task_progress: TaskReport | None = None
+        self,
+        argv: Sequence[str] | None = None,
+        *,
+        task_progress: Callable[[int, int], None] | None = None,
     ) -> int:
         """``activetrack reproduce NAME`` with ``argv`` (default: ``sys.argv[1:]``): run, print
         the report, the figures written and the wall time, write the JSON document; 0.
@@ -157,20 +133,21 @@ class Reproduction(Generic[R]):
         line's progress bar); it does not change the numbers."""
         args = self.parse(sys.argv[1:] if argv is None else argv)
         start = time.perf_counter()
-        res = self.reproduce(
-            runs=args.runs,
-            jobs=args.jobs,
-            scheduler=args.scheduler,
-            task_progress=task_progress,
-            **self.arguments(args),
-        )
-        print(self.report(res))
-        figures = [] if args.no_figures else self.figures(res, args)
+        kw = dict(jobs=args.jobs, scheduler=args.scheduler, task_progress=task_progress)
+        res = self._paper("reproduce", self.reproduce)(runs=args.runs, **kw, **self.arguments(args))
+        print(self._paper("format_report", self.report)(res))
+        if args.no_figures:
+            figures = []
+        elif self.figures is not None:
+            figures = self.figures(res, args)
+        else:
+            figures = self._paper("save_figures")(res, args.out)
         if figures:
             print("\nfigures: " + ", ".join(str(f) for f in figures))
         wall_time_s = time.perf_counter() - start
         print(f"wall time {wall_time_s:.1f} s")
-        text = json.dumps(self.document(res, figures, wall_time_s), indent=2)
+        doc = res.to_json() if self.document is None else self.document(res, figures, wall_time_s)
+        text = json.dumps(doc, indent=2)
         paths = [] if args.no_figures else [args.out / "results.json"]
         for path in paths + ([args.json] if args.json is not None else []):
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -180,11 +157,8 @@ class Reproduction(Generic[R]):
 
 def split(items: Sequence[T], sizes: Sequence[int]) -> list[list[T]]:
     """``items`` cut, in order, into consecutive groups of ``sizes``."""
-    out, start = [], 0
-    for size in sizes:
-        out.append(list(items[start : start + size]))
-        start += size
-    return out
+    starts = [sum(sizes[:i]) for i in range(len(sizes))]
+    return [list(items[s : s + n]) for s, n in zip(starts, sizes, strict=True)]
 
 
 def map_groups(
@@ -196,6 +170,5 @@ def map_groups(
 ) -> list[list[V]]:
     """``fn`` of every task of every group in one :func:`activetrack.montecarlo.parallel_map`
     (the workers stay busy across groups), the results grouped as the tasks were."""
-    flat = [task for group in groups for task in group]
-    done = parallel_map(fn, flat, jobs, progress, scheduler)
+    done = parallel_map(fn, [task for group in groups for task in group], jobs, progress, scheduler)
     return split(done, [len(group) for group in groups])

@@ -391,29 +391,18 @@ def observability_table(setup: ValverdeSetup, n_steps: int = 10, rtol: float = 1
     """Tables I-II (eq. 38): rank of O over ``n_steps`` epochs for each condition and model,
     as a list of :class:`RankRow`."""
     rows = []
-    cx, cy = setup.centre
-    p0 = (cx, cy - setup.radius)
+    px, py = setup.centre[0], setup.centre[1] - setup.radius
     sensor = setup.sensor(1.0, 1.0)  # the rank does not depend on R
-    for label, v, omega, dt, (paper_circ, paper_ct) in RANK_CONDITIONS:
-        circ = observability_rank(
-            CircularMotion(0.0, 0.0),
-            sensor,
-            np.array([0.0, *p0, omega, v]),
-            setup.sensor_pv,
-            dt,
-            n_steps,
-            rtol=rtol,
+    for label, v, omega, dt, paper in RANK_CONDITIONS:
+        models = (
+            (CircularMotion(0.0, 0.0), [0.0, px, py, omega, v]),
+            (ConstantTurn(omega, 0.0), [px, v, py, 0.0]),
         )
-        ct = observability_rank(
-            ConstantTurn(omega, 0.0),
-            sensor,
-            np.array([p0[0], v, p0[1], 0.0]),
-            setup.sensor_pv,
-            dt,
-            n_steps,
-            rtol=rtol,
-        )
-        rows.append(RankRow(label, circ.rank, ct.rank, paper_circ, paper_ct))
+        ranks = [
+            observability_rank(m, sensor, np.array(x0), setup.sensor_pv, dt, n_steps, rtol=rtol)
+            for m, x0 in models
+        ]
+        rows.append(RankRow(label, *(r.rank for r in ranks), *paper))
     return rows
 
 
@@ -450,34 +439,12 @@ class ValverdeResults:
     def to_json(self) -> dict:
         """The document ``--json`` writes."""
         s = self.setup
+        setup = {k: v for k, v in asdict(s).items() if k != "noise_pairs"}
         return {
-            "setup": {
-                "sensor_xy": s.sensor_xy,
-                "centre": s.centre,
-                "radius": s.radius,
-                "speed": s.speed,
-                "omega": s.omega,
-                "dt": s.dt,
-                "steps": s.steps,
-                "sigma_omega": s.sigma_omega,
-                "sigma_v": s.sigma_v,
-                "q": s.q,
-                "prior_std": s.prior_std,
-                "runs": self.runs,
-                "seed": self.seed,
-            },
+            "setup": {**setup, "omega": s.omega, "q": s.q, "runs": self.runs, "seed": self.seed},
             "observability": [asdict(r) for r in self.ranks],
             "rows": [r.to_json() for r in self.rows],
         }
-
-
-def _check(runs, steps, seed, jobs, scheduler) -> None:
-    require_int("runs", runs, 2, MAX_RUNS)
-    require_int("steps", steps, 1, MAX_STEPS)
-    if runs * steps > MAX_RUN_EPOCHS:
-        raise ValueError(f"runs x steps must be <= {MAX_RUN_EPOCHS:.1e}, got {runs} x {steps}")
-    require_int("seed", seed, 0, MAX_SEED)
-    check_jobs(jobs, scheduler)
 
 
 def reproduce(
@@ -508,7 +475,12 @@ def reproduce(
     if steps is None:
         steps = setup.steps if setup is not None else 126 if quick else 252
     runs = (50 if quick else 1000) if runs is None else runs
-    _check(runs, steps, seed, jobs, scheduler)
+    require_int("runs", runs, 2, MAX_RUNS)
+    require_int("steps", steps, 1, MAX_STEPS)
+    if runs * steps > MAX_RUN_EPOCHS:
+        raise ValueError(f"runs x steps must be <= {MAX_RUN_EPOCHS:.1e}, got {runs} x {steps}")
+    require_int("seed", seed, 0, MAX_SEED)
+    check_jobs(jobs, scheduler)
     setup = replace(setup or ValverdeSetup(), steps=steps)
     pairs = tuple(noise_pairs or setup.noise_pairs)
     start = time.perf_counter()
@@ -639,10 +611,9 @@ def _fig_mse(res: ValverdeResults, case: str, axis: int, num: int):
         ax.errorbar(idx, mse, yerr=2 * se, color=colour, marker="o", label=f"EKF {NAMES[m]}")
         bound = [r.bound[axis] for r in rows]
         ax.plot(idx, bound, color=colour, ls="--", label=f"{case.upper()} {NAMES[m]}")
-    ax.set_yscale("log")
     ax.set_xticks(idx, labels, rotation=45)
-    ax.set_xlabel("noise std: range [m] / bearing [deg]")
-    ax.set_ylabel(f"{'xy'[axis]} square error [m^2]")
+    ax.set(yscale="log", xlabel="noise std: range [m] / bearing [deg]")
+    ax.set(ylabel=f"{'xy'[axis]} square error [m^2]")
     ax.set_title(f"Fig. {num}: {'xy'[axis]} MSE and {case.upper()} vs noise")
     ax.legend(fontsize=8)
     return fig
@@ -658,9 +629,7 @@ def _fig_time(res: ValverdeResults, model: str, num: int, series_row: int):
         name = "xy"[axis]
         ax.plot(t, row.mse_t[:, axis], color=colour, alpha=0.4, lw=0.8, label=f"EKF {name} MSE")
         ax.plot(t, row.bound_t[:, axis], color=colour, lw=1.6, label=f"PCRB {name}")
-    ax.set_yscale("log")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("square error [m^2]")
+    ax.set(yscale="log", xlabel="time [s]", ylabel="square error [m^2]")
     ax.set_title(
         f"Fig. {num}: {NAMES[model]}, sigma_r = {row.sigma_r:g} m, "
         f"sigma_b = {row.sigma_b_deg:g} deg"
@@ -677,10 +646,7 @@ def _fig_path(setup: ValverdeSetup):
     path_xy = nominal_path(model, setup.x0("circular"), setup.steps, setup.dt)[:, 1:3]
     ax.plot(path_xy[:, 0], path_xy[:, 1], label="vehicle (nominal)")
     ax.plot(*setup.sensor_xy, "k^", label="USBL")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_title("Fig. 2: test path")
+    ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]", title="Fig. 2: test path")
     ax.legend()
     return fig
 
@@ -730,14 +696,9 @@ def _check_cli(args: argparse.Namespace) -> None:
 
 
 REPRODUCTION = Reproduction(
-    name="valverde",
-    description="Valverde USBL tracking: EKF MSE vs CRLB / PCRB (Tables I-V, Figs. 2-8).",
-    runs=RunsOption(
-        2, None, "Monte Carlo runs (default 1000)", "the Monte Carlo error needs two runs"
-    ),
-    reproduce=reproduce,
-    report=format_report,
-    figures=lambda res, args: save_figures(res, args.out),
+    "valverde",
+    "Valverde USBL tracking: EKF MSE vs CRLB / PCRB (Tables I-V, Figs. 2-8).",
+    RunsOption(2, None, "Monte Carlo runs (default 1000)", "the Monte Carlo error needs two runs"),
     options=_options,
     check=_check_cli,
     arguments=lambda args: dict(seed=args.seed, steps=args.steps),

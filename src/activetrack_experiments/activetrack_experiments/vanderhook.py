@@ -69,7 +69,6 @@ __all__ = [
     "VanderHookResults",
     "WorkedExample",
     "example_trajectory",
-    "failure_rates",
     "format_failures",
     "format_report",
     "format_table1",
@@ -256,16 +255,8 @@ class WorkedExample:
 
 def _example_task(runs: int, seed: int, beta: float) -> SimTask:
     e = EXAMPLE
-    return SimTask.of(
-        runs,
-        seed,
-        sigma0=e["sigma0"],
-        r0_hat=e["r0"],
-        beta=beta,
-        c_d=e["c_d"],
-        t_m=e["t_m"],
-        r_min=R_MIN,
-    )
+    kw = dict(sigma0=e["sigma0"], r0_hat=e["r0"], c_d=e["c_d"], t_m=e["t_m"])
+    return SimTask.of(runs, seed, beta=beta, r_min=R_MIN, **kw)
 
 
 def _worked_example(batch: LocalisationBatch, beta: float) -> WorkedExample:
@@ -348,19 +339,6 @@ def _failure_rows(betas, batches: Sequence[LocalisationBatch]) -> list[FailureRo
     ]
 
 
-def failure_rates(
-    runs: int,
-    betas=BETAS,
-    seed: int = 0,
-    tail="one_sided",
-    jobs: int = 1,
-    scheduler: Scheduler | None = None,
-) -> list[FailureRow]:
-    """Fig. 5 data plus the greedy baseline (same true targets and noise stream per row)."""
-    tasks = _failure_tasks(runs, betas, seed, tail)
-    return _failure_rows(betas, simulate_all(tasks, jobs, scheduler=scheduler))
-
-
 @dataclass(frozen=True)
 class ExampleRun:
     """One localisation: true target (2,), sensing locations (N, 2), estimates (N + 1, 2)."""
@@ -428,12 +406,6 @@ class VanderHookResults:
         }
 
 
-def _check(runs, seed, jobs, scheduler) -> None:
-    require_int("runs", runs, 1, MAX_RUNS)
-    require_int("seed", seed, 0, MAX_SEED)
-    check_jobs(jobs, scheduler)
-
-
 def reproduce(
     runs: int | None = None,
     *,
@@ -454,7 +426,9 @@ def reproduce(
     total)`` is called as batches finish (the command line's progress bar).
     """
     runs = (400 if quick else 4000) if runs is None else runs
-    _check(runs, seed, jobs, scheduler)
+    require_int("runs", runs, 1, MAX_RUNS)
+    require_int("seed", seed, 0, MAX_SEED)
+    check_jobs(jobs, scheduler)
     betas = tuple(betas) if betas is not None else QUICK_BETAS if quick else BETAS
     groups = [
         [_example_task(min(runs, 1000), seed, 0.1)],
@@ -560,8 +534,7 @@ def _fig_beta(failures: list[FailureRow]):
     ax2.semilogx(betas, [f.median_error for f in cautious], "o-", label="median")
     ax2.semilogx(betas, [f.mean_error for f in cautious], "s-", label="mean")
     ax2.axhline(greedy.median_error, color="r", ls="--", label="greedy median")
-    ax2.set_xlabel("beta")
-    ax2.set_ylabel("final error ||x_hat - x*|| (m)")
+    ax2.set(xlabel="beta", ylabel="final error ||x_hat - x*|| (m)")
     ax2.legend()
     fig.suptitle("Vander Hook Fig. 5: effect of beta")
     return fig
@@ -581,10 +554,8 @@ def _fig_table1(rows: list[Table1Row]):
         for xi, r in zip(x, sel, strict=True):
             ax.annotate(f"{r.value:g}", (xi, 0.2), ha="center", fontsize=7)
     ax.set_xticks([4 * i + 1 for i in range(len(sweeps))], sweeps)
-    ax.set_ylabel("C = E[T_ALG] / E[T_LB]")
-    ax.set_ylim(bottom=0)
+    ax.set(ylabel="C = E[T_ALG] / E[T_LB]", ylim=(0, None), title="Vander Hook Table I")
     ax.legend()
-    ax.set_title("Vander Hook Table I")
     return fig
 
 
@@ -595,9 +566,8 @@ def _fig_run(run: ExampleRun):
     ax.plot(*np.vstack([[BASE["r0_hat"], 0.0], run.sensors]).T, "g.-", label="sensor locations")
     ax.plot(*run.estimates.T, "r.-", label="estimates")
     ax.plot(*run.truth, "k*", ms=12, label="true target")
-    ax.set_aspect("equal")
+    ax.set(aspect="equal", title="Vander Hook Fig. 4: one cautious run")
     ax.legend()
-    ax.set_title("Vander Hook Fig. 4: one cautious run")
     return fig
 
 
@@ -630,12 +600,9 @@ def _quick_runs(args: argparse.Namespace) -> None:
 
 
 REPRODUCTION = Reproduction(
-    name="vanderhook",
-    description=__doc__.splitlines()[0],
-    runs=RunsOption(1, 4000, "Monte Carlo runs per row (4000)"),
-    reproduce=reproduce,
-    report=format_report,
-    figures=lambda res, args: save_figures(res, args.out),
+    "vanderhook",
+    __doc__.splitlines()[0],
+    RunsOption(1, 4000, "Monte Carlo runs per row (4000)"),
     options=_options,
     check=_quick_runs,
     arguments=lambda args: dict(seed=args.seed, quick=args.quick),
