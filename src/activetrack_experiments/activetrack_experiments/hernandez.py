@@ -14,9 +14,7 @@ In a notebook::
     res.table()                     # one flat dict per case (pandas.DataFrame(res.table()))
     print(hernandez.format_results(res))
 
-On the command line::
-
-    python -m activetrack_experiments.hernandez [--runs N] [--json PATH] [--out DIR] ...
+On the command line: ``activetrack reproduce hernandez --help``.
 """
 
 from __future__ import annotations

@@ -19,10 +19,7 @@ In a notebook::
     res = multitarget.reproduce(runs=20, jobs=2)
     res.table()
 
-On the command line (``python -m activetrack_experiments.multitarget`` is the same)::
-
-    activetrack reproduce multitarget [--runs N] [--jobs J | --scheduler ADDRESS]
-        [--scenario NAME ...] [--json PATH] [--out DIR] [--no-figures]
+On the command line: ``activetrack reproduce multitarget --help``.
 """
 
 from __future__ import annotations
@@ -43,17 +40,7 @@ from activetrack.scenarios.schema import Scenario
 from activetrack_experiments.paths import scenario_path
 from activetrack_experiments.reproduction import Reproduction, RunsOption
 
-__all__ = [
-    "REPRODUCTION",
-    "SCENARIOS",
-    "STRATEGIES",
-    "MultiTargetResult",
-    "format_report",
-    "main",
-    "reproduce",
-    "save_figures",
-    "strategy_scenario",
-]
+__all__ = ["SCENARIOS", "STRATEGIES", "MultiTargetResult", "reproduce", "strategy_scenario"]
 
 SCENARIOS = ("mt_bearings_crossing", "mt_radars_beams", "mt_appear_disappear")
 STRATEGIES = ("planner", "hold_course", "random_assignment")

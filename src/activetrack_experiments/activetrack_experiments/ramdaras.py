@@ -21,9 +21,7 @@ In a notebook::
     res = ramdaras.reproduce(runs=3, quick=True, jobs=2)
     res.table()  # one flat row per case, strategy and criterion
 
-On the command line::
-
-    activetrack reproduce ramdaras [--runs N] [--json PATH] [--out DIR] [--quick]
+On the command line: ``activetrack reproduce ramdaras --help``.
 """
 
 from __future__ import annotations

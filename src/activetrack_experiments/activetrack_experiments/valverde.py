@@ -30,10 +30,7 @@ In a notebook::
     res = valverde.reproduce(runs=50, quick=True, jobs=2)
     res.table()  # one flat row per case, model and noise pair
 
-On the command line (``python -m activetrack_experiments.valverde`` is the same)::
-
-    activetrack reproduce valverde [--runs N] [--steps K] [--seed S]
-        [--jobs J | --scheduler ADDRESS] [--json PATH] [--out DIR] [--quick] [--no-figures]
+On the command line: ``activetrack reproduce valverde --help``.
 """
 
 from __future__ import annotations

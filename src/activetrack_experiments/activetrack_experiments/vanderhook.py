@@ -21,10 +21,7 @@ In a notebook::
     res = vanderhook.reproduce(runs=400, quick=True, jobs=2)
     res.table()  # Table I, one flat row per sweep value; res.table("failures") for Fig. 5
 
-On the command line (``python -m activetrack_experiments.vanderhook`` is the same)::
-
-    activetrack reproduce vanderhook [--runs N] [--seed S] [--jobs J | --scheduler ADDRESS]
-        [--json PATH] [--out DIR] [--no-figures] [--quick]
+On the command line: ``activetrack reproduce vanderhook --help``.
 """
 
 from __future__ import annotations
