@@ -837,7 +837,12 @@ def save_figures(res: HernandezResults, out: str | Path, jobs: int = 1) -> list[
 
 def _options(parser: argparse.ArgumentParser) -> None:
     add = parser.add_argument
-    add("--particles", type=int_in_range(1, MAX_PARTICLES), default=10000, help="PF particles")
+    add(
+        "--particles",
+        type=int_in_range(1, MAX_PARTICLES),
+        default=10000,
+        help="PF particles (10,000)",
+    )
     add(
         "--mc-samples",
         type=int_in_range(1, MAX_SAMPLES),

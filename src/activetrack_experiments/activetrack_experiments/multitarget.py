@@ -192,11 +192,9 @@ def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
             s = sc.summaries[strategy]
             t = s.dt * np.arange(1, s.steps + 1)
             ax.plot(t, s.gospa_t, label=f"{strategy} ({s.mean_gospa:.0f} m)")
-        ax.set(
-            xlabel="time [s]",
-            ylabel="GOSPA [m]",
-            title=f"{sc.name}: mean GOSPA over {res.runs} runs",
-        )
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("GOSPA [m]")
+        ax.set_title(f"{sc.name}: mean GOSPA over {res.runs} runs")
         ax.legend()
         return fig
 
