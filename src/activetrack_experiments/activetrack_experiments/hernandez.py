@@ -46,7 +46,7 @@ from activetrack.limits import (
     MAX_SEARCH_EVALUATIONS,
     MAX_SEED,
 )
-from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs, parallel_map
+from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.montecarlo.dask import connected
 from activetrack.planning import (
     PlannerPlatform,
@@ -77,6 +77,7 @@ __all__ = [
     "prior_samples",
     "reproduce",
     "save_figures",
+    "track_case",
 ]
 
 # Hernandez Table 1: (sensors, horizon) -> (bound_x, bound_y, pf_rmse_x, pf_rmse_y), metres.
@@ -234,6 +235,25 @@ def _track_run(task: _RunTask) -> np.ndarray:
         pf.step(k * dt, ms)
         out[k - 1] = (pf.mean - truth) ** 2
     return out
+
+
+def track_case(
+    scenario: Scenario,
+    paths: np.ndarray,
+    runs: int,
+    particles: int,
+    seed: int,
+    jobs: int = 1,
+    progress: Progress | None = None,
+    scheduler: Scheduler | None = None,
+) -> np.ndarray:
+    """PF RMSE per epoch (K, 2) in x and y over ``runs`` seeded runs (run r: SeedSequence
+    ([seed, r]) split into truth/measurement and filter generators), on ``jobs`` processes
+    or the Dask cluster ``scheduler``; the result does not depend on either (nor on
+    ``progress``, called with the runs done)."""
+    tasks = [_RunTask(scenario, paths, r, particles, seed) for r in range(runs)]
+    expect_particle_work(runs * scenario.steps * particles)  # kernels loaded before the fork
+    return _rmse(parallel_map(_track_run, tasks, jobs, progress, scheduler))
 
 
 def _rmse(squared_errors: Sequence[np.ndarray]) -> np.ndarray:

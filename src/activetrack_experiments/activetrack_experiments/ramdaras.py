@@ -232,6 +232,14 @@ def run_groups(
     return map_groups(_run_task, tasks, jobs, progress, scheduler)
 
 
+def run_runs(
+    scenario: Scenario, runs: int, jobs: int = 1, scheduler: Scheduler | None = None
+) -> list[RunTrace]:
+    """``runs`` seeded runs (run r: SeedSequence([seed, r])), in ``jobs`` processes or on the
+    Dask cluster ``scheduler``."""
+    return run_groups([(scenario, runs)], jobs, scheduler=scheduler)[0]
+
+
 @dataclass
 class CaseResult:
     """Monte Carlo summary of one case under one strategy (and criterion)."""
@@ -342,10 +350,6 @@ def _case_spec(
     return _Spec(case, strategy, criterion, sc, int(runs))
 
 
-def _run_spec(spec: _Spec, jobs: int, scheduler: Scheduler | None) -> list[RunTrace]:
-    return run_groups([(spec.scenario, spec.runs)], jobs, scheduler=scheduler)[0]
-
-
 def run_case(
     case: str,
     strategy: str = "mre",
@@ -359,11 +363,10 @@ def run_case(
     scenarios_dir=None,
     scheduler: Scheduler | None = None,
 ) -> CaseResult:
-    """Load a case, apply the variant, run it ``runs`` times (run r: SeedSequence([seed, r]))
-    in ``jobs`` processes or on the Dask cluster ``scheduler``, and summarise."""
+    """Load a case, apply the variant, run it ``runs`` times (:func:`run_runs`) and summarise."""
     kw = dict(criterion=criterion, mode=mode, steps=steps, seed=seed, scenarios_dir=scenarios_dir)
     spec = _case_spec(case, strategy, runs=runs, **kw)
-    return spec.summarize(_run_spec(spec, jobs, scheduler))
+    return spec.summarize(run_runs(spec.scenario, spec.runs, jobs, scheduler))
 
 
 def margins(results: list[CaseResult]) -> list[dict]:
@@ -499,7 +502,8 @@ def bound_check(
     detections) and compare the filter with the MRE."""
     kw = dict(steps=steps, seed=seed, scenarios_dir=scenarios_dir)
     spec = _case_spec(case, runs=runs, mode="open_loop", **kw)
-    return summarize_bound(case, spec.scenario, _run_spec(spec, jobs, scheduler), draws)
+    traces = run_runs(spec.scenario, spec.runs, jobs, scheduler)
+    return summarize_bound(case, spec.scenario, traces, draws)
 
 
 def detection_average_realized(scenario: Scenario, trace: RunTrace) -> np.ndarray:
