@@ -14,15 +14,12 @@ In a notebook::
     res.table()                     # one flat dict per case (pandas.DataFrame(res.table()))
     print(hernandez.format_results(res))
 
-On the command line::
-
-    python -m activetrack_experiments.hernandez [--runs N] [--json PATH] [--out DIR] ...
+On the command line: ``activetrack reproduce hernandez --help``.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -31,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import add_scheduler_option, int_in_range
+from activetrack.argtypes import int_in_range
 from activetrack.bounds.pcrlb import (
     covariance_bound,
     gaussian_samples,
@@ -43,22 +40,13 @@ from activetrack.geometry import covariance_ellipse
 from activetrack.kernels import expect_particle_work
 from activetrack.limits import (
     MAX_GRID_SIZE,
-    MAX_JOBS,
     MAX_PARTICLES,
     MAX_PLANNER_BATCH,
-    MAX_RUNS,
     MAX_SAMPLES,
     MAX_SEARCH_EVALUATIONS,
     MAX_SEED,
 )
-from activetrack.montecarlo import (
-    Progress,
-    Scheduler,
-    TaskProgress,
-    available_jobs,
-    check_jobs,
-    parallel_map,
-)
+from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.montecarlo.dask import connected
 from activetrack.planning import (
     PlannerPlatform,
@@ -66,15 +54,17 @@ from activetrack.planning import (
     plan,
     platform_information,
 )
-from activetrack.plots import new_figure
+from activetrack.plots import new_figure, write_figures
 from activetrack.scenarios import Scenario, build_motion_model, load_scenario
 from activetrack.scenarios.build import plan_settings, planner_platforms
 from activetrack.scenarios.schema import PlannerConfig
 from activetrack_experiments.paths import find_scenarios_dir, scenario_path
+from activetrack_experiments.reproduction import Reproduction, RunsOption, map_groups
 
 __all__ = [
     "PAPER_TABLE1",
     "PAPER_TABLE2",
+    "REPRODUCTION",
     "CaseResult",
     "HernandezResults",
     "PlannedCase",
@@ -569,14 +559,12 @@ def _plan_and_track(
     if runs == 0:
         return results, extra
     run_tasks = [
-        _RunTask(sc, res.plan.paths, r, particles, sd)
+        [_RunTask(sc, res.plan.paths, r, particles, sd) for r in range(runs)]
         for sc, res, sd in zip(scenarios, results, seeds, strict=True)
-        for r in range(runs)
     ]
-    expect_particle_work(len(run_tasks) * scenarios[0].steps * particles)  # before the fork
-    out = parallel_map(_timed_track_run, run_tasks, jobs, tasks.of_map(), scheduler)
-    for i, res in enumerate(results):
-        part = out[i * runs : (i + 1) * runs]
+    expect_particle_work(len(scenarios) * runs * scenarios[0].steps * particles)  # before fork
+    parts = map_groups(_timed_track_run, run_tasks, jobs, tasks.of_map(), scheduler)
+    for res, part in zip(results, parts, strict=True):
         res.rmse = _rmse([sq for sq, _ in part])
         res.runs, res.particles = runs, particles
         res.tracking_time_s = sum(t for _, t in part)
@@ -688,20 +676,11 @@ def _sensors_label(n: int) -> str:
     return f"{n} sensor" + ("s" if n > 1 else "")
 
 
-def _table1_row(res: HernandezResults, axis: int) -> str:
-    name = ("x-coordinate", "y-coordinate")[axis]
-    row = f"{name:14s}"
-    for n in SENSOR_COUNTS:
-        for R in HORIZONS:
-            c = res.case(n, R)
-            if c is None:
-                row += f"{'-':^21s}"
-                continue
-            b = (c.bound_x, c.bound_y)[axis]
-            e = (c.pf_rmse_x, c.pf_rmse_y)[axis]
-            cell = f"{b:.1f} ({e:.1f})" if e is not None else f"{b:.1f}"
-            row += f"{cell:^21s}"
-    return row
+def _table1_cell(c: CaseResult | None, axis: int) -> str:
+    if c is None:
+        return "-"
+    b, e = (c.bound_x, c.bound_y)[axis], (c.pf_rmse_x, c.pf_rmse_y)[axis]
+    return f"{b:.1f} ({e:.1f})" if e is not None else f"{b:.1f}"
 
 
 def _format_table1(res: HernandezResults) -> str:
@@ -711,14 +690,12 @@ def _format_table1(res: HernandezResults) -> str:
         f"{'':14s}" + "".join(f"{_sensors_label(n):^42s}" for n in SENSOR_COUNTS),
         f"{'Direction':14s}" + "".join(f"{'Single-Step':^21s}{'Two-Step':^21s}" for _ in range(3)),
     ]
-    for axis in (0, 1):
-        lines.append(_table1_row(res, axis))
-        row = f"{'  paper':14s}"
-        for n in SENSOR_COUNTS:
-            for R in HORIZONS:
-                p = PAPER_TABLE1[(n, R)]
-                row += f"{f'{p[axis]:.1f} ({p[2 + axis]:.1f})':^21s}"
-        lines.append(row)
+    keys = [(n, R) for n in SENSOR_COUNTS for R in HORIZONS]
+    for axis, name in ((0, "x-coordinate"), (1, "y-coordinate")):
+        ours = [_table1_cell(res.case(*key), axis) for key in keys]
+        paper = [f"{p[axis]:.1f} ({p[2 + axis]:.1f})" for p in map(PAPER_TABLE1.get, keys)]
+        for label, cells in ((name, ours), ("  paper", paper)):
+            lines.append(f"{label:14s}" + "".join(f"{cell:^21s}" for cell in cells))
     return "\n".join(lines)
 
 
@@ -775,12 +752,6 @@ def _new_figure(nrows: int, ncols: int, figsize: tuple[float, float]):
     return fig, fig.subplots(nrows, ncols)
 
 
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path
-
-
 def _ellipse(ax, centre, P, scale=10.0, **kw):
     """Outline of the 1-sigma ellipse of the position block of P, magnified ``scale`` times."""
     pts = covariance_ellipse(centre, P[np.ix_([0, 2], [0, 2])], scale)
@@ -796,12 +767,11 @@ def _plot_paths(ax, case: PlannedCase, title: str) -> None:
         _ellipse(ax, tm[k, [0, 2]], case.P[k - 1], color="tab:red", lw=0.7)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(title, fontsize=9)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
+    ax.set(xlabel="x (m)", ylabel="y (m)")
     ax.legend(fontsize=7)
 
 
-def _figure2(res: HernandezResults, out: Path) -> Path:
+def _figure2(res: HernandezResults):
     """Fig. 2: prior samples, quadrant and grid paths with 10x PCRLB ellipses, b_k."""
     fig, axs = _new_figure(2, 2, (11, 9))
     X = res.prior_samples
@@ -814,14 +784,13 @@ def _figure2(res: HernandezResults, out: Path) -> Path:
     _plot_paths(axs[1, 0], res.comparison.grid, "(c) 101x101 grid search, 10x PCRLB ellipses")
     for case, lab in ((quad, "quadrant"), (res.comparison.grid, "grid 101x101")):
         axs[1, 1].plot(res.times, case.bounds.max(axis=1), label=lab)
-    axs[1, 1].set_xlabel("time (s)")
-    axs[1, 1].set_ylabel("b_k (m)")
+    axs[1, 1].set(xlabel="time (s)", ylabel="b_k (m)")
     axs[1, 1].set_title("(d) RMSE bound b_k (eq. 10)", fontsize=9)
     axs[1, 1].legend()
-    return _save(fig, out / "fig2_1sensor_quadrant_vs_grid.png")
+    return fig
 
 
-def _figure3(res: HernandezResults, out: Path) -> Path:
+def _figure3(res: HernandezResults):
     """Fig. 3: 2-sensor paths single vs two-step, y bound and y PF RMSE."""
     fig, axs = _new_figure(2, 2, (11, 9))
     _plot_paths(axs[0, 0], res.case(2, 1).plan, "(a) 2 sensors, single-step")
@@ -834,13 +803,12 @@ def _figure3(res: HernandezResults, out: Path) -> Path:
     axs[1, 0].set_title("(c) y RMSE bound", fontsize=9)
     axs[1, 1].set_title("(d) y PF RMSE", fontsize=9)
     for ax in axs[1]:
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel("m")
+        ax.set(xlabel="time (s)", ylabel="m")
         ax.legend()
-    return _save(fig, out / "fig3_2sensors_single_vs_two.png")
+    return fig
 
 
-def _figure_all(res: HernandezResults, out: Path) -> Path:
+def _figure_all(res: HernandezResults):
     """All cases: b_k and the max(x, y) PF RMSE against time."""
     fig, axs = _new_figure(1, 2, (12, 4.5))
     for c in res.cases:
@@ -851,53 +819,44 @@ def _figure_all(res: HernandezResults, out: Path) -> Path:
     axs[0].set_title("b_k = max(x, y) RMSE bound")
     axs[1].set_title("max(x, y) PF RMSE")
     for ax in axs:
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel("m")
-        ax.set_yscale("log")
+        ax.set(xlabel="time (s)", ylabel="m", yscale="log")
         ax.legend(fontsize=7)
-    return _save(fig, out / "bounds_and_rmse_all_cases.png")
+    return fig
 
 
-_FIGURES = {"fig2": _figure2, "fig3": _figure3, "all": _figure_all}
+_FIGURES = {
+    "fig2": ("fig2_1sensor_quadrant_vs_grid.png", _figure2),
+    "fig3": ("fig3_2sensors_single_vs_two.png", _figure3),
+    "all": ("bounds_and_rmse_all_cases.png", _figure_all),
+}
 
 
 def _render(task: tuple[str, HernandezResults, Path]) -> Path:
     """One figure of :func:`save_figures` (a task of its map)."""
     name, res, out = task
-    return _FIGURES[name](res, out)
+    file, draw = _FIGURES[name]
+    return write_figures([(file, lambda: draw(res))], out, dpi=110)[0]
 
 
 def save_figures(res: HernandezResults, out: str | Path, jobs: int = 1) -> list[Path]:
     """Write the PNG figures into ``out``: Fig. 2 (with the comparison and the 1-sensor
     single-step case), Fig. 3 (with both 2-sensor cases) and all cases; returns the files.
     ``jobs``: render them on that many processes (about 0.4 s each)."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     names = []
     if res.comparison is not None and res.case(1, 1) is not None:
         names.append("fig2")
     if res.case(2, 1) is not None and res.case(2, 2) is not None:
         names.append("fig3")
     names.append("all")
-    return parallel_map(_render, [(name, res, out) for name in names], jobs)
+    return parallel_map(_render, [(name, res, Path(out)) for name in names], jobs)
 
 
 # ---------------------------------------------------------------------------------------------
 # Command line
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
-        prog="activetrack reproduce hernandez",
-        description="Reproduce Hernandez (2004) Tables 1-2 and Figs. 2-3.",
-    )
-    add = ap.add_argument
-    add(
-        "--runs",
-        type=int_in_range(0, MAX_RUNS, note="0: the bounds only"),
-        default=100,
-        help="Monte Carlo PF runs per case (100; 0: the bounds only)",
-    )
+def _options(parser: argparse.ArgumentParser) -> None:
+    add = parser.add_argument
     add(
         "--particles",
         type=int_in_range(1, MAX_PARTICLES),
@@ -907,14 +866,11 @@ def _build_parser() -> argparse.ArgumentParser:
     add(
         "--mc-samples",
         type=int_in_range(1, MAX_SAMPLES),
-        default=None,
         help="planner Monte Carlo samples (scenario: 1000)",
     )
     add("--sensors", default="1,2,3", help="sensor counts, e.g. 1,2,3")
     add("--horizons", default="1,2", help="planning horizons, 1 and/or 2")
-    add(
-        "--search", default=None, choices=SEARCHES, help="override the scenarios' search (quadrant)"
-    )
+    add("--search", choices=SEARCHES, help="override the scenarios' search (quadrant)")
     add(
         "--grid-size",
         type=int_in_range(2, MAX_GRID_SIZE),
@@ -922,55 +878,31 @@ def _build_parser() -> argparse.ArgumentParser:
         help="grid of the comparison (101)",
     )
     add("--no-comparison", action="store_true", help="skip the quadrant vs 101x101 grid comparison")
-    add("--seed", type=int_in_range(0, MAX_SEED), default=None, help="seed (scenario seed)")
-    add(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="PF worker processes",
+    add("--seed", type=int_in_range(0, MAX_SEED), help="seed (scenario seed)")
+    add("--scenarios", help="directory with hernandez_*.yaml")
+
+
+def _check_cli(args: argparse.Namespace) -> None:
+    """Adds ``sensor_counts`` and ``horizon_list`` (:func:`check_options`)."""
+    args.sensor_counts, args.horizon_list = check_options(
+        sensors=args.sensors.split(","),
+        horizons=args.horizons.split(","),
+        search=args.search,
+        grid_size=args.grid_size,
+        mc_samples=args.mc_samples,
+        comparison=not args.no_comparison,
     )
-    add_scheduler_option(ap)
-    add("--json", default=None, help="write the numbers to this JSON file")
-    add("--out", default="runs/reproduce-hernandez", help="figure directory")
-    add("--no-figures", action="store_true", help="do not write PNG figures")
-    add("--scenarios", default=None, help="directory with hernandez_*.yaml")
-    return ap
-
-
-def _parse(argv: list[str]) -> argparse.Namespace:
-    """Parsed options, with ``sensor_counts`` and ``horizon_list`` (usage error if invalid)."""
-    ap = _build_parser()
-    args = ap.parse_args(argv)
-    try:
-        args.sensor_counts, args.horizon_list = check_options(
-            sensors=args.sensors.split(","),
-            horizons=args.horizons.split(","),
-            search=args.search,
-            grid_size=args.grid_size,
-            mc_samples=args.mc_samples,
-            comparison=not args.no_comparison,
-        )
-    except ValueError as exc:
-        ap.error(str(exc))
-    return args
 
 
 def _print_progress(case: CaseResult) -> None:
     print(format_progress(case), file=sys.stderr, flush=True)
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    """Entry point of ``activetrack reproduce hernandez`` (``task_progress``: see
-    :func:`reproduce`; the command line's progress bar)."""
-    args = _parse(sys.argv[1:] if argv is None else argv)
-    res = reproduce(
-        runs=args.runs,
+def _arguments(args: argparse.Namespace) -> dict:
+    """The arguments of :func:`reproduce` the options set (besides the runs and workers)."""
+    return dict(
         particles=args.particles,
         seed=args.seed,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
         comparison=not args.no_comparison,
         scenarios_dir=args.scenarios,
         sensors=args.sensor_counts,
@@ -979,18 +911,32 @@ def main(
         grid_size=args.grid_size,
         mc_samples=args.mc_samples,
         progress=_print_progress,
-        task_progress=task_progress,
     )
-    print(format_results(res))
+
+
+def _document(res: HernandezResults, figures: list[Path], wall_time_s: float) -> dict:
+    """``res.to_json()`` with the figure files, if any."""
     doc = res.to_json()
-    if not args.no_figures:
-        files = save_figures(res, args.out, jobs=args.jobs)
-        doc["figures"] = [str(f) for f in files]
-        print("\nfigures: " + ", ".join(str(f) for f in files))
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(doc, indent=1))
-    return 0
+    if figures:
+        doc["figures"] = [str(f) for f in figures]
+    return doc
+
+
+REPRODUCTION = Reproduction(
+    "hernandez",
+    "Reproduce Hernandez (2004) Tables 1-2 and Figs. 2-3.",
+    RunsOption(
+        0, 100, "Monte Carlo PF runs per case (100; 0: the bounds only)", "0: the bounds only"
+    ),
+    report=format_results,
+    figures=lambda res, args: save_figures(res, args.out, jobs=args.jobs),
+    options=_options,
+    check=_check_cli,
+    arguments=_arguments,
+    document=_document,
+)
+_parse = REPRODUCTION.parse
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":

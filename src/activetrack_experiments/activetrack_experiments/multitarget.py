@@ -19,10 +19,7 @@ In a notebook::
     res = multitarget.reproduce(runs=20, jobs=2)
     res.table()
 
-On the command line (``python -m activetrack_experiments.multitarget`` is the same)::
-
-    activetrack reproduce multitarget [--runs N] [--jobs J | --scheduler ADDRESS]
-        [--scenario NAME ...] [--json PATH] [--out DIR]
+On the command line: ``activetrack reproduce multitarget --help``.
 """
 
 from __future__ import annotations
@@ -35,15 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.closed_loop.batch import BatchSummary, run_batch
-from activetrack.limits import MAX_JOBS, MAX_RUNS
-from activetrack.montecarlo import Scheduler, available_jobs, check_jobs
+from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs
 from activetrack.montecarlo.dask import connected
 from activetrack.scenarios import load_scenario, with_changes
 from activetrack.scenarios.schema import Scenario
-from activetrack_experiments.outputs import write_outputs
 from activetrack_experiments.paths import scenario_path
+from activetrack_experiments.reproduction import Reproduction, RunsOption
 
 __all__ = ["SCENARIOS", "STRATEGIES", "MultiTargetResult", "reproduce", "strategy_scenario"]
 
@@ -142,7 +137,7 @@ def reproduce(
     worker processes or the Dask cluster ``scheduler`` (the numbers do not depend on either)."""
     check_jobs(jobs, scheduler)
     result = MultiTargetResult(runs)
-    total, done = len(scenarios) * len(STRATEGIES), 0
+    tasks = TaskProgress(len(scenarios) * len(STRATEGIES), task_progress)
     with connected(scheduler) as cluster:
         for name in scenarios:
             base = load_scenario(scenario_path(name, scenarios_dir))
@@ -155,9 +150,7 @@ def reproduce(
                     keep_records=False,
                     scheduler=cluster,
                 )
-                done += 1
-                if task_progress is not None:
-                    task_progress(done, total)
+                tasks.advance()
             result.scenarios.append(ScenarioResult(name, summaries))
     return result
 
@@ -188,28 +181,6 @@ def format_report(res: MultiTargetResult) -> str:
     return "\n".join(lines)
 
 
-def _parse(argv):
-    parser = argparse.ArgumentParser(
-        prog="activetrack reproduce multitarget", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument(
-        "--runs", type=int_in_range(1, MAX_RUNS), default=100, help="Monte Carlo runs per row"
-    )
-    parser.add_argument(
-        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
-    )
-    parser.add_argument("--json", type=Path, default=None, help="write the results as JSON")
-    parser.add_argument("--out", type=Path, default=Path("runs/reproduce-multitarget"))
-    parser.add_argument(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="worker processes (the numbers do not depend on it)",
-    )
-    add_scheduler_option(parser)
-    return parser.parse_args(argv)
-
-
 def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
     """GOSPA vs time per scenario, the three strategies."""
     from activetrack.plots import new_figure, write_figures
@@ -232,20 +203,20 @@ def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
     )
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    args = _parse(argv)
-    res = reproduce(
-        args.runs,
-        scenarios=tuple(args.scenario or SCENARIOS),
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        task_progress=task_progress,
+def _options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
     )
-    print(format_report(res))
-    write_outputs(save_figures(res, args.out), res.to_json(), args.out, args.json)
-    return 0
+
+
+REPRODUCTION = Reproduction(
+    "multitarget",
+    __doc__.splitlines()[0],
+    RunsOption(1, 100, "Monte Carlo runs per row (100)"),
+    options=_options,
+    arguments=lambda args: dict(scenarios=tuple(args.scenario or SCENARIOS)),
+)
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":

@@ -21,16 +21,12 @@ In a notebook::
     res = ramdaras.reproduce(runs=3, quick=True, jobs=2)
     res.table()  # one flat row per case, strategy and criterion
 
-On the command line::
-
-    activetrack reproduce ramdaras [--runs N] [--json PATH] [--out DIR] [--quick]
+On the command line: ``activetrack reproduce ramdaras --help``.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -39,26 +35,19 @@ from pathlib import Path
 
 import numpy as np
 
-from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.bounds.costs import position_determinant
 from activetrack.bounds.mre import mre_update
 from activetrack.checks import require_int
 from activetrack.closed_loop.loop import run_once
-from activetrack.limits import MAX_JOBS, MAX_RUNS
-from activetrack.montecarlo import (
-    Progress,
-    Scheduler,
-    TaskProgress,
-    available_jobs,
-    check_jobs,
-    parallel_map,
-)
+from activetrack.limits import MAX_RUNS
+from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs
 from activetrack.planning.selection import expected_update
 from activetrack.plots import new_figure, write_figures
 from activetrack.scenarios import build_motion_model, load_scenario, parse_scenario
 from activetrack.scenarios.build import build_sensor
 from activetrack.scenarios.schema import Scenario
 from activetrack_experiments.paths import scenario_path
+from activetrack_experiments.reproduction import Reproduction, RunsOption, map_groups, split
 
 PAPER = "Ramdaras, Absil, van Genderen, ICCRTS 2010"
 # (key, scenario file, label). Case 1 (3, 9) is the Case 1 of Fig. 10-12.
@@ -180,14 +169,23 @@ def run_traced(scenario: Scenario, run: int | None = None) -> RunTrace:
     )
 
 
-def _recursion_inputs(scenario: Scenario, trace: RunTrace):
-    """F, Q, ``{sensor id: (platform id, sensor)}``, platform column of ``trace.paths`` and
-    P_{0|0}: what a covariance recursion along a run starts from."""
+def _recursion_inputs(scenario: Scenario, trace: RunTrace, mask: np.ndarray):
+    """F, Q, P_{0|0} and, for each epoch k = 1..K, the ``(sensor, platform pv at k)`` of the
+    sensors that ``mask[k - 1]`` (K, S) marks (``trace.measured`` or ``trace.detected``): what a
+    covariance recursion along a run uses."""
     model = build_motion_model(scenario.target.motion)
     F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
     sensors = {s.id: (p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors}
     column = {pid: j for j, pid in enumerate(trace.platform_ids)}
-    return F, Q, sensors, column, scenario.target.prior.covariance()
+    epochs = [
+        [
+            (sensors[sid][1], trace.paths[k, column[sensors[sid][0]]])
+            for j, sid in enumerate(trace.sensor_ids)
+            if mask[k - 1, j]
+        ]
+        for k in range(1, scenario.steps + 1)
+    ]
+    return F, Q, scenario.target.prior.covariance(), epochs
 
 
 def mre_path_bound(scenario: Scenario, trace: RunTrace) -> np.ndarray:
@@ -200,14 +198,13 @@ def mre_path_bound(scenario: Scenario, trace: RunTrace) -> np.ndarray:
     P -> (P^-1 + H^T R^-1 H)^-1 is concave and monotone, so by Jensen E[P_{k|k}] <= P^MRE_{k|k}
     (equality when pd = 1).
     """
-    F, Q, sensors, column, P = _recursion_inputs(scenario, trace)
+    F, Q, P, epochs = _recursion_inputs(scenario, trace, trace.measured)
     out = []
-    for k in range(1, scenario.steps + 1):
+    for k, used in enumerate(epochs, start=1):
         P = F @ P @ F.T + Q
-        use = [sid for j, sid in enumerate(trace.sensor_ids) if trace.measured[k - 1, j]]
-        if use:
-            models = [sensors[s][1] for s in use]
-            pvs = np.stack([trace.paths[k, column[sensors[s][0]]] for s in use])
+        if used:
+            models = [sensor for sensor, _ in used]
+            pvs = np.stack([s for _, s in used])
             P = expected_update(0.5 * (P + P.T), trace.truth[k], models, pvs)
         out.append(P)
     return np.array(out)
@@ -231,13 +228,8 @@ def run_groups(
     for _, runs in groups:
         if runs < 1:
             raise ValueError(f"runs must be >= 1, got {runs}")
-    tasks = [(scenario.model_dump(), r) for scenario, runs in groups for r in range(runs)]
-    traces = parallel_map(_run_task, tasks, jobs, progress, scheduler)
-    out, start = [], 0
-    for _, runs in groups:
-        out.append(traces[start : start + runs])
-        start += runs
-    return out
+    tasks = [[(scenario.model_dump(), r) for r in range(runs)] for scenario, runs in groups]
+    return map_groups(_run_task, tasks, jobs, progress, scheduler)
 
 
 def run_runs(
@@ -300,21 +292,8 @@ class CaseResult:
         ``count_per_run_<sensor>`` column per sensor and the tracker's missed count."""
         counts = {f"count_{s}": n for s, n in self.selection_counts.items()}
         per_run = {f"count_per_run_{s}": n / self.runs for s, n in self.selection_counts.items()}
-        return {
-            "case": self.case,
-            "strategy": self.strategy,
-            "criterion": self.criterion,
-            "runs": self.runs,
-            **counts,
-            **per_run,
-            "mean_det_pos": self.mean_det_pos,
-            "std_det_pos": self.std_det_pos,
-            "mre_bound_mean_det_pos": float(self.bound_det_t.mean()),
-            "missed_detections": self.missed,
-            "tracker_missed_detections": self.tracker_missed,
-            "measurements": self.measured,
-            "switch_rate": self.switch_rate,
-        }
+        scalars = {k: v for k, v in self.to_json().items() if not isinstance(v, dict | list)}
+        return {**scalars, **counts, **per_run, "tracker_missed_detections": self.tracker_missed}
 
 
 def summarize_case(case: str, strategy: str, criterion: str, scenario, traces) -> CaseResult:
@@ -362,19 +341,12 @@ class _Spec:
 
 
 def _case_spec(
-    case,
-    strategy="mre",
-    *,
-    runs=1,
-    criterion=None,
-    mode=None,
-    steps=None,
-    seed=None,
-    scenarios_dir=None,
-    scenario=None,
+    case, strategy="mre", *, runs=1, criterion=None, scenarios_dir=None, scenario=None, **change
 ) -> _Spec:
+    """The group of ``case`` (its scenario file, or ``scenario``) as :func:`variant` changes it
+    (``change``: mode, steps, seed)."""
     base = load_case(case, scenarios_dir) if scenario is None else scenario
-    sc = variant(base, strategy, criterion=criterion, mode=mode, steps=steps, seed=seed)
+    sc = variant(base, strategy, criterion=criterion, **change)
     return _Spec(case, strategy, criterion, sc, int(runs))
 
 
@@ -391,17 +363,9 @@ def run_case(
     scenarios_dir=None,
     scheduler: Scheduler | None = None,
 ) -> CaseResult:
-    """Load a case, apply the variant, run it ``runs`` times and summarise."""
-    spec = _case_spec(
-        case,
-        strategy,
-        runs=runs,
-        criterion=criterion,
-        mode=mode,
-        steps=steps,
-        seed=seed,
-        scenarios_dir=scenarios_dir,
-    )
+    """Load a case, apply the variant, run it ``runs`` times (:func:`run_runs`) and summarise."""
+    kw = dict(criterion=criterion, mode=mode, steps=steps, seed=seed, scenarios_dir=scenarios_dir)
+    spec = _case_spec(case, strategy, runs=runs, **kw)
     return spec.summarize(run_runs(spec.scenario, spec.runs, jobs, scheduler))
 
 
@@ -434,17 +398,14 @@ def detection_average(
     """E[P_{k|k}] over ``draws`` detection sequences for a run's truth and schedule
     ``(K, 4, 4)``: the Riccati recursion with H at the true states and each measuring sensor
     detecting with its pd, vectorised over the draws (mre_update with pd in {0, 1})."""
-    F, Q, sensors, column, P0 = _recursion_inputs(scenario, trace)
+    F, Q, P0, epochs = _recursion_inputs(scenario, trace, trace.measured)
     P = np.broadcast_to(P0, (int(draws), 4, 4)).copy()
     out = []
-    for k in range(1, scenario.steps + 1):
+    for k, used in enumerate(epochs, start=1):
         P = F @ P @ F.T + Q
-        for j, sid in enumerate(trace.sensor_ids):
-            if trace.measured[k - 1, j]:
-                pid, sensor = sensors[sid]
-                s = trace.paths[k, column[pid]]
-                hit = sensor.in_range(trace.truth[k], s) & (rng.random(int(draws)) < sensor.pd)
-                P = mre_update(P, sensor.jacobian(trace.truth[k], s), sensor.R, hit.astype(float))
+        for sensor, s in used:
+            hit = sensor.in_range(trace.truth[k], s) & (rng.random(int(draws)) < sensor.pd)
+            P = mre_update(P, sensor.jacobian(trace.truth[k], s), sensor.R, hit.astype(float))
         out.append(P.mean(axis=0))
     return np.array(out)
 
@@ -494,20 +455,6 @@ class BoundCheck:
         }
 
 
-def _bound_spec(case, runs, *, steps=None, seed=None, scenarios_dir=None, scenario=None) -> _Spec:
-    """Open-loop MRE planning: the schedule does not depend on the detections."""
-    return _case_spec(
-        case,
-        "mre",
-        runs=runs,
-        mode="open_loop",
-        steps=steps,
-        seed=seed,
-        scenarios_dir=scenarios_dir,
-        scenario=scenario,
-    )
-
-
 def summarize_bound(case: str, scenario: Scenario, traces, draws: int = DRAWS) -> BoundCheck:
     """Compare the filter of open-loop MRE runs (``traces``) with the MRE (see
     :class:`BoundCheck`)."""
@@ -551,8 +498,10 @@ def bound_check(
     scenarios_dir=None,
     scheduler: Scheduler | None = None,
 ) -> BoundCheck:
-    """Run ``case`` with open-loop MRE planning and compare the filter with the MRE."""
-    spec = _bound_spec(case, runs, steps=steps, seed=seed, scenarios_dir=scenarios_dir)
+    """Run ``case`` with open-loop MRE planning (the schedule does not depend on the
+    detections) and compare the filter with the MRE."""
+    kw = dict(steps=steps, seed=seed, scenarios_dir=scenarios_dir)
+    spec = _case_spec(case, runs=runs, mode="open_loop", **kw)
     traces = run_runs(spec.scenario, spec.runs, jobs, scheduler)
     return summarize_bound(case, spec.scenario, traces, draws)
 
@@ -560,15 +509,12 @@ def bound_check(
 def detection_average_realized(scenario: Scenario, trace: RunTrace) -> np.ndarray:
     """The Riccati recursion of a run's own detections with H at the truth ``(K, 4, 4)``:
     what the EKF's P_{k|k} is up to its linearisation at the estimate."""
-    F, Q, sensors, column, P = _recursion_inputs(scenario, trace)
+    F, Q, P, epochs = _recursion_inputs(scenario, trace, trace.detected)
     out = []
-    for k in range(1, scenario.steps + 1):
+    for k, used in enumerate(epochs, start=1):
         P = F @ P @ F.T + Q
-        for j, sid in enumerate(trace.sensor_ids):
-            if trace.detected[k - 1, j]:
-                pid, sensor = sensors[sid]
-                s = trace.paths[k, column[pid]]
-                P = mre_update(P, sensor.jacobian(trace.truth[k], s), sensor.R, 1.0)
+        for sensor, s in used:
+            P = mre_update(P, sensor.jacobian(trace.truth[k], s), sensor.R, 1.0)
         out.append(P)
     return np.array(out)
 
@@ -659,7 +605,7 @@ def _specs(
         for c in (CRITERIA if CRITERIA_CASE in keys else ())
     ]
     checks = [
-        _bound_spec(case, bound_runs, scenario=loaded[case], **kw)
+        _case_spec(case, runs=bound_runs, mode="open_loop", scenario=loaded[case], **kw)
         for case in PD_CASES
         if case in keys
     ]
@@ -706,14 +652,13 @@ def reproduce(
     groups = [(s.scenario, s.runs) for s in specs]
     tasks = TaskProgress(sum(runs for _, runs in groups), task_progress)
     traced = run_groups(groups, jobs, tasks.of_map(), scheduler)
-    n_cases, n_crit = len(case_specs), len(crit_specs)
-    results = [s.summarize(t) for s, t in zip(case_specs, traced[:n_cases], strict=True)]
-    criteria = [
-        s.summarize(t) for s, t in zip(crit_specs, traced[n_cases : n_cases + n_crit], strict=True)
-    ]
+    sizes = [len(case_specs), len(crit_specs), len(bound_specs)]
+    case_traces, crit_traces, bound_traces = split(traced, sizes)
+    results = [s.summarize(t) for s, t in zip(case_specs, case_traces, strict=True)]
+    criteria = [s.summarize(t) for s, t in zip(crit_specs, crit_traces, strict=True)]
     checks = [
         summarize_bound(s.case, s.scenario, t, draws)
-        for s, t in zip(bound_specs, traced[n_cases + n_crit :], strict=True)
+        for s, t in zip(bound_specs, bound_traces, strict=True)
     ]
     return RamdarasResults(
         runs=runs,
@@ -928,67 +873,34 @@ def save_figures(res: RamdarasResults, out: str | Path) -> list[Path]:
 # --- command line ------------------------------------------------------------------------------
 
 
-def _parse(argv):
-    ap = argparse.ArgumentParser(
-        prog="activetrack reproduce ramdaras",
-        description="Reproduce Ramdaras et al. (2010) sec. 5-6: MRE sensor selection and "
-        "positioning, Cases 1-3 and Pd < 1 variants.",
-    )
-    ap.add_argument(
-        "--runs",
-        type=int_in_range(1, MAX_RUNS),
-        default=None,
-        help="Monte Carlo runs per case (20)",
-    )
-    ap.add_argument("--quick", action="store_true", help="3 runs, fewer baselines")
-    ap.add_argument("--cases", default=None, help="comma-separated case keys (default: all)")
-    ap.add_argument(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="worker processes",
-    )
-    add_scheduler_option(ap)
-    ap.add_argument("--json", default=None, help="write the numbers to this JSON file")
-    ap.add_argument("--out", default="runs/reproduce-ramdaras", help="figure directory")
-    ap.add_argument("--no-figures", action="store_true", help="do not write PNG figures")
-    ap.add_argument("--scenarios", default=None, help="directory with ramdaras_*.yaml")
-    args = ap.parse_args(argv)
-    if args.runs is None:
-        args.runs = 3 if args.quick else 20
+def _options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true", help="3 runs, fewer baselines")
+    parser.add_argument("--cases", help="comma-separated case keys (default: all)")
+    parser.add_argument("--scenarios", help="directory with ramdaras_*.yaml")
+
+
+def _check_cli(args: argparse.Namespace) -> None:
+    """Adds ``case_keys``, the cases of ``--cases``."""
     keys = list(CASE_KEYS)
     args.case_keys = keys if args.cases is None else [c.strip() for c in args.cases.split(",")]
     bad = [c for c in args.case_keys if c not in keys]
     if bad:
-        ap.error(f"--cases: unknown {bad}; choose from {keys}")
-    return args
+        raise ValueError(f"--cases: unknown {bad}; choose from {keys}")
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    args = _parse(sys.argv[1:] if argv is None else argv)
-    t0 = time.perf_counter()
-    res = reproduce(
-        args.runs,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        quick=args.quick,
-        cases=args.case_keys,
-        scenarios_dir=args.scenarios,
-        task_progress=task_progress,
-    )
-    print(format_report(res))
-    files = [] if args.no_figures else save_figures(res, args.out)
-    if files:
-        print()
-        print("Figures: " + ", ".join(str(f) for f in files))
-    wall = time.perf_counter() - t0
-    print(f"wall time {wall:.1f} s")
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(res.to_json(files, wall), indent=2))
-    return 0
+REPRODUCTION = Reproduction(
+    "ramdaras",
+    "Reproduce Ramdaras et al. (2010) sec. 5-6: MRE sensor selection and "
+    "positioning, Cases 1-3 and Pd < 1 variants.",
+    RunsOption(1, None, "Monte Carlo runs per case (20; 3 with --quick)"),
+    options=_options,
+    check=_check_cli,
+    arguments=lambda args: dict(
+        quick=args.quick, cases=args.case_keys, scenarios_dir=args.scenarios
+    ),
+    document=lambda res, figures, wall_time_s: res.to_json(figures, wall_time_s),
+)
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":

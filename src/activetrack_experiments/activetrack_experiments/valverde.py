@@ -30,18 +30,13 @@ In a notebook::
     res = valverde.reproduce(runs=50, quick=True, jobs=2)
     res.table()  # one flat row per case, model and noise pair
 
-On the command line (``python -m activetrack_experiments.valverde`` is the same)::
-
-    activetrack reproduce valverde [--runs N] [--steps K] [--seed S]
-        [--jobs J | --scheduler ADDRESS] [--json PATH] [--out DIR] [--quick] [--no-plots]
+On the command line: ``activetrack reproduce valverde --help``.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
@@ -50,24 +45,19 @@ from pathlib import Path
 import numpy as np
 
 from activetrack.angles import wrap_angle
-from activetrack.argtypes import add_scheduler_option, int_in_range
+from activetrack.argtypes import int_in_range
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import nominal_path, taylor_crlb
 from activetrack.bounds.tichavsky import tichavsky_pcrlb
 from activetrack.checks import require_int, symmetrize
 from activetrack.filters import ekf_over_runs
-from activetrack.limits import MAX_JOBS, MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
+from activetrack.limits import MAX_RUN_EPOCHS, MAX_RUNS, MAX_SEED, MAX_STEPS
 from activetrack.models.motion import CircularMotion, ConstantTurn
 from activetrack.models.sensors import RangeBearingSensor
-from activetrack.montecarlo import (
-    Scheduler,
-    TaskProgress,
-    available_jobs,
-    check_jobs,
-    parallel_map,
-)
+from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.observability import observability_rank
 from activetrack.plots import new_figure, write_figures
+from activetrack_experiments.reproduction import Reproduction, RunsOption
 
 MODELS = ("circular", "constant_turn")
 CASES = ("crlb", "pcrb")
@@ -398,29 +388,18 @@ def observability_table(setup: ValverdeSetup, n_steps: int = 10, rtol: float = 1
     """Tables I-II (eq. 38): rank of O over ``n_steps`` epochs for each condition and model,
     as a list of :class:`RankRow`."""
     rows = []
-    cx, cy = setup.centre
-    p0 = (cx, cy - setup.radius)
+    px, py = setup.centre[0], setup.centre[1] - setup.radius
     sensor = setup.sensor(1.0, 1.0)  # the rank does not depend on R
-    for label, v, omega, dt, (paper_circ, paper_ct) in RANK_CONDITIONS:
-        circ = observability_rank(
-            CircularMotion(0.0, 0.0),
-            sensor,
-            np.array([0.0, *p0, omega, v]),
-            setup.sensor_pv,
-            dt,
-            n_steps,
-            rtol=rtol,
+    for label, v, omega, dt, paper in RANK_CONDITIONS:
+        models = (
+            (CircularMotion(0.0, 0.0), [0.0, px, py, omega, v]),
+            (ConstantTurn(omega, 0.0), [px, v, py, 0.0]),
         )
-        ct = observability_rank(
-            ConstantTurn(omega, 0.0),
-            sensor,
-            np.array([p0[0], v, p0[1], 0.0]),
-            setup.sensor_pv,
-            dt,
-            n_steps,
-            rtol=rtol,
-        )
-        rows.append(RankRow(label, circ.rank, ct.rank, paper_circ, paper_ct))
+        ranks = [
+            observability_rank(m, sensor, np.array(x0), setup.sensor_pv, dt, n_steps, rtol=rtol)
+            for m, x0 in models
+        ]
+        rows.append(RankRow(label, *(r.rank for r in ranks), *paper))
     return rows
 
 
@@ -457,34 +436,12 @@ class ValverdeResults:
     def to_json(self) -> dict:
         """The document ``--json`` writes."""
         s = self.setup
+        setup = {k: v for k, v in asdict(s).items() if k != "noise_pairs"}
         return {
-            "setup": {
-                "sensor_xy": s.sensor_xy,
-                "centre": s.centre,
-                "radius": s.radius,
-                "speed": s.speed,
-                "omega": s.omega,
-                "dt": s.dt,
-                "steps": s.steps,
-                "sigma_omega": s.sigma_omega,
-                "sigma_v": s.sigma_v,
-                "q": s.q,
-                "prior_std": s.prior_std,
-                "runs": self.runs,
-                "seed": self.seed,
-            },
+            "setup": {**setup, "omega": s.omega, "q": s.q, "runs": self.runs, "seed": self.seed},
             "observability": [asdict(r) for r in self.ranks],
             "rows": [r.to_json() for r in self.rows],
         }
-
-
-def _check(runs, steps, seed, jobs, scheduler) -> None:
-    require_int("runs", runs, 2, MAX_RUNS)
-    require_int("steps", steps, 1, MAX_STEPS)
-    if runs * steps > MAX_RUN_EPOCHS:
-        raise ValueError(f"runs x steps must be <= {MAX_RUN_EPOCHS:.1e}, got {runs} x {steps}")
-    require_int("seed", seed, 0, MAX_SEED)
-    check_jobs(jobs, scheduler)
 
 
 def reproduce(
@@ -515,7 +472,12 @@ def reproduce(
     if steps is None:
         steps = setup.steps if setup is not None else 126 if quick else 252
     runs = (50 if quick else 1000) if runs is None else runs
-    _check(runs, steps, seed, jobs, scheduler)
+    require_int("runs", runs, 2, MAX_RUNS)
+    require_int("steps", steps, 1, MAX_STEPS)
+    if runs * steps > MAX_RUN_EPOCHS:
+        raise ValueError(f"runs x steps must be <= {MAX_RUN_EPOCHS:.1e}, got {runs} x {steps}")
+    require_int("seed", seed, 0, MAX_SEED)
+    check_jobs(jobs, scheduler)
     setup = replace(setup or ValverdeSetup(), steps=steps)
     pairs = tuple(noise_pairs or setup.noise_pairs)
     start = time.perf_counter()
@@ -646,10 +608,9 @@ def _fig_mse(res: ValverdeResults, case: str, axis: int, num: int):
         ax.errorbar(idx, mse, yerr=2 * se, color=colour, marker="o", label=f"EKF {NAMES[m]}")
         bound = [r.bound[axis] for r in rows]
         ax.plot(idx, bound, color=colour, ls="--", label=f"{case.upper()} {NAMES[m]}")
-    ax.set_yscale("log")
     ax.set_xticks(idx, labels, rotation=45)
-    ax.set_xlabel("noise std: range [m] / bearing [deg]")
-    ax.set_ylabel(f"{'xy'[axis]} square error [m^2]")
+    ax.set(yscale="log", xlabel="noise std: range [m] / bearing [deg]")
+    ax.set(ylabel=f"{'xy'[axis]} square error [m^2]")
     ax.set_title(f"Fig. {num}: {'xy'[axis]} MSE and {case.upper()} vs noise")
     ax.legend(fontsize=8)
     return fig
@@ -665,9 +626,7 @@ def _fig_time(res: ValverdeResults, model: str, num: int, series_row: int):
         name = "xy"[axis]
         ax.plot(t, row.mse_t[:, axis], color=colour, alpha=0.4, lw=0.8, label=f"EKF {name} MSE")
         ax.plot(t, row.bound_t[:, axis], color=colour, lw=1.6, label=f"PCRB {name}")
-    ax.set_yscale("log")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("square error [m^2]")
+    ax.set(yscale="log", xlabel="time [s]", ylabel="square error [m^2]")
     ax.set_title(
         f"Fig. {num}: {NAMES[model]}, sigma_r = {row.sigma_r:g} m, "
         f"sigma_b = {row.sigma_b_deg:g} deg"
@@ -684,10 +643,7 @@ def _fig_path(setup: ValverdeSetup):
     path_xy = nominal_path(model, setup.x0("circular"), setup.steps, setup.dt)[:, 1:3]
     ax.plot(path_xy[:, 0], path_xy[:, 1], label="vehicle (nominal)")
     ax.plot(*setup.sensor_xy, "k^", label="USBL")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_title("Fig. 2: test path")
+    ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]", title="Fig. 2: test path")
     ax.legend()
     return fig
 
@@ -715,71 +671,37 @@ def save_figures(res: ValverdeResults, out: str | Path, series_row: int = 3) -> 
 # --- command line ------------------------------------------------------------------------------
 
 
-def _parse(argv):
-    p = argparse.ArgumentParser(
-        prog="activetrack reproduce valverde",
-        description="Valverde USBL tracking: EKF MSE vs CRLB / PCRB (Tables I-V, Figs. 2-8).",
-    )
-    p.add_argument(
-        "--runs",
-        type=int_in_range(2, MAX_RUNS, note="the Monte Carlo error needs two runs"),
-        default=None,
-        help="Monte Carlo runs (default 1000)",
-    )
-    p.add_argument(
-        "--steps",
-        type=int_in_range(1, MAX_STEPS),
-        default=None,
-        help="epochs (default 252, two laps)",
-    )
-    p.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0)
-    p.add_argument(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="worker processes (the numbers do not depend on it)",
-    )
-    add_scheduler_option(p)
-    p.add_argument("--json", help="write the table rows to this JSON file")
-    p.add_argument("--out", default="runs/reproduce-valverde", help="figure directory")
-    p.add_argument("--quick", action="store_true", help="50 runs, one lap")
-    p.add_argument("--no-plots", action="store_true")
-    args = p.parse_args(argv)
+def _options(parser: argparse.ArgumentParser) -> None:
+    add = parser.add_argument
+    add("--steps", type=int_in_range(1, MAX_STEPS), help="epochs (default 252, two laps)")
+    add("--seed", type=int_in_range(0, MAX_SEED), default=0, help="seed of the draws (0)")
+    add("--quick", action="store_true", help="50 runs, one lap")
+    add("--no-plots", dest="no_figures", action="store_true", help="as --no-figures")
+
+
+def _check_cli(args: argparse.Namespace) -> None:
+    """Sets the runs and epochs (by ``--quick``) and bounds their product."""
     if args.runs is None:
         args.runs = 50 if args.quick else 1000
     if args.steps is None:
         args.steps = 126 if args.quick else 252
     if args.runs * args.steps > MAX_RUN_EPOCHS:
-        p.error(
+        raise ValueError(
             f"--runs x --steps must be <= {MAX_RUN_EPOCHS:.1e} (the runs are held in memory "
             f"together), got {args.runs} x {args.steps}"
         )
-    return args
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    args = _parse(sys.argv[1:] if argv is None else argv)
-    res = reproduce(
-        args.runs,
-        seed=args.seed,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        steps=args.steps,
-        task_progress=task_progress,
-    )
-    print(format_report(res))
-    print(f"Monte Carlo and bounds: {res.mc_time_s:.1f} s")
-    if not args.no_plots:
-        files = save_figures(res, args.out)
-        print(f"figures in {args.out}: " + ", ".join(f.name for f in files))
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(res.to_json(), indent=2))
-        print(f"table rows in {args.json}")
-    return 0
+REPRODUCTION = Reproduction(
+    "valverde",
+    "Valverde USBL tracking: EKF MSE vs CRLB / PCRB (Tables I-V, Figs. 2-8).",
+    RunsOption(2, None, "Monte Carlo runs (default 1000)", "the Monte Carlo error needs two runs"),
+    options=_options,
+    check=_check_cli,
+    arguments=lambda args: dict(seed=args.seed, steps=args.steps),
+)
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

@@ -21,10 +21,7 @@ In a notebook::
     res = vanderhook.reproduce(runs=400, quick=True, jobs=2)
     res.table()  # Table I, one flat row per sweep value; res.table("failures") for Fig. 5
 
-On the command line (``python -m activetrack_experiments.vanderhook`` is the same)::
-
-    activetrack reproduce vanderhook [--runs N] [--seed S] [--jobs J | --scheduler ADDRESS]
-        [--json PATH] [--out DIR] [--quick]
+On the command line: ``activetrack reproduce vanderhook --help``.
 """
 
 from __future__ import annotations
@@ -38,18 +35,11 @@ from typing import Any
 
 import numpy as np
 
-from activetrack.argtypes import add_scheduler_option, int_in_range
+from activetrack.argtypes import int_in_range
 from activetrack.checks import require_int
-from activetrack.limits import MAX_JOBS, MAX_RUNS, MAX_SEED
+from activetrack.limits import MAX_RUNS, MAX_SEED
 from activetrack.models.sensors import AmbiguousBearingSensor
-from activetrack.montecarlo import (
-    Progress,
-    Scheduler,
-    TaskProgress,
-    available_jobs,
-    check_jobs,
-    parallel_map,
-)
+from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.planning.cautious import CautiousPlanner, caution_gamma
 from activetrack.planning.cautious_bounds import (
     cautious_schedule,
@@ -59,7 +49,7 @@ from activetrack.planning.cautious_bounds import (
     time_upper_bound,
 )
 from activetrack.plots import new_figure, write_figures
-from activetrack_experiments.outputs import write_outputs
+from activetrack_experiments.reproduction import Reproduction, RunsOption, split
 from activetrack_experiments.vanderhook_sim import (
     SIGMA_S_DEFAULT,
     LocalisationBatch,
@@ -68,6 +58,7 @@ from activetrack_experiments.vanderhook_sim import (
 
 __all__ = [
     "PAPER_TABLE1",
+    "REPRODUCTION",
     "ExampleRun",
     "FailureRow",
     "SimTask",
@@ -75,7 +66,6 @@ __all__ = [
     "VanderHookResults",
     "WorkedExample",
     "example_trajectory",
-    "failure_rates",
     "format_failures",
     "format_report",
     "format_table1",
@@ -262,16 +252,8 @@ class WorkedExample:
 
 def _example_task(runs: int, seed: int, beta: float) -> SimTask:
     e = EXAMPLE
-    return SimTask.of(
-        runs,
-        seed,
-        sigma0=e["sigma0"],
-        r0_hat=e["r0"],
-        beta=beta,
-        c_d=e["c_d"],
-        t_m=e["t_m"],
-        r_min=R_MIN,
-    )
+    kw = dict(sigma0=e["sigma0"], r0_hat=e["r0"], c_d=e["c_d"], t_m=e["t_m"])
+    return SimTask.of(runs, seed, beta=beta, r_min=R_MIN, **kw)
 
 
 def _worked_example(batch: LocalisationBatch, beta: float) -> WorkedExample:
@@ -354,19 +336,6 @@ def _failure_rows(betas, batches: Sequence[LocalisationBatch]) -> list[FailureRo
     ]
 
 
-def failure_rates(
-    runs: int,
-    betas=BETAS,
-    seed: int = 0,
-    tail="one_sided",
-    jobs: int = 1,
-    scheduler: Scheduler | None = None,
-) -> list[FailureRow]:
-    """Fig. 5 data plus the greedy baseline (same true targets and noise stream per row)."""
-    tasks = _failure_tasks(runs, betas, seed, tail)
-    return _failure_rows(betas, simulate_all(tasks, jobs, scheduler=scheduler))
-
-
 @dataclass(frozen=True)
 class ExampleRun:
     """One localisation: true target (2,), sensing locations (N, 2), estimates (N + 1, 2)."""
@@ -434,12 +403,6 @@ class VanderHookResults:
         }
 
 
-def _check(runs, seed, jobs, scheduler) -> None:
-    require_int("runs", runs, 1, MAX_RUNS)
-    require_int("seed", seed, 0, MAX_SEED)
-    check_jobs(jobs, scheduler)
-
-
 def reproduce(
     runs: int | None = None,
     *,
@@ -460,7 +423,9 @@ def reproduce(
     total)`` is called as batches finish (the command line's progress bar).
     """
     runs = (400 if quick else 4000) if runs is None else runs
-    _check(runs, seed, jobs, scheduler)
+    require_int("runs", runs, 1, MAX_RUNS)
+    require_int("seed", seed, 0, MAX_SEED)
+    check_jobs(jobs, scheduler)
     betas = tuple(betas) if betas is not None else QUICK_BETAS if quick else BETAS
     groups = [
         [_example_task(min(runs, 1000), seed, 0.1)],
@@ -471,8 +436,7 @@ def reproduce(
     every = [t for g in groups for t in g]
     tasks = TaskProgress(len(set(every)), task_progress)
     batches = simulate_all(every, jobs, tasks.of_map(), scheduler)
-    ends = np.cumsum([len(g) for g in groups])
-    ex, t1, fail, fail_two = (batches[e - len(g) : e] for g, e in zip(groups, ends, strict=True))
+    ex, t1, fail, fail_two = split(batches, [len(g) for g in groups])
     return VanderHookResults(
         runs=runs,
         seed=seed,
@@ -567,8 +531,7 @@ def _fig_beta(failures: list[FailureRow]):
     ax2.semilogx(betas, [f.median_error for f in cautious], "o-", label="median")
     ax2.semilogx(betas, [f.mean_error for f in cautious], "s-", label="mean")
     ax2.axhline(greedy.median_error, color="r", ls="--", label="greedy median")
-    ax2.set_xlabel("beta")
-    ax2.set_ylabel("final error ||x_hat - x*|| (m)")
+    ax2.set(xlabel="beta", ylabel="final error ||x_hat - x*|| (m)")
     ax2.legend()
     fig.suptitle("Vander Hook Fig. 5: effect of beta")
     return fig
@@ -588,10 +551,8 @@ def _fig_table1(rows: list[Table1Row]):
         for xi, r in zip(x, sel, strict=True):
             ax.annotate(f"{r.value:g}", (xi, 0.2), ha="center", fontsize=7)
     ax.set_xticks([4 * i + 1 for i in range(len(sweeps))], sweeps)
-    ax.set_ylabel("C = E[T_ALG] / E[T_LB]")
-    ax.set_ylim(bottom=0)
+    ax.set(ylabel="C = E[T_ALG] / E[T_LB]", ylim=(0, None), title="Vander Hook Table I")
     ax.legend()
-    ax.set_title("Vander Hook Table I")
     return fig
 
 
@@ -602,9 +563,8 @@ def _fig_run(run: ExampleRun):
     ax.plot(*np.vstack([[BASE["r0_hat"], 0.0], run.sensors]).T, "g.-", label="sensor locations")
     ax.plot(*run.estimates.T, "r.-", label="estimates")
     ax.plot(*run.truth, "k*", ms=12, label="true target")
-    ax.set_aspect("equal")
+    ax.set(aspect="equal", title="Vander Hook Fig. 4: one cautious run")
     ax.legend()
-    ax.set_title("Vander Hook Fig. 4: one cautious run")
     return fig
 
 
@@ -623,42 +583,28 @@ def save_figures(res: VanderHookResults, out: str | Path) -> list[Path]:
 # --- command line ------------------------------------------------------------------------------
 
 
-def _parse(argv):
-    parser = argparse.ArgumentParser(
-        prog="activetrack reproduce vanderhook", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument(
-        "--runs", type=int_in_range(1, MAX_RUNS), default=4000, help="Monte Carlo runs per row"
-    )
-    parser.add_argument("--json", type=Path, default=None, help="write the results as JSON")
-    parser.add_argument("--out", type=Path, default=Path("runs/reproduce-vanderhook"))
+def _options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="400 runs, fewer beta values")
-    parser.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0)
     parser.add_argument(
-        "--jobs",
-        type=int_in_range(1, MAX_JOBS),
-        default=available_jobs(),
-        help="worker processes (the numbers do not depend on it)",
+        "--seed", type=int_in_range(0, MAX_SEED), default=0, help="seed of the draws (0)"
     )
-    add_scheduler_option(parser)
-    return parser.parse_args(argv)
 
 
-def main(
-    argv: list[str] | None = None, *, task_progress: Callable[[int, int], None] | None = None
-) -> int:
-    args = _parse(argv)
-    res = reproduce(
-        None if args.quick else args.runs,
-        seed=args.seed,
-        quick=args.quick,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        task_progress=task_progress,
-    )
-    print(format_report(res))
-    write_outputs(save_figures(res, args.out), res.to_json(), args.out, args.json)
-    return 0
+def _quick_runs(args: argparse.Namespace) -> None:
+    """``--quick`` runs 400 localisations per batch, whatever ``--runs`` says."""
+    if args.quick:
+        args.runs = None
+
+
+REPRODUCTION = Reproduction(
+    "vanderhook",
+    __doc__.splitlines()[0],
+    RunsOption(1, 4000, "Monte Carlo runs per row (4000)"),
+    options=_options,
+    check=_quick_runs,
+    arguments=lambda args: dict(seed=args.seed, quick=args.quick),
+)
+main = REPRODUCTION.main
 
 
 if __name__ == "__main__":

@@ -1,0 +1,174 @@
+"""What every paper reproduction shares: the command line ``activetrack reproduce NAME`` and the
+Monte Carlo plumbing.
+
+A paper's module ``activetrack_experiments.NAME`` computes (``reproduce(runs=, jobs=,
+scheduler=, task_progress=, ...)`` returns results whose ``to_json()`` is the JSON document),
+formats (``format_report(res)``, the text it prints) and draws (``save_figures(res, out)``).
+Its command line is a :class:`Reproduction` of the module, with the options it adds and the
+arguments of ``reproduce`` they set; the driver adds the options every paper takes (``--runs``
+with the paper's range and default, ``--jobs``, ``--scheduler``, ``--json``, ``--out``,
+``--no-figures``), runs, prints the report, writes the figures with the document beside them
+(``OUT/results.json``) and the document to ``--json``::
+
+    REPRODUCTION = Reproduction(
+        "fifth",  # activetrack_experiments.fifth: activetrack reproduce fifth
+        "Reproduce Fifth (2030) Table 1.",
+        RunsOption(1, 100, "Monte Carlo runs per row (100)"),
+        options=lambda ap: ap.add_argument("--seed", type=int_in_range(0, MAX_SEED), default=0),
+        arguments=lambda args: dict(seed=args.seed),
+    )
+    main = REPRODUCTION.main
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from importlib import import_module
+from pathlib import Path
+from typing import Any, TypeVar
+
+from activetrack.argtypes import add_scheduler_option, int_in_range
+from activetrack.limits import MAX_JOBS, MAX_RUNS
+from activetrack.montecarlo import Progress, Scheduler, available_jobs, parallel_map
+
+__all__ = ["Reproduction", "RunsOption", "map_groups", "split"]
+
+T = TypeVar("T")
+V = TypeVar("V")
+
+
+@dataclass(frozen=True)
+class RunsOption:
+    """A paper's ``--runs``: an integer in [lo, MAX_RUNS] (``note`` explains ``lo`` in the usage
+    error), ``default`` (None: the paper's ``reproduce`` chooses, e.g. by ``--quick``)."""
+
+    lo: int
+    default: int | None
+    help: str
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Reproduction:
+    """One paper's command line; :meth:`main` is its entry point.
+
+    ``name``: of the paper's module ``activetrack_experiments.NAME`` and of ``activetrack
+    reproduce NAME`` (figures in ``runs/reproduce-NAME`` by default); ``description``: the
+    first line of ``--help``; ``reproduce`` (default: the module's): called with ``runs``,
+    ``jobs``, ``scheduler``, ``task_progress`` and ``arguments(args)``; ``report(res)``
+    (default: the module's ``format_report``): the text printed; ``figures(res, args)``
+    (default: the module's ``save_figures(res, args.out)``) writes the figures into
+    ``args.out`` and returns the files; ``options(parser)`` adds the paper's own options;
+    ``check(args)`` completes and checks them (a ValueError is a usage error, exit code 2, whose
+    message names the option); ``document(res, figures, wall_time_s)``: the JSON document
+    (default ``res.to_json()``).
+    """
+
+    name: str
+    description: str
+    runs: RunsOption
+    reproduce: Callable[..., Any] | None = None
+    report: Callable[[Any], str] | None = None
+    figures: Callable[[Any, argparse.Namespace], list[Path]] | None = None
+    options: Callable[[argparse.ArgumentParser], Any] | None = None
+    check: Callable[[argparse.Namespace], None] | None = None
+    arguments: Callable[[argparse.Namespace], dict] = lambda args: {}
+    document: Callable[[Any, list[Path], float], dict] | None = None
+
+    def _paper(self, attr: str, given: Callable | None = None) -> Callable:
+        """``given``, else the paper module's function ``attr``."""
+        return given or getattr(import_module(f"activetrack_experiments.{self.name}"), attr)
+
+    def parser(self) -> argparse.ArgumentParser:
+        ap = argparse.ArgumentParser(
+            prog=f"activetrack reproduce {self.name}", description=self.description
+        )
+        runs = self.runs
+        runs_type = int_in_range(runs.lo, MAX_RUNS, note=runs.note)
+        ap.add_argument("--runs", type=runs_type, default=runs.default, help=runs.help)
+        if self.options is not None:
+            self.options(ap)
+        ap.add_argument(
+            "--jobs",
+            type=int_in_range(1, MAX_JOBS),
+            default=available_jobs(),
+            help="worker processes (the numbers do not depend on it)",
+        )
+        add_scheduler_option(ap)
+        ap.add_argument("--json", type=Path, help="write the numbers to this file")
+        ap.add_argument(
+            "--out",
+            type=Path,
+            default=Path(f"runs/reproduce-{self.name}"),
+            help="figure directory (with the numbers as results.json)",
+        )
+        ap.add_argument("--no-figures", action="store_true", help="do not write PNG figures")
+        return ap
+
+    def parse(self, argv: Sequence[str]) -> argparse.Namespace:
+        """The options of ``argv``, checked (a usage error exits with code 2)."""
+        ap = self.parser()
+        args = ap.parse_args(argv)
+        try:
+            if self.check is not None:
+                self.check(args)
+        except ValueError as exc:
+            ap.error(str(exc))
+        return args
+
+    def main(
+        self,
+        argv: Sequence[str] | None = None,
+        *,
+        task_progress: Callable[[int, int], None] | None = None,
+    ) -> int:
+        """``activetrack reproduce NAME`` with ``argv`` (default: ``sys.argv[1:]``): run, print
+        the report, the figures written and the wall time, write the JSON document; 0.
+        ``task_progress(done, total)`` is called as the Monte Carlo tasks finish (the command
+        line's progress bar); it does not change the numbers."""
+        args = self.parse(sys.argv[1:] if argv is None else argv)
+        start = time.perf_counter()
+        kw = dict(jobs=args.jobs, scheduler=args.scheduler, task_progress=task_progress)
+        res = self._paper("reproduce", self.reproduce)(runs=args.runs, **kw, **self.arguments(args))
+        print(self._paper("format_report", self.report)(res))
+        if args.no_figures:
+            figures = []
+        elif self.figures is not None:
+            figures = self.figures(res, args)
+        else:
+            figures = self._paper("save_figures")(res, args.out)
+        if figures:
+            print("\nfigures: " + ", ".join(str(f) for f in figures))
+        wall_time_s = time.perf_counter() - start
+        print(f"wall time {wall_time_s:.1f} s")
+        doc = res.to_json() if self.document is None else self.document(res, figures, wall_time_s)
+        text = json.dumps(doc, indent=2)
+        paths = [] if args.no_figures else [args.out / "results.json"]
+        for path in paths + ([args.json] if args.json is not None else []):
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+        return 0
+
+
+def split(items: Sequence[T], sizes: Sequence[int]) -> list[list[T]]:
+    """``items`` cut, in order, into consecutive groups of ``sizes``."""
+    starts = [sum(sizes[:i]) for i in range(len(sizes))]
+    return [list(items[s : s + n]) for s, n in zip(starts, sizes, strict=True)]
+
+
+def map_groups(
+    fn: Callable[[T], V],
+    groups: Sequence[Sequence[T]],
+    jobs: int = 1,
+    progress: Progress | None = None,
+    scheduler: Scheduler | None = None,
+) -> list[list[V]]:
+    """``fn`` of every task of every group in one :func:`activetrack.montecarlo.parallel_map`
+    (the workers stay busy across groups), the results grouped as the tasks were."""
+    done = parallel_map(fn, [task for group in groups for task in group], jobs, progress, scheduler)
+    return split(done, [len(group) for group in groups])
