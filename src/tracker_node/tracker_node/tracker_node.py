@@ -1,6 +1,12 @@
 """tracker_node: the scenario's tracker (any registered filter per track, known or JPDA
 association, track management: activetrack.tracking.Tracker) on the sim's scans.
 
+The ``scenario`` parameter names a scenario file or a tracker-only configuration
+(activetrack.scenarios.tracking, docs/track-your-data.md); the tracker is built from either by
+the same builder (activetrack.closed_loop.components.build_tracker). With a tracker
+configuration the node tracks scans from anywhere: in free mode, those ``activetrack play``
+publishes from a bag ``activetrack track`` wrote (its scans and platform states).
+
 An epoch k is announced by the simulator's platform states of epoch k (one per platform, each
 saying how many scans the sim published at k); the tracker updates once it holds them all,
 sorted in scenario order, and publishes every live track with its id and covariance
@@ -26,11 +32,11 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from activetrack import limits
-from activetrack.closed_loop.components import build_tracker, component_rngs, scene_sensors
+from activetrack.closed_loop.components import build_tracker, component_rngs, tracking_sensors
 from activetrack.data import PlatformSnapshot, Scan, TrackSet
 from activetrack.filters import filter_names
 from activetrack.geometry import covariance_ellipse
-from activetrack.scenarios import load_scenario, with_tracker_overrides
+from activetrack.scenarios import load_tracking, with_tracker_overrides
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import marker, platform_from_msg, scan_from_msg, track_array_msg
 from activetrack_ros.frames import estimate_frame, planar_transform
@@ -89,10 +95,11 @@ class TrackerNode(GraphNode):
         super().__init__("tracker_node", **kwargs)
         changes = {"cloud_size": self._set_cloud_size, "epoch_timeout": self._set_epoch_timeout}
         p = self.declare_params(PARAMS, changes, last=False)
-        scenario = load_scenario(p["scenario"])  # imports its plugins: their filters too
+        # A tracker configuration, or a scenario's; imports its plugins: their filters too.
+        config = load_tracking(p["scenario"])
         filter_name = self.declare_params((FILTER,), changes)["filter"]
         self.scenario = with_tracker_overrides(
-            scenario, filter=filter_name or None, particles=p["particles"] or None
+            config, filter=filter_name or None, particles=p["particles"] or None
         )
         self.use_scenario(self.scenario)
         self.mode = p["mode"]
@@ -100,7 +107,7 @@ class TrackerNode(GraphNode):
         self.cloud_size = p["cloud_size"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[1]
         self.core = build_tracker(self.scenario, rng)
-        self.sensors = scene_sensors(self.scenario)
+        self.sensors = tracking_sensors(self.scenario)
         # Scenario order of the sensors: scans of an epoch are applied in this order.
         self.sensor_order = {sid: i for i, sid in enumerate(self.sensors)}
         self.platform_ids = {p.id for p in self.scenario.platforms}
