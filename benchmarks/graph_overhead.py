@@ -42,7 +42,8 @@ def main() -> int:
                     g = run_graph(args.scenario, run_dir=tmp, plots=False)
                 graph_t.append(time.perf_counter() - start)
                 graph_plan.append(g.summary.records[0].planning_time_s)
-        same = np.array_equal(b.records[0].estimate, g.summary.records[0].estimate)
+        tracks = zip(b.records[0].track_series(), g.summary.records[0].track_series(), strict=True)
+        same = all(np.array_equal(x, y) for x, y in tracks)
         print(
             f"repeat {i}: batch {batch_t[-1]:.2f} s, graph {graph_t[-1]:.2f} s, same track: {same}"
         )

@@ -4,10 +4,11 @@ Runs the default scenario's geometry for 2,000 epochs in free mode (sim time run
 ``--rate`` whatever the planner does), bag recording on, samples the process's resident set
 size every 100 epochs and prints the least-squares slope after the warm-up (KiB per epoch),
 with the bag's growth per epoch over the same span (linear growth: a constant per epoch).
-The evaluator keeps per-epoch arrays, not messages, and the path markers republish only their
-newest chunk; what grows is the writers' transient-local history, sized to the run so that a
-late joiner gets all of it (about the size of one epoch's messages per epoch: the PF track with
-its planner samples dominates).
+The evaluator keeps the run's record (each epoch's tracks without the planner's samples, its
+scans and decision: a few kB), not messages, and the path markers republish only their newest
+chunk; what grows is the writers' transient-local history, sized to the run so that a late
+joiner gets all of it (about the size of one epoch's messages per epoch: the PF track with its
+planner samples dominates).
 
     .venv/bin/python benchmarks/memory_soak.py [--epochs 2000] [--rate 250]
 """

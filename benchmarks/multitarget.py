@@ -51,7 +51,7 @@ gated hypotheses, which it enumerates in full (itertools.product) when the targe
 
 Part 2, the sensor manager: on scenario (b) (``scenarios/mt_radars_beams.yaml``: three radars
 with steerable 0.1 rad beams on moving platforms, five targets, clutter), three strategies on
-the same seeded runs (``run_multi_once(scenario, run, planner_factory)``: the same simulator
+the same seeded runs (``run_once(scenario, run, planner_factory)``: the same simulator
 and tracker draws until the decisions differ), judged by the same evaluation
 (``evaluate_run``, time-averaged GOSPA):
 
@@ -75,9 +75,10 @@ platform's hold-course position at k+1, ``fov_angle`` the beam width, one turn p
 0.1 rad beams a grid that covers every track is 63 pointings per beam, 63^3 configurations, and
 a coarser one misses tracks between its points. So the radars here offer instead a pointing at
 each confirmed track's prediction F x (``listed_radars``: Stone Soup's own ``ChangeDwellAction``
-at listed bearings), one per distinct set of covered tracks (``beam_pointings``). Scenario (b)'s
-tracker keeps 20-45 confirmed tracks (most from clutter), and Stone Soup's reward costs ~5-20 ms
-per configuration, so a beam offering more than ``--candidates`` (default 3) pointings keeps the
+at listed bearings), one per distinct set of covered tracks (``beam_pointings``). Scenario
+(b)'s tracker kept 20-45 confirmed tracks before the one closed loop (most from clutter), and
+Stone Soup's reward costs ~5-20 ms per configuration, so a beam offering more than
+``--candidates`` (default 3) pointings keeps the
 3 whose reward alone is largest; the brute force then scores the <= 27 joint configurations.
 Only the tracks some offered pointing covers are passed to ``choose_actions`` (the others add
 zero to every configuration). Pruning checked: 4 instead of 3 (64 configurations) gave the
@@ -86,24 +87,23 @@ epochs of run 1 the joint reward chosen with 3 equalled that with 6 at 8 and was
 lower at 2. A beam with no pointing in range, or every beam while there is no confirmed track,
 sweeps as our planner does (one beam width on per epoch). ``--quick``: part 2 with 2 runs.
 
-Measured (8 paired runs, seed 20100622 runs 0-7, 60 epochs; same machine and versions as part
-1, shared with other jobs, load average ~3.5): time-averaged GOSPA, c = 500 m, p = 2:
+Measured (8 paired runs, seed 20100622 runs 0-7, 60 epochs; Python 3.11.7, numpy 2.4.6,
+Stone Soup 1.9.1, a 2-core VM shared with other jobs, load average 13-15, ``--jobs 1``):
+time-averaged GOSPA, c = 500 m, p = 2:
 
-    planner       1818.0 +- 54.3 m  (missed targets 1.40, false tracks 26.2 per epoch)
-    hold_course   1785.0 +- 59.3 m  (1.67, 25.1)
-    stonesoup     1583.1 +- 45.1 m  (1.31, 19.5)
+    planner        119.5 +- 36.1 m  (missed targets 0.10, false tracks 0.08 per epoch)
+    hold_course    102.1 +- 39.7 m  (0.10, 0.04)
+    stonesoup      138.4 +- 27.9 m  (0.10, 0.08)
 
-GOSPA(planner) / GOSPA(stonesoup) = 1.148 +- 0.054 and GOSPA(hold_course) / GOSPA(stonesoup) =
-1.128 +- 0.053 (paired, delta method): Stone Soup's manager is lower, by about 2.7 SE, so
-the issue's "planner below Stone Soup's manager on (b)" is not met on this scenario as it stands.
-The gap is in the false tracks: GOSPA here is dominated by 20-26 confirmed clutter tracks per
-epoch (each costs c^2 / 2); missed targets are alike. Both managers spend most beams on tracks
-that hold no target at the next epoch (runs 0-2: hold_course 86-92 %, Stone Soup 80-84 % of
-its 180 pointings), Stone Soup's reward (the drop in the covariance's Frobenius norm, which the
-most uncertain tracks dominate) slightly fewer. Decision time per epoch: planner 0.18 s,
-hold_course 0.10 s, Stone Soup 1.5 s (its reward deep-copies the sensors and runs its EKF per
-configuration). The default (30 + 8 runs) took 410-560 s of CPU in all, so about 4 min on two
-free cores; 7-9 min here, where other jobs shared them.
+GOSPA(planner) / GOSPA(stonesoup) = 0.863 +- 0.332 and GOSPA(hold_course) / GOSPA(stonesoup) =
+0.737 +- 0.368 (paired, delta method): ours lower, within about one SE on 8 runs. Decision time
+per epoch: planner 0.58 s, hold_course 0.14 s, Stone Soup 2.2 s (its reward deep-copies the
+sensors and runs its EKF per configuration); 27 min of wall time here for part 2.
+
+Before the one closed loop (one simulator and tracker for every scene: other random draws, the
+registered filters on every track), the same command measured 1818.0 +- 54.3, 1785.0 +- 59.3
+and 1583.1 +- 45.1 m, GOSPA then dominated by 20-26 confirmed clutter tracks per epoch (each
+costs c^2 / 2); the merged tracker confirms almost none on this scenario.
 """
 
 from __future__ import annotations
@@ -124,17 +124,23 @@ import numpy as np
 from activetrack.allocator import tune_allocator
 from activetrack.angles import wrap_angle
 from activetrack.argtypes import int_in_range
-from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.data import Command, PlanReportData, PlatformSnapshot
-from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.closed_loop.components import component_rngs, target_dynamics
+from activetrack.closed_loop.evaluation import evaluate_run
+from activetrack.closed_loop.loop import run_once
+from activetrack.data import (
+    BeamCommand,
+    Command,
+    Decision,
+    PlanReportData,
+    PlatformSnapshot,
+    TrackEstimate,
+    TrackSet,
+)
 from activetrack.filters.jpda import gate_probability, jpda_update
 from activetrack.metrics import gospa
 from activetrack.models import NearlyConstantVelocity, RangeBearingSensor
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.montecarlo import parallel_map
-from activetrack.multitarget.data import BeamCommand, MultiDecision, TrackEstimate, TrackSet
-from activetrack.multitarget.evaluation import evaluate_run
-from activetrack.multitarget.loop import run_multi_once
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.build import build_sensor
 from activetrack.scenarios.schema import Scenario
@@ -537,7 +543,7 @@ class StoneSoupBeamManager:
     """Stone Soup's ``BruteForceSensorManager`` with its ``UncertaintyRewardFunction`` (sum over
     tracks of ||P_pred||_F - ||P_upd||_F, EKF updates, sensors in turn) pointing scenario (b)'s
     steerable beams; every controllable platform holds course. The loop's planner seam
-    (:class:`activetrack.multitarget.loop.MultiPlanner`); ``rng`` is not drawn from.
+    (``PlannerLike`` of :mod:`activetrack.closed_loop.loop`); ``rng`` is not drawn from.
 
     Each epoch: our confirmed tracks become Stone Soup ``GaussianState`` tracks at t_k; each
     beam becomes a rotating radar at its platform's hold-course position at t_k+1 (one turn per
@@ -561,7 +567,7 @@ class StoneSoupBeamManager:
 
         if isinstance(candidates, bool) or not isinstance(candidates, int) or candidates < 1:
             raise ValueError(f"candidates: must be an integer >= 1, got {candidates!r}")
-        d = LinearDynamics.of(scenario)
+        d = target_dynamics(scenario)
         self.F, self.dt, self.candidates = d.F, scenario.dt, candidates
         transition = LinearGaussianTimeInvariantTransitionModel(
             transition_matrix=d.F, covariance_matrix=d.Q
@@ -585,7 +591,7 @@ class StoneSoupBeamManager:
 
     def decide(
         self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]
-    ) -> MultiDecision:
+    ) -> Decision:
         """Beam pointings for epoch+1 (module docstring), hold course for every platform."""
         start = time.perf_counter()
         snaps = {s.platform_id: s for s in platforms}
@@ -614,7 +620,9 @@ class StoneSoupBeamManager:
             wall_time_s=time.perf_counter() - start,
         )  # fmt: skip
         assignment = {b.sensor_id: b.track_id for b in beams}
-        return MultiDecision(epoch, commands, tuple(beams), report, {"assignment": assignment})
+        return Decision(
+            epoch, commands, tuple(beams), report=report, extra={"assignment": assignment}
+        )
 
     def _sensor(self, b: _Beam, pv: np.ndarray, offered: list[Pointing], when: datetime):
         """Stone Soup's rotating radar for beam ``b`` at ``pv`` offering ``offered``."""
@@ -728,7 +736,7 @@ def run_manager(task: tuple[Scenario, int, str, int]) -> ManagerRun:
         scenario = hold_course(scenario)
     if strategy == "stonesoup":
         factory = functools.partial(StoneSoupBeamManager, candidates=candidates)
-    record = run_multi_once(scenario, run, factory)
+    record = run_once(scenario, run, factory)
     # The bound's samples do not enter GOSPA: a few keep the evaluation cheap.
     ev = evaluate_run(scenario, record, component_rngs(scenario.seed, run)[3], n_samples=8)
     return ManagerRun(

@@ -15,8 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from activetrack.closed_loop.data import PlatformSnapshot
-from activetrack.multitarget.data import TrackEstimate, TrackSet
+from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet
 
 pytest.importorskip("stonesoup")
 
@@ -140,7 +139,8 @@ PLATFORMS_B = [
 
 def _track(track_id: int, mean, pos_var: float, vel_var: float = 1.0) -> TrackEstimate:
     cov = np.diag([pos_var, vel_var, pos_var, vel_var])
-    return TrackEstimate(track_id, "confirmed", np.asarray(mean, dtype=float), cov)
+    mean = np.asarray(mean, dtype=float)
+    return TrackEstimate(track_id, "confirmed", mean, cov, mean, cov)
 
 
 def _next_xy(platform_id: str) -> np.ndarray:
@@ -206,7 +206,7 @@ def test_manager_points_every_beam_at_the_one_uncertain_track():
     covariance's Frobenius norm) is largest on 7 for every beam, even after the others'
     updates; each beam points from its platform's next position at 7's prediction F x."""
     a, b = np.array([6000.0, 0.0, 5000.0, 0.0]), np.array([2000.0, 0.0, 3000.0, 0.0])
-    tracks = TrackSet(0, 0.0, "ekf", (_track(7, a, 1e6), _track(8, b, 1.0)))
+    tracks = TrackSet(0, 0.0, "ekf", tracks=(_track(7, a, 1e6), _track(8, b, 1.0)))
     manager = mt.StoneSoupBeamManager(SCENARIO_B)
     d = manager.decide(0, tracks, PLATFORMS_B)
     assert [c.track_id for c in d.beams] == [7, 7, 7]
@@ -225,7 +225,7 @@ def test_joint_brute_force_spreads_beams_that_alone_would_share_a_track():
     of the same track gains less than a first one of track 2: the joint brute force over
     2^3 configurations serves both (measured: beams 2, 1, 2)."""
     a, b = np.array([6000.0, 0.0, 5000.0, 0.0]), np.array([2000.0, 0.0, 5000.0, 0.0])
-    tracks = TrackSet(0, 0.0, "ekf", (_track(1, a, 4e6), _track(2, b, 1e6)))
+    tracks = TrackSet(0, 0.0, "ekf", tracks=(_track(1, a, 4e6), _track(2, b, 1e6)))
     alone = mt.StoneSoupBeamManager(SCENARIO_B, candidates=1).decide(0, tracks, PLATFORMS_B)
     assert [c.track_id for c in alone.beams] == [1, 1, 1]
     joint = mt.StoneSoupBeamManager(SCENARIO_B).decide(0, tracks, PLATFORMS_B)
@@ -237,7 +237,7 @@ def test_pruning_keeps_the_best_pointings_alone():
     at the most uncertain of three tracks; 3 x 3 single rewards and 1 joint configuration."""
     means = [np.array([6000.0, 0.0, 5000.0, 0.0]), np.array([2000.0, 0.0, 5000.0, 0.0]),
              np.array([7000.0, 0.0, 1000.0, 0.0])]  # fmt: skip
-    tracks = TrackSet(0, 0.0, "ekf", tuple(
+    tracks = TrackSet(0, 0.0, "ekf", tracks=tuple(
         _track(i + 1, m, v) for i, (m, v) in enumerate(zip(means, (1e4, 1e6, 1e2), strict=True))
     ))  # fmt: skip
     manager = mt.StoneSoupBeamManager(SCENARIO_B, candidates=1)
@@ -251,9 +251,10 @@ def test_pruning_keeps_the_best_pointings_alone():
 def test_manager_sweeps_without_confirmed_tracks():
     """No confirmed track: each beam starts along its platform's heading and moves one beam
     width (0.1 rad) per epoch, as our planner's sweep; tentative tracks do not count."""
-    tentative = TrackEstimate(3, "tentative", np.array([5000.0, 0, 5000, 0]), np.eye(4))
+    mean = np.array([5000.0, 0, 5000, 0])
+    tentative = TrackEstimate(3, "tentative", mean, np.eye(4), mean, np.eye(4))
     manager = mt.StoneSoupBeamManager(SCENARIO_B)
-    first = manager.decide(0, TrackSet(0, 0.0, "ekf", (tentative,)), PLATFORMS_B)
+    first = manager.decide(0, TrackSet(0, 0.0, "ekf", tracks=(tentative,)), PLATFORMS_B)
     second = manager.decide(1, TrackSet(1, 1.0, "ekf"), PLATFORMS_B)
     headings = [s.heading for s in PLATFORMS_B]  # pi, pi, pi / 2
     np.testing.assert_allclose([c.bearing for c in first.beams], np.remainder(

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from activetrack.closed_loop.batch import run_once
+from activetrack.closed_loop.loop import run_once
 from activetrack.planning.cautious_bounds import (
     distance_bound,
     measurement_bound,
@@ -30,7 +30,7 @@ def records(scenario):
 
 
 def _measurement_epochs(record):
-    return np.flatnonzero(record.measured[:, 0]) + 1
+    return np.flatnonzero(record.looked[:, 0]) + 1
 
 
 def test_measurements_only_after_a_full_dwell(scenario, records):
@@ -53,13 +53,14 @@ def test_stops_when_both_eigenvalues_are_reduced_by_c_d(scenario, records):
     P0 = scenario.target.prior.covariance()[np.ix_([0, 2], [0, 2])]
     for r in records:
         last = _measurement_epochs(r)[-1]
-        P = r.estimate_cov[last][np.ix_([0, 2], [0, 2])]
+        _, covs = r.track_series()
+        P = covs[last][np.ix_([0, 2], [0, 2])]
         assert np.linalg.eigvalsh(P).max() <= cfg.c_d**2 * np.linalg.eigvalsh(P0).min()
         # Before the last measurement the rule was not yet met.
-        before = r.estimate_cov[last - 1][np.ix_([0, 2], [0, 2])]
+        before = covs[last - 1][np.ix_([0, 2], [0, 2])]
         assert np.linalg.eigvalsh(before).max() > cfg.c_d**2 * np.linalg.eigvalsh(P0).min()
         # After it the robot holds still and takes no more measurements.
-        assert not r.measured[last:].any()
+        assert not r.looked[last:].any()
         assert np.ptp(r.platform_paths[last:, 0][:, [0, 2]], axis=0).max() == 0.0
 
 

@@ -1,13 +1,13 @@
-"""Simulator and tracker of the closed loop: kinematics, clamping, detection, determinism."""
+"""Simulator and tracker of the closed loop (one target): kinematics, clamping, detection,
+determinism."""
 
 import math
 
 import numpy as np
 import pytest
 
-from activetrack.closed_loop.data import Command
-from activetrack.closed_loop.simulator import Simulator
-from activetrack.closed_loop.tracker import TrackerCore
+from activetrack.closed_loop.components import build_simulator, build_tracker
+from activetrack.data import Command
 from activetrack.scenarios import load_scenario, parse_scenario
 
 HERNANDEZ = "scenarios/hernandez_1sensor_single.yaml"
@@ -30,14 +30,14 @@ def _with(scenario, **changes):
 
 
 def test_platform_flies_constant_velocity_legs(scenario):
-    sim = Simulator(scenario, np.random.default_rng(1))
+    sim = build_simulator(scenario, np.random.default_rng(1))
     sim.advance()
     np.testing.assert_allclose(sim.platforms["p1"].pv, [1800 - 200, -40, 2000 - 200, -40])
     assert sim.time == 5.0 and sim.epoch == 1
 
 
 def test_command_within_limits_is_applied_exactly(scenario):
-    sim = Simulator(scenario, np.random.default_rng(1))
+    sim = build_simulator(scenario, np.random.default_rng(1))
     res = sim.apply_command(Command("p1", 0, 0.2, 5.0))
     assert not res.clamped
     v0 = math.hypot(40, 40)
@@ -49,7 +49,7 @@ def test_command_within_limits_is_applied_exactly(scenario):
 
 
 def test_command_outside_limits_is_clamped_and_reported(scenario):
-    sim = Simulator(scenario, np.random.default_rng(1))
+    sim = build_simulator(scenario, np.random.default_rng(1))
     res = sim.apply_command(Command("p1", 0, 1.0, -30.0))
     assert res.clamped
     assert "heading_change" in res.message and "speed" in res.message
@@ -67,7 +67,7 @@ def test_command_outside_limits_is_clamped_and_reported(scenario):
     ],
 )
 def test_bad_commands_are_rejected(scenario, cmd, field):
-    sim = Simulator(scenario, np.random.default_rng(1))
+    sim = build_simulator(scenario, np.random.default_rng(1))
     with pytest.raises(ValueError, match=field):
         sim.apply_command(cmd)
 
@@ -75,30 +75,30 @@ def test_bad_commands_are_rejected(scenario, cmd, field):
 def test_no_detection_inside_minimum_range(scenario):
     # Put the platform on top of the target: inside r_min = 1000 m there is no detection.
     sc = _with(scenario, **{"platforms.0.initial_state": [1000.0, -40.0, 1000.0, -40.0]})
-    sim = Simulator(sc, np.random.default_rng(2))
-    (m,) = sim.advance()
-    assert m.z is None and m.sensor_id == "s1"
+    sim = build_simulator(sc, np.random.default_rng(2))
+    (scan,) = sim.advance()
+    assert scan.Z.shape == (0, 1) and scan.sensor_id == "s1"
 
 
 def test_detection_rate_follows_pd(scenario):
     sc = _with(scenario, **{"platforms.0.sensors.0.pd": 0.3, "steps": 2000})
-    sim = Simulator(sc, np.random.default_rng(3))
-    hits = [sim.advance()[0].z is not None for _ in range(2000)]
+    sim = build_simulator(sc, np.random.default_rng(3))
+    hits = [len(sim.advance()[0].Z) > 0 for _ in range(2000)]
     # Binomial(2000, 0.3): sd = 0.0102; 4 sd.
     assert abs(np.mean(hits) - 0.3) < 0.041
 
 
 def test_same_seed_same_measurements(scenario):
-    a = Simulator(scenario, np.random.default_rng(7))
-    b = Simulator(scenario, np.random.default_rng(7))
+    a = build_simulator(scenario, np.random.default_rng(7))
+    b = build_simulator(scenario, np.random.default_rng(7))
     for _ in range(5):
-        za = [m.z for m in a.advance()]
-        zb = [m.z for m in b.advance()]
+        za = [scan.Z for scan in a.advance()]
+        zb = [scan.Z for scan in b.advance()]
         assert all(np.array_equal(x, y) for x, y in zip(za, zb, strict=True))
 
 
 def test_selection_limits_which_sensors_measure(scenario):
-    sim = Simulator(scenario, np.random.default_rng(1))
+    sim = build_simulator(scenario, np.random.default_rng(1))
     sim.apply_selection([])
     assert sim.advance() == []
     with pytest.raises(ValueError, match="sensor ids"):
@@ -107,15 +107,16 @@ def test_selection_limits_which_sensors_measure(scenario):
 
 def test_tracker_pf_snapshot_samples(scenario):
     sc = _with(scenario, **{"tracker.particles": 2000, "tracker.planner_samples": 500})
-    sim = Simulator(sc, np.random.default_rng(1))
-    trk = TrackerCore(sc, np.random.default_rng(2))
-    snap = trk.snapshot()
+    sim = build_simulator(sc, np.random.default_rng(1))
+    trk = build_tracker(sc, np.random.default_rng(2))
+    (snap,) = trk.snapshot().tracks
     assert snap.samples.shape == (500, 4)
     # Samples of the prior N(mean, diag(10, 1, 10, 1)): mean within 4 standard errors.
     se = np.sqrt(np.array([10, 1, 10, 1]) / 500)
     assert np.all(np.abs(snap.samples.mean(axis=0) - snap.mean) < 4 * se + 4 * se)
-    snap = trk.step(1, sim.time + 5.0, sim.advance())
-    assert snap.update_count == 1 and 1 <= snap.ess <= 2000
+    tracks = trk.step(1, sim.time + 5.0, sim.advance())
+    (snap,) = tracks.tracks
+    assert tracks.updates == 1 and 1 <= snap.ess <= 2000
     assert np.all(np.linalg.eigvalsh(snap.cov) > 0)
 
 

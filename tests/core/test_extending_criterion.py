@@ -104,7 +104,7 @@ def test_pcrlb_planning_minimises_the_registered_criterion(registered):
     decisions = summary.records[0].decisions
     assert len(decisions) == 4
     assert {d.report.criterion for d in decisions} == {NAME}
-    assert np.isfinite(summary.rmse_x) and np.isfinite(summary.mean_bound_x)
+    assert np.isfinite(summary.time_avg_rmse_x[0]) and np.isfinite(summary.time_avg_bound_x[0])
     # The plan's objective is the criterion of the predicted bound J_{k+1}^{-1} (horizon 1).
     model = build_motion_model(scenario.target.motion)
     F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
@@ -125,6 +125,7 @@ def test_mre_positioning_and_selection_use_the_registered_criterion(registered):
     F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
     sensors = [build_sensor(s) for p in scenario.platforms for s in p.sensors]
     carrier = [p.id for p in scenario.platforms for _ in p.sensors]
+    estimate, estimate_cov = record.track_series()
     for k, d in enumerate(record.decisions):
         assert d.selection_criterion == f"mre/{NAME}" and d.report.criterion == NAME
         assert set(d.extra["positioning_costs"]) == {
@@ -132,9 +133,7 @@ def test_mre_positioning_and_selection_use_the_registered_criterion(registered):
         }
         # Eq. 27 with the registered criterion: the selection costs are its values of eq. 23
         # for every sensor at its planned position, and the selection is their argmin.
-        prediction = TargetPrediction.from_posterior(
-            record.estimate[k], record.estimate_cov[k], F, Q
-        )
+        prediction = TargetPrediction.from_posterior(estimate[k], estimate_cov[k], F, Q)
         pvs = np.stack([d.extra["planned_pv"][p] for p in carrier])
         costs, P_hat = sensor_costs(prediction, sensors, pvs, NAME)
         np.testing.assert_array_equal(d.selection_costs, costs)

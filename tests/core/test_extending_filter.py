@@ -3,8 +3,10 @@
 The filter is filterpy's UnscentedKalmanFilter wrapped to the TrackingFilter protocol
 (activetrack.filters.measurement): any motion model, any sensor (h through the sensor
 contract). Registered under ``ukf`` (activetrack.filters.registry), ``tracker: {filter: ukf}``
-loads and ``TrackerCore`` builds it; the plugin module of docs/extending.md ("A filter", the
-same code as here, checked by test_extending_docs.py) makes a scenario file name it itself.
+loads and the tracker (``closed_loop.components.build_tracker``) builds it; the plugin module
+of docs/extending.md ("A filter", the same code as here, checked by test_extending_docs.py)
+makes a scenario file name it itself. A filter in a scene of several targets or clutter also
+needs ``update_pda``: tests/plugins_for_tests.py and test_plugins.py.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from doc_blocks import file_block
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
 from activetrack.closed_loop.batch import run_batch
-from activetrack.closed_loop.tracker import TrackerCore
+from activetrack.closed_loop.components import build_tracker
 from activetrack.filters import (
     ExtendedKalmanFilter,
     Measurement,
@@ -272,21 +274,22 @@ def test_closed_loop_batch_with_the_ukf(ukf, tmp_path):
     assert scenario.tracker.filter == "ukf"
     ukf_runs = run_batch(scenario, runs=6)
     ekf_runs = run_batch(with_tracker_overrides(scenario, filter="ekf"), runs=6)
-    for u, e in ((ukf_runs.rmse_x, ekf_runs.rmse_x), (ukf_runs.rmse_y, ekf_runs.rmse_y)):
+    for u, e in (
+        (ukf_runs.time_avg_rmse_x[0], ekf_runs.time_avg_rmse_x[0]),
+        (ukf_runs.time_avg_rmse_y[0], ekf_runs.time_avg_rmse_y[0]),
+    ):
         assert 1.0 < u < 15.0 and 1.0 < e < 15.0
         assert u == pytest.approx(e, rel=0.10)
-    assert ukf_runs.rmse_x != ekf_runs.rmse_x  # a different filter, not the EKF again
+    assert ukf_runs.time_avg_rmse_x != ekf_runs.time_avg_rmse_x  # not the EKF again
     nees = []
     for record in ukf_runs.records:
-        assert np.all(np.isfinite(record.estimate_cov))
-        for P in record.estimate_cov:
+        x, covs = record.track_series()
+        assert np.all(np.isfinite(covs))
+        for P in covs:
             assert np.array_equal(P, P.T)
             assert np.linalg.eigvalsh(P)[0] > 0.0
-        err = record.estimate[1:] - record.truth[1:]
-        nees += [
-            float(d @ np.linalg.solve(P, d))
-            for d, P in zip(err, record.estimate_cov[1:], strict=True)
-        ]
+        err = x[1:] - record.truth[1:, 0]
+        nees += [float(d @ np.linalg.solve(P, d)) for d, P in zip(err, covs[1:], strict=True)]
     assert 2.0 < np.mean(nees) < 6.0
     assert len(ukf_runs.records[0].decisions) == 20  # planned from the UKF's track each epoch
 
@@ -302,9 +305,10 @@ def test_particle_based_filters_feed_the_planner_samples():
         pf = parse_scenario(data)
         data["tracker"]["filter"] = "pf_copy"
         copy = parse_scenario(data)
-        a = TrackerCore(pf, np.random.default_rng(4)).snapshot()
-        b = TrackerCore(copy, np.random.default_rng(4)).snapshot()
-        assert b.filter_kind == "pf_copy" and b.particle_count == 500
+        (a,) = build_tracker(pf, np.random.default_rng(4)).snapshot().tracks
+        tracks = build_tracker(copy, np.random.default_rng(4)).snapshot()
+        (b,) = tracks.tracks
+        assert tracks.filter_kind == "pf_copy" and b.particle_count == 500
         np.testing.assert_array_equal(a.samples, b.samples)
         np.testing.assert_array_equal(a.mean, b.mean)
         data["tracker"]["particles"] = 50
@@ -333,7 +337,7 @@ def test_a_scenario_file_brings_its_filter_through_plugins(plugin_folder, capsys
     assert rc == 0, capsys.readouterr().err
     assert filter_kind("ukf").factory.__module__ == "my_filters"
     summary = json.loads(out.read_text())
-    assert summary["runs"] == 2 and 1.0 < summary["rmse_x"] < 15.0
+    assert summary["runs"] == 2 and 1.0 < summary["time_avg_rmse_x"][0] < 15.0
     assert load_scenario(path).tracker.filter == "ukf"  # a second load imports nothing again
 
 

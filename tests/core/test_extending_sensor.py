@@ -264,7 +264,12 @@ def test_closed_loop_batch_run_of_a_scenario_file(tmp_path):
     assert build_sensor(scenario.platforms[1].sensors[0]) == RangeSensor(2.0, pd=0.9)
     summary = run_batch(scenario)
     assert summary.steps == 15 and summary.evaluations_per_decision > 0
-    for value in (summary.rmse_x, summary.rmse_y, summary.mean_bound_x, summary.mean_bound_y):
+    for value in (
+        summary.time_avg_rmse_x[0],
+        summary.time_avg_rmse_y[0],
+        summary.time_avg_bound_x[0],
+        summary.time_avg_bound_y[0],
+    ):
         assert math.isfinite(value) and 0.0 < value < 10.0  # prior std 30 m
 
 

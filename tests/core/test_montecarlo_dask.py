@@ -20,7 +20,6 @@ from activetrack.allocator import allocator_tuned
 from activetrack.closed_loop.batch import run_batch
 from activetrack.montecarlo import even_chunks, parallel_map
 from activetrack.montecarlo.dask import SchedulerError, WorkerSetupError, check_scheduler
-from activetrack.multitarget.loop import run_multi_batch
 from activetrack_bringup.cli import main as cli_main
 from activetrack_experiments import vanderhook
 
@@ -59,12 +58,16 @@ def _same_batch(a, b) -> None:
     assert {k: v for k, v in a.to_json().items() if k not in TIMING} == {
         k: v for k, v in b.to_json().items() if k not in TIMING
     }
-    np.testing.assert_array_equal(a.estimate_pv, b.estimate_pv)
-    np.testing.assert_array_equal(a.truth_pv, b.truth_pv)
     for ra, rb in zip(a.records, b.records, strict=True):
-        np.testing.assert_array_equal(ra.estimate_cov, rb.estimate_cov)
+        np.testing.assert_array_equal(ra.truth, rb.truth)
+        for ta, tb in zip(ra.tracks, rb.tracks, strict=True):
+            assert [t.track_id for t in ta.tracks] == [t.track_id for t in tb.tracks]
+            for x, y in zip(ta.tracks, tb.tracks, strict=True):
+                np.testing.assert_array_equal(x.state, y.state)
+                np.testing.assert_array_equal(x.state_cov, y.state_cov)
         np.testing.assert_array_equal(ra.platform_paths, rb.platform_paths)
         assert [d.commands for d in ra.decisions] == [d.commands for d in rb.decisions]
+        assert [d.beams for d in ra.decisions] == [d.beams for d in rb.decisions]
 
 
 def _square(x: int) -> int:
@@ -79,13 +82,17 @@ def test_parallel_map_on_dask_keeps_task_order_and_reports_progress(address):
     assert calls == list(range(1, 24))
 
 
-def test_run_batch_dask_equals_local_processes_and_one_process(scenario, address):
-    one = run_batch(scenario, runs=5, jobs=1)
-    local = run_batch(scenario, runs=5, jobs=2)
-    dask = run_batch(scenario, runs=5, scheduler=address)
+@pytest.mark.parametrize(
+    "name, steps, runs", [(SCENARIO, 4, 5), ("scenarios/mt_bearings_crossing.yaml", 5, 3)]
+)
+def test_run_batch_dask_equals_local_processes_and_one_process(name, steps, runs, address):
+    scenario = at.load_scenario(name).model_copy(update={"steps": steps})
+    one = run_batch(scenario, runs=runs, jobs=1)
+    local = run_batch(scenario, runs=runs, jobs=2)
+    dask = run_batch(scenario, runs=runs, scheduler=address)
     _same_batch(one, local)
     _same_batch(one, dask)
-    assert one.runs == dask.runs == 5
+    assert one.runs == dask.runs == runs
 
 
 def test_run_batch_with_a_connected_client_equals_one_process(scenario, cluster):
@@ -95,16 +102,6 @@ def test_run_batch_with_a_connected_client_equals_one_process(scenario, cluster)
         # The workers were spawned, not forked: the chunks told them to tune theirs too.
         assert list(client.run(allocator_tuned).values()) == [True, True]
     _same_batch(run_batch(scenario, runs=3), dask)
-
-
-def test_multi_target_batch_on_dask_equals_one_process(address):
-    sc = at.load_scenario("scenarios/mt_bearings_crossing.yaml")
-    sc = sc.model_copy(update={"steps": 5})
-    one = run_multi_batch(sc, runs=3, jobs=1)
-    dask = run_multi_batch(sc, runs=3, scheduler=address)
-    assert {k: v for k, v in one.to_json().items() if k not in TIMING} == {
-        k: v for k, v in dask.to_json().items() if k not in TIMING
-    }
 
 
 def test_a_quick_reproduction_on_dask_equals_local_and_one_process(address):

@@ -16,16 +16,12 @@ import numpy as np
 import pytest
 
 from activetrack.bounds.mre import mre_recursion, mre_update
-from activetrack.closed_loop.data import PlatformSnapshot, TrackSnapshot
-from activetrack.closed_loop.strategies import (
-    DecisionContext,
-    DecisionPart,
-    MrePositioning,
-    sensor_entries,
-)
+from activetrack.closed_loop.components import build_strategies
+from activetrack.data import CONFIRMED, PlatformSnapshot, TrackEstimate, TrackSet
 from activetrack.models.motion import NearlyConstantVelocityDiscrete
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor
 from activetrack.planning.criteria import get_criterion
+from activetrack.planning.decision import DecisionContext, DecisionPart
 from activetrack.planning.horizons import SearchSettings
 from activetrack.planning.manoeuvre import (
     PlatformLimits,
@@ -41,6 +37,7 @@ from activetrack.planning.selection import (
     plan_positions,
     position_platform,
 )
+from activetrack.planning.strategies import MrePositioning
 from activetrack.scenarios import ScenarioError, load_scenario, parse_scenario
 
 MODEL = NearlyConstantVelocityDiscrete(5.0, 5.0)
@@ -170,7 +167,8 @@ def _case3(**planner):
 
 def test_the_strategy_flies_the_first_manoeuvre_of_the_r_leg_plan():
     scenario = _case3(horizon=2, sector_levels=3)
-    strategy = MrePositioning(scenario, sensor_entries(scenario), scenario.dt)
+    strategies = build_strategies(scenario, np.random.default_rng(0))
+    strategy = next(s for s in strategies if isinstance(s, MrePositioning))
     prior = scenario.target.prior
     prediction = TargetPrediction.from_posterior(prior.mean, prior.covariance(), F, Q)
     snaps = {}
@@ -178,9 +176,16 @@ def test_the_strategy_flies_the_first_manoeuvre_of_the_r_leg_plan():
         pv = np.array(p.initial_state)
         heading, speed = math.atan2(pv[3], pv[1]), math.hypot(pv[1], pv[3])
         snaps[p.id] = PlatformSnapshot(p.id, 0, 0.0, pv, heading, speed)
-    track = TrackSnapshot(0, 0.0, "ekf", "ncv_discrete", ("x",) * 4, prior.mean, prior.covariance())
+    mean, cov = np.array(prior.mean), prior.covariance()
+    track = TrackEstimate(1, CONFIRMED, mean, cov, mean, cov, origin="t1")
     part = strategy.decide(
-        DecisionContext(0, track, snaps, 1.0, DecisionPart(prediction=prediction))
+        DecisionContext(
+            0,
+            TrackSet(0, 0.0, "ekf", tracks=(track,)),
+            snaps,
+            1.0,
+            DecisionPart(prediction=prediction),
+        )
     )
     search = SearchSettings("sector", sector_levels=3)
     for command, (pid, limits, models) in zip(part.commands, strategy.platforms, strict=True):

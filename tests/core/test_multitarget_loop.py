@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 import yaml
 
-from activetrack.closed_loop.data import Command
-from activetrack.multitarget.data import BeamCommand
-from activetrack.multitarget.loop import run_multi_batch, run_multi_once
-from activetrack.multitarget.simulator import MultiTargetSimulator
+from activetrack.closed_loop.batch import run_batch
+from activetrack.closed_loop.components import build_simulator, scene_targets
+from activetrack.closed_loop.loop import run_once
+from activetrack.data import BeamCommand, Command
 from activetrack.scenarios import ScenarioError, load_scenario, parse_scenario
 from activetrack.scenarios.schema import Scenario
 from activetrack_bringup.cli import main as cli_main
@@ -91,7 +91,7 @@ def test_an_unbounded_range_bearing_sensor_cannot_have_clutter():
 
 def test_the_first_target_stands_as_target():
     s = load_scenario(CROSSING)
-    assert s.multi_target and s.target == s.targets[0]
+    assert len(scene_targets(s)) == 3 and s.target == s.targets[0]
     again = Scenario.model_validate(s.model_dump())  # dumped with both: accepted
     assert again == s
 
@@ -103,15 +103,15 @@ def test_scans_hold_pd_detections_and_poisson_clutter():
     """Surveillance radar of mt_appear_disappear (all around, pd 0.8, lambda V = 1.50 per
     scan): detections per scan average pd * (targets in view) + lambda V."""
     s = _short(APPEAR, 60, enabled=False)
-    sim = MultiTargetSimulator(s, np.random.default_rng(3))
-    radar = sim.scan_sensors["surv1"]
+    sim = build_simulator(s, np.random.default_rng(3))
+    radar = sim.sensors["surv1"][1]
     lam_v = radar.clutter_density * 2 * math.pi * (12000.0 - 100.0)
     assert lam_v == pytest.approx(1.4954, abs=1e-4)
     counts, expected, clutter = [], [], []
     while not sim.finished:
         scans = {sc.sensor_id: sc for sc in sim.advance()}
         labels = {t.sensor_id: t.labels for t in sim.last_truth}
-        j = list(sim.scan_sensors).index("surv1")
+        j = list(sim.sensors).index("surv1")
         counts.append(len(scans["surv1"].Z))
         expected.append(0.8 * sim.last_observed[j].sum() + lam_v)
         clutter.append(sum(1 for label in labels["surv1"] if label == ""))
@@ -123,7 +123,7 @@ def test_scans_hold_pd_detections_and_poisson_clutter():
 
 def test_detections_are_unlabelled_and_targets_live_between_birth_and_death():
     s = _short(APPEAR, 60, enabled=False)
-    record = run_multi_once(s, 0)
+    record = run_once(s, 0)
     alive = ~np.isnan(record.truth[:, :, 0])
     for n, t in enumerate(s.targets):
         death = t.death if t.death is not None else s.steps + 1
@@ -140,7 +140,7 @@ def test_detections_are_unlabelled_and_targets_live_between_birth_and_death():
 
 def test_a_beam_command_is_checked():
     s = load_scenario(CROSSING)
-    sim = MultiTargetSimulator(s, np.random.default_rng(0))
+    sim = build_simulator(s, np.random.default_rng(0))
     with pytest.raises(ValueError, match="sensor_id must be a steerable sensor"):
         sim.apply_beam(BeamCommand("nope", 0, 0.0))
     with pytest.raises(ValueError, match="epoch must be the current epoch 0, got 1"):
@@ -157,7 +157,7 @@ def test_a_beam_command_is_checked():
 
 def test_a_run_is_a_function_of_seed_and_run_only():
     s = _short(CROSSING, 12)
-    a, b, c = run_multi_once(s, 3), run_multi_once(s, 3), run_multi_once(s, 4)
+    a, b, c = run_once(s, 3), run_once(s, 3), run_once(s, 4)
     np.testing.assert_array_equal(a.truth, b.truth)
     np.testing.assert_array_equal(a.platform_paths, b.platform_paths)
     for ta, tb in zip(a.tracks, b.tracks, strict=True):
@@ -168,13 +168,18 @@ def test_a_run_is_a_function_of_seed_and_run_only():
     assert not np.allclose(a.truth[1:], c.truth[1:])
 
 
-def test_a_batch_does_not_depend_on_the_worker_count():
+def test_a_batch_summary_holds_gospa_and_a_row_per_target_and_epoch():
+    # (one process or two: test_api.test_results_do_not_depend_on_jobs)
     s = _short(CROSSING, 10)
-    one = run_multi_batch(s, runs=3, jobs=1)
-    two = run_multi_batch(s, runs=3, jobs=2)
-    assert one.run_gospa == two.run_gospa
-    assert one.gospa_t == two.gospa_t
+    one = run_batch(s, runs=3, jobs=1)
     assert len(one.run_gospa) == 3 and one.mean_gospa == pytest.approx(np.mean(one.run_gospa))
+    # The tables hold one row per target and epoch (per run: and run), as for one target.
+    N, K = 3, s.steps
+    assert one.rmse_t.shape == one.bound_t.shape == (N, K, 2)
+    rows = one.table()
+    assert len(rows) == N * K and [r["target"] for r in rows[::K]] == ["t1", "t2", "t3"]
+    np.testing.assert_array_equal([r["rmse_x_m"] for r in rows], one.rmse_t[..., 0].ravel())
+    assert len(one.run_table()) == 3 * N * K
 
 
 def test_batch_prints_gospa_for_a_multitarget_scenario(tmp_path, capsys):
@@ -184,7 +189,7 @@ def test_batch_prints_gospa_for_a_multitarget_scenario(tmp_path, capsys):
     out_json = tmp_path / "s.json"
     assert cli_main(["batch", str(path), "--runs", "2", "--json", str(out_json)]) == 0
     out = capsys.readouterr().out
-    assert "3 targets" in out and "GOSPA" in out and "target t3" in out
+    assert "3 target(s)" in out and "GOSPA" in out and "\n  t3 " in out
     import json
 
     data = json.loads(out_json.read_text())

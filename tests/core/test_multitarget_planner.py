@@ -21,12 +21,10 @@ import numpy as np
 import pytest
 
 from activetrack.bounds.pcrlb import covariance_bound, predicted_information, propagate_samples
-from activetrack.closed_loop.data import PlatformSnapshot, heading_speed
-from activetrack.closed_loop.strategies import LinearDynamics
+from activetrack.closed_loop.components import build_across_targets, target_dynamics
+from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet, heading_speed
 from activetrack.models.irf import information_reduction_factor
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
-from activetrack.multitarget.data import TrackEstimate, TrackSet
-from activetrack.multitarget.planner import MultiTargetPlanner
 from activetrack.planning.assignment import (
     assign_beams,
     assignment_value,
@@ -80,12 +78,12 @@ def snapshots(sc):
 
 def track(i, mean, cov, status="confirmed", priority=1.0, samples=None):
     m, P = np.asarray(mean, float), np.asarray(cov, float)
-    return TrackEstimate(i, status, m, P, priority=priority, samples=samples)
+    return TrackEstimate(i, status, m, P, m, P, priority=priority, samples=samples)
 
 
 def decide(sc, tracks, seed=0, epoch=0):
-    planner = MultiTargetPlanner(sc, np.random.default_rng(seed))
-    return planner.decide(epoch, TrackSet(epoch, 0.0, "ekf", tuple(tracks)), snapshots(sc))
+    planner = build_across_targets(sc, np.random.default_rng(seed))
+    return planner.plan(epoch, TrackSet(epoch, 0.0, "ekf", tracks=tuple(tracks)), snapshots(sc))
 
 
 # --- the aggregate ----------------------------------------------------------------------------
@@ -269,29 +267,31 @@ def test_a_beam_leaves_a_track_where_it_found_nothing():
     )
     t1 = track(1, [3000, 0, 0, 0], np.diag([100.0**2, 4, 100.0**2, 4]))
     t2 = track(2, [0, 0, 3000, 0], np.diag([80.0**2, 4, 80.0**2, 4]))
-    planner = MultiTargetPlanner(sc, np.random.default_rng(0))
+    planner = build_across_targets(sc, np.random.default_rng(0))
     served, factors = [], []
     for k, (hits, misses) in enumerate([(5, 0), (5, 1), (5, 2), (6, 2)]):
         tracks = (dataclasses.replace(t1, hits=hits, misses=misses), t2)
-        d = planner.decide(k, TrackSet(k, 5.0 * k, "ekf", tracks), snapshots(sc))
+        d = planner.plan(k, TrackSet(k, 5.0 * k, "ekf", tracks=tracks), snapshots(sc))
         served.append(d.extra["assignment"]["s1"])
         factors.append(planner.miss_factor.get(1, (1.0, 0))[0])
     assert served == [1, 1, 2, 1]
     assert factors == pytest.approx([1.0, 0.2, 0.04, 1.0])
     # The decision's cost of track 1 is eq. 23 with the detection factor q c(M).
-    dyn = LinearDynamics.of(sc)
+    dyn = target_dynamics(sc)
     p = TargetPrediction.from_posterior(t1.mean, t1.cov, dyn.F, dyn.Q)
     pv = np.array([50.0, 10.0, 0.0, 0.0])  # the platform at k+1 (dt 5 s)
-    q = information_reduction_factor(0.8, 0.0, 3.5, 2)
+    q = 0.8  # one target, no clutter: known association, so pd without a gate (as tracked)
     c = coverage_after_misses(beam_coverage(0.1, p.x, p.P, pv), 0.2)
     assert float(c) == pytest.approx(0.547, abs=1e-3)
     sensor = RangeBearingSensor(10.0, 0.002, pd=0.8)
     P = expected_update(p.P, p.x, [sensor], pv[None], detection=[q * float(c)])
     want = get_criterion("det_pos").of_covariance(p.F @ P @ p.F.T + p.Q, p.x)
     tracks = (dataclasses.replace(t1, hits=5, misses=1), t2)
-    again = MultiTargetPlanner(sc, np.random.default_rng(0))
-    again.decide(0, TrackSet(0, 0.0, "ekf", (dataclasses.replace(t1, hits=5), t2)), snapshots(sc))
-    d = again.decide(1, TrackSet(1, 5.0, "ekf", tracks), snapshots(sc))
+    again = build_across_targets(sc, np.random.default_rng(0))
+    again.plan(
+        0, TrackSet(0, 0.0, "ekf", tracks=(dataclasses.replace(t1, hits=5), t2)), snapshots(sc)
+    )
+    d = again.plan(1, TrackSet(1, 5.0, "ekf", tracks=tracks), snapshots(sc))
     assert d.extra["track_costs"][1] == pytest.approx(float(want), rel=1e-9)
 
 
@@ -307,11 +307,10 @@ def test_random_assignment_is_seeded_balanced_and_uniform():
     ]
 
     def run(seed):
-        planner = MultiTargetPlanner(sc, np.random.default_rng(seed))
-        ts = TrackSet(0, 0.0, "ekf", tuple(tracks))
+        planner = build_across_targets(sc, np.random.default_rng(seed))
+        ts = TrackSet(0, 0.0, "ekf", tracks=tuple(tracks))
         out = [
-            tuple(planner.decide(k, ts, snapshots(sc)).extra["assignment"].values())
-            for k in range(6)
+            tuple(planner.plan(k, ts, snapshots(sc)).extra["assignment"].values()) for k in range(6)
         ]
         assert all(len(set(a)) == 3 for a in out)  # three beams, three different tracks
         return out
@@ -341,7 +340,7 @@ def test_one_track_pcrlb_equals_plan():
     for R, search in ((1, "quadrant"), (2, "quadrant"), (3, "evolution")):
         sc = scenario(platforms, {"search": search, "horizon": R}, gate=10.0)
         d = decide(sc, [track(1, mean, cov, samples=X)])
-        dyn = LinearDynamics.of(sc)
+        dyn = target_dynamics(sc)
         limits = platform_limits(sc.platforms[0].limits, sc.dt)
         pp = PlannerPlatform("p1", snapshots(sc)[0].pv, (BearingSensor(0.02, pd=0.8),), limits)
         settings = plan_settings(sc.planner)
@@ -378,7 +377,7 @@ def test_one_track_mre_equals_multi_step_positioning():
         planner = {"cost": "mre", "criterion": "det_pos", "search": "sector", "horizon": R}
         sc = scenario(platforms, planner)
         d = decide(sc, [track(1, mean, cov)])
-        dyn, s = LinearDynamics.of(sc), snapshots(sc)[0]
+        dyn, s = target_dynamics(sc), snapshots(sc)[0]
         limits = platform_limits(sc.platforms[0].limits, sc.dt)
         single = RangeBearingSensor(20.0, 0.02, pd=q, r_max=20000.0)
         pp = PlannerPlatform("p1", s.pv, (single,), limits, heading=s.heading, speed=s.speed)
@@ -417,7 +416,7 @@ def test_clutter_scales_the_bearing_information_by_the_irf():
         planner = {"criterion": criterion}
         sc = scenario([platform("p1", [-2000.0, 20.0, 500.0, 5.0], [sensor])], planner)
         d = decide(sc, [track(4, mean, cov, samples=X)], seed=9)
-        dyn = LinearDynamics.of(sc)
+        dyn = target_dynamics(sc)
         X1 = propagate_samples(X, dyn.F, dyn.Q, 1, np.random.default_rng(9))[0]
         got[criterion] = d.extra["track_costs"][4]
         want = _expected_bk(cov, X1, pv1, 0.01, q, dyn.F, dyn.Q, criterion)
@@ -440,7 +439,7 @@ def test_a_beam_informs_only_its_track_and_points_at_it():
     near = track(1, [2000, 0, 1000, 0], cov, samples=Xn)
     far = track(2, [-6000, 0, 3000, 0], cov, samples=Xf)
     d = decide(sc, [far, near], seed=1)
-    dyn = LinearDynamics.of(sc)
+    dyn = target_dynamics(sc)
     noise = np.random.default_rng(1)
     X1f = propagate_samples(Xf, dyn.F, dyn.Q, 1, noise)[0]  # track order: far, then near
     X1n = propagate_samples(Xn, dyn.F, dyn.Q, 1, noise)[0]
@@ -461,20 +460,22 @@ def test_no_confirmed_track_sweeps_the_beams_and_holds_course():
     beam = {"id": "s1", "kind": "range_bearing", "sigma_r": 10.0, "sigma_b": 0.01}
     beam.update(beam_width=0.5, r_max=20000.0, clutter_density=1e-5)
     sc = scenario([platform("p1", [0.0, 30.0, 0.0, 30.0], [beam], controllable=True)])
-    planner = MultiTargetPlanner(sc, np.random.default_rng(0))
-    tentative = TrackSet(0, 0.0, "ekf", (track(7, [500, 0, 500, 0], np.eye(4), "tentative"),))
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    tentative = TrackSet(
+        0, 0.0, "ekf", tracks=(track(7, [500, 0, 500, 0], np.eye(4), "tentative"),)
+    )
     bearings = []
     for k in range(3):
-        d = planner.decide(k, tentative, snapshots(sc))
+        d = planner.plan(k, tentative, snapshots(sc))
         assert [(c.heading_change, c.speed_change) for c in d.commands] == [(0.0, 0.0)]
         assert d.report.search == "sweep" and d.extra["assignment"] == {"s1": -1}
         bearings.append(d.beams[0].bearing)
     assert bearings == pytest.approx([math.pi / 4, math.pi / 4 + 0.5, math.pi / 4 + 1.0])
-    confirmed = TrackSet(3, 0.0, "ekf", (track(7, [500, 0, 500, 0], np.eye(4)),))
-    d = planner.decide(3, confirmed, snapshots(sc))
+    confirmed = TrackSet(3, 0.0, "ekf", tracks=(track(7, [500, 0, 500, 0], np.eye(4)),))
+    d = planner.plan(3, confirmed, snapshots(sc))
     assert d.beams[0].track_id == 7 and d.report.search == "quadrant"
     pointed = d.beams[0].bearing
-    d = planner.decide(4, TrackSet(4, 0.0, "ekf"), snapshots(sc))  # the track is gone
+    d = planner.plan(4, TrackSet(4, 0.0, "ekf"), snapshots(sc))  # the track is gone
     assert d.beams[0].track_id == -1
     assert d.beams[0].bearing == pytest.approx(pointed + 0.5)  # the sweep goes on from it
 
@@ -495,7 +496,7 @@ def test_planner_off_holds_course_and_still_assigns_beams():
     assert [(c.platform_id, c.heading_change, c.speed_change) for c in d.commands] == [
         ("p1", 0.0, 0.0)
     ]
-    dyn = LinearDynamics.of(sc)
+    dyn = target_dynamics(sc)
     preds = [TargetPrediction.from_posterior(t.mean, t.cov, dyn.F, dyn.Q) for t in tracks]
     pvs = np.array([[150.0, 30.0, 0.0, 0.0], [8000.0, 0.0, 150.0, 30.0]])  # coasting
     sensors = [RangeBearingSensor(10.0, 0.01), RangeBearingSensor(50.0, 0.01)]

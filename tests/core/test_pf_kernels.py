@@ -357,7 +357,7 @@ def test_a_tracker_announces_its_runs_particle_work(monkeypatch, steps, loads):
     """A closed-loop tracker (a tracker node's core) with a particle filter announces its
     run's work (steps x particles) when it is built: a long run loads the kernels before its
     first update instead of pausing in mid-run; a short one (``make run``) never loads them."""
-    from activetrack.closed_loop.tracker import TrackerCore
+    from activetrack.closed_loop.components import build_tracker
     from activetrack.scenarios import load_scenario
 
     monkeypatch.setattr(kernels, "_particle", None)
@@ -367,7 +367,7 @@ def test_a_tracker_announces_its_runs_particle_work(monkeypatch, steps, loads):
     scenario = load_scenario("scenarios/default.yaml")
     assert scenario.tracker.particles * 30 < kernels.AUTO_WORK <= scenario.tracker.particles * 600
     scenario = scenario.model_copy(update={"steps": steps})
-    TrackerCore(scenario, np.random.default_rng(0))
+    build_tracker(scenario, np.random.default_rng(0))
     assert (kernels._particle is not None) == loads
 
 

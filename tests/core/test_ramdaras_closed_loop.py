@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from activetrack.bounds.costs import position_determinant
-from activetrack.closed_loop.batch import run_once
+from activetrack.closed_loop.loop import run_once
 from activetrack_experiments import ramdaras
 from activetrack_experiments.ramdaras import (
     BASELINES,
@@ -139,13 +139,13 @@ def test_measured_and_detected_rows_follow_the_selection_and_the_misses():
         sensor_ids = np.array(a.sensor_ids)
         # Only the sensor selected at decision k-1 measured at epoch k.
         sel = [d.selected_sensor_ids for d in r.decisions]
-        assert [tuple(sensor_ids[row]) for row in r.measured] == sel
-        assert not (r.detected & ~r.measured).any()
+        assert [tuple(sensor_ids[row]) for row in r.looked] == sel
+        assert not (r.detected & ~r.looked).any()
         # Every measured-but-not-detected entry is a miss the tracker counted.
-        assert r.missed_detections == int((r.measured & ~r.detected).sum())
+        assert r.missed_detections() == int((r.looked & ~r.detected).sum())
         if case == "case2":  # pd = 1
-            np.testing.assert_array_equal(r.detected, r.measured)
-        np.testing.assert_array_equal(a.cov, r.estimate_cov)
+            np.testing.assert_array_equal(r.detected, r.looked)
+        np.testing.assert_array_equal(a.cov, r.track_series()[1])
 
 
 def test_random_selection_draws_only_from_the_planner_generator():

@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 
 from activetrack.bounds.costs import position_determinant, trace_cost
-from activetrack.closed_loop.batch import component_rngs
-from activetrack.closed_loop.planner import PlannerCore
-from activetrack.closed_loop.simulator import Simulator
-from activetrack.closed_loop.tracker import TrackerCore
+from activetrack.closed_loop.components import (
+    build_planner,
+    build_simulator,
+    build_tracker,
+    component_rngs,
+)
 from activetrack.models.motion import NearlyConstantVelocityDiscrete
 from activetrack.models.sensors import (
     BearingSensor,
@@ -197,17 +199,17 @@ def test_sector_positioning_moves_a_bearing_sensor_towards_the_target():
 def test_stationary_platforms_hold_still_and_only_the_selection_measures():
     scenario = variant(load_case("case1_3_9"), "mre", steps=4)
     sim_rng, trk_rng, plan_rng, _ = component_rngs(scenario.seed, 0)
-    sim, tracker = Simulator(scenario, sim_rng), TrackerCore(scenario, trk_rng)
-    planner = PlannerCore(scenario, plan_rng)
-    track = tracker.snapshot()
+    sim, tracker = build_simulator(scenario, sim_rng), build_tracker(scenario, trk_rng)
+    planner = build_planner(scenario, plan_rng)
+    tracks = tracker.snapshot()
     for k in range(4):
-        d = planner.decide(k, track, sim.platform_snapshots())
+        d = planner.decide(k, tracks, sim.platform_snapshots())
         assert d.commands == () and len(d.selected_sensor_ids) == 1
         assert d.candidate_sensor_ids == ("s1", "s2", "s3") and len(d.selection_costs) == 3
         sim.apply_selection(d.selected_sensor_ids)
-        ms = sim.advance()
-        assert [m.sensor_id for m in ms] == list(d.selected_sensor_ids)
-        track = tracker.step(k + 1, sim.time, ms)
+        scans = sim.advance()
+        assert [scan.sensor_id for scan in scans] == list(d.selected_sensor_ids)
+        tracks = tracker.step(k + 1, sim.time, scans)
     for p in sim.platforms.values():
         np.testing.assert_array_equal(p.pv, [3000.0, 0.0, 9000.0, 0.0])
     snap = sim.platform_snapshots()[0]

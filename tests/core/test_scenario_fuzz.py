@@ -2,8 +2,8 @@
 
 1. Mutated bytes of real scenario files: ``load_scenario`` returns a Scenario or raises
    ScenarioError, never anything else, and never through its last-resort "internal check" path.
-2. Mutated fields of real scenarios: whatever loads builds the Simulator, TrackerCore and
-   PlannerCore and survives the first closed-loop epoch (the load-time rules are complete).
+2. Mutated fields of real scenarios: whatever loads builds the simulator, tracker and planner
+   and survives the first closed-loop epoch (the load-time rules are complete).
 """
 
 from __future__ import annotations
@@ -16,9 +16,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from activetrack.closed_loop.planner import PlannerCore
-from activetrack.closed_loop.simulator import Simulator
-from activetrack.closed_loop.tracker import TrackerCore
+from activetrack.closed_loop.components import build_planner, build_simulator, build_tracker
+from activetrack.closed_loop.loop import apply_decision
 from activetrack.scenarios import Scenario, ScenarioError, load_scenario, parse_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -213,19 +212,16 @@ def _cheap(scenario: Scenario) -> Scenario:
 
 
 def _first_epoch(scenario: Scenario) -> None:
-    """Build the three cores and run epoch 0 -> 1 as the batch loop does (run_once)."""
-    sim = Simulator(scenario, np.random.default_rng(0))
-    tracker = TrackerCore(scenario, np.random.default_rng(0))
-    planner = PlannerCore(scenario, np.random.default_rng(0))
+    """Build the three components and run epoch 0 -> 1 as the batch loop does (run_once)."""
+    sim = build_simulator(scenario, np.random.default_rng(0))
+    tracker = build_tracker(scenario, np.random.default_rng(0))
+    planner = build_planner(scenario, np.random.default_rng(0))
     decision = planner.decide(0, tracker.snapshot(), sim.platform_snapshots())
-    for cmd in decision.commands:
-        sim.apply_command(cmd)
-    if decision.selected_sensor_ids is not None:
-        sim.apply_selection(decision.selected_sensor_ids)
-    measurements = sim.advance()
-    track = tracker.step(1, sim.time, measurements)
+    apply_decision(sim, decision)
+    scans = sim.advance()
+    tracks = tracker.step(1, sim.time, scans)
     if not sim.finished:
-        planner.decide(1, track, sim.platform_snapshots())
+        planner.decide(1, tracks, sim.platform_snapshots())
 
 
 @settings(FUZZ, max_examples=150)

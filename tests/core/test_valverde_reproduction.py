@@ -10,8 +10,7 @@ import pytest
 
 from activetrack.bounds.pcrlb import covariance_bound
 from activetrack.bounds.taylor_crlb import taylor_crlb
-from activetrack.closed_loop.simulator import Simulator
-from activetrack.closed_loop.tracker import TrackerCore
+from activetrack.closed_loop.components import build_simulator, build_tracker
 from activetrack.filters import ExtendedKalmanFilter, Measurement, ekf_over_runs
 from activetrack.models.motion import CircularMotionKnownOmega
 from activetrack.scenarios import load_scenario
@@ -229,16 +228,17 @@ def test_scenario_runs_closed_loop_with_a_consistent_ekf(name):
     assert scenario.platforms[0].sensors[0].kind == "range_bearing"
     assert not scenario.platforms[0].controllable
     sim_rng, trk_rng, _ = (np.random.default_rng(s) for s in np.random.SeedSequence(5).spawn(3))
-    sim, tracker = Simulator(scenario, sim_rng), TrackerCore(scenario, trk_rng)
+    sim, tracker = build_simulator(scenario, sim_rng), build_tracker(scenario, trk_rng)
     nees = []
     for k in range(1, 51):
-        measurements = sim.advance()
-        assert len(measurements) == 1 and measurements[0].z is not None
-        snap = tracker.step(k, sim.time, measurements)
-        est = tracker.model.kinematics(snap.mean)[[0, 2]]
-        Hk = tracker.model.kinematics_jacobian(snap.mean)[[0, 2]]
-        P_pos = Hk @ snap.cov @ Hk.T
-        e = est - sim.truth_pv()[[0, 2]]
+        scans = sim.advance()
+        assert len(scans) == 1 and scans[0].Z.shape == (1, 2)
+        (track,) = tracker.step(k, sim.time, scans).tracks
+        est = tracker.model.kinematics(track.state)[[0, 2]]
+        Hk = tracker.model.kinematics_jacobian(track.state)[[0, 2]]
+        P_pos = Hk @ track.state_cov @ Hk.T
+        np.testing.assert_allclose(track.mean[[0, 2]], est, rtol=1e-12)  # pv of the state
+        e = est - sim.truth_array()[0, [0, 2]]
         nees.append(float(e @ np.linalg.solve(P_pos, e)))
     assert np.all(sim.platforms["usbl"].pv == 0.0)  # the USBL stays put
     # Position NEES is chi-square with 2 dof: mean 2, 99.9 % quantile 13.8.

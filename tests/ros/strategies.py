@@ -12,6 +12,8 @@ FLOATS = st.one_of(
 )
 UINT32 = st.one_of(st.integers(0, 2**32 - 1), st.sampled_from([0, 1, 2, 3, 8, 9]))
 INT32 = st.integers(-(2**31), 2**31 - 1)
+INT64 = st.one_of(st.integers(-(2**63), 2**63 - 1), st.sampled_from([-2, -1, 0, 1, 3]))
+UINT8 = st.one_of(st.integers(0, 255), st.sampled_from([0, 1, 2]))
 TEXT = st.one_of(
     st.text(max_size=20), st.sampled_from(["s1", "s2", "p1", "p2", "pf", "ekf", "x", "y"])
 )
@@ -29,6 +31,10 @@ def field(kind: str, depth: int):
         return UINT32
     if kind == "int32":
         return INT32
+    if kind == "int64":
+        return INT64
+    if kind == "uint8":
+        return UINT8
     if kind == "boolean":
         return st.booleans()
     if kind == "octet":
@@ -38,9 +44,13 @@ def field(kind: str, depth: int):
     if kind.startswith("uint8[") and kind.endswith("]"):
         n = int(kind[6:-1])
         return st.lists(st.integers(0, 255), min_size=n, max_size=n)
+    if kind.startswith("double[") and kind.endswith("]"):
+        n = int(kind[7:-1])
+        return st.lists(FLOATS, min_size=n, max_size=n)
     if kind.startswith("sequence<"):
         inner = kind[len("sequence<") : -1]
-        size = 3 if depth else 40
+        # Long primitive arrays at the top; a few nested messages (each costs a whole draw).
+        size = 3 if depth else (4 if "/" in inner else 40)
         return st.lists(field(inner, depth + 1), max_size=size)
     return message(_class(kind), depth + 1)
 

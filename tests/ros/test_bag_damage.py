@@ -334,12 +334,12 @@ def test_unknown_types_are_skipped_with_one_warning(tmp_path, capsys):
     )
     bad_name = TopicSpec("/badname", "not a type", "int32 a\n", "")
     old_def = TopicSpec(
-        topics.TRACK, GRAPH_TOPICS[topics.TRACK], "float64 x\n", "RIHS01_" + "1" * 64
+        topics.TRACKS, GRAPH_TOPICS[topics.TRACKS], "float64 x\n", "RIHS01_" + "1" * 64
     )
     bag = _typed_bag(tmp_path, "mixed", [unknown, json_enc, bad_name, old_def])
     rc, out, err, p = cli(capsys, "bag", "info", bag)
     assert not p and rc == 0 and f"bag {bag}: 7 messages" in out
-    for topic in ("/weird", "/json", "/badname", topics.TRACK):
+    for topic in ("/weird", "/json", "/badname", topics.TRACKS):
         assert sum(topic + " " in line for line in err.splitlines()) == 1, (topic, err)
     rc, out, err, p = cli(capsys, "play", bag, "--rate", "1000")
     assert not p and rc == 0 and "published 3 messages" in out  # the clock only
@@ -384,7 +384,7 @@ def test_damaged_bags_through_play_retrack_recover_and_record(original, tmp_path
         assert not p, (name, p)
         assert rc in (0, 2)
         if name == "corrupt chunk":
-            assert rc == 2 and "retrack needs every measurement" in err
+            assert rc == 2 and "retrack needs every scan" in err
         rc, out, err, p = cli(capsys, "record", bag, "--duration", "0.1")
         assert not p, (name, p)
         if mutate is not None:

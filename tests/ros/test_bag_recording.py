@@ -21,6 +21,7 @@ from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
+from recorded import read_topic
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
@@ -35,13 +36,13 @@ from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, open_
 from activetrack_bringup.cli import main as cli_main
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_bringup.mcap_writer import CHUNK_SIZE
-from activetrack_bringup.retrack import RetrackError, read_topic, retrack
+from activetrack_bringup.retrack import RetrackError, retrack
 from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import header
 from activetrack_ros.graph import GRAPH_TOPICS, graph_topic_of
 from activetrack_ros.trust import GraphKey
-from msgs_defs.msg import BearingMeasurement, PlatformState, TrackEstimate
+from msgs_defs.msg import PlatformState, Scan, TrackArray
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
 pytestmark = pytest.mark.ros
@@ -80,7 +81,7 @@ def test_independent_mcap_reader_decodes_the_bag(run_bag):
     chunk and data-section CRCs checked; schemas, hashes and QoS are as rosbag2 writes them."""
     mcap_file = run_bag / "bag.mcap"
     schemas = graph_schemas()
-    rclpy_tracks = {m.epoch: m for m in read_topic(run_bag, topics.TRACK, TrackEstimate)}
+    rclpy_tracks = {m.epoch: m for m in read_topic(run_bag, topics.TRACKS, TrackArray)}
     counts = Counter()
     log_times, stamps = defaultdict(list), []
     with open(mcap_file, "rb") as f:
@@ -108,10 +109,12 @@ def test_independent_mcap_reader_decodes_the_bag(run_bag):
             log_times[graph_topic_of(channel.topic)].append(message.log_time)
             if hasattr(decoded, "header"):
                 stamps.append((message.log_time, _ns(decoded.header.stamp)))
-            if graph_topic_of(channel.topic) == topics.TRACK:
+            if graph_topic_of(channel.topic) == topics.TRACKS:
                 ref = rclpy_tracks[decoded.epoch]
-                np.testing.assert_array_equal(decoded.state, ref.state)
-                np.testing.assert_array_equal(decoded.covariance, ref.covariance)
+                (item,), (ref_item,) = decoded.tracks, ref.tracks
+                np.testing.assert_array_equal(item.state, ref_item.state)
+                np.testing.assert_array_equal(item.covariance, ref_item.covariance)
+                np.testing.assert_array_equal(item.samples, ref_item.samples)
                 assert decoded.filter_kind == ref.filter_kind
         chunks = summary.chunk_indexes
     info = bag_info(run_bag)
@@ -127,7 +130,7 @@ def test_independent_mcap_reader_decodes_the_bag(run_bag):
     assert len(stamps) > 100
     assert all(abs(log - stamp) <= dt_ns for log, stamp in stamps)
     # Every chunk has its CRC; the first one holds the definitions only; chunks stay small.
-    biggest = max(len(m) for m in (rclpy_tracks[0].particle_samples,)) * 8 + 2000
+    biggest = len(rclpy_tracks[0].tracks[0].samples) * 8 + 2000  # the largest message
     with open(mcap_file, "rb") as f:
         records = list(StreamReader(f, validate_crcs=True, emit_chunks=True).records)
     chunk_records = [r for r in records if type(r).__name__ == "Chunk"]
@@ -215,25 +218,24 @@ from rclpy.node import Node
 from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_ros import graph as topics
-from msgs_defs.msg import BearingMeasurement
+from msgs_defs.msg import Scan
 from rosgraph_msgs.msg import Clock
 from builtin_interfaces.msg import Time
 
-kept = (topics.BEARING_MEASUREMENTS, topics.CLOCK)
+kept = (topics.SCANS, topics.CLOCK)
 quiet = {"start_parameter_services": False}
 with InProcessGraph() as g:
     rec = g.add(BagRecorder(sys.argv[1], {t: topics.GRAPH_TOPICS[t] for t in kept},
                             context=g.context, **quiet))
     node = g.add(Node("kill_test_publisher", context=g.context, **quiet))
-    pub = node.create_publisher(BearingMeasurement, topics.BEARING_MEASUREMENTS,
-                                topics.writer_qos(topics.BEARING_MEASUREMENTS))
+    pub = node.create_publisher(Scan, topics.SCANS, topics.writer_qos(topics.SCANS))
     clock = node.create_publisher(Clock, topics.CLOCK, topics.writer_qos(topics.CLOCK))
     k = 0
     while True:
         k += 1
         now = time.time_ns()  # the clock is wall time here: log times measure the loss
         clock.publish(Clock(clock=Time(sec=now // 10**9, nanosec=now % 10**9)))
-        pub.publish(BearingMeasurement(epoch=k, sensor_id="s1", bearing=1e-3 * k))
+        pub.publish(Scan(epoch=k, sensor_id="s1", dim=1, detections=[1e-3 * k]))
         g.spin_until(lambda: rec.count >= 2 * k, timeout=1.0, step=0.001)
         time.sleep(0.003)
 """
@@ -270,15 +272,14 @@ def test_kill_9_mid_recording_loses_at_most_the_last_chunk(tmp_path, capsys):
 
     rc, out, err = cli(capsys, "bag", "info", bag, "--json", tmp_path / "info.json")
     assert rc == 2 and "no summary: the writer did not finish" in err  # read directly
-    assert f"bag {bag}:" in out and topics.BEARING_MEASUREMENTS in out
+    assert f"bag {bag}:" in out and topics.SCANS in out
     info = json.loads((tmp_path / "info.json").read_text())
-    n = info["topics"]["/" + topics.BEARING_MEASUREMENTS]["count"]
+    n = info["topics"]["/" + topics.SCANS]["count"]
     assert n >= 100 and info["messages"] >= listed > 0
     with open_bag(bag) as b:
         assert not b.lost  # incomplete, nothing lost before the cut
         epochs = [
-            deserialize_message(d, BearingMeasurement).epoch
-            for _, _, d in b.messages(["/" + topics.BEARING_MEASUREMENTS])
+            deserialize_message(d, Scan).epoch for _, _, d in b.messages(["/" + topics.SCANS])
         ]
         end_ns = b.end_time
     assert epochs == list(range(1, n + 1))  # a gapless prefix of what was published
@@ -303,7 +304,7 @@ def test_kill_9_mid_recording_loses_at_most_the_last_chunk(tmp_path, capsys):
         got = [
             reader.deserialize(d, c.msgtype).epoch
             for c, _, d in reader.messages()
-            if c.topic == "/" + topics.BEARING_MEASUREMENTS
+            if c.topic == "/" + topics.SCANS
         ]
     assert got == epochs
     # rosbags reads the killed run's own metadata.yaml (next to the recovered file).
@@ -313,10 +314,7 @@ def test_kill_9_mid_recording_loses_at_most_the_last_chunk(tmp_path, capsys):
     shutil.copy(bag / "killed.mcap", twin / "killed.mcap")
     with Reader(twin) as reader:
         assert reader.message_count == listed
-        assert {c.topic for c in reader.connections} == {
-            "/" + topics.BEARING_MEASUREMENTS,
-            "/" + topics.CLOCK,
-        }
+        assert {c.topic for c in reader.connections} == {"/" + topics.SCANS, "/" + topics.CLOCK}
 
 
 def test_recorder_metadata_tracks_the_disk_while_recording(tmp_path):
@@ -421,13 +419,13 @@ def _sensor_kind(doc):
     "edit, expect",
     [
         (_sensor_ids, "sensors ['s1'] that scenario"),
-        (_platform_ids, "platforms ['p2'] that scenario"),
+        (_platform_ids, "sensor 's2' is on platform 'p2' in the bag, on 'q2' in scenario"),
         (_dt, "scenario variant has dt = 4 s"),
         (_fewer_steps, "the recorded run has 8 steps (its simulator's diagnostics), scenario"),
         (_more_steps, "the recorded run has 8 steps (its simulator's diagnostics), scenario"),
-        (_state, "the recorded track's state is (x, xdot, y, ydot)"),
-        (_target, "the recorded track is of target 't1'"),
-        (_sensor_kind, "is a range_bearing sensor in scenario"),
+        (_state, "the recorded tracks' state is ncv (x, xdot, y, ydot)"),
+        (_target, "the recorded tracks are of targets ['t1']"),
+        (_sensor_kind, "is a bearing sensor in the bag but a range_bearing sensor in scenario"),
     ],
     ids=["sensor", "platform", "dt", "fewer-steps", "more-steps", "state", "target", "kind"],
 )
@@ -459,10 +457,10 @@ def _bag_of(tmp_path, name, messages: dict[str, list]) -> Path:
 def test_retrack_says_when_there_is_nothing_to_retrack(run_bag, tmp_path, capsys):
     with open_bag(run_bag) as b:
         clock = [d for _, _, d in b.messages(["/" + topics.CLOCK])]
-        tracks = [d for _, _, d in b.messages(["/" + topics.TRACK])]
-    no_meas = _bag_of(tmp_path, "no_meas", {topics.CLOCK: clock, topics.TRACK: tracks})
-    rc, _, err = cli(capsys, "bag", "retrack", no_meas, "--scenario", SCENARIO)
-    assert rc == 2 and "holds no measurements" in err
+        tracks = [d for _, _, d in b.messages(["/" + topics.TRACKS])]
+    no_scans = _bag_of(tmp_path, "no_scans", {topics.CLOCK: clock, topics.TRACKS: tracks})
+    rc, _, err = cli(capsys, "bag", "retrack", no_scans, "--scenario", SCENARIO)
+    assert rc == 2 and "holds no scans" in err
     rc, _, err = cli(capsys, "bag", "retrack", tmp_path / "nope", "--scenario", SCENARIO)
     assert rc == 2 and "no such bag" in err
     rc, _, err = cli(capsys, "bag", "retrack", run_bag, "--scenario", tmp_path / "none.yaml")
@@ -474,13 +472,13 @@ def test_retrack_says_when_there_is_nothing_to_retrack(run_bag, tmp_path, capsys
 
 def test_retrack_wait_is_bounded_when_the_tracker_stops(run_bag, monkeypatch):
     class StuckTracker(retrack_mod.TrackerNode):
-        def publish_track(self, snap):  # publishes the prior, then falls silent
-            if snap.epoch == 0:
-                super().publish_track(snap)
+        def publish_tracks(self, tracks):  # publishes the priors, then falls silent
+            if tracks.epoch == 0:
+                super().publish_tracks(tracks)
 
     monkeypatch.setattr(retrack_mod, "TrackerNode", StuckTracker)
     start = time.monotonic()
-    with pytest.raises(RetrackError, match="stopped at epoch 0: no track for epoch 1 within"):
+    with pytest.raises(RetrackError, match="stopped at epoch 0: no tracks for epoch 1 within"):
         retrack(run_bag, SCENARIO, stall_timeout=0.5)
     assert time.monotonic() - start < 5.0
 
@@ -610,19 +608,19 @@ def test_a_bag_of_two_namespaces_needs_the_namespace_named(run_bag, tmp_path, ca
     """Graph topics are found under any namespace; where two namespaces hold one, the name
     must say which (retrack, read_topic and play alike)."""
     with open_bag(run_bag) as b:
-        tracks = [d for _, _, d in b.messages(["/" + topics.TRACK])]
+        tracks = [d for _, _, d in b.messages(["/" + topics.TRACKS])]
     schemas = graph_schemas()
-    msgtype = GRAPH_TOPICS[topics.TRACK]
-    names = [f"/g{i}/{topics.TRACK}" for i in (1, 2)]
+    msgtype = GRAPH_TOPICS[topics.TRACKS]
+    names = [f"/g{i}/{topics.TRACKS}" for i in (1, 2)]
     specs = [TopicSpec(n, msgtype, *schemas[msgtype]) for n in names]
     writer = Rosbag2Writer(tmp_path / "two", specs, state="closed")
     for t, data in enumerate(tracks):
         for n in names:
             writer.write(writer.channel_ids[n], t, data)
     writer.close()
-    with pytest.raises(BagError, match="several namespaces hold activetrack/track"):
-        read_topic(tmp_path / "two", topics.TRACK, TrackEstimate)
-    got = read_topic(tmp_path / "two", names[1], TrackEstimate)
+    with pytest.raises(BagError, match="several namespaces hold activetrack/tracks"):
+        read_topic(tmp_path / "two", topics.TRACKS, TrackArray)
+    got = read_topic(tmp_path / "two", names[1], TrackArray)
     assert [m.epoch for m in got] == list(range(len(tracks)))
-    rc, _, err = cli(capsys, "play", tmp_path / "two", "--topics", topics.TRACK, "--rate", "100")
+    rc, _, err = cli(capsys, "play", tmp_path / "two", "--topics", topics.TRACKS, "--rate", "100")
     assert rc == 2 and "name the topic with its namespace" in err

@@ -37,7 +37,7 @@ def test_stale_or_broken_cache_is_not_trusted(cache, monkeypatch):
     good = bag.graph_schemas(write_cache=True)
     data = json.loads(cache.read_text())
     data["key"] = "stale"
-    data["schemas"]["msgs_defs/msg/TrackEstimate"] = ["wrong", "RIHS01_wrong"]
+    data["schemas"]["msgs_defs/msg/TrackArray"] = ["wrong", "RIHS01_wrong"]
     cache.write_text(json.dumps(data))
     monkeypatch.setattr(bag, "_schemas_in_memory", {})
     assert bag.graph_schemas() == good

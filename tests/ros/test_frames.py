@@ -4,19 +4,18 @@ sensor on its platform; every header names the fixed frame."""
 
 import math
 
-import numpy as np
 import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from recorded import read_topic
 from tf2_msgs.msg import TFMessage
 
 from activetrack.scenarios import load_scenario
-from activetrack_bringup.retrack import read_topic
 from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import header
 from activetrack_ros.graph import qos_for
-from msgs_defs.msg import BearingMeasurement, GroundTruth, PlatformState, TrackEstimate
+from msgs_defs.msg import GroundTruthArray, PlatformState, Scan, TrackArray
 from tracker_node.tracker_node import TrackerNode
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
@@ -52,15 +51,19 @@ def test_tf_places_platforms_truth_and_estimate(bag):
         t = transforms[(f"platform/{s.platform_id}", _ns(s.header.stamp))].transform
         assert (t.translation.x, t.translation.y) == (s.position.x, s.position.y)
         assert _yaw(t.rotation) == pytest.approx(s.heading, abs=1e-12)
-    for g in read_topic(bag, topics.GROUND_TRUTH, GroundTruth):
+    for g in read_topic(bag, topics.GROUND_TRUTH, GroundTruthArray):
+        assert list(g.target_ids) == [target]
+        (p,), (v,) = g.positions, g.velocities
         t = transforms[(f"target/{target}/truth", _ns(g.header.stamp))].transform
-        assert (t.translation.x, t.translation.y) == (g.position.x, g.position.y)
-        course = math.atan2(g.velocity.y, g.velocity.x)
+        assert (t.translation.x, t.translation.y) == (p.x, p.y)
+        course = math.atan2(v.y, v.x)
         assert _yaw(t.rotation) == pytest.approx(course, abs=1e-12)
-    tracks = read_topic(bag, topics.TRACK, TrackEstimate)
-    for k in tracks:
+    arrays = read_topic(bag, topics.TRACKS, TrackArray)
+    for k in arrays:
+        (track,) = k.tracks
+        assert track.origin == target  # the track from the target's prior: its frame
         t = transforms[(f"target/{target}/estimate", _ns(k.header.stamp))].transform
-        x, vx, y, vy = np.asarray(k.state)[:4]  # pv order (docs/core-interfaces.md)
+        x, vx, y, vy = track.mean  # pv order (docs/core-interfaces.md)
         assert (t.translation.x, t.translation.y) == pytest.approx((x, y), abs=1e-9)
         assert _yaw(t.rotation) == pytest.approx(math.atan2(vy, vx), abs=1e-9)
 
@@ -76,20 +79,23 @@ def test_tf_static_mounts_every_sensor_on_its_platform(bag):
 
 
 def test_every_header_names_the_fixed_frame(bag):
-    for topic, cls in ((topics.PLATFORM_STATES, PlatformState), (topics.TRACK, TrackEstimate)):
+    for topic, cls in (
+        (topics.PLATFORM_STATES, PlatformState),
+        (topics.TRACKS, TrackArray),
+        (topics.SCANS, Scan),
+        (topics.GROUND_TRUTH, GroundTruthArray),
+    ):
         assert {m.header.frame_id for m in read_topic(bag, topic, cls)} == {"world"}
 
 
 def test_a_message_in_another_frame_is_rejected_and_counted(graph):
-    """A tracker in frame "map" is fed a measurement stamped in "world" (e.g. a driver left at
-    the default): rejected as wrong_frame, counted, and the node keeps running."""
+    """A tracker in frame "map" is fed a scan stamped in "world" (e.g. a driver left at the
+    default): rejected as wrong_frame, counted, and the node keeps running."""
     params = [Parameter("scenario", value=SCENARIO), Parameter("frame_id", value="map")]
     tracker = graph.add(TrackerNode(context=graph.context, parameter_overrides=params))
     feeder = graph.add(Node("feeder", context=graph.context))
-    pub = feeder.create_publisher(
-        BearingMeasurement, topics.BEARING_MEASUREMENTS, qos_for(topics.BEARING_MEASUREMENTS)
-    )
-    msg = BearingMeasurement(header=header(5.0, "world"), sensor_id="s1", platform_id="p1", epoch=1)
+    pub = feeder.create_publisher(Scan, topics.SCANS, qos_for(topics.SCANS))
+    msg = Scan(header=header(5.0, "world"), sensor_id="s1", platform_id="p1", epoch=1)
     for _ in range(3):
         pub.publish(msg)
     assert graph.spin_until(

@@ -8,8 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
+from parity import assert_same_run
 
 from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
@@ -21,21 +21,27 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 # Flooded topic -> the graph's readers of it in a run without a bag.
 READERS = {
-    topics.BEARING_MEASUREMENTS: ("tracker", "evaluator"),
+    topics.SCANS: ("tracker", "evaluator"),
     topics.PLATFORM_STATES: ("tracker", "planner", "evaluator"),
-    topics.TRACK: ("sim", "planner", "evaluator"),
-    topics.MANOEUVRE_COMMANDS: ("sim",),
+    topics.TRACKS: ("sim", "planner", "evaluator"),
+    topics.MANOEUVRE_COMMANDS: ("sim", "evaluator"),
 }
 TYPE_OF = {
-    topics.BEARING_MEASUREMENTS: "BearingMeasurement",
+    topics.SCANS: "Scan",
     topics.PLATFORM_STATES: "PlatformState",
-    topics.TRACK: "TrackEstimate",
+    topics.TRACKS: "TrackArray",
     topics.MANOEUVRE_COMMANDS: "ManoeuvreCommand",
 }
 
 
 def test_a_flood_from_another_process_is_counted_and_changes_nothing(tmp_path, localhost_discovery):
-    clean = run_graph(SCENARIO, run_dir=tmp_path / "clean", record=False, plots=False)
+    # A three-step decision takes seconds on a busy machine, more under the flood (dropping
+    # each message costs every reader time): the sim waits for each command, however late,
+    # rather than hold course after its default 5 s and change the run.
+    patient = {"command_timeout": 120.0}
+    clean = run_graph(
+        SCENARIO, run_dir=tmp_path / "clean", record=False, plots=False, sim_params=patient
+    )
     env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
     readers = [f"{t}={len(r)}" for t, r in READERS.items()]
     command = [sys.executable, str(ADVERSARY), "--rate", "2000"]
@@ -46,7 +52,9 @@ def test_a_flood_from_another_process_is_counted_and_changes_nothing(tmp_path, l
         text=True,
     )
     try:
-        result = run_graph(SCENARIO, run_dir=tmp_path / "flooded", record=False, plots=False)
+        result = run_graph(
+            SCENARIO, run_dir=tmp_path / "flooded", record=False, plots=False, sim_params=patient
+        )
         sent = json.loads(flooder.communicate(timeout=60)[0].strip().splitlines()[-1])
     finally:
         flooder.kill()
@@ -60,6 +68,4 @@ def test_a_flood_from_another_process_is_counted_and_changes_nothing(tmp_path, l
             assert counts.get(f"dropped.{name}", 0) == 0  # nothing lost at all: flow control
     for counts in result.diagnostics.values():
         assert not [k for k in counts if k.startswith("errors.")]
-    a, b = result.summary.records[0], clean.summary.records[0]
-    for field in ("truth", "platform_paths", "estimate", "estimate_cov"):
-        np.testing.assert_array_equal(getattr(a, field), getattr(b, field), err_msg=field)
+    assert_same_run(result.summary.records[0], clean.summary.records[0])

@@ -7,7 +7,7 @@ from rclpy.parameter import Parameter
 
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph as topics
-from msgs_defs.msg import GroundTruth, PlatformState
+from msgs_defs.msg import GroundTruthArray, PlatformState
 from sim_node.sim_node import SimNode
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
@@ -32,7 +32,7 @@ def _late_joiner(graph, scenario: str):
     late = graph.add(Node("late_joiner", context=graph.context))
     got = {"truth": [], "states": []}
     late.create_subscription(
-        GroundTruth, topics.GROUND_TRUTH, got["truth"].append,
+        GroundTruthArray, topics.GROUND_TRUTH, got["truth"].append,
         topics.reader_qos(topics.GROUND_TRUTH),
     )  # fmt: skip
     late.create_subscription(
@@ -94,5 +94,5 @@ def test_every_per_epoch_writer_is_sized_to_the_run(graph, tmp_path):
         for cls in (SimNode, TrackerNode, PlannerNode)
     ]
     sim, tracker, planner = nodes
-    writers = [evaluator.metrics_pub, sim.platform_pub, tracker.track_pub, planner.report_pub]
+    writers = [evaluator.metrics_pub, sim.platform_pub, tracker.tracks_pub, planner.report_pub]
     assert [w.publisher.qos_profile.depth for w in writers] == [want] * 4

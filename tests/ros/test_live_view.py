@@ -21,6 +21,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from mcap_ros2.decoder import DecoderFactory
+from parity import assert_same_run
 from websockets.sync.client import connect
 
 from activetrack_bringup import live_view
@@ -36,8 +37,8 @@ SCENARIO = "tests/ros/data/short_two_sensors.yaml"  # 8 epochs of 5 s, 2 platfor
 SUBPROTOCOL = "foxglove.sdk.v1"  # what foxglove-sdk 0.30 accepts
 METRICS = "/" + topics.METRICS
 MARKERS = "/" + topics.MARKERS
-TRACK = "/" + topics.TRACK
-WANTED = (METRICS, MARKERS, TRACK, "/" + topics.CLOCK)
+TRACKS = "/" + topics.TRACKS
+WANTED = (METRICS, MARKERS, TRACKS, "/" + topics.CLOCK)
 pytestmark = pytest.mark.ros
 
 
@@ -151,22 +152,29 @@ def test_plot_channel_carries_the_summary_numbers(viewed):
     record = s.records[0]
     metrics = [m for _, m in viewed.client.decoded(METRICS)]
     assert [m.epoch for m in metrics] == list(range(1, s.steps + 1))
-    got = {f: [getattr(m, f) for m in metrics] for f in ("rmse_x", "rmse_y", "bound_x", "bound_y")}
-    np.testing.assert_allclose(got["rmse_x"], s.rmse_x_t, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(got["rmse_y"], s.rmse_y_t, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(got["bound_x"], s.bound_x_t, rtol=1e-12, atol=1e-9)
-    np.testing.assert_allclose(got["bound_y"], s.bound_y_t, rtol=1e-12, atol=1e-9)
+    assert all(list(m.target_ids) == ["t1"] for m in metrics)
+    fields = ("error_x", "error_y", "bound_x", "bound_y")
+    got = {f: [getattr(m, f)[0] for m in metrics] for f in fields}
+    np.testing.assert_allclose(got["error_x"], s.rmse_x_t[0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got["error_y"], s.rmse_y_t[0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got["bound_x"], s.bound_x_t[0], rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(got["bound_y"], s.bound_y_t[0], rtol=1e-12, atol=1e-9)
     last = metrics[-1]
     assert last.steps == s.steps
-    assert last.mean_rmse_x == pytest.approx(s.rmse_x, abs=1e-9)
-    assert last.mean_rmse_y == pytest.approx(s.rmse_y, abs=1e-9)
-    assert last.mean_bound_x == pytest.approx(s.mean_bound_x, abs=1e-9)
-    assert last.mean_bound_y == pytest.approx(s.mean_bound_y, abs=1e-9)
+    assert last.time_avg_rmse_x[0] == pytest.approx(s.time_avg_rmse_x[0], abs=1e-9)
+    assert last.time_avg_rmse_y[0] == pytest.approx(s.time_avg_rmse_y[0], abs=1e-9)
+    assert last.time_avg_bound_x[0] == pytest.approx(s.time_avg_bound_x[0], abs=1e-9)
+    assert last.time_avg_bound_y[0] == pytest.approx(s.time_avg_bound_y[0], abs=1e-9)
+    assert last.mean_gospa == pytest.approx(s.mean_gospa, abs=1e-9)
+    np.testing.assert_allclose([m.gospa for m in metrics], s.gospa_t, rtol=0, atol=1e-9)
     for m in metrics:  # truth and estimate as the evaluator holds them
-        truth, est = record.truth[m.epoch], s.estimate_pv[0, m.epoch - 1]
-        assert (m.truth_position.x, m.truth_position.y) == (truth[0], truth[2])
-        assert m.estimate_position.x == pytest.approx(est[0], abs=1e-9)
-        assert m.position_error == pytest.approx(np.hypot(*(est - truth)[[0, 2]]), abs=1e-9)
+        truth = record.truth[m.epoch, 0]
+        (track,) = record.tracks[m.epoch].tracks
+        est = np.asarray(track.mean)
+        (tp,), (ep,) = m.truth_positions, m.estimate_positions
+        assert (tp.x, tp.y) == (truth[0], truth[2])
+        assert ep.x == pytest.approx(est[0], abs=1e-9)
+        assert m.position_error[0] == pytest.approx(np.hypot(*(est - truth)[[0, 2]]), abs=1e-9)
         assert sorted(m.measured_sensor_ids) == ["s1", "s2"]
 
 
@@ -177,8 +185,9 @@ def test_scene_channel_shows_truth_ellipse_and_planned_legs(viewed):
     truth = [mk for mk in markers if mk.ns == "truth"]
     K = viewed.result.summary.steps
     assert len(truth) == K
-    assert (truth[-1].pose.position.x, truth[-1].pose.position.y) == tuple(record.truth[K][[0, 2]])
-    assert any(mk.ns == "track" and len(mk.points) > 10 for mk in markers)  # 2-sigma ellipse
+    end = tuple(record.truth[K, 0][[0, 2]])
+    assert (truth[-1].pose.position.x, truth[-1].pose.position.y) == end
+    assert any(mk.ns == "tracks" and len(mk.points) > 10 for mk in markers)  # 2-sigma ellipse
     legs = [mk for mk in markers if mk.ns == "next_leg"]
     assert len(legs) == 2 * K  # one per platform and decision
     epochs = [(mk.header.stamp.sec, mk.id) for mk in legs]
@@ -197,25 +206,25 @@ def test_log_time_is_sim_time_and_bytes_are_the_bags(viewed):
     stamps = [t for t, _ in c.messages[METRICS]]
     assert stamps == sorted(stamps) and stamps[-1] == end_ns
     with open_bag(result.bag) as bag:
-        recorded = [data for _, _, data in bag.messages([TRACK])]
-    assert sorted(p for _, p in c.messages[TRACK]) == sorted(bytes(d) for d in recorded)
+        recorded = [data for _, _, data in bag.messages([TRACKS])]
+    assert sorted(p for _, p in c.messages[TRACKS]) == sorted(bytes(d) for d in recorded)
     assert not [k for k in viewed.node.counters.counts if k.startswith("foreign.")]
 
 
 def test_result_is_identical_with_the_view_on(viewed, tmp_path):
     plain = run_graph(SCENARIO, run_dir=tmp_path, record=False, plots=False)
     a, b = viewed.result.summary, plain.summary
-    for field in ("truth", "estimate", "estimate_cov", "platform_paths", "measured"):
-        np.testing.assert_array_equal(
-            getattr(a.records[0], field), getattr(b.records[0], field), err_msg=field
-        )
-    for field in ("rmse_x_t", "rmse_y_t", "bound_x_t", "bound_y_t"):
+    assert_same_run(a.records[0], b.records[0])
+    for field in ("rmse_x_t", "rmse_y_t", "bound_x_t", "bound_y_t", "gospa_t"):
         assert getattr(a, field) == getattr(b, field), field
 
 
 def _summary_numbers(path: Path) -> dict:
     d = json.loads(path.read_text())
-    keys = ("rmse_x", "rmse_y", "mean_bound_x", "mean_bound_y", "rmse_x_t", "bound_y_t")
+    keys = (
+        "time_avg_rmse_x", "time_avg_rmse_y", "time_avg_bound_x", "time_avg_bound_y",
+        "rmse_x_t", "bound_y_t", "mean_gospa",
+    )  # fmt: skip
     return {k: d[k] for k in keys} | {"complete": d["complete"]}
 
 
@@ -364,15 +373,16 @@ def test_layout_shows_graph_topics_and_existing_fields_only():
     for path in named:
         topic, _, field = path.partition(".")
         assert topic in types, f"the layout names {topic}, not a graph topic"
-        if field:
-            assert field.split(".")[0] in types[topic].get_fields_and_field_types(), path
+        if field:  # a field, or an item of an array field (position_error[0])
+            name = field.split(".")[0].split("[")[0]
+            assert name in types[topic].get_fields_and_field_types(), path
     assert {METRICS, MARKERS, "/" + topics.SENSOR_SELECTION} <= {p.partition(".")[0] for p in named}
     panels = {}
     for s in _walk_panels(layout["content"]):
         panels.setdefault(s["panelType"], []).append(s["config"])
     assert panels["ThreeDee"][0]["fixedFrame"] == topics.FIXED_FRAME
     plotted = {p["value"] for c in panels["Plot"] for p in c["paths"]}
-    assert {f"{METRICS}.position_error", f"{METRICS}.position_bound"} <= plotted
+    assert {f"{METRICS}.position_error[0]", f"{METRICS}.position_bound[0]"} <= plotted
 
 
 def _walk_panels(node):

@@ -8,31 +8,57 @@ from message_examples import MESSAGE_TYPES, example_messages
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 
+from msgs_defs.msg import TrackItem
+
 EXAMPLES = example_messages()
 
 
+def _message_list(value) -> bool:
+    return isinstance(value, list) and bool(value) and hasattr(value[0], "__slots__")
+
+
 def _flatten(msg, prefix=""):
-    """Yield (field path, leaf value) for every field of a message, recursively."""
+    """Yield (field path, leaf value) for every field of a message, recursively: into nested
+    messages, and into sequences of messages item by item (the sequence itself yields its
+    length)."""
     for name in msg.get_fields_and_field_types():
         value = getattr(msg, name)
         if hasattr(value, "get_fields_and_field_types"):
             yield from _flatten(value, f"{prefix}{name}.")
+        elif _message_list(value):
+            yield f"{prefix}{name}", len(value)
+            for i, item in enumerate(value):
+                yield from _flatten(item, f"{prefix}{name}.{i}.")
         else:
             yield f"{prefix}{name}", value
+
+
+def _default(msg, path: str):
+    """The field at ``path`` in a fresh instance of its owner's type (a sequence of messages:
+    its length, 0)."""
+    *parents, leaf = path.split(".")
+    owner = msg
+    for p in parents:
+        owner = owner[int(p)] if p.isdigit() else getattr(owner, p)
+    if _message_list(getattr(owner, leaf)):
+        return 0
+    return getattr(type(owner)(), leaf)
 
 
 def test_examples_cover_every_type_with_non_default_fields():
     assert [type(m) for m in EXAMPLES] == list(MESSAGE_TYPES)
     for msg in EXAMPLES:
-        defaults = dict(_flatten(type(msg)()))
         for path, value in _flatten(msg):
             # A field left at its default could be dropped in transport unnoticed.
-            same = (
-                np.array_equal(value, defaults[path])
-                if path.endswith("graph_auth")
-                else (value == defaults[path])
-            )
+            default = _default(msg, path)
+            if isinstance(value, np.ndarray):
+                same = np.array_equal(value, default)
+            else:
+                same = value == default
             assert not same, f"{type(msg).__name__}.{path} is left at its default"
+    # The track array's item is an example too: every field of TrackItem is filled.
+    items = [path for m in EXAMPLES for path, _ in _flatten(m) if path.startswith("tracks.0.")]
+    assert len(items) == len(TrackItem.get_fields_and_field_types())
 
 
 @pytest.mark.parametrize("msg", EXAMPLES, ids=lambda m: type(m).__name__)

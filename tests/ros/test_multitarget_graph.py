@@ -1,8 +1,8 @@
-"""The multi-target graph (multi_sim_node, multi_tracker_node, multi_planner_node and the
-multi-target evaluator) against the batch loop: `activetrack run` equals `run_multi_once` bit
-for bit on each of the issue's scenarios, in one process and as node processes; the bag holds
-the run and replays into a fresh tracker to the same tracks; bad scans are rejected, counted
-and logged while the tracker keeps running."""
+"""The graph (sim_node, tracker_node, planner_node and the runner's evaluator) on the
+multi-target scenarios against the batch loop: `activetrack run` equals `run_once` bit for bit
+on each of them, in one process and as node processes; the bag holds the run and replays into a
+fresh tracker to the same tracks; bad scans are rejected, counted and logged while the tracker
+keeps running."""
 
 from __future__ import annotations
 
@@ -12,25 +12,25 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from parity import assert_same_run, same_tracks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from recorded import read_topic
 
-from activetrack.closed_loop.batch import component_rngs
-from activetrack.multitarget.evaluation import evaluate_run
-from activetrack.multitarget.loop import run_multi_batch, run_multi_once
-from activetrack.multitarget.simulator import MultiTargetSimulator
+from activetrack.closed_loop.batch import run_batch, summarize
+from activetrack.closed_loop.components import build_simulator, component_rngs
+from activetrack.closed_loop.evaluation import evaluate_run
+from activetrack.closed_loop.loop import run_once
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.cli import main as cli_main
-from activetrack_bringup.retrack import read_topic
-from activetrack_bringup.retrack_multi import retrack_multi
-from activetrack_bringup.runner import GraphSetupError, run_graph
+from activetrack_bringup.retrack import retrack
+from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
-from activetrack_ros.convert_multi import scan_msg, track_array_from_msg
+from activetrack_ros.convert import platform_state_msg, scan_msg, track_array_from_msg
 from activetrack_ros.graph import reader_qos, writer_qos
 from msgs_defs.msg import PlatformState, TrackArray
 from msgs_defs.msg import Scan as ScanMsg
-from sim_node.sim_node import platform_state_msgs
-from tracker_node.multi_tracker_node import MultiTrackerNode
+from tracker_node.tracker_node import TrackerNode
 
 pytestmark = pytest.mark.ros
 ROOT = Path(__file__).resolve().parents[2]
@@ -56,32 +56,17 @@ SHORT = {  # name: (steps, scale of births and deaths); (c) keeps a birth and a 
 }
 
 
-def _same_tracks(a, b) -> bool:
-    return len(a.tracks) == len(b.tracks) and all(
-        x.track_id == y.track_id
-        and x.status == y.status
-        and np.array_equal(x.mean, y.mean)
-        and np.array_equal(x.cov, y.cov)
-        for x, y in zip(a.tracks, b.tracks, strict=True)
-    )
+# The summary's figures a graph run shares with the batch run, exactly.
+SUMMARY_FIGURES = (
+    "time_avg_rmse_x", "time_avg_rmse_y", "time_avg_bound_x", "time_avg_bound_y",
+    "rmse_x_t", "rmse_y_t", "bound_x_t", "bound_y_t", "held_fraction", "mean_gospa", "gospa_t",
+    "breaks", "swaps", "run_gospa",
+)  # fmt: skip
 
 
-def _assert_bit_for_bit(graph_record, batch_record) -> None:
-    a, b = graph_record, batch_record
-    assert np.array_equal(a.truth, b.truth, equal_nan=True)
-    assert np.array_equal(a.platform_paths, b.platform_paths)
-    assert np.array_equal(a.observed, b.observed)
-    assert len(a.tracks) == len(b.tracks)
-    assert all(_same_tracks(x, y) for x, y in zip(a.tracks, b.tracks, strict=True))
-    for x, y in zip(a.scans, b.scans, strict=True):
-        assert [s.sensor_id for s in x] == [s.sensor_id for s in y]
-        assert all(np.array_equal(s.Z, t.Z) for s, t in zip(x, y, strict=True))
-    assert [d.beams for d in a.decisions] == [d.beams for d in b.decisions]
-    assert [[c.heading_change for c in d.commands] for d in a.decisions] == [
-        [c.heading_change for c in d.commands] for d in b.decisions
-    ]
-    costs = [d.report.predicted_costs for d in a.decisions]
-    assert costs == [d.report.predicted_costs for d in b.decisions]
+def _assert_same_summary(a, b) -> None:
+    for name in SUMMARY_FIGURES:
+        assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True), name
 
 
 @pytest.mark.parametrize("name", sorted(SHORT))
@@ -90,27 +75,24 @@ def test_the_graph_equals_the_batch_loop_bit_for_bit(name, tmp_path):
     scenario = load_scenario(path)
     result = run_graph(path, run_dir=tmp_path / "run", plots=True, timeout=300)
     assert result.status == "complete", result.detail
-    _assert_bit_for_bit(result.summary.records[0], run_multi_once(scenario, None))
-    batch = run_multi_batch(scenario, runs=1)
-    assert result.summary.mean_gospa == batch.mean_gospa  # the same evaluator draws
-    assert result.summary.gospa_t == batch.gospa_t
-    assert result.summary.target_bound == batch.target_bound
+    batch = run_batch(scenario, runs=1)
+    assert_same_run(result.summary.records[0], batch.records[0])
+    _assert_same_summary(result.summary, batch)  # the same evaluator draws
     assert all(k.split(".")[0] not in ("rejected", "errors") for c in
                result.diagnostics.values() for k in c)  # fmt: skip
-    assert [f.name for f in result.files] == ["tracks.png", "gospa.png"]
+    assert [f.name for f in result.files] == ["trajectories.png", "rmse_vs_bound.png", "gospa.png"]
     assert all(f.stat().st_size > 10_000 for f in result.files)
     # The bag holds the run: a track array per epoch, equal to the batch run's tracks.
     recorded = read_topic(result.bag, topics.TRACKS, TrackArray)
     assert [m.epoch for m in recorded] == list(range(scenario.steps + 1))
-    batch_tracks = run_multi_once(scenario, None).tracks
-    for msg, tracks in zip(recorded, batch_tracks, strict=True):
-        assert _same_tracks(track_array_from_msg(msg, scenario), tracks)
+    for msg, tracks in zip(recorded, batch.records[0].tracks, strict=True):
+        assert same_tracks(track_array_from_msg(msg, scenario), tracks)
     scans = read_topic(result.bag, topics.SCANS, ScanMsg)
     assert len(scans) == sum(len(s) for s in result.summary.records[0].scans) > 0
     # ... and replays: its scans into a fresh tracker give the same tracks and GOSPA.
-    replay = retrack_multi(result.bag, str(path))
+    replay = retrack(result.bag, str(path))
     assert replay.epochs == scenario.steps and replay.identical
-    assert replay.max_mean_difference == 0.0
+    assert replay.max_state_difference == 0.0 and replay.max_covariance_difference == 0.0
     assert replay.recorded_gospa == replay.replayed_gospa
     assert replay.recorded_gospa == pytest.approx(batch.mean_gospa, rel=1e-12)
 
@@ -131,26 +113,41 @@ def test_node_processes_equal_the_batch_loop_and_the_cli_prints_gospa(
     code = cli_main(["run", str(path), "--processes", "--out", str(tmp_path / "run")])
     out = capsys.readouterr().out
     assert code == 0, out
-    batch = run_multi_batch(load_scenario(path), runs=1)
+    batch = run_batch(load_scenario(path), runs=1)
     line = next(x for x in out.splitlines() if x.strip().startswith("GOSPA"))
     assert float(line.split()[1]) == pytest.approx(batch.mean_gospa, abs=0.006)
     assert "decisions  8" in out and "(processes)" in out
 
 
-def test_a_multitarget_run_is_lockstep_only(tmp_path):
+def test_a_multitarget_run_also_runs_in_free_mode(tmp_path):
+    """Free mode (sim time at 20x wall time): beams, commands and scans apply as they arrive;
+    the run completes with a track array per epoch, finite GOSPA and nothing refused."""
     path = _short(tmp_path, "mt_bearings_crossing", 4)
-    with pytest.raises(GraphSetupError, match="lockstep"):
-        run_graph(path, run_dir=tmp_path / "run", mode="free")
+    result = run_graph(
+        path, run_dir=tmp_path / "run", plots=False, mode="free", sim_params={"rate": 20.0}
+    )
+    assert result.status == "complete", result.detail
+    record = result.summary.records[0]
+    assert [t.epoch for t in record.tracks] == list(range(5))
+    assert math.isfinite(result.summary.mean_gospa)
+    assert all(len(d.beams) == 2 for d in record.decisions)  # both beams steered each epoch
+    for node, counts in result.diagnostics.items():
+        assert not [k for k in counts if k.startswith(("rejected.", "errors."))], node
 
 
 # --- bad scans at the tracker node ------------------------------------------------------------
+
+
+def _state_msgs(sim, scan_count: int) -> list[PlatformState]:
+    """The platform states the sim node publishes at its current epoch."""
+    return [platform_state_msg(s, scan_count, "world") for s in sim.platform_snapshots()]
 
 
 def test_bad_scans_are_rejected_counted_and_the_tracker_keeps_running(graph, tmp_path):
     path = _short(tmp_path, "mt_radars_beams", 6)
     scenario = load_scenario(path)
     params = [Parameter("scenario", value=str(path)), Parameter("mode", value="lockstep")]
-    tracker = graph.add(MultiTrackerNode(context=graph.context, parameter_overrides=params))
+    tracker = graph.add(TrackerNode(context=graph.context, parameter_overrides=params))
     received: list[TrackArray] = []
     probe = graph.add(Node("probe", context=graph.context))  # a writer without the graph's key
     probe.create_subscription(TrackArray, topics.TRACKS, received.append, reader_qos(topics.TRACKS))
@@ -158,9 +155,9 @@ def test_bad_scans_are_rejected_counted_and_the_tracker_keeps_running(graph, tmp
         t: probe.create_publisher(cls, t, writer_qos(t))
         for t, cls in ((topics.SCANS, ScanMsg), (topics.PLATFORM_STATES, PlatformState))
     }
-    sim = MultiTargetSimulator(scenario, component_rngs(scenario.seed, None)[0])
+    sim = build_simulator(scenario, component_rngs(scenario.seed, None)[0])
     scans = sim.advance()  # epoch 1, as the sim node publishes it
-    states = platform_state_msgs(sim, len(scans), "world")
+    states = _state_msgs(sim, len(scans))
 
     def scan(**change) -> ScanMsg:
         msg = scan_msg(scans[0], scenario, len(scans))
@@ -189,7 +186,7 @@ def test_bad_scans_are_rejected_counted_and_the_tracker_keeps_running(graph, tmp
     for k in (1, 2, 3):
         if k > 1:
             scans = sim.advance()
-            states = platform_state_msgs(sim, len(scans), "world")
+            states = _state_msgs(sim, len(scans))
         for one in scans:
             pubs[topics.SCANS].publish(scan_msg(one, scenario, len(scans)))
             detections += len(one.Z)
@@ -207,8 +204,8 @@ def test_a_monte_carlo_run_index_is_that_run_of_the_batch(tmp_path):
     path = _short(tmp_path, "mt_bearings_crossing", 5)
     scenario = load_scenario(path)
     result = run_graph(path, run_dir=tmp_path / "run", plots=False, run=2)
-    batch = run_multi_once(scenario, 2)
-    _assert_bit_for_bit(result.summary.records[0], batch)
+    batch = run_once(scenario, 2)
+    assert_same_run(result.summary.records[0], batch)
     want = evaluate_run(scenario, batch, component_rngs(scenario.seed, 2)[3])
     assert result.summary.run_gospa == [want.mean_gospa]
-    assert result.summary.target_bound == [float(b) for b in want.target_bound]
+    _assert_same_summary(result.summary, summarize(scenario, [batch], [want]))

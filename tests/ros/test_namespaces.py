@@ -9,17 +9,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from parity import same_tracks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from recorded import read_topic
 
-from activetrack.closed_loop.batch import run_once
+from activetrack.closed_loop.loop import run_once
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.bag import bag_info
 from activetrack_bringup.inprocess import InProcessGraph
-from activetrack_bringup.retrack import read_topic
 from activetrack_bringup.runner import GraphSetupError, run_graph
 from activetrack_ros import graph as topics
-from msgs_defs.msg import TrackEstimate
+from activetrack_ros.convert import track_array_from_msg
+from msgs_defs.msg import TrackArray
 from tracker_node.tracker_node import TrackerNode
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
@@ -50,15 +52,16 @@ def test_two_graphs_share_a_domain_under_two_namespaces(tmp_path, localhost_disc
         assert sum(summary["foreign_messages_dropped"].values()) == 0
         bag = tmp_path / f"run{run}" / "bag"
         names = set(bag_info(bag)["topics"])
-        assert f"/{ns}/{topics.TRACK}" in names and f"/{ns}/{topics.TF}" in names
+        assert f"/{ns}/{topics.TRACKS}" in names and f"/{ns}/{topics.TF}" in names
         assert all(n.startswith(f"/{ns}/") for n in names)
         ref = run_once(scenario, run)
-        tracks = sorted(read_topic(bag, topics.TRACK, TrackEstimate), key=lambda m: m.epoch)
-        assert [t.epoch for t in tracks] == list(range(scenario.steps + 1))
-        np.testing.assert_allclose([t.state for t in tracks], ref.estimate, rtol=0, atol=1e-9)
+        arrays = sorted(read_topic(bag, topics.TRACKS, TrackArray), key=lambda m: m.epoch)
+        assert [t.epoch for t in arrays] == list(range(scenario.steps + 1))
+        tracks = [track_array_from_msg(m, scenario) for m in arrays]
+        assert all(same_tracks(a, b) for a, b in zip(tracks, ref.tracks, strict=True))
     # Different seeds: the two runs differ (so each matched its own reference, not the other's).
-    a, b = (read_topic(tmp_path / f"run{r}" / "bag", topics.TRACK, TrackEstimate) for r in (0, 1))
-    assert not np.allclose(a[-1].state, b[-1].state)
+    a, b = (read_topic(tmp_path / f"run{r}" / "bag", topics.TRACKS, TrackArray) for r in (0, 1))
+    assert not np.allclose(a[-1].tracks[0].state, b[-1].tracks[0].state)
 
 
 def test_a_bad_namespace_fails_before_anything_starts(tmp_path):
@@ -68,9 +71,9 @@ def test_a_bad_namespace_fails_before_anything_starts(tmp_path):
 
 
 def test_topic_names_remap_with_ros_args():
-    """`--ros-args -r activetrack/track:=/fleet/track -r __ns:=/g7`: the tracker publishes
-    its track on the remapped name and everything else under the namespace."""
-    args = ["--ros-args", "-r", "activetrack/track:=/fleet/track", "-r", "__ns:=/g7"]
+    """`--ros-args -r activetrack/tracks:=/fleet/tracks -r __ns:=/g7`: the tracker publishes
+    its track arrays on the remapped name and everything else under the namespace."""
+    args = ["--ros-args", "-r", "activetrack/tracks:=/fleet/tracks", "-r", "__ns:=/g7"]
     with InProcessGraph(args=args) as g:
         tracker = g.add(
             TrackerNode(
@@ -82,8 +85,8 @@ def test_topic_names_remap_with_ros_args():
         def published() -> set:
             return {n for n, _ in probe.get_topic_names_and_types()}
 
-        assert g.spin_until(lambda: "/fleet/track" in published(), timeout=5.0)
+        assert g.spin_until(lambda: "/fleet/tracks" in published(), timeout=5.0)
         names = published()
         assert "/g7/activetrack/track_pose" in names and "/g7/tf" in names
-        assert "/g7/activetrack/track" not in names and "/activetrack/track" not in names
+        assert "/g7/activetrack/tracks" not in names and "/activetrack/tracks" not in names
         assert tracker.get_namespace() == "/g7"

@@ -2,6 +2,7 @@
 misconfigured node) is stopped field by field, and no input whatsoever makes a callback raise.
 """
 
+import math
 import random
 import time
 
@@ -15,17 +16,17 @@ from strategies import message
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.runner import run_graph
+from activetrack_ros.convert import header
 from activetrack_ros.trust import GraphKey
 from msgs_defs.msg import (
-    BearingMeasurement,
-    GroundTruth,
+    BeamCommand,
+    GroundTruthArray,
     ManoeuvreCommand,
-    Measurement,
     PlanReport,
     PlatformState,
-    PolarMeasurement,
+    Scan,
     SensorSelection,
-    TrackEstimate,
+    TrackArray,
 )
 from planner_node.planner_node import PlannerNode
 from sim_node.sim_node import SimNode
@@ -38,49 +39,65 @@ pytestmark = pytest.mark.ros
 # the counter that must rise by one per message ("rejected." implied unless another prefix is
 # given), or "-": the reader accepts it (valid for what that reader needs).
 VERDICT_TABLE = """
-bearing_nan                tracker=non_finite evaluator=-
-bearing_inf_position       tracker=non_finite evaluator=-
-bearing_1e300              tracker=out_of_range evaluator=-
-bearing_unknown_sensor     tracker=unknown_sensor evaluator=bad_field
-bearing_wrong_platform     tracker=inconsistent evaluator=-
-bearing_negative_stamp     tracker=bad_stamp evaluator=-
-bearing_bad_nanosec        tracker=bad_stamp evaluator=-
-bearing_stamp_mismatch     tracker=bad_stamp evaluator=-
-bearing_far_future         tracker=future_epoch evaluator=bad_field
-bearing_epoch_zero         tracker=out_of_order evaluator=bad_field
-bearing_old_epoch          tracker=out_of_order evaluator=-
-bearing_wrong_sigma        tracker=sensor_mismatch evaluator=-
-bearing_ambiguous_flag     tracker=wrong_sensor_kind evaluator=-
-bearing_huge_string        tracker=unknown_sensor evaluator=bad_field
-polar_for_bearing_sensor   tracker=wrong_sensor_kind evaluator=-
-polar_nan_covariance       tracker=wrong_sensor_kind evaluator=-
-measurement_for_bearing_sensor tracker=wrong_sensor_kind evaluator=-
-measurement_nan_z          tracker=wrong_sensor_kind evaluator=-
+scan_nan                   tracker,evaluator=non_finite
+scan_inf_position          tracker,evaluator=non_finite
+scan_1e300                 tracker,evaluator=out_of_range
+scan_bearing_4_rad         tracker,evaluator=out_of_range
+scan_unknown_sensor        tracker,evaluator=unknown_sensor
+scan_wrong_platform        tracker,evaluator=inconsistent
+scan_negative_stamp        tracker,evaluator=bad_stamp
+scan_bad_nanosec           tracker,evaluator=bad_stamp
+scan_stamp_mismatch        tracker,evaluator=bad_stamp
+scan_far_future            tracker,evaluator=future_epoch
+scan_epoch_zero            tracker,evaluator=out_of_order
+scan_old_epoch             tracker=out_of_order evaluator=-
+scan_wrong_sigma           tracker,evaluator=sensor_mismatch
+scan_nan_covariance        tracker,evaluator=non_finite
+scan_wrong_kind            tracker,evaluator=wrong_sensor_kind
+scan_polar_for_bearing_sensor tracker,evaluator=wrong_sensor_kind
+scan_wrong_dim             tracker,evaluator=wrong_dimension
+scan_too_many_detections   tracker,evaluator=wrong_dimension
+scan_fov_not_the_sensors   tracker,evaluator=sensor_mismatch
+scan_fov_nan               tracker,evaluator=out_of_range
+scan_clutter_density       tracker,evaluator=sensor_mismatch
+scan_count_exceeds_sensors tracker,evaluator=out_of_range
+scan_huge_string           tracker,evaluator=unknown_sensor
 state_unknown_platform     tracker,planner,evaluator=unknown_platform
 state_nan_position         tracker,planner,evaluator=non_finite
 state_1e300_velocity       tracker,planner,evaluator=out_of_range
 state_negative_stamp       tracker,planner,evaluator=bad_stamp
 state_far_future           tracker,planner,evaluator=future_epoch
+state_other_sensors        tracker,planner,evaluator=sensor_mismatch
+state_announces_more_than_sensors tracker,planner,evaluator=out_of_range
 track_wrong_dimension      planner,evaluator=wrong_dimension sim=future_epoch
 track_not_pd               planner,evaluator=bad_covariance sim=future_epoch
 track_nan_state            planner,evaluator=non_finite sim=future_epoch
 track_1e300_state          planner,evaluator=out_of_range sim=future_epoch
 track_sample_mismatch      planner,evaluator=wrong_dimension sim=future_epoch
 track_huge_sample_claim    planner,evaluator=wrong_dimension sim=future_epoch
+track_bad_status           planner,evaluator=bad_field sim=future_epoch
+track_unknown_origin       planner,evaluator=bad_field sim=future_epoch
+track_duplicate_id         planner,evaluator=bad_field sim=future_epoch
+track_more_unassociated    planner,evaluator=out_of_range sim=future_epoch
 track_negative_stamp       planner,evaluator,sim=bad_stamp
 track_future_epoch         planner,evaluator,sim=future_epoch
 track_bad_filter_kind      planner,evaluator=bad_field sim=future_epoch
-command_unknown_platform   sim=unknown_platform
-command_nan                sim=non_finite
-command_1e300_heading      sim=out_of_range
-command_1e300_speed        sim=out_of_range
-command_stale_epoch        sim=stale_epoch
-command_future_epoch       sim=future_epoch
-command_negative_stamp     sim=bad_stamp
-selection_unknown_sensor   sim=unexpected_selection
+command_unknown_platform   sim=unknown_platform evaluator=bad_field
+command_nan                sim,evaluator=non_finite
+command_1e300_heading      sim,evaluator=out_of_range
+command_1e300_speed        sim,evaluator=out_of_range
+command_stale_epoch        sim=stale_epoch evaluator=-
+command_future_epoch       sim=future_epoch evaluator=bad_field
+command_negative_stamp     sim,evaluator=bad_stamp
+beam_unknown_sensor        sim,evaluator=unknown_sensor
+beam_not_steerable         sim,evaluator=unknown_sensor
+beam_nan_bearing           sim,evaluator=unknown_sensor
+selection_unknown_sensor   sim=unexpected_selection evaluator=unknown_sensor
 report_nan_costs           evaluator=non_finite
 report_length_mismatch     evaluator=wrong_dimension
 truth_nan                  evaluator=non_finite
+truth_unknown_target       evaluator=bad_field
+truth_missing_state        evaluator=wrong_dimension
 diagnostics_temperature    evaluator=ignored.other_diagnostics
 diagnostics_many_statuses  evaluator=ignored.other_diagnostics
 """
@@ -95,18 +112,15 @@ VERDICTS = {
 
 CALLBACKS = {  # node -> message type -> method name
     "sim": {
-        ManoeuvreCommand: "on_command", SensorSelection: "on_selection", TrackEstimate: "on_track"
+        ManoeuvreCommand: "on_command", BeamCommand: "on_beam", SensorSelection: "on_selection",
+        TrackArray: "on_tracks",
     },
-    "tracker": {
-        BearingMeasurement: "on_bearing", PolarMeasurement: "on_polar",
-        Measurement: "on_measurement", PlatformState: "on_platform",
-    },
-    "planner": {TrackEstimate: "on_track", PlatformState: "on_platform"},
+    "tracker": {Scan: "on_scan", PlatformState: "on_platform"},
+    "planner": {TrackArray: "on_tracks", PlatformState: "on_platform"},
     "evaluator": {
-        GroundTruth: "on_truth", TrackEstimate: "on_track", PlatformState: "on_platform",
-        PlanReport: "on_report", BearingMeasurement: "on_measurement",
-        PolarMeasurement: "on_measurement", Measurement: "on_measurement",
-        D: "on_diagnostics",
+        GroundTruthArray: "on_truth", TrackArray: "on_tracks", PlatformState: "on_platform",
+        Scan: "on_scan", ManoeuvreCommand: "on_command", BeamCommand: "on_beam",
+        SensorSelection: "on_selection", PlanReport: "on_report", D: "on_diagnostics",
     },
 }  # fmt: skip
 
@@ -184,21 +198,43 @@ def test_an_insider_with_bad_data_is_rejected_for_the_right_reason(name, genuine
         assert nodes["evaluator"].faults
 
 
+def test_the_evaluator_takes_a_command_to_hold_course(nodes, genuine):
+    """A planner that is off commands no change and gives no resulting heading or speed (NaN:
+    not given): the evaluator takes it as the graph's own valid result, no fault."""
+    evaluator = nodes["evaluator"]
+    for raw in genuine.seen[PlatformState]:
+        state = deserialize_message(raw, PlatformState)
+        if state.epoch == 0:
+            evaluator.guarded(evaluator._result_input, evaluator.on_platform, state)
+    hold = ManoeuvreCommand(
+        header=header(0.0), platform_id="p1", epoch=0, heading_change=0.0, speed_change=0.0,
+        commanded_heading=math.nan, commanded_speed=math.nan,
+    )  # fmt: skip
+    before = dict(evaluator.counters.counts)
+    evaluator.guarded(evaluator._result_input, evaluator.on_command, hold)
+    assert evaluator.counters.counts == before and not evaluator.faults
+    assert evaluator.commands[0]["p1"].heading_change == 0.0
+    bad = ManoeuvreCommand(
+        header=header(0.0), platform_id="p2", epoch=0, commanded_heading=math.inf
+    )
+    evaluator.guarded(evaluator._result_input, evaluator.on_command, bad)
+    assert evaluator.counters.counts["rejected.non_finite"] == 1 and evaluator.faults
+
+
 def test_an_incomplete_epoch_is_closed_after_the_timeout(graph, genuine):
-    """Platform states announce three measurements, two arrive: the tracker waits
-    epoch_timeout, then updates with the two (counted) instead of stalling."""
+    """Platform states announce two scans, one arrives: the tracker waits epoch_timeout, then
+    updates with the one (counted) instead of stalling."""
     params = [Parameter("scenario", value=SCENARIO), Parameter("epoch_timeout", value=0.3)]
     tracker = graph.add(TrackerNode(context=graph.context, parameter_overrides=params))
     for raw in genuine.seen[PlatformState]:
         state = deserialize_message(raw, PlatformState)
         if state.epoch == 1:
-            state.epoch_measurement_count = 3
+            assert state.epoch_scan_count == 2
             tracker.guarded(tracker.on_platform, state)
-    for raw in genuine.seen[BearingMeasurement]:
-        bearing = deserialize_message(raw, BearingMeasurement)
-        if bearing.epoch == 1:
-            tracker.guarded(tracker.on_bearing, bearing)
-    assert tracker.last_epoch == 0 and len(tracker.epochs[1].measurements) == 2
+    scans = [deserialize_message(raw, Scan) for raw in genuine.seen[Scan]]
+    first = next(s for s in scans if s.epoch == 1)
+    tracker.guarded(tracker.on_scan, first)
+    assert tracker.last_epoch == 0 and len(tracker.epochs[1].scans) == 1
     start = time.monotonic()
     assert graph.spin_until(lambda: tracker.last_epoch == 1, timeout=5.0)
     assert 0.25 <= time.monotonic() - start < 2.0
@@ -207,7 +243,9 @@ def test_an_incomplete_epoch_is_closed_after_the_timeout(graph, genuine):
     assert not tracker.epochs
 
 
-RESULT_INPUTS = (GroundTruth, TrackEstimate, PlatformState, PlanReport)
+# The evaluator's inputs that are results of the graph (all but /diagnostics): one of the
+# graph's own that fails validation is a fault of the graph.
+RESULT_INPUTS = tuple(t for t in CALLBACKS["evaluator"] if t is not D)
 INPUTS = [(node, t) for node, table in CALLBACKS.items() for t in table]
 
 

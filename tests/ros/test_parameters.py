@@ -165,7 +165,7 @@ def test_params_file_sets_node_and_wildcard_parameters(tmp_path):
         g.add(Node("probe", context=g.context)).create_subscription(
             PoseWithCovarianceStamped, "activetrack/track_pose", seen.append, 10
         )
-        tracker.publish_track(tracker.core.snapshot())
+        tracker.publish_tracks(tracker.core.snapshot())
         assert g.spin_until(lambda: seen, timeout=5.0)
         assert seen[0].header.frame_id == "map"
 

@@ -8,14 +8,15 @@ run equals the batch loop bit for bit.
 import numpy as np
 import pytest
 import yaml
+from parity import assert_same_run
+from recorded import read_topic
 
 from activetrack.closed_loop.batch import run_batch
 from activetrack.scenarios import load_scenario
-from activetrack_bringup.retrack import read_topic
 from activetrack_bringup.runner import run_graph
 from activetrack_experiments.ramdaras import load_case, variant
 from activetrack_ros import graph as topics
-from msgs_defs.msg import BearingMeasurement, PolarMeasurement, SensorSelection
+from msgs_defs.msg import Scan, SensorSelection
 
 pytestmark = pytest.mark.ros
 STEPS = 15
@@ -39,11 +40,8 @@ def runs(request, tmp_path_factory):
 
 def test_graph_equals_the_batch_run(runs):
     _, graph, batch = runs
-    a, b = graph.summary.records[0], batch.records[0]
-    np.testing.assert_allclose(a.truth, b.truth, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(a.platform_paths, b.platform_paths, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(a.estimate, b.estimate, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(a.estimate_cov, b.estimate_cov, rtol=0, atol=1e-9)
+    assert_same_run(graph.summary.records[0], batch.records[0])
+    assert graph.summary.time_avg_rmse_x == batch.time_avg_rmse_x
 
 
 def test_selections_were_published_and_obeyed(runs):
@@ -59,15 +57,14 @@ def test_selections_were_published_and_obeyed(runs):
         [m.predicted_cost for m in sel], [d.selection_costs for d in decisions], rtol=0, atol=1e-9
     )
     # Only the selected sensor measured at each epoch.
-    measured = read_topic(graph.bag, topics.BEARING_MEASUREMENTS, BearingMeasurement)
-    measured += read_topic(graph.bag, topics.POLAR_MEASUREMENTS, PolarMeasurement)
+    measured = read_topic(graph.bag, topics.SCANS, Scan)
     by_epoch = {}
     for m in measured:
         by_epoch.setdefault(m.epoch, []).append(m.sensor_id)
     assert by_epoch == {m.epoch + 1: list(m.selected_sensor_ids) for m in sel}
     sim = graph.diagnostics["sim"]
     assert sim["received.SensorSelection"] == STEPS
-    assert sim["measurements_published"] == STEPS
+    assert sim["scans_published"] == STEPS
     assert not any(k.startswith("rejected.") for k in sim)
     assert "command_timeouts" not in sim
     if case == "case3_pd":  # moving platforms: three commands per epoch
@@ -76,10 +73,11 @@ def test_selections_were_published_and_obeyed(runs):
 
 def test_missed_detections_are_counted_by_sim_and_tracker(runs):
     _, graph, _ = runs
-    measured = read_topic(graph.bag, topics.BEARING_MEASUREMENTS, BearingMeasurement)
-    measured += read_topic(graph.bag, topics.POLAR_MEASUREMENTS, PolarMeasurement)
-    missed = sum(not m.detected for m in measured)
+    measured = read_topic(graph.bag, topics.SCANS, Scan)
+    missed = sum(len(m.detections) == 0 for m in measured)
     assert missed > 0
-    assert graph.diagnostics["sim"]["missed_detections"] == missed
-    assert graph.diagnostics["tracker"]["missed_detections"] == missed
+    assert graph.diagnostics["sim"]["empty_scans"] == missed
+    assert graph.diagnostics["tracker"]["empty_scans"] == missed
     assert graph.diagnostics["tracker"]["updates"] == STEPS
+    # The track counts each scan that covered it without a detection (one target: all).
+    assert graph.summary.records[0].missed_detections() == missed

@@ -98,7 +98,7 @@ def test_a_killed_planner_is_restarted_and_the_run_completes(tmp_path):
     assert "killed_at" in log and "noticed_at" in log, log
     assert log["noticed_at"] - log["killed_at"] < 1.0
     assert result.complete and result.restarts == {"planner_node": 1}
-    assert len(result.summary.records[0].estimate) == 9
+    assert len(result.summary.records[0].tracks) == 9
 
 
 def test_a_scenario_can_make_the_planner_essential(tmp_path):
@@ -155,7 +155,7 @@ def _start(tmp_path: Path, *extra: str):
     return proc, out, scenario.name
 
 
-def _on_disk(bag: Path, topic: str = "/activetrack/track") -> int:
+def _on_disk(bag: Path, topic: str = "/activetrack/tracks") -> int:
     """Messages of ``topic`` the recorder has flushed, from the metadata.yaml it keeps
     current."""
     try:
@@ -170,7 +170,7 @@ def _on_disk(bag: Path, topic: str = "/activetrack/track") -> int:
 
 
 def _wait_until_running(proc, out: Path, timeout: float = 60):
-    """Until the run is a few epochs in for the runner too: three tracks and three truths
+    """Until the run is a few epochs in for the runner too: three track arrays and three truths
     recorded and flushed (between processes the runner's participant may hear of the sim one
     discovery announcement, about 3 s, after the tracker does; until then it has no epoch)."""
     deadline = time.monotonic() + timeout
@@ -231,4 +231,4 @@ def test_a_killed_runner_leaves_no_node_behind_and_a_recoverable_bag(tmp_path):
         assert recover.returncode == 0, recover.stdout + recover.stderr
         info = _bag_info(out / "bag")
     assert info.returncode == 0, info.stdout + info.stderr
-    assert "/activetrack/track" in info.stdout
+    assert "/activetrack/tracks" in info.stdout

@@ -423,7 +423,15 @@ def test_the_launch_description_runs_the_graph_evaluator_and_recorder(launched, 
                 proc.kill()
     summary = json.loads((tmp_path / "summary.json").read_text())
     batch = run_batch(load_scenario(scenario)).to_json()
-    for key in ("rmse_x", "rmse_y", "mean_bound_x", "mean_bound_y", "rmse_x_t", "rmse_y_t"):
+    for key in (
+        "time_avg_rmse_x",
+        "time_avg_rmse_y",
+        "time_avg_bound_x",
+        "time_avg_bound_y",
+        "rmse_x_t",
+        "rmse_y_t",
+        "mean_gospa",
+    ):
         assert summary[key] == batch[key], key
     info = bag_info(tmp_path / "bag")
     assert info["intact"] and info["duration_s"] == 40.0

@@ -27,17 +27,17 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 
 from activetrack_ros import graph as topics
+from activetrack_ros.convert import MAX_SCAN_DETECTIONS, header
 from activetrack_ros.trust import GraphKey, is_signed_type
 from msgs_defs.msg import (
-    BearingMeasurement,
-    GroundTruth,
+    BeamCommand,
+    GroundTruthArray,
     ManoeuvreCommand,
-    Measurement,
     PlanReport,
     PlatformState,
-    PolarMeasurement,
+    Scan,
     SensorSelection,
-    TrackEstimate,
+    TrackArray,
 )
 
 # Every topic the graph reads: the msgs_defs ones and /diagnostics.
@@ -46,15 +46,14 @@ TOPIC_OF = {**MESSAGE_TOPIC_OF, DiagnosticArray: topics.DIAGNOSTICS}
 # Which of the graph's readers take each type (the runner's evaluator included; the recorder,
 # which only stores bytes, not): what a foreign message on that type's topic must be counted by.
 READERS = {
-    "BearingMeasurement": ("tracker", "evaluator"),
-    "PolarMeasurement": ("tracker", "evaluator"),
-    "Measurement": ("tracker", "evaluator"),
+    "Scan": ("tracker", "evaluator"),
     "PlatformState": ("tracker", "planner", "evaluator"),
-    "TrackEstimate": ("sim", "planner", "evaluator"),
+    "TrackArray": ("sim", "planner", "evaluator"),
     "ManoeuvreCommand": ("sim", "evaluator"),  # the evaluator draws the planned legs
-    "SensorSelection": ("sim",),
+    "BeamCommand": ("sim", "evaluator"),
+    "SensorSelection": ("sim", "evaluator"),
     "PlanReport": ("evaluator",),
-    "GroundTruth": ("evaluator",),
+    "GroundTruthArray": ("evaluator",),
     "DiagnosticArray": ("evaluator",),
 }
 
@@ -82,13 +81,15 @@ class Context:
     rng: random.Random
 
     def like(self, msg_type, **changes):
-        """A copy of the latest genuine message of a type with some fields changed."""
+        """A copy of the latest genuine message of a type with some fields changed; a field's
+        path is its names joined by ``__``, a number indexing a sequence
+        (``tracks__0__state``)."""
         msg = copy.deepcopy(self.latest[msg_type])
         for path, value in changes.items():
             target = msg
             *parents, name = path.split("__")
             for p in parents:
-                target = getattr(target, p)
+                target = target[int(p)] if p.isdigit() else getattr(target, p)
             setattr(target, name, value)
         return msg
 
@@ -141,71 +142,98 @@ def _diag(name: str, message: str = "", values=()) -> DiagnosticArray:
     return DiagnosticArray(status=[status])
 
 
+def _beam(c: Context, sensor_id: str, bearing: float) -> BeamCommand:
+    """A beam command for the next decision epoch, stamped like the graph's (built, not
+    copied: a scene without steerable sensors has no genuine one)."""
+    k = c.epoch + 1
+    return BeamCommand(
+        header=header(k * c.dt), sensor_id=sensor_id, epoch=k, bearing=bearing, track_id=1
+    )
+
+
+def _polar_scan(c: Context) -> Scan:
+    """The latest genuine scan as a range-bearing sensor would send it (two components)."""
+    scan = c.like(Scan, sensor_kind="range_bearing", dim=2, detections=[900.0, 0.1])
+    scan.covariance = [100.0, 0.0, 0.0, 1e-4]
+    return scan
+
+
+def _duplicate_track(c: Context, t) -> list:
+    """The latest genuine track array with its first track twice (one id, two tracks)."""
+    k = max(c.epoch, c.latest[t].epoch) + 1
+    msg = c.like(t, epoch=k, **c.stamp(k))
+    msg.tracks = [msg.tracks[0], copy.deepcopy(msg.tracks[0])]
+    return [msg]
+
+
 NAN, INF = math.nan, math.inf
 NOT_PD = [1.0, 2.0, 0, 0, 2.0, 1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0]  # eigenvalues -1, 3, 1, 1
-B, P, S, T = BearingMeasurement, PolarMeasurement, PlatformState, TrackEstimate
-M = Measurement  # generic: the kinds without a typed message (docs/extending.md)
-C, L, R, G, D = ManoeuvreCommand, SensorSelection, PlanReport, GroundTruth, DiagnosticArray
+SC, P, T = Scan, PlatformState, TrackArray
+C, BM, L, R, G, D = (
+    ManoeuvreCommand, BeamCommand, SensorSelection, PlanReport, GroundTruthArray, DiagnosticArray,
+)  # fmt: skip
+TOO_MANY = [0.1] * (MAX_SCAN_DETECTIONS + 1)  # one detection more than any scan may carry
 
 CATEGORIES: list[Category] = [
-    # --- measurements (tracker, evaluator) ---------------------------------------------------
-    Category("bearing_nan", B, _next(bearing=NAN)),
-    Category("bearing_inf_position", B, _next(sensor_position__x=INF)),
-    Category("bearing_1e300", B, _next(bearing=1e300)),
-    Category("bearing_unknown_sensor", B, _next(sensor_id="s9")),
-    Category("bearing_wrong_platform", B, _next(platform_id="p9")),
-    Category("bearing_negative_stamp", B, _next(header__stamp__sec=-1)),
-    Category("bearing_bad_nanosec", B, _next(header__stamp__nanosec=2_000_000_000)),
-    Category("bearing_stamp_mismatch", B, _next(header__stamp__sec=999)),
-    Category("bearing_far_future", B, _at(4_000_000_000, header__stamp__sec=0)),
-    Category("bearing_epoch_zero", B, _at(0)),
-    Category("bearing_old_epoch", B, _at(1)),
-    Category("bearing_wrong_sigma", B, _next(sigma=1.0)),
-    Category("bearing_ambiguous_flag", B, _next(ambiguous=True)),
-    Category("bearing_huge_string", B, _next(sensor_id="s" * 1_000_000)),
-    Category("polar_for_bearing_sensor", P, _new(lambda c: P(
-        sensor_id=c.latest[B].sensor_id, platform_id=c.latest[B].platform_id,
-        epoch=c.epoch + 1, header=c.latest[B].header, range=10.0,
-        covariance=[1.0, 0.0, 0.0, 1.0], detected=True,
-    ))),
-    Category("polar_nan_covariance", P, _new(lambda c: P(
-        sensor_id="s1", epoch=c.epoch + 1, covariance=[NAN] * 4, detected=True
-    ))),
-    Category("measurement_for_bearing_sensor", M, _new(lambda c: M(
-        sensor_id=c.latest[B].sensor_id, platform_id=c.latest[B].platform_id,
-        sensor_kind="bearing", epoch=c.epoch + 1, header=c.latest[B].header,
-        sensor_position=c.latest[B].sensor_position, z=[0.1], covariance=[1e-4], detected=True,
-    ))),
-    Category("measurement_nan_z", M, _new(lambda c: M(
-        sensor_id="s1", sensor_kind="range", epoch=c.epoch + 1, z=[NAN], covariance=[NAN],
-        detected=True,
-    ))),
-    Category("bearing_plausible_next_epoch", B, _next(bearing=0.1), plausible=True),
-    Category("bearing_stream_ahead", B, lambda c, t: [  # drives a trusting tracker ahead
-        c.like(t, epoch=k, bearing=0.1, **c.stamp(k)) for k in range(c.epoch + 1, c.epoch + 120)
+    # --- scans (tracker, evaluator) -----------------------------------------------------------
+    Category("scan_nan", SC, _next(detections=[NAN])),
+    Category("scan_inf_position", SC, _next(sensor_position__x=INF)),
+    Category("scan_1e300", SC, _next(detections=[1e300])),
+    Category("scan_bearing_4_rad", SC, _next(detections=[4.0])),
+    Category("scan_unknown_sensor", SC, _next(sensor_id="s9")),
+    Category("scan_wrong_platform", SC, _next(platform_id="p9")),
+    Category("scan_negative_stamp", SC, _next(header__stamp__sec=-1)),
+    Category("scan_bad_nanosec", SC, _next(header__stamp__nanosec=2_000_000_000)),
+    Category("scan_stamp_mismatch", SC, _next(header__stamp__sec=999)),
+    Category("scan_far_future", SC, _at(4_000_000_000, header__stamp__sec=0)),
+    Category("scan_epoch_zero", SC, _at(0)),
+    Category("scan_old_epoch", SC, _at(1)),
+    Category("scan_wrong_sigma", SC, _next(covariance=[1.0])),
+    Category("scan_nan_covariance", SC, _next(covariance=[NAN])),
+    Category("scan_wrong_kind", SC, _next(sensor_kind="range_bearing")),
+    Category("scan_polar_for_bearing_sensor", SC, _new(_polar_scan)),
+    Category("scan_wrong_dim", SC, _next(dim=2, detections=[0.1, 0.2])),
+    Category("scan_too_many_detections", SC, _next(detections=TOO_MANY)),
+    Category("scan_fov_not_the_sensors", SC, _next(fov_width=1.0)),
+    Category("scan_fov_nan", SC, _next(fov_r_max=NAN)),
+    Category("scan_clutter_density", SC, _next(clutter_density=1.0)),
+    Category("scan_count_exceeds_sensors", SC, _next(epoch_scan_count=9)),
+    Category("scan_huge_string", SC, _next(sensor_id="s" * 1_000_000)),
+    Category("scan_plausible_next_epoch", SC, _next(detections=[0.1]), plausible=True),
+    Category("scan_stream_ahead", SC, lambda c, t: [  # drives a trusting tracker ahead
+        c.like(t, epoch=k, detections=[0.1], **c.stamp(k))
+        for k in range(c.epoch + 1, c.epoch + 120)
     ], plausible=True),
     # --- platform states (tracker, planner, evaluator) ---------------------------------------
-    Category("state_unknown_platform", S, _same(platform_id="p9")),
-    Category("state_nan_position", S, _next(position__x=NAN)),
-    Category("state_1e300_velocity", S, _next(velocity__y=1e300)),
-    Category("state_negative_stamp", S, _next(header__stamp__sec=-1)),
-    Category("state_far_future", S, _at(1_000_000)),
-    Category("state_announces_three", S, _next(epoch_measurement_count=3), plausible=True),
-    # --- tracks (planner, sim, evaluator) ---------------------------------------------------
+    Category("state_unknown_platform", P, _same(platform_id="p9")),
+    Category("state_nan_position", P, _next(position__x=NAN)),
+    Category("state_1e300_velocity", P, _next(velocity__y=1e300)),
+    Category("state_negative_stamp", P, _next(header__stamp__sec=-1)),
+    Category("state_far_future", P, _at(1_000_000)),
+    Category("state_other_sensors", P, _next(sensor_ids=["s9"])),
+    Category("state_announces_more_than_sensors", P, _next(epoch_scan_count=3)),
+    Category("state_announces_none", P, _next(epoch_scan_count=0), plausible=True),
+    # --- track arrays (planner, sim, evaluator) -----------------------------------------------
     Category("track_wrong_dimension", T, _next(
-        state_names=["a", "b", "c"], state=[0.0] * 3, covariance=list(np.eye(3).ravel()),
-        particle_samples=[], sample_count=0,
+        state_names=["a", "b", "c"], tracks__0__state=[0.0] * 3,
+        tracks__0__state_covariance=list(np.eye(3).ravel()),
     )),
-    Category("track_not_pd", T, _next(covariance=NOT_PD)),
-    Category("track_nan_state", T, _next(state=[NAN] * 4)),
-    Category("track_1e300_state", T, _next(state=[1e300] * 4)),
-    Category("track_sample_mismatch", T, _next(sample_count=7)),
-    Category("track_huge_sample_claim", T, _next(sample_count=4_000_000_000)),
+    Category("track_not_pd", T, _next(tracks__0__covariance=NOT_PD)),
+    Category("track_nan_state", T, _next(tracks__0__state=[NAN] * 4)),
+    Category("track_1e300_state", T, _next(tracks__0__state=[1e300] * 4)),
+    Category("track_sample_mismatch", T, _next(tracks__0__sample_count=7)),
+    Category("track_huge_sample_claim", T, _next(tracks__0__sample_count=4_000_000_000)),
+    Category("track_bad_status", T, _next(tracks__0__status=7)),
+    Category("track_unknown_origin", T, _next(tracks__0__origin="t9")),
+    Category("track_duplicate_id", T, _duplicate_track),
+    Category("track_more_unassociated", T, _next(unassociated=1_000, detections=999)),
     Category("track_negative_stamp", T, _next(header__stamp__sec=-1)),
     Category("track_future_epoch", T, _at(10_000)),
     Category("track_bad_filter_kind", T, _next(filter_kind="ukf")),
-    Category("track_plausible_next", T, _next(state=[1000.0, 1.0, 1000.0, 1.0]), plausible=True),
-    # --- commands and selections (sim) --------------------------------------------------------
+    Category("track_plausible_next", T, _next(
+        tracks__0__state=[1000.0, 1.0, 1000.0, 1.0], tracks__0__mean=[1000.0, 1.0, 1000.0, 1.0]
+    ), plausible=True),
+    # --- commands, beams and selections (sim, evaluator) -------------------------------------
     Category("command_unknown_platform", C, _same(platform_id="p9")),
     Category("command_nan", C, _next(heading_change=NAN)),
     Category("command_1e300_heading", C, _next(heading_change=1e300)),
@@ -214,12 +242,17 @@ CATEGORIES: list[Category] = [
     Category("command_future_epoch", C, _at(50)),
     Category("command_negative_stamp", C, _next(header__stamp__sec=-1)),
     Category("command_plausible_next", C, _next(heading_change=0.2), plausible=True),
+    Category("beam_unknown_sensor", BM, _new(lambda c: _beam(c, "s9", 0.5))),
+    Category("beam_not_steerable", BM, _new(lambda c: _beam(c, "s1", 0.5))),
+    Category("beam_nan_bearing", BM, _new(lambda c: _beam(c, "s1", NAN))),
     Category("selection_empty", L, _new(lambda c: L(epoch=c.epoch + 1)), plausible=True),
     Category("selection_unknown_sensor", L, _new(lambda c: L(selected_sensor_ids=["s9"]))),
     # --- evaluator inputs ---------------------------------------------------------------------
     Category("report_nan_costs", R, _next(predicted_costs=[NAN] * 4, cost_names=list("abcd"))),
     Category("report_length_mismatch", R, _next(cost_names=["x"])),
-    Category("truth_nan", G, _next(position__x=NAN)),
+    Category("truth_nan", G, _next(positions__0__x=NAN)),
+    Category("truth_unknown_target", G, _next(target_ids=["t9"])),
+    Category("truth_missing_state", G, _next(states=[])),
     Category("truth_plausible_next", G, _next(), plausible=True),
     Category("diagnostics_temperature", D, _new(lambda c: _diag(
         "thermal_monitor", "ok", [KeyValue(key="activetrack", value="41.5 C")]
@@ -246,6 +279,7 @@ def random_message(msg_type, rng: random.Random, depth: int = 0):
 _FLOATS = (0.0, -0.0, 1.0, -1.0, 1e300, -1e300, math.inf, -math.inf, math.nan, 5e-324)
 _UINTS = (0, 1, 2, 3, 2**32 - 1)
 _INTS = (-1, 0, 5, 2**31 - 1, -(2**31))
+_INT64S = (-2, -1, 0, 1, 2**63 - 1, -(2**63))
 _STRINGS = ("", "s1", "p1", "t1", "pf", "ekf", "activetrack/sim_node")
 
 
@@ -256,6 +290,10 @@ def _random_value(kind: str, current, rng: random.Random, depth: int):
         return rng.choice(_UINTS) if rng.random() < 0.5 else rng.getrandbits(32)
     if kind == "int32":
         return rng.choice(_INTS)
+    if kind == "int64":
+        return rng.choice(_INT64S)
+    if kind == "uint8":
+        return rng.getrandbits(8)
     if kind == "boolean":
         return rng.random() < 0.5
     if kind == "octet":
@@ -264,6 +302,8 @@ def _random_value(kind: str, current, rng: random.Random, depth: int):
         return rng.choice(_STRINGS) if rng.random() < 0.8 else "x" * rng.randrange(300)
     if kind == "uint8[16]":
         return list(rng.randbytes(16))
+    if kind.startswith("double[") and kind.endswith("]"):  # fixed size
+        return [_random_value("double", None, rng, depth) for _ in range(int(kind[7:-1]))]
     if kind.startswith("sequence<"):
         inner = kind[len("sequence<") : -1]
         if "/" in inner:  # messages: a few, and fewer inside nested messages
@@ -355,7 +395,7 @@ class ForeignNode(Node):
         self.seen.setdefault(msg_type, []).append(bytes(data))
         msg = deserialize_message(data, msg_type)
         self.latest[msg_type] = msg
-        if msg_type is TrackEstimate and msg.epoch >= self.at_epoch:
+        if msg_type is TrackArray and msg.epoch >= self.at_epoch:
             self.fire(msg.epoch)
 
     def _matched(self, msg_type) -> bool:
@@ -388,7 +428,7 @@ class ForeignNode(Node):
         ctx = Context(epoch, self.dt, self.latest, self.seen, self.rng)
         try:
             built = [(c.msg_type, m) for c in self.categories for m in c.build(ctx, c.msg_type)]
-        except KeyError:
+        except (KeyError, IndexError):  # a genuine message (or a track in it) not seen yet
             return
         types = {t for t, _ in built} | set(self.pools) | {t for t, _ in self.messages}
         if self.replay:
@@ -417,10 +457,13 @@ def flood(
     readers: dict[str, int],
     seed: int = 0,
     wait: float = 30.0,
+    settle: float = 2.0,
 ) -> Counter:
     """Publish random messages (no key) round-robin on ``readers``' topics at ``rate`` per
     second for ``duration`` seconds, once each topic has its expected number of matched
-    readers (``{topic: n}``); returns what was sent per message type."""
+    readers (``{topic: n}``) and ``settle`` seconds more (a writer matches a reader before the
+    reader matches the writer: what it sends in between is lost at that reader, uncounted);
+    returns what was sent per message type."""
     import rclpy
 
     rclpy.init()
@@ -435,6 +478,7 @@ def flood(
         if time.monotonic() > deadline:
             raise TimeoutError(f"readers not matched within {wait} s: {readers}")
         time.sleep(0.01)
+    time.sleep(settle)
     rng = random.Random(seed)
     # A pool of random messages per topic, serialised once: the flood is then as fast as DDS.
     pool = {

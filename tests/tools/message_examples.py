@@ -1,9 +1,12 @@
 """One fully populated example of every msgs_defs type (smoke runs and round-trip tests).
 
-Every field holds a non-default value, so a field lost in transport shows up as a difference.
+Every field holds a non-default value (inside the track array's items too), so a field lost in
+transport shows up as a difference.
 """
 
 from __future__ import annotations
+
+import math
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Vector3
@@ -11,41 +14,39 @@ from std_msgs.msg import Header
 
 from activetrack_ros import graph as topics
 from msgs_defs.msg import (
-    BearingMeasurement,
-    GroundTruth,
+    BeamCommand,
+    GroundTruthArray,
     ManoeuvreCommand,
-    Measurement,
     PlanReport,
     PlatformState,
-    PolarMeasurement,
     RunMetrics,
+    Scan,
     SensorSelection,
-    TrackEstimate,
+    TrackArray,
+    TrackItem,
 )
 
 MESSAGE_TYPES = (
-    BearingMeasurement,
-    PolarMeasurement,
-    Measurement,
+    Scan,
     PlatformState,
-    TrackEstimate,
+    TrackArray,
     ManoeuvreCommand,
+    BeamCommand,
     SensorSelection,
     PlanReport,
-    GroundTruth,
+    GroundTruthArray,
     RunMetrics,  # the evaluator's output: no graph node reads it (not in TOPIC_OF)
 )
 
 TOPIC_OF = {
-    BearingMeasurement: topics.BEARING_MEASUREMENTS,
-    PolarMeasurement: topics.POLAR_MEASUREMENTS,
-    Measurement: topics.MEASUREMENTS,
+    Scan: topics.SCANS,
     PlatformState: topics.PLATFORM_STATES,
-    TrackEstimate: topics.TRACK,
+    TrackArray: topics.TRACKS,
     ManoeuvreCommand: topics.MANOEUVRE_COMMANDS,
+    BeamCommand: topics.BEAM_COMMANDS,
     SensorSelection: topics.SENSOR_SELECTION,
     PlanReport: topics.PLAN_REPORT,
-    GroundTruth: topics.GROUND_TRUTH,
+    GroundTruthArray: topics.GROUND_TRUTH,
 }
 
 
@@ -63,50 +64,52 @@ def example_messages() -> list:
     return messages
 
 
+def _track_item() -> TrackItem:
+    """A confirmed particle track with two posterior samples; its state is not pv (a
+    five-entry model), so state and mean differ."""
+    return TrackItem(
+        track_id=3,
+        status=TrackItem.CONFIRMED,
+        origin="t1",
+        priority=1.5,
+        state=[1.0, 2.0, 3.0, 4.0, 0.01],
+        state_covariance=[float(i) for i in range(25)],
+        mean=[1.0, 2.5, 3.0, 4.5],
+        covariance=[float(i) + 0.5 for i in range(16)],
+        hits=7,
+        misses=2,
+        missed_detections=1,
+        age=9,
+        existence=0.75,
+        nis=1.5,
+        ess=4321.0,
+        particle_count=10000,
+        samples=[0.5 * i for i in range(10)],
+        sample_count=2,
+    )
+
+
 def _examples() -> list:
     sensor_pos = Point(x=1800.0, y=2000.0, z=-3.5)
     sensor_vel = Vector3(x=-40.0, y=-40.0, z=0.25)
     return [
-        BearingMeasurement(
-            header=_header(),
-            platform_id="p1",
-            sensor_id="s1",
-            epoch=1,
-            epoch_measurement_count=2,
-            sensor_position=sensor_pos,
-            sensor_velocity=sensor_vel,
-            bearing=-2.356,
-            sigma=0.0175,
-            detected=True,
-            ambiguous=True,
-        ),
-        PolarMeasurement(
+        Scan(
             header=_header(),
             platform_id="p2",
             sensor_id="s3",
+            sensor_kind="range_bearing",
             epoch=2,
-            epoch_measurement_count=2,
+            epoch_scan_count=2,
             sensor_position=sensor_pos,
             sensor_velocity=sensor_vel,
-            range=1234.5,
-            bearing=0.75,
-            has_range_rate=True,
-            range_rate=-12.5,
-            covariance=[100.0, 0.0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0, 1e-4],
-            detected=True,
-        ),
-        Measurement(
-            header=_header(),
-            platform_id="p3",
-            sensor_id="s4",
-            sensor_kind="range",
-            epoch=3,
-            epoch_measurement_count=3,
-            sensor_position=sensor_pos,
-            sensor_velocity=sensor_vel,
-            z=[1234.5],
-            covariance=[4.0],
-            detected=True,
+            fov_centre=0.75,
+            fov_width=1.5,
+            fov_r_min=10.0,
+            fov_r_max=5000.0,
+            dim=2,
+            detections=[1234.5, 0.75, 2000.0, -0.5],
+            covariance=[100.0, 0.0, 0.0, 1e-4],
+            clutter_density=1e-5,
         ),
         PlatformState(
             header=_header(),
@@ -118,24 +121,18 @@ def _examples() -> list:
             velocity=sensor_vel,
             heading=-2.356,
             speed=56.57,
-            epoch_measurement_count=2,
+            epoch_scan_count=2,
         ),
-        TrackEstimate(
+        TrackArray(
             header=_header(),
-            target_id="t1",
             epoch=6,
             filter_kind="pf",
-            motion_model="ncv",
-            state_names=["x", "xdot", "y", "ydot"],
-            state=[1.0, 2.0, 3.0, 4.0],
-            covariance=[float(i) for i in range(16)],
-            update_count=7,
-            missed_detections=2,
-            nis=1.5,
-            ess=4321.0,
-            particle_count=10000,
-            particle_samples=[0.5 * i for i in range(8)],
-            sample_count=2,
+            motion_model="circular",
+            state_names=["x", "xdot", "y", "ydot", "omega"],
+            updates=6,
+            tracks=[_track_item()],
+            detections=4,
+            unassociated=1,
         ),
         ManoeuvreCommand(
             header=_header(),
@@ -150,6 +147,7 @@ def _examples() -> list:
             waypoint=Point(x=10.0, y=-20.0, z=1.0),
             has_waypoint=True,
         ),
+        BeamCommand(header=_header(), sensor_id="s2", epoch=4, bearing=-1.25, track_id=3),
         SensorSelection(
             header=_header(),
             epoch=4,
@@ -170,31 +168,38 @@ def _examples() -> list:
             evaluations=34,
             planning_wall_time=0.002,
         ),
-        GroundTruth(
+        GroundTruthArray(
             header=_header(),
-            target_id="t1",
             epoch=9,
-            state_names=["x", "xdot", "y", "ydot"],
-            state=[100.0, 8.0, -50.0, 6.0],
-            position=Point(x=100.0, y=-50.0, z=-2.0),
-            velocity=Vector3(x=8.0, y=6.0, z=0.5),
+            target_ids=["t1", "t2"],
+            positions=[Point(x=100.0, y=-50.0, z=-2.0), Point(x=-30.0, y=70.0, z=1.0)],
+            velocities=[Vector3(x=8.0, y=6.0, z=0.5), Vector3(x=-1.0, y=2.0, z=0.25)],
+            state_sizes=[4, 5],
+            state_names=["x", "xdot", "y", "ydot", "x", "xdot", "y", "ydot", "omega"],
+            states=[100.0, 8.0, -50.0, 6.0, -30.0, -1.0, 70.0, 2.0, 0.02],
         ),
         RunMetrics(
             header=_header(),
             epoch=4,
             steps=30,
-            truth_position=Point(x=100.0, y=-50.0, z=-2.0),
-            estimate_position=Point(x=103.0, y=-54.0, z=1.0),
-            rmse_x=3.0,
-            rmse_y=4.0,
-            position_error=5.0,
-            bound_x=6.0,
-            bound_y=8.0,
-            position_bound=10.0,
-            mean_rmse_x=2.5,
-            mean_rmse_y=3.5,
-            mean_bound_x=7.0,
-            mean_bound_y=9.0,
+            target_ids=["t1", "t2"],
+            truth_positions=[Point(x=100.0, y=-50.0, z=-2.0), Point(x=1.0, y=2.0, z=0.5)],
+            estimate_positions=[Point(x=103.0, y=-54.0, z=1.0), Point(x=2.0, y=3.0, z=0.5)],
+            error_x=[3.0, 1.0],
+            error_y=[4.0, 1.0],
+            position_error=[5.0, math.sqrt(2.0)],
+            bound_x=[6.0, 2.0],
+            bound_y=[8.0, 2.0],
+            position_bound=[10.0, math.sqrt(8.0)],
+            time_avg_rmse_x=[2.5, 1.5],
+            time_avg_rmse_y=[3.5, 1.5],
+            time_avg_bound_x=[7.0, 2.5],
+            time_avg_bound_y=[9.0, 2.5],
+            gospa=12.5,
+            localisation=27.0,
+            missed_targets=1,
+            false_tracks=2,
+            mean_gospa=11.0,
             measured_sensor_ids=["s1", "s2"],
         ),
     ]

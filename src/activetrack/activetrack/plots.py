@@ -92,7 +92,7 @@ def clutter_points(sensors: Mapping[str, SensorModel], record: RunRecord) -> np.
     """``(m, 2)`` x, y of every clutter detection (label "") of the scans whose sensor fixes a
     position from one detection (its ``inverse_position``; bearings fix none), ``sensors`` by
     id. A record without labels (a graph run's: they stay in the sim) gives every detection."""
-    points = [np.empty((0, 2))]
+    points: list[np.ndarray] = [np.empty((0, 2))]
     truths = record.scan_truth or [[] for _ in record.scans]
     for scans, epoch_truths in zip(record.scans, truths, strict=True):
         labels = {(t.sensor_id, t.epoch): t.labels for t in epoch_truths}

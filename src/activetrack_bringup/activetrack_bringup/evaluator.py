@@ -42,6 +42,7 @@ from activetrack.data import (
     PlanReportData,
     Scan,
     TrackSet,
+    heading_speed,
 )
 from activetrack.planning.manoeuvre import step_platform
 from activetrack.scenarios import load_scenario
@@ -254,7 +255,9 @@ class EvaluatorNode(GraphNode):
         tracks = self.check_tracks(msg)
         if tracks.epoch in self.tracks:
             raise Rejected("duplicate", f"second track array of epoch {tracks.epoch}")
-        self.tracks[tracks.epoch] = tracks
+        # Without the planner's posterior samples: a run keeps results, not messages (a PF
+        # track's samples are kB an epoch; the record and the figures never read them).
+        self.tracks[tracks.epoch] = tracks.without_samples()
         self._close_epochs()
 
     def on_platform(self, msg: PlatformState) -> None:
@@ -281,8 +284,11 @@ class EvaluatorNode(GraphNode):
         check_epoch_stamp(msg, self.scenario, what)
         finite((msg.heading_change,), f"{what} heading_change", math.pi + 1e-9)
         finite((msg.speed_change,), f"{what} speed_change", MAX_SPEED)
-        finite((msg.commanded_heading,), f"{what} heading", 4 * math.pi)
-        finite((msg.commanded_speed,), f"{what} speed", MAX_SPEED)
+        # NaN: not given (a command to hold course, Command's default); else a real value.
+        if not math.isnan(msg.commanded_heading):
+            finite((msg.commanded_heading,), f"{what} heading", 4 * math.pi)
+        if not math.isnan(msg.commanded_speed):
+            finite((msg.commanded_speed,), f"{what} speed", MAX_SPEED)
         finite((msg.waypoint.x, msg.waypoint.y), f"{what} waypoint", MAX_COORDINATE)
         commands = self.commands.setdefault(msg.epoch, {})
         if msg.platform_id in commands:
@@ -449,9 +455,12 @@ class EvaluatorNode(GraphNode):
             self.undrawn[msg.platform_id, msg.epoch] = msg  # drawn when that state arrives
             return
         pv = self.platforms.values[msg.epoch, j]
-        end, _ = step_platform(
-            pv, msg.commanded_heading, (0.0, msg.commanded_speed), self.scenario.dt
-        )
+        heading, speed = msg.commanded_heading, msg.commanded_speed
+        if math.isnan(heading) or math.isnan(speed):  # not given: the changes say where
+            now_heading, now_speed = heading_speed(pv)
+            heading = now_heading + msg.heading_change if math.isnan(heading) else heading
+            speed = now_speed + msg.speed_change if math.isnan(speed) else speed
+        end, _ = step_platform(pv, heading, (0.0, speed), self.scenario.dt)
         hdr = header(msg.epoch * self.scenario.dt, self.frame_id)
         size = self.marker_size
         leg = marker(hdr, "next_leg", j, Marker.ARROW, LEG_RGBA, (pv[[0, 2]], end[[0, 2]]))

@@ -114,6 +114,6 @@ def epoch_hook(bar: Bar):
             if not found:
                 return
         evaluator = found[0]
-        bar(max(len(evaluator.means) - 1, 0), evaluator.scenario.steps)
+        bar(max(len(evaluator.tracks) - 1, 0), evaluator.scenario.steps)
 
     return during_spin

@@ -34,7 +34,7 @@ from activetrack.closed_loop.components import scene_targets
 from activetrack.closed_loop.evaluation import EpochAssessor
 from activetrack.data import TrackSet
 from activetrack.filters import registry as filter_kinds
-from activetrack.scenarios import load_scenario
+from activetrack.scenarios import load_scenario, with_tracker_overrides
 from activetrack_bringup.bag import bag_topic, installed_type_hash
 from activetrack_bringup.bag_io import BagError, open_bag
 from activetrack_bringup.inprocess import InProcessGraph
@@ -464,7 +464,9 @@ def retrack(
                 f"retrack timed out after {timeout:g} s at epoch "
                 f"{max(collector.arrays, default=0)} of {last}"
             )
-        replayed = {k: check(m) for k, m in collector.arrays.items()}
+        # The replayed arrays are of the fresh tracker's filter (``filter_kind``, if given).
+        check_replayed = TrackArrayChecker(with_tracker_overrides(scenario, filter=filter_kind))
+        replayed = {k: check_replayed(m) for k, m in collector.arrays.items()}
     common = [k for k in range(last + 1) if k in recorded and k in replayed]
     compared = [_differences(recorded[k], replayed[k]) for k in common]
     scored = all(k in truth and k in recorded for k in range(1, last + 1))

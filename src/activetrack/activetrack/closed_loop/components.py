@@ -235,7 +235,7 @@ def build_strategies(scenario: Scenario, rng: np.random.Generator) -> tuple[Plan
     controllable = tuple(p.id for p in scenario.platforms if p.controllable)
     beams = any(s.beam_width is not None for p in scenario.platforms for s in p.sensors)
     if beams or not scenario.known_association:
-        return (_across_targets(scenario, rng),)
+        return (build_across_targets(scenario, rng),)
     if not cfg.enabled:
         return (HoldCourse(controllable),)
     if controllable and cfg.search == "cautious":
@@ -327,7 +327,7 @@ def _cost_kind(cfg: PlannerConfig) -> str:
     return cfg.cost
 
 
-def _across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiTargetPlanner:
+def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiTargetPlanner:
     """Planning across targets for the scene: its platforms with their sensors in the scene
     and, where the planner steers them, their limits."""
     cfg = scenario.planner

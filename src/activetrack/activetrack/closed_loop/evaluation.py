@@ -229,7 +229,13 @@ class EpochAssessor:
         held = np.full(truth.shape[0], NOT_HELD, dtype=int)
         if self.known:  # the track is the target's by construction
             for t in confirmed:
-                held[self.index[t.origin]] = t.track_id
+                n = self.index.get(t.origin)
+                if n is None:
+                    raise ValueError(
+                        f"record.tracks[{k}]: track {t.track_id} has origin {t.origin!r}; with "
+                        f"known association every track is a target's {sorted(self.index)}"
+                    )
+                held[n] = t.track_id
         else:
             for i, j in split.assignment:
                 held[targets[i]] = confirmed[j].track_id
@@ -352,6 +358,7 @@ class TargetBound:
             assert self.J is not None
             self.J = self.J + self._information(sensor_pv, counts)
         else:
+            assert self.X is not None
             self.X = propagate_samples(self.X, self.F, self.Q, 1, self.rng)[0]
             self.J = pcrlb_step(self.J, self.F, self.Q, self._information(sensor_pv, counts))
         return self.J
@@ -389,14 +396,15 @@ def target_bounds(
     K = record.steps
     sensors, columns = bound_sensors(scenario)
     paths = np.asarray(record.platform_paths, dtype=float)[:, columns, :]  # (K+1, S, 4)
-    counts = bound_counts(sensors, record.looked, record.observed)  # (K, S, N)
+    looked, observed = np.asarray(record.looked), np.asarray(record.observed)  # checked above
+    counts = bound_counts(sensors, looked, observed)  # (K, S, N)
     out = np.full((K, len(record.target_ids), 4, 4), math.nan)
     for n, target in enumerate(scene_targets(scenario)):
         bound = TargetBound(target, sensors, scenario.dt, rng, n_samples)
         J = [bound.information(paths[k], counts[k - 1, :, n]) for k in range(1, K + 1)]
         alive = [k for k, j in enumerate(J) if j is not None]
         if alive:  # one batched inverse per target
-            out[alive, n] = covariance_bound(np.stack([J[k] for k in alive]))
+            out[alive, n] = covariance_bound(np.stack([j for j in J if j is not None]))
     return out
 
 

@@ -375,6 +375,7 @@ class ParticleFilter:
                     continue
                 if pv is None:
                     pv = self._X if self._pv_state else self.model.kinematics(self._X)
+                assert m.z is not None  # pda_weights: every measurement is a detection
                 ell, _ = m.sensor.log_likelihood(m.z, pv, m.sensor_state)
                 ell = np.where(np.isnan(ell), -math.inf, ell)
                 evidence = np.logaddexp.reduce(logw_prior + ell)  # log p(z_j | Z_{k-1}) - c

@@ -231,7 +231,8 @@ class _Nested:
             plan = man[:, :, None, :]
             if level + 1 == R:
                 return (np.zeros((b, C)) if costs is None else costs), plan
-            S1 = np.broadcast_to(S1, (b, C, *S1.shape[2:]))
+            if S1.shape[:2] != (b, C):  # a state that no candidate changes
+                S1 = np.broadcast_to(S1, (b, C, *S1.shape[2:]))
             tail, value = self.best(
                 level + 1,
                 S1.reshape(b * C, *S1.shape[2:]),

@@ -64,7 +64,7 @@ def aggregate_costs(costs: ArrayLike, weights: ArrayLike, aggregate: str) -> np.
     (``weights`` ``(T,)``, the tracks' priorities)."""
     c = np.asarray(costs, dtype=float)
     if check_aggregate(aggregate) == "worst":
-        return np.max(c, axis=-1)
+        return c[..., 0] if c.shape[-1] == 1 else np.max(c, axis=-1)  # one track: no reduction
     return np.sum(c * np.asarray(weights, dtype=float), axis=-1)
 
 
@@ -107,7 +107,8 @@ class Objective:
         total = None
         for term in self.terms:
             if term.legs == SUM or level == horizon - 1:
-                c = term.weight * term.cost(state, level)
+                c = term.cost(state, level)
+                c = c if term.weight == 1.0 else term.weight * c
                 total = c if total is None else total + c
         return total
 

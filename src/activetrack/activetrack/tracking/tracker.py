@@ -238,9 +238,8 @@ class Tracker:
             unassociated += int(free.sum())
             for z in c.Z[free]:
                 started = self._start_from_detection(z, c, epoch, t)
-                if started is None:
-                    break
-                looked[started.track_id] = True
+                if started is not None:  # None: no fix, or full (each detection counted)
+                    looked[started.track_id] = True
         self.book.end_epoch(looked)
         return detections, unassociated
 
@@ -311,7 +310,7 @@ class Tracker:
                     Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
                 ]
                 for k, row in enumerate(group):
-                    info = tracks[row].filter.update_pda(detections, a.beta[k])  # type: ignore[attr-defined]
+                    info = tracks[row].filter.update_pda(detections, a.beta[k])
                     tracks[row].ess = info.ess
 
     # --- track starts ------------------------------------------------------------------------

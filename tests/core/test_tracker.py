@@ -1,5 +1,9 @@
-"""The multi-target tracker (activetrack.multitarget.tracker, .tracks) and the particle filter's
-clutter-aware scan likelihood (activetrack.filters.clutter_likelihood).
+"""The tracker (activetrack.tracking.tracker, .management) under JPDA, and the filters' PDA
+updates (``update_pda`` of the EKF and the particle filter).
+
+Most scenes here hold one target without clutter, which the tracker would track by known
+association (the filter's plain update); :func:`make_scenario` adds a target born after the
+run to them, so that the tracker runs its JPDA path, the subject of these tests.
 
 Figures asserted (seeded; the measured values are in the comments):
 - Pd 1, no clutter, 10-sigma gate: the JPDA-EKF track equals ExtendedKalmanFilter to 1e-9
@@ -12,9 +16,11 @@ Figures asserted (seeded; the measured values are in the comments):
   2-of-3) start > 100 tentative tracks in 30 epochs and confirm none (at 3e-3, ~140 per
   scan, 27 are confirmed after 10 epochs); a target born at epoch 5
   (Pd 1) is confirmed at its 3rd look under 3-of-5; a dead target's track goes after 4 looks;
-- the particle filter with the clutter-aware likelihood against the JPDA-EKF (one target,
-  ~14 false alarms per scan) on the same scans: position means apart by < 0.25 of the EKF's
-  position std on average and < 0.6 at every epoch (measured 0.11 and 0.24);
+- the PDA updates: one detection certainly the target's is the plain update, beta_0 = 1
+  leaves the filter, the particle filter's mixture weights equal a brute-force sum;
+- the particle filter with JPDA weights against the JPDA-EKF (one target, ~14 false alarms
+  per scan) on the same scans: position means apart by < 0.25 of the EKF's position std on
+  average and < 0.6 at every epoch (measured 0.068 and 0.22);
 - probability of existence: the IPDA recursion and its LM-IPDA form for two tracks sharing a
   detection against hand-computed values (1e-6); a detection inside a track's gate starts no
   track; confirmation waits for existence >= 0.9 (1-of-1 confirms at the second hit, not the
@@ -31,19 +37,27 @@ import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
 
+from activetrack.closed_loop.components import build_simulator, build_tracker
+from activetrack.data import CONFIRMED, TENTATIVE, Scan
 from activetrack.filters.clutter_likelihood import (
     CLUTTER_FLOOR,
     PD_MAX,
-    scan_log_likelihood,
+    effective_clutter_density,
+    effective_pd,
 )
 from activetrack.filters.ekf import ExtendedKalmanFilter
 from activetrack.filters.jpda import jpda_update
 from activetrack.filters.measurement import Measurement
+from activetrack.filters.particle import ParticleFilter
 from activetrack.models.clutter import ClutteredSensor
+from activetrack.models.fov import FieldOfView
+from activetrack.models.motion import NearlyConstantVelocity
 from activetrack.models.sensors import RangeBearingSensor
-from activetrack.multitarget.data import CONFIRMED, TENTATIVE, FieldOfView, Scan
-from activetrack.multitarget.tracker import MultiTargetTracker, _fov_coverage
-from activetrack.multitarget.tracks import (
+from activetrack.planning.assignment import beam_coverage
+from activetrack.scenarios import load_scenario, with_tracker_overrides
+from activetrack.scenarios.build import build_motion_model, build_sensor
+from activetrack.scenarios.schema import Scenario
+from activetrack.tracking.management import (
     COALESCE_D2,
     COALESCE_LOOKS,
     EXISTENCE_DELETE,
@@ -51,9 +65,6 @@ from activetrack.multitarget.tracks import (
     EXISTENCE_SURVIVAL,
     existence_update,
 )
-from activetrack.planning.assignment import beam_coverage
-from activetrack.scenarios.build import build_motion_model, build_sensor
-from activetrack.scenarios.schema import Scenario
 
 SENSOR_PV = np.array([0.0, 0.0, -3000.0, 0.0])
 
@@ -63,9 +74,18 @@ def range_bearing(**extra):
     return {**cfg, "r_min": 500.0, "r_max": 8000.0, **extra}
 
 
+UNBORN = {"id": "unborn", "mean": [0.0, 0.0, 0.0, 0.0]}
+
+
 def make_scenario(targets, sensors, *, filter="ekf", tracks=None, steps=40, **tracker):
-    """A validated multi-target scenario with one stationary platform at SENSOR_PV.
-    targets: dicts with id, mean and optional birth, death, var, q."""
+    """A validated scenario with one stationary platform at SENSOR_PV, tracked under JPDA.
+    targets: dicts with id, mean and optional birth, death, var, q. One target from epoch 0
+    without clutter gets UNBORN, born after every run here, as its second (module
+    docstring)."""
+    clutter = any(s.get("clutter_density", 0.0) > 0.0 for s in sensors)
+    one = len(targets) == 1 and targets[0].get("birth", 0) == 0 and "death" not in targets[0]
+    if one and not clutter:
+        targets = [*targets, {**UNBORN, "birth": steps - 1}]
     return Scenario.model_validate(
         {
             "name": "tracker",
@@ -117,7 +137,7 @@ def simulate(scenario, K, rng):
 
 
 def run(scenario, scans, seed=0):
-    tracker = MultiTargetTracker(scenario, np.random.default_rng(seed))
+    tracker = build_tracker(scenario, np.random.default_rng(seed))
     sets = [tracker.snapshot()]
     for k, epoch_scans in enumerate(scans, start=1):
         sets.append(tracker.step(k, k * scenario.dt, epoch_scans))
@@ -216,7 +236,7 @@ def test_jpda_by_clusters_equals_one_joint_update():
         {"id": "d", "mean": [-1500.0, 0.0, 0.0, 0.0]},
     ]
     sc = make_scenario(targets, [range_bearing(pd=0.8, clutter_density=1e-3)])
-    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    tracker = build_tracker(sc, np.random.default_rng(0))
     sensor = tracker.sensors["s1"]
     truth = np.array([[10.0, 0, 5.0, 0], [30.0, 0, -5.0, 0], [20.0, 0, 0, 0], [1490.0, 0, 0, 0]])
     Z = sensor.measure(truth, SENSOR_PV)
@@ -317,7 +337,7 @@ def test_m_of_n_counts_scripted_hits_and_misses(pattern, expected):
         [range_bearing()],
         tracks={"confirm_m": 3, "confirm_n": 5},
     )
-    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    tracker = build_tracker(sc, np.random.default_rng(0))
     z = tracker.sensors["s1"].measure(np.array([300.0, 0.0, 100.0, 0.0]), SENSOR_PV)
     got = []
     for k, c in enumerate(pattern, start=1):
@@ -347,7 +367,7 @@ def test_a_track_nobody_looks_at_goes_when_its_position_std_passes_the_limit():
         [range_bearing()],
         tracks={"max_position_std": 50.0},
     )
-    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    tracker = build_tracker(sc, np.random.default_rng(0))
     F = tracker.model.transition_matrix(1.0)
     Q = tracker.model.process_noise(1.0)
     P = np.diag([100.0, 4.0, 100.0, 4.0])
@@ -404,39 +424,112 @@ def test_two_tracks_coalesced_on_one_target_lose_the_younger():
     assert all(len(ts.tracks) == 1 for ts in sets[gone:])
 
 
-# --- the particle filter ----------------------------------------------------------------------
+# --- the filters' PDA updates ----------------------------------------------------------------
+
+PDA_SENSOR = RangeBearingSensor(sigma_r=10.0, sigma_b=0.01, pd=0.8, r_min=0.0, r_max=5000.0)
+PDA_Z = np.array([[1005.0, 0.001], [990.0, 0.015]])
 
 
-def test_scan_likelihood_is_the_pda_measurement_model():
-    sensor = RangeBearingSensor(sigma_r=10.0, sigma_b=0.01, pd=0.8, r_min=0.0, r_max=5000.0)
-    s = np.zeros(4)
-    X = np.array([[1000.0, 0, 0, 0], [1010.0, 0, 20.0, 0], [6000.0, 0, 0, 0], [-1000.0, 0, 0, 0]])
-    fov = FieldOfView(0.0, math.pi, 0.0, 5000.0)  # the half plane x > 0, r <= 5000
-    Z = np.array([[1005.0, 0.001], [990.0, 0.015]])
-    lam = 1e-3
-    got = scan_log_likelihood(sensor, Z, X, s, fov, pd=0.8, clutter_density=lam)
-    R = np.diag([100.0, 1e-4])
-    expected, mixes = [], []
-    for x, inside in zip(X, [True, True, False, False], strict=True):
-        h = sensor.measure(x, s)
-        mix = sum(
-            math.exp(-0.5 * (z - h) @ np.linalg.solve(R, z - h))
-            / (2 * math.pi * math.sqrt(np.linalg.det(R)))
-            for z in Z
-        )
-        mixes.append(mix)
-        expected.append(math.log(0.2 + 0.8 * mix / lam) if inside else 0.0)
-    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12)
-    # No detection: log(1 - Pd) inside, 0 outside; Pd 1 and no clutter stay finite.
-    empty = scan_log_likelihood(sensor, np.zeros((0, 2)), X, s, fov, pd=0.8, clutter_density=lam)
-    np.testing.assert_allclose(empty, [math.log(0.2)] * 2 + [0.0] * 2, rtol=1e-12)
-    capped = scan_log_likelihood(sensor, Z, X, s, fov, pd=1.0, clutter_density=0.0)
-    for k in (0, 1):  # (1 - PD_MAX) + PD_MAX sum_j N_j / CLUTTER_FLOOR
-        assert capped[k] == pytest.approx(
-            math.log(1.0 - PD_MAX + PD_MAX * mixes[k] / CLUTTER_FLOOR), rel=1e-12
-        )
-    np.testing.assert_array_equal(capped[2:], 0.0)
+def pda_particles(seed=0, count=400):
+    """Particles around (1000, 0, 0, 0) with uneven weights, at t = 1."""
+    rng = np.random.default_rng(seed)
+    X = np.array([1000.0, 0.0, 0.0, 0.0]) + rng.normal(size=(count, 4)) * [20.0, 1.0, 20.0, 1.0]
+    w = rng.uniform(0.5, 1.5, count)
+    return X, w / w.sum()
+
+
+def particle_filter(X, w, **options):
+    options.setdefault("resample", "ess")
+    options.setdefault("ess_threshold", 0.0)  # resample="ess" with threshold 0: never
+    return ParticleFilter(NearlyConstantVelocity(q=0.1), particles=X, weights=w, t0=1.0, **options)
+
+
+def detections(Z):
+    return [Measurement(PDA_SENSOR, np.zeros(4), z, 1.0, "s1") for z in Z]
+
+
+def gaussian_density(z, X):
+    """N(z; h(x), R) of the range-bearing sensor for every row of X, by hand (bearing wrapped)."""
+    r = np.hypot(X[:, 0], X[:, 2])
+    b = np.arctan2(X[:, 2], X[:, 0])
+    nu_r = z[0] - r
+    nu_b = np.angle(np.exp(1j * (z[1] - b)))
+    quad = nu_r**2 / 10.0**2 + nu_b**2 / 0.01**2
+    return np.exp(-0.5 * quad) / (2.0 * math.pi * 10.0 * 0.01)
+
+
+def test_particle_pda_with_the_detection_certain_is_the_plain_update():
+    X, w = pda_particles()
+    one = detections(PDA_Z[:1])
+    for resample in ("ess", "always"):
+        plain = particle_filter(X, w, resample=resample, rng=5)
+        pda = particle_filter(X, w, resample=resample, rng=5)
+        plain.update(one)
+        pda.update_pda(one, [0.0, 1.0])
+        np.testing.assert_allclose(pda.weights, plain.weights, rtol=1e-12, atol=0)
+        np.testing.assert_array_equal(pda.particles, plain.particles)
+    assert not np.allclose(plain.mean, X.T @ w)  # the detection did move the filter
+
+
+def test_particle_pda_with_no_detection_the_targets_leaves_the_particles():
+    X, w = pda_particles()
+    pf = particle_filter(X, w, resample="always", rng=5)
+    info = pf.update_pda(detections(PDA_Z), [1.0, 0.0, 0.0])
+    np.testing.assert_array_equal(pf.particles, X)
+    np.testing.assert_array_equal(pf.weights, w)
+    assert not info.resampled and info.n_detections == 2
+
+
+def test_particle_pda_weights_are_the_mixture_over_the_hypotheses():
+    # w_i <- w_i (b_0 + sum_j b_j N(z_j; h(x_i), R) / sum_k w_k N(z_j; h(x_k), R)).
+    X, w = pda_particles(seed=1)
+    beta = np.array([0.2, 0.5, 0.3])
+    pf = particle_filter(X, w)
+    pf.update_pda(detections(PDA_Z), beta)
+    mix = np.full(len(w), beta[0])
+    for b, z in zip(beta[1:], PDA_Z, strict=True):
+        N = gaussian_density(z, X)
+        mix += b * N / (w @ N)
+    expected = w * mix / (w @ mix)
+    np.testing.assert_allclose(pf.weights, expected, rtol=1e-9, atol=0)
+    # beta_0 < 1: the weights moved (an even sum of the hypotheses would keep w only by chance)
+    assert np.abs(pf.weights - w).max() > 0.1 * w.max()
+
+
+def test_pda_updates_check_their_association_probabilities():
+    X, w = pda_particles()
+    ekf = ExtendedKalmanFilter(NearlyConstantVelocity(q=0.1), X.T @ w, np.eye(4) * 400.0, 1.0)
+    for filt in (particle_filter(X, w), ekf):
+        with pytest.raises(ValueError, match=r"beta must be \(3,\) probabilities"):
+            filt.update_pda(detections(PDA_Z), [0.5, 0.5])
+        with pytest.raises(ValueError, match="beta must sum to 1"):
+            filt.update_pda(detections(PDA_Z), [0.5, 0.5, 0.5])
+        missed = [Measurement(PDA_SENSOR, np.zeros(4), None, 1.0, "s1")]
+        with pytest.raises(ValueError, match="takes detections"):
+            filt.update_pda(missed, [0.0, 1.0])
+
+
+def test_ekf_pda_limits_are_the_update_and_the_prediction():
+    model = NearlyConstantVelocity(q=0.1)
+    x0, P0 = np.array([1000.0, 1.0, 10.0, 0.0]), np.diag([400.0, 1.0, 400.0, 1.0])
+    plain, pda, none = (ExtendedKalmanFilter(model, x0, P0, 1.0) for _ in range(3))
+    plain.update(detections(PDA_Z[:1]))
+    pda.update_pda(detections(PDA_Z[:1]), [0.0, 1.0])
+    np.testing.assert_allclose(pda.mean, plain.mean, rtol=1e-12)
+    np.testing.assert_allclose(pda.cov, plain.cov, rtol=1e-9, atol=1e-12)
+    none.update_pda(detections(PDA_Z), [1.0, 0.0, 0.0])
+    np.testing.assert_array_equal(none.mean, x0)
+    np.testing.assert_array_equal(none.cov, P0)
+
+
+def test_the_association_keeps_pd_1_and_no_clutter_finite():
+    # The JPDA divides by the clutter density and needs "no detection" possible.
+    assert (effective_pd(1.0), effective_clutter_density(0.0)) == (PD_MAX, CLUTTER_FLOOR)
     assert math.log1p(-PD_MAX) == pytest.approx(math.log(1e-9), rel=1e-6)
+    assert effective_pd(0.8) == 0.8 and effective_clutter_density(1e-3) == 1e-3
+
+
+# --- the particle filter in clutter -------------------------------------------------------------
 
 
 def test_particle_filter_agrees_with_the_pda_ekf_in_clutter():
@@ -460,8 +553,8 @@ def test_particle_filter_agrees_with_the_pda_ekf_in_clutter():
         errors.append(np.linalg.norm((p.mean - truth[k, 0])[[0, 2]]))
         assert p.samples is not None and p.samples.shape == (1000, 4)
         assert 1.0 <= p.ess <= 3000.0
-    # Measured (seed 13, ~14 detections per scan): |PF - EKF| / EKF position std 0.11 on
-    # average, 0.24 at most; both within ~11 m of the truth on average.
+    # Measured (seed 13, ~14.6 detections per scan): |PF - EKF| / EKF position std 0.068 on
+    # average, 0.22 at most; both within ~11 m of the truth on average (10.7 and 10.6 m).
     assert np.mean(ratios) < 0.25
     assert max(ratios) < 0.6
     assert np.mean(errors) < 20.0
@@ -497,7 +590,7 @@ def test_rejected_scans_leave_the_state_unchanged():
         planner_samples=100,
     )
     _, scans = simulate(sc, 3, np.random.default_rng(15))
-    tracker, twin = (MultiTargetTracker(sc, np.random.default_rng(1)) for _ in range(2))
+    tracker, twin = (build_tracker(sc, np.random.default_rng(1)) for _ in range(2))
     for k in (1, 2):
         tracker.step(k, float(k), scans[k - 1])
         twin.step(k, float(k), scans[k - 1])
@@ -538,7 +631,7 @@ def test_priors_give_ids_origins_and_priorities_in_scenario_order():
     data["targets"][2]["priority"] = 3.0
     data["planner"]["targets"]["new_track_priority"] = 0.25
     sc = Scenario.model_validate(data)
-    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    tracker = build_tracker(sc, np.random.default_rng(0))
     got = [(t.track_id, t.status, t.origin, t.priority) for t in tracker.snapshot().tracks]
     assert got == [(1, CONFIRMED, "a", 1.0), (2, CONFIRMED, "b", 3.0)]
     Z = tracker.sensors["s1"].measure(np.array([0.0, 0.0, 500.0, 0.0]), SENSOR_PV)[None]
@@ -587,7 +680,7 @@ def test_lm_ipda_a_detection_a_sharper_track_explains_barely_raises_the_wide_one
 
 def test_a_detection_in_a_tracks_gate_starts_no_track():
     sc = make_scenario([{"id": "a", "mean": [100.0, 5.0, 100.0, 5.0]}], [range_bearing()])
-    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    tracker = build_tracker(sc, np.random.default_rng(0))
     sensor = tracker.sensors["s1"]
     near = sensor.measure(np.array([105.0, 0.0, 105.0, 0.0]), SENSOR_PV) + np.array([15.0, 0.0])
     far = sensor.measure(np.array([0.0, 0.0, 500.0, 0.0]), SENSOR_PV)
@@ -606,7 +699,7 @@ def test_confirmation_waits_for_existence_and_existence_deletes_a_confirmed_trac
         [range_bearing(pd=0.9)],
         tracks={"confirm_m": 1, "confirm_n": 1},
     )
-    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    tracker = build_tracker(sc, np.random.default_rng(0))
     z = tracker.sensors["s1"].measure(np.array([300.0, 0.0, 100.0, 0.0]), SENSOR_PV)[None]
     ts = tracker.step(1, 1.0, [Scan("s1", 1, 1.0, SENSOR_PV, z)])
     assert [t.status for t in ts.tracks] == [TENTATIVE]
@@ -636,7 +729,7 @@ def test_tracks_from_priors_are_never_deleted_by_existence():
         [range_bearing(pd=0.9)],
         tracks={"delete_misses": 6},
     )
-    tracker = MultiTargetTracker(sc, np.random.default_rng(0))
+    tracker = build_tracker(sc, np.random.default_rng(0))
     empty = np.zeros((0, 2))
     for k in range(1, 6):
         ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty)])
@@ -653,9 +746,31 @@ def test_field_of_view_coverage_is_the_beam_coverage():
     means = np.array([[0.0, 0.0, 2000.0, 0.0]])  # 5000 m north: bearing pi / 2
     covs = np.diag([2500.0, 1.0, 100.0, 1.0])[None]  # cross-range std 50 m: sigma_b 0.01
     w = 0.02
-    got = _fov_coverage(means, covs, FieldOfView(math.pi / 2, w), s)
+    got = FieldOfView(math.pi / 2, w).coverage(means, covs, s)
     np.testing.assert_allclose(got, [math.erf(w / (2 * math.sqrt(2) * 0.01))], rtol=1e-9)
     np.testing.assert_allclose(got, beam_coverage(w, means[0], covs[0], s), rtol=1e-9)
-    edge = _fov_coverage(means, covs * 1e-4, FieldOfView(math.pi / 2 + 0.05, 0.1), s)
+    edge = FieldOfView(math.pi / 2 + 0.05, 0.1).coverage(means, covs * 1e-4, s)
     np.testing.assert_allclose(edge, [0.5], atol=1e-9)
-    np.testing.assert_allclose(_fov_coverage(means, covs, FieldOfView(), s), [1.0])
+    np.testing.assert_allclose(FieldOfView().coverage(means, covs, s), [1.0])
+
+
+# --- looking at the tracks ----------------------------------------------------------------------
+
+
+def test_snapshots_draw_nothing():
+    """Tracker.snapshot() is pure: looking at the tracks never changes a later result."""
+    scenario = with_tracker_overrides(
+        load_scenario("tests/ros/data/short_two_sensors.yaml"), filter="pf", particles=500
+    )
+    plain, looked = (build_tracker(scenario, np.random.default_rng(3)) for _ in range(2))
+    sim = build_simulator(scenario, np.random.default_rng(4))
+    for k in range(1, 6):
+        scans = sim.advance()
+        (a,) = plain.step(k, sim.time, scans).tracks
+        for _ in range(3):  # a notebook looking at the tracks, again and again
+            looked.snapshot()
+        (b,) = looked.step(k, sim.time, scans).tracks
+        (again,) = looked.snapshot().tracks
+        np.testing.assert_array_equal(a.mean, b.mean)
+        np.testing.assert_array_equal(a.samples, b.samples)
+        np.testing.assert_array_equal(again.samples, b.samples)  # the same samples each look

@@ -1,6 +1,7 @@
-"""Multi-target evaluation (activetrack.multitarget.evaluation, .bounds, .plots) on constructed
-records: GOSPA / OSPA closed forms, counted breaks and swaps, RMSE of an offset track, the
-per-target PCRLB against the clutter-free recursion of bounds.pcrlb and its IRF scaling."""
+"""The evaluation of a run (activetrack.closed_loop.evaluation, the summary of
+closed_loop.batch, activetrack.plots) on constructed records: GOSPA / OSPA closed forms,
+counted breaks and swaps, RMSE of an offset track, the per-target PCRLB against the
+clutter-free recursion of bounds.pcrlb and its IRF scaling."""
 
 import math
 
@@ -9,23 +10,21 @@ import pytest
 from scipy.special import gammainc
 
 from activetrack.bounds.pcrlb import covariance_bound, gaussian_samples, pcrlb_trajectory
-from activetrack.models.irf import information_reduction_factor
-from activetrack.models.motion import NearlyConstantVelocity
-from activetrack.multitarget.bounds import alive_mask, target_bounds
-from activetrack.multitarget.data import (
-    MultiRunRecord,
-    Scan,
-    ScanTruth,
-    TrackEstimate,
-    TrackSet,
-)
-from activetrack.multitarget.evaluation import (
+from activetrack.closed_loop.batch import summarize
+from activetrack.closed_loop.components import scene_sensors
+from activetrack.closed_loop.evaluation import (
     NOT_HELD,
+    alive_mask,
     count_breaks_swaps,
     evaluate_run,
     held_tracks,
+    target_bounds,
 )
-from activetrack.multitarget.plots import clutter_points, plot_gospa, plot_run, track_paths
+from activetrack.closed_loop.record import RunRecord
+from activetrack.data import Scan, ScanTruth, TrackEstimate, TrackSet
+from activetrack.models.irf import information_reduction_factor
+from activetrack.models.motion import NearlyConstantVelocity
+from activetrack.plots import clutter_points, plot_gospa, plot_run, track_paths
 from activetrack.scenarios.build import build_sensor
 from activetrack.scenarios.schema import Scenario
 
@@ -75,36 +74,47 @@ def straight_truth(scenario, K):
     return truth
 
 
-def confirmed(track_id, pv, status="confirmed"):
-    return TrackEstimate(track_id, status, np.asarray(pv, dtype=float), np.eye(4))
+def confirmed(track_id, pv, status="confirmed", origin=""):
+    pv = np.asarray(pv, dtype=float)
+    return TrackEstimate(track_id, status, pv, np.eye(4), pv, np.eye(4), origin)
 
 
-def make_record(scenario, truth, tracks, observed=None, platform_paths=None):
-    """tracks: one list of TrackEstimate per epoch 0..K."""
+def make_record(scenario, truth, tracks, looked=None, platform_paths=None):
+    """tracks: one list of TrackEstimate per epoch 0..K; looked ``(K, S)``: which sensors
+    scanned (default: all, every epoch); every alive target observed by each scan."""
     K = truth.shape[0] - 1
     sensor_ids = tuple(s.id for p in scenario.platforms for s in p.sensors)
     if platform_paths is None:
         start = np.array([p.initial_state for p in scenario.platforms])
         platform_paths = np.repeat(start[None], K + 1, axis=0)
-    if observed is None:
-        observed = np.ones((K, len(sensor_ids), truth.shape[1]), dtype=bool)
-        observed &= ~np.isnan(truth[1:, None, :, 0])
-    return MultiRunRecord(
+    if looked is None:
+        looked = np.ones((K, len(sensor_ids)), dtype=bool)
+    observed = np.ones((K, len(sensor_ids), truth.shape[1]), dtype=bool)
+    observed &= ~np.isnan(truth[1:, None, :, 0]) & looked[:, :, None]
+    return RunRecord(
         target_ids=tuple(t.id for t in scenario.targets),
         sensor_ids=sensor_ids,
         platform_ids=tuple(p.id for p in scenario.platforms),
         truth=truth,
-        tracks=[TrackSet(k, k * scenario.dt, "ekf", tuple(ts)) for k, ts in enumerate(tracks)],
+        tracks=[
+            TrackSet(k, k * scenario.dt, "ekf", tracks=tuple(ts)) for k, ts in enumerate(tracks)
+        ],
         platform_paths=platform_paths,
+        looked=looked,
         observed=observed,
     )
 
 
-def perfect(truth, ids=None):
-    """Per epoch, a confirmed track on each alive target (ids: one per target)."""
+def perfect(truth, ids=None, origins="abcd"):
+    """Per epoch, a confirmed track on each alive target (ids: one per target), started from
+    the target's prior (``origins``: the target ids of the scenarios here)."""
     ids = ids if ids is not None else range(1, truth.shape[1] + 1)
     return [
-        [confirmed(i, row) for i, row in zip(ids, rows, strict=True) if not np.isnan(row[0])]
+        [
+            confirmed(i, row, origin=origin)
+            for i, row, origin in zip(ids, rows, origins, strict=False)
+            if not np.isnan(row[0])
+        ]
         for rows in truth
     ]
 
@@ -120,6 +130,10 @@ def evaluate(scenario, record, seed=0):
     return evaluate_run(scenario, record, np.random.default_rng(seed), n_samples=SAMPLES)
 
 
+def sensors_by_id(scenario):
+    return {sid: sensor for sid, (_, sensor) in scene_sensors(scenario).items()}
+
+
 def test_perfect_tracks_give_zero_gospa_and_no_errors():
     scenario = make_scenario(THREE)
     truth = straight_truth(scenario, 10)
@@ -129,15 +143,21 @@ def test_perfect_tracks_give_zero_gospa_and_no_errors():
         np.testing.assert_array_equal(series, 0.0)
     assert ev.mean_gospa == 0.0
     assert (ev.breaks, ev.swaps) == (0, 0)
-    np.testing.assert_array_equal(ev.target_rmse, 0.0)
+    np.testing.assert_array_equal(ev.error, 0.0)
     np.testing.assert_array_equal(ev.held_fraction, 1.0)
-    # The bound: sqrt of the mean of B_xx + B_yy over the held epochs (all ten), same draws.
     record = make_record(scenario, truth, perfect(truth))
+    summary = summarize(scenario, [record], [ev])
+    np.testing.assert_array_equal(summary.time_avg_rmse_x + summary.time_avg_rmse_y, 0.0)
+    # The bound: the PCRLB of each target at each epoch, same draws; the summary's
+    # time-averaged bound is the mean over the epochs of its standard deviation.
     B = target_bounds(scenario, record, np.random.default_rng(0), n_samples=SAMPLES)
-    expected = np.sqrt(np.mean(B[..., 0, 0] + B[..., 2, 2], axis=0))
-    np.testing.assert_allclose(ev.target_bound, expected, rtol=1e-12)
-    # Targets 3, 4 and 5 km from the sensor: the bound grows with range (bearing 10 mrad).
-    assert ev.target_bound[0] < ev.target_bound[1] < ev.target_bound[2]
+    np.testing.assert_allclose(ev.bound, B, rtol=1e-12)
+    expected = np.mean(np.sqrt(B[..., 0, 0]), axis=0)
+    np.testing.assert_allclose(summary.time_avg_bound_x, expected, rtol=1e-12)
+    # Targets 3, 4 and 5 km from the sensor: the cross-range (x) bound grows with range
+    # (bearing 10 mrad).
+    bx = summary.time_avg_bound_x
+    assert bx[0] < bx[1] < bx[2]
 
 
 @pytest.mark.parametrize("order", [1.0, 2.0, 3.0])
@@ -154,7 +174,11 @@ def test_one_missed_target_gives_the_closed_form(order):
     np.testing.assert_array_equal(ev.localisation, 0.0)
     assert (ev.breaks, ev.swaps) == (0, 0)
     np.testing.assert_array_equal(ev.held_fraction, [1.0, 1.0, 0.0])
-    assert math.isnan(ev.target_rmse[2]) and math.isnan(ev.target_bound[2])
+    # c has no error (no track holds it) but its bound (it is alive and scanned)
+    assert np.isnan(ev.error[:, 2]).all() and np.isfinite(ev.bound[:, 2]).all()
+    record = make_record(scenario, truth, tracks)
+    summary = summarize(scenario, [record], [ev])
+    assert math.isnan(summary.time_avg_rmse_x[2]) and math.isfinite(summary.time_avg_bound_x[2])
     assert ev.mean_gospa == pytest.approx((C**order / 2) ** (1 / order), rel=1e-12)
 
 
@@ -167,7 +191,10 @@ def test_alpha_one_charges_the_full_cut_off_for_a_missed_target():
 
 
 def test_a_false_track_gives_the_closed_form_and_tentative_tracks_do_not_count():
-    scenario = make_scenario(THREE[:1])
+    # Clutter in the scene: the tracker starts tracks from detections (JPDA), so a track held
+    # by no target can be there. Known association has the target's track alone (below).
+    sensor = {"id": "s1", "kind": "range_bearing", "sigma_r": 10.0, "sigma_b": 0.01}
+    scenario = make_scenario(THREE[:1], [{**sensor, "r_max": 9000.0, "clutter_density": 1e-4}])
     truth = straight_truth(scenario, 10)
     tracks = [
         [*ts, confirmed(9, [5000.0, 0, 5000.0, 0]), confirmed(8, [-900.0, 0, 0, 0], "tentative")]
@@ -185,9 +212,14 @@ def test_a_constant_offset_track_has_that_rmse():
     scenario = make_scenario(THREE[:1])
     truth = straight_truth(scenario, 10)
     offset = np.array([6.0, 0.0, -8.0, 0.0])  # 10 m
-    tracks = [[confirmed(1, row[0] + offset)] for row in truth]
-    ev = evaluate(scenario, make_record(scenario, truth, tracks))
-    assert ev.target_rmse[0] == pytest.approx(10.0, rel=1e-12)
+    tracks = [[confirmed(1, row[0] + offset, origin="a")] for row in truth]
+    record = make_record(scenario, truth, tracks)
+    ev = evaluate(scenario, record)
+    np.testing.assert_allclose(ev.error[:, 0], np.tile(offset, (10, 1)), atol=1e-9)
+    summary = summarize(scenario, [record], [ev])
+    rmse = (summary.time_avg_rmse_x[0], summary.time_avg_rmse_y[0])
+    assert rmse == pytest.approx((6.0, 8.0), rel=1e-12)
+    assert math.hypot(*rmse) == pytest.approx(10.0, rel=1e-12)
     np.testing.assert_allclose(ev.gospa, 10.0, rtol=1e-12)
     np.testing.assert_allclose(ev.ospa, 10.0, rtol=1e-12)
     np.testing.assert_allclose(ev.localisation, 100.0, rtol=1e-12)  # d^p, p = 2
@@ -276,23 +308,26 @@ def moving_paths(scenario, K):
 
 
 def looks(K):
-    """(K, 2, 1): a fixed pattern of looks (sensor 1 every epoch but 3 and 4, sensor 2 odd k)."""
-    observed = np.ones((K, 2, 1), dtype=bool)
-    observed[[2, 3], 0, 0] = False
-    observed[1::2, 1, 0] = False
-    return observed
+    """(K, 2): a fixed pattern of looks (sensor 1 every epoch but 3 and 4, sensor 2 odd k)."""
+    looked = np.ones((K, 2), dtype=bool)
+    looked[[2, 3], 0] = False
+    looked[1::2, 1] = False
+    return looked
 
 
-def bound_record(scenario, K=10):
+def bound_record(scenario, K=10, looked=None):
     truth = straight_truth(scenario, K)
-    return make_record(scenario, truth, perfect(truth), looks(K), moving_paths(scenario, K))
+    looked = looks(K) if looked is None else looked
+    return make_record(scenario, truth, perfect(truth), looked, moving_paths(scenario, K))
 
 
 @pytest.mark.parametrize("fov_width", [None, 0.5])
 def test_without_clutter_the_bound_is_the_pcrlb_recursion(fov_width):
-    # pd 1, no clutter, a 10-sigma gate: q = F_{chi2, 3}(100) = 1 - 1e-20, so the bound is
-    # Hernandez eq. 3 with eq. 8-9 (bounds.pcrlb) over the same samples; a fixed field of view
-    # (here pointing away from the target) is not applied again: record.observed rules.
+    # pd 1, no clutter, one target: known association, q = pd = 1, so the bound is Hernandez
+    # eq. 3 with eq. 8-9 (bounds.pcrlb) over the same samples with the sensors that scanned
+    # (record.looked). A fixed field of view acts through the samples: pointed away from the
+    # target (0.5 rad wide, 3 rad off the platform's heading north; the target is east), the
+    # bearing sensor adds nothing, as if it had never scanned.
     scenario = two_sensor_scenario(fov_width=fov_width)
     record = bound_record(scenario)
     B = target_bounds(scenario, record, np.random.default_rng(7), n_samples=SAMPLES)
@@ -311,48 +346,57 @@ def test_without_clutter_the_bound_is_the_pcrlb_recursion(fov_width):
         sensors,
         record.platform_paths[1:],
         rng,
-        active=record.observed[:, :, 0],
+        active=record.looked & [fov_width is None, True],
     )
     np.testing.assert_allclose(B[:, 0], covariance_bound(J), rtol=1e-6)
     # The looks matter: without those of epochs 3 and 4 the position bound grows there.
-    assert B[3, 0, 0, 0] > B[1, 0, 0, 0]
+    assert fov_width is not None or B[3, 0, 0, 0] > B[1, 0, 0, 0]
 
 
 def test_clutter_scales_the_measurement_information_by_the_irf_ratio():
     # Q = 0: J_k = T_k(J_0) + sum_j T_kj(q J_Z,j) is linear in the measurement terms, so the
     # information they add scales exactly by q_clutter / q_free (same samples, same looks).
+    # Without clutter one target is tracked by known association (no gate): q_free = pd.
     lam = 10.0  # false alarms per rad: 63 per scan all around, 0.1 per sigma of bearing
     K = 10
     bounds = {}
-    for name, (clutter, observed) in {
+    for name, (clutter, looked) in {
         "free": (0.0, looks(K)),
         "clutter": (lam, looks(K)),
-        "none": (0.0, np.zeros((K, 2, 1), dtype=bool)),
+        "none": (0.0, np.zeros((K, 2), dtype=bool)),
     }.items():
         scenario = two_sensor_scenario(clutter=clutter, pd=0.9, gate=3.5, q=0.0)
-        record = bound_record(scenario, K)
-        record.observed = observed
+        record = bound_record(scenario, K, looked)
         bounds[name] = target_bounds(scenario, record, np.random.default_rng(3), n_samples=SAMPLES)
     J = {name: np.linalg.inv(B[:, 0]) for name, B in bounds.items()}
-    q_free = information_reduction_factor(0.9, 0.0, 3.5, 1)
+    q_gated = information_reduction_factor(0.9, 0.0, 3.5, 1)
     q_clutter = information_reduction_factor(0.9, lam * 0.01, 3.5, 1)  # lambda sqrt(det R)
-    assert q_free == pytest.approx(0.9 * gammainc(1.5, 3.5**2 / 2), abs=1e-12)  # Pd F_chi2,3
-    assert q_clutter / q_free == pytest.approx(0.656, abs=1e-3)
-    # Only the bearing sensor sees clutter: split the two sensors' shares with a bearing-only
-    # version of the same looks.
-    bearing_only = looks(K)
-    bearing_only[:, 1] = False
+    assert q_gated == pytest.approx(0.9 * gammainc(1.5, 3.5**2 / 2), abs=1e-12)  # Pd F_chi2,3
+    assert q_clutter / q_gated == pytest.approx(0.656, abs=1e-3)
+    q_free = scene_sensors(two_sensor_scenario(pd=0.9, gate=3.5))["b1"][1].information_factor
+    assert q_free == 0.9
+    # Only the bearing sensor sees clutter, but with clutter in the scene the tracker gates
+    # every sensor's detections (JPDA), so the range-bearing sensor's factor is its gate's:
+    # q_rb = F_{chi2, 4}(3.5^2) (pd 1). Split the two sensors' shares with one-sensor
+    # versions of the same looks.
+    q_rb = scene_sensors(two_sensor_scenario(clutter=lam, gate=3.5))["rb"][1].information_factor
+    assert q_rb == pytest.approx(information_reduction_factor(1.0, 0.0, 3.5, 2), rel=1e-12)
+    assert q_rb == pytest.approx(0.98441, abs=1e-5)
     shares = {}
-    for clutter in (0.0, lam):
-        scenario = two_sensor_scenario(clutter=clutter, pd=0.9, gate=3.5, q=0.0)
-        record = bound_record(scenario, K)
-        record.observed = bearing_only
-        B = target_bounds(scenario, record, np.random.default_rng(3), n_samples=SAMPLES)
-        shares[clutter] = np.linalg.inv(B[:, 0]) - J["none"]
+    for sensor in (0, 1):
+        alone = looks(K)
+        alone[:, 1 - sensor] = False
+        for clutter in (0.0, lam):
+            scenario = two_sensor_scenario(clutter=clutter, pd=0.9, gate=3.5, q=0.0)
+            record = bound_record(scenario, K, alone)
+            B = target_bounds(scenario, record, np.random.default_rng(3), n_samples=SAMPLES)
+            shares[sensor, clutter] = np.linalg.inv(B[:, 0]) - J["none"]
     ratio = q_clutter / q_free
-    np.testing.assert_allclose(shares[lam], ratio * shares[0.0], rtol=1e-6, atol=1e-12)
-    added = J["clutter"] - J["free"]  # the bearing share's change only
-    np.testing.assert_allclose(added, (ratio - 1.0) * shares[0.0], rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(shares[0, lam], ratio * shares[0, 0.0], rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(shares[1, lam], q_rb * shares[1, 0.0], rtol=1e-6, atol=1e-12)
+    added = J["clutter"] - J["free"]  # each sensor's share scaled by its factor
+    expected = (ratio - 1.0) * shares[0, 0.0] + (q_rb - 1.0) * shares[1, 0.0]
+    np.testing.assert_allclose(added, expected, rtol=1e-6, atol=1e-12)
     pos = {name: B[:, 0, 0, 0] + B[:, 0, 2, 2] for name, B in bounds.items()}
     assert np.all(pos["clutter"] > pos["free"]) and np.all(pos["clutter"] < pos["none"])
 
@@ -364,9 +408,8 @@ def test_a_target_born_later_starts_from_its_prior_and_ends_at_death():
     ]
     scenario = make_scenario(targets)
     truth = straight_truth(scenario, 10)
-    observed = np.ones((10, 1, 2), dtype=bool)
-    observed[:, :, 1] = False  # never looked at: the bound is the prior's prediction
-    record = make_record(scenario, truth, perfect(truth), observed)
+    looked = np.zeros((10, 1), dtype=bool)  # no scan: the bound is the prior's prediction
+    record = make_record(scenario, truth, perfect(truth), looked)
     B = target_bounds(scenario, record, np.random.default_rng(1), n_samples=SAMPLES)
     C0 = scenario.targets[1].prior.covariance()
     model = NearlyConstantVelocity(q=0.5)
@@ -376,7 +419,7 @@ def test_a_target_born_later_starts_from_its_prior_and_ends_at_death():
     np.testing.assert_allclose(B[3, 1], F @ C0 @ F.T + Q, rtol=1e-12)
     assert np.isfinite(B[:, 0]).all()
     # Looked at on its birth epoch: J_b = C0^-1 + J_Z(b), below the prior.
-    record.observed = np.ones((10, 1, 2), dtype=bool) & ~np.isnan(truth[1:, None, :, 0])
+    record = make_record(scenario, truth, perfect(truth))
     B = target_bounds(scenario, record, np.random.default_rng(1), n_samples=SAMPLES)
     assert np.trace(B[2, 1]) < np.trace(C0)
 
@@ -392,13 +435,20 @@ def test_records_that_do_not_fit_the_scenario_are_rejected():
     record.target_ids = ("b", "a")
     with pytest.raises(ValueError, match="record.target_ids"):
         evaluate(scenario, record)
-    record = make_record(scenario, truth, perfect(truth))
-    record.observed = None
-    with pytest.raises(ValueError, match="record.observed"):
-        target_bounds(scenario, record, np.random.default_rng(0))
+    for name in ("looked", "observed"):
+        record = make_record(scenario, truth, perfect(truth))
+        setattr(record, name, None)
+        with pytest.raises(ValueError, match=f"record.{name}"):
+            target_bounds(scenario, record, np.random.default_rng(0))
     record = make_record(scenario, truth, perfect(truth)[:-1])
     with pytest.raises(ValueError, match="record.tracks"):
         evaluate(scenario, record)
+    # One target without clutter (known association): every track is the target's.
+    one = make_scenario(THREE[:1])
+    truth = straight_truth(one, 10)
+    tracks = [[*ts, confirmed(9, [5000.0, 0, 5000.0, 0])] for ts in perfect(truth)]
+    with pytest.raises(ValueError, match=r"record.tracks\[1\]: track 9 has origin ''"):
+        evaluate(one, make_record(one, truth, tracks))
 
 
 # --- plots -------------------------------------------------------------------------------------
@@ -420,7 +470,7 @@ def test_clutter_points_and_track_paths():
     tracks = perfect(truth)
     tracks[2] = []  # track 1 unconfirmed at epoch 2: a gap in its path
     record = with_scans(scenario, make_record(scenario, truth, tracks))
-    xy = clutter_points(scenario, record)  # sensor at (0, -3000)
+    xy = clutter_points(sensors_by_id(scenario), record)  # sensor at (0, -3000)
     np.testing.assert_allclose(xy, [[0.0, -2900.0], [200.0, -3000.0]] * 3, atol=1e-9)
     paths = track_paths(record)
     assert list(paths) == [1]
@@ -432,7 +482,7 @@ def test_plots_write_non_empty_files(tmp_path):
     scenario = make_scenario(THREE)
     truth = straight_truth(scenario, 10)
     record = with_scans(scenario, make_record(scenario, truth, perfect(truth)))
-    out = plot_run(scenario, record, tmp_path / "run.png")
+    out = plot_run(scenario.name, sensors_by_id(scenario), record, tmp_path / "run.png")
     assert out.stat().st_size > 10_000
     evs = [evaluate(scenario, record, seed) for seed in range(2)]
     missed = [evaluate(scenario, make_record(scenario, truth, [ts[:2] for ts in perfect(truth)]))]

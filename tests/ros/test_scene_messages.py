@@ -1,7 +1,7 @@
-"""The multi-target messages (Scan, TrackArray, BeamCommand, GroundTruthArray) and their
-conversions (activetrack_ros.convert_multi): exact round trips through CDR on seeded data, every
-bad field rejected with a ValueError (and a counted Rejected) that names it, and the topics in
-the graph table with the per-epoch QoS."""
+"""The per-epoch messages of every scene (Scan, TrackArray, BeamCommand, GroundTruthArray) and
+their conversions (activetrack_ros.convert): exact round trips through CDR on seeded data for
+one target and many, every bad field rejected with a ValueError (and a counted Rejected) that
+names it, and the topics in the graph table with the per-epoch QoS."""
 
 from __future__ import annotations
 
@@ -14,7 +14,13 @@ import pytest
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 
-from activetrack.multitarget.data import (
+from activetrack.closed_loop.components import (
+    build_simulator,
+    build_tracker,
+    scene_sensors,
+    scene_targets,
+)
+from activetrack.data import (
     CONFIRMED,
     TENTATIVE,
     BeamCommand,
@@ -22,18 +28,16 @@ from activetrack.multitarget.data import (
     TrackSet,
     TruthSet,
 )
-from activetrack.multitarget.simulator import MultiTargetSimulator
-from activetrack.multitarget.tracker import MultiTargetTracker
 from activetrack.scenarios import load_scenario
 from activetrack_ros import graph
-from activetrack_ros.convert import header
-from activetrack_ros.convert_multi import (
+from activetrack_ros.convert import (
     MessageError,
+    TrackArrayChecker,
     beam_from_msg,
     beam_msg,
+    header,
     scan_from_msg,
     scan_msg,
-    scan_sensors,
     track_array_from_msg,
     track_array_msg,
     truth_array_from_msg,
@@ -46,14 +50,31 @@ pytestmark = pytest.mark.ros
 
 ROOT = Path(__file__).resolve().parents[2]
 MSGS = ROOT / "src" / "msgs_defs"
-SCENARIOS = ("mt_bearings_crossing", "mt_radars_beams", "mt_appear_disappear")
+# One target (the papers' scenes: a bearing sensor pair; range-bearing and range-rate sensors,
+# a circular-motion target) and many (clutter, beams, births and deaths).
+SCENARIOS = (
+    "hernandez_2sensor_single",
+    "ramdaras_case3_pd",
+    "valverde_circular",
+    "mt_bearings_crossing",
+    "mt_radars_beams",
+    "mt_appear_disappear",
+)
 LOADED = {name: load_scenario(ROOT / "scenarios" / f"{name}.yaml") for name in SCENARIOS}
 NEW_TOPICS = {
     graph.SCANS: "msgs_defs/msg/Scan",
     graph.TRACKS: "msgs_defs/msg/TrackArray",
     graph.BEAM_COMMANDS: "msgs_defs/msg/BeamCommand",
-    graph.GROUND_TRUTH_ARRAY: "msgs_defs/msg/GroundTruthArray",
+    graph.GROUND_TRUTH: "msgs_defs/msg/GroundTruthArray",
 }
+# The topics of the former single-target messages (BearingMeasurement, PolarMeasurement,
+# Measurement, TrackEstimate): gone from the graph.
+FORMER_TOPICS = (
+    "activetrack/bearing_measurements",
+    "activetrack/polar_measurements",
+    "activetrack/measurements",
+    "activetrack/track",
+)
 
 
 def _cdr(msg):
@@ -70,7 +91,7 @@ def _close(a, b) -> None:
 def _simulated(name: str, epochs: int, seed: int = 7):
     """(scenario, [(scans, truth set)] for epochs 1..epochs) of a seeded simulator run."""
     scenario = LOADED[name]
-    sim = MultiTargetSimulator(scenario, np.random.default_rng(seed))
+    sim = build_simulator(scenario, np.random.default_rng(seed))
     return scenario, [(sim.advance(), sim.truth_set()) for _ in range(epochs)]
 
 
@@ -108,10 +129,12 @@ def test_topics_are_per_epoch_signed_and_latched():
         )
         package, _, name = msgtype.split("/")
         assert is_signed_type(getattr(__import__(f"{package}.msg").msg, name))
-    # Distinct from the single-target topics of similar names.
+    # One message family: the former measurement and track topics are no graph topics.
     assert graph.graph_topic_of("/activetrack/tracks") == graph.TRACKS
-    assert graph.graph_topic_of("/activetrack/track") == graph.TRACK
     assert graph.graph_topic_of("/activetrack/ground_truth") == graph.GROUND_TRUTH
+    for topic in FORMER_TOPICS:
+        assert topic not in graph.GRAPH_TOPICS
+        assert graph.graph_topic_of("/" + topic) is None
 
 
 # --- round trips ---------------------------------------------------------------------------------
@@ -120,7 +143,7 @@ def test_topics_are_per_epoch_signed_and_latched():
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_scans_and_truth_round_trip_exactly(name):
     scenario, epochs = _simulated(name, 12)
-    sensors = scan_sensors(scenario)
+    sensors = scene_sensors(scenario)
     detections = 0
     ids_seen = set()
     for scans, truth in epochs:
@@ -144,16 +167,25 @@ def test_scans_and_truth_round_trip_exactly(name):
             truth.ids,
         )
         _close(back_truth.pv, truth.pv)
+        assert back_truth.state_names == truth.state_names
+        for x, y in zip(back_truth.states, truth.states, strict=True):
+            _close(x, y)
         ids_seen.add(truth.ids)
-    assert detections >= 2 * len(epochs)  # scans with detections were compared
+    # Scans with detections were compared (one target: at most one per scan).
+    assert detections >= (2 if name.startswith("mt_") else 1) * len(epochs)
     if name == "mt_appear_disappear":
         assert len(ids_seen) >= 2  # targets born or died within the window
 
 
-def _random_tracks(rng: np.random.Generator, n: int, epoch: int, dt: float) -> TrackSet:
+def _random_tracks(rng: np.random.Generator, n: int, epoch: int, scenario) -> TrackSet:
+    """``n`` random tracks in the scenario tracker's state (its filter, motion model and
+    state names); odd ones carry particle samples."""
+    check = TrackArrayChecker(scenario)
+    dim = len(check.state_names)
     tracks = []
     for i in range(n):
         A = rng.standard_normal((4, 4)) * [30.0, 2.0, 30.0, 2.0]
+        B = rng.standard_normal((dim, dim))
         pf = i % 2 == 1
         tracks.append(
             TrackEstimate(
@@ -161,42 +193,76 @@ def _random_tracks(rng: np.random.Generator, n: int, epoch: int, dt: float) -> T
                 status=CONFIRMED if i % 3 else TENTATIVE,
                 mean=rng.normal(0.0, 1e3, 4),
                 cov=A @ A.T + np.eye(4),
+                state=rng.normal(0.0, 1e3, dim),
+                state_cov=B @ B.T + np.eye(dim),
                 origin="t1" if i == 0 else "",
                 priority=float(rng.uniform(0.5, 3.0)),
                 age=int(rng.integers(0, 50)),
                 hits=int(rng.integers(0, 20)),
                 misses=int(rng.integers(0, 20)),
+                missed_detections=int(rng.integers(0, 20)),
+                existence=float(rng.uniform(0.0, 1.0)),
+                nis=math.nan if pf else float(rng.uniform(0.0, 9.0)),
                 ess=float(rng.uniform(10, 500)) if pf else math.nan,
-                samples=rng.normal(0.0, 1e3, (int(rng.integers(1, 60)), 4)) if pf else None,
+                particle_count=1000 if pf else 0,
+                samples=rng.normal(0.0, 1e3, (int(rng.integers(1, 60)), dim)) if pf else None,
             )
         )
-    return TrackSet(epoch, epoch * dt, "ekf", tuple(tracks), detections=9, unassociated=4)
+    return TrackSet(
+        epoch=epoch,
+        time=epoch * scenario.dt,
+        filter_kind=scenario.tracker.filter,
+        motion_model=check.motion_model,
+        state_names=check.state_names,
+        tracks=tuple(tracks),
+        updates=max(epoch - 1, 0),
+        detections=9,
+        unassociated=4,
+    )
+
+
+_FIELDS = (
+    "track_id", "status", "origin", "priority", "age", "hits", "misses", "missed_detections",
+    "existence", "particle_count",
+)  # fmt: skip
+
+
+def _same_float(a: float, b: float) -> bool:
+    return a == b or (math.isnan(a) and math.isnan(b))
 
 
 def _assert_same_tracks(back: TrackSet, tracks: TrackSet) -> None:
-    assert (back.epoch, back.time, back.filter_kind) == (
+    assert (back.epoch, back.time, back.filter_kind, back.motion_model, back.state_names) == (
         tracks.epoch,
         tracks.time,
         tracks.filter_kind,
+        tracks.motion_model,
+        tracks.state_names,
     )
-    assert (back.detections, back.unassociated) == (tracks.detections, tracks.unassociated)
+    assert (back.updates, back.detections, back.unassociated) == (
+        tracks.updates,
+        tracks.detections,
+        tracks.unassociated,
+    )
     assert len(back.tracks) == len(tracks.tracks)
     for b, t in zip(back.tracks, tracks.tracks, strict=True):
-        fields = ("track_id", "status", "origin", "priority", "age", "hits", "misses")
-        assert [getattr(b, f) for f in fields] == [getattr(t, f) for f in fields]
-        assert b.ess == t.ess or (math.isnan(b.ess) and math.isnan(t.ess))
+        assert [getattr(b, f) for f in _FIELDS] == [getattr(t, f) for f in _FIELDS]
+        assert _same_float(b.ess, t.ess) and _same_float(b.nis, t.nis)
         _close(b.mean, t.mean)
         _close(b.cov, t.cov)
+        _close(b.state, t.state)
+        _close(b.state_cov, t.state_cov)
         assert (b.samples is None) == (t.samples is None)
         if t.samples is not None:
             _close(b.samples, t.samples)
 
 
-def test_seeded_track_arrays_round_trip_exactly():
-    scenario = LOADED["mt_bearings_crossing"]
+@pytest.mark.parametrize("name", ["valverde_circular", "mt_bearings_crossing"])
+def test_seeded_track_arrays_round_trip_exactly(name):
+    scenario = LOADED[name]
     rng = np.random.default_rng(2024)
     for epoch, n in ((0, 0), (3, 1), (17, 7)):
-        tracks = _random_tracks(rng, n, epoch, scenario.dt)
+        tracks = _random_tracks(rng, n, epoch, scenario)
         msg = _cdr(track_array_msg(tracks))
         assert [t.status for t in msg.tracks] == [
             1 if t.status == CONFIRMED else 0 for t in tracks.tracks
@@ -204,16 +270,18 @@ def test_seeded_track_arrays_round_trip_exactly():
         _assert_same_tracks(track_array_from_msg(msg, scenario), tracks)
 
 
-def test_tracker_output_round_trips_with_particle_samples():
-    base = LOADED["mt_appear_disappear"]
+@pytest.mark.parametrize("name", ["valverde_circular", "mt_appear_disappear"])
+def test_tracker_output_round_trips_with_particle_samples(name):
+    base = LOADED[name]
     cfg = base.tracker.model_copy(update={"filter": "pf", "particles": 300, "planner_samples": 40})
     scenario = base.model_copy(update={"tracker": cfg})
-    sim = MultiTargetSimulator(scenario, np.random.default_rng(11))
-    tracker = MultiTargetTracker(scenario, np.random.default_rng(12))
+    sim = build_simulator(scenario, np.random.default_rng(11))
+    tracker = build_tracker(scenario, np.random.default_rng(12))
     for k in range(1, 9):
         tracks = tracker.step(k, k * scenario.dt, sim.advance())
         _assert_same_tracks(track_array_from_msg(_cdr(track_array_msg(tracks)), scenario), tracks)
-    assert tracks.tracks and all(t.samples.shape == (40, 4) for t in tracks.tracks)
+    dim = len(tracks.state_names)
+    assert tracks.tracks and all(t.samples.shape == (40, dim) for t in tracks.tracks)
 
 
 def test_beams_round_trip_exactly():
@@ -224,7 +292,7 @@ def test_beams_round_trip_exactly():
             beam = BeamCommand(
                 sensor_id, epoch, float(rng.uniform(-10, 10)), int(rng.integers(-1, 9))
             )
-            back = beam_from_msg(_cdr(beam_msg(beam, scenario)), scenario)
+            back = beam_from_msg(_cdr(beam_msg(beam, scenario.dt)), scenario)
             assert (back.sensor_id, back.epoch, back.track_id) == (
                 beam.sensor_id,
                 beam.epoch,
@@ -357,7 +425,7 @@ def test_a_beam_scan_must_be_pointed_where_its_field_of_view_says():
 
 def _tracks_msg():
     scenario = LOADED["mt_appear_disappear"]
-    tracks = _random_tracks(np.random.default_rng(9), 4, 6, scenario.dt)
+    tracks = _random_tracks(np.random.default_rng(9), 4, 6, scenario)
     return scenario, track_array_msg(tracks)
 
 
@@ -390,6 +458,28 @@ TRACK_CASES = [
     ("filter_kind", lambda m: _set(m, "filter_kind", "pf"), "bad_field", "filter_kind"),
     ("stamp", lambda m: _set(m, "header.stamp.sec", 1), "bad_stamp", "stamp"),
     ("unassociated", lambda m: _set(m, "unassociated", 10), "out_of_range", "unassociated"),
+    ("nan_state", _track(0, "state", [0.0, math.nan, 0.0, 0.0]), "non_finite", "state"),
+    ("state_length", _track(2, "state", [0.0] * 3), "wrong_dimension", "state must have 4"),
+    (
+        "state_covariance_not_positive_definite",
+        _track(1, "state_covariance", NOT_SPD),
+        "bad_covariance",
+        "covariance is not positive definite",
+    ),
+    ("existence", _track(0, "existence", 1.5), "out_of_range", "existence"),
+    ("nis_inf", _track(0, "nis", math.inf), "non_finite", "nis"),
+    (
+        "motion_model",
+        lambda m: _set(m, "motion_model", "circular"),
+        "wrong_dimension",
+        "motion_model",
+    ),
+    (
+        "state_names",
+        lambda m: _set(m, "state_names", ["x", "y", "vx", "vy"]),
+        "wrong_dimension",
+        "state_names",
+    ),
 ]
 
 
@@ -411,9 +501,13 @@ def test_too_many_samples_and_tracks_are_refused():
         lambda: track_array_from_msg(msg, scenario), "wrong_dimension", "sample_count must be <="
     )
     scenario, msg = _tracks_msg()
-    most = scenario.tracker.tracks.max_tracks + len(scenario.targets)
+    most = scenario.tracker.tracks.max_tracks + len(scene_targets(scenario))
     msg.tracks = [msg.tracks[0]] * (most + 1)
-    _expect(lambda: track_array_from_msg(msg, scenario), "out_of_range", f"at most {most} tracks")
+    _expect(
+        lambda: track_array_from_msg(msg, scenario),
+        "out_of_range",
+        f"tracks must hold at most {most}",
+    )
 
 
 def _at_epoch(msg, epoch: int) -> None:
@@ -444,7 +538,7 @@ BEAM_CASES = [
 )
 def test_bad_beam_commands_are_rejected_naming_the_field(sensor, mutate, reason, field):
     scenario = LOADED["mt_appear_disappear"]
-    msg = beam_msg(BeamCommand(sensor, 4, 0.5, 2), scenario)
+    msg = beam_msg(BeamCommand(sensor, 4, 0.5, 2), scenario.dt)
     if mutate is not None:
         assert beam_from_msg(msg, scenario).bearing == 0.5
         mutate(msg)
@@ -454,7 +548,9 @@ def test_bad_beam_commands_are_rejected_naming_the_field(sensor, mutate, reason,
 def _truth_msg():
     scenario = LOADED["mt_bearings_crossing"]
     pv = np.arange(12.0).reshape(3, 4)
-    return scenario, truth_array_msg(TruthSet(2, 2 * scenario.dt, ("t1", "t2", "t3"), pv))
+    names = (("x", "xdot", "y", "ydot"),) * 3
+    truth = TruthSet(2, 2 * scenario.dt, ("t1", "t2", "t3"), pv, tuple(pv), names)
+    return scenario, truth_array_msg(truth)
 
 
 TRUTH_CASES = [
@@ -496,9 +592,9 @@ def test_conversions_to_messages_refuse_what_no_message_can_say():
     _, epochs = _simulated("mt_bearings_crossing", 1)
     with pytest.raises(ValueError, match="sensor_id"):
         scan_msg(epochs[0][0][0], LOADED["mt_radars_beams"].model_copy(update={"platforms": []}))
-    bad = TrackEstimate(1, "lost", np.zeros(4), np.eye(4))
+    bad = TrackEstimate(1, "lost", np.zeros(4), np.eye(4), np.zeros(4), np.eye(4))
     with pytest.raises(ValueError, match="status"):
-        track_array_msg(TrackSet(0, 0.0, "ekf", (bad,)))
+        track_array_msg(TrackSet(0, 0.0, "ekf", "ncv", tracks=(bad,)))
 
 
 # --- nothing but a counted rejection --------------------------------------------------------------
@@ -570,7 +666,7 @@ def test_random_bad_fields_give_only_message_errors():
     scenario_s, scan = _scan()
     scenario_t, tracks = _tracks_msg()
     scenario_b = LOADED["mt_appear_disappear"]
-    beam = beam_msg(BeamCommand("trk1", 3, 0.2, 1), scenario_b)
+    beam = beam_msg(BeamCommand("trk1", 3, 0.2, 1), scenario_b.dt)
     scenario_g, truth = _truth_msg()
     cases = [
         (scan, scan_from_msg, scenario_s),
