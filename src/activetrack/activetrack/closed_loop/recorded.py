@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from activetrack.closed_loop.components import build_tracker, component_rngs
+from activetrack.closed_loop.evaluation import confirmed_positions, epoch_gospa
 from activetrack.data import TrackSet, TruthSet
-from activetrack.metrics import gospa
 from activetrack.scenarios.schema import EvaluationConfig
 from activetrack.scenarios.tracking import TrackingConfig
 from activetrack.tracking.detections import DataFileError, Detections
@@ -76,16 +76,11 @@ def gospa_series(
 ) -> GospaSeries:
     """GOSPA of each epoch 1..K between ``truth[k]`` (none: no target) and the confirmed
     tracks of ``track_sets[k]``."""
-    ev = evaluation
     rows = []
     for ts in track_sets[1:]:
         t = truth.get(ts.epoch)
         X = np.empty((0, 2)) if t is None else np.asarray(t.pv, dtype=float)[:, [0, 2]]
-        Y = np.array([np.asarray(e.mean)[[0, 2]] for e in ts.confirmed]).reshape(-1, 2)
-        split = gospa(X, Y, ev.cutoff, ev.order, 2.0)
-        distance = split.distance
-        if ev.alpha != 2.0:
-            distance = gospa(X, Y, ev.cutoff, ev.order, ev.alpha).distance
+        distance, split = epoch_gospa(X, confirmed_positions(ts, ts.epoch), evaluation)
         rows.append((ts.epoch, distance, split.localisation, split.missed, split.false_tracks))
     epochs, dist, loc, missed, false = (np.array(c) for c in zip(*rows, strict=True))
     return GospaSeries(epochs.astype(int), dist, loc, missed.astype(int), false.astype(int))
