@@ -25,7 +25,6 @@ from activetrack_bringup.bag import BagPlayer
 from activetrack_bringup.cli import build_parser
 from activetrack_bringup.cli import main as cli_main
 from activetrack_bringup.retrack import read_run
-from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import TrackArrayChecker
 from activetrack_ros.node_base import GraphNode
@@ -72,16 +71,17 @@ def assert_same(a, b) -> None:
 
 @pytest.fixture(scope="module")
 def beams(tmp_path_factory):
-    """mt_radars_beams cut to 8 epochs: its file, the batch loop's run and the graph's run
-    (lockstep, in one process) with its bag."""
+    """mt_radars_beams cut to 8 epochs: its file, the batch loop's run and the bag of
+    ``activetrack run`` (the graph in lockstep, in one process)."""
     tmp = tmp_path_factory.mktemp("beams")
     data = yaml.safe_load((ROOT / "scenarios" / "mt_radars_beams.yaml").read_text())
     data["steps"] = 8
     path = tmp / "beams.yaml"
     path.write_text(yaml.safe_dump(data))
     record = run_once(load_scenario(path), run=RUN)
-    graph = run_graph(path, run=RUN, run_dir=tmp / "graph", plots=False)
-    return path, record, graph.bag
+    argv = ["run", str(path), "--run", str(RUN), "--out", str(tmp / "graph"), "--no-plots"]
+    assert cli_main(argv) == 0
+    return path, record, tmp / "graph" / "bag"
 
 
 def test_a_runs_exported_detections_track_to_its_tracks(beams, tmp_path, capsys):
@@ -153,6 +153,11 @@ def test_the_pages_example_runs_as_shown(example, capsys, monkeypatch):
     rows = (example / "runs/harbour/tracks.csv").read_text().splitlines()
     assert rows[0].startswith("epoch,time,track,status,origin,existence,x,vx,y,vy,P_x_x,P_x_vx,")
     assert len(rows) == 1 + 8  # track 1 at epochs 1..6, the clutter track at 3 and 4
+    # The bag it wrote holds the scans and the truth: tracked again, the same tracks and GOSPA.
+    rc, text, _ = cli(capsys, "track", "runs/harbour/bag", "--config", "harbour.yaml", "--out", "b")
+    assert rc == 0 and text.splitlines()[1:3] == shown.splitlines()[1:3]
+    assert (example / "b/tracks.csv").read_text() == "\n".join(rows) + "\n"
+    assert (example / "b/gospa.csv").read_text() == (example / "runs/harbour/gospa.csv").read_text()
 
 
 def test_the_pages_commands_parse():
