@@ -21,12 +21,14 @@ from activetrack.closed_loop.loop import run_once
 from activetrack.scenarios import load_scenario, load_tracking
 from activetrack.tracking.detections import write_detections
 from activetrack.tracking.track_files import read_tracks_json
-from activetrack_bringup.bag import BagPlayer
+from activetrack_bringup.bag import BagPlayer, graph_schemas, open_bag
+from activetrack_bringup.bag_io import Rosbag2Writer, TopicSpec
 from activetrack_bringup.cli import build_parser
 from activetrack_bringup.cli import main as cli_main
 from activetrack_bringup.retrack import read_run
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import TrackArrayChecker
+from activetrack_ros.graph import GRAPH_TOPICS
 from activetrack_ros.node_base import GraphNode
 from msgs_defs.msg import TrackArray
 from tracker_node.tracker_node import TrackerNode
@@ -158,6 +160,27 @@ def test_the_pages_example_runs_as_shown(example, capsys, monkeypatch):
     assert rc == 0 and text.splitlines()[1:3] == shown.splitlines()[1:3]
     assert (example / "b/tracks.csv").read_text() == "\n".join(rows) + "\n"
     assert (example / "b/gospa.csv").read_text() == (example / "runs/harbour/gospa.csv").read_text()
+
+
+def test_a_bags_scans_are_found_under_any_namespace(example, capsys):
+    """The scans of the page's example, alone in a bag under the namespace /harbour, track as
+    the CSV does (no truth in it: no GOSPA)."""
+    config = example / "harbour.yaml"
+    rc, _, _ = cli(
+        capsys, "track", example / "detections.csv", "--config", config, "--out", example / "a"
+    )
+    assert rc == 0
+    with open_bag(example / "a" / "bag") as b:
+        scans = [(t, d) for _, t, d in b.messages(["/" + topics.SCANS])]
+    msgtype = GRAPH_TOPICS[topics.SCANS]
+    name = f"/harbour/{topics.SCANS}"
+    writer = Rosbag2Writer(example / "ns", [TopicSpec(name, msgtype, *graph_schemas()[msgtype])])
+    for log_time, data in scans:
+        writer.write(writer.channel_ids[name], log_time, data)
+    writer.close()
+    rc, text, _ = cli(capsys, "track", example / "ns", "--config", config, "--out", example / "b")
+    assert rc == 0 and "6 epochs, 12 scans, 12 detections" in text and "GOSPA" not in text
+    assert (example / "b/tracks.csv").read_text() == (example / "a/tracks.csv").read_text()
 
 
 def test_the_pages_commands_parse():
