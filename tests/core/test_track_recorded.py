@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from doc_blocks import ROOT, file_block
 
-from activetrack.closed_loop.components import build_tracker, tracking_sensors
+from activetrack.closed_loop.components import build_tracker, scene_sensors
 from activetrack.closed_loop.loop import run_once
 from activetrack.closed_loop.recorded import track_detections
 from activetrack.data import TrackSet
@@ -73,7 +73,7 @@ def beams_run():
 def test_a_multi_target_runs_scans_track_to_its_tracks_bit_for_bit(beams_run, suffix, tmp_path):
     scenario, record = beams_run
     config = tracking_of(scenario)
-    sensors = tracking_sensors(config)
+    sensors = scene_sensors(config)
     path = tmp_path / f"scans{suffix}"
     write_detections(path, [scan for scans in record.scans for scan in scans], sensors)
     detections = read_detections(path, sensors, config.dt, config.steps)
@@ -90,7 +90,7 @@ def test_the_scans_of_an_epoch_are_applied_in_the_configurations_sensor_order(be
     track as the run did; applied in the file's (reversed) order they would not."""
     scenario, record = beams_run
     config = tracking_of(scenario)
-    sensors = tracking_sensors(config)
+    sensors = scene_sensors(config)
     reversed_scans = [scan for scans in record.scans for scan in reversed(scans)]
     write_detections(tmp_path / "r.json", reversed_scans, sensors)
     detections = read_detections(tmp_path / "r.json", sensors, config.dt)
@@ -117,7 +117,7 @@ def test_a_single_target_run_tracks_bit_for_bit_from_its_scenario_file(tmp_path)
     )
     config = load_tracking(path)
     assert config.known_association and config.steps == 6
-    sensors = tracking_sensors(config)
+    sensors = scene_sensors(config)
     write_detections(tmp_path / "d.csv", [s for scans in record.scans for s in scans], sensors)
     detections = read_detections(tmp_path / "d.csv", sensors, config.dt, config.steps)
     assert_same_track_sets(track_detections(config, detections, run=1).track_sets, record.tracks)
@@ -147,7 +147,7 @@ def example(tmp_path):
 def test_a_hand_written_csv_tracks_with_gospa_against_its_truth(example):
     config = load_tracking(example / "harbour.yaml")
     assert not config.known_association and config.steps is None
-    sensors = tracking_sensors(config)
+    sensors = scene_sensors(config)
     detections = read_detections(example / "detections.csv", sensors, config.dt)
     assert detections.last_epoch == 6 and detections.count == 12
     assert [s.sensor_id for s in detections.at(3)] == ["dirfinder", "radar"]
@@ -180,7 +180,7 @@ def test_a_hand_written_csv_tracks_with_gospa_against_its_truth(example):
 
 def test_the_example_in_json_is_the_same(example):
     config = load_tracking(example / "harbour.yaml")
-    sensors = tracking_sensors(config)
+    sensors = scene_sensors(config)
     csv = read_detections(example / "detections.csv", sensors, config.dt)
     write_detections(example / "d.json", [s for k in sorted(csv.scans) for s in csv.at(k)], sensors)
     write_truth(example / "t.json", read_truth(example / "truth.csv", config.dt).values())
@@ -203,7 +203,7 @@ def _bad_csv(example: Path, edit) -> str:
     (example / "bad.csv").write_text("\n".join(lines) + "\n")
     config = load_tracking(example / "harbour.yaml")
     with pytest.raises(DataFileError) as err:
-        read_detections(example / "bad.csv", tracking_sensors(config), config.dt)
+        read_detections(example / "bad.csv", scene_sensors(config), config.dt)
     message = str(err.value)
     assert "\n" not in message and message.startswith(f"{example / 'bad.csv'}: ")
     return message.split(": ", 1)[1]
@@ -288,7 +288,7 @@ def test_each_bad_value_is_one_line_naming_row_and_column(example, edit, where, 
 
 def test_bad_json_entries_name_their_place(example):
     config = load_tracking(example / "harbour.yaml")
-    sensors = tracking_sensors(config)
+    sensors = scene_sensors(config)
     path = example / "d.json"
     path.write_text(
         '{"scans": [{"epoch": 1, "time": 2.0, "sensor": "radar", "sensor_x": 0, "sensor_y": 0, '
@@ -306,7 +306,7 @@ def test_truth_rows_are_checked(example):
     with pytest.raises(DataFileError, match=r"row 3, column target: target 'a' at epoch 1 twice"):
         read_truth(example / "t.csv", 2.0)
     config = load_tracking(example / "harbour.yaml")
-    detections = read_detections(example / "detections.csv", tracking_sensors(config), config.dt)
+    detections = read_detections(example / "detections.csv", scene_sensors(config), config.dt)
     (example / "t.csv").write_text("epoch,target,x,y,vx,vy\n7,a,0,0,0,0\n")
     with pytest.raises(
         DataFileError, match="the truth holds epoch 7, the detections end at epoch 6"
@@ -316,7 +316,7 @@ def test_truth_rows_are_checked(example):
 
 def test_known_association_refuses_two_detections_in_a_scan_before_tracking(example):
     config = load_tracking(example / "harbour.yaml").model_copy(update={"association": "known"})
-    detections = read_detections(example / "detections.csv", tracking_sensors(config), config.dt)
+    detections = read_detections(example / "detections.csv", scene_sensors(config), config.dt)
     with pytest.raises(
         DataFileError, match=r"row 7: the scan of 'radar' at epoch 3 has 2 detections"
     ):

@@ -16,7 +16,7 @@ import yaml
 from doc_blocks import ROOT, blocks, file_block
 from rclpy.parameter import Parameter
 
-from activetrack.closed_loop.components import tracking_sensors
+from activetrack.closed_loop.components import scene_sensors
 from activetrack.closed_loop.loop import run_once
 from activetrack.scenarios import load_scenario, load_tracking
 from activetrack.tracking.detections import write_detections
@@ -91,9 +91,7 @@ def test_a_runs_exported_detections_track_to_its_tracks(beams, tmp_path, capsys)
     config = load_tracking(path)
     for suffix in (".csv", ".json"):
         scans = tmp_path / f"scans{suffix}"
-        write_detections(
-            scans, [s for epoch in record.scans for s in epoch], tracking_sensors(config)
-        )
+        write_detections(scans, [s for epoch in record.scans for s in epoch], scene_sensors(config))
         out = tmp_path / f"out{suffix}"
         rc, text, _ = cli(capsys, "track", scans, "--config", path, "--run", RUN, "--out", out)
         assert rc == 0 and "8 epochs, 24 scans" in text

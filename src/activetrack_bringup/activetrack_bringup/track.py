@@ -133,7 +133,7 @@ def _summary(args: argparse.Namespace, config, detections, run, folder: Path) ->
 
 
 def cmd_track(args: argparse.Namespace) -> int:
-    from activetrack.closed_loop.components import tracking_sensors
+    from activetrack.closed_loop.components import scene_sensors
     from activetrack.closed_loop.recorded import track_detections
     from activetrack.scenarios import load_tracking
     from activetrack_bringup.run_folder import run_dir_for
@@ -143,7 +143,7 @@ def cmd_track(args: argparse.Namespace) -> int:
         folder = run_dir_for(config.name, args.out)
         if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
             raise ValueError(f"{folder} exists already: write into a new folder (--out)")
-        sensors = tracking_sensors(config)
+        sensors = scene_sensors(config)
         detections, truth = _inputs(args, config, sensors)
         run = track_detections(config, detections, truth, args.run)
         warnings = _write_outputs(args, folder, config, sensors, detections, run, truth)

@@ -30,7 +30,7 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker
 
 from activetrack import limits
-from activetrack.closed_loop.components import scene_sensors, scene_targets, tracking_sensors
+from activetrack.closed_loop.components import scene_sensors, scene_targets
 from activetrack.data import (
     CONFIRMED,
     TENTATIVE,
@@ -325,7 +325,7 @@ def scan_msg(
     from the scenario (ValueError naming ``sensor_id`` if it has no such sensor). ``sensors``:
     the scene's sensors (:func:`activetrack.closed_loop.components.scene_sensors`), built once
     by a caller that converts many scans."""
-    sensors = _sensors(scenario) if sensors is None else sensors
+    sensors = scene_sensors(scenario) if sensors is None else sensors
     if scan.sensor_id not in sensors:
         raise ValueError(f"sensor_id must be one of {sorted(sensors)}, got {scan.sensor_id!r}")
     platform_id, sensor = sensors[scan.sensor_id]
@@ -349,13 +349,6 @@ def scan_msg(
     msg.sensor_position.x, msg.sensor_position.y = float(pv[0]), float(pv[2])
     msg.sensor_velocity.x, msg.sensor_velocity.y = float(pv[1]), float(pv[3])
     return msg
-
-
-def _sensors(scenario: Scenario | TrackingConfig) -> SensorTable:
-    """The sensors in the scene of a scenario or a tracker configuration."""
-    if isinstance(scenario, TrackingConfig):
-        return tracking_sensors(scenario)
-    return scene_sensors(scenario)
 
 
 def _scan_sensor(msg: ScanMsg, sensors: SensorTable, what: str) -> ClutteredSensor:
@@ -438,7 +431,7 @@ def scan_from_msg(
     configuration's) sensor (``sensors``: the scene's sensors, to build them once for many
     scans)."""
     what = f"scan of {_shown(msg.sensor_id)} epoch {msg.epoch}"
-    sensors = _sensors(scenario) if sensors is None else sensors
+    sensors = scene_sensors(scenario) if sensors is None else sensors
     sensor = _scan_sensor(msg, sensors, what)
     if msg.epoch == 0:
         raise MessageError("out_of_order", f"{what}: epoch must be >= 1 (no scan at epoch 0)")

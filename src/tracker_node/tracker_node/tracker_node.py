@@ -32,7 +32,7 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from activetrack import limits
-from activetrack.closed_loop.components import build_tracker, component_rngs, tracking_sensors
+from activetrack.closed_loop.components import build_tracker, component_rngs, scene_sensors
 from activetrack.data import PlatformSnapshot, Scan, TrackSet
 from activetrack.filters import filter_names
 from activetrack.geometry import covariance_ellipse
@@ -107,7 +107,7 @@ class TrackerNode(GraphNode):
         self.cloud_size = p["cloud_size"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[1]
         self.core = build_tracker(self.scenario, rng)
-        self.sensors = tracking_sensors(self.scenario)
+        self.sensors = scene_sensors(self.scenario)
         # Scenario order of the sensors: scans of an epoch are applied in this order.
         self.sensor_order = {sid: i for i, sid in enumerate(self.sensors)}
         self.platform_ids = {p.id for p in self.scenario.platforms}

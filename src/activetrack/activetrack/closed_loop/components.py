@@ -70,12 +70,11 @@ from activetrack.scenarios.build import (
 )
 from activetrack.scenarios.schema import (
     PlannerConfig,
-    PlatformConfig,
     Scenario,
     SelectionConfig,
     TargetConfig,
 )
-from activetrack.scenarios.tracking import TrackingConfig, TrackingPlatformConfig, tracking_of
+from activetrack.scenarios.tracking import TrackingConfig, tracking_of
 from activetrack.simulation.simulator import SimPlatform, SimTarget, Simulator
 from activetrack.tracking.tracker import FilterSpec, Tracker, TrackPrior
 
@@ -87,7 +86,6 @@ __all__ = [
     "scene_sensors",
     "scene_targets",
     "target_dynamics",
-    "tracking_sensors",
 ]
 
 
@@ -114,27 +112,16 @@ def scene_targets(scenario: Scenario) -> list[TargetConfig]:
     return list(scenario.targets)
 
 
-def scene_sensors(scenario: Scenario) -> dict[str, tuple[str, ClutteredSensor]]:
-    """Every sensor by id in scenario order: (platform id, the sensor in the scene: its field
-    of view, clutter, and the tracker's gate unless the association is known)."""
-    return _sensors_in_scene(
-        scenario.platforms, scenario.tracker.tracks.gate_sigmas, scenario.known_association
-    )
-
-
-def tracking_sensors(config: TrackingConfig) -> dict[str, tuple[str, ClutteredSensor]]:
-    """:func:`scene_sensors` of a tracker configuration."""
-    return _sensors_in_scene(
-        config.platforms, config.tracker.tracks.gate_sigmas, config.known_association
-    )
-
-
-def _sensors_in_scene(
-    platforms: Sequence[PlatformConfig | TrackingPlatformConfig], gate: float, known: bool
+def scene_sensors(
+    source: Scenario | TrackingConfig,
 ) -> dict[str, tuple[str, ClutteredSensor]]:
+    """Every sensor by id in the order of a scenario or tracker configuration: (platform id,
+    the sensor in the scene: its field of view, clutter, and the tracker's gate unless the
+    association is known)."""
+    gate, known = source.tracker.tracks.gate_sigmas, source.known_association
     return {
         s.id: (p.id, ClutteredSensor.wrap(build_sensor(s), s, gate, not known))
-        for p in platforms
+        for p in source.platforms
         for s in p.sensors
     }
 
@@ -200,7 +187,7 @@ def build_tracker(
         model,
         motion_cfg.model,
         FilterSpec(cfg.filter, kind.particle_based, make),
-        {sid: sensor for sid, (_, sensor) in tracking_sensors(config).items()},
+        {sid: sensor for sid, (_, sensor) in scene_sensors(config).items()},
         priors,
         known_association=config.known_association,
         management=cfg.tracks,
