@@ -194,6 +194,23 @@ def test_the_example_in_json_is_the_same(example):
     assert np.array_equal(a.gospa.gospa, b.gospa.gospa)
 
 
+def test_the_pages_json_and_python_blocks_work_as_written(example, monkeypatch, capsys):
+    (example / "d.json").write_text(file_block("detections.json", PAGE))
+    config = load_tracking(example / "harbour.yaml")
+    d = read_detections(example / "d.json", scene_sensors(config), config.dt)
+    assert [(s.epoch, s.sensor_id, s.Z.tolist()) for k in (1, 2) for s in d.at(k)] == [
+        (1, "dirfinder", [[2.3553]]),
+        (2, "dirfinder", []),
+    ]
+    monkeypatch.chdir(example)
+    exec(file_block("track_harbour.py", PAGE), {})
+    truth = read_truth("truth.csv", config.dt)
+    expected = track_detections(
+        config, read_detections("detections.csv", scene_sensors(config), 2.0), truth
+    )
+    assert capsys.readouterr().out.strip().endswith(repr(expected.gospa.mean))
+
+
 # --- bad files ---------------------------------------------------------------------------------
 
 
