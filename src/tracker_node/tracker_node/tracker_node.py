@@ -23,7 +23,7 @@ the node keeps running.
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -41,7 +41,7 @@ from activetrack_ros import graph as topics
 from activetrack_ros.convert import marker, platform_from_msg, scan_from_msg, track_array_msg
 from activetrack_ros.frames import estimate_frame, planar_transform
 from activetrack_ros.node_base import GraphNode, Rejected
-from activetrack_ros.params import COMMON, ParamSpec
+from activetrack_ros.params import COMMON, SCENARIO, ParamSpec
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import PlatformState, TrackArray
 from msgs_defs.msg import Scan as ScanMsg
@@ -62,8 +62,14 @@ class OpenEpoch:
     announced: int = 0  # scans the sim published at the epoch
 
 
+# The scenario parameter names a scenario file or a tracker configuration.
+TRACKED = replace(
+    SCENARIO,
+    description="scenario or tracker configuration YAML file (checked on load: docs in README, "
+    "docs/track-your-data.md)",
+)
 PARAMS = (
-    *COMMON,
+    *(TRACKED if spec is SCENARIO else spec for spec in COMMON),
     ParamSpec(
         "cloud_size", 100, "particles in the published cloud (changeable while running)",
         read_only=False, low=0, high=100_000,
