@@ -58,9 +58,9 @@ RULES = [
         {"platforms/0/sensors/0/fov_width": 1.0},
         "platforms.0.sensors.0.beam_width: give fov_width or beam_width, not both",
     ),
-    ({"targets/1/birth": 3}, "a target born after epoch 0 needs a range_bearing sensor"),
+    ({"targets/1/birth": 3}, "a target born after epoch 0 needs a sensor that fixes a position"),
     ({"tracker/filter": "ukf"}, "tracker.filter"),
-    ({"planner/mode": "open_loop"}, "planner.mode: must be 'renewal' in a multi-target scenario"),
+    ({"planner/mode": "open_loop"}, "planner.mode: must be 'renewal' when detections are"),
     ({"platforms/0/sensors/0/clutter_density": -1.0}, "clutter_density"),
     ({"platforms/0/sensors/0/clutter_density": 1e5}, "mean false alarms per scan"),
     ({"targets/2/id": "t1"}, "target ids must be unique, repeated: ['t1']"),
@@ -75,10 +75,15 @@ def test_a_broken_multitarget_rule_is_one_clear_error(change, expected):
     assert expected in str(info.value)
 
 
-def test_clutter_and_beams_need_a_multitarget_scenario():
+def test_one_target_in_clutter_is_associated_like_many():
+    """One target is the simplest scene: with clutter its detections are associated (JPDA and
+    track management), and its planner must then renew like a multi-target one."""
     data = yaml.safe_load((ROOT / "scenarios" / "default.yaml").read_text())
+    assert parse_scenario(data, "default.yaml").known_association
     data["platforms"][0]["sensors"][0]["clutter_density"] = 1.0
-    with pytest.raises(ScenarioError, match="need a multi-target scenario"):
+    assert not parse_scenario(data, "default.yaml").known_association
+    data["planner"]["mode"] = "open_loop"
+    with pytest.raises(ScenarioError, match="planner.mode: must be 'renewal' when detections"):
         parse_scenario(data, "default.yaml")
 
 

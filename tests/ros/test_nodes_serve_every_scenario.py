@@ -35,8 +35,8 @@ def test_only_the_three_node_executables_exist():
     for node in NODES:
         assert (BIN / node).exists(), node
         assert not (BIN / f"multi_{node}").exists(), node
-        setup = (ROOT / "src" / node / "setup.py").read_text()
-        assert f'"{node} = {node}.{node}:main"' in setup and "multi_" not in setup
+        setup = (ROOT / "src" / node / "setup.cfg").read_text()
+        assert f"{node} = {node}.{node}:main" in setup and "multi_" not in setup
 
 
 @pytest.mark.parametrize("scenario", [SINGLE, MULTI], ids=["single", "multi"])

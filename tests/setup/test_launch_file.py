@@ -3,12 +3,12 @@ package named ``launch`` is unrelated):
 
 - it imports launch APIs only (AST);
 - run against stand-ins of those APIs that record every call, it starts each node from an
-  executable that is a console script of that package (setup.py), and every parameter it passes
+  executable that is a console script of that package (setup.cfg), and every parameter it passes
   is one the node declares (the nodes are built in-process on a scenario and asked), with the
   node's own default as the argument's default;
 - every launch configuration it reads is a declared launch argument, and every option of
   ``activetrack run`` is one of its arguments or named here with the reason it is not;
-- setup.py installs it into share/activetrack_bringup/launch (data_files).
+- setup.cfg installs it into share/activetrack_bringup/launch (data_files).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import types
 from pathlib import Path
 
 import pytest
+from setuptools.config.setupcfg import read_configuration
 
 ROOT = Path(__file__).resolve().parents[2]
 BRINGUP = ROOT / "src" / "activetrack_bringup"
@@ -145,24 +146,10 @@ def _made(calls, api: str) -> list[Recorded]:
 
 
 def _console_scripts(package: str) -> dict[str, str]:
-    """name -> "module:function" of a package's console scripts (setup.py and setup.cfg)."""
-    scripts: dict[str, str] = {}
-    setup = BRINGUP.parent / package / "setup.py"
-    for node in ast.walk(ast.parse(setup.read_text())):
-        if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "setup":
-            for kw in node.keywords:
-                if kw.arg == "entry_points":
-                    for line in ast.literal_eval(kw.value).get("console_scripts", []):
-                        name, _, target = line.partition("=")
-                        scripts[name.strip()] = target.strip()
-    cfg = configparser.ConfigParser()
-    cfg.read(BRINGUP.parent / package / "setup.cfg")
-    if cfg.has_option("options.entry_points", "console_scripts"):
-        for line in cfg.get("options.entry_points", "console_scripts").splitlines():
-            if "=" in line:
-                name, _, target = line.partition("=")
-                scripts[name.strip()] = target.strip()
-    return scripts
+    """name -> "module:function" of a package's console scripts (its setup.cfg)."""
+    options = read_configuration(BRINGUP.parent / package / "setup.cfg")["options"]
+    scripts = options.get("entry_points", {}).get("console_scripts", [])
+    return {name.strip(): target.strip() for name, _, target in (s.partition("=") for s in scripts)}
 
 
 def _nodes(calls) -> list[Recorded]:
@@ -332,32 +319,8 @@ def test_run_rate_range_is_the_sims(declared_parameters):
 
 
 def test_setup_installs_the_launch_file():
-    tree = ast.parse((BRINGUP / "setup.py").read_text())
-    constants = {  # module-level NAME = "literal" (package_name)
-        n.targets[0].id: ast.literal_eval(n.value)
-        for n in tree.body
-        if isinstance(n, ast.Assign)
-        and isinstance(n.targets[0], ast.Name)
-        and isinstance(n.value, ast.Constant)
-    }
-    data_files = None
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "setup":
-            for kw in node.keywords:
-                if kw.arg == "data_files":
-                    data_files = kw.value
-    assert data_files is not None, "setup.py has no data_files"
-
-    def text(expr: ast.expr) -> str:  # "share/" + package_name + "/launch"
-        if isinstance(expr, ast.BinOp) and isinstance(expr.op, ast.Add):
-            return text(expr.left) + text(expr.right)
-        return constants[expr.id] if isinstance(expr, ast.Name) else ast.literal_eval(expr)
-
-    installed = {
-        (text(entry.elts[0]), text(source))
-        for entry in data_files.elts
-        for source in entry.elts[1].elts
-    }
+    data_files = read_configuration(BRINGUP / "setup.cfg")["options"]["data_files"]
+    installed = {(target, source) for target, sources in data_files for source in sources}
     for path in sorted((BRINGUP / "launch").glob("*.launch.py")):
         rel = str(path.relative_to(BRINGUP))
         assert ("share/activetrack_bringup/launch", rel) in installed, f"{rel} is not installed"

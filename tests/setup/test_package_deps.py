@@ -4,7 +4,7 @@
   ``<exec_depend>`` with its rosdep key, or, when the module has no rosdep key, named in the
   package's ``<!-- pip-only: ... -->`` comment; a declared dependency that nothing imports fails
   too (unless listed in ``UNUSED_OK`` with the reason).
-- ``pyproject.toml`` ``[project] dependencies`` / ``setup.py`` ``install_requires`` (pip): exactly
+- ``pyproject.toml`` ``[project] dependencies`` / ``setup.cfg`` ``install_requires`` (pip): exactly
   the Python distributions that the runtime modules import (no test tools, no ROS packages,
   which rosdep installs), without versions: every version is pinned in ``constraints.txt`` (the
   one place) and every distribution is named in ``requirements.txt`` (what ``make setup``
@@ -26,6 +26,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from setuptools.config.setupcfg import read_configuration
 
 ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "src"
@@ -179,29 +180,15 @@ def normalize(name: str) -> str:
     return re.sub(r"[-_.]+", "-", name).lower()
 
 
-def _setup_kwargs(path: Path) -> dict:
-    """The literal keyword arguments of the ``setup(...)`` call of a setup.py."""
-    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
-        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "setup":
-            out = {}
-            for kw in node.keywords:
-                try:
-                    out[kw.arg] = ast.literal_eval(kw.value)
-                except ValueError:
-                    continue
-            return out
-    raise AssertionError(f"{path}: no setup() call")
-
-
 def requirements(package: str) -> tuple[list[str], dict[str, list[str]]]:
-    """(runtime requirements, extras) as written in the package's pyproject.toml or setup.py."""
+    """(runtime requirements, extras) as written in the package's pyproject.toml or setup.cfg."""
     pyproject = SRC / package / "pyproject.toml"
     if pyproject.exists():
         project = tomllib.loads(pyproject.read_text()).get("project", {})
         if "dependencies" in project:
             return project["dependencies"], project.get("optional-dependencies", {})
-    kwargs = _setup_kwargs(SRC / package / "setup.py")
-    return kwargs.get("install_requires", []), kwargs.get("extras_require", {})
+    options = read_configuration(SRC / package / "setup.cfg")["options"]
+    return options.get("install_requires", []), options.get("extras_require", {})
 
 
 def _pins() -> dict[str, str]:
