@@ -13,8 +13,8 @@ back.
   test at all (``dispatch_violations``);
 - the whole core and ``activetrack_ros``: no class switch on a model class and no kind or
   filter-name test (``kind_violations``); models/ may test its own classes, and the registries
-  read a class's ``kind`` (that is their job). The code being rewritten into one multi-target
-  loop still asks such questions: ``ALLOWED`` lists them, file by file.
+  read a class's ``kind`` (that is their job). ``ALLOWED`` lists the places that still ask,
+  file by file, each with its reason.
 """
 
 from __future__ import annotations

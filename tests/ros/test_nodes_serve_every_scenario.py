@@ -76,5 +76,5 @@ def test_in_process_nodes_build_the_scenarios_components(scenario, graph):
     assert len(sim.sim.truth_set().ids) == (3 if multi else 1)
     assert sim.sim.steerable_ids == (("s1", "s2") if multi else ())
     assert tracker.core.known_association is not multi
-    assert isinstance(planner.core, MultiTargetPlanner) is multi
+    assert any(isinstance(s, MultiTargetPlanner) for s in planner.core.strategies) is multi
     assert len(tracker.core.snapshot().tracks) == (3 if multi else 1)

@@ -22,7 +22,6 @@ import pytest
 from parity import same_tracks
 from recorded import read_topic
 
-import activetrack.scenarios.schema as schema
 from activetrack.closed_loop.batch import run_batch
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.cli import main as cli_main
@@ -72,25 +71,14 @@ planner:
 evaluation: {cutoff: 300.0, order: 2, alpha: 2}
 """
 # The rules that still list kinds and filters (tests/core/test_plugins.py), by their messages.
-KIND_RULES = (
-    "clutter is modelled for sensor kinds",
-    "needs a range_bearing sensor to start its track",
-    "in a multi-target scenario, got",
-)
 # The summary's figures `activetrack run` shares with `activetrack batch` exactly.
 FIGURES = ("time_avg_rmse_x", "time_avg_bound_y", "rmse_x_t", "held_fraction", "gospa_t")
 
 
 @pytest.fixture
-def scene(tmp_path, monkeypatch):
-    """The scene's file, with the three kind rules waived; the plugins its ``plugins:``
-    registered are taken away afterwards."""
-    rules = schema.multitarget_problems
-
-    def without_kind_rules(s):
-        return [(f, m) for f, m in rules(s) if not any(text in m for text in KIND_RULES)]
-
-    monkeypatch.setattr(schema, "multitarget_problems", without_kind_rules)
+def scene(tmp_path):
+    """The scene's file (it loads as written: the rules ask the registries what a kind can
+    do); the plugins its ``plugins:`` registered are taken away afterwards."""
     path = tmp_path / "plugin_graph.yaml"
     path.write_text(SCENARIO)
     yield path

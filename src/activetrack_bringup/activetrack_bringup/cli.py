@@ -15,7 +15,7 @@ activetrack play BAG [--topics T ...] [--rate R] [--skip-damaged]
                                         republish a bag
 activetrack bag info BAG                topics, types, counts and damage of a bag (CRC-checked)
 activetrack bag retrack BAG --scenario S
-                                        replay a run's measurements into a fresh tracker
+                                        replay a run's scans into a fresh tracker
 activetrack bag recover BAG             rebuild a readable bag from a damaged/unfinished one
 activetrack track DETECTIONS --config C track recorded detections (CSV, JSON, a bag)
 activetrack reproduce NAME [ARGS...]    reproduce a paper's tables (hernandez, ...)
@@ -454,7 +454,7 @@ def _add_bag_parser(sub) -> None:
     info.add_argument("bag")
     info.add_argument("--json", help="write the information to this JSON file")
     info.set_defaults(func=_cmd_bag_info)
-    rt = bag_sub.add_parser("retrack", help="replay a run's measurements into a fresh tracker")
+    rt = bag_sub.add_parser("retrack", help="replay a run's scans into a fresh tracker")
     rt.add_argument("bag")
     rt.add_argument("--scenario", required=True, help="the scenario the run used")
     rt.add_argument(
