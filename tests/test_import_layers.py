@@ -55,6 +55,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "activetrack.scenarios.plugins",
             "activetrack.scenarios.registry",
             "activetrack.scenarios.schema",
+            "activetrack.scenarios.tracking",
         ),
     ),
     ("models", ("activetrack.models",)),

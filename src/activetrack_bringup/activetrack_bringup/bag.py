@@ -138,7 +138,7 @@ def installed_type_hash(msgtype: str) -> str | None:
         return None
 
 
-def _bag_qos(topic: str, depth: int | None = None) -> list[dict]:
+def bag_qos(topic: str, depth: int | None = None) -> list[dict]:
     """Offered QoS written to the bag, so that a real `ros2 bag play` matches ours."""
     qos = writer_qos(topic, depth)
     latched = qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
@@ -255,7 +255,7 @@ class BagRecorder(Node):
         schemas = graph_schemas(self.topic_types.values())
         names = {t: self.resolve_topic_name(t) for t in self.topic_types}
         specs = [
-            TopicSpec(names[topic], msgtype, *schemas[msgtype], qos=_bag_qos(topic, depth))
+            TopicSpec(names[topic], msgtype, *schemas[msgtype], qos=bag_qos(topic, depth))
             for topic, msgtype in self.topic_types.items()
         ]
         try:

@@ -17,6 +17,7 @@ activetrack bag info BAG                topics, types, counts and damage of a ba
 activetrack bag retrack BAG --scenario S
                                         replay a run's scans into a fresh tracker
 activetrack bag recover BAG             rebuild a readable bag from a damaged/unfinished one
+activetrack track DETECTIONS --config C track recorded detections (CSV, JSON, a bag)
 activetrack reproduce NAME [ARGS...]    reproduce a paper's tables (hernandez, ...)
 activetrack ros graph|echo|hz|param|tf|bag [--namespace NS] [--domain D]
                                         ROS 2 command-line stand-ins on a running graph
@@ -35,6 +36,7 @@ from pathlib import Path
 
 from activetrack_bringup import cli_types, interrupts
 from activetrack_bringup.ros_tools.cli import add_ros_parser
+from activetrack_bringup.track import add_track_parser
 
 EXPERIMENTS = ("hernandez", "multitarget", "ramdaras", "valverde", "vanderhook")
 WAIT_TIMEOUT_S = 60.0  # --wait-for's default --wait-timeout
@@ -541,6 +543,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_bag_parser(sub)
     add_ros_parser(sub, _add_bag_parser)
+    add_track_parser(sub)
 
     rep = sub.add_parser("reproduce", help="reproduce a paper's tables and figures")
     rep.add_argument("name", choices=EXPERIMENTS)

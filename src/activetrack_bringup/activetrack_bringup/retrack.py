@@ -84,14 +84,15 @@ class RunData:
     warnings: list[str] = field(default_factory=list)
 
 
-def read_run(bag) -> RunData:
+def read_run(bag, use: str = "retrack") -> RunData:
     """The run's scans, platform states, track arrays and truth; RetrackError when the bag has
-    lost data, or a needed topic is unreadable or of another type (version)."""
+    lost data, or a needed topic is unreadable or of another type (version). ``use``: the
+    command, for the messages."""
     with open_bag(bag) as b:
         lost = b.lost
         if lost:
             raise RetrackError(
-                f"{lost[0]} ({len(lost)} problem(s) with lost data): retrack needs every scan "
+                f"{lost[0]} ({len(lost)} problem(s) with lost data): {use} needs every scan "
                 "of the run"
             )
         former = [t for t in _FORMER_MEASUREMENT_TOPICS if bag_topic(b, t)]

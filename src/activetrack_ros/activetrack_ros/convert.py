@@ -47,6 +47,7 @@ from activetrack.models.clutter import ClutteredSensor
 from activetrack.models.fov import FieldOfView
 from activetrack.scenarios.build import build_motion_model
 from activetrack.scenarios.schema import Scenario
+from activetrack.scenarios.tracking import TrackingConfig
 from activetrack_ros import graph as topics
 from activetrack_ros.node_base import Rejected
 from msgs_defs.msg import BeamCommand as BeamCommandMsg
@@ -119,9 +120,10 @@ def stamp_seconds(stamp, what: str) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def check_epoch_stamp(msg, scenario: Scenario, what: str) -> float:
-    """The epoch is within the run and the stamp is its time k T; returns the stamp."""
-    if msg.epoch > scenario.steps:
+def check_epoch_stamp(msg, scenario: Scenario | TrackingConfig, what: str) -> float:
+    """The epoch is within the run (a tracker configuration without steps: any) and the stamp
+    is its time k T; returns the stamp."""
+    if scenario.steps is not None and msg.epoch > scenario.steps:
         raise MessageError("future_epoch", f"{what}: epoch {msg.epoch} > steps {scenario.steps}")
     t = stamp_seconds(msg.header.stamp, what)
     if abs(t - msg.epoch * scenario.dt) > STAMP_TOLERANCE:
@@ -202,7 +204,7 @@ def platform_state_msg(s: PlatformSnapshot, scan_count: int, frame_id: str) -> P
     )
 
 
-def platform_from_msg(msg, scenario: Scenario, platform_ids) -> PlatformSnapshot:
+def platform_from_msg(msg, scenario: Scenario | TrackingConfig, platform_ids) -> PlatformSnapshot:
     """A PlatformState as a PlatformSnapshot (epoch, stamp, ids and kinematics checked)."""
     what = f"platform state of {_shown(msg.platform_id)}"
     if msg.platform_id not in platform_ids:
@@ -314,7 +316,7 @@ def selection_from_msg(msg: SensorSelection, scenario: Scenario, sensor_ids) -> 
 
 def scan_msg(
     scan: Scan,
-    scenario: Scenario,
+    scenario: Scenario | TrackingConfig,
     epoch_scan_count: int = 0,
     frame_id: str = FRAME_ID,
     sensors: SensorTable | None = None,
@@ -422,9 +424,12 @@ def _field_of_view(msg: ScanMsg, sensor: ClutteredSensor, pv, what: str) -> Fiel
     return fov
 
 
-def scan_from_msg(msg: ScanMsg, scenario: Scenario, sensors: SensorTable | None = None) -> Scan:
-    """A Scan message as a core Scan, every field checked against the scenario's sensor
-    (``sensors``: the scene's sensors, to build them once for many scans)."""
+def scan_from_msg(
+    msg: ScanMsg, scenario: Scenario | TrackingConfig, sensors: SensorTable | None = None
+) -> Scan:
+    """A Scan message as a core Scan, every field checked against the scenario's (or tracker
+    configuration's) sensor (``sensors``: the scene's sensors, to build them once for many
+    scans)."""
     what = f"scan of {_shown(msg.sensor_id)} epoch {msg.epoch}"
     sensors = scene_sensors(scenario) if sensors is None else sensors
     sensor = _scan_sensor(msg, sensors, what)

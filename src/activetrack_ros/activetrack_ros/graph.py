@@ -90,12 +90,15 @@ TF_STATIC_DEPTH = 1
 MAX_HISTORY_DEPTH = 1_000_000
 
 
-def run_history(scenario) -> int:
-    """Depth that keeps every per-epoch message of a run: (steps + 1) epochs times the most
-    messages one topic carries per epoch (one per sensor or per platform; a scan and a beam
-    command are per sensor, a track array and a truth array per epoch)."""
+def run_history(scenario, steps: int | None = None) -> int:
+    """Depth that keeps every per-epoch message of a run: (steps + 1) epochs (``steps``, else
+    the scenario's; a tracker configuration without steps: LATCHED_DEPTH epochs) times the
+    most messages one topic carries per epoch (one per sensor or per platform; a scan and a
+    beam command are per sensor, a track array and a truth array per epoch)."""
+    steps = steps if steps is not None else scenario.steps
+    epochs = LATCHED_DEPTH if steps is None else steps + 1
     sensors = sum(len(p.sensors) for p in scenario.platforms)
-    return (scenario.steps + 1) * max(1, sensors, len(scenario.platforms))
+    return epochs * max(1, sensors, len(scenario.platforms))
 
 
 def history_depth(scenario) -> int:

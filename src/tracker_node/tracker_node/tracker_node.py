@@ -1,6 +1,12 @@
 """tracker_node: the scenario's tracker (any registered filter per track, known or JPDA
 association, track management: activetrack.tracking.Tracker) on the sim's scans.
 
+The ``scenario`` parameter names a scenario file or a tracker-only configuration
+(activetrack.scenarios.tracking, docs/track-your-data.md); the tracker is built from either by
+the same builder (activetrack.closed_loop.components.build_tracker). With a tracker
+configuration the node tracks scans from anywhere: in free mode, those ``activetrack play``
+publishes from a bag ``activetrack track`` wrote (its scans and platform states).
+
 An epoch k is announced by the simulator's platform states of epoch k (one per platform, each
 saying how many scans the sim published at k); the tracker updates once it holds them all,
 sorted in scenario order, and publishes every live track with its id and covariance
@@ -17,7 +23,7 @@ the node keeps running.
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -30,12 +36,12 @@ from activetrack.closed_loop.components import build_tracker, component_rngs, sc
 from activetrack.data import PlatformSnapshot, Scan, TrackSet
 from activetrack.filters import filter_names
 from activetrack.geometry import covariance_ellipse
-from activetrack.scenarios import load_scenario, with_tracker_overrides
+from activetrack.scenarios import load_tracking, with_tracker_overrides
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import marker, platform_from_msg, scan_from_msg, track_array_msg
 from activetrack_ros.frames import estimate_frame, planar_transform
 from activetrack_ros.node_base import GraphNode, Rejected
-from activetrack_ros.params import COMMON, ParamSpec
+from activetrack_ros.params import COMMON, SCENARIO, ParamSpec
 from activetrack_ros.spin import spin_node
 from msgs_defs.msg import PlatformState, TrackArray
 from msgs_defs.msg import Scan as ScanMsg
@@ -56,8 +62,14 @@ class OpenEpoch:
     announced: int = 0  # scans the sim published at the epoch
 
 
+# The scenario parameter names a scenario file or a tracker configuration.
+TRACKED = replace(
+    SCENARIO,
+    description="scenario or tracker configuration YAML file (checked on load: docs in README, "
+    "docs/track-your-data.md)",
+)
 PARAMS = (
-    *COMMON,
+    *(TRACKED if spec is SCENARIO else spec for spec in COMMON),
     ParamSpec(
         "cloud_size", 100, "particles in the published cloud (changeable while running)",
         read_only=False, low=0, high=100_000,
@@ -89,10 +101,11 @@ class TrackerNode(GraphNode):
         super().__init__("tracker_node", **kwargs)
         changes = {"cloud_size": self._set_cloud_size, "epoch_timeout": self._set_epoch_timeout}
         p = self.declare_params(PARAMS, changes, last=False)
-        scenario = load_scenario(p["scenario"])  # imports its plugins: their filters too
+        # A tracker configuration, or a scenario's; imports its plugins: their filters too.
+        config = load_tracking(p["scenario"])
         filter_name = self.declare_params((FILTER,), changes)["filter"]
         self.scenario = with_tracker_overrides(
-            scenario, filter=filter_name or None, particles=p["particles"] or None
+            config, filter=filter_name or None, particles=p["particles"] or None
         )
         self.use_scenario(self.scenario)
         self.mode = p["mode"]

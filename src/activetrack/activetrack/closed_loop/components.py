@@ -1,6 +1,8 @@
 """The closed loop's components built from a validated scenario: the simulator, the tracker
 and the planner, each drawing from its own generator (:func:`component_rngs`). The components
 take built objects, never the scenario; these builders are where a scenario file becomes them.
+The tracker is built from a tracker configuration (:mod:`activetrack.scenarios.tracking`): a
+scenario's, or one written for recorded detections (docs/track-your-data.md).
 
 The planner (:func:`build_planner`) runs the strategies the scenario's ``planner`` section
 asks for (:class:`activetrack.planning.decision.Planner`), in order:
@@ -31,6 +33,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from activetrack.filters.measurement import TrackingFilter
 from activetrack.filters.registry import filter_kind, make_filter
 from activetrack.kernels import expect_particle_work
 from activetrack.models.base import as_linear
@@ -65,7 +68,13 @@ from activetrack.scenarios.build import (
     platform_limits,
     search_settings,
 )
-from activetrack.scenarios.schema import PlannerConfig, Scenario, SelectionConfig, TargetConfig
+from activetrack.scenarios.schema import (
+    PlannerConfig,
+    Scenario,
+    SelectionConfig,
+    TargetConfig,
+)
+from activetrack.scenarios.tracking import TrackingConfig, tracking_of
 from activetrack.simulation.simulator import SimPlatform, SimTarget, Simulator
 from activetrack.tracking.tracker import FilterSpec, Tracker, TrackPrior
 
@@ -103,14 +112,16 @@ def scene_targets(scenario: Scenario) -> list[TargetConfig]:
     return list(scenario.targets)
 
 
-def scene_sensors(scenario: Scenario) -> dict[str, tuple[str, ClutteredSensor]]:
-    """Every sensor by id in scenario order: (platform id, the sensor in the scene: its field
-    of view, clutter, and the tracker's gate unless the association is known)."""
-    gate = scenario.tracker.tracks.gate_sigmas
-    gated = not scenario.known_association
+def scene_sensors(
+    source: Scenario | TrackingConfig,
+) -> dict[str, tuple[str, ClutteredSensor]]:
+    """Every sensor by id in the order of a scenario or tracker configuration: (platform id,
+    the sensor in the scene: its field of view, clutter, and the tracker's gate unless the
+    association is known)."""
+    gate, known = source.tracker.tracks.gate_sigmas, source.known_association
     return {
-        s.id: (p.id, ClutteredSensor.wrap(build_sensor(s), s, gate, gated))
-        for p in scenario.platforms
+        s.id: (p.id, ClutteredSensor.wrap(build_sensor(s), s, gate, not known))
+        for p in source.platforms
         for s in p.sensors
     }
 
@@ -142,17 +153,25 @@ def build_simulator(scenario: Scenario, rng: np.random.Generator) -> Simulator:
     return Simulator(targets, platforms, scenario.dt, scenario.steps, rng)
 
 
-def build_tracker(scenario: Scenario, rng: np.random.Generator) -> Tracker:
-    """The scenario's tracker: its filter on every track, the targets present at epoch 0 as
-    confirmed tracks from their priors, drawing from ``rng``."""
-    cfg = scenario.tracker
-    motion_cfg = cfg.motion or scenario.target.motion
+def build_tracker(
+    source: Scenario | TrackingConfig, rng: np.random.Generator, steps: int | None = None
+) -> Tracker:
+    """The tracker of a tracker configuration, or of a scenario (its configuration,
+    :func:`~activetrack.scenarios.tracking.tracking_of`): its filter on every track, its
+    targets as confirmed tracks from their priors, drawing from ``rng``. ``steps``: the epochs
+    it will run (default: the configuration's), a hint to load the particle kernels now."""
+    config = tracking_of(source) if isinstance(source, Scenario) else source
+    cfg = config.tracker
+    motion_cfg = cfg.motion
+    if motion_cfg is None:  # the schema's rule
+        raise ValueError("tracker.motion: required in a tracker configuration")
     model = build_motion_model(motion_cfg)
     kind = filter_kind(cfg.filter)
-    if kind.particle_based:  # a long run loads the PF kernels now, not in mid-run
-        expect_particle_work(scenario.steps * cfg.particles)
+    steps = steps if steps is not None else config.steps
+    if kind.particle_based and steps is not None:  # a long run loads the PF kernels now
+        expect_particle_work(steps * cfg.particles)
 
-    def make(x0: np.ndarray, P0: np.ndarray, t0: float):
+    def make(x0: np.ndarray, P0: np.ndarray, t0: float) -> TrackingFilter:
         return make_filter(cfg.filter, model, x0, P0, cfg, rng, t0)
 
     priors = [
@@ -162,19 +181,18 @@ def build_tracker(scenario: Scenario, rng: np.random.Generator) -> Tracker:
             np.array(t.prior.covariance(), dtype=float),
             t.priority,
         )
-        for t in scene_targets(scenario)
-        if t.birth == 0
+        for t in config.targets
     ]
     return Tracker(
         model,
         motion_cfg.model,
         FilterSpec(cfg.filter, kind.particle_based, make),
-        {sid: sensor for sid, (_, sensor) in scene_sensors(scenario).items()},
+        {sid: sensor for sid, (_, sensor) in scene_sensors(config).items()},
         priors,
-        known_association=scenario.known_association,
+        known_association=config.known_association,
         management=cfg.tracks,
         planner_samples=cfg.planner_samples,
-        new_track_priority=scenario.planner.targets.new_track_priority,
+        new_track_priority=config.new_track_priority,
         rng=rng,
     )
 

@@ -57,11 +57,11 @@ from activetrack.bounds.pcrlb import (
 from activetrack.closed_loop.components import scene_sensors, scene_targets
 from activetrack.closed_loop.record import RunRecord
 from activetrack.data import TrackSet
-from activetrack.metrics import gospa, ospa
+from activetrack.metrics import GospaResult, gospa, ospa
 from activetrack.models.base import as_linear
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.scenarios.build import build_motion_model
-from activetrack.scenarios.schema import Scenario, TargetConfig
+from activetrack.scenarios.schema import EvaluationConfig, Scenario, TargetConfig
 
 __all__ = [
     "BOUND_SAMPLES",
@@ -71,7 +71,9 @@ __all__ = [
     "RunEvaluation",
     "TargetBound",
     "alive_mask",
+    "confirmed_positions",
     "count_breaks_swaps",
+    "epoch_gospa",
     "evaluate_run",
     "held_tracks",
     "target_bounds",
@@ -202,6 +204,29 @@ class EpochAssessment:
     held: np.ndarray
 
 
+def confirmed_positions(tracks: TrackSet, k: int = 0) -> FloatArray:
+    """``(M, 2)`` x, y of the confirmed tracks; ValueError for a mean that is not finite."""
+    Y = np.array([np.asarray(t.mean)[[0, 2]] for t in tracks.confirmed], dtype=float)
+    Y = Y.reshape(-1, 2)
+    if not np.isfinite(Y).all():
+        raise ValueError(f"record.tracks[{k}]: a confirmed track's mean must be finite")
+    return Y
+
+
+def epoch_gospa(
+    X: FloatArray, Y: FloatArray, evaluation: EvaluationConfig
+) -> tuple[float, GospaResult]:
+    """GOSPA between targets ``X`` ``(N, 2)`` and tracks ``Y`` ``(M, 2)`` with the
+    evaluation's cut-off, order and alpha, and its alpha = 2 split (localisation, missed,
+    false, assignment; Rahmathullah et al. 2017, eq. 1-2)."""
+    ev = evaluation
+    split = gospa(X, Y, ev.cutoff, ev.order, 2.0)
+    distance = split.distance
+    if ev.alpha != 2.0:
+        distance = gospa(X, Y, ev.cutoff, ev.order, ev.alpha).distance
+    return distance, split
+
+
 class EpochAssessor:
     """Scores one epoch at a time (module docstring): the batch evaluation and the graph's
     live evaluator use the same one."""
@@ -218,14 +243,8 @@ class EpochAssessor:
         targets = np.flatnonzero(~np.isnan(truth[:, 0]))
         X = truth[targets][:, [0, 2]]
         confirmed = tracks.confirmed
-        Y = np.array([np.asarray(t.mean)[[0, 2]] for t in confirmed], dtype=float).reshape(-1, 2)
-        if not np.isfinite(Y).all():
-            raise ValueError(f"record.tracks[{k}]: a confirmed track's mean must be finite")
-        ev = self.evaluation
-        split = gospa(X, Y, ev.cutoff, ev.order, 2.0)
-        distance = split.distance
-        if ev.alpha != 2.0:
-            distance = gospa(X, Y, ev.cutoff, ev.order, ev.alpha).distance
+        Y = confirmed_positions(tracks, k)
+        distance, split = epoch_gospa(X, Y, self.evaluation)
         held = np.full(truth.shape[0], NOT_HELD, dtype=int)
         if self.known:  # the track is the target's by construction
             for t in confirmed:
@@ -244,7 +263,7 @@ class EpochAssessor:
             split.localisation,
             int(split.missed),
             int(split.false_tracks),
-            ospa(X, Y, ev.cutoff, ev.order),
+            ospa(X, Y, self.evaluation.cutoff, self.evaluation.order),
             held,
         )
 

@@ -7,7 +7,8 @@ list of invalid fields.
 
 Validation is parse, then the schema (:mod:`.schema`: the file's shape), then the rules
 (:mod:`.rules`: names the registries hold, rules across sections). A scenario that differs from
-a valid one goes the same way: :func:`with_changes`.
+a valid one goes the same way: :func:`with_changes`. A tracker-only configuration
+(:mod:`.tracking`) goes the same way too: :func:`load_tracking`, :func:`parse_tracking`.
 
 The modules of a file's ``plugins:`` list are imported before its other fields are validated
 (:mod:`activetrack.scenarios.plugins`): importing runs their code, so a scenario file that names
@@ -19,15 +20,18 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 from pydantic import BaseModel, ValidationError
 from pydantic_core import ErrorDetails
 
 from activetrack.scenarios.plugins import PluginError, import_plugins
-from activetrack.scenarios.rules import name_problems, scenario_problems
+from activetrack.scenarios.rules import name_problems, scenario_problems, tracking_problems
 from activetrack.scenarios.schema import Scenario
+from activetrack.scenarios.tracking import TrackingConfig, tracking_of
+
+Configured = TypeVar("Configured", Scenario, TrackingConfig)
 
 # A scenario file is a few kB; these bound what a malformed or hostile one can cost.
 MAX_FILE_BYTES = 1 << 20  # 1 MiB
@@ -203,10 +207,8 @@ def _check_structure(text: str) -> None:
             )
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a YAML scenario file. Raises ScenarioError before anything runs
-    (but the file's ``plugins``, imported first), and no other exception, whatever the file
-    holds."""
+def _read_yaml(path: str | Path) -> tuple[Path, Any]:
+    """The parsed YAML of a file (not None); ScenarioError for anything else."""
     try:
         path = Path(path)
     except TypeError:
@@ -232,7 +234,69 @@ def load_scenario(path: str | Path) -> Scenario:
         ) from None
     if data is None:
         raise ScenarioError(f"{path}: the file holds no scenario (only comments)")
+    return path, data
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a YAML scenario file. Raises ScenarioError before anything runs
+    (but the file's ``plugins``, imported first), and no other exception, whatever the file
+    holds."""
+    path, data = _read_yaml(path)
     return parse_scenario(data, str(path))
+
+
+# --- tracker-only configurations ---------------------------------------------------------------
+
+
+def _validated_tracking(data: dict) -> tuple[TrackingConfig | None, list[str]]:
+    """The tracker configuration of ``data`` and no error lines, or None and every invalid
+    field."""
+    try:
+        config = TrackingConfig.model_validate(data)
+    except ValidationError as exc:
+        lines = [line for e in exc.errors() for line in _describe(e)]
+        return None, lines + _lines(name_problems(data))
+    lines = _lines(name_problems(data) or tracking_problems(config))
+    return (None, lines) if lines else (config, [])
+
+
+def parse_tracking(data: object, source: str = "<dict>") -> TrackingConfig:
+    """Validate a tracker configuration given as a dict (parsed YAML): the schema
+    (:mod:`.tracking`), then the rules; its ``plugins`` are imported first."""
+    if not isinstance(data, dict):
+        raise ScenarioError(
+            f"{source}: a tracker configuration must be a mapping of fields (name:, dt:, "
+            f"platforms:, tracker:, ...), got {type(data).__name__}"
+        )
+    if "plugins" in data:
+        try:
+            import_plugins(data["plugins"])
+        except PluginError as exc:
+            raise ScenarioError(f"{source}: {exc}") from None
+    try:
+        config, lines = _validated_tracking(data)
+    except RecursionError:
+        raise ScenarioError(f"{source}: invalid tracker configuration: nested too deeply") from None
+    except Exception as exc:  # a check of ours failed unexpectedly: still one clear error
+        raise ScenarioError(
+            f"{source}: invalid tracker configuration (internal check failed: "
+            f"{type(exc).__name__}: {_shown(str(exc))})"
+        ) from None
+    if config is None:
+        if len(lines) > MAX_ERROR_LINES:
+            lines = [*lines[:MAX_ERROR_LINES], f"  ... and {len(lines) - MAX_ERROR_LINES} more"]
+        raise ScenarioError(f"{source}: invalid tracker configuration\n" + "\n".join(lines))
+    return config
+
+
+def load_tracking(path: str | Path) -> TrackingConfig:
+    """Read and validate a tracker configuration file, or a scenario file (one with
+    ``steps:``), whose tracker it then describes (:func:`~.tracking.tracking_of`).
+    ScenarioError, and no other exception, for anything else."""
+    path, data = _read_yaml(path)
+    if isinstance(data, dict) and "steps" in data:
+        return tracking_of(parse_scenario(data, f"{path} (a scenario: it gives steps)"))
+    return parse_tracking(data, str(path))
 
 
 def _merged(base: dict, changes: Mapping[str, Any]) -> dict:
@@ -258,14 +322,18 @@ def with_changes(scenario: Scenario, **changes: Any) -> Scenario:
     return parse_scenario(data, f"{scenario.name} (with {_shown(changes)})")
 
 
-def with_tracker_overrides(scenario: Scenario, **overrides: object) -> Scenario:
-    """The scenario with tracker settings replaced (None values are ignored), re-validated."""
+def with_tracker_overrides(scenario: Configured, **overrides: object) -> Configured:
+    """The scenario (or tracker configuration) with tracker settings replaced (None values are
+    ignored), re-validated."""
     changes = {k: v for k, v in overrides.items() if v is not None}
     if not changes:
         return scenario
     data = scenario.model_dump()
     data["tracker"].update(changes)
-    return parse_scenario(data, f"{scenario.name} (tracker overrides {changes})")
+    source = f"{scenario.name} (tracker overrides {changes})"
+    if isinstance(scenario, TrackingConfig):
+        return parse_tracking(data, source)
+    return parse_scenario(data, source)
 
 
 def first_epochs(scenario: Scenario, steps: int) -> Scenario:

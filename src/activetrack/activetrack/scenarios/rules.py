@@ -12,11 +12,12 @@ built or in their first epochs, so a scenario that loads runs. Each violation is
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
+from activetrack.arraytypes import ArrayLike
 from activetrack.filters.registry import filter_kind, filter_names, make_filter
 from activetrack.limits import (
     MAX_CLUTTER_PER_SCAN,
@@ -33,9 +34,17 @@ from activetrack.planning.selection import POSITIONING_SEARCHES
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.fields import MOTION_STATE, PV_MODELS, position_of
 from activetrack.scenarios.registry import registered_kinds, sensor_kind
-from activetrack.scenarios.schema import CautiousConfig, PlannerConfig, PlatformConfig, Scenario
+from activetrack.scenarios.schema import (
+    CautiousConfig,
+    MotionConfig,
+    PlannerConfig,
+    PlatformConfig,
+    Scenario,
+    TrackerConfig,
+)
+from activetrack.scenarios.tracking import TrackingConfig, TrackingPlatformConfig
 
-__all__ = ["name_problems", "scenario_problems"]
+__all__ = ["name_problems", "scenario_problems", "tracking_problems"]
 
 Problems = list[tuple[str, str]]
 
@@ -458,11 +467,11 @@ def _search_size(cfg: PlannerConfig) -> tuple[int, int]:
 # --- multi-target scenarios (a targets: list) --------------------------------------------------
 
 
-def _sensor_problems(s: Scenario) -> Problems:
+def _sensor_problems(platforms: Sequence[PlatformConfig | TrackingPlatformConfig]) -> Problems:
     """Clutter and fields of view: only for the sensors that model them (asked of the sensor,
     activetrack.models.clutter), bounded per scan."""
     out: Problems = []
-    for i, p in enumerate(s.platforms):
+    for i, p in enumerate(platforms):
         for j, cfg in enumerate(p.sensors):
             where = f"platforms.{i}.sensors.{j}"
             if cfg.fov_width is not None and cfg.beam_width is not None:
@@ -504,21 +513,28 @@ def _clutter_problems(where: str, cfg: Any) -> Problems:
     return []
 
 
-def _filter_associates(s: Scenario) -> bool:
+def _filter_associates(
+    tracker: TrackerConfig, motion: MotionConfig, mean: ArrayLike, cov: ArrayLike
+) -> bool:
     """Whether the tracker's filter has an ``update_pda`` (the JPDA's update): one is built
-    from the first target's prior to ask it (the registry's factory, a throwaway generator)."""
-    t = s.targets[0]
-    model = build_motion_model(s.tracker.motion or t.motion)
-    mean, cov = np.array(t.prior.mean, dtype=float), t.prior.covariance()
-    built = make_filter(s.tracker.filter, model, mean, cov, s.tracker, np.random.default_rng(0))
+    from N(mean, cov) to ask it (the registry's factory, a throwaway generator)."""
+    model = build_motion_model(motion)
+    x0, P0 = np.array(mean, dtype=float), np.array(cov, dtype=float)
+    built = make_filter(tracker.filter, model, x0, P0, tracker, np.random.default_rng(0))
     return callable(getattr(built, "update_pda", None))
+
+
+_NO_UPDATE_PDA = (
+    "must be a filter that takes associated detections (an update_pda, as the built-in 'ekf' "
+    "and 'pf' have; docs/extending.md)"
+)
 
 
 def _scene_problems(s: Scenario) -> Problems:
     """``(field, message)`` for every violated rule of the scene: the targets' lifetimes, the
     sensors' clutter and fields of view, and what associating detections (JPDA: several
     targets, births and deaths, or clutter) asks of the targets, the filter and the planner."""
-    out = _sensor_problems(s)
+    out = _sensor_problems(s.platforms)
     ids = [t.id for t in s.targets]
     dupes = sorted({v for v in ids if ids.count(v) > 1})
     if dupes:
@@ -560,15 +576,10 @@ def _scene_problems(s: Scenario) -> Problems:
                 "from the priors of the targets present at epoch 0)",
             )
         )
-    if not _filter_associates(s):
-        out.append(
-            (
-                "tracker.filter",
-                f"must be a filter that takes associated detections (an update_pda, as the "
-                f"built-in 'ekf' and 'pf' have; docs/extending.md) {why}, "
-                f"got {s.tracker.filter!r}",
-            )
-        )
+    first = s.targets[0]
+    motion = s.tracker.motion or first.motion
+    if not _filter_associates(s.tracker, motion, first.prior.mean, first.prior.covariance()):
+        out.append(("tracker.filter", f"{_NO_UPDATE_PDA} {why}, got {s.tracker.filter!r}"))
     if cfg.enabled and (cfg.search == "cautious" or cfg.selection.enabled):
         out.append(
             (
@@ -579,4 +590,65 @@ def _scene_problems(s: Scenario) -> Problems:
         )
     if cfg.enabled and cfg.mode != "renewal":
         out.append(("planner.mode", f"must be 'renewal' {why}"))
+    return out
+
+
+# --- tracker-only configurations ---------------------------------------------------------------
+
+
+def tracking_problems(c: TrackingConfig) -> Problems:
+    """``(field, message)`` for every violated rule of a tracker configuration the schema
+    validated (:mod:`.tracking`) and whose names (:func:`name_problems`) are registered: the
+    sensors' clutter and fields of view, and what its association asks of the targets, the
+    sensors, the motion model and the filter."""
+    out = _sensor_problems(c.platforms)
+    clutter = [s.id for p in c.platforms for s in p.sensors if s.clutter_density > 0]
+    motion = c.tracker.motion
+    assert motion is not None  # the schema's rule
+    if c.association == "known":
+        if len(c.targets) != 1:
+            out.append(
+                (
+                    "targets",
+                    f"association 'known' tracks exactly one target (every detection is its "
+                    f"own): give one target, got {len(c.targets)}",
+                )
+            )
+        if clutter:
+            out.append(
+                (
+                    "association",
+                    f"must not be 'known' with sensors in clutter {clutter} (a detection may "
+                    "be a false alarm): use 'jpda' or 'auto'",
+                )
+            )
+        return out
+    if c.known_association:  # auto: one target, no clutter
+        return out
+    why = "when detections are associated (association 'jpda')"
+    if MOTION_STATE[motion.model] != MOTION_STATE["ncv"]:
+        out.append(
+            (
+                "tracker.motion.model",
+                f"must be a model of the pv state {MOTION_STATE['ncv']}, one of {PV_MODELS}, "
+                f"{why} (tracks from detections start in it), got {motion.model!r}",
+            )
+        )
+        return out
+    initiating = any(starts_tracks(build_sensor(s)) for p in c.platforms for s in p.sensors)
+    if not c.targets and not initiating:
+        out.append(
+            (
+                "targets",
+                "without targets every track starts from detections: this needs a sensor that "
+                "fixes a position from one detection (e.g. range_bearing); give the targets' "
+                "priors for bearings-only sensors",
+            )
+        )
+    n = len(MOTION_STATE[motion.model])
+    mean, cov = np.zeros(n), np.eye(n)
+    if c.targets:
+        mean, cov = np.array(c.targets[0].prior.mean), c.targets[0].prior.covariance()
+    if not _filter_associates(c.tracker, motion, mean, cov):
+        out.append(("tracker.filter", f"{_NO_UPDATE_PDA} {why}, got {c.tracker.filter!r}"))
     return out
