@@ -1,33 +1,19 @@
 """Sensor measurement models (contract: ``activetrack.models.base.SensorModel``).
 
-All sensors observe a target pv state (x, xdot, y, ydot) from a sensor platform pv state
-(Hernandez eq. 6-7, Ramdaras eq. 1) with relative geometry dx = x_t - x_s, dy = y_t - y_s
-(Ramdaras eq. 12), range r = sqrt(dx^2 + dy^2) and bearing atan2(dy, dx) wrapped to [-pi, pi).
-``target_pv`` and ``sensor_pv`` broadcast against each other, e.g. a target batch (M, 1, 4)
-against sensors (1, C, 4) gives measurements (M, C, dim_z).
+Sensors observe a target pv (x, xdot, y, ydot) from a platform pv (Hernandez eq. 6-7, Ramdaras
+eq. 1): dx = x_t - x_s, dy = y_t - y_s (Ramdaras eq. 12), range sqrt(dx^2 + dy^2), bearing
+atan2(dy, dx) wrapped to [-pi, pi); the two pvs broadcast, e.g. targets (M, 1, 4) against
+sensors (1, C, 4) give (M, C, dim_z). Jacobians are with respect to the target pv
+(``state_jacobian`` chains a motion model's); a bearing Jacobian at zero range raises
+ValueError. ``in_range`` is I_r of Hernandez eq. 8; detection then succeeds with probability
+``pd`` (Ramdaras eq. 14-22).
 
-Measurement Jacobians are with respect to the target pv; ``state_jacobian`` chains them with a
-motion model's ``kinematics_jacobian``.  A bearing Jacobian at zero range is undefined and
-raises ValueError.  ``in_range`` is the I_r indicator of Hernandez eq. 8, r_min <= r <= r_max;
-detection then succeeds with probability ``pd`` (Ramdaras eq. 14-22).
-
-Each sensor derives from :class:`~activetrack.models.base.GaussianSensor` and owns its maths.
-Where a faster form exists it overrides the generic member, with the same numbers:
-
-- ``BearingSensor`` and ``RangeBearingSensor``: the EKF linearisation in plain floats and the
-  particle log-likelihood from the particle offsets with an arcsin-wrapped bearing residual;
-- ``BearingSensor`` and ``AmbiguousBearingSensor``: the closed form of Hernandez eq. 9 for the
-  Fisher information, and its compiled form (``information_kernel``, module
-  ``models._fisher_kernels``) for the batched PCRLB; ``RangeBearingSensor`` and
-  ``RangeRateBearingSensor``: the compiled closed forms of their generic (Jacobian) Fisher
-  information;
-- every built-in sensor: the missed-detection likelihood from the particle ranges.
-
-The bearing and range-bearing likelihoods of a particle array ``(N, 4)`` run the compiled
-kernels of ``activetrack.kernels`` when they are enabled: the same operations in one pass each
-side of numpy's arcsin, so the same bits.
-
-The other members are the generic ones of ``GaussianSensor``.
+Each sensor is a :class:`~activetrack.models.base.GaussianSensor` overriding, with the same
+numbers, what has a faster form: plain-float EKF linearisations and arcsin-wrapped particle
+likelihoods (bearing, range-bearing; compiled by ``activetrack.kernels`` when enabled, same
+bits), the closed form of Hernandez eq. 9 and compiled Fisher information
+(``information_kernel``, ``models._fisher_kernels``), and the missed-detection likelihood from
+the particle ranges.
 """
 
 from __future__ import annotations

@@ -1,18 +1,13 @@
-"""Beta-cautious greedy localisation with an infinite-line (ambiguous bearing) sensor.
+"""Beta-cautious greedy localisation with an infinite-line (ambiguous bearing) sensor (Vander
+Hook, Tokekar, Isler (003), sec. II-III, Algorithm 1).
 
-Vander Hook, Tokekar, Isler (003), sec. II-III, Algorithm 1. The target is stationary and
-its position estimate is a 2-D Gaussian N(x_hat, P). The sensor measures the bearing only
-modulo pi, so every measurement has two candidate bearings, z and z + pi; the EKF takes the
-more likely one, which is wrong when the target lies *behind* the sensor (eq. 2). A
-beta-cautious strategy keeps that probability below beta by measuring from far enough away
-(eq. 3), and greedily reduces the larger eigenvalue of P by measuring perpendicular to the
-major axis (Lemma 2), from the closer of the two candidate points (Algorithm 1, line 7).
-
-Shapes: positions ``(..., 2)``; covariances ``(..., 2, 2)``; bearings and ranges ``(...)``.
-All functions are batched over the leading axes (used for whole Monte Carlo batches at
-once). :class:`CautiousPlanner` is the single-target entry point for the ROS planner node: after
-each processed measurement call ``next_action(mean, cov, robot_position)``, drive to the
-returned waypoint, stop ``t_m`` seconds and measure; ``done`` ends the localisation.
+The target is stationary, its estimate N(x_hat, P) in 2-D. The sensor measures the bearing
+modulo pi; the EKF takes the more likely of z and z + pi, wrong when the target lies behind
+the sensor (eq. 2). Measuring from far enough away keeps that probability below beta (eq. 3);
+measuring perpendicular to the major axis of P reduces its larger eigenvalue (Lemma 2), from
+the closer of the two candidate points (line 7). Positions ``(..., 2)``, covariances ``(...,
+2, 2)``, all batched. :class:`CautiousPlanner`: after each measurement ``next_action(mean,
+cov, robot_position)`` gives the waypoint to measure from (``t_m`` s stop); ``done`` ends it.
 """
 
 from __future__ import annotations

@@ -1,18 +1,11 @@
-"""The PCRLB of one target over a planning horizon for the platforms' candidate manoeuvres
-(glue to ``activetrack.bounds``).
-
-A :class:`HorizonModel` holds what one platform's search at epoch k needs: the linear target
-dynamics (F, Q), the target samples at epochs k+1..k+R (Hernandez sec. 3.2: the prior, or the
-tracker's posterior for renewals, pushed through the dynamics) and the information the platforms
-that are *not* being optimised contribute at those epochs. Scoring candidates for the platform
-being optimised is then one batched PCRLB step (Hernandez eq. 3 with eq. 8-9)::
+"""The PCRLB of one target over a planning horizon for candidate manoeuvres (Hernandez eq. 3,
+8-9). :class:`HorizonModel` (a stage of :func:`activetrack.planning.horizons.search_horizon`)
+holds F, Q, the target samples at k+1..k+R (sec. 3.2) and the fixed platforms' information::
 
     J_{k+r} = (Q + F J_{k+r-1}^{-1} F^T)^{-1} + J_Z^fixed(k+r) + J_Z^platform(k+r; candidates)
 
-(a stage of :func:`activetrack.planning.horizons.search_horizon`; the objective takes a
-criterion of J^{-1}, :class:`activetrack.planning.objective.InformationTerm`).
-:class:`FleetInformation` keeps every platform's J_Z along its current path for the platform
-coordinator (:func:`activetrack.planning.multisensor.coordinate_platforms`).
+:class:`FleetInformation` keeps every platform's J_Z along its current path for
+:func:`activetrack.planning.multisensor.coordinate_platforms`.
 """
 
 from __future__ import annotations

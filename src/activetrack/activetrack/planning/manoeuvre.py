@@ -1,19 +1,13 @@
 """Platform manoeuvre model of Hernandez sec. 3.3.1 and 5.1.
 
-At each decision epoch k a platform turns instantly by ``dpsi`` in [-dpsi_max, dpsi_max] and
-sets a new speed ``v'`` in [max(v_min, v - dv_max), min(v_max, v + dv_max)], then flies a
-constant-velocity leg of T seconds to epoch k+1. The set of positions it can reach at k+1 is an
-annular sector; the searches explore it through the unit square u = (u_psi, u_v) in [0, 1]^2:
+At epoch k a platform turns by ``dpsi`` in [-dpsi_max, dpsi_max], sets a speed ``v'`` in
+[max(v_min, v - dv_max), min(v_max, v + dv_max)] and flies a constant-velocity leg of T s. The
+searches explore the reachable annular sector through the unit square u in [0, 1]^2::
 
     dpsi = (2 u_psi - 1) dpsi_max,    v' = v_lo + u_v (v_hi - v_lo)
 
-so u = (0.5, .) is "straight ahead". Ramdaras' limits (sec. 5: longitudinal acceleration a_max,
-heading rate psi_rate_max) enter as dv_max = a_max T and dpsi_max = psi_rate_max T
-(``activetrack.scenarios.build.platform_limits``).
-
-Manoeuvres are stored physically as ``(dpsi, v')`` pairs, shape ``(..., 2)``. A
-:class:`PlannerPlatform` is a platform at the decision epoch (pv, sensors, limits), as every
-planner takes it.
+(u = (0.5, .) is straight ahead). Ramdaras' limits (sec. 5) enter as dv_max = a_max T,
+dpsi_max = psi_rate_max T. Manoeuvres are stored as ``(dpsi, v')``, ``(..., 2)``.
 """
 
 from __future__ import annotations

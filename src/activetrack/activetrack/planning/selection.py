@@ -1,33 +1,24 @@
 """Sensor positioning and selection with the modified Riccati equation (Ramdaras et al. 2010).
 
-Both steps score a sensor at a (candidate) position by the expected covariance one step ahead,
-Ramdaras eq. 23 (:func:`activetrack.bounds.mre.mre_predict`)::
+Both score a sensor at a (candidate) position by a criterion (:mod:`activetrack.planning.
+criteria`: eq. 24-26) of the expected covariance one step ahead, eq. 23
+(:func:`activetrack.bounds.mre.mre_predict`)::
 
     P^(j)_{k+1|k} = F [(1 - pd_j) P_{k|k-1} + pd_j P^(j)_{k|k}] F^T + Q
 
-with P_{k|k-1} the predicted covariance of the epoch being planned and H_j (eq. 13) at the
-predicted target state x_{k|k-1} and the sensor's planned position (a :class:`TargetPrediction`
-holds both and F, Q), and by a criterion on it (:mod:`activetrack.planning.criteria`, those
-that apply to MRE positioning or selection): the position determinant (eq. 24) or H^c P H^c^T
-for heading, range, Doppler or bearing (eq. 25-26, geometry relative to the origin as printed
-in eq. 26).
+with H_j (eq. 13) at the predicted state and the sensor's planned position
+(:class:`TargetPrediction`).
 
-- Positioning (sec. 4, Fig. 4-6): :func:`position_platform`: each controllable platform
-  independently searches its reachable envelope (the unit square of
-  :mod:`activetrack.planning.manoeuvre`) with the nine-sector search (``d_max`` = levels); the
-  cost of a candidate position is the criterion of eq. 23 with all of the platform's sensors
-  there; several epochs ahead (sec. 7's future work): :func:`plan_positions`, eq. 23 iterated
-  over R legs with the constant-velocity prediction of the target (:class:`MreStage`). Both are
-  the horizon search of every planner (:func:`activetrack.planning.horizons.search_horizon`,
-  nested searches, one per leg) with the criterion as the objective.
-- Selection (sec. 3, eq. 27): :func:`select_by_criterion`, j = argmin_j C^(j) over every sensor
-  at its planned position. Baselines (Ramdaras and Absil 2007a): :func:`select_random` (the
-  caller's generator), :func:`select_fixed`, and :func:`select_by_trace`, the trace of the
-  Kalman-updated covariance P^(j)_{k|k} (eq. 22, pd ignored: the classic covariance-control
-  rule that the MRE improves on when pd < 1). ``count`` > 1 selects greedily: each pick is
-  folded into P_{k|k-1} (pd-weighted for eq. 27) before scoring the rest.
+- Positioning (sec. 4): :func:`position_platform`, each controllable platform searching its
+  reachable envelope with the nine-sector search; over R legs (sec. 7's future work)
+  :func:`plan_positions` with :class:`MreStage`; both through
+  :func:`activetrack.planning.horizons.search_horizon`.
+- Selection (sec. 3, eq. 27): :func:`select_by_criterion` over every sensor; baselines
+  (Ramdaras and Absil 2007a) :func:`select_random`, :func:`select_fixed` and
+  :func:`select_by_trace` (trace of P^(j)_{k|k}, eq. 22, pd ignored). ``count`` > 1 selects
+  greedily, each pick folded into P_{k|k-1} (pd-weighted) before scoring the rest.
 
-Shapes: pv states ``(4,)``, covariances ``(4, 4)``; candidates are batched ``(..., 4)``.
+Shapes: pv states ``(4,)``, covariances ``(4, 4)``; candidates batched ``(..., 4)``.
 """
 
 from __future__ import annotations
