@@ -7,8 +7,7 @@ association filter", IEEE Control Systems Magazine 29(6), 2009, sec. "JPDAF"; Ba
 probability ``Pd_t`` and its measurement falls in its gate with probability ``Pg_t``; false alarms
 are Poisson with density ``lambda`` per unit of ``z``.
 
-Per track the sensor's own maths gives the predicted measurement and the wrapped residuals
-(``sensor.measure``, ``models.sensors.state_jacobian``, ``sensor.residual``)::
+Per track, from the sensor's own maths::
 
     zhat_t = h(x_t),  H_t = dh/dx (x_t),  S_t = H_t P_t H_t^T + R,  nu_tj = z_j - zhat_t (wrapped)
 
@@ -34,8 +33,7 @@ Update of each track with its betas (the PDAF update, BDH 2009 eq. 23-27)::
     P~  = K (sum_j beta_j nu_j nu_j^T - nu nu^T) K^T        (spread of the innovations)
     P+  = beta_0 P + (1 - beta_0) P_c + P~
 
-The residuals are linearised once at the predicted mean (the EKF of :mod:`.ekf`); for a linear
-sensor this is the exact PDAF / JPDAF.
+linearised once at the predicted mean (exact for a linear sensor).
 """
 
 from __future__ import annotations
