@@ -1,18 +1,11 @@
-"""Scalar costs of (bound) covariance matrices for sensor planning and selection.
+"""Scalar costs ``(...)`` of covariance batches ``P`` ``(..., n, n)`` (a PCRLB J^{-1} or an MRE
+prediction); positions are pv entries 0 and 2 unless ``position_indices`` says otherwise. The
+planner criteria built on them: :mod:`activetrack.planning.criteria`.
 
-All costs take covariance batches ``P`` ``(..., n, n)`` (a PCRLB J^{-1} or an MRE prediction) and
-return ``(...)``. Positions are the pv entries x (index 0) and y (index 2) unless
-``position_indices`` says otherwise. Which of them a planner may use, and under which name, is
-the criterion registry's business (:mod:`activetrack.planning.criteria`); this module only
-computes.
-
-- ``rmse_bound``: Hernandez eq. 10, b_k = max(sqrt(P(1,1)), sqrt(P(3,3))), the largest
-  position RMSE bound (1-based indices as in the paper); ``rmse_bound_of_information``: the
-  same straight from information matrices J (one solve, no inverse).
-- ``trace_cost``, ``determinant_cost``: trace / determinant criteria on the whole matrix.
-- ``position_determinant``: Ramdaras eq. 24, det of the (x, y) block.
-- ``criterion_variance``: Ramdaras eq. 25, C = H^c P H^c^T with H^c of eq. 26 for heading,
-  range, Doppler (range rate) or bearing (``EQ26_ROWS``).
+- ``rmse_bound``: Hernandez eq. 10, b_k = max(sqrt(P(1,1)), sqrt(P(3,3))) (1-based as in the
+  paper); ``rmse_bound_of_information`` from J directly (one solve, no inverse).
+- ``trace_cost``, ``determinant_cost``; ``position_determinant``: Ramdaras eq. 24.
+- ``criterion_variance``: Ramdaras eq. 25, H^c P H^c^T with H^c of eq. 26 (``EQ26_ROWS``).
 """
 
 from __future__ import annotations

@@ -1,14 +1,10 @@
-"""Vectorised resampling helpers for the SIR particle filter.
+"""Resampling for the SIR particle filter.
 
-Systematic resampling (Arulampalam et al. 2002, Algorithm 2, the reference Hernandez cites
-for the PF) draws one uniform offset ``u ~ U[0, 1)`` and picks, for the N points
-``(u + i) / N``, the particle whose cumulative-weight interval contains the point. It is the
-same rule as ``filterpy.monte_carlo.systematic_resample`` but uses ``searchsorted`` instead
-of a Python loop.
-
-Roughening (Gordon, Salmond and Smith 1993, sec. 4) adds Gaussian jitter with standard
-deviation ``K * E_i * N^(-1/d)`` per state component, E_i being the spread (max - min) of
-component i over the particles and d the state dimension, to counter sample impoverishment.
+Systematic (Arulampalam et al. 2002, Algorithm 2): one offset u ~ U[0, 1), and for the points
+(u + i) / N the particle whose cumulative-weight interval holds it (filterpy's
+``systematic_resample``, by ``searchsorted``). Roughening (Gordon, Salmond and Smith 1993,
+sec. 4): Gaussian jitter of standard deviation ``K * E_i * N^(-1/d)``, E_i the spread of
+component i, d the state dimension, against sample impoverishment.
 """
 
 from __future__ import annotations
