@@ -66,17 +66,12 @@ def beam_coverage(
 
 
 def coverage_after_misses(coverage: ArrayLike, miss_factor: ArrayLike) -> np.ndarray:
-    """The probability c' that the target lies in the beam after unsuccessful looks there,
-    by Bayes' rule: P(in | m misses) = c M / (c M + (1 - c)), a miss being certain when the
-    target is outside the beam and of probability 1 - pd_look inside it (the posterior
-    probability of containment after an unsuccessful search, Stone, *Theory of Optimal
-    Search*, 1975; the "negative information" of Koch 2004; the IPDA existence update after an
-    empty gate, Musicki, Evans & Stankovic 1994, has the same form)::
+    """The probability that the target lies in the beam after unsuccessful looks (Bayes' rule:
+    Stone, *Theory of Optimal Search*, 1975; the IPDA existence update has the same form)::
 
         c' = c M / (c M + 1 - c),    M = prod over the looks of (1 - pd_look)
 
-    ``coverage`` c in [0, 1] (:func:`beam_coverage`), ``miss_factor`` M in [0, 1] (1: no
-    unsuccessful look); broadcast, returns their shape."""
+    ``coverage`` c and ``miss_factor`` M in [0, 1] broadcast."""
     c = np.asarray(coverage, dtype=float)
     M = np.asarray(miss_factor, dtype=float)
     if not (np.all((c >= 0.0) & (c <= 1.0)) and np.all((M >= 0.0) & (M <= 1.0))):
