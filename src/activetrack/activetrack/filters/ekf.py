@@ -217,12 +217,9 @@ class ExtendedKalmanFilter:
         return info
 
     def update_pda(self, measurements: Sequence[Measurement], beta: ArrayLike) -> UpdateInfo:
-        """The PDAF update (Bar-Shalom, Daum & Huang 2009 eq. 23-27; with JPDA's marginals,
-        :mod:`activetrack.filters.jpda`) with one scan's detections ``measurements`` (one
-        sensor, one platform state) and their association probabilities ``beta`` ``(m + 1,)``:
-        ``beta[0]`` that none of them is the target's, ``beta[j]`` that detection j is.
-        Residuals linearised once at the predicted mean (:func:`~activetrack.filters.jpda.
-        pda_residuals`); ``beta[0] = 1`` leaves the prediction."""
+        """The PDAF update (Bar-Shalom, Daum & Huang 2009 eq. 23-27) with one scan's detections
+        (one sensor and platform state) and their association probabilities ``beta`` ``(m +
+        1,)`` (``beta[0]``: none is the target's; 1 leaves the prediction)."""
         check_measurement_times(measurements, self._t)
         b = pda_weights(measurements, beta)
         if b[0] < 1.0:

@@ -340,17 +340,14 @@ class ParticleFilter:
         return self._weigh(measurements, ell, const, n_missed)
 
     def update_pda(self, measurements: Sequence[Measurement], beta: ArrayLike) -> UpdateInfo:
-        """One scan whose detections' origin is uncertain, weighted by its association
-        probabilities ``beta`` ``(m + 1,)`` (``beta[0]``: none is the target's): the posterior
-        is the mixture over the hypotheses, ``beta_0`` times the prediction plus ``beta_j``
-        times the posterior given z_j (the JPDA particle filter of Vermaak, Godsill & Perez,
-        IEEE TAES 41(1), 2005, sec. IV)::
+        """One scan of uncertain origin with association probabilities ``beta`` ``(m + 1,)``
+        (``beta[0]``: none is the target's), the mixture over the hypotheses (JPDA particle
+        filter, Vermaak, Godsill & Perez, IEEE TAES 41(1), 2005, sec. IV)::
 
             w_i  <-  w_i (beta_0 + sum_j beta_j p(z_j | x_i) / p(z_j | Z_{k-1})),
             p(z_j | Z_{k-1}) = sum_i w_i p(z_j | x_i),
 
-        then resampled as :meth:`update`. The detections are one sensor's at one platform
-        state (``sensor.log_likelihood``: angle residuals wrapped)."""
+        then resampled as :meth:`update`; one sensor at one platform state."""
         check_measurement_times(measurements, self._t)
         b = pda_weights(measurements, beta)
         if b[0] >= 1.0:  # no detection can be the target's: nothing learnt

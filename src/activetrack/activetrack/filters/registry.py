@@ -159,11 +159,9 @@ def make_filter(
     rng: np.random.Generator,
     t0: float = 0.0,
 ) -> TrackingFilter:
-    """Build the filter registered as ``name`` with its factory (module docstring) and check
-    that it offers the :class:`TrackingFilter` members (and, if ``particle_based``,
-    ``particles`` and ``weights``). ``t0``: the time of ``x0``, ``P0`` (a track started from
-    a detection at a later epoch); passed as the keyword ``t0`` to a factory that takes it,
-    and refused (ValueError) for one that does not unless 0."""
+    """Build the filter ``name`` and check its :class:`TrackingFilter` members (and
+    ``particles``, ``weights`` if ``particle_based``). ``t0`` goes to a factory that takes it;
+    a nonzero one is refused for one that does not."""
     entry = filter_kind(name)
     if _takes_t0(entry.factory):
         built = entry.factory(model, x0, P0, config, rng, t0=t0)  # type: ignore[call-arg]

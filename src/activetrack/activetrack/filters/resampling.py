@@ -17,11 +17,9 @@ __all__ = ["effective_sample_size", "roughen", "systematic_indices", "systematic
 def systematic_indices(weights: np.ndarray, u: float) -> np.ndarray:
     """Indices chosen by systematic resampling with offset ``u`` in ``[0, 1)``.
 
-    weights: normalised weights, shape ``(N,)``. Returns an int array ``(N,)``, sorted.
-    Particle i receives the points ``p_k = (u + k) / N`` with ``c_{i-1} <= p_k < c_i`` (c the
-    cumulative weights; filterpy's rule). The number of points below c is
-    ``ceil(N c - u)``, so the copies per particle come from one ``diff`` and ``repeat``
-    (cheaper than a ``searchsorted`` of N points).
+    ``weights`` ``(N,)`` normalised; returns sorted ints ``(N,)``. Particle i takes the points
+    (u + k) / N in [c_{i-1}, c_i) (c cumulative); ``ceil(N c - u)`` points lie below c, so one
+    ``diff`` and ``repeat`` give the copies (cheaper than a ``searchsorted``).
     """
     n = weights.shape[0]
     below = np.cumsum(weights)

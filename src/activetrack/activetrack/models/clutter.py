@@ -66,11 +66,9 @@ def fov_volume(sensor: SensorModel, width: float, r_min: float, r_max: float) ->
 
 @dataclass(frozen=True)
 class ClutteredSensor:
-    """``base`` observed in clutter of ``clutter_density`` (per unit of z) within a field of
-    view; ``gate_sigmas`` is the association gate (the IRF's ``g``). ``gated``: the tracker
-    associates this sensor's detections through a gate (JPDA); False when every detection is
-    known to be the one target's (no clutter, one target), and then the information factor
-    is ``pd`` itself (no gate, no clutter: nothing reduces the information)."""
+    """``base`` in clutter of ``clutter_density`` (per unit of z) within a field of view;
+    ``gate_sigmas`` the association gate (the IRF's g). ``gated`` False: every detection is the
+    one target's (known association), and the information factor is ``pd`` itself."""
 
     base: SensorModel
     clutter_density: float = 0.0

@@ -88,9 +88,8 @@ def _scalar_geometry(
 ) -> tuple[float, float, float, list[float]]:
     """dx, dy, r^2 of one pv state ``(4,)`` and the entries of ``z``, as Python floats.
 
-    No per-call validation (the EKF's state and the measurement are checked where they are
-    made) and one ``tolist`` per array: this is the inner loop of every EKF update, where numpy
-    scalar indexing would cost more than the maths.
+    No validation (inputs are checked where made): the inner loop of every EKF update, where
+    numpy scalar indexing would cost more than the maths.
     """
     nd = np.ndarray
     x = target_pv.tolist() if type(target_pv) is nd and target_pv.ndim == 1 else None

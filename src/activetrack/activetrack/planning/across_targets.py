@@ -602,14 +602,9 @@ class MultiTargetPlanner:
             horizon=self.horizon,
             wall_time_s=time.perf_counter() - start,
         )
-        commands = tuple(
-            Command(p.platform_id, epoch, 0.0, 0.0)
-            for j, p in enumerate(planners)
-            if self.controllable[j]
-        )
         return Decision(
             epoch,
-            commands=commands,
+            commands=tuple(self._commands(planners, epoch, {})),
             beams=tuple(beams),
             report=report,
             extra={"track_costs": {}, "assignment": assignment},

@@ -63,19 +63,12 @@ class InformationCache:
 
 
 class HorizonModel:
-    """Batched PCRLB steps over epochs k+1..k+R of one target for the platform being optimised
-    (a :class:`activetrack.planning.horizons.HorizonStage`): the state is J ``(..., 1, 4, 4)``,
-    one track.
-
-    F, Q: ``(4, 4)`` target dynamics (eq. 2). samples: ``(R, M, 4)`` target samples at
-    k+1..k+R. fixed_information: ``(R, 4, 4)`` J_Z of all other platforms at those epochs.
-    sensors: the optimised platform's sensors.
-
-    ``cache``: an optional :class:`InformationCache` shared by the models of one platform within
-    a decision (the coordinate descent over platforms optimises a platform again with the
-    others' plans changed): the platform's own J_Z of a whole batch of candidate positions at an
-    epoch is computed once and looked up when the same batch comes again (same numbers: the J_Z
-    of a position does not depend on the other platforms).
+    """Batched PCRLB steps over k+1..k+R of one target for the optimised platform (a
+    :class:`HorizonStage`, state J ``(..., 1, 4, 4)``): F, Q ``(4, 4)`` (eq. 2), ``samples``
+    ``(R, M, 4)``, ``fixed_information`` ``(R, 4, 4)`` the other platforms' J_Z, ``sensors``
+    the platform's. ``cache``: an :class:`InformationCache` of the platform's own J_Z per batch
+    of candidates, shared within a decision (the coordinate descent searches a platform again;
+    its J_Z does not depend on the others).
     """
 
     def __init__(

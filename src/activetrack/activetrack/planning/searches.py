@@ -131,11 +131,9 @@ def quadrant_search(
 ) -> SearchResult:
     """Hernandez's efficient search (sec. 4.1, Fig. 1), B problems in lockstep.
 
-    Each problem holds a square (origin, side) and the costs of its 3 x 3 points; division 1
-    evaluates all 9, later divisions the 5 points that are new in the chosen quadrant. The
-    The bookkeeping between divisions is compiled (``planning._kernels``) where
-    ``kernels.kernels_enabled()``, else numpy: the same comparisons and arithmetic, so the same
-    decisions (tested).
+    Each problem holds a square and its 3 x 3 points' costs; division 1 evaluates all 9, later
+    ones the 5 new points of the chosen quadrant. The bookkeeping is compiled
+    (``planning._kernels``) when kernels are enabled, with the same decisions (tested).
     """
     B = _check_problems(n_problems)
     if isinstance(divisions, bool) or int(divisions) != divisions or divisions < 1:
