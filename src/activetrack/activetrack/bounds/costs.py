@@ -56,11 +56,8 @@ _POSITION_COLUMNS = np.eye(4)[:, [0, 2]]
 
 
 def rmse_bound_of_information(J: np.ndarray) -> np.ndarray:
-    """Hernandez eq. 10 straight from pv information matrices ``(..., 4, 4) -> (...)``: the two
-    position variances of J^{-1} from one solve J V = [e_x, e_y], no full inverse.
-
-    Compiled (``bounds._kernels``: the LU solve written out for stacks of 4 x 4 matrices) while
-    :func:`activetrack.kernels.kernels_enabled`; the numpy solve is the reference (equal to
+    """Hernandez eq. 10 from pv information ``(..., 4, 4) -> (...)``: the position variances of
+    J^{-1} from one solve J V = [e_x, e_y]; compiled while kernels are enabled (equal to
     1e-12)."""
     J = np.asarray(J, dtype=float)
     if not kernels_enabled() or J.shape[-2:] != (4, 4):
