@@ -62,11 +62,9 @@ class PlatformLimits:
 
 
 def speed_interval(speed: ArrayLike, limits: PlatformLimits) -> tuple[FloatArray, FloatArray]:
-    """Reachable new speeds [v_lo, v_hi] from ``speed`` ``(...)``.
+    """Reachable speeds [max(v_min, v - dv_max), min(v_max, v + dv_max)] from ``speed``
+    ``(...)``; a speed outside [v_min, v_max] comes back as far as dv_max allows."""
 
-    v_lo = max(v_min, v - dv_max), v_hi = min(v_max, v + dv_max); a speed outside
-    [v_min, v_max] is first brought back as far as dv_max allows (the interval never inverts).
-    """
     v = np.asarray(speed, dtype=float)
     lo = np.clip(v - limits.dv_max, limits.v_min, limits.v_max)
     hi = np.clip(v + limits.dv_max, limits.v_min, limits.v_max)
@@ -74,10 +72,8 @@ def speed_interval(speed: ArrayLike, limits: PlatformLimits) -> tuple[FloatArray
 
 
 def unit_to_manoeuvre(u: ArrayLike, speed: ArrayLike, limits: PlatformLimits) -> FloatArray:
-    """Map unit-square points ``u`` ``(..., 2)`` to manoeuvres (dpsi, v') ``(..., 2)``.
-
-    ``speed`` ``(...)`` is the platform speed before the manoeuvre (broadcasts against u).
-    """
+    """Unit-square points ``u`` ``(..., 2)`` to manoeuvres (dpsi, v') ``(..., 2)`` from the
+    speed before the manoeuvre ``(...)``."""
     u = np.asarray(u, dtype=float)
     lo, hi = speed_interval(speed, limits)
     dpsi = (2.0 * u[..., 0] - 1.0) * limits.dpsi_max
@@ -98,11 +94,8 @@ def manoeuvre_to_unit(manoeuvre: ArrayLike, speed: ArrayLike, limits: PlatformLi
 def step_platform(
     pv: ArrayLike, heading: ArrayLike, manoeuvre: ArrayLike, dt: float
 ) -> tuple[FloatArray, FloatArray]:
-    """Apply manoeuvres (dpsi, v') at epoch k and fly the constant-velocity leg to k+1.
-
-    pv ``(..., 4)``, heading ``(...)`` and manoeuvre ``(..., 2)`` broadcast together.
-    Returns pv at k+1 ``(..., 4)`` (velocity = the new leg's velocity) and the new heading.
-    """
+    """pv ``(..., 4)`` at k+1 and the new heading after manoeuvres (dpsi, v') ``(..., 2)`` and a
+    constant-velocity leg; pv, heading ``(...)`` and manoeuvre broadcast."""
     pv = np.asarray(pv, dtype=float)
     m = np.asarray(manoeuvre, dtype=float)
     psi = wrap_angle(np.asarray(heading, dtype=float) + m[..., 0])
@@ -116,10 +109,7 @@ def step_platform(
 def rollout(
     pv: ArrayLike, heading: ArrayLike, manoeuvres: ArrayLike, dt: float
 ) -> tuple[FloatArray, FloatArray]:
-    """Platform pv and heading at epochs k+1..k+R for manoeuvre sequences ``(..., R, 2)``.
-
-    Returns pv ``(..., R, 4)`` and headings ``(..., R)``.
-    """
+    """pv ``(..., R, 4)`` and headings ``(..., R)`` at k+1..k+R for manoeuvres ``(..., R, 2)``."""
     m = np.asarray(manoeuvres, dtype=float)
     pvs, headings = [], []
     p, h = np.asarray(pv, dtype=float), np.asarray(heading, dtype=float)
@@ -146,11 +136,8 @@ def hold_course(speed: float, limits: PlatformLimits, steps: int) -> FloatArray:
 
 @dataclass(frozen=True)
 class PlannerPlatform:
-    """A platform at the decision epoch. ``limits=None``: not controllable (holds course).
-
-    heading (rad from +x) and speed default to those of the pv velocity; give heading
-    explicitly for a platform at rest.
-    """
+    """A platform at the decision epoch; ``limits=None``: it holds course. heading (rad from
+    +x) and speed default to the pv velocity's (give heading for a platform at rest)."""
 
     platform_id: str
     pv: np.ndarray
