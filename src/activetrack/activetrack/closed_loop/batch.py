@@ -30,18 +30,16 @@ from activetrack.scenarios.schema import Scenario
 __all__ = ["BatchSummary", "run_batch", "summarize"]
 
 
-def _nan_rms(values: np.ndarray, axis: int = 0) -> np.ndarray:
-    """Root mean square over ``axis`` ignoring NaN (NaN where every entry is)."""
-    with np.errstate(invalid="ignore"):
-        count = np.sum(~np.isnan(values), axis=axis)
-        total = np.nansum(values**2, axis=axis)
-        return np.where(count > 0, np.sqrt(total / np.maximum(count, 1)), math.nan)
-
-
 def _nan_mean(values: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Mean over ``axis`` ignoring NaN (NaN where every entry is)."""
     with np.errstate(invalid="ignore"):
         count = np.sum(~np.isnan(values), axis=axis)
         return np.where(count > 0, np.nansum(values, axis=axis) / np.maximum(count, 1), math.nan)
+
+
+def _nan_rms(values: np.ndarray, axis: int = 0) -> np.ndarray:
+    return np.sqrt(_nan_mean(values**2, axis))
+
 
 
 def _floats(values: np.ndarray) -> list:
