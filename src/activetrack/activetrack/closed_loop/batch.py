@@ -41,7 +41,6 @@ def _nan_rms(values: np.ndarray, axis: int = 0) -> np.ndarray:
     return np.sqrt(_nan_mean(values**2, axis))
 
 
-
 def _floats(values: np.ndarray) -> list:
     return np.asarray(values, dtype=float).tolist()
 

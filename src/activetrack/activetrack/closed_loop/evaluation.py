@@ -191,8 +191,7 @@ class EpochAssessment:
 
 
 class EpochAssessor:
-    """Scores one epoch at a time (module docstring): the batch evaluation and the graph's
-    live evaluator use the same one."""
+    """Scores one epoch at a time, for the batch evaluation and the graph's live evaluator."""
 
     def __init__(self, scenario: Scenario):
         self.evaluation = scenario.evaluation
@@ -255,14 +254,12 @@ def _epochs(
 
 
 def held_tracks(scenario: Scenario, record: RunRecord) -> np.ndarray:
-    """``(K, N)`` int: the id of the confirmed track holding target n at epoch k = 1..K
-    (module docstring), :data:`NOT_HELD` where none does."""
+    """``(K, N)``: the confirmed track holding target n at epoch k = 1..K, or :data:`NOT_HELD`."""
     return _epochs(scenario, record, alive_mask(scenario, record))[1]
 
 
 def count_breaks_swaps(held: np.ndarray, alive: np.ndarray) -> tuple[int, int]:
-    """(breaks, swaps) of ``held`` ``(K, N)`` (:func:`held_tracks`) with ``alive`` ``(K, N)``
-    the targets alive at the same epochs (definitions in the module docstring)."""
+    """(breaks, swaps) of ``held`` ``(K, N)`` with ``alive`` ``(K, N)`` (module docstring)."""
     held = np.asarray(held)
     alive = np.asarray(alive, dtype=bool)
     if held.shape != alive.shape or held.ndim != 2:
@@ -290,9 +287,7 @@ def _errors(record: RunRecord, held: np.ndarray) -> np.ndarray:
 
 
 class TargetBound:
-    """The PCRLB of one target (module docstring) one epoch at a time: :meth:`step` with the
-    sensors' pv and which of them count at the next epoch gives J^-1 ``(4, 4)`` there, NaN
-    while the target is not alive or for nonlinear dynamics. The draws are those of
+    """The PCRLB of one target (module docstring) one epoch at a time, with the draws of
     :func:`target_bounds` (the live view's bound equals the summary's)."""
 
     def __init__(
@@ -333,9 +328,8 @@ class TargetBound:
         return measurement_information(chosen, np.asarray(sensor_pv)[idx], self.X)
 
     def information(self, sensor_pv: FloatArray, counts: np.ndarray) -> FloatArray | None:
-        """The information J ``(4, 4)`` at the next epoch from the sensors' pv there ``(S, 4)``
-        and which of them count for this target ``(S,)``; None while the target is not alive
-        or for nonlinear dynamics."""
+        """J ``(4, 4)`` at the next epoch from the sensors' pv there ``(S, 4)`` and which count
+        ``(S,)``; None while the target is not alive or for nonlinear dynamics."""
         self.epoch += 1
         k = self.epoch
         alive = k >= self.birth and (self.death is None or k < self.death)
@@ -352,8 +346,7 @@ class TargetBound:
         return self.J
 
     def step(self, sensor_pv: FloatArray, counts: np.ndarray) -> FloatArray:
-        """The bound J^-1 ``(4, 4)`` at the next epoch (:meth:`information`), NaN where there
-        is none."""
+        """J^-1 ``(4, 4)`` at the next epoch, NaN where there is none."""
         J = self.information(sensor_pv, counts)
         return np.full((4, 4), math.nan) if J is None else covariance_bound(J)
 
@@ -376,10 +369,9 @@ def target_bounds(
     *,
     n_samples: int = BOUND_SAMPLES,
 ) -> FloatArray:
-    """The PCRLB ``J^-1`` of every target along the run: ``(K, N, 4, 4)`` at epochs 1..K, NaN
-    where a target is not alive (module docstring). Draws from ``rng``, target by target in
-    scenario order: ``n_samples`` prior samples at birth, then the process noise of each later
-    epoch (``bounds.pcrlb.gaussian_samples``, ``propagate_samples``)."""
+    """The PCRLB ``J^-1`` ``(K, N, 4, 4)`` at epochs 1..K, NaN where a target is not alive.
+    Draws from ``rng`` target by target: ``n_samples`` prior samples at birth, then each later
+    epoch's process noise."""
     alive_mask(scenario, record)
     K = record.steps
     sensors, columns = bound_sensors(scenario)
@@ -397,8 +389,8 @@ def target_bounds(
 
 
 def bound_sensors(scenario: Scenario) -> tuple[list[ClutteredSensor], list[int]]:
-    """Each sensor in scenario order as the bound sees it (the scene's) and the index of its
-    platform."""
+    """The scene's sensors in scenario order and their platforms' indices."""
+
     platform_ids = [p.id for p in scenario.platforms]
     sensors, columns = [], []
     for pid, sensor in scene_sensors(scenario).values():
@@ -417,11 +409,8 @@ def evaluate_run(
     *,
     n_samples: int = BOUND_SAMPLES,
 ) -> RunEvaluation:
-    """Each target's error and bound, GOSPA / OSPA over time, breaks and swaps of one run.
-
-    ``rng`` draws the bound's Monte Carlo samples (:func:`target_bounds`, ``n_samples`` per
-    target); everything else is deterministic. ValueError when the record does not fit the
-    scenario (shapes, target and sensor order, lifetimes)."""
+    """Each target's error and bound, GOSPA / OSPA, breaks and swaps of one run; ``rng`` draws
+    only the bound's samples. ValueError when the record does not fit the scenario."""
     alive = alive_mask(scenario, record)
     K = alive.shape[0] - 1
     series, held = _epochs(scenario, record, alive)
