@@ -181,10 +181,9 @@ def _gated(ell: FloatArray, r: FloatArray, sensor: GaussianSensor) -> FloatArray
 def _compiled_information(
     sensor: GaussianSensor, own: type, members: tuple[str, ...], kernel: str, **noise: float
 ) -> InformationKernel | None:
-    """The compiled J_Z ``kernel`` of ``models._fisher_kernels`` with the sensor's ``noise``
-    parameters, pd, r_min and r_max bound in; None when the sensor's class overrides one of
-    ``own``'s ``members`` (the kernel computes ``own``'s form, not the override). numba is
-    imported on first use, not with the sensors."""
+    """The compiled J_Z ``kernel`` with the sensor's ``noise``, pd, r_min and r_max bound in;
+    None when the sensor's class overrides one of ``own``'s ``members`` (the kernel computes
+    ``own``'s form). numba is imported on first use."""
     cls = type(sensor)
     if any(getattr(cls, m) is not getattr(own, m) for m in members):
         return None
@@ -200,9 +199,8 @@ def _compiled_information(
 
 
 class _PlanarSensor(GaussianSensor):
-    """The built-in sensors: detection by the planar range alone, so the missed-detection
-    likelihood of a particle array comes from column arithmetic (same numbers as
-    ``in_range``, without its validation pass over the particles)."""
+    """The built-in sensors: detection by planar range alone, so a particle array's miss
+    likelihood comes from column arithmetic (``in_range``'s numbers, no validation pass)."""
 
     def log_miss_likelihood(self, target_pv: ArrayLike, sensor_pv: ArrayLike) -> FloatArray:
         """log(1 - pd I_r(x)) per state, ``(...)`` (Hernandez sec. 2.3)."""
@@ -286,9 +284,7 @@ class _BearingFamily(_PlanarSensor):
         return scale * np.einsum("...mi,...mj,...m->...ij", g, g, w)
 
     def information_kernel(self) -> InformationKernel | None:
-        """The compiled closed form of eq. 8-9 (``models._fisher_kernels``). None for a
-        subclass that overrides :meth:`fisher_information`: the kernel computes this class's
-        form, not the override."""
+        """The compiled eq. 8-9 (None when a subclass overrides :meth:`fisher_information`)."""
         return _compiled_information(
             self, _BearingFamily, ("fisher_information",), "bearing_information", sigma=self.sigma
         )
@@ -471,10 +467,8 @@ class RangeBearingSensor(_PlanarSensor):
         return (_gated(ell, r, self) if gate else ell), log_norm
 
     def information_kernel(self) -> InformationKernel | None:
-        """The compiled closed form of eq. 8 for H = (range row, bearing row) and
-        R = diag(sigma_r^2, sigma_b^2) (``models._fisher_kernels``), equal to the generic
-        :meth:`fisher_information` to round-off. None for a subclass that overrides
-        :meth:`fisher_information`, :meth:`jacobian` or :attr:`R`."""
+        """The compiled eq. 8 of the range and bearing rows (equal to the generic form to
+        round-off; None when a subclass overrides its information, Jacobian or R)."""
         return _compiled_information(
             self,
             RangeBearingSensor,
@@ -544,10 +538,8 @@ class RangeRateBearingSensor(_PlanarSensor):
         return np.stack([_range_row(dx, dy, r), rr_row, _bearing_row(dx, dy, r2)], axis=-2)
 
     def information_kernel(self) -> InformationKernel | None:
-        """The compiled closed form of eq. 8 for :meth:`jacobian`'s three rows and
-        R = diag(sigma_r^2, sigma_rr^2, sigma_b^2) (``models._fisher_kernels``), equal to the
-        generic :meth:`fisher_information` to round-off. None for a subclass that overrides
-        :meth:`fisher_information`, :meth:`jacobian` or :attr:`R`."""
+        """The compiled eq. 8 of :meth:`jacobian`'s three rows (equal to the generic form to
+        round-off; None when a subclass overrides its information, Jacobian or R)."""
         return _compiled_information(
             self,
             RangeRateBearingSensor,
