@@ -1,11 +1,8 @@
-"""PNG plots of closed-loop runs (matplotlib figures drawn with the Agg canvas: no pyplot, so
-the caller's backend and pyplot state are left alone).
-
-- :func:`plot_run`: one run in the plane: the targets' true paths, the confirmed tracks' paths
-  labelled with their ids, the clutter that fixes a position and the platforms' paths;
-- :func:`plot_errors`: each target's RMSE against its PCRLB over time;
-- :func:`plot_gospa`: mean GOSPA vs time of several strategies, each with the band of +-1.96
-  standard errors of the mean over its runs.
+"""PNG plots of closed-loop runs (Agg canvas, no pyplot: the caller's backend is left alone):
+:func:`plot_run` (one run in the plane: true paths, confirmed tracks' paths with their ids,
+the clutter that fixes a position, platforms' paths), :func:`plot_errors` (each target's RMSE
+against its PCRLB over time), :func:`plot_gospa` (mean GOSPA vs time per strategy, +-1.96
+standard errors of the mean).
 """
 
 from __future__ import annotations

@@ -1,13 +1,10 @@
 """Run the node graph on a scenario: in one process (default) or one OS process per node.
 
-Each run makes a fresh graph key (activetrack_ros.trust): the nodes, the evaluator and the
-recorder count only messages written by the run's own nodes. The evaluator node (here, not in
-the graph's nodes) is the only reader of ground truth; it keeps per-epoch results (not
-messages) and summarises them with the same code as the batch loop, so `activetrack run` and
-`activetrack batch` report comparable figures (and, in lockstep mode, identical ones).
-
-A run that cannot finish (Ctrl-C, SIGTERM, a node process that died, the timeout) still closes
-its bag and writes ``summary.json`` marked incomplete, with the epochs it completed, then
+Each run makes a fresh graph key (activetrack_ros.trust), so the nodes, the evaluator and the
+recorder count only the run's own messages. The evaluator (here, not in the graph) is the only
+reader of ground truth and summarises with the batch loop's code: in lockstep, `activetrack
+run` equals `activetrack batch`. A run that cannot finish (Ctrl-C, SIGTERM, a dead node
+process, the timeout) still closes its bag and writes ``summary.json`` marked incomplete, then
 raises :class:`RunIncomplete`.
 """
 

@@ -1,16 +1,8 @@
-"""Compiled PCRLB pieces for stacks of small matrices (the planner scores hundreds per call).
-
-- :func:`predicted_stack`: the prediction part of Hernandez eq. 3, (Q + F J^{-1} F^T)^{-1},
-  for ``pcrlb.predicted_information``, by the Cholesky steps of the numpy form.
-- :func:`rmse_bounds`: Hernandez eq. 10 for ``costs.rmse_bound_of_information``.
-
-b_k needs the two position variances of J^{-1}, (J^{-1})(1,1) and (J^{-1})(3,3): one LU
-factorisation with partial pivoting of each 4 x 4 J and two solves, as ``numpy.linalg.solve``
-does (LAPACK's dgesv), written out for the planner's stacks of small matrices. The numbers agree
-with the numpy form to round-off (tested to 1e-12); only the order of the operations inside the
-factorisation can differ.
-
-numba compiles on first use and caches the machine code next to this file (``cache=True``).
+"""Compiled PCRLB pieces for stacks of small matrices (the planner scores hundreds per call):
+:func:`predicted_stack`, (Q + F J^{-1} F^T)^{-1} of Hernandez eq. 3 by the Cholesky steps of
+the numpy form, and :func:`rmse_bounds`, eq. 10 by one LU factorisation with partial pivoting
+and two solves per J, as ``numpy.linalg.solve`` (dgesv). Equal to numpy to round-off (tested
+to 1e-12). numba compiles on first use and caches next to this file (``cache=True``).
 """
 
 from __future__ import annotations

@@ -1,18 +1,11 @@
-"""Scalar costs of (bound) covariance matrices for sensor planning and selection.
+"""Scalar costs ``(...)`` of covariance batches ``P`` ``(..., n, n)`` (a PCRLB J^{-1} or an MRE
+prediction); positions are pv entries 0 and 2 unless ``position_indices`` says otherwise. The
+planner criteria built on them: :mod:`activetrack.planning.criteria`.
 
-All costs take covariance batches ``P`` ``(..., n, n)`` (a PCRLB J^{-1} or an MRE prediction) and
-return ``(...)``. Positions are the pv entries x (index 0) and y (index 2) unless
-``position_indices`` says otherwise. Which of them a planner may use, and under which name, is
-the criterion registry's business (:mod:`activetrack.planning.criteria`); this module only
-computes.
-
-- ``rmse_bound``: Hernandez eq. 10, b_k = max(sqrt(P(1,1)), sqrt(P(3,3))), the largest
-  position RMSE bound (1-based indices as in the paper); ``rmse_bound_of_information``: the
-  same straight from information matrices J (one solve, no inverse).
-- ``trace_cost``, ``determinant_cost``: trace / determinant criteria on the whole matrix.
-- ``position_determinant``: Ramdaras eq. 24, det of the (x, y) block.
-- ``criterion_variance``: Ramdaras eq. 25, C = H^c P H^c^T with H^c of eq. 26 for heading,
-  range, Doppler (range rate) or bearing (``EQ26_ROWS``).
+- ``rmse_bound``: Hernandez eq. 10, b_k = max(sqrt(P(1,1)), sqrt(P(3,3))) (1-based as in the
+  paper); ``rmse_bound_of_information`` from J directly (one solve, no inverse).
+- ``trace_cost``, ``determinant_cost``; ``position_determinant``: Ramdaras eq. 24.
+- ``criterion_variance``: Ramdaras eq. 25, H^c P H^c^T with H^c of eq. 26 (``EQ26_ROWS``).
 """
 
 from __future__ import annotations
@@ -63,11 +56,8 @@ _POSITION_COLUMNS = np.eye(4)[:, [0, 2]]
 
 
 def rmse_bound_of_information(J: np.ndarray) -> np.ndarray:
-    """Hernandez eq. 10 straight from pv information matrices ``(..., 4, 4) -> (...)``: the two
-    position variances of J^{-1} from one solve J V = [e_x, e_y], no full inverse.
-
-    Compiled (``bounds._kernels``: the LU solve written out for stacks of 4 x 4 matrices) while
-    :func:`activetrack.kernels.kernels_enabled`; the numpy solve is the reference (equal to
+    """Hernandez eq. 10 from pv information ``(..., 4, 4) -> (...)``: the position variances of
+    J^{-1} from one solve J V = [e_x, e_y]; compiled while kernels are enabled (equal to
     1e-12)."""
     J = np.asarray(J, dtype=float)
     if not kernels_enabled() or J.shape[-2:] != (4, 4):

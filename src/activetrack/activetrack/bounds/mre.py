@@ -1,16 +1,11 @@
-"""Modified Riccati equation with detection probability (Ramdaras et al. 2010, eq. 23).
+"""Modified Riccati equation with detection probability (Ramdaras et al. 2010, eq. 23)::
 
     P_{k+1|k} = F P_{k|k-1} F^T
                 - pd F P_{k|k-1} H_k^T (H_k P_{k|k-1} H_k^T + R)^{-1} H_k P_{k|k-1} F^T + Q
 
-H_k is the measurement Jacobian (Ramdaras eq. 13) at the predicted target state x_{k|k-1} and
-the (candidate) sensor position. Because P - P H^T S^{-1} H P is the updated covariance of the
-EKF (Ramdaras eq. 22), eq. 23 is computed as the pd-weighted mix::
-
-    P_{k+1|k} = F [(1 - pd) P_{k|k-1} + pd P_{k|k}] F^T + Q
-
-with P_{k|k} in Joseph form (eq. 22), which keeps the result symmetric positive definite.
-All functions are batched over candidate sensor positions (leading ``...``).
+H_k (eq. 13) at x_{k|k-1} and the (candidate) sensor position. Computed as the pd-weighted mix
+F [(1 - pd) P_{k|k-1} + pd P_{k|k}] F^T + Q with P_{k|k} in Joseph form (eq. 22), which keeps
+it SPD. Batched over candidate positions (leading ``...``).
 """
 
 from __future__ import annotations

@@ -115,10 +115,8 @@ def measurement_information(
     kinematics_jacobian: ArrayLike | None = None,
     method: str = "auto",
 ) -> FloatArray:
-    """Monte Carlo measurement contribution J_Z (Hernandez eq. 8-9), batched over candidates.
-
-    J_Z = sum_j (1/M) sum_m pd_j I_r(s_j, X_m) H_j(X_m)^T R_j^{-1} H_j(X_m), each sensor's term
-    from its own ``fisher_information`` (contract ``activetrack.models.base.SensorModel``).
+    """Monte Carlo J_Z = sum_j (1/M) sum_m pd_j I_r H_j^T R_j^{-1} H_j (Hernandez eq. 8-9), each
+    sensor's term its own ``fisher_information``, batched over candidates.
 
     Args:
         sensors: one sensor, or a sequence of S sensors.
@@ -127,12 +125,10 @@ def measurement_information(
         target_samples: pv samples ``(M, 4)`` of the prior target distribution at this epoch.
         kinematics_jacobian: optional d pv / d x ``(M, 4, n)`` at the samples; the information is
             then with respect to that model state (n x n) instead of pv.
-        method: ``"auto"`` (each sensor's compiled ``information_kernel`` where it has one
-            and ``kinematics_jacobian`` is None, else its ``fisher_information``), ``"numpy"``
-            (each sensor's ``fisher_information``: the closed form of eq. 9 for bearing
-            sensors; the reference of the kernels) or ``"jacobian"`` (the Jacobian form of
-            eq. 8 for every sensor, ``models.base.jacobian_information``; a check on closed
-            forms).
+        method: ``"auto"`` (a compiled ``information_kernel`` where the sensor has one and
+            no ``kinematics_jacobian``), ``"numpy"`` (``fisher_information``, the kernels'
+            reference) or ``"jacobian"`` (``models.base.jacobian_information`` for every
+            sensor, a check on closed forms).
 
     Returns:
         J_Z ``(..., n, n)``, symmetric positive semi-definite (n = 4 in pv).
@@ -226,12 +222,9 @@ def check_dynamics(F: ArrayLike, Q: ArrayLike, n: int) -> tuple[FloatArray, Floa
 
 
 def predicted_information(J_prev: FloatArray, F: FloatArray, Q: FloatArray) -> FloatArray:
-    """The prediction part of eq. 3, (Q + F J_k^{-1} F^T)^{-1}, for ``J_prev`` ``(..., n, n)``.
-
-    F and Q ``(n, n)`` are taken as valid (the planner checks them once per decision, through
-    :func:`pcrlb_step`); J_prev is still checked to be SPD. A stack ``(N, n, n)`` goes through
-    the compiled Cholesky steps (``bounds._kernels.predicted_stack``, equal to 1e-12) while
-    :func:`activetrack.kernels.kernels_enabled`.
+    """The prediction part of eq. 3, (Q + F J_k^{-1} F^T)^{-1}, for ``J_prev`` ``(..., n, n)``
+    (checked SPD; F, Q ``(n, n)`` taken as valid). A stack ``(N, n, n)`` runs compiled while
+    kernels are enabled (equal to 1e-12).
     """
     if J_prev.ndim == 3 and kernels_enabled():
         return _predicted_stack(J_prev, F, Q)
@@ -315,14 +308,12 @@ def pcrlb_trajectory(
     Args:
         J0: initial information ``(4, 4)`` (eq. 4: J_0 = C_0^{-1} for a Gaussian prior).
         F, Q: linear target dynamics (eq. 2), ``(4, 4)``.
-        target_samples: prior samples ``(M, 4)`` at k = 0, propagated to each epoch through the
-            noisy dynamics with ``rng`` (noise-free if ``rng`` is None) as in Hernandez sec. 3.2;
-            or already-propagated samples ``(K, M, 4)`` for epochs 1..K (then ``rng`` is unused).
+        target_samples: prior samples ``(M, 4)`` at k = 0, propagated with ``rng`` (None:
+            noise-free; Hernandez sec. 3.2), or propagated ones ``(K, M, 4)`` for epochs 1..K.
         sensors: one sensor or a sequence of S sensors.
         sensor_paths: sensor pv states at epochs 1..K, ``(K, ..., S, 4)``
             (``(K, ..., 4)`` for a single sensor); ``...`` are candidate paths.
-        active: optional ``(K, S)`` bool, the sensors that measure at each epoch (sensor
-            selection, stop-and-measure); the others add no information there. None: all.
+        active: optional ``(K, S)`` bool, the sensors that measure at each epoch (None: all).
 
     Returns:
         J ``(K, ..., 4, 4)``; the bound on the error covariance is ``covariance_bound(J)``.

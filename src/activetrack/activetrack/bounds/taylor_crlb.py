@@ -1,20 +1,14 @@
 """CRLB by Taylor's method along a deterministic nominal path (Valverde eq. 44-51).
 
-Without process noise (w_k = 0) the state is a deterministic function of x_0 and the Fisher
-information about the current state x_k obeys (Valverde eq. 50-51, with Phi_k = df/dx at
-x_{k-1} on the nominal path and H_k the measurement Jacobian at x_k, eq. 47)::
+Without process noise the state is a function of x_0 and (eq. 50-51, Phi_k = df/dx at x_{k-1}
+on the nominal path, H_k the measurement Jacobian at x_k, eq. 47)::
 
     J_k = [Phi_k J_{k-1}^{-1} Phi_k^T]^{-1} + H_k^T R^{-1} H_k
         = Phi_k^{-T} J_{k-1} Phi_k^{-1} + H_k^T R^{-1} H_k
 
-The second line is what is computed (two solves with Phi_k^T), so J_{k-1} may be singular
-(no prior). Equivalently (eq. 46-48) the information about the initial state is
-J(x_0) = S_0^{-1} + sum_k Phi_{k,0}^T H_k^T R^{-1} H_k Phi_{k,0}, Phi_{k,0} = dx_k/dx_0, and
-J_k = Phi_{k,0}^{-T} J(x_0) Phi_{k,0}^{-1}. With ``process_noise=True`` Q is included as in
-Valverde eq. 65 (the approximate PCRB along the nominal path).
-
-Detection probability and the range indicator enter as in Hernandez eq. 8: pd * I_r evaluated at
-the nominal state.
+computed in the second form (two solves), so J_{k-1} may be singular (no prior).
+``process_noise=True`` includes Q as in eq. 65 (the approximate PCRB along the path). pd and
+I_r enter as in Hernandez eq. 8, at the nominal state.
 """
 
 from __future__ import annotations

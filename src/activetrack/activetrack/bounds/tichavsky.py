@@ -145,12 +145,10 @@ def tichavsky_pcrlb(
         n_steps, dt: number of epochs and the time between them [s].
         n_mc: Monte Carlo trajectories for the expectations (>= 1).
         rng: generator for the trajectories (unused when ``trajectories`` is given).
-        q_floor: added to the diagonal of Q before inverting it. Eq. 60-64 need Q^{-1}; models
-            with noise on a subset of states (CircularMotion, Valverde eq. 25) have a singular
-            Q and need q_floor > 0 (a small regulariser: deterministic nonlinear components
-            make the exact bound degenerate).
-        trajectories: optional true-state samples ``(n_steps + 1, M, n)`` for epochs 0..n_steps
-            (then x0 and P0 only set J_0), so several bounds can share the same Monte Carlo set.
+        q_floor: added to Q's diagonal before inverting it (eq. 60-64); needed > 0 for noise on
+            a subset of states (CircularMotion, Valverde eq. 25).
+        trajectories: optional true states ``(n_steps + 1, M, n)`` to share between bounds
+            (x0 and P0 then only set J_0).
 
     Returns:
         J ``(n_steps, ..., n, n)``; the bound is ``covariance_bound(J)``.

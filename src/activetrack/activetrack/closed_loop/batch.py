@@ -1,16 +1,11 @@
-"""Monte Carlo runs of a scenario and their summary (docs/api.md).
+"""Monte Carlo runs of a scenario and their summary (docs/api.md): ``run_batch`` runs and
+evaluates each run on its worker, :func:`summarize` combines them.
 
-``run_batch`` runs :func:`activetrack.closed_loop.loop.run_once` with the generators of each run
-and evaluates each (:func:`activetrack.closed_loop.evaluation.evaluate_run`) on its worker;
-:func:`summarize` combines them.
-
-**One vocabulary for errors** (the summary's keys; README "Errors and bounds"): at each epoch
-k, ``rmse_x_t[n][k]`` is the root mean square over runs of target n's x error, over the runs in
-which it was held (:mod:`.evaluation`); the **time-averaged RMSE** ``time_avg_rmse_x[n]`` is the
-arithmetic mean of that over the epochs 1..K (Hernandez' Table 1). The bound is averaged the same
-way: ``bound_x_t[n][k]`` the root of the mean over runs of the PCRLB's x variance,
-``time_avg_bound_x[n]`` its mean over the epochs. For one run the RMSE at an epoch is the
-absolute error. GOSPA is averaged over epochs and runs (``mean_gospa``).
+One vocabulary for errors (README "Errors and bounds"): ``rmse_x_t[n][k]`` is the RMS over the
+runs in which target n was held at epoch k of its x error; ``time_avg_rmse_x[n]`` its mean over
+epochs 1..K (Hernandez' Table 1). ``bound_x_t[n][k]`` is the root of the mean over runs of the
+PCRLB's x variance, ``time_avg_bound_x[n]`` its mean over epochs. GOSPA is averaged over epochs
+and runs (``mean_gospa``).
 """
 
 from __future__ import annotations
@@ -35,18 +30,15 @@ from activetrack.scenarios.schema import Scenario
 __all__ = ["BatchSummary", "run_batch", "summarize"]
 
 
-def _nan_rms(values: np.ndarray, axis: int = 0) -> np.ndarray:
-    """Root mean square over ``axis`` ignoring NaN (NaN where every entry is)."""
-    with np.errstate(invalid="ignore"):
-        count = np.sum(~np.isnan(values), axis=axis)
-        total = np.nansum(values**2, axis=axis)
-        return np.where(count > 0, np.sqrt(total / np.maximum(count, 1)), math.nan)
-
-
 def _nan_mean(values: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Mean over ``axis`` ignoring NaN (NaN where every entry is)."""
     with np.errstate(invalid="ignore"):
         count = np.sum(~np.isnan(values), axis=axis)
         return np.where(count > 0, np.nansum(values, axis=axis) / np.maximum(count, 1), math.nan)
+
+
+def _nan_rms(values: np.ndarray, axis: int = 0) -> np.ndarray:
+    return np.sqrt(_nan_mean(values**2, axis))
 
 
 def _floats(values: np.ndarray) -> list:

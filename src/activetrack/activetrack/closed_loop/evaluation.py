@@ -1,42 +1,34 @@
 """The evaluation of one run, the same for every scene: each target's error against its PCRLB,
 GOSPA / OSPA over time, track breaks and swaps.
 
-**The target's estimate.** Target n is *held* at epoch k by a confirmed track: when the tracker
-knows the association (one target, no clutter: :mod:`activetrack.tracking`) by the track its
-prior started, always; otherwise by the track paired with it in that epoch's optimal GOSPA
-assignment with alpha = 2, i.e. the optimal partial assignment of targets to confirmed tracks
-among the pairs closer than the cut-off ``c`` (Rahmathullah, Garcia-Fernandez & Svensson 2017,
-Proposition 1); a target without a partner is not held. Its error at k is that track's pv mean
-minus the truth; NaN where it is not held.
+**Held.** Target n is held at epoch k by a confirmed track: under known association (one
+target, no clutter) the track its prior started; otherwise the track paired with it in that
+epoch's optimal GOSPA assignment with alpha = 2 (pairs closer than the cut-off ``c``,
+Rahmathullah, Garcia-Fernandez & Svensson 2017, Proposition 1). Its error is that track's pv
+mean minus the truth; NaN where not held.
 
-**GOSPA / OSPA** at each epoch k = 1..K between the confirmed tracks' positions and the alive
-targets' (:mod:`activetrack.metrics`; cut-off ``c``, order ``p`` and alpha from
-``scenario.evaluation``): GOSPA (Rahmathullah et al. 2017, eq. 1) with its alpha = 2 split
-(eq. 2) into localisation, missed targets and false tracks, and OSPA (Schuhmacher, Vo & Vo
+**GOSPA / OSPA** at k = 1..K between confirmed tracks' and alive targets' positions
+(``scenario.evaluation``'s ``c``, ``p``, alpha): GOSPA (Rahmathullah et al. eq. 1) with its
+alpha = 2 split (eq. 2) into localisation, missed and false, and OSPA (Schuhmacher, Vo & Vo
 2008, eq. 3).
 
-**Breaks and swaps**, over consecutive epochs k-1, k: a *swap*, target n held by track a at k-1
-and by a different track b at k (an exchange counts two, one per target: the identity switches
-of CLEAR MOT, Bernardin & Stiefelhagen 2008, between consecutive epochs; SIAP's track-number
-changes); a *break*, target n held at k-1, alive and not held at k (a fragmentation, Li, Huang &
-Nevatia 2009). A target that dies is not broken; one held again later is not a swap.
+**Breaks and swaps** between epochs k-1 and k: a swap, target n held by track a then by track
+b (an exchange counts two: CLEAR MOT's identity switches, Bernardin & Stiefelhagen 2008); a
+break, target n held then alive and not held (a fragmentation, Li, Huang & Nevatia 2009). A
+target that dies is not broken; one held again later is not a swap.
 
-**The PCRLB of each target** along the run (Hernandez 2004 eq. 3-4, 8-9), from its birth
-epoch b, for linear target dynamics (NaN otherwise)::
+**The PCRLB of each target** from its birth epoch b, for linear dynamics (NaN otherwise;
+Hernandez 2004 eq. 3-4, 8-9)::
 
     J_b     = C_0^{-1} + J_Z(b)                                (J_Z(0) = 0: no scan at epoch 0)
     J_{k+1} = (Q + F J_k^{-1} F^T)^{-1} + J_Z(k+1),   b <= k < last alive epoch,
 
-``C_0`` the target's prior (the distribution of its state at birth: the simulator draws it
-there), F and Q its dynamics, and J_Z the sum over the sensors that scanned at epoch k of
-E[q H^T R^-1 H] over Monte Carlo samples of the target (its prior at birth pushed through its
-noisy dynamics, Hernandez sec. 3.2; one generator stream, targets in scenario order). ``q`` is
-the sensor's detection factor: ``pd`` when the association is known, the information reduction
-factor of its clutter and the tracker's gate otherwise (Niu, Willett & Bar-Shalom 2001, the
-"IRF approach" of Hernandez, Farina & Ristic 2006; :class:`activetrack.models.clutter.
-ClutteredSensor`); a fixed field of view and the detection ranges act through the samples. A
-steerable beam counts for a target only at the epochs it held the target's true position (the
-beam is pointed at a track, not at the samples).
+C_0 the target's prior at birth, J_Z the sum over the sensors that scanned at k of
+E[q H^T R^-1 H] over samples of the prior pushed through the noisy dynamics (Hernandez sec.
+3.2; one generator stream, targets in scenario order). q is ``pd`` under known association,
+else the information reduction factor of the clutter and gate (Niu, Willett & Bar-Shalom 2001;
+Hernandez, Farina & Ristic 2006; :class:`activetrack.models.clutter.ClutteredSensor`). A beam
+counts for a target only at the epochs it held the true position (it points at a track).
 """
 
 from __future__ import annotations
@@ -86,14 +78,10 @@ NOT_HELD = -1  # in held_tracks: the target has no track (BeamCommand's "no trac
 
 @dataclass(frozen=True)
 class RunEvaluation:
-    """The evaluation of one run at epochs 1..K (K epochs, N targets in scenario order).
-
-    ``error`` ``(K, N, 4)``: the holding track's pv mean minus the truth (NaN where not held);
-    ``bound`` ``(K, N, 4, 4)``: the PCRLB J^-1 (NaN where not alive or for nonlinear
-    dynamics); ``held`` ``(K, N)``: the id of the track holding each target
-    (:data:`NOT_HELD`). ``gospa`` uses the scenario's alpha; ``localisation`` (sum of d^p over
-    the assigned pairs, m^p), ``missed`` and ``false`` are its alpha = 2 split, so that with
-    alpha = 2 ``gospa**p == localisation + c**p / 2 * (missed + false)``."""
+    """The evaluation of one run at epochs 1..K, N targets in scenario order. ``bound`` is NaN
+    where not alive or for nonlinear dynamics; ``localisation`` (sum of d^p over the assigned
+    pairs), ``missed`` and ``false`` are GOSPA's alpha = 2 split: with alpha = 2
+    ``gospa**p == localisation + c**p / 2 * (missed + false)``."""
 
     time: np.ndarray  # (K,) [s]
     error: np.ndarray  # (K, N, 4)
@@ -228,8 +216,7 @@ def epoch_gospa(
 
 
 class EpochAssessor:
-    """Scores one epoch at a time (module docstring): the batch evaluation and the graph's
-    live evaluator use the same one."""
+    """Scores one epoch at a time, for the batch evaluation and the graph's live evaluator."""
 
     def __init__(self, scenario: Scenario):
         self.evaluation = scenario.evaluation
@@ -286,14 +273,12 @@ def _epochs(
 
 
 def held_tracks(scenario: Scenario, record: RunRecord) -> np.ndarray:
-    """``(K, N)`` int: the id of the confirmed track holding target n at epoch k = 1..K
-    (module docstring), :data:`NOT_HELD` where none does."""
+    """``(K, N)``: the confirmed track holding target n at epoch k = 1..K, or :data:`NOT_HELD`."""
     return _epochs(scenario, record, alive_mask(scenario, record))[1]
 
 
 def count_breaks_swaps(held: np.ndarray, alive: np.ndarray) -> tuple[int, int]:
-    """(breaks, swaps) of ``held`` ``(K, N)`` (:func:`held_tracks`) with ``alive`` ``(K, N)``
-    the targets alive at the same epochs (definitions in the module docstring)."""
+    """(breaks, swaps) of ``held`` ``(K, N)`` with ``alive`` ``(K, N)`` (module docstring)."""
     held = np.asarray(held)
     alive = np.asarray(alive, dtype=bool)
     if held.shape != alive.shape or held.ndim != 2:
@@ -321,9 +306,7 @@ def _errors(record: RunRecord, held: np.ndarray) -> np.ndarray:
 
 
 class TargetBound:
-    """The PCRLB of one target (module docstring) one epoch at a time: :meth:`step` with the
-    sensors' pv and which of them count at the next epoch gives J^-1 ``(4, 4)`` there, NaN
-    while the target is not alive or for nonlinear dynamics. The draws are those of
+    """The PCRLB of one target (module docstring) one epoch at a time, with the draws of
     :func:`target_bounds` (the live view's bound equals the summary's)."""
 
     def __init__(
@@ -364,9 +347,8 @@ class TargetBound:
         return measurement_information(chosen, np.asarray(sensor_pv)[idx], self.X)
 
     def information(self, sensor_pv: FloatArray, counts: np.ndarray) -> FloatArray | None:
-        """The information J ``(4, 4)`` at the next epoch from the sensors' pv there ``(S, 4)``
-        and which of them count for this target ``(S,)``; None while the target is not alive
-        or for nonlinear dynamics."""
+        """J ``(4, 4)`` at the next epoch from the sensors' pv there ``(S, 4)`` and which count
+        ``(S,)``; None while the target is not alive or for nonlinear dynamics."""
         self.epoch += 1
         k = self.epoch
         alive = k >= self.birth and (self.death is None or k < self.death)
@@ -383,8 +365,7 @@ class TargetBound:
         return self.J
 
     def step(self, sensor_pv: FloatArray, counts: np.ndarray) -> FloatArray:
-        """The bound J^-1 ``(4, 4)`` at the next epoch (:meth:`information`), NaN where there
-        is none."""
+        """J^-1 ``(4, 4)`` at the next epoch, NaN where there is none."""
         J = self.information(sensor_pv, counts)
         return np.full((4, 4), math.nan) if J is None else covariance_bound(J)
 
@@ -407,10 +388,9 @@ def target_bounds(
     *,
     n_samples: int = BOUND_SAMPLES,
 ) -> FloatArray:
-    """The PCRLB ``J^-1`` of every target along the run: ``(K, N, 4, 4)`` at epochs 1..K, NaN
-    where a target is not alive (module docstring). Draws from ``rng``, target by target in
-    scenario order: ``n_samples`` prior samples at birth, then the process noise of each later
-    epoch (``bounds.pcrlb.gaussian_samples``, ``propagate_samples``)."""
+    """The PCRLB ``J^-1`` ``(K, N, 4, 4)`` at epochs 1..K, NaN where a target is not alive.
+    Draws from ``rng`` target by target: ``n_samples`` prior samples at birth, then each later
+    epoch's process noise."""
     alive_mask(scenario, record)
     K = record.steps
     sensors, columns = bound_sensors(scenario)
@@ -428,8 +408,8 @@ def target_bounds(
 
 
 def bound_sensors(scenario: Scenario) -> tuple[list[ClutteredSensor], list[int]]:
-    """Each sensor in scenario order as the bound sees it (the scene's) and the index of its
-    platform."""
+    """The scene's sensors in scenario order and their platforms' indices."""
+
     platform_ids = [p.id for p in scenario.platforms]
     sensors, columns = [], []
     for pid, sensor in scene_sensors(scenario).values():
@@ -448,11 +428,8 @@ def evaluate_run(
     *,
     n_samples: int = BOUND_SAMPLES,
 ) -> RunEvaluation:
-    """Each target's error and bound, GOSPA / OSPA over time, breaks and swaps of one run.
-
-    ``rng`` draws the bound's Monte Carlo samples (:func:`target_bounds`, ``n_samples`` per
-    target); everything else is deterministic. ValueError when the record does not fit the
-    scenario (shapes, target and sensor order, lifetimes)."""
+    """Each target's error and bound, GOSPA / OSPA, breaks and swaps of one run; ``rng`` draws
+    only the bound's samples. ValueError when the record does not fit the scenario."""
     alive = alive_mask(scenario, record)
     K = alive.shape[0] - 1
     series, held = _epochs(scenario, record, alive)

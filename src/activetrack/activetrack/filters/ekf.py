@@ -13,27 +13,16 @@ Update, one detection at a time (Ramdaras eq. 16-22, Valverde eq. 5-9)::
     x  = x + K nu                                                    (eq. 21)
     P  = (I - K H) P (I - K H)^T + K R K^T    Joseph form            (eq. 22)
 
-with h, H and nu from the sensor's own ``linearize`` at the state's pv (the built-in bearing
-and range-bearing sensors do it in plain floats), H chained with the model's
-``kinematics_jacobian`` unless ``model.state_is_pv`` (``models.sensors.state_jacobian``).
-These are the equations of filterpy's ``ExtendedKalmanFilter.predict`` / ``update`` (the tests
-check equality to 1e-9), computed here with plain numpy on small matrices to keep the per-step
-overhead low.
+with h, H and nu from the sensor's ``linearize`` at the state's pv, H chained with the model's
+``kinematics_jacobian`` unless ``model.state_is_pv``: filterpy's ``ExtendedKalmanFilter``
+equations (tested to 1e-9) in plain numpy on small matrices for low per-step overhead, or one
+compiled call each with ``ACTIVETRACK_KERNELS=compiled`` (equal to round-off).
 
-With ``ACTIVETRACK_KERNELS=compiled`` (``activetrack.kernels``) the prediction and each
-detection's update run as one compiled call each (``activetrack.kernels.ekf``), equal to this
-numpy algebra to round-off.
-
-Several sensors per step are processed **sequentially** in the order given: each detection
-is linearised at the state updated by the ones before it. For a linear measurement model this
-equals the stacked update exactly; for independent measurement noises it is the usual
-sequential (iterated-in-sensor) EKF. The NIS of sequential innovations add up to a chi-square
-with the summed dimension for a consistent filter.
-
-Missed detections (``z is None``, Pd < 1): Ramdaras sec. 2 states that "the update and
-correction step are skipped", so a non-detection leaves the prediction untouched. (Eq. 19
-sets nu = 0; running eq. 22 with it would still shrink P, i.e. treat "nothing seen" as if a
-measurement had been made, so we follow the text.)
+Several detections per step are processed sequentially, each linearised at the state the ones
+before it updated (exactly the stacked update for a linear model; the NIS add up to a
+chi-square of the summed dimension). A missed detection (``z is None``) leaves the prediction
+untouched: Ramdaras sec. 2 skips the update ("nothing seen" would shrink P with eq. 19's
+nu = 0 in eq. 22).
 """
 
 from __future__ import annotations
@@ -228,12 +217,9 @@ class ExtendedKalmanFilter:
         return info
 
     def update_pda(self, measurements: Sequence[Measurement], beta: ArrayLike) -> UpdateInfo:
-        """The PDAF update (Bar-Shalom, Daum & Huang 2009 eq. 23-27; with JPDA's marginals,
-        :mod:`activetrack.filters.jpda`) with one scan's detections ``measurements`` (one
-        sensor, one platform state) and their association probabilities ``beta`` ``(m + 1,)``:
-        ``beta[0]`` that none of them is the target's, ``beta[j]`` that detection j is.
-        Residuals linearised once at the predicted mean (:func:`~activetrack.filters.jpda.
-        pda_residuals`); ``beta[0] = 1`` leaves the prediction."""
+        """The PDAF update (Bar-Shalom, Daum & Huang 2009 eq. 23-27) with one scan's detections
+        (one sensor and platform state) and their association probabilities ``beta`` ``(m +
+        1,)`` (``beta[0]``: none is the target's; 1 leaves the prediction)."""
         check_measurement_times(measurements, self._t)
         b = pda_weights(measurements, beta)
         if b[0] < 1.0:

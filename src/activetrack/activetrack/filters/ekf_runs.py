@@ -1,11 +1,7 @@
-"""The EKF over many independent Monte Carlo runs at once (one numpy pass per epoch).
-
-The equations are those of :class:`activetrack.filters.ExtendedKalmanFilter` (Valverde eq. 2-9,
-Joseph-form covariance; tests/core/test_ekf_runs.py checks the two agree to 1e-9), for the case
-a Monte Carlo study meets: M runs of one motion model, one sensor at a fixed pv state and one
-measurement per epoch in every run. Stepping M filter objects would cost a Python step per run
-and epoch; here an epoch is one batched step for all runs (about 14 times faster on the
-Valverde study: docs/valverde.md).
+"""The EKF of :class:`activetrack.filters.ExtendedKalmanFilter` over M independent Monte Carlo
+runs at once (one motion model, one sensor at a fixed pv, one measurement per epoch): one
+batched step per epoch, about 14 times faster on the Valverde study (docs/valverde.md); the
+two agree to 1e-9 (tests/core/test_ekf_runs.py).
 """
 
 from __future__ import annotations

@@ -7,8 +7,7 @@ association filter", IEEE Control Systems Magazine 29(6), 2009, sec. "JPDAF"; Ba
 probability ``Pd_t`` and its measurement falls in its gate with probability ``Pg_t``; false alarms
 are Poisson with density ``lambda`` per unit of ``z``.
 
-Per track the sensor's own maths gives the predicted measurement and the wrapped residuals
-(``sensor.measure``, ``models.sensors.state_jacobian``, ``sensor.residual``)::
+Per track, from the sensor's own maths::
 
     zhat_t = h(x_t),  H_t = dh/dx (x_t),  S_t = H_t P_t H_t^T + R,  nu_tj = z_j - zhat_t (wrapped)
 
@@ -34,8 +33,7 @@ Update of each track with its betas (the PDAF update, BDH 2009 eq. 23-27)::
     P~  = K (sum_j beta_j nu_j nu_j^T - nu nu^T) K^T        (spread of the innovations)
     P+  = beta_0 P + (1 - beta_0) P_c + P~
 
-The residuals are linearised once at the predicted mean (the EKF of :mod:`.ekf`); for a linear
-sensor this is the exact PDAF / JPDAF.
+linearised once at the predicted mean (exact for a linear sensor).
 """
 
 from __future__ import annotations
@@ -114,10 +112,8 @@ def gate(
 ) -> BoolArray:
     """Chi-square gate: ``mask[t, j] = nu_tj^T S_t^-1 nu_tj <= gamma``, shape ``(T, m)``.
 
-    z: measurements ``(m, d)``; z_pred: predicted measurements ``(T, d)``; S: innovation
-    covariances ``(T, d, d)``; gamma: gate threshold (e.g. 9 for 3 sigmas, ``chi2.ppf``);
-    residual: the sensor's ``residual(z, zhat)`` (wraps the bearing entries; a bearing near
-    +-pi is then gated by its true distance).  Required: a plain difference is wrong for angles.
+    z ``(m, d)``, z_pred ``(T, d)``, S ``(T, d, d)``; gamma e.g. 9 for 3 sigmas; ``residual``
+    the sensor's (required: a plain difference is wrong for angles near +-pi).
     """
     gamma = require_positive("gamma", gamma)
     zp = np.asarray(z_pred, dtype=float)
@@ -213,12 +209,9 @@ def jpda_probabilities(
     """JPDA marginal association probabilities ``beta`` ``(T, m + 1)``; column 0 is "no
     measurement", column ``j`` measurement ``j - 1``.
 
-    likelihood_ratios: ``l[t, j] = Pd_t N(nu_tj; 0, S_t) / lambda`` ``(T, m)``, zero outside
-    the gate (zero entries are not enumerated); pd, pg: detection and gate probabilities, scalars
-    or ``(T,)``.  Exact enumeration of the feasible joint events (module docstring), in log space
-    so that large ratios do not overflow.  Rows sum to 1; a measurement's column sums to <= 1.
-    Raises ValueError when the events exceed ``max_events`` or no event is possible (a track
-    with ``Pd Pg = 1`` and no gated measurement).
+    ``l`` ``(T, m)`` zero outside the gate (not enumerated); pd, pg scalars or ``(T,)``. Exact
+    enumeration of the feasible events in log space (no overflow). ValueError beyond
+    ``max_events`` or when no event is possible (``Pd Pg = 1`` and no gated measurement).
     """
     L = np.asarray(likelihood_ratios, dtype=float)
     if L.ndim != 2 or not (np.isfinite(L).all() and (L >= 0.0).all()):
@@ -298,12 +291,9 @@ def jpda_association(
     pd: ArrayLike | None = None,
     max_events: int = DEFAULT_MAX_EVENTS,
 ) -> JPDAResult:
-    """The JPDA association of ``T`` predicted tracks (``means`` ``(T, n)``, ``covs``
-    ``(T, n, n)``) with one scan ``z`` ``(m, d)`` of ``sensor`` at ``sensor_state`` (pv
-    ``(4,)``): gate, likelihood ratios and the marginal probabilities ``beta``; the tracks keep
-    their predictions (``means``, ``covs`` returned as given). Each track's filter then takes
-    its row of ``beta`` (``update_pda`` of the filters; :func:`jpda_update` for Gaussian tracks
-    held as arrays). Arguments as :func:`jpda_update`."""
+    """Gate, likelihood ratios and marginals ``beta`` of ``T`` predicted tracks with one scan,
+    the tracks left as predicted (each filter's ``update_pda`` takes its row). Arguments as
+    :func:`jpda_update`."""
     X = np.asarray(means, dtype=float)
     P = np.asarray(covs, dtype=float)
     zhat, _, S = predict_measurements(X, P, sensor, sensor_state, model)
@@ -324,9 +314,8 @@ def pda_residuals(
     sensor_state: ArrayLike,
     model: MotionModel,
 ) -> tuple[FloatArray, FloatArray]:
-    """``(H, nu)`` of one track for :func:`pda_update`: the Jacobian ``(d, n)`` at the mean
-    ``x`` ``(n,)`` and the wrapped residuals ``(m, d)`` of the detections ``z`` ``(m, d)``
-    (the same operations as for a batch of tracks in :func:`jpda_update`)."""
+    """``(H, nu)`` for :func:`pda_update`: the Jacobian ``(d, n)`` at ``x`` ``(n,)`` and the
+    wrapped residuals ``(m, d)`` of ``z`` ``(m, d)``."""
     zhat, H, _ = predict_measurements(
         np.asarray(x, dtype=float)[None],
         np.asarray(P, dtype=float)[None],
@@ -352,11 +341,9 @@ def jpda_update(
     max_events: int = DEFAULT_MAX_EVENTS,
 ) -> JPDAResult:
     """JPDA-EKF update of ``T`` predicted tracks (``means`` ``(T, n)``, ``covs`` ``(T, n, n)``)
-    with one scan ``z`` ``(m, d)`` of ``sensor`` at ``sensor_state`` (pv ``(4,)``).
-
-    ``clutter_density``: Poisson false alarms per unit of z; ``gamma``: chi-square gate;
-    ``pd``: per-track or scalar detection probability (default ``sensor.pd``).  One track is
-    the PDAF.  Tracks with no gated measurement keep their prediction (``beta_0 = 1``).
+    with one scan ``z`` ``(m, d)`` of ``sensor`` at pv ``sensor_state``; ``clutter_density``
+    per unit of z, chi-square gate ``gamma``, ``pd`` per track (default ``sensor.pd``). One
+    track is the PDAF; a track with no gated measurement keeps its prediction.
     """
     a = jpda_association(
         means,

@@ -1,11 +1,6 @@
-"""Data the filters exchange: one sensor report in, one update summary out.
-
-A :class:`Measurement` is what one sensor reported at one time: a detection ``z`` or, with
-``z is None``, a look that produced no detection (a missed detection when ``pd < 1``, or a
-target outside the sensor's ``[r_min, r_max]`` detection ranges, Hernandez sec. 2.3).
-Both filters (:class:`~activetrack.filters.ekf.ExtendedKalmanFilter` and
-:class:`~activetrack.filters.particle.ParticleFilter`) follow :class:`TrackingFilter`, so a
-node can pick one by a parameter.
+"""Data the filters exchange: a :class:`Measurement` in (a detection ``z``, or ``z is None``
+for a look without one: a miss, or a target outside ``[r_min, r_max]``, Hernandez sec. 2.3),
+an :class:`UpdateInfo` out; and the :class:`TrackingFilter` protocol both filters follow.
 """
 
 from __future__ import annotations

@@ -10,27 +10,16 @@ Per step, vectorised over the N particles (no Python loop per particle):
    effective sample size drops below ``ess_threshold * N`` (``resample="ess"``), then
    optionally roughen (Gordon et al. 1993).
 
-Detection model. Hernandez sec. 2.3: inside the minimum detection range r a sensor sees
-nothing; outside it reports z = h(x) + v with v ~ N(0, R) (here also with probability pd and
-up to ``r_max``). ``min_range`` picks how the filter uses this:
+Detection model (Hernandez sec. 2.3: z = h(x) + v only between r_min and r_max, here also
+with probability pd), by ``min_range``:
 
-- ``"ignore"`` (default): a non-detection carries no information (weights unchanged) and a
-  detection is weighted by N(z; h(x), R) alone. This is the measurement model Hernandez's
-  PCRLB uses (eq. 8-9 only count the detections).
-- ``"negative"``: the full detection model. A detection is weighted by
-  pd I_r(x) N(z; h(x), R); a non-detection by P(no detection | x) = 1 - pd I_r(x), so it moves
-  mass towards "inside r_min or outside r_max".
+- ``"ignore"`` (default): a non-detection carries no information and a detection is weighted
+  by N(z; h(x), R) alone, the model of Hernandez's PCRLB (eq. 8-9 count detections only);
+- ``"negative"``: a detection weighted by pd I_r(x) N(z; h(x), R), a non-detection by
+  1 - pd I_r(x) (mass moves towards "inside r_min or outside r_max").
 
-The likelihoods are the sensors' own (``sensor.log_likelihood`` for a detection,
-``sensor.log_miss_likelihood`` for a look without one; contract
-``activetrack.models.base.SensorModel``): angle residuals wrapped, and for the built-in
-bearing and range-bearing sensors computed inline from the particle offsets.
-
-Compiled kernels (``activetrack.kernels``, numba): the built-in NCV models' sampling and the
-built-in bearing sensors' likelihoods run them inside their own methods, and the filter's
-systematic resampling copies the chosen particles in one compiled pass. They give the numpy
-path's bits on the same random draws, so the switch (``ACTIVETRACK_KERNELS``: ``auto`` by
-default, ``numpy``, ``compiled``) changes the speed only.
+The likelihoods are the sensors' own (``sensor.log_likelihood``, ``log_miss_likelihood``). The
+compiled kernels (``ACTIVETRACK_KERNELS``) give the numpy path's bits on the same draws.
 """
 
 from __future__ import annotations
@@ -351,17 +340,14 @@ class ParticleFilter:
         return self._weigh(measurements, ell, const, n_missed)
 
     def update_pda(self, measurements: Sequence[Measurement], beta: ArrayLike) -> UpdateInfo:
-        """One scan whose detections' origin is uncertain, weighted by its association
-        probabilities ``beta`` ``(m + 1,)`` (``beta[0]``: none is the target's): the posterior
-        is the mixture over the hypotheses, ``beta_0`` times the prediction plus ``beta_j``
-        times the posterior given z_j (the JPDA particle filter of Vermaak, Godsill & Perez,
-        IEEE TAES 41(1), 2005, sec. IV)::
+        """One scan of uncertain origin with association probabilities ``beta`` ``(m + 1,)``
+        (``beta[0]``: none is the target's), the mixture over the hypotheses (JPDA particle
+        filter, Vermaak, Godsill & Perez, IEEE TAES 41(1), 2005, sec. IV)::
 
             w_i  <-  w_i (beta_0 + sum_j beta_j p(z_j | x_i) / p(z_j | Z_{k-1})),
             p(z_j | Z_{k-1}) = sum_i w_i p(z_j | x_i),
 
-        then resampled as :meth:`update`. The detections are one sensor's at one platform
-        state (``sensor.log_likelihood``: angle residuals wrapped)."""
+        then resampled as :meth:`update`; one sensor at one platform state."""
         check_measurement_times(measurements, self._t)
         b = pda_weights(measurements, beta)
         if b[0] >= 1.0:  # no detection can be the target's: nothing learnt

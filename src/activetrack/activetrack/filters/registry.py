@@ -1,27 +1,19 @@
-"""Tracking filters that scenario files can name: each registered once, with a factory.
-
-A filter is registered under a name with a factory that builds it for one run::
+"""Tracking filters that scenario files can name: each registered once, with a factory::
 
     def make_ukf(model, x0, P0, config, rng):
         return UnscentedFilter(model, x0, P0)
 
     register_filter("ukf", make_ukf, description="unscented Kalman filter (filterpy)")
 
-The factory gets the tracker's motion model, the prior mean ``x0`` ``(n,)`` and covariance
-``P0`` ``(n, n)`` (and, if it takes the keyword ``t0``, their time: tracks started from
-detections after epoch 0 need it), the scenario's ``tracker:`` block (``config``,
-:class:`activetrack.scenarios.schema.TrackerConfig`: a filter reads the options it has, e.g.
-the PF its ``particles``) and the tracker's random generator ``rng`` (the filter's only source
-of randomness, so a run is reproducible), and returns an object with the members of
-:class:`~activetrack.filters.measurement.TrackingFilter`.
-
-From then on ``tracker: {filter: ukf}`` loads (the schema's allowed values are the registered
-names, listed in its error), ``TrackerCore`` builds the filter through :func:`make_filter`, and
-the ROS graph accepts tracks of it. ``particle_based=True`` declares a filter whose posterior is
-a weighted particle set (it has ``particles`` ``(N, n)`` and ``weights`` ``(N,)``, as the
-built-in ``pf``): the scenario's particle options and load-time rules apply to it, and the
-planner gets equally weighted posterior samples drawn from it. The built-in ``ekf`` and ``pf``
-register the same way (``activetrack.filters``). See docs/extending.md, "A filter".
+The factory gets the tracker's motion model, the prior ``x0`` ``(n,)``, ``P0`` ``(n, n)`` (and
+their time if it takes the keyword ``t0``: tracks started after epoch 0), the scenario's
+``tracker:`` block (:class:`activetrack.scenarios.schema.TrackerConfig`) and the tracker's
+generator ``rng`` (the filter's only randomness), and returns a
+:class:`~activetrack.filters.measurement.TrackingFilter`. Then ``tracker: {filter: ukf}``
+loads, the tracker builds it through :func:`make_filter` and the ROS graph accepts its tracks.
+``particle_based=True`` declares a posterior of weighted ``particles`` ``(N, n)`` and
+``weights`` ``(N,)`` (as ``pf``): the particle options and rules apply, and the planner draws
+its samples from it. See docs/extending.md, "A filter".
 """
 
 from __future__ import annotations
@@ -167,11 +159,9 @@ def make_filter(
     rng: np.random.Generator,
     t0: float = 0.0,
 ) -> TrackingFilter:
-    """Build the filter registered as ``name`` with its factory (module docstring) and check
-    that it offers the :class:`TrackingFilter` members (and, if ``particle_based``,
-    ``particles`` and ``weights``). ``t0``: the time of ``x0``, ``P0`` (a track started from
-    a detection at a later epoch); passed as the keyword ``t0`` to a factory that takes it,
-    and refused (ValueError) for one that does not unless 0."""
+    """Build the filter ``name`` and check its :class:`TrackingFilter` members (and
+    ``particles``, ``weights`` if ``particle_based``). ``t0`` goes to a factory that takes it;
+    a nonzero one is refused for one that does not."""
     entry = filter_kind(name)
     if _takes_t0(entry.factory):
         built = entry.factory(model, x0, P0, config, rng, t0=t0)  # type: ignore[call-arg]

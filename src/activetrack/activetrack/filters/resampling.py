@@ -1,14 +1,10 @@
-"""Vectorised resampling helpers for the SIR particle filter.
+"""Resampling for the SIR particle filter.
 
-Systematic resampling (Arulampalam et al. 2002, Algorithm 2, the reference Hernandez cites
-for the PF) draws one uniform offset ``u ~ U[0, 1)`` and picks, for the N points
-``(u + i) / N``, the particle whose cumulative-weight interval contains the point. It is the
-same rule as ``filterpy.monte_carlo.systematic_resample`` but uses ``searchsorted`` instead
-of a Python loop.
-
-Roughening (Gordon, Salmond and Smith 1993, sec. 4) adds Gaussian jitter with standard
-deviation ``K * E_i * N^(-1/d)`` per state component, E_i being the spread (max - min) of
-component i over the particles and d the state dimension, to counter sample impoverishment.
+Systematic (Arulampalam et al. 2002, Algorithm 2): one offset u ~ U[0, 1), and for the points
+(u + i) / N the particle whose cumulative-weight interval holds it (filterpy's
+``systematic_resample``, by ``searchsorted``). Roughening (Gordon, Salmond and Smith 1993,
+sec. 4): Gaussian jitter of standard deviation ``K * E_i * N^(-1/d)``, E_i the spread of
+component i, d the state dimension, against sample impoverishment.
 """
 
 from __future__ import annotations
@@ -21,11 +17,9 @@ __all__ = ["effective_sample_size", "roughen", "systematic_indices", "systematic
 def systematic_indices(weights: np.ndarray, u: float) -> np.ndarray:
     """Indices chosen by systematic resampling with offset ``u`` in ``[0, 1)``.
 
-    weights: normalised weights, shape ``(N,)``. Returns an int array ``(N,)``, sorted.
-    Particle i receives the points ``p_k = (u + k) / N`` with ``c_{i-1} <= p_k < c_i`` (c the
-    cumulative weights; filterpy's rule). The number of points below c is
-    ``ceil(N c - u)``, so the copies per particle come from one ``diff`` and ``repeat``
-    (cheaper than a ``searchsorted`` of N points).
+    ``weights`` ``(N,)`` normalised; returns sorted ints ``(N,)``. Particle i takes the points
+    (u + k) / N in [c_{i-1}, c_i) (c cumulative); ``ceil(N c - u)`` points lie below c, so one
+    ``diff`` and ``repeat`` give the copies (cheaper than a ``searchsorted``).
     """
     n = weights.shape[0]
     below = np.cumsum(weights)

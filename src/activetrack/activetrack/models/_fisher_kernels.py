@@ -1,17 +1,10 @@
-"""Compiled Fisher-information kernels of the built-in sensors (Hernandez eq. 8-9): the
-bearing family's, the range-bearing sensor's and the range-rate-bearing sensor's.
+"""Compiled Fisher-information kernels of the built-in sensors (Hernandez eq. 8-9), offered
+through ``information_kernel()`` (:data:`activetrack.models.base.InformationKernel`).
 
-A sensor offers its kernel through ``information_kernel()`` (contract:
-``activetrack.models.base.InformationKernel``); ``bounds.pcrlb.measurement_information`` calls
-it where the sensor has one and falls back on the sensor's numpy ``fisher_information``
-otherwise. Each kernel computes exactly the sums of the numpy form for every sensor state, one
-sample after another, so the two agree to round-off (tested to 1e-12): only the order of the
-additions differs (numpy's matmul reductions pair them up).
-
-The loops run over the samples outside and the sensor states inside: every state keeps its own
-running sums (so each sum still adds the samples in order), and the inner loop over states is
-what the compiler turns into vector instructions. numba compiles on first use and caches the
-machine code next to this file (``cache=True``), so a later process only loads it.
+Each computes the sums of the numpy form, samples in order, so the two agree to round-off
+(tested to 1e-12). The loops run over samples outside and sensor states inside (each state
+keeps its running sums; the inner loop vectorises). numba compiles on first use and caches
+next to this file (``cache=True``).
 """
 
 from __future__ import annotations

@@ -1,29 +1,17 @@
 """The two contracts of the core's models: a target motion model and a sensor.
 
-``MotionModel`` (and ``LinearMotionModel``) and ``SensorModel`` are ``typing.Protocol`` classes:
-the filters, bounds, planners and the simulator use only these members, so any class that has
-them works, whether or not it inherits from anything (structural typing, checked by mypy).
-Protocols rather than ABCs because the motion models share no implementation (one frozen
-dataclass per family) and a sensor may be written from scratch (a test's linear sensor).
-
-A sensor owns its maths. Besides h(x), its Jacobian and R it answers everything a consumer
-would otherwise special-case by class:
-
-- ``linearize``: the EKF's h(x), H = dh/d pv and the wrapped residual at one pv state;
-- ``log_likelihood`` / ``log_miss_likelihood``: the particle filter's weights for a detection
-  and for a look without one (the detection model of Hernandez sec. 2.3);
-- ``fisher_information``: its measurement contribution to the PCRLB, Hernandez eq. 8-9;
-  optionally ``information_kernel()`` (not part of the protocol: a sensor without it is
-  scored by ``fisher_information``), a compiled form of the same sums, :data:`InformationKernel`.
+``MotionModel`` (``LinearMotionModel``) and ``SensorModel`` are ``typing.Protocol`` classes
+(structural typing, checked by mypy): the motion models share no implementation and a sensor
+may be written from scratch. A sensor owns its maths, so no consumer special-cases by class:
+``linearize`` (EKF), ``log_likelihood`` / ``log_miss_likelihood`` (particle weights for a
+detection and for a look without one, Hernandez sec. 2.3), ``fisher_information`` (Hernandez
+eq. 8-9; optionally a compiled ``information_kernel()``), clutter and track initiation.
 
 ``GaussianSensor`` is the optional base class for z = h(x) + v, v ~ N(0, R): a subclass defines
-``kind``, ``components``, ``R``, ``measure`` and ``jacobian`` (and which entries are angles) and
-inherits generic, vectorised versions of all the other members, e.g. the Fisher information
-J = E[pd I_r H^T R^-1 H] through its Jacobian (:func:`jacobian_information`). A sensor with a
-faster or closed form overrides the member; the built-in sensors (``models.sensors``) do.
-
-Conventions (docs/core-interfaces.md): pv = (x, xdot, y, ydot); a state batch is ``(..., n)``;
-bad input raises ValueError naming the argument.
+``kind``, ``components``, ``R``, ``measure`` and ``jacobian`` (and its angle entries) and
+inherits vectorised versions of the other members; the built-in sensors override some with
+closed forms. Conventions (docs/core-interfaces.md): pv = (x, xdot, y, ydot); a state batch is
+``(..., n)``; bad input raises ValueError naming the argument.
 """
 
 from __future__ import annotations
@@ -77,8 +65,8 @@ class MotionModel(Protocol):
 
     @property
     def state_is_pv(self) -> bool:
-        """True when the state is the kinematic pv vector itself: ``kinematics`` is the
-        identity, so consumers may use the state where a pv is expected."""
+        """True when ``kinematics`` is the identity (the state may stand for a pv)."""
+
         ...
 
     def propagate(self, x: ArrayLike, dt: float) -> FloatArray:
@@ -200,9 +188,8 @@ class SensorModel(Protocol):
     def log_likelihood(
         self, z: ArrayLike, target_pv: ArrayLike, sensor_pv: ArrayLike, *, gate: bool = False
     ) -> tuple[FloatArray, float]:
-        """log N(z; h(x), R) for every state of ``target_pv`` ``(..., 4)``, as ``(ell, c)``
-        with log N = ell + c: ell ``(...)`` depends on the state, c does not. ``gate=True``:
-        ell = -inf where I_r(x) = 0 (outside [r_min, r_max], Hernandez sec. 2.3)."""
+        """log N(z; h(x), R) = ell + c per state: ell ``(...)`` (``gate``: -inf where I_r = 0,
+        Hernandez sec. 2.3), c independent of the state."""
         ...
 
     def log_miss_likelihood(self, target_pv: ArrayLike, sensor_pv: ArrayLike) -> FloatArray:
@@ -216,27 +203,24 @@ class SensorModel(Protocol):
         kinematics_jacobian: FloatArray | None = None,
     ) -> FloatArray:
         """Hernandez eq. 8: (1/M) sum_m pd I_r H^T R^-1 H over pv samples ``(M, 4)`` for sensor
-        states ``(..., 4)``: ``(..., 4, 4)``, or ``(..., n, n)`` with respect to a model state
-        when d pv / dx ``(M, 4, n)`` is given. Inputs are taken as checked (the caller,
-        ``bounds.pcrlb.measurement_information``, validates them)."""
+        pvs ``(..., 4)`` -> ``(..., 4, 4)``, or ``(..., n, n)`` given d pv / dx ``(M, 4, n)``.
+        Inputs are taken as checked (``bounds.pcrlb.measurement_information``)."""
         ...
 
     def clutter_volume(self, fov: FieldOfView) -> float | None:
-        """The volume of the field of view in measurement units (rad, m rad, ...): what a
-        uniform clutter density is per; None when the sensor has no clutter model."""
+        """The field of view's volume in measurement units (what a clutter density is per);
+        None without a clutter model."""
         ...
 
     def uniform_measurements(self, u: FloatArray, fov: FieldOfView) -> FloatArray:
-        """Measurements uniform over the field of view from unit draws ``u`` ``(m, dim_z)``
-        in [0, 1): the false alarms of a sensor with a clutter model, ``(m, dim_z)``."""
+        """False alarms ``(m, dim_z)`` uniform over the field of view from draws ``u`` in [0, 1)."""
         ...
 
     def inverse_position(
         self, z: FloatArray, sensor_pv: FloatArray
     ) -> tuple[FloatArray, FloatArray] | None:
-        """The position ``(2,)`` (x, y) one detection ``z`` fixes, seen from ``sensor_pv``,
-        and its covariance ``(2, 2)`` (the inverse measurement, linearised): what starts a
-        track from a detection; None when one detection fixes no position (a bearing)."""
+        """The position ``(2,)`` and covariance ``(2, 2)`` one detection fixes (linearised
+        inverse measurement; starts a track); None for, e.g., a bearing."""
         ...
 
 
@@ -252,12 +236,9 @@ def jacobian_information(
     sensor_pv: FloatArray,
     kinematics_jacobian: FloatArray | None = None,
 ) -> FloatArray:
-    """Hernandez eq. 8 for any sensor through ``sensor.jacobian`` and ``sensor.R``.
-
-    J = (1/M) sum_m pd I_r(s, X_m) H(X_m)^T R^-1 H(X_m) with H = dh/d pv (times d pv / dx when
-    ``kinematics_jacobian`` is given), evaluated as G^T G with G = R^{-1/2} H. Samples
-    ``(M, 4)``, sensor states ``(..., 4)``; returns ``(..., n, n)``, symmetric.
-    """
+    """Hernandez eq. 8 through ``sensor.jacobian``: (1/M) sum_m pd I_r H^T R^-1 H as G^T G,
+    G = R^{-1/2} H (times d pv / dx if given). Samples ``(M, 4)``, sensor pvs ``(..., 4)`` ->
+    ``(..., n, n)``."""
     X, K = target_samples, kinematics_jacobian
     sp = sensor_pv[..., None, :]  # (..., 1, 4) broadcasts against the M samples
     H = np.asarray(sensor.jacobian(X, sp), dtype=float)  # (..., M, m, 4)
@@ -279,13 +260,9 @@ def _log_gauss_whitener(R: FloatArray) -> tuple[FloatArray, float]:
 
 
 class GaussianSensor(ABC):
-    """Base class of sensors z = h(x) + v, v ~ N(0, R), with generic members.
-
-    Subclasses (frozen dataclasses with fields ``pd``, ``r_min``, ``r_max`` and their noise
-    parameters; ``__post_init__`` calls :meth:`validate_detection`) define ``kind``,
-    ``components``, ``R``, ``measure`` and ``jacobian``, and ``angle_indices`` /
-    ``angle_period`` for the entries wrapped in residuals and samples.
-    """
+    """Base of sensors z = h(x) + v, v ~ N(0, R): frozen dataclasses with ``pd``, ``r_min``,
+    ``r_max`` (``__post_init__`` calls :meth:`validate_detection`) defining ``kind``,
+    ``components``, ``R``, ``measure``, ``jacobian`` and the wrapped ``angle_indices``."""
 
     kind: ClassVar[str]
     components: ClassVar[tuple[str, ...]]
@@ -371,28 +348,21 @@ class GaussianSensor(ABC):
         H = np.asarray(self.jacobian(target_pv, sensor_pv), dtype=float)
         return Linearization(zhat, H, nu)
 
+    # Cached: sensors are frozen, and factorising R cost more than one simulated draw.
     @cached_property
     def _noise_factor(self) -> FloatArray:
-        """cholesky(R), for :meth:`sample` (sensors are frozen: R never changes; a simulator
-        draws one measurement at a time, and the factorisation cost more than the draw)."""
         return np.linalg.cholesky(self.R)
 
     @cached_property
     def _likelihood_whitener(self) -> tuple[FloatArray, float]:
-        """``(L^-1)^T`` and ``-0.5 log det(2 pi R)`` (sensors are frozen: R never changes)."""
         return _log_gauss_whitener(np.asarray(self.R, dtype=float))
 
     def log_likelihood(
         self, z: ArrayLike, target_pv: ArrayLike, sensor_pv: ArrayLike, *, gate: bool = False
     ) -> tuple[FloatArray, float]:
-        """log N(z; h(x), R) for every state of ``target_pv`` ``(..., 4)``, split as ``(ell, c)``:
-        ell = -0.5 nu^T R^-1 nu ``(...)`` and c = -0.5 log det(2 pi R).
-
-        ``gate=True`` applies the range indicator of the detection model (Hernandez sec. 2.3):
-        ell = -inf outside [r_min, r_max]; the constant factor pd is the caller's to add. The
-        split lets a particle filter normalise its weights without c (it only enters the
-        evidence), so the weights do not depend on how c rounds.
-        """
+        """``(ell, c)`` with ell = -0.5 nu^T R^-1 nu ``(...)`` (-inf outside [r_min, r_max] with
+        ``gate``; pd is the caller's) and c = -0.5 log det(2 pi R): a particle filter normalises
+        without c, so its weights do not depend on how c rounds."""
         Linv_T, log_norm = self._likelihood_whitener
         e = self.residual(z, self.measure(target_pv, sensor_pv)) @ Linv_T  # (..., dim_z)
         flat = e.reshape(-1, e.shape[-1])
@@ -402,8 +372,7 @@ class GaussianSensor(ABC):
         return ell, log_norm
 
     def log_miss_likelihood(self, target_pv: ArrayLike, sensor_pv: ArrayLike) -> FloatArray:
-        """log P(no detection | x) = log(1 - pd I_r(x)) per state, ``(...)``: 0 outside the
-        detection ranges, log(1 - pd) (``-inf`` for pd = 1) inside."""
+        """log(1 - pd I_r(x)) per state ``(...)`` (-inf inside for pd = 1)."""
         return _miss_term(self.in_range(target_pv, sensor_pv), float(self.pd))
 
     def fisher_information(
@@ -415,24 +384,19 @@ class GaussianSensor(ABC):
         """Hernandez eq. 8 through the Jacobian (:func:`jacobian_information`)."""
         return jacobian_information(self, target_samples, sensor_pv, kinematics_jacobian)
 
+    # The generic sensor has no compiled information, no clutter model and fixes no position.
     def information_kernel(self) -> InformationKernel | None:
-        """The compiled form of :meth:`fisher_information` in pv, or None (the generic sensor
-        has none: ``bounds.pcrlb`` then uses :meth:`fisher_information`)."""
         return None
 
     def clutter_volume(self, fov: FieldOfView) -> float | None:
-        """None: the generic sensor has no clutter model (a sensor that has one overrides
-        this and :meth:`uniform_measurements`)."""
         return None
 
     def uniform_measurements(self, u: FloatArray, fov: FieldOfView) -> FloatArray:
-        """The generic sensor has no clutter model (:meth:`clutter_volume` is None)."""
         raise NotImplementedError(f"sensor kind {self.kind!r} has no clutter model")
 
     def inverse_position(
         self, z: FloatArray, sensor_pv: FloatArray
     ) -> tuple[FloatArray, FloatArray] | None:
-        """None: the generic sensor fixes no position from one detection."""
         return None
 
 

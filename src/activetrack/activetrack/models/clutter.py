@@ -1,20 +1,15 @@
-"""A sensor in clutter: its field of view, Poisson false alarms and the information it carries.
+"""A sensor in clutter: :class:`ClutteredSensor` wraps any sensor model with
 
-:class:`ClutteredSensor` wraps any sensor model (contract ``models.base.SensorModel``) with the
-multi-target measurement model:
-
-- field of view: a bearing sector ``fov_width`` wide centred ``fov_centre`` off the platform's
-  heading (the heading is that of the platform's pv velocity), or all around; a steerable beam
-  (``beam_width``) is pointed each epoch (:meth:`field_of_view` with ``pointing``);
-- the target is detected with ``pd`` inside the field of view and the detection ranges;
-- false alarms: Poisson with mean ``lambda V`` per scan, uniform over the field of view in
-  measurement space (``V`` its volume: the sector width [rad] for a bearing sensor, times
-  ``r_max - r_min`` [m] for a range-bearing one), ``lambda = clutter_density``;
-- Fisher information: the clutter-free ``H^T R^-1 H`` scaled by the information reduction
-  factor ``q(Pd, lambda sqrt(det R), g, dim_z)`` (Niu, Willett & Bar-Shalom 2001; Hernandez,
-  Farina & Ristic 2006, :mod:`activetrack.models.irf`) in place of the ``pd`` factor of
-  Hernandez eq. 8, and zero outside the field of view. With no clutter and a wide gate q = pd
-  to within the gate's tail, so the bound is that of the clutter-free sensor.
+- a field of view: a bearing sector ``fov_width`` wide centred ``fov_centre`` off the
+  platform's heading (its pv velocity), or all around; a beam (``beam_width``) is pointed each
+  epoch (:meth:`field_of_view` with ``pointing``); detection with ``pd`` inside it and the
+  detection ranges;
+- Poisson false alarms, mean ``lambda V`` per scan (``lambda = clutter_density``), uniform over
+  the field of view in measurement space (V: sector width [rad], times ``r_max - r_min`` [m]
+  for a range-bearing sensor);
+- Fisher information: ``H^T R^-1 H`` times the information reduction factor
+  ``q(Pd, lambda sqrt(det R), g, dim_z)`` (:mod:`activetrack.models.irf`) in place of the pd
+  of Hernandez eq. 8, zero outside the field of view (no clutter, wide gate: q = pd).
 
 Every other member is the wrapped sensor's.
 """
@@ -71,11 +66,9 @@ def fov_volume(sensor: SensorModel, width: float, r_min: float, r_max: float) ->
 
 @dataclass(frozen=True)
 class ClutteredSensor:
-    """``base`` observed in clutter of ``clutter_density`` (per unit of z) within a field of
-    view; ``gate_sigmas`` is the association gate (the IRF's ``g``). ``gated``: the tracker
-    associates this sensor's detections through a gate (JPDA); False when every detection is
-    known to be the one target's (no clutter, one target), and then the information factor
-    is ``pd`` itself (no gate, no clutter: nothing reduces the information)."""
+    """``base`` in clutter of ``clutter_density`` (per unit of z) within a field of view;
+    ``gate_sigmas`` the association gate (the IRF's g). ``gated`` False: every detection is the
+    one target's (known association), and the information factor is ``pd`` itself."""
 
     base: SensorModel
     clutter_density: float = 0.0

@@ -1,9 +1,6 @@
-"""Where a sensor looks: the field of view of one scan, as plain geometry.
-
-A bearing sector ``centre +- width / 2`` [rad, world frame, from +x counter-clockwise] and the
-ranges ``[r_min, r_max]`` [m]; ``width`` 2 pi is all around. Every scan carries one (the
-simulator draws clutter over it, the tracker and the bounds count a target inside it);
-:class:`activetrack.models.clutter.ClutteredSensor` says where its sensor looks.
+"""Where a sensor looks in one scan: a bearing sector ``centre +- width / 2`` [rad, world frame]
+and ranges ``[r_min, r_max]`` [m]; ``width`` 2 pi is all around. The simulator draws clutter
+over it, the tracker and the bounds count a target inside it.
 """
 
 from __future__ import annotations

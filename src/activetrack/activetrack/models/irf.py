@@ -1,57 +1,42 @@
 """Information reduction factor (IRF) for measurements of uncertain origin.
 
-With missed detections and Poisson clutter the Fisher information a scan carries about the target
-is the clutter-free information scaled by a scalar (Niu, Willett & Bar-Shalom, "Matrix CRLB
-scaling due to measurements of uncertain origin", IEEE TSP 49(7), 2001; used in the PCRLB by
-Hernandez, Farina & Ristic, "PCRLB for tracking in cluttered environments: measurement sequence
-conditioning approach", IEEE TAES 42(2), 2006, as the "IRF approach")::
+With missed detections and Poisson clutter the Fisher information of a scan is the clutter-free
+information scaled by a scalar (Niu, Willett & Bar-Shalom, "Matrix CRLB scaling due to
+measurements of uncertain origin", IEEE TSP 49(7), 2001; the "IRF approach" of Hernandez,
+Farina & Ristic, IEEE TAES 42(2), 2006)::
 
     J_Z = q(Pd, lambda, g, n) * H^T R^{-1} H
 
-**Pd is inside q.**  The caller multiplies the clutter-free ``H^T R^{-1} H`` by ``q`` only and
-must *not* multiply by ``Pd`` as well (``q -> Pd * F_{chi2, n+2}(g^2) ~ Pd`` when there is no
-clutter, i.e. ``q`` replaces the ``pd`` factor of :mod:`activetrack.bounds.pcrlb`).
+**Pd is inside q**: multiply by ``q`` only, not by ``Pd`` as well (without clutter
+``q = Pd F_{chi2, n+2}(g^2) ~ Pd``: q replaces the pd of :mod:`activetrack.bounds.pcrlb`).
 
-Model (Niu et al. sec. II, the PDA measurement model).  Everything is in the *whitened* measurement
-space: the innovation ``nu = R^{-1/2} (z - h(x))`` is N(0, I_n) for the target's measurement and the
-validation gate is the ball ``G = {|nu| <= g}`` of volume ``V = S_n g^n / n`` (``S_n = 2 pi^{n/2} /
-Gamma(n/2)``; ``V = 2g`` in 1-D, ``pi g^2`` in 2-D) holding the target's measurement with
-probability ``P_G = F_{chi2, n}(g^2)``.  The target is detected with probability ``Pd``; the number
-of false alarms in the gate is Poisson with mean ``lambda V``, each uniform over ``G``.  ``lambda``
-is the clutter density per unit *whitened* volume: a physical density ``lambda_z`` (per unit of z)
-converts as ``lambda = lambda_z * sqrt(det R)``.
+Model (Niu et al. sec. II), in the whitened space: ``nu = R^{-1/2} (z - h(x)) ~ N(0, I_n)``
+for the target's measurement; the gate ``G = {|nu| <= g}`` has volume ``V = S_n g^n / n``
+(``S_n = 2 pi^{n/2} / Gamma(n/2)``) and holds it with probability ``P_G = F_{chi2, n}(g^2)``;
+detection with ``Pd``; false alarms Poisson of mean ``lambda V``, uniform over ``G``, with
+``lambda = lambda_z sqrt(det R)`` for a density ``lambda_z`` per unit of z.
 
-Definition implemented (Niu et al. sec. III, the m-fold gate integral for ``q``, summed over the
-Poisson number of measurements in the gate).  With ``m`` measurements ``nu_1..nu_m`` in the gate,
-the likelihood is the mixture
+Definition (Niu et al. sec. III): with ``m`` measurements in the gate the likelihood is
 
     p(Z, m | x) = (1 - Pd P_G) mu(m) V^{-m}
                   + Pd mu(m-1) V^{-(m-1)} (1/m) sum_i N(nu_i; 0, I),   mu(k) = Pois(k; lambda V),
 
-whose score is ``H^T R^{-1/2} s`` with (dividing through by ``mu(m-1) V^{-(m-1)} / m``)
-
-    s = Pd sum_i N(nu_i) nu_i / (lambda (1 - Pd P_G) + Pd sum_j N(nu_j)),
-
-so ``J_Z = H^T R^{-1/2} E[s s^T] R^{-1/2} H`` and, the whitened problem being rotationally
-symmetric, ``E[s s^T] = q I`` with ``q = E|s|^2 / n``:
+whose score is ``H^T R^{-1/2} s``, ``s = Pd sum_i N(nu_i) nu_i / (lambda (1 - Pd P_G) + Pd
+sum_j N(nu_j))``; by symmetry ``E[s s^T] = q I`` with
 
     q = (Pd^2 / n) sum_{m>=1} mu(m-1) V^{-(m-1)} / m
           * int_{G^m} |sum_i N(nu_i) nu_i|^2 / (lambda (1 - Pd P_G) + Pd sum_j N(nu_j))
           dnu_1 .. dnu_m.
 
-Evaluation (exact reformulation, no truncation of the Poisson sum).  Writing ``1/D = int_0^inf
-exp(-t D) dt`` the m-fold integrand factorises over the measurements; the cross terms
-``int N nu exp(-t Pd N) dnu`` vanish by the gate's symmetry, and the sum over ``m`` is an
-exponential series.  The result is a single integral over ``t`` of radial gate integrals:
+Evaluation (exact, no truncation of the Poisson sum): with ``1/D = int_0^inf exp(-t D) dt``
+the integrand factorises, the cross terms vanish by symmetry and the sum over ``m`` is an
+exponential series::
 
     q = (Pd^2 / n) int_0^inf A(t) exp(-t lambda (1 - Pd P_G) - lambda C(t)) dt,
     A(t) = int_G N(nu)^2 |nu|^2 exp(-t Pd N(nu)) dnu,
-    C(t) = int_G (1 - exp(-t Pd N(nu))) dnu.
+    C(t) = int_G (1 - exp(-t Pd N(nu))) dnu,
 
-Both gate integrals are radial (``dnu = S_n r^{n-1} dr``) and are done by composite Gauss-Legendre
-quadrature on a fine grid in ``r``; the ``t`` integral by composite Gauss-Legendre in ``log t``.
-Without clutter this reduces to ``q = Pd F_{chi2, n+2}(g^2)`` (``-> Pd`` for a wide gate: the
-``Pd`` scaling of Hernandez, Farina & Ristic 2006 and of :mod:`activetrack.bounds.pcrlb`).
+both radial, by composite Gauss-Legendre in ``r`` and in ``log t``.
 """
 
 from __future__ import annotations

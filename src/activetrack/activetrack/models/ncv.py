@@ -129,12 +129,9 @@ class _LinearPV(ABC):
     def sample(self, x: ArrayLike, dt: float, rng: np.random.Generator) -> FloatArray:
         """f(x) + w, w ~ N(0, Q), independently for each state of the batch ``(..., 4)``.
 
-        A particle array ``(N, 4)`` is computed as :func:`rows_times` (x F^T) plus
-        ``rows_times(W, L)`` (W L^T, L L^T = Q) with W = ``rng.standard_normal((N, 4))``, or
-        from the non-zero terms only (:func:`cv_rows`) when F and L have the zeros of two
-        constant-velocity axes: in one pass by the compiled kernel when one is enabled
-        (``activetrack.kernels``), which draws the same normals and does the same operations,
-        so both paths give the same bits.
+        A particle array ``(N, 4)`` is x F^T + W L^T (L L^T = Q, W standard normal) by
+        :func:`rows_times`, or from the non-zero terms only (:func:`cv_rows`) for two CV axes,
+        compiled when enabled: the same normals and operations, the same bits.
         """
         check_rng(rng)
         if not (type(dt) is float and 0.0 <= dt < math.inf):  # a filter's dt: no more checks

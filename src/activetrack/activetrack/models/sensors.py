@@ -1,33 +1,19 @@
 """Sensor measurement models (contract: ``activetrack.models.base.SensorModel``).
 
-All sensors observe a target pv state (x, xdot, y, ydot) from a sensor platform pv state
-(Hernandez eq. 6-7, Ramdaras eq. 1) with relative geometry dx = x_t - x_s, dy = y_t - y_s
-(Ramdaras eq. 12), range r = sqrt(dx^2 + dy^2) and bearing atan2(dy, dx) wrapped to [-pi, pi).
-``target_pv`` and ``sensor_pv`` broadcast against each other, e.g. a target batch (M, 1, 4)
-against sensors (1, C, 4) gives measurements (M, C, dim_z).
+Sensors observe a target pv (x, xdot, y, ydot) from a platform pv (Hernandez eq. 6-7, Ramdaras
+eq. 1): dx = x_t - x_s, dy = y_t - y_s (Ramdaras eq. 12), range sqrt(dx^2 + dy^2), bearing
+atan2(dy, dx) wrapped to [-pi, pi); the two pvs broadcast, e.g. targets (M, 1, 4) against
+sensors (1, C, 4) give (M, C, dim_z). Jacobians are with respect to the target pv
+(``state_jacobian`` chains a motion model's); a bearing Jacobian at zero range raises
+ValueError. ``in_range`` is I_r of Hernandez eq. 8; detection then succeeds with probability
+``pd`` (Ramdaras eq. 14-22).
 
-Measurement Jacobians are with respect to the target pv; ``state_jacobian`` chains them with a
-motion model's ``kinematics_jacobian``.  A bearing Jacobian at zero range is undefined and
-raises ValueError.  ``in_range`` is the I_r indicator of Hernandez eq. 8, r_min <= r <= r_max;
-detection then succeeds with probability ``pd`` (Ramdaras eq. 14-22).
-
-Each sensor derives from :class:`~activetrack.models.base.GaussianSensor` and owns its maths.
-Where a faster form exists it overrides the generic member, with the same numbers:
-
-- ``BearingSensor`` and ``RangeBearingSensor``: the EKF linearisation in plain floats and the
-  particle log-likelihood from the particle offsets with an arcsin-wrapped bearing residual;
-- ``BearingSensor`` and ``AmbiguousBearingSensor``: the closed form of Hernandez eq. 9 for the
-  Fisher information, and its compiled form (``information_kernel``, module
-  ``models._fisher_kernels``) for the batched PCRLB; ``RangeBearingSensor`` and
-  ``RangeRateBearingSensor``: the compiled closed forms of their generic (Jacobian) Fisher
-  information;
-- every built-in sensor: the missed-detection likelihood from the particle ranges.
-
-The bearing and range-bearing likelihoods of a particle array ``(N, 4)`` run the compiled
-kernels of ``activetrack.kernels`` when they are enabled: the same operations in one pass each
-side of numpy's arcsin, so the same bits.
-
-The other members are the generic ones of ``GaussianSensor``.
+Each sensor is a :class:`~activetrack.models.base.GaussianSensor` overriding, with the same
+numbers, what has a faster form: plain-float EKF linearisations and arcsin-wrapped particle
+likelihoods (bearing, range-bearing; compiled by ``activetrack.kernels`` when enabled, same
+bits), the closed form of Hernandez eq. 9 and compiled Fisher information
+(``information_kernel``, ``models._fisher_kernels``), and the missed-detection likelihood from
+the particle ranges.
 """
 
 from __future__ import annotations
@@ -102,9 +88,8 @@ def _scalar_geometry(
 ) -> tuple[float, float, float, list[float]]:
     """dx, dy, r^2 of one pv state ``(4,)`` and the entries of ``z``, as Python floats.
 
-    No per-call validation (the EKF's state and the measurement are checked where they are
-    made) and one ``tolist`` per array: this is the inner loop of every EKF update, where numpy
-    scalar indexing would cost more than the maths.
+    No validation (inputs are checked where made): the inner loop of every EKF update, where
+    numpy scalar indexing would cost more than the maths.
     """
     nd = np.ndarray
     x = target_pv.tolist() if type(target_pv) is nd and target_pv.ndim == 1 else None
@@ -196,10 +181,9 @@ def _gated(ell: FloatArray, r: FloatArray, sensor: GaussianSensor) -> FloatArray
 def _compiled_information(
     sensor: GaussianSensor, own: type, members: tuple[str, ...], kernel: str, **noise: float
 ) -> InformationKernel | None:
-    """The compiled J_Z ``kernel`` of ``models._fisher_kernels`` with the sensor's ``noise``
-    parameters, pd, r_min and r_max bound in; None when the sensor's class overrides one of
-    ``own``'s ``members`` (the kernel computes ``own``'s form, not the override). numba is
-    imported on first use, not with the sensors."""
+    """The compiled J_Z ``kernel`` with the sensor's ``noise``, pd, r_min and r_max bound in;
+    None when the sensor's class overrides one of ``own``'s ``members`` (the kernel computes
+    ``own``'s form). numba is imported on first use."""
     cls = type(sensor)
     if any(getattr(cls, m) is not getattr(own, m) for m in members):
         return None
@@ -215,9 +199,8 @@ def _compiled_information(
 
 
 class _PlanarSensor(GaussianSensor):
-    """The built-in sensors: detection by the planar range alone, so the missed-detection
-    likelihood of a particle array comes from column arithmetic (same numbers as
-    ``in_range``, without its validation pass over the particles)."""
+    """The built-in sensors: detection by planar range alone, so a particle array's miss
+    likelihood comes from column arithmetic (``in_range``'s numbers, no validation pass)."""
 
     def log_miss_likelihood(self, target_pv: ArrayLike, sensor_pv: ArrayLike) -> FloatArray:
         """log(1 - pd I_r(x)) per state, ``(...)`` (Hernandez sec. 2.3)."""
@@ -301,9 +284,7 @@ class _BearingFamily(_PlanarSensor):
         return scale * np.einsum("...mi,...mj,...m->...ij", g, g, w)
 
     def information_kernel(self) -> InformationKernel | None:
-        """The compiled closed form of eq. 8-9 (``models._fisher_kernels``). None for a
-        subclass that overrides :meth:`fisher_information`: the kernel computes this class's
-        form, not the override."""
+        """The compiled eq. 8-9 (None when a subclass overrides :meth:`fisher_information`)."""
         return _compiled_information(
             self, _BearingFamily, ("fisher_information",), "bearing_information", sigma=self.sigma
         )
@@ -486,10 +467,8 @@ class RangeBearingSensor(_PlanarSensor):
         return (_gated(ell, r, self) if gate else ell), log_norm
 
     def information_kernel(self) -> InformationKernel | None:
-        """The compiled closed form of eq. 8 for H = (range row, bearing row) and
-        R = diag(sigma_r^2, sigma_b^2) (``models._fisher_kernels``), equal to the generic
-        :meth:`fisher_information` to round-off. None for a subclass that overrides
-        :meth:`fisher_information`, :meth:`jacobian` or :attr:`R`."""
+        """The compiled eq. 8 of the range and bearing rows (equal to the generic form to
+        round-off; None when a subclass overrides its information, Jacobian or R)."""
         return _compiled_information(
             self,
             RangeBearingSensor,
@@ -559,10 +538,8 @@ class RangeRateBearingSensor(_PlanarSensor):
         return np.stack([_range_row(dx, dy, r), rr_row, _bearing_row(dx, dy, r2)], axis=-2)
 
     def information_kernel(self) -> InformationKernel | None:
-        """The compiled closed form of eq. 8 for :meth:`jacobian`'s three rows and
-        R = diag(sigma_r^2, sigma_rr^2, sigma_b^2) (``models._fisher_kernels``), equal to the
-        generic :meth:`fisher_information` to round-off. None for a subclass that overrides
-        :meth:`fisher_information`, :meth:`jacobian` or :attr:`R`."""
+        """The compiled eq. 8 of :meth:`jacobian`'s three rows (equal to the generic form to
+        round-off; None when a subclass overrides its information, Jacobian or R)."""
         return _compiled_information(
             self,
             RangeRateBearingSensor,

@@ -1,12 +1,9 @@
-"""PCRLB manoeuvre planning (Hernandez 2004 sec. 3-4; Ramdaras 2010 sec. 4).
+"""Platform and sensor planning (Hernandez 2004 sec. 3-4; Ramdaras 2010 sec. 4).
 
-``plan(platforms, belief, settings, F=..., Q=..., dt=...)`` is the entry point; see
-:mod:`activetrack.planning.planner`. Building blocks, shared by every planner: the manoeuvre
-model and the platforms (``manoeuvre``), the searches over one leg (``searches``), the horizon
-search (``horizons``), the objective, a weighted sum of terms (``objective``), and the
-coordination of several platforms (``multisensor``); the PCRLB over the horizon (``costs``).
-The criteria of every planner (PCRLB planning, MRE positioning and selection) live in one
-registry, ``criteria``; MRE positioning and selection (Ramdaras) in ``selection``.
+``plan`` (:mod:`.planner`) is the PCRLB entry point. Building blocks: ``manoeuvre``,
+``searches``, ``horizons`` (the horizon search), ``objective`` (a weighted sum of terms),
+``multisensor`` (platform coordination), ``costs`` (the PCRLB over the horizon), ``criteria``
+(the one criterion registry) and ``selection`` (MRE positioning and selection).
 """
 
 from activetrack.planning.costs import HorizonModel, platform_information

@@ -1,16 +1,11 @@
 """Compiled helpers of the planner's inner loop: the bookkeeping of the lockstep quadrant search
-(``searches.quadrant_search``) and the candidate legs of the horizon search
-(``horizons``: ``manoeuvre.unit_to_manoeuvre`` then ``manoeuvre.step_platform``).
+(``searches.quadrant_search``) and the candidate legs of the horizon search.
 
-The search itself (Hernandez sec. 4.1) is unchanged: these functions do, for all problems of a
-division in one call, what the numpy version did with a dozen array operations per division
-(storing the new costs and payloads, offering each problem's best point, choosing the quadrant
-with the lowest average corner cost, halving the square). Comparisons and arithmetic follow
-the numpy version operation for operation (first index on ties, NaN first as ``np.argmin``), so
-the search takes the same decisions. Payloads are flattened to ``(..., P)`` rows here.
-
-numba compiles on first use and caches the machine code next to this file (``cache=True``);
-``horizons.warm_up`` calls each kernel once, as the planner does.
+For all problems of a division in one call they store the new costs and payloads, offer each
+problem's best point, choose the quadrant with the lowest mean corner cost and halve the
+square, operation for operation as the numpy version (first index on ties, NaN first as
+``np.argmin``), so the search takes the same decisions. Payloads are ``(..., P)`` rows. numba
+compiles on first use and caches next to this file; ``horizons.warm_up`` calls each once.
 """
 
 from __future__ import annotations

@@ -1,59 +1,36 @@
 """Planning across targets: platform manoeuvres against every confirmed track, and steerable
-beams assigned to tracks.
+beams assigned to tracks (``MultiTargetPlanner``, a strategy of
+:class:`activetrack.planning.decision.Planner`).
 
-``MultiTargetPlanner(platforms, dynamics, settings, rng)``, a strategy of the one planner
-(:class:`activetrack.planning.decision.Planner`); ``plan(epoch, tracks, platforms) ->
-Decision`` alone.
+Each sensor is a :class:`activetrack.models.clutter.ClutteredSensor`: its information is the
+PCRLB's J_Z with the information reduction factor q in place of pd and its field of view
+applied (Hernandez eq. 8, IRF of Niu, Willett & Bar-Shalom 2001). A beam (``beam_width``)
+observes only the track it serves.
 
-Sensors are the scenario's, each in clutter (:class:`activetrack.models.clutter.ClutteredSensor`):
-its information is the PCRLB's J_Z with the information reduction factor q in place of pd and
-its fixed field of view applied (Hernandez eq. 8 with the IRF of Niu, Willett & Bar-Shalom
-2001). A steerable sensor (``beam_width``) observes only the track its beam serves.
+Cost of a confirmed track, ``planner.cost``:
 
-Cost of a confirmed track (tentative ones do not count), ``planner.cost``:
+- ``pcrlb``: ``planner.criterion`` of the bound at k+1..k+R, renewal from the track (Hernandez
+  eq. 3, footnote 2), J_Z by Monte Carlo (eq. 8) over the track's particles or ``mc_samples``
+  Gaussian draws pushed through the dynamics (eq. 2);
+- ``mre``: ``planner.criterion`` of Ramdaras eq. 23 with q as detection factor at the CV
+  prediction F^{r+1} x. A beam, pointed before the epoch's measurements, holds the target with
+  probability :func:`~activetrack.planning.assignment.beam_coverage`, lowered for each
+  unsuccessful look since the track's last hit
+  (:func:`~activetrack.planning.assignment.coverage_after_misses`: otherwise the beams keep
+  looking at a lost track's empty prediction).
 
-- ``pcrlb``: ``planner.criterion`` of the bound at k+1..k+R, renewal from the track
-  (Hernandez eq. 3, footnote 2): J_k = P_{k|k}^-1, J_{k+1} = (Q + F J_k^-1 F^T)^-1 +
-  sum_s J_Z,s, J_Z by Monte Carlo (eq. 8) over the track's particle ``samples`` or
-  ``mc_samples`` draws from its Gaussian, pushed through the dynamics (eq. 2);
-- ``mre``: ``planner.criterion`` of Ramdaras eq. 23 with q as the detection factor, at the
-  track's constant-velocity prediction x_{k+1+r|k} = F^{r+1} x. A beam, pointed at the
-  predicted position before the epoch's measurements, holds the target only with the
-  probability :func:`activetrack.planning.assignment.beam_coverage` of the predicted
-  covariance, lowered by Bayes' rule for each epoch since the track's last hit at which a beam
-  looked at it and it got none (:func:`activetrack.planning.assignment.
-  coverage_after_misses`: the tracker does not move a track away from where a beam found
-  nothing, so without it the beams keep looking at a lost track's empty prediction): that
-  multiplies its detection factor too (the PCRLB's J_Z keeps the beam on target, as
-  :class:`ClutteredSensor` defines it).
+Tracks combine by ``planner.targets.aggregate`` (``worst`` plus ``TIE_BREAK`` times the sum
+during the search, or ``weighted_sum``). Manoeuvres: platforms in turn, the others on their
+current plans (Hernandez sec. 4.1, :func:`~activetrack.planning.multisensor.coordinate_platforms`),
+each searching its R legs; pcrlb sums over the legs (eq. 15-16), mre takes leg R. During the
+search a beam serves its previous track if still confirmed, else the nearest. Beams, after the
+manoeuvres, from the planned k+1 positions (``planner.targets.assignment``): ``mre`` optimal
+assignment of eq. 23 costs, ``random`` (balanced), ``nearest``; a beam points at its track's
+predicted position. No confirmed track: every beam sweeps one ``beam_width`` per epoch from
+its platform's heading.
 
-Costs over tracks combine by ``planner.targets.aggregate`` (:class:`activetrack.planning.
-objective.TrackAggregate`): ``worst`` (max) or ``weighted_sum`` (the tracks' priorities). The
-manoeuvre searches add ``TIE_BREAK`` times the sum to ``worst``, so that the other tracks
-decide when no candidate moves the worst one.
-
-Manoeuvres (``planner.enabled``): each controllable platform in turn, the others flying their
-current plans (Hernandez sec. 4.1, until no plan changes or ``max_sensor_iterations``
-passes: :func:`activetrack.planning.multisensor.coordinate_platforms`), searches its R-leg
-manoeuvre sequence (:func:`activetrack.planning.horizons.search_horizon`). Objective
-(:mod:`activetrack.planning.objective`): pcrlb the sum over the legs (eq. 15-16, as
-:func:`activetrack.planning.planner.plan`), mre the cost after leg R
-(:func:`activetrack.planning.selection.plan_positions` says why). Only the first manoeuvre is
-flown. During the search a beam counts for the track it serves now: its previous track if
-still confirmed, else the track nearest its platform. Planner off: every controllable platform
-holds course.
-
-Beams (after the manoeuvres, from the platforms' planned k+1 positions), ``planner.targets.
-assignment``: ``mre`` the optimal assignment of the per-pair eq. 23 costs
-(:func:`activetrack.planning.assignment.assign_beams`: the non-steerable sensors' expected
-updates folded in first; shared tracks in rounds when beams outnumber tracks), ``random``
-uniform from the planner's generator (balanced), ``nearest`` the closest track. A beam points
-along the bearing from its platform's planned k+1 position to the track's predicted position
-F x. No confirmed track: every beam sweeps, its previous bearing plus ``beam_width`` each
-epoch (starting along its platform's heading).
-
-Random draws, all from the planner's generator, in this order: the tracks' Gaussian samples and
-their process noise (pcrlb; track order), the evolutionary search, the random assignment.
+Random draws, all from the planner's generator, in order: the tracks' Gaussian samples and
+process noise (pcrlb), the evolutionary search, the random assignment.
 """
 
 from __future__ import annotations
@@ -112,9 +89,8 @@ __all__ = ["AcrossTargetsSettings", "MultiTargetPlanner", "ScenePlatform"]
 
 
 def _in_view(sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray) -> np.ndarray:
-    """1.0 where the target pv ``x`` ``(4,)`` is inside the sensor's fixed field of view seen
-    from sensor pvs ``(..., 4)`` (heading of their velocity), else 0.0; all around, or a beam
-    (pointed at its track), is 1.0. Shape ``(...)``."""
+    """1.0 where target ``x`` ``(4,)`` is inside the fixed field of view from sensor pvs
+    ``(..., 4)`` (heading of their velocity), else 0.0 ``(...)``."""
     if sensor.fov_width is None:
         return np.ones(pv.shape[:-1])
     heading = np.arctan2(pv[..., 3], pv[..., 1])
@@ -137,10 +113,8 @@ class _Sensor:
     def detection(
         self, x: np.ndarray, pv: np.ndarray, P: np.ndarray | None = None, missed: float = 1.0
     ) -> np.ndarray:
-        """The detection factor of eq. 23 for a target at x seen from pvs ``(..., 4)``: q I_r
-        I_fov, and for a beam pointed at x the probability it holds the target given the
-        predicted covariance ``P`` (:func:`beam_coverage`; None: on target) and the track's
-        unsuccessful beam looks ``missed`` (:func:`coverage_after_misses`). ``(...)``."""
+        """Eq. 23's detection factor q I_r I_fov ``(...)`` for a target at x seen from pvs
+        ``(..., 4)``; a beam times its coverage of ``P`` (None: on target) after ``missed``."""
         inside = np.asarray(self.model.in_range(x, pv), dtype=float)
         d = self.q * inside * _in_view(self.model, x, pv)
         if self.steerable and P is not None:
@@ -151,9 +125,9 @@ class _Sensor:
 
 @dataclass
 class _PcrlbStage:
-    """Hernandez eq. 3 for every track at once (a :class:`HorizonStage`): state J ``(..., T, 4,
-    4)``; ``fixed`` ``(R, T, 4, 4)`` the other platforms' J_Z; ``own`` the optimised platform's
-    sensors with the tracks each serves ``(T,)``; ``samples`` per track ``(R, M_t, 4)``."""
+    """Hernandez eq. 3 for every track (a :class:`HorizonStage`): J ``(..., T, 4, 4)``;
+    ``fixed`` ``(R, T, 4, 4)`` the other platforms' J_Z; ``own`` the optimised platform's
+    sensors and the tracks each serves; ``samples`` per track ``(R, M_t, 4)``."""
 
     F: np.ndarray
     Q: np.ndarray
@@ -175,12 +149,9 @@ class _PcrlbStage:
 
 @dataclass
 class _MreStage:
-    """Ramdaras eq. 23 for every track at once (a :class:`HorizonStage`): state P_{k+1+r|k+r}
-    ``(..., T, 4, 4)``; ``x`` ``(R, T, 4)`` the CV predictions; ``fixed[r][t]`` the other
-    platforms' sensors serving track t and their pvs at leg r; ``own`` the optimised
-    platform's sensors with the tracks each serves ``(T,)``. A beam's coverage is that of the
-    prediction (it is pointed before the epoch's measurements), after the track's unsuccessful
-    beam looks ``missed`` ``(T,)``."""
+    """Ramdaras eq. 23 for every track (a :class:`HorizonStage`): P_{k+1+r|k+r} ``(..., T, 4,
+    4)``; ``x`` ``(R, T, 4)`` CV predictions; ``fixed[r][t]`` the other platforms' sensors
+    serving track t with their pvs at leg r; ``own`` as in :class:`_PcrlbStage`."""
 
     F: np.ndarray
     Q: np.ndarray
@@ -210,11 +181,9 @@ class _MreStage:
 
 @dataclass
 class _Epoch:
-    """One decision's working set: the platforms at k, the confirmed tracks, their
-    predictions, the CV predictions ``x`` ``(R, T, 4)`` (mre) or samples (pcrlb), their miss
-    factors ``(T,)`` (:meth:`MultiTargetPlanner._note_looks`), which tracks each sensor serves
-    ``(S, T)``, the platforms' paths ``(R, 4)`` over the horizon (a :class:`PlatformStages`
-    of the coordinator with the planner's stages)."""
+    """One decision's working set (a :class:`PlatformStages` of the coordinator): CV
+    predictions ``x`` ``(R, T, 4)`` (mre) or samples (pcrlb), miss factors ``(T,)``, which
+    tracks each sensor serves ``(S, T)``, the platforms' paths ``(R, 4)``."""
 
     planner: MultiTargetPlanner
     epoch: int
@@ -239,13 +208,8 @@ class _Epoch:
 
 @dataclass(frozen=True)
 class AcrossTargetsSettings:
-    """How the planner across targets plans (a scenario's ``planner:`` section, built by
-    :func:`activetrack.closed_loop.components.build_planner`): ``cost_kind`` ``"pcrlb"`` or
-    ``"mre"`` (``planner.cost``, or the other kind when the criterion applies only to it),
-    ``criterion`` (:mod:`activetrack.planning.criteria`), ``horizon`` R, ``search`` (None: no
-    platform is steered), ``mc_samples``, ``max_iterations`` (Hernandez sec. 4.1),
-    ``aggregate`` (``"worst"`` | ``"weighted_sum"``) and ``assignment`` (``"mre"`` |
-    ``"random"`` | ``"nearest"``) of ``planner.targets``."""
+    """The scenario's ``planner:`` section as this planner reads it; ``search`` None: no
+    platform is steered; ``aggregate`` and ``assignment`` from ``planner.targets``."""
 
     cost_kind: str
     criterion: str
@@ -259,10 +223,8 @@ class AcrossTargetsSettings:
 
 @dataclass(frozen=True)
 class ScenePlatform:
-    """A platform of the scene as the planner across targets knows it: its id, its sensors in
-    the scene (``(sensor id, sensor)``, field of view, clutter and gate), whether it is
-    controllable and its per-epoch limits when the planner steers it (None: it holds
-    course)."""
+    """A platform as this planner knows it: its ``(sensor id, sensor)`` pairs and its limits
+    when the planner steers it (None: it holds course)."""
 
     platform_id: str
     sensors: tuple[tuple[str, ClutteredSensor], ...]
@@ -271,9 +233,8 @@ class ScenePlatform:
 
 
 class MultiTargetPlanner:
-    """Manoeuvres and beam pointings against every confirmed track (module docstring), a
-    strategy of :class:`activetrack.planning.decision.Planner`; draws only from its own
-    ``rng``."""
+    """Manoeuvres and beam pointings against every confirmed track (module docstring); draws
+    only from its own ``rng``."""
 
     def __init__(
         self,
@@ -309,14 +270,13 @@ class MultiTargetPlanner:
         self.assignment = settings.assignment
         self.last_track: dict[str, int] = {}  # beam sensor id -> track id it served last
         self.last_bearing: dict[str, float] = {}
-        # Track id -> (M of coverage_after_misses since its last hit, its hits then); and the
-        # beams' looks decided for the next epoch: track id -> (hits, misses, prod (1 - pd I_r)).
+        # track id -> (M since its last hit, its hits then); the looks for the next epoch:
+        # track id -> (hits, misses, prod (1 - pd I_r)).
         self.miss_factor: dict[int, tuple[float, int]] = {}
         self.looks: dict[int, tuple[int, int, float]] = {}
 
     def decide(self, context: DecisionContext) -> DecisionPart:
-        """The strategy's part (:class:`activetrack.planning.decision.PlannerStrategy`):
-        :meth:`plan` of the context's tracks and platforms."""
+        """:meth:`plan` as a :class:`~activetrack.planning.decision.PlannerStrategy` part."""
         d = self.plan(context.epoch, context.tracks, list(context.platforms.values()))
         evaluations = d.report.evaluations if d.report is not None else 0
         return DecisionPart(
@@ -354,10 +314,8 @@ class MultiTargetPlanner:
         return self._decision(ep, next_pv, costs, objective, time.perf_counter() - start)
 
     def _note_looks(self, tracks: TrackSet) -> None:
-        """The outcome of the beams' looks decided last epoch: a track looked at with no hit
-        (its misses grew, its hits did not) takes the factor prod (1 - pd I_r) of the beams
-        that looked (:func:`coverage_after_misses`); a track with a new hit, from any sensor,
-        starts afresh (M = 1)."""
+        """Last epoch's beam looks: a track looked at without a hit takes the factor
+        prod (1 - pd I_r) of those beams; a track with a new hit starts afresh (M = 1)."""
         now = {t.track_id: t for t in tracks.tracks}
         factors = {
             i: (M, hits)
@@ -467,18 +425,15 @@ class MultiTargetPlanner:
         return _MreStage(d.F, d.Q, x, updates, tuple(own), ep.missed)
 
     def _objective(self, ep: _Epoch, tie_break: float) -> Objective:
-        """The aggregate over the tracks of the criterion of their J (pcrlb, summed over the
-        legs: eq. 15-16) or P (mre, after leg R: :func:`activetrack.planning.selection.
-        plan_positions` says why); ``tie_break`` for ``worst`` (:data:`TIE_BREAK`)."""
+        """The tracks' aggregate criterion of J (pcrlb, eq. 15-16) or P (mre)."""
         tracks = TrackAggregate(self.aggregate, ep.weights, tie_break)
         if self.cost_kind == "pcrlb":
             return Objective((InformationTerm(self.criterion, tracks),))
         return Objective((CovarianceTerm(self.criterion, cast(np.ndarray, ep.x), tracks),))
 
     def _manoeuvres(self, ep: _Epoch) -> float:
-        """Coordinate-wise search of the controllable platforms' plans (Hernandez sec. 4.1,
-        :func:`coordinate_platforms`): ``ep.plans`` and ``ep.paths`` take them. Returns the
-        objective with everybody's plans (no tie-break)."""
+        """Sets ``ep.plans`` and ``ep.paths`` (Hernandez sec. 4.1); returns the objective of
+        everybody's plans without tie-break."""
         state0 = self._state0(ep)
         result = coordinate_platforms(
             ep.platforms,
@@ -647,14 +602,9 @@ class MultiTargetPlanner:
             horizon=self.horizon,
             wall_time_s=time.perf_counter() - start,
         )
-        commands = tuple(
-            Command(p.platform_id, epoch, 0.0, 0.0)
-            for j, p in enumerate(planners)
-            if self.controllable[j]
-        )
         return Decision(
             epoch,
-            commands=commands,
+            commands=tuple(self._commands(planners, epoch, {})),
             beams=tuple(beams),
             report=report,
             extra={"track_costs": {}, "assignment": assignment},

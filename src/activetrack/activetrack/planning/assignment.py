@@ -1,37 +1,20 @@
-"""Sensor-to-track assignment of steerable beams.
+"""Sensor-to-track assignment of steerable beams (one track per beam and epoch).
 
-A steerable sensor (a beam ``beam_width`` wide) observes one track per epoch. Given the
-per-pair costs ``C[s, t]`` (track t's cost if sensor s serves it) and ``c0[t]`` (its cost if
-no beam does), one *round* gives each track at most one sensor:
+Given per-pair costs ``C[s, t]`` (track t's cost if sensor s serves it) and ``c0[t]`` (no
+beam), one *round* gives each track at most one sensor, exactly:
 
-- ``"weighted_sum"``: minimise sum_t w_t cost_t. With at most one beam per track the costs
-  add up, so this is the linear assignment of the gains ``w_t (C[s, t] - c0[t])`` (the
-  offset ``c0`` matters: a track left without a beam keeps its cost), solved exactly by
-  ``scipy.optimize.linear_sum_assignment``;
-- ``"worst"``: minimise max_t cost_t. Exact for any size, no enumeration: the optimum is one
-  of the costs, the smallest threshold theta for which every track with ``c0[t] > theta``
-  gets its own sensor with ``C[s, t] <= theta`` (a bipartite matching, tested with
-  ``linear_sum_assignment`` on 0/1 costs; binary search over the sorted costs). Among the
-  assignments reaching it, the one with the largest summed gain is returned.
+- ``"weighted_sum"``: the linear assignment of the gains ``w_t (C[s, t] - c0[t])`` (a track
+  without a beam keeps its cost), ``scipy.optimize.linear_sum_assignment``;
+- ``"worst"``: the smallest threshold theta (one of the costs, binary search) for which every
+  track with ``c0[t] > theta`` gets its own sensor with ``C[s, t] <= theta`` (a bipartite
+  matching); among those assignments, the largest summed gain.
 
-More sensors than tracks: tracks are shared, in rounds. Each round assigns one sensor to every
-track (the optimal choice of which sensors, as above); the tracks' covariances take in that
-round's expected updates and the sensors left are assigned in the next round against them.
-Each round is optimal given the earlier ones (greedy over rounds, not jointly optimal).
-
-Per-pair costs (:func:`mre_pair_costs`): Ramdaras eq. 23 for the track with that sensor's
-expected update (:func:`activetrack.planning.selection.expected_update`, the detection factor
-given, e.g. the IRF q of a sensor in clutter), then the criterion. The update never raises a
-criterion (it shrinks P in the PSD order), so ``C <= c0``; round-off is clipped.
-
-A beam is pointed at the track's predicted position, so it holds the target only with the
-probability :func:`beam_coverage` (the predicted bearing spread against the beam's width);
-the caller folds that into the detection factor. Beams that looked at a track and found nothing
-lower that probability (:func:`coverage_after_misses`): the tracker does not move a track away
-from where a beam saw nothing, so the next beam looks at the same place.
-
-Baselines: :func:`random_assignment` (uniform, balanced like the rounds) and
-:func:`nearest_assignment` (each sensor its closest track).
+More sensors than tracks: rounds, each taking in the previous rounds' expected updates (greedy
+over rounds, not jointly optimal). Pair costs (:func:`mre_pair_costs`): the criterion of
+Ramdaras eq. 23 with the sensor's expected update, so ``C <= c0`` (round-off clipped). A beam
+holds its target only with probability :func:`beam_coverage`, lowered after looks that found
+nothing (:func:`coverage_after_misses`; the tracker does not move a track away from where a
+beam saw nothing). Baselines: :func:`random_assignment`, :func:`nearest_assignment`.
 """
 
 from __future__ import annotations
@@ -83,17 +66,12 @@ def beam_coverage(
 
 
 def coverage_after_misses(coverage: ArrayLike, miss_factor: ArrayLike) -> np.ndarray:
-    """The probability c' that the target lies in the beam after unsuccessful looks there,
-    by Bayes' rule: P(in | m misses) = c M / (c M + (1 - c)), a miss being certain when the
-    target is outside the beam and of probability 1 - pd_look inside it (the posterior
-    probability of containment after an unsuccessful search, Stone, *Theory of Optimal
-    Search*, 1975; the "negative information" of Koch 2004; the IPDA existence update after an
-    empty gate, Musicki, Evans & Stankovic 1994, has the same form)::
+    """The probability that the target lies in the beam after unsuccessful looks (Bayes' rule:
+    Stone, *Theory of Optimal Search*, 1975; the IPDA existence update has the same form)::
 
         c' = c M / (c M + 1 - c),    M = prod over the looks of (1 - pd_look)
 
-    ``coverage`` c in [0, 1] (:func:`beam_coverage`), ``miss_factor`` M in [0, 1] (1: no
-    unsuccessful look); broadcast, returns their shape."""
+    ``coverage`` c and ``miss_factor`` M in [0, 1] broadcast."""
     c = np.asarray(coverage, dtype=float)
     M = np.asarray(miss_factor, dtype=float)
     if not (np.all((c >= 0.0) & (c <= 1.0)) and np.all((M >= 0.0) & (M <= 1.0))):

@@ -1,18 +1,13 @@
-"""Beta-cautious greedy localisation with an infinite-line (ambiguous bearing) sensor.
+"""Beta-cautious greedy localisation with an infinite-line (ambiguous bearing) sensor (Vander
+Hook, Tokekar, Isler (003), sec. II-III, Algorithm 1).
 
-Vander Hook, Tokekar, Isler (003), sec. II-III, Algorithm 1. The target is stationary and
-its position estimate is a 2-D Gaussian N(x_hat, P). The sensor measures the bearing only
-modulo pi, so every measurement has two candidate bearings, z and z + pi; the EKF takes the
-more likely one, which is wrong when the target lies *behind* the sensor (eq. 2). A
-beta-cautious strategy keeps that probability below beta by measuring from far enough away
-(eq. 3), and greedily reduces the larger eigenvalue of P by measuring perpendicular to the
-major axis (Lemma 2), from the closer of the two candidate points (Algorithm 1, line 7).
-
-Shapes: positions ``(..., 2)``; covariances ``(..., 2, 2)``; bearings and ranges ``(...)``.
-All functions are batched over the leading axes (used for whole Monte Carlo batches at
-once). :class:`CautiousPlanner` is the single-target entry point for the ROS planner node: after
-each processed measurement call ``next_action(mean, cov, robot_position)``, drive to the
-returned waypoint, stop ``t_m`` seconds and measure; ``done`` ends the localisation.
+The target is stationary, its estimate N(x_hat, P) in 2-D. The sensor measures the bearing
+modulo pi; the EKF takes the more likely of z and z + pi, wrong when the target lies behind
+the sensor (eq. 2). Measuring from far enough away keeps that probability below beta (eq. 3);
+measuring perpendicular to the major axis of P reduces its larger eigenvalue (Lemma 2), from
+the closer of the two candidate points (line 7). Positions ``(..., 2)``, covariances ``(...,
+2, 2)``, all batched. :class:`CautiousPlanner`: after each measurement ``next_action(mean,
+cov, robot_position)`` gives the waypoint to measure from (``t_m`` s stop); ``done`` ends it.
 """
 
 from __future__ import annotations
@@ -56,15 +51,13 @@ TAILS = ("two_sided", "one_sided")
 
 
 def sigma_beta(beta: float, tail: str = "two_sided") -> float:
-    """Largest innovation standard deviation that is beta-cautious (line after eq. 3).
+    """Largest beta-cautious innovation standard deviation (line after eq. 3), radians.
 
-    ``tail="two_sided"`` (the printed formula): sigma_beta = pi / (2 Phi^-1(1 - beta / 2)), so a
-    zero-mean Gaussian innovation exceeds |pi/2| (target behind the sensor, eq. 2) with
-    probability beta; beta in (0, 1). Algorithm 1 line 1 prints the left side as sigma_beta^2;
-    the text after eq. 3 and the tail argument give sigma_beta, which we use.
-    ``tail="one_sided"``: pi / (2 Phi^-1(1 - beta)), beta in (0, 0.5] (inf at 0.5: no caution).
-    The paper's Table I simulations are reproduced by this variant (docs/vanderhook.md).
-    Radians.
+    ``tail="two_sided"`` (as printed): pi / (2 Phi^-1(1 - beta / 2)), the probability beta that
+    a zero-mean Gaussian innovation exceeds |pi/2| (target behind the sensor, eq. 2), beta in
+    (0, 1); Algorithm 1 line 1 prints sigma_beta^2, the text and the tail argument give
+    sigma_beta. ``"one_sided"``: pi / (2 Phi^-1(1 - beta)), beta in (0, 0.5] (inf at 0.5), the
+    variant that reproduces Table I (docs/vanderhook.md).
     """
     if tail == "two_sided":
         beta = require_in_range("beta", beta, 0.0, 1.0, lo_inclusive=False, hi_inclusive=False)
@@ -78,12 +71,9 @@ def sigma_beta(beta: float, tail: str = "two_sided") -> float:
 
 
 def caution_gamma(beta: float, sigma_s: float, tail: str = "two_sided") -> float:
-    """gamma = sigma_beta^2 / sigma_s^2 (Lemma 4): the variance reduction of one cautious step
-    (may be inf: one-sided beta = 0.5 puts no bound on the range).
-
-    Raises ValueError unless gamma > 1 (the paper assumes sigma_beta > sigma_s: otherwise the
-    sensor is too noisy to be beta-cautious at any range).
-    """
+    """gamma = sigma_beta^2 / sigma_s^2 (Lemma 4), one cautious step's variance reduction (inf
+    for one-sided beta = 0.5). ValueError unless gamma > 1 (else the sensor is too noisy to be
+    beta-cautious at any range)."""
     sigma_s = require_positive("sigma_s", sigma_s)
     sb = sigma_beta(beta, tail)
     if not sb > sigma_s:
@@ -95,11 +85,8 @@ def caution_gamma(beta: float, sigma_s: float, tail: str = "two_sided") -> float
 
 
 def principal_axes(P: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """Eigen-decomposition of ``P (..., 2, 2)`` sorted largest first.
-
-    Returns ``(variances (..., 2), major (..., 2))``: sigma^2(1) >= sigma^2(2) and the unit
-    eigenvector of sigma^2(1) (003 sec. II notation).
-    """
+    """``(variances (..., 2), major (..., 2))`` of ``P (..., 2, 2)``: sigma^2(1) >= sigma^2(2)
+    and the unit eigenvector of sigma^2(1) (003 sec. II notation)."""
     w, V = np.linalg.eigh(symmetrize(P))
     return w[..., ::-1], V[..., :, 1]
 
@@ -128,11 +115,9 @@ def measurement_waypoint(
 ) -> np.ndarray:
     """Next sensing location s_i (Algorithm 1, lines 5-7), ``(..., 2)``.
 
-    The two cautious points lie at range r from x_hat on the line through x_hat perpendicular
-    to the major axis (alpha = +-pi/2); the one closer to the robot is returned. For a circular
-    P (eigenvalues equal to ``tie_rtol``) every direction is a major axis, so we take the one
-    perpendicular to the robot's direction: the waypoint is then on the segment toward the
-    robot, the closest cautious point of all.
+    Of the two points at range r from x_hat perpendicular to the major axis, the one closer to
+    the robot. For a circular P (eigenvalues equal to ``tie_rtol``) the axis perpendicular to
+    the robot's direction: the waypoint on the segment toward the robot, the closest of all.
 
     x_hat, robot: ``(..., 2)``; P: ``(..., 2, 2)``; r: ``(...)`` >= 0.
     """
@@ -154,11 +139,8 @@ def measurement_waypoint(
 
 @dataclass(frozen=True)
 class AmbiguousUpdate:
-    """Result of :func:`ambiguous_bearing_update` (all batched like the inputs).
-
-    mean ``(..., 2)``, cov ``(..., 2, 2)``; innovation y ``(...)`` in [-pi/2, pi/2);
-    S ``(...)`` the innovation variance; bearing ``(...)`` the chosen full bearing in [-pi, pi).
-    """
+    """Result of :func:`ambiguous_bearing_update`: innovation y in [-pi/2, pi/2), its variance
+    S and the chosen full bearing in [-pi, pi), batched like the inputs."""
 
     mean: np.ndarray
     cov: np.ndarray
@@ -205,11 +187,8 @@ def ambiguous_bearing_update(
 
 
 def reduction_reached(P: ArrayLike, P0: ArrayLike, c_d: float) -> np.ndarray:
-    """Stopping rule of Algorithm 1 (negation of line 4), bool ``(...)``.
-
-    True once sigma(1) < c_d sigma_0(1) and sigma(2) < c_d sigma_0(2), the standard deviations
-    along the principal axes sorted largest first; P ``(..., 2, 2)``, P0 ``(2, 2)`` or batched.
-    """
+    """Stopping rule of Algorithm 1 (line 4 negated), bool ``(...)``: sigma(1) < c_d sigma_0(1)
+    and sigma(2) < c_d sigma_0(2) along the principal axes, largest first."""
     c_d = require_in_range("c_d", c_d, 0.0, 1.0, lo_inclusive=False, hi_inclusive=False)
     var, _ = principal_axes(P)
     var0, _ = principal_axes(P0)
@@ -217,11 +196,7 @@ def reduction_reached(P: ArrayLike, P0: ArrayLike, c_d: float) -> np.ndarray:
 
 
 def position_estimate(mean: ArrayLike, cov: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """The (x, y) block of an estimate given either as position (2,) or as pv (4,).
-
-    pv is (x, xdot, y, ydot) (core contract), so the position entries are 0 and 2.
-    Returns ``(mean (2,), cov (2, 2))``.
-    """
+    """``(mean (2,), cov (2, 2))`` of an estimate given as position (2,) or pv (4,)."""
     mean = require_finite("mean", mean)
     cov = require_finite("cov", cov)
     if mean.shape == (2,) and cov.shape == (2, 2):

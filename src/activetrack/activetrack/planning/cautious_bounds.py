@@ -1,19 +1,12 @@
-"""Time bounds of the beta-cautious strategy (Vander Hook, Tokekar, Isler (003), sec. IV).
-
-Distances are in metres and times in seconds with the paper's robot speed of 1 m/s, so a
-distance is also a travel time. ``sigma_s`` is in radians.
-
-- :func:`lemma4_measurements`: N_z = ceil(4 log_gamma(1 / c_d)) (Lemma 4, as printed).
-- :func:`alternating_measurements`: the exact count of Algorithm 1 for a circular prior,
-  2 ceil(2 log_gamma(1 / c_d)); it can exceed the printed N_z by one (see below).
-- :func:`distance_bound`: D_A (Lemma 5, eq. 4).
-- :func:`time_upper_bound`: T_ALG <= N_z t_m + D_A (Theorem 1, eq. 5).
-- :func:`time_lower_bound`: T_LB (Theorem 2, eq. 6), batched over true ranges.
-- :func:`cautious_schedule`: the deterministic ranges and covariances of Algorithm 1 from a
-  prior (the EKF covariance of a stationary target does not depend on the measured values),
-  and a travel bound that sums Lemma 5's per-leg argument exactly instead of in closed form.
-  Eq. 4's closed form drops the first term of the geometric series of ranges and is not a
-  bound for large gamma; see :func:`alternating_measurements` for N_z.
+"""Time bounds of the beta-cautious strategy (Vander Hook, Tokekar, Isler (003), sec. IV), in
+metres and seconds at the paper's robot speed of 1 m/s (a distance is a travel time);
+``sigma_s`` in radians: :func:`lemma4_measurements` (Lemma 4 as printed),
+:func:`alternating_measurements` (Algorithm 1's exact count for a circular prior, up to one
+more), :func:`distance_bound` (Lemma 5, eq. 4), :func:`time_upper_bound` (Theorem 1, eq. 5),
+:func:`time_lower_bound` (Theorem 2, eq. 6) and :func:`cautious_schedule` (Algorithm 1's
+deterministic ranges and covariances from a prior, with Lemma 5's argument summed term by term:
+eq. 4's closed form drops the first term of the geometric series and is not a bound for large
+gamma).
 """
 
 from __future__ import annotations

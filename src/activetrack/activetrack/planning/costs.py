@@ -1,18 +1,11 @@
-"""The PCRLB of one target over a planning horizon for the platforms' candidate manoeuvres
-(glue to ``activetrack.bounds``).
-
-A :class:`HorizonModel` holds what one platform's search at epoch k needs: the linear target
-dynamics (F, Q), the target samples at epochs k+1..k+R (Hernandez sec. 3.2: the prior, or the
-tracker's posterior for renewals, pushed through the dynamics) and the information the platforms
-that are *not* being optimised contribute at those epochs. Scoring candidates for the platform
-being optimised is then one batched PCRLB step (Hernandez eq. 3 with eq. 8-9)::
+"""The PCRLB of one target over a planning horizon for candidate manoeuvres (Hernandez eq. 3,
+8-9). :class:`HorizonModel` (a stage of :func:`activetrack.planning.horizons.search_horizon`)
+holds F, Q, the target samples at k+1..k+R (sec. 3.2) and the fixed platforms' information::
 
     J_{k+r} = (Q + F J_{k+r-1}^{-1} F^T)^{-1} + J_Z^fixed(k+r) + J_Z^platform(k+r; candidates)
 
-(a stage of :func:`activetrack.planning.horizons.search_horizon`; the objective takes a
-criterion of J^{-1}, :class:`activetrack.planning.objective.InformationTerm`).
-:class:`FleetInformation` keeps every platform's J_Z along its current path for the platform
-coordinator (:func:`activetrack.planning.multisensor.coordinate_platforms`).
+:class:`FleetInformation` keeps every platform's J_Z along its current path for
+:func:`activetrack.planning.multisensor.coordinate_platforms`.
 """
 
 from __future__ import annotations
@@ -70,19 +63,12 @@ class InformationCache:
 
 
 class HorizonModel:
-    """Batched PCRLB steps over epochs k+1..k+R of one target for the platform being optimised
-    (a :class:`activetrack.planning.horizons.HorizonStage`): the state is J ``(..., 1, 4, 4)``,
-    one track.
-
-    F, Q: ``(4, 4)`` target dynamics (eq. 2). samples: ``(R, M, 4)`` target samples at
-    k+1..k+R. fixed_information: ``(R, 4, 4)`` J_Z of all other platforms at those epochs.
-    sensors: the optimised platform's sensors.
-
-    ``cache``: an optional :class:`InformationCache` shared by the models of one platform within
-    a decision (the coordinate descent over platforms optimises a platform again with the
-    others' plans changed): the platform's own J_Z of a whole batch of candidate positions at an
-    epoch is computed once and looked up when the same batch comes again (same numbers: the J_Z
-    of a position does not depend on the other platforms).
+    """Batched PCRLB steps over k+1..k+R of one target for the optimised platform (a
+    :class:`HorizonStage`, state J ``(..., 1, 4, 4)``): F, Q ``(4, 4)`` (eq. 2), ``samples``
+    ``(R, M, 4)``, ``fixed_information`` ``(R, 4, 4)`` the other platforms' J_Z, ``sensors``
+    the platform's. ``cache``: an :class:`InformationCache` of the platform's own J_Z per batch
+    of candidates, shared within a decision (the coordinate descent searches a platform again;
+    its J_Z does not depend on the others).
     """
 
     def __init__(

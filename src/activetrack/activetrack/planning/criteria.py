@@ -1,17 +1,10 @@
 """The planner criteria: one registry, one vocabulary, for every planner and the scenario files.
 
-A criterion is the scalar a planner minimises: a function of a pv covariance ``P`` ``(..., 4,
-4)`` (a PCRLB bound J^{-1} or an MRE prediction, Ramdaras eq. 23) and, for some, of the
-predicted target state ``x`` ``(4,)``. Each entry says what it applies to:
-
-- ``"pcrlb"``: PCRLB manoeuvre planning (Hernandez sec. 3-4), the criterion of the bound at
-  every epoch of the horizon (scenario ``planner.criterion`` with ``planner.cost: pcrlb``);
-- ``"positioning"``: MRE sensor positioning (Ramdaras sec. 4), the criterion of eq. 23 for a
-  candidate platform position (``planner.criterion`` with ``planner.cost: mre``);
-- ``"selection"``: MRE sensor selection (Ramdaras sec. 3, eq. 27), the criterion of eq. 23 for
-  each sensor (``planner.selection.criterion``).
-
-Built in (the scenario files' names):
+A criterion is the scalar a planner minimises, of a pv covariance ``P`` ``(..., 4, 4)`` (a
+PCRLB J^{-1} or an MRE prediction, Ramdaras eq. 23) and for some of the predicted state ``x``
+``(4,)``. Uses: ``"pcrlb"`` (Hernandez sec. 3-4, ``planner.criterion`` with ``planner.cost:
+pcrlb``), ``"positioning"`` (Ramdaras sec. 4, with ``planner.cost: mre``), ``"selection"``
+(Ramdaras eq. 27, ``planner.selection.criterion``). Built in:
 
 | name | computed as | pcrlb | positioning | selection |
 |---|---|---|---|---|
@@ -21,11 +14,9 @@ Built in (the scenario files' names):
 | ``heading`` | Ramdaras eq. 25, H^c P H^c^T, H^c of eq. 26 at x | | yes | yes |
 | ``range``, ``doppler``, ``bearing`` | the same, other rows of eq. 26 | | yes | yes |
 
-:func:`register_criterion` adds one; the scenario schema, the PCRLB planner, MRE positioning
-and selection all look names up here (:func:`get_criterion`, :func:`criterion_names`), so a
-registered criterion is usable from a scenario file at once. A criterion that needs the target
-state cannot be used for PCRLB planning (the bound has no single predicted state).
-See docs/extending.md, "A planner criterion".
+:func:`register_criterion` adds one, usable from a scenario file at once (every planner and the
+schema look names up here). A criterion that needs the target state cannot serve PCRLB planning
+(the bound has no single predicted state). See docs/extending.md, "A planner criterion".
 """
 
 from __future__ import annotations
@@ -83,16 +74,11 @@ _NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
 
 @dataclass(frozen=True)
 class Criterion:
-    """One planner criterion.
-
-    name: the scenario files' name (lower case, digits, '_'). cost: ``cost(P, x)`` of pv
-    covariances ``(..., 4, 4) -> (...)``, x the predicted target pv ``(4,)`` (None when
-    ``needs_state`` is False and the caller has none). uses: a subset of ``USES``.
-    definition: how it is computed, with the paper's equation. information_cost: optional
-    faster form straight from information matrices J (default: ``cost(J^{-1}, None)``).
-    state_problem: optional check of the predicted target state, for the scenario's load-time
-    rules: a reason the criterion is undefined there (e.g. heading of a target at rest).
-    """
+    """One planner criterion: ``name`` (lower case, digits, '_'), ``cost(P, x)`` of pv
+    covariances ``(..., 4, 4) -> (...)`` (x the predicted pv, None when not ``needs_state``),
+    ``uses`` a subset of ``USES``, ``definition`` with the paper's equation, optional
+    ``information_cost`` from J directly (default ``cost(J^{-1}, None)``) and
+    ``state_problem``, why the criterion is undefined at a state (e.g. heading at rest)."""
 
     name: str
     cost: CovarianceCost

@@ -1,14 +1,8 @@
-"""The one planner: strategies composed into one decision per epoch.
-
-Every strategy implements :class:`PlannerStrategy`, one method: ``decide(context) ->
-DecisionPart``. :class:`Planner` runs its strategies in order; each sees the epoch's inputs
-(the tracker's output, every platform's state) and what the strategies before it decided
-(``context.so_far``: planned positions, the MRE prediction, the selection) and adds its part:
-commands, beam pointings, planned platform positions at k+1, a selection, a plan report, cost
-evaluations, extra data. The strategies (:mod:`activetrack.planning.strategies`,
-:mod:`activetrack.planning.across_targets`) take built objects, never a scenario; the builder
-(:func:`activetrack.closed_loop.components.build_planner`) composes them from a scenario's
-``planner`` section.
+"""The one planner: :class:`Planner` runs its :class:`PlannerStrategy` objects in order, each
+``decide(context) -> DecisionPart`` seeing the epoch's tracks and platforms and what the
+strategies before it decided (``context.so_far``), and adding commands, beams, planned
+positions, a selection, a report, evaluations or extra data. Strategies take built objects;
+:func:`activetrack.closed_loop.components.build_planner` composes them from a scenario.
 """
 
 from __future__ import annotations

@@ -1,32 +1,18 @@
-"""The horizon search: one platform's best R-leg manoeuvre sequence for an objective, the other
-platforms' manoeuvres fixed (Hernandez sec. 3.3-4, eq. 11-16; Ramdaras sec. 7's multi-step
-positioning). Every planner that steers a platform uses it.
+"""The horizon search: one platform's best R-leg manoeuvre sequence for an objective, the
+other platforms' fixed (Hernandez sec. 3.3-4, eq. 11-16; Ramdaras sec. 7). A stage
+(:class:`HorizonStage`) says how a candidate changes the state at each leg (e.g. J by Hernandez
+eq. 3, :class:`activetrack.planning.costs.HorizonModel`, or P by Ramdaras eq. 23,
+:class:`activetrack.planning.selection.MreStage`); the objective
+(:class:`activetrack.planning.objective.Objective`) what those states cost.
 
-Two objects say what is searched:
+Searches (:class:`SearchSettings`, over :mod:`activetrack.planning.manoeuvre`'s unit square):
+single step (eq. 11); lockstep grid, quadrant or sector searches nested one per leg, the
+dynamic programme of eq. 13-16, the inner searches of all outer candidates batched and each
+J_prev's share (:meth:`HorizonStage.prepare`) done once; ``"evolution"``, differential evolution
+over all R manoeuvres (eq. 16, sec. 3.3.4) seeded with "hold course".
 
-- a stage (:class:`HorizonStage`): how a candidate manoeuvre changes the state at each leg, e.g.
-  the PCRLB information J by Hernandez eq. 3 (:class:`activetrack.planning.costs.HorizonModel`)
-  or the MRE covariance by Ramdaras eq. 23 (:class:`activetrack.planning.selection.MreStage`),
-  one per track;
-- the objective (:class:`activetrack.planning.objective.Objective`): what those states cost,
-  summed over the legs or after the last.
-
-The searches (:class:`SearchSettings`, over the manoeuvre parametrisation of
-:mod:`activetrack.planning.manoeuvre`):
-
-- Single step (eq. 11): a_k = argmin cost(state_{k+1}).
-- Lockstep searches (grid, quadrant, sector) nest one search per leg, the dynamic programme of
-  eq. 13-15: for each candidate a_k the inner search finds a_{k+1} | a_k, and a_k minimises its
-  own cost plus the inner optimum; the same recursion nests for any R (eq. 16). The inner
-  searches of all outer candidates of a search stage run in lockstep (one batched stage call per
-  search stage and level), and each J_prev's share of the work (:meth:`HorizonStage.prepare`)
-  is done once for all its candidates.
-- ``"evolution"``: differential evolution over all R manoeuvres at once (eq. 16, sec. 3.3.4),
-  seeded with "hold course", drawing from the caller's generator.
-
-Every candidate state a leg produces counts as one cost evaluation. Manoeuvres are returned
-physically, ``(R, 2)`` rows of (dpsi, v'); only the first is flown (receding horizon), the rest
-is the plan the objective assumed.
+Every candidate state counts as one cost evaluation. Returns ``(R, 2)`` rows of (dpsi, v');
+only the first is flown (receding horizon).
 """
 
 from __future__ import annotations

@@ -1,19 +1,13 @@
 """Platform manoeuvre model of Hernandez sec. 3.3.1 and 5.1.
 
-At each decision epoch k a platform turns instantly by ``dpsi`` in [-dpsi_max, dpsi_max] and
-sets a new speed ``v'`` in [max(v_min, v - dv_max), min(v_max, v + dv_max)], then flies a
-constant-velocity leg of T seconds to epoch k+1. The set of positions it can reach at k+1 is an
-annular sector; the searches explore it through the unit square u = (u_psi, u_v) in [0, 1]^2:
+At epoch k a platform turns by ``dpsi`` in [-dpsi_max, dpsi_max], sets a speed ``v'`` in
+[max(v_min, v - dv_max), min(v_max, v + dv_max)] and flies a constant-velocity leg of T s. The
+searches explore the reachable annular sector through the unit square u in [0, 1]^2::
 
     dpsi = (2 u_psi - 1) dpsi_max,    v' = v_lo + u_v (v_hi - v_lo)
 
-so u = (0.5, .) is "straight ahead". Ramdaras' limits (sec. 5: longitudinal acceleration a_max,
-heading rate psi_rate_max) enter as dv_max = a_max T and dpsi_max = psi_rate_max T
-(``activetrack.scenarios.build.platform_limits``).
-
-Manoeuvres are stored physically as ``(dpsi, v')`` pairs, shape ``(..., 2)``. A
-:class:`PlannerPlatform` is a platform at the decision epoch (pv, sensors, limits), as every
-planner takes it.
+(u = (0.5, .) is straight ahead). Ramdaras' limits (sec. 5) enter as dv_max = a_max T,
+dpsi_max = psi_rate_max T. Manoeuvres are stored as ``(dpsi, v')``, ``(..., 2)``.
 """
 
 from __future__ import annotations
@@ -68,11 +62,9 @@ class PlatformLimits:
 
 
 def speed_interval(speed: ArrayLike, limits: PlatformLimits) -> tuple[FloatArray, FloatArray]:
-    """Reachable new speeds [v_lo, v_hi] from ``speed`` ``(...)``.
+    """Reachable speeds [max(v_min, v - dv_max), min(v_max, v + dv_max)] from ``speed``
+    ``(...)``; a speed outside [v_min, v_max] comes back as far as dv_max allows."""
 
-    v_lo = max(v_min, v - dv_max), v_hi = min(v_max, v + dv_max); a speed outside
-    [v_min, v_max] is first brought back as far as dv_max allows (the interval never inverts).
-    """
     v = np.asarray(speed, dtype=float)
     lo = np.clip(v - limits.dv_max, limits.v_min, limits.v_max)
     hi = np.clip(v + limits.dv_max, limits.v_min, limits.v_max)
@@ -80,10 +72,8 @@ def speed_interval(speed: ArrayLike, limits: PlatformLimits) -> tuple[FloatArray
 
 
 def unit_to_manoeuvre(u: ArrayLike, speed: ArrayLike, limits: PlatformLimits) -> FloatArray:
-    """Map unit-square points ``u`` ``(..., 2)`` to manoeuvres (dpsi, v') ``(..., 2)``.
-
-    ``speed`` ``(...)`` is the platform speed before the manoeuvre (broadcasts against u).
-    """
+    """Unit-square points ``u`` ``(..., 2)`` to manoeuvres (dpsi, v') ``(..., 2)`` from the
+    speed before the manoeuvre ``(...)``."""
     u = np.asarray(u, dtype=float)
     lo, hi = speed_interval(speed, limits)
     dpsi = (2.0 * u[..., 0] - 1.0) * limits.dpsi_max
@@ -104,11 +94,8 @@ def manoeuvre_to_unit(manoeuvre: ArrayLike, speed: ArrayLike, limits: PlatformLi
 def step_platform(
     pv: ArrayLike, heading: ArrayLike, manoeuvre: ArrayLike, dt: float
 ) -> tuple[FloatArray, FloatArray]:
-    """Apply manoeuvres (dpsi, v') at epoch k and fly the constant-velocity leg to k+1.
-
-    pv ``(..., 4)``, heading ``(...)`` and manoeuvre ``(..., 2)`` broadcast together.
-    Returns pv at k+1 ``(..., 4)`` (velocity = the new leg's velocity) and the new heading.
-    """
+    """pv ``(..., 4)`` at k+1 and the new heading after manoeuvres (dpsi, v') ``(..., 2)`` and a
+    constant-velocity leg; pv, heading ``(...)`` and manoeuvre broadcast."""
     pv = np.asarray(pv, dtype=float)
     m = np.asarray(manoeuvre, dtype=float)
     psi = wrap_angle(np.asarray(heading, dtype=float) + m[..., 0])
@@ -122,10 +109,7 @@ def step_platform(
 def rollout(
     pv: ArrayLike, heading: ArrayLike, manoeuvres: ArrayLike, dt: float
 ) -> tuple[FloatArray, FloatArray]:
-    """Platform pv and heading at epochs k+1..k+R for manoeuvre sequences ``(..., R, 2)``.
-
-    Returns pv ``(..., R, 4)`` and headings ``(..., R)``.
-    """
+    """pv ``(..., R, 4)`` and headings ``(..., R)`` at k+1..k+R for manoeuvres ``(..., R, 2)``."""
     m = np.asarray(manoeuvres, dtype=float)
     pvs, headings = [], []
     p, h = np.asarray(pv, dtype=float), np.asarray(heading, dtype=float)
@@ -152,11 +136,8 @@ def hold_course(speed: float, limits: PlatformLimits, steps: int) -> FloatArray:
 
 @dataclass(frozen=True)
 class PlannerPlatform:
-    """A platform at the decision epoch. ``limits=None``: not controllable (holds course).
-
-    heading (rad from +x) and speed default to those of the pv velocity; give heading
-    explicitly for a platform at rest.
-    """
+    """A platform at the decision epoch; ``limits=None``: it holds course. heading (rad from
+    +x) and speed default to the pv velocity's (give heading for a platform at rest)."""
 
     platform_id: str
     pv: np.ndarray

@@ -1,13 +1,8 @@
 """Several platforms: optimise each in turn given the others' current plans (Hernandez
-sec. 4.1), until no platform changes its plan or ``max_iterations`` passes (footnote 4: 10).
-
-Each platform's plan covers the whole horizon; while platform j is optimised the others fly
-their current plans (their later manoeuvres included), so with two-step planning only the
-platform being optimised re-plans its second step. A platform is searched again only when
-another one changed its plan since its last search (a deterministic search would return the
-same plan). Platforms without limits are not controllable and hold course. Every planner that
-steers platforms coordinates them here: what the others' paths mean for platform j's search is
-the caller's :class:`PlatformStages`.
+sec. 4.1), until no plan changes or ``max_iterations`` passes (footnote 4: 10). The others fly
+their whole current plans; a platform is searched again only when another changed its plan
+since (the search is deterministic). Platforms without limits hold course. What the others'
+paths mean for platform j's search is the caller's :class:`PlatformStages`.
 """
 
 from __future__ import annotations

@@ -1,20 +1,13 @@
-"""The planning objective: a weighted sum of terms, each a cost of the states along the horizon.
+"""The planning objective: a weighted sum of terms, each a cost of the states along the
+horizon (J of Hernandez eq. 3 or P of Ramdaras eq. 23, one per track)::
 
-A horizon search (:mod:`activetrack.planning.horizons`) advances a state leg by leg (the PCRLB
-information J of Hernandez eq. 3, the MRE covariance P of Ramdaras eq. 23, one per track) and
-asks the objective what each leg costs::
+    V = sum_i w_i V_i,  V_i = sum_{r=1..R} g_i(state_{k+r})   (legs "sum": Hernandez eq. 11, 15-16)
+                        V_i = g_i(state_{k+R})                 (legs "final")
 
-    V(a_k, .., a_{k+R-1}) = sum_i w_i V_i,
-    V_i = sum_{r=1..R} g_i(state_{k+r})        (legs "sum": Hernandez eq. 11, 15-16)
-    V_i = g_i(state_{k+R})                     (legs "final": the terminal cost)
-
-A term is anything with ``weight``, ``legs`` and ``cost(state, level) -> (...)`` (the cost
-g_i of states ``(..., <stage's trailing axes>)`` reached by leg ``level``, 0-based), so a new
-one (track existence, coverage of unseen space, search) plugs in here without touching the
-search or the platform coordinator. The built-in terms take a criterion
-(:mod:`activetrack.planning.criteria`) of each track's state, ``(..., T, 4, 4)``, and combine
-the tracks by :class:`TrackAggregate`: the worst track, or the tracks' priority-weighted sum.
-One target is one track (T = 1).
+A term is anything with ``weight``, ``legs`` and ``cost(state, level) -> (...)`` (level
+0-based), so a new one plugs in without touching the search or the coordinator. The built-in
+terms take a criterion of each track's state ``(..., T, 4, 4)`` and combine the tracks by
+:class:`TrackAggregate` (worst, or priority-weighted sum); one target is T = 1.
 """
 
 from __future__ import annotations

@@ -23,7 +23,6 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -44,9 +43,6 @@ from activetrack.planning.horizons import SearchSettings
 from activetrack.planning.manoeuvre import PlannerPlatform
 from activetrack.planning.multisensor import coordinate_platforms
 from activetrack.planning.objective import InformationTerm, Objective
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = [
     "PlanReport",

@@ -1,26 +1,19 @@
 """Searches over the reachable region (the unit square of ``manoeuvre.unit_to_manoeuvre``).
 
-Every search minimises B independent problems in lockstep, so that a two-step dynamic
-programme can run the inner searches of all outer candidates together. The cost function is
+Every search minimises B independent problems in lockstep (so a dynamic programme runs the
+inner searches of all outer candidates together) with ``cost_fn(rows, u) -> costs`` or
+``(costs, aux)``: ``rows`` ``(b,)`` the problems still searching, ``u`` ``(b, C, 2)`` one
+stage's candidates, ``costs`` ``(b, C)``, ``aux`` ``(b, C, ...)`` a payload returned with each
+problem's best point.
 
-    cost_fn(rows, u) -> costs            or  -> (costs, aux)
-
-with ``rows`` ``(b,)`` the indices of the problems still searching, ``u`` ``(b, C, 2)`` the
-candidates of one search stage (scored in one vectorised call) and ``costs`` ``(b, C)``.
-``aux`` ``(b, C, ...)`` is an optional payload per candidate (e.g. the second-step plan a
-dynamic programme found for it); the search returns the payload of each problem's best point.
-
-- :func:`grid_search`: enumerative n x n grid (Hernandez sec. 4.2, 101 x 101).
-- :func:`quadrant_search`: Hernandez sec. 4.1: 9 points split the region into 4 quadrants; take
-  the quadrant with the lowest average corner cost and split it again (5 new points); stop after
-  ``divisions`` splits or ``patience`` splits without improvement; return the best point seen.
-  6 divisions cost at most 9 + 5 x 5 = 34 evaluations.
-- :func:`sector_search`: Ramdaras sec. 4: a 3 x 3 split into nine sectors (16 corners), take the
-  sector with the smallest summed corner cost and split it into nine again (12 new corners),
-  ``levels`` times; the answer is the centre of the last sector (one more evaluation). The
-  middle sector keeps "straight ahead" reachable.
-- :func:`evolution_search`: scipy's differential evolution over a D-dimensional unit cube
-  (the R-step planner, Hernandez eq. 16 and sec. 3.3.4); one problem, population vectorised.
+- :func:`grid_search`: n x n grid (Hernandez sec. 4.2, 101 x 101).
+- :func:`quadrant_search`: Hernandez sec. 4.1: split into 4 quadrants by 9 points, split the
+  one with the lowest mean corner cost again (5 new points), ``divisions`` times or until
+  ``patience`` splits without improvement (6 divisions: at most 34 evaluations).
+- :func:`sector_search`: Ramdaras sec. 4: nine sectors (16 corners), split the one with the
+  smallest summed corner cost (12 new corners) ``levels`` times, answer its centre.
+- :func:`evolution_search`: scipy's differential evolution over the unit cube (Hernandez eq.
+  16, sec. 3.3.4); one problem, population vectorised.
 """
 
 from __future__ import annotations
@@ -138,11 +131,9 @@ def quadrant_search(
 ) -> SearchResult:
     """Hernandez's efficient search (sec. 4.1, Fig. 1), B problems in lockstep.
 
-    Each problem holds a square (origin, side) and the costs of its 3 x 3 points; division 1
-    evaluates all 9, later divisions the 5 points that are new in the chosen quadrant. The
-    The bookkeeping between divisions is compiled (``planning._kernels``) where
-    ``kernels.kernels_enabled()``, else numpy: the same comparisons and arithmetic, so the same
-    decisions (tested).
+    Each problem holds a square and its 3 x 3 points' costs; division 1 evaluates all 9, later
+    ones the 5 new points of the chosen quadrant. The bookkeeping is compiled
+    (``planning._kernels``) when kernels are enabled, with the same decisions (tested).
     """
     B = _check_problems(n_problems)
     if isinstance(divisions, bool) or int(divisions) != divisions or divisions < 1:

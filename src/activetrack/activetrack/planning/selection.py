@@ -1,33 +1,24 @@
 """Sensor positioning and selection with the modified Riccati equation (Ramdaras et al. 2010).
 
-Both steps score a sensor at a (candidate) position by the expected covariance one step ahead,
-Ramdaras eq. 23 (:func:`activetrack.bounds.mre.mre_predict`)::
+Both score a sensor at a (candidate) position by a criterion (:mod:`activetrack.planning.
+criteria`: eq. 24-26) of the expected covariance one step ahead, eq. 23
+(:func:`activetrack.bounds.mre.mre_predict`)::
 
     P^(j)_{k+1|k} = F [(1 - pd_j) P_{k|k-1} + pd_j P^(j)_{k|k}] F^T + Q
 
-with P_{k|k-1} the predicted covariance of the epoch being planned and H_j (eq. 13) at the
-predicted target state x_{k|k-1} and the sensor's planned position (a :class:`TargetPrediction`
-holds both and F, Q), and by a criterion on it (:mod:`activetrack.planning.criteria`, those
-that apply to MRE positioning or selection): the position determinant (eq. 24) or H^c P H^c^T
-for heading, range, Doppler or bearing (eq. 25-26, geometry relative to the origin as printed
-in eq. 26).
+with H_j (eq. 13) at the predicted state and the sensor's planned position
+(:class:`TargetPrediction`).
 
-- Positioning (sec. 4, Fig. 4-6): :func:`position_platform`: each controllable platform
-  independently searches its reachable envelope (the unit square of
-  :mod:`activetrack.planning.manoeuvre`) with the nine-sector search (``d_max`` = levels); the
-  cost of a candidate position is the criterion of eq. 23 with all of the platform's sensors
-  there; several epochs ahead (sec. 7's future work): :func:`plan_positions`, eq. 23 iterated
-  over R legs with the constant-velocity prediction of the target (:class:`MreStage`). Both are
-  the horizon search of every planner (:func:`activetrack.planning.horizons.search_horizon`,
-  nested searches, one per leg) with the criterion as the objective.
-- Selection (sec. 3, eq. 27): :func:`select_by_criterion`, j = argmin_j C^(j) over every sensor
-  at its planned position. Baselines (Ramdaras and Absil 2007a): :func:`select_random` (the
-  caller's generator), :func:`select_fixed`, and :func:`select_by_trace`, the trace of the
-  Kalman-updated covariance P^(j)_{k|k} (eq. 22, pd ignored: the classic covariance-control
-  rule that the MRE improves on when pd < 1). ``count`` > 1 selects greedily: each pick is
-  folded into P_{k|k-1} (pd-weighted for eq. 27) before scoring the rest.
+- Positioning (sec. 4): :func:`position_platform`, each controllable platform searching its
+  reachable envelope with the nine-sector search; over R legs (sec. 7's future work)
+  :func:`plan_positions` with :class:`MreStage`; both through
+  :func:`activetrack.planning.horizons.search_horizon`.
+- Selection (sec. 3, eq. 27): :func:`select_by_criterion` over every sensor; baselines
+  (Ramdaras and Absil 2007a) :func:`select_random`, :func:`select_fixed` and
+  :func:`select_by_trace` (trace of P^(j)_{k|k}, eq. 22, pd ignored). ``count`` > 1 selects
+  greedily, each pick folded into P_{k|k-1} (pd-weighted) before scoring the rest.
 
-Shapes: pv states ``(4,)``, covariances ``(4, 4)``; candidates are batched ``(..., 4)``.
+Shapes: pv states ``(4,)``, covariances ``(4, 4)``; candidates batched ``(..., 4)``.
 """
 
 from __future__ import annotations
@@ -127,12 +118,9 @@ def expected_update(
     use_pd: bool = True,
     detection: ArrayLike | None = None,
 ) -> np.ndarray:
-    """Expected updated covariance after sensors ``(S,)`` at pvs ``(S, 4)``, applied in turn:
-    (1 - pd) P + pd P_{k|k} (the bracket of eq. 23); ``use_pd=False``: the Kalman update, eq. 22.
-
-    ``detection`` ``(S,)`` in [0, 1] replaces each sensor's pd (e.g. the information reduction
-    factor q of a sensor in clutter, :mod:`activetrack.models.irf`, times a field-of-view
-    indicator). Inside a sensor's [r_min, r_max] gap the detection probability is 0 (no update).
+    """Expected covariance after sensors ``(S,)`` at pvs ``(S, 4)`` in turn: (1 - pd) P + pd
+    P_{k|k} (eq. 23's bracket; ``use_pd=False``: eq. 22). ``detection`` ``(S,)`` replaces pd
+    (e.g. an IRF times a field-of-view indicator); outside [r_min, r_max] there is no update.
     """
     P, x = _check_inputs(P_pred, x_pred)
     pvs = require_finite("sensor_pvs", np.asarray(sensor_pvs, dtype=float).reshape(-1, 4))
@@ -169,11 +157,8 @@ def sensor_costs(
     sensor_pvs: ArrayLike,
     criterion: str,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """C^(j) for each sensor at its pv: ``(costs (S,), expected covariances (S, 4, 4))``.
-
-    MRE eq. 23 then the criterion (eq. 24-26). Sensors differ in dim_z, so this loops over the
-    S sensors (a handful), each call batched over nothing more.
-    """
+    """C^(j) (eq. 23 then the criterion, eq. 24-26) of each sensor at its pv: ``(costs (S,),
+    expected covariances (S, 4, 4))``."""
     crit = _mre_criterion(criterion)
     pvs = _sensor_rows(sensors, sensor_pvs)
     p = prediction
@@ -345,12 +330,9 @@ def position_platform(
     """Ramdaras sec. 4: the controllable ``platform``'s next position minimising the MRE
     criterion (``horizon`` >= 2: :func:`plan_positions`, the first of R manoeuvres).
 
-    The reachable envelope (heading change +-dpsi_max, speed in [v_lo, v_hi], from the
-    platform's heading, speed and limits) is searched by ``search`` (``"sector"``: nine sectors,
-    ``sector_levels`` = d_max; ``"quadrant"``, ``"grid"`` for comparison). A candidate's cost is
-    eq. 23 with all the platform's sensors at the candidate pv (sequential updates), then
-    ``criterion``. Candidates of a stage are scored in one batched
-    :func:`activetrack.bounds.mre.mre_update` call per sensor.
+    The reachable envelope is searched by ``search`` (``"sector"``: ``sector_levels`` = d_max;
+    ``"quadrant"``, ``"grid"`` for comparison); a candidate's cost is eq. 23 with all the
+    platform's sensors there in turn, then ``criterion``.
     """
     return plan_positions(
         platform, prediction, dt, criterion=criterion, search=search, horizon=horizon
@@ -370,15 +352,10 @@ def _positioning_limits(platform: PlannerPlatform, search: SearchSettings) -> Pl
 
 @dataclass(frozen=True)
 class MreStage:
-    """One platform's sensors over R legs of eq. 23 (a :class:`activetrack.planning.horizons.
-    HorizonStage`) for one target.
-
-    The state is P_{k+1+r|k+r} ``(..., 1, 4, 4)`` (one track): at leg r the platform's sensors
-    update it in turn at the constant-velocity prediction x_{k+1+r|k} = F^r x_{k+1|k} (``x``
-    ``(R, 4)``, zero-mean innovations, as :func:`activetrack.bounds.mre.mre_recursion`), then
-    eq. 23 predicts one interval on. With R = 1 and the criterion of that
-    (:class:`activetrack.planning.objective.CovarianceTerm`) this is the one-step positioning's
-    cost, operation for operation."""
+    """One platform's sensors over R legs of eq. 23 for one target (a :class:`HorizonStage`):
+    P_{k+1+r|k+r} ``(..., 1, 4, 4)``, updated by the sensors in turn at the CV prediction
+    x_{k+1+r|k} = F^r x_{k+1|k} (``x`` ``(R, 4)``), then predicted one interval. R = 1 is the
+    one-step positioning's cost, operation for operation."""
 
     sensors: tuple[SensorModel, ...]
     x: np.ndarray
@@ -406,19 +383,13 @@ def plan_positions(
     search: SearchSettings = DEFAULT_POSITIONING_SEARCH,
     horizon: int = 2,
 ) -> PositioningResult:
-    """Multi-step MRE positioning (Ramdaras sec. 7, future work): the controllable
-    ``platform``'s manoeuvres over R = ``horizon`` legs minimising ``criterion`` of the MRE
-    covariance after the last leg, P_{k+R+1|k+R} of eq. 23 iterated along the platform's path
-    with the constant-velocity prediction of the target (:class:`MreStage`), by
-    :func:`activetrack.planning.horizons.search_horizon`. The first manoeuvre is flown
-    (receding horizon).
-
-    The objective is the criterion after leg R, not the sum over the legs: the covariance at
-    k+R already holds every expected update along the path, so a sum would count the early
-    legs' gains again and pull the plan towards the greedy one-step choice; the terminal cost
-    is what looking further ahead is for (e.g. a bearing sensor crossing the line of sight over
-    several legs). With R = 1 it is :func:`position_platform`'s cost and choice.
+    """Multi-step MRE positioning (Ramdaras sec. 7, future work): ``platform``'s R-leg
+    manoeuvres minimising ``criterion`` of P_{k+R+1|k+R} (:class:`MreStage`); the first is
+    flown. The cost is after leg R, not summed over the legs: the covariance at k+R already
+    holds every update along the path, so a sum would count the early gains again and pull
+    towards the greedy one-step choice. R = 1 is :func:`position_platform`.
     """
+
     R = check_horizon(horizon)
     _positioning_limits(platform, search)
     crit = _mre_criterion(criterion)

@@ -1,22 +1,13 @@
-"""Planner strategies of the papers: the parts a one-target decision is composed of
-(:class:`activetrack.planning.decision.Planner` runs them in order; planning across targets
-is :mod:`activetrack.planning.across_targets`).
-
-- :class:`HoldCourse`: hold course and speed (planner off);
-- :class:`PcrlbPlanning`: manoeuvres minimising a PCRLB criterion (Hernandez sec. 3-4);
-- :class:`CautiousLocalisation`: stop-and-measure waypoints (Vander Hook et al., Alg. 1);
-- :class:`MrePrediction`: x_{k+1|k}, P_{k+1|k} for the MRE strategies after it (Ramdaras
-  Fig. 5);
-- :class:`MrePositioning`: each controllable platform's next position (Ramdaras sec. 4);
-- :class:`MreSelection`: the sensors minimising the criterion of eq. 23 (Ramdaras eq. 27);
-  baselines :class:`TraceSelection`, :class:`RandomSelection`, :class:`FixedSelection`
-  (Ramdaras and Absil 2007a);
-- :class:`MreOutlook`: the MRE plan report, eq. 23 with the chosen sensors.
-
-Each takes built objects (settings, dynamics, sensors, platforms' limits): the builder
-(:func:`activetrack.closed_loop.components.build_planner`) makes them from a scenario.
-Criteria are looked up in :mod:`activetrack.planning.criteria`. Only :class:`PcrlbPlanning`
-and :class:`RandomSelection` draw random numbers, from the planner's generator, in that order.
+"""Planner strategies of the papers, run in order by
+:class:`activetrack.planning.decision.Planner`: :class:`HoldCourse` (planner off),
+:class:`PcrlbPlanning` (Hernandez sec. 3-4), :class:`CautiousLocalisation` (Vander Hook et al.,
+Alg. 1), :class:`MrePrediction` (x_{k+1|k}, P_{k+1|k}, Ramdaras Fig. 5),
+:class:`MrePositioning` (sec. 4), :class:`MreSelection` (eq. 27) and baselines
+:class:`TraceSelection`, :class:`RandomSelection`, :class:`FixedSelection` (Ramdaras and Absil
+2007a), :class:`MreOutlook` (the MRE plan report). They take built objects
+(:func:`activetrack.closed_loop.components.build_planner` makes them). Only
+:class:`PcrlbPlanning` and :class:`RandomSelection` draw, from the planner's generator, in that
+order.
 """
 
 from __future__ import annotations

@@ -1,20 +1,13 @@
-"""The scenario file schema (YAML): its sections as pydantic classes.
+"""The scenario file schema (YAML): its sections as pydantic classes, one schema for the batch
+loop, the experiments and the nodes. Units: m, s, rad; states pv (x, xdot, y, ydot) unless the
+motion model says otherwise.
 
-One schema for the batch loop, the experiment runners and the ROS nodes. Units: metres,
-seconds, radians. States are pv vectors (x, xdot, y, ydot) unless the motion model says
-otherwise.
-
-Unknown keys are errors (a typo must not silently fall back to a default). The classes check
-the shape of the file and the rules inside one section that need no component (ranges, sizes,
-matching dimensions, a covariance that is positive definite); sizes and magnitudes are bounded
-by :mod:`activetrack.limits`. The rules that ask the registries or the components (a filter or
-criterion name, the rules across sections) are :mod:`activetrack.scenarios.rules`, which the
-loader runs after these: a scenario is valid once :func:`activetrack.scenarios.load_scenario`,
-:func:`~activetrack.scenarios.parse_scenario` or :func:`~activetrack.scenarios.with_changes`
-returned it (``Scenario.model_validate`` alone checks the shape only).
-
-The sensor entries are the registered sensor kinds' configs (:mod:`.registry`); the built-in
-configs are below, registered with their sensor classes by :mod:`.build`.
+Unknown keys are errors (a typo must not fall back to a default). The classes check shape and
+the rules inside one section that need no component (ranges, sizes bounded by
+:mod:`activetrack.limits`, dimensions, positive definite covariances); the rules that ask
+registries or components are :mod:`activetrack.scenarios.rules`, run by the loader after these
+(``Scenario.model_validate`` alone checks the shape only). The sensor entries are the
+registered kinds' configs (:mod:`.registry`); the built-in ones are below.
 """
 
 from __future__ import annotations
