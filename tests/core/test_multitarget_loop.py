@@ -6,6 +6,7 @@ Scenarios: scenarios/mt_*.yaml, shortened where a run's length does not matter.
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -199,3 +200,24 @@ def test_batch_prints_gospa_for_a_multitarget_scenario(tmp_path, capsys):
 
     data = json.loads(out_json.read_text())
     assert len(data["run_gospa"]) == 2 and data["target_ids"] == ["t1", "t2", "t3"]
+
+
+def test_batch_json_is_strict_with_null_where_a_target_is_absent(tmp_path):
+    """t2 is born at epoch 3 of 6: its error and bound before then are null (as in run's
+    summary.json), and the file parses with NaN refused."""
+    s = _short(APPEAR, 6)
+    data = s.model_dump(mode="json")
+    data["targets"][1]["birth"] = 3
+    path = tmp_path / "appear.yaml"
+    path.write_text(yaml.safe_dump(data))
+    out = tmp_path / "s.json"
+    assert cli_main(["batch", str(path), "--runs", "1", "--json", str(out)]) == 0
+
+    def refuse(name):
+        raise ValueError(f"non-strict JSON constant {name}")
+
+    summary = json.loads(out.read_text(), parse_constant=refuse)
+    t2 = summary["target_ids"].index("t2")
+    assert summary["rmse_x_t"][t2][:2] == [None, None]
+    assert summary["bound_y_t"][t2][:2] == [None, None]
+    assert all(isinstance(v, float) for v in summary["rmse_x_t"][t2][3:])

@@ -29,12 +29,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
-import json
 import os
 import sys
 from pathlib import Path
 
 from activetrack_bringup import cli_types, interrupts
+from activetrack_bringup.json_out import write_json
 from activetrack_bringup.ros_tools.cli import add_ros_parser
 from activetrack_bringup.track import add_track_parser
 
@@ -65,8 +65,7 @@ def _print_summary(s) -> None:
 
 
 def _write_json(path: str, data: dict) -> None:
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_text(json.dumps(data, indent=2))
+    write_json(path, data)
     print(f"  summary    {path}")
 
 

@@ -29,6 +29,7 @@ from activetrack_bringup import interrupts
 from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.inprocess import InProcessGraph
+from activetrack_bringup.json_out import json_safe
 from activetrack_bringup.ros_network import RosNetwork, ros_network
 from activetrack_bringup.run_folder import run_dir_for
 from activetrack_bringup.supervisor import NodeDied, Supervisor
@@ -109,18 +110,7 @@ class GraphRun:
             restarts=self.restarts,
             ros=self.network.to_json() if self.network is not None else None,
         )
-        return _json_safe(d)
-
-
-def _json_safe(value):
-    """NaN and infinities as null: summary.json stays strict JSON."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    return value
+        return json_safe(d)
 
 
 def _node_params(scenario_path: str, run: int | None, mode: str) -> dict[str, dict]:
