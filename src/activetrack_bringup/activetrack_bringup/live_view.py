@@ -42,6 +42,9 @@ NODE_NAME = "activetrack_live_view"
 # Messages buffered per client: a lockstep run publishes in bursts far faster than real time.
 BACKLOG = 16384
 STOPPED = "activetrack: the run is over, the live view stops (its bag holds the whole run)"
+# foxglove-sdk queues a status for its sender thread and has no flush: stopping at once can
+# close a client's socket before the status reaches it, so stop() waits this long [s] first.
+STATUS_GRACE_S = 0.25
 
 
 class LiveViewError(ValueError):
@@ -134,6 +137,7 @@ class LiveServer:
         self.server.publish_status(STOPPED, StatusLevel.Info, id="activetrack-stopped")
         for channel in self.channels.values():
             channel.close()
+        time.sleep(STATUS_GRACE_S)
         self.server.stop()
 
     def __enter__(self) -> LiveServer:
