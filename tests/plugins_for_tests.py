@@ -242,3 +242,53 @@ def unregister() -> None:
         unregister_sensor(SENSOR_KIND)
     if FILTER_NAME in filter_names():
         unregister_filter(FILTER_NAME)
+
+
+# A scene of three targets (t2 dies, t3 is born late) with clutter and steerable beams, seen
+# only by position_fix sensors and tracked by pda_kf (tests/core/test_plugins.py runs it
+# through run_batch, tests/ros/test_plugins_graph.py through the graph and retrack).
+SCENE = """\
+name: {name}
+seed: 5
+plugins: [plugin_registration]
+dt: 2.0
+steps: {steps}
+targets:
+  - {{id: t1, motion: {{model: ncv, q: 0.5}},
+     prior: {{mean: [0.0, 10.0, 1000.0, 0.0], var: [400.0, 4.0, 400.0, 4.0]}}}}
+  - {{id: t2, motion: {{model: ncv, q: 0.5}}, death: {death},
+     prior: {{mean: [1500.0, -5.0, -500.0, 8.0], var: [400.0, 4.0, 400.0, 4.0]}}}}
+  - {{id: t3, motion: {{model: ncv, q: 0.5}}, birth: {birth},
+     prior: {{mean: [-1000.0, 6.0, -1500.0, 6.0], var: [400.0, 4.0, 400.0, 4.0]}}}}
+platforms:
+  - id: p1
+    initial_state: [-3000.0, 30.0, 0.0, 0.0]
+    controllable: true
+    limits: {{dpsi_max: 0.3, dv_max: 5.0, v_min: 20.0, v_max: 40.0}}
+    sensors:
+      - {{id: surv, kind: position_fix, sigma: 40.0, pd: 0.9, r_min: 50.0, r_max: 8000.0,
+         clutter_density: 1.0e-8}}
+      - {{id: beam1, kind: position_fix, sigma: 8.0, pd: 0.9, r_min: 50.0, r_max: 8000.0,
+         beam_width: 0.15, clutter_density: 1.0e-7}}
+  - id: p2
+    initial_state: [3000.0, 0.0, 3000.0, 0.0]
+    sensors:
+      - {{id: beam2, kind: position_fix, sigma: 8.0, pd: 0.9, r_min: 50.0, r_max: 8000.0,
+         beam_width: 0.15, clutter_density: 1.0e-7}}
+tracker:
+  filter: pda_kf
+  tracks: {{gate_sigmas: 3.5, confirm_m: 2, confirm_n: 3, delete_misses: 4, init_speed_std: 20.0}}
+planner:
+  cost: pcrlb
+  criterion: b_k
+  search: quadrant
+  mc_samples: {mc_samples}
+  targets: {{aggregate: weighted_sum, assignment: mre}}
+evaluation: {{cutoff: 300.0, order: 2, alpha: 2}}
+"""
+
+
+def scene_yaml(name: str, steps: int, death: int, birth: int, mc_samples: int) -> str:
+    """The scene's file text with its length, t2's death, t3's birth and the planner's
+    samples."""
+    return SCENE.format(name=name, steps=steps, death=death, birth=birth, mc_samples=mc_samples)

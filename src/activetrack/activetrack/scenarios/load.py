@@ -18,7 +18,7 @@ plugins is as trusted as a Python script (docs/extending.md).
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -110,9 +110,22 @@ def parse_scenario(data: object, source: str = "<dict>") -> Scenario:
     """Validate a scenario given as a dict (already parsed YAML): the schema, then the rules.
     Its ``plugins`` are imported first (they may register the sensor kinds, filters and
     criteria the rest names)."""
+    return _parse(data, source, "scenario", "name:, dt:, ...", _validated)
+
+
+def _parse(
+    data: object,
+    source: str,
+    what: str,
+    fields: str,
+    validated: Callable[[dict], tuple[Configured | None, list[str]]],
+) -> Configured:
+    """``validated(data)`` -> (the model, []) or (None, error lines) as one ScenarioError
+    naming ``source`` and ``what`` ("scenario", "tracker configuration"); plugins first."""
     if not isinstance(data, dict):
+        article = "an" if what[0] in "aeiou" else "a"
         raise ScenarioError(
-            f"{source}: a scenario must be a mapping of fields (name:, dt:, ...), "
+            f"{source}: {article} {what} must be a mapping of fields ({fields}), "
             f"got {type(data).__name__}"
         )
     if "plugins" in data:
@@ -121,19 +134,20 @@ def parse_scenario(data: object, source: str = "<dict>") -> Scenario:
         except PluginError as exc:
             raise ScenarioError(f"{source}: {exc}") from None
     try:
-        scenario, lines = _validated(data)
+        model, lines = validated(data)
     except RecursionError:
-        raise ScenarioError(f"{source}: invalid scenario: nested too deeply") from None
+        raise ScenarioError(f"{source}: invalid {what}: nested too deeply") from None
     except Exception as exc:  # a check of ours failed unexpectedly: still one clear error
         raise ScenarioError(
-            f"{source}: invalid scenario (internal check failed: {type(exc).__name__}: "
+            f"{source}: invalid {what} (internal check failed: {type(exc).__name__}: "
             f"{_shown(str(exc))})"
         ) from None
-    if scenario is None:
+    if model is None:
+        shown = lines[:MAX_ERROR_LINES]
         if len(lines) > MAX_ERROR_LINES:
-            lines = [*lines[:MAX_ERROR_LINES], f"  ... and {len(lines) - MAX_ERROR_LINES} more"]
-        raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(lines))
-    return scenario
+            shown.append(f"  ... and {len(lines) - MAX_ERROR_LINES} more")
+        raise ScenarioError(f"{source}: invalid {what}\n" + "\n".join(shown))
+    return model
 
 
 def _read_text(path: Path) -> str:
@@ -263,30 +277,8 @@ def _validated_tracking(data: dict) -> tuple[TrackingConfig | None, list[str]]:
 def parse_tracking(data: object, source: str = "<dict>") -> TrackingConfig:
     """Validate a tracker configuration given as a dict (parsed YAML): the schema
     (:mod:`.tracking`), then the rules; its ``plugins`` are imported first."""
-    if not isinstance(data, dict):
-        raise ScenarioError(
-            f"{source}: a tracker configuration must be a mapping of fields (name:, dt:, "
-            f"platforms:, tracker:, ...), got {type(data).__name__}"
-        )
-    if "plugins" in data:
-        try:
-            import_plugins(data["plugins"])
-        except PluginError as exc:
-            raise ScenarioError(f"{source}: {exc}") from None
-    try:
-        config, lines = _validated_tracking(data)
-    except RecursionError:
-        raise ScenarioError(f"{source}: invalid tracker configuration: nested too deeply") from None
-    except Exception as exc:  # a check of ours failed unexpectedly: still one clear error
-        raise ScenarioError(
-            f"{source}: invalid tracker configuration (internal check failed: "
-            f"{type(exc).__name__}: {_shown(str(exc))})"
-        ) from None
-    if config is None:
-        if len(lines) > MAX_ERROR_LINES:
-            lines = [*lines[:MAX_ERROR_LINES], f"  ... and {len(lines) - MAX_ERROR_LINES} more"]
-        raise ScenarioError(f"{source}: invalid tracker configuration\n" + "\n".join(lines))
-    return config
+    fields = "name:, dt:, platforms:, tracker:, ..."
+    return _parse(data, source, "tracker configuration", fields, _validated_tracking)
 
 
 def load_tracking(path: str | Path) -> TrackingConfig:

@@ -472,6 +472,22 @@ class GraphConfig(Strict):
     max_restarts: Annotated[int, Field(ge=0, le=10)] = 3
 
 
+def check_platform_ids(platforms: list) -> list:
+    """Platform ids unique, sensor ids unique across platforms, at most MAX_SENSORS sensors in
+    all (a scenario's and a tracker configuration's ``platforms``)."""
+    ids = [p.id for p in platforms]
+    sensor_ids = [s.id for p in platforms for s in p.sensors]
+    for what, values in (("platform", ids), ("sensor", sensor_ids)):
+        dupes = sorted({v for v in values if values.count(v) > 1})
+        if dupes:
+            raise ValueError(f"{what} ids must be unique, repeated: {dupes}")
+    if len(sensor_ids) > MAX_SENSORS:
+        raise ValueError(
+            f"at most {MAX_SENSORS} sensors in total (activetrack.limits), got {len(sensor_ids)}"
+        )
+    return platforms
+
+
 class Scenario(Strict):
     name: str
     description: str = Field(default="", max_length=MAX_DESCRIPTION_LENGTH)
@@ -514,18 +530,7 @@ class Scenario(Strict):
     @field_validator("platforms")
     @classmethod
     def _unique_ids(cls, platforms):
-        ids = [p.id for p in platforms]
-        sensor_ids = [s.id for p in platforms for s in p.sensors]
-        for what, values in (("platform", ids), ("sensor", sensor_ids)):
-            dupes = sorted({v for v in values if values.count(v) > 1})
-            if dupes:
-                raise ValueError(f"{what} ids must be unique, repeated: {dupes}")
-        if len(sensor_ids) > MAX_SENSORS:
-            raise ValueError(
-                f"at most {MAX_SENSORS} sensors in total (activetrack.limits), "
-                f"got {len(sensor_ids)}"
-            )
-        return platforms
+        return check_platform_ids(platforms)
 
     @property
     def duration(self) -> float:

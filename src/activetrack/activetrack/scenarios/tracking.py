@@ -51,6 +51,7 @@ from activetrack.scenarios.schema import (
     Scenario,
     SensorConfig,
     TrackerConfig,
+    check_platform_ids,
 )
 
 __all__ = [
@@ -125,18 +126,7 @@ class TrackingConfig(Strict):
     @field_validator("platforms")
     @classmethod
     def _unique_ids(cls, platforms: list[TrackingPlatformConfig]) -> list[TrackingPlatformConfig]:
-        ids = [p.id for p in platforms]
-        sensor_ids = [s.id for p in platforms for s in p.sensors]
-        for what, values in (("platform", ids), ("sensor", sensor_ids)):
-            dupes = sorted({v for v in values if values.count(v) > 1})
-            if dupes:
-                raise ValueError(f"{what} ids must be unique, repeated: {dupes}")
-        if len(sensor_ids) > MAX_SENSORS:
-            raise ValueError(
-                f"at most {MAX_SENSORS} sensors in total (activetrack.limits), "
-                f"got {len(sensor_ids)}"
-            )
-        return platforms
+        return check_platform_ids(platforms)
 
     @model_validator(mode="after")
     def _targets_in_the_trackers_state(self) -> TrackingConfig:
