@@ -10,8 +10,9 @@ setup:
 run: setup
 	.venv/bin/activetrack run scenarios/default.yaml
 
+# Two workers, each test file on one (its module fixtures computed once).
 test: setup
-	$(PY) -m pytest
+	$(PY) -m pytest -n 2 --dist loadfile
 
 lint: setup
 	.venv/bin/ruff check .
