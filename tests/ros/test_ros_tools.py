@@ -201,7 +201,8 @@ def test_hz_measures_the_free_runs_clock(live, capsys):
 
 
 def test_tf_prints_the_tree_with_the_latest_transforms(live, capsys):
-    rc, out, _ = ros(capsys, "tf", "--duration", "13", "--namespace", NS)  # > 1 epoch at 0.4x
+    # two epochs at 0.4x (12.5 s each): one can pass while the tool joins the graph
+    rc, out, _ = ros(capsys, "tf", "--duration", "26", "--namespace", NS)
     assert rc == 0
     lines = out.splitlines()
     assert lines[1] == "world"
