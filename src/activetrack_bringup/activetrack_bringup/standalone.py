@@ -14,9 +14,7 @@ names a path and, with ``exit_when_done``, exits. The recorder finishes its bag 
 
 from __future__ import annotations
 
-import json
 import time
-from pathlib import Path
 
 from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.evaluator import EvaluatorNode
@@ -38,6 +36,7 @@ def activetrack_evaluator(**kwargs):
 def conclude(node) -> dict:
     """The summary of a complete run (the runner's code), logged and, if the ``summary``
     parameter names a path, written there as JSON; returns it."""
+    from activetrack_bringup.json_out import write_json
     from activetrack_bringup.runner import run_summary  # the node classes: only here
 
     wall = time.monotonic() - node.started
@@ -45,10 +44,8 @@ def conclude(node) -> dict:
     data = summary.to_json()
     node.get_logger().info(f"run complete: GOSPA {summary.mean_gospa:.3f} m (time-averaged)")
     if node.summary_path:
-        path = Path(node.summary_path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(data, indent=2))
-        node.get_logger().info(f"summary written to {path}")
+        write_json(node.summary_path, data)
+        node.get_logger().info(f"summary written to {node.summary_path}")
     node.concluded = True
     return data
 
