@@ -27,7 +27,12 @@ from pydantic import BaseModel, ValidationError
 from pydantic_core import ErrorDetails
 
 from activetrack.scenarios.plugins import PluginError, import_plugins
-from activetrack.scenarios.rules import name_problems, scenario_problems, tracking_problems
+from activetrack.scenarios.rules import (
+    Problems,
+    name_problems,
+    scenario_problems,
+    tracking_problems,
+)
 from activetrack.scenarios.schema import Scenario
 from activetrack.scenarios.tracking import TrackingConfig, tracking_of
 
@@ -96,14 +101,24 @@ def _as_written(lines: list[str], data: dict) -> list[str]:
 
 def _validated(data: dict) -> tuple[Scenario | None, list[str]]:
     """The scenario of ``data`` and no error lines, or None and every invalid field."""
+    model, lines = _validated_as(Scenario, scenario_problems, data)
+    return model, _as_written(lines, data)
+
+
+def _validated_as(
+    cls: type[Configured], problems: Callable[[Configured], Problems], data: dict
+) -> tuple[Configured | None, list[str]]:
+    """``cls`` validated from ``data`` (the schema, then the registered names, then
+    ``problems``, the rules across sections) and no error lines, or None and every invalid
+    field."""
     try:
-        scenario = Scenario.model_validate(data)
+        model = cls.model_validate(data)
     except ValidationError as exc:
         lines = [line for e in exc.errors() for line in _describe(e)]
-        return None, _as_written(lines + _lines(name_problems(data)), data)
+        return None, lines + _lines(name_problems(data))
     names = name_problems(data)  # the rules across sections need registered names
-    lines = _as_written(_lines(names or scenario_problems(scenario)), data)
-    return (None, lines) if lines else (scenario, [])
+    lines = _lines(names or problems(model))
+    return (None, lines) if lines else (model, [])
 
 
 def parse_scenario(data: object, source: str = "<dict>") -> Scenario:
@@ -265,13 +280,7 @@ def load_scenario(path: str | Path) -> Scenario:
 def _validated_tracking(data: dict) -> tuple[TrackingConfig | None, list[str]]:
     """The tracker configuration of ``data`` and no error lines, or None and every invalid
     field."""
-    try:
-        config = TrackingConfig.model_validate(data)
-    except ValidationError as exc:
-        lines = [line for e in exc.errors() for line in _describe(e)]
-        return None, lines + _lines(name_problems(data))
-    lines = _lines(name_problems(data) or tracking_problems(config))
-    return (None, lines) if lines else (config, [])
+    return _validated_as(TrackingConfig, tracking_problems, data)
 
 
 def parse_tracking(data: object, source: str = "<dict>") -> TrackingConfig:
