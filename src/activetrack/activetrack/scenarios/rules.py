@@ -106,34 +106,42 @@ def _particle_based(name: str) -> bool:
 # --- across sections ---------------------------------------------------------------------------
 
 
+def _problem(text: str) -> tuple[str, str]:
+    """``"field: message"`` as ``(field, message)``."""
+    field, message = text.split(": ", 1)
+    return field, message
+
+
+def _violated(*rules: tuple[bool, str]) -> Problems:
+    """``(field, message)`` of each rule ``(violated, "field: message")`` that is violated."""
+    return [_problem(text) for violated, text in rules if violated]
+
+
 def scenario_problems(s: Scenario) -> Problems:
     """``(field, message)`` for every violated rule across sections (empty: none) of a
     scenario the schema validated and whose names (:func:`name_problems`) are registered."""
-    out = []
-    if s.dt * s.steps > MAX_DURATION:
-        out.append(
+    duration = s.dt * s.steps
+    out = _violated(
+        (
+            duration > MAX_DURATION,
+            f"steps: dt * steps must be <= {MAX_DURATION:g} s (ROS stamps hold int32 seconds), "
+            f"got {s.dt:g} * {s.steps} = {duration:.3g} s",
+        )
+    )
+    # The filters start from the targets' priors, so they must estimate the same state.
+    tracker_model = (s.tracker.motion or s.target.motion).model
+    for i, t in enumerate(s.targets):
+        layout = MOTION_STATE[t.motion.model]
+        same = [m for m, names in MOTION_STATE.items() if names == layout]
+        field = "tracker.motion.model" if i == 0 else f"targets.{i}.motion.model"
+        out += _violated(
             (
-                "steps",
-                f"dt * steps must be <= {MAX_DURATION:g} s (ROS stamps hold int32 seconds), "
-                f"got {s.dt:g} * {s.steps} = {s.dt * s.steps:.3g} s",
+                MOTION_STATE[tracker_model] != layout,
+                f"{field}: must estimate the target's state {layout} (the prior is given in it): "
+                f"one of {same} for targets.{i}.motion.model {t.motion.model!r}, got "
+                f"{tracker_model!r}",
             )
         )
-    target_model = s.target.motion.model
-    # The filters start from the targets' priors, so they must estimate the same state.
-    tracker_model = s.tracker.motion.model if s.tracker.motion is not None else target_model
-    for i, t in enumerate(s.targets):
-        model = t.motion.model
-        if MOTION_STATE[tracker_model] != MOTION_STATE[model]:
-            same = [m for m, names in MOTION_STATE.items() if names == MOTION_STATE[model]]
-            field = "tracker.motion.model" if i == 0 else f"targets.{i}.motion.model"
-            out.append(
-                (
-                    field,
-                    f"must estimate the target's state {MOTION_STATE[model]} (the prior is "
-                    f"given in it): one of {same} for targets.{i}.motion.model {model!r}, "
-                    f"got {tracker_model!r}",
-                )
-            )
     # Range 0 at epoch 0: bearings (and their Jacobians in the EKF and the MRE) are undefined.
     for n, t in enumerate(s.targets):
         starts = [(f"targets.{n}.prior.mean", t.prior.mean)]
@@ -143,15 +151,14 @@ def scenario_problems(s: Scenario) -> Problems:
             blind = [sensor.id for sensor in p.sensors if sensor.r_min == 0.0]
             here = (p.initial_state[0], p.initial_state[2])
             for label, state in starts:
-                if blind and position_of(state, t.motion.model) == here:
-                    out.append(
-                        (
-                            f"platforms.{i}.initial_state",
-                            f"the platform starts on the target's position ({label}), where "
-                            f"bearings are undefined (range 0): move it, or give its sensors "
-                            f"{blind} an r_min > 0",
-                        )
+                out += _violated(
+                    (
+                        bool(blind) and position_of(state, t.motion.model) == here,
+                        f"platforms.{i}.initial_state: the platform starts on the target's "
+                        f"position ({label}), where bearings are undefined (range 0): move it, or "
+                        f"give its sensors {blind} an r_min > 0",
                     )
+                )
     out += _scene_problems(s)
     if s.planner.enabled:
         out += _planner_problems(s)
@@ -161,14 +168,12 @@ def scenario_problems(s: Scenario) -> Problems:
 def _planner_problems(s: Scenario) -> Problems:
     cfg = s.planner
     sel = cfg.selection
-    out = []
     robots = [(i, p) for i, p in enumerate(s.platforms) if p.controllable]
-    target_model = s.target.motion.model
     if cfg.search == "cautious":
-        out += _cautious_problems(s, robots)
+        out = _cautious_problems(s, robots)
         uses_track = True
     else:
-        out += _steering_problems(s, robots)
+        out = _steering_problems(s, robots)
         uses_track = (bool(robots) or sel.enabled) and cfg.mode == "renewal"
     if sel.enabled:
         out += _selection_problems(s)
@@ -178,65 +183,59 @@ def _planner_problems(s: Scenario) -> Problems:
         criteria.append(("planner.selection.criterion", sel.criterion))
     if cfg.cost == "mre" and robots and cfg.search != "cautious":
         criteria.append(("planner.criterion", cfg.criterion))
-    if criteria and target_model in PV_MODELS:
+    if criteria and s.target.motion.model in PV_MODELS:
         out += _criterion_problems(s, criteria)
     particles = _particle_based(s.tracker.filter)
-    if uses_track and particles and s.tracker.particles < MIN_PARTICLES_FOR_PLANNING:
-        out.append(
-            (
-                "tracker.particles",
-                f"must be >= {MIN_PARTICLES_FOR_PLANNING} with filter {s.tracker.filter!r} "
-                f"when the planner works from the track (its covariance must stay "
-                f"invertible), got {s.tracker.particles}",
-            )
+    return out + _violated(
+        (
+            uses_track and particles and s.tracker.particles < MIN_PARTICLES_FOR_PLANNING,
+            f"tracker.particles: must be >= {MIN_PARTICLES_FOR_PLANNING} with filter "
+            f"{s.tracker.filter!r} when the planner works from the track (its covariance must "
+            f"stay invertible), got {s.tracker.particles}",
         )
-    return out
+    )
 
 
 def _steering_problems(s: Scenario, robots: list[tuple[int, PlatformConfig]]) -> Problems:
     """PCRLB planning or MRE positioning of the controllable platforms (not cautious)."""
     cfg = s.planner
     target_model = s.target.motion.model
-    out = []
-    if cfg.cost == "mre" and cfg.search not in POSITIONING_SEARCHES:
-        out.append(
-            (
-                "planner.search",
-                f"must be one of {POSITIONING_SEARCHES} with cost 'mre', got {cfg.search!r}",
-            )
-        )
+    mre = cfg.cost == "mre"
     positioning = criterion_names(POSITIONING)
-    if cfg.cost == "mre" and robots and cfg.criterion not in positioning:
-        out.append(
-            (
-                "planner.criterion",
-                f"must be one of {positioning} with cost 'mre', got {cfg.criterion!r}",
-            )
-        )
-    if cfg.cost == "mre" and cfg.horizon != 1 and cfg.search in POSITIONING_SEARCHES:
+    out = _violated(
+        (
+            mre and cfg.search not in POSITIONING_SEARCHES,
+            f"planner.search: must be one of {POSITIONING_SEARCHES} with cost 'mre', got "
+            f"{cfg.search!r}",
+        ),
+        (
+            mre and bool(robots) and cfg.criterion not in positioning,
+            f"planner.criterion: must be one of {positioning} with cost 'mre', got "
+            f"{cfg.criterion!r}",
+        ),
+    )
+    if mre and cfg.horizon != 1 and cfg.search in POSITIONING_SEARCHES:
         # Multi-step positioning nests one search per leg (planning.selection.plan_positions):
         # per_stage^R evaluations, per_call^R candidate covariances (4 x 4) scored together.
         per_stage, per_call = _search_size(cfg)
         R = cfg.horizon
-        if per_stage**R > MAX_SEARCH_EVALUATIONS or 16 * per_call**R > MAX_PLANNER_BATCH:
-            out.append(
-                (
-                    "planner.horizon",
-                    f"search {cfg.search!r} with cost 'mre' and horizon {R} costs "
-                    f"{per_stage}^{R} = {float(per_stage**R):.3g} cost evaluations per "
-                    f"platform and decision, {per_call}^{R} covariances scored together; at "
-                    f"most {MAX_SEARCH_EVALUATIONS:.0e} and {MAX_PLANNER_BATCH // 16:.3g} "
-                    f"(activetrack.limits): lower the horizon or the search's size",
-                )
-            )
-    if (robots or cfg.selection.enabled) and target_model not in PV_MODELS:
-        out.append(
+        out += _violated(
             (
-                "target.motion.model",
-                f"planning and sensor selection need linear pv dynamics, one of {PV_MODELS}, "
-                f"got {target_model!r} (or set planner.enabled: false)",
+                per_stage**R > MAX_SEARCH_EVALUATIONS or 16 * per_call**R > MAX_PLANNER_BATCH,
+                f"planner.horizon: search {cfg.search!r} with cost 'mre' and horizon {R} costs "
+                f"{per_stage}^{R} = {float(per_stage**R):.3g} cost evaluations per platform and "
+                f"decision, {per_call}^{R} covariances scored together; at most "
+                f"{MAX_SEARCH_EVALUATIONS:.0e} and {MAX_PLANNER_BATCH // 16:.3g} "
+                "(activetrack.limits): lower the horizon or the search's size",
             )
         )
+    out += _violated(
+        (
+            (bool(robots) or cfg.selection.enabled) and target_model not in PV_MODELS,
+            "target.motion.model: planning and sensor selection need linear pv dynamics, one of "
+            f"{PV_MODELS}, got {target_model!r} (or set planner.enabled: false)",
+        )
+    )
     if robots and cfg.cost == "pcrlb":
         out += _pcrlb_problems(s, robots, criterion_names(PCRLB))
     return out
@@ -246,83 +245,67 @@ def _selection_problems(s: Scenario) -> Problems:
     """Sensor selection (Ramdaras eq. 27) among the scenario's sensors."""
     sel = s.planner.selection
     sensor_ids = [sensor.id for p in s.platforms for sensor in p.sensors]
-    out = []
-    if sel.count > len(sensor_ids):
-        out.append(
-            (
-                "planner.selection.count",
-                f"must be <= {len(sensor_ids)} (the number of sensors), got {sel.count}",
-            )
-        )
-    if sel.strategy == "fixed":
-        if sel.fixed_sensor not in sensor_ids:
-            out.append(
-                (
-                    "planner.selection.fixed_sensor",
-                    f"must be one of {sensor_ids} with strategy 'fixed', got {sel.fixed_sensor!r}",
-                )
-            )
-        if sel.count != 1:
-            out.append(
-                (
-                    "planner.selection.count",
-                    f"must be 1 with strategy 'fixed', got {sel.count}",
-                )
-            )
-    return out
+    fixed = sel.strategy == "fixed"
+    return _violated(
+        (
+            sel.count > len(sensor_ids),
+            f"planner.selection.count: must be <= {len(sensor_ids)} (the number of sensors), got "
+            f"{sel.count}",
+        ),
+        (
+            fixed and sel.fixed_sensor not in sensor_ids,
+            f"planner.selection.fixed_sensor: must be one of {sensor_ids} with strategy 'fixed', "
+            f"got {sel.fixed_sensor!r}",
+        ),
+        (
+            fixed and sel.count != 1,
+            f"planner.selection.count: must be 1 with strategy 'fixed', got {sel.count}",
+        ),
+    )
 
 
 def _cautious_problems(s: Scenario, robots: list[tuple[int, PlatformConfig]]) -> Problems:
     """Vander Hook's beta-cautious planner (closed_loop.cautious, planning.cautious)."""
     cfg = s.planner
     c = cfg.cautious
-    out = []
-    names = [p.id for _, p in robots]
-    if len(robots) != 1:
-        out.append(
-            (
-                "planner.search",
-                f"'cautious' needs exactly one controllable platform (the robot), got "
-                f"{len(robots)}: {names}",
-            )
-        )
-    if cfg.cost != "pcrlb":
-        out.append(("planner.cost", "must be left at 'pcrlb' with search 'cautious', got 'mre'"))
-    if cfg.horizon != 1:
-        out.append(
-            (
-                "planner.horizon",
-                f"must be 1 with search 'cautious' (Algorithm 1 is greedy), got {cfg.horizon}",
-            )
-        )
-    if cfg.mode != "renewal":
-        out.append(
-            (
-                "planner.mode",
-                "must be 'renewal' with search 'cautious' (it plans from the track), "
-                f"got {cfg.mode!r}",
-            )
-        )
-    if cfg.selection.enabled:
-        out.append(
-            (
-                "planner.selection.enabled",
-                "sensor selection is not available with search 'cautious'",
-            )
-        )
-    if s.target.motion.model not in PV_MODELS:
-        out.append(
-            (
-                "target.motion.model",
-                f"search 'cautious' needs a pv motion model, one of {PV_MODELS}, "
-                f"got {s.target.motion.model!r}",
-            )
-        )
+    model = s.target.motion.model
+    out = _violated(
+        (
+            len(robots) != 1,
+            f"planner.search: 'cautious' needs exactly one controllable platform (the robot), got "
+            f"{len(robots)}: {[p.id for _, p in robots]}",
+        ),
+        (
+            cfg.cost != "pcrlb",
+            "planner.cost: must be left at 'pcrlb' with search 'cautious', got 'mre'",
+        ),
+        (
+            cfg.horizon != 1,
+            "planner.horizon: must be 1 with search 'cautious' (Algorithm 1 is greedy), got "
+            f"{cfg.horizon}",
+        ),
+        (
+            cfg.mode != "renewal",
+            "planner.mode: must be 'renewal' with search 'cautious' (it plans from the track), "
+            f"got {cfg.mode!r}",
+        ),
+        (
+            cfg.selection.enabled,
+            "planner.selection.enabled: sensor selection is not available with search 'cautious'",
+        ),
+        (
+            model not in PV_MODELS,
+            f"target.motion.model: search 'cautious' needs a pv motion model, one of {PV_MODELS}, "
+            f"got {model!r}",
+        ),
+    )
     if c.tail == "one_sided" and c.beta > 0.5:
-        out.append(
-            ("planner.cautious.beta", f"must be in (0, 0.5] with tail 'one_sided', got {c.beta}")
-        )
-        return out
+        return [
+            *out,
+            _problem(
+                f"planner.cautious.beta: must be in (0, 0.5] with tail 'one_sided', got {c.beta}"
+            ),
+        ]
     if len(robots) == 1:
         out += _cautious_robot_problems(c, *robots[0])
     return out
@@ -339,36 +322,33 @@ def _bearing_only_kinds() -> tuple[str, ...]:
 
 def _cautious_robot_problems(c: CautiousConfig, i: int, robot: PlatformConfig) -> Problems:
     """The robot's one bearing sensor and the beta-cautious strategy's existence for it."""
-    out = []
     sensors = [build_sensor(cfg) for cfg in robot.sensors]
     if len(sensors) != 1 or tuple(sensors[0].components) != ("bearing",):
-        out.append(
-            (
-                f"platforms.{i}.sensors",
-                f"search 'cautious' needs exactly one sensor of kind {_bearing_only_kinds()} "
-                f"on the robot, got {[cfg.kind for cfg in robot.sensors]}",
+        kinds = [cfg.kind for cfg in robot.sensors]
+        return [
+            _problem(
+                f"platforms.{i}.sensors: search 'cautious' needs exactly one sensor of kind "
+                f"{_bearing_only_kinds()} on the robot, got {kinds}"
             )
-        )
-        return out
+        ]
     # The bearing's standard deviation (sqrt of R: exactly sigma for the built-in kinds).
     sigma = math.sqrt(float(np.atleast_2d(np.asarray(sensors[0].R, dtype=float))[0, 0]))
     sb = sigma_beta(c.beta, c.tail)
     if not sb > sigma:
-        out.append(
-            (
-                f"platforms.{i}.sensors.0.sigma",
-                f"must be < sigma_beta(beta={c.beta}, {c.tail}) = {sb:.6g} rad for a "
-                f"beta-cautious strategy to exist (Vander Hook sec. III), got {sigma}",
+        return [
+            _problem(
+                f"platforms.{i}.sensors.0.sigma: must be < sigma_beta(beta={c.beta}, {c.tail}) = "
+                f"{sb:.6g} rad for a beta-cautious strategy to exist (Vander Hook sec. III), got "
+                f"{sigma}"
             )
+        ]
+    return _violated(
+        (
+            math.isinf(caution_gamma(c.beta, sigma, c.tail)) and c.r_min <= 0.0,
+            "planner.cautious.r_min: must be > 0 when sigma_beta is infinite (tail 'one_sided', "
+            "beta 0.5)",
         )
-    elif math.isinf(caution_gamma(c.beta, sigma, c.tail)) and c.r_min <= 0.0:
-        out.append(
-            (
-                "planner.cautious.r_min",
-                "must be > 0 when sigma_beta is infinite (tail 'one_sided', beta 0.5)",
-            )
-        )
-    return out
+    )
 
 
 def _pcrlb_problems(
@@ -376,63 +356,54 @@ def _pcrlb_problems(
 ) -> Problems:
     """PCRLB manoeuvre planning (planning.planner, planning.horizons)."""
     cfg = s.planner
-    out = []
-    if cfg.criterion not in criteria:
-        out.append(
-            (
-                "planner.criterion",
-                f"must be one of {criteria} with cost 'pcrlb', got {cfg.criterion!r}",
-            )
+    out = _violated(
+        (
+            cfg.criterion not in criteria,
+            f"planner.criterion: must be one of {criteria} with cost 'pcrlb', got "
+            f"{cfg.criterion!r}",
         )
+    )
     for i, p in robots:
-        if math.hypot(p.initial_state[1], p.initial_state[3]) == 0.0:
-            out.append(
-                (
-                    f"platforms.{i}.initial_state",
-                    "a platform steered by PCRLB planning needs a nonzero initial velocity "
-                    "(its heading)",
-                )
-            )
         v_min = p.limits.v_min if p.limits is not None else 0.0  # limits: given when controllable
-        if v_min <= 0.0:
-            out.append(
-                (
-                    f"platforms.{i}.limits.v_min",
-                    "must be > 0 for a platform steered by PCRLB planning (at rest it would "
-                    f"have no heading), got {v_min}",
-                )
-            )
+        out += _violated(
+            (
+                math.hypot(p.initial_state[1], p.initial_state[3]) == 0.0,
+                f"platforms.{i}.initial_state: a platform steered by PCRLB planning needs a "
+                "nonzero initial velocity (its heading)",
+            ),
+            (
+                v_min <= 0.0,
+                f"platforms.{i}.limits.v_min: must be > 0 for a platform steered by PCRLB "
+                f"planning (at rest it would have no heading), got {v_min}",
+            ),
+        )
     R = cfg.horizon
     if cfg.search == "evolution":
         batch = _EVOLUTION_POPSIZE * 2 * R
     else:
         per_stage, per_call = _search_size(cfg)
         if per_stage**R > MAX_SEARCH_EVALUATIONS:
-            out.append(
-                (
-                    "planner.horizon",
-                    f"search {cfg.search!r} with horizon {R} costs {per_stage}^{R} = "
-                    f"{float(per_stage**R):.3g} cost evaluations per platform and decision; "
-                    f"at most {MAX_SEARCH_EVALUATIONS:.0e} (activetrack.limits): lower the "
-                    f"horizon or the search's size",
-                )
-            )
-            return out
+            return [
+                *out,
+                _problem(
+                    f"planner.horizon: search {cfg.search!r} with horizon {R} costs "
+                    f"{per_stage}^{R} = {float(per_stage**R):.3g} cost evaluations per platform "
+                    f"and decision; at most {MAX_SEARCH_EVALUATIONS:.0e} (activetrack.limits): "
+                    "lower the horizon or the search's size"
+                ),
+            ]
         batch = per_call**R
     pf_renewal = _particle_based(s.tracker.filter) and cfg.mode == "renewal"
     samples = min(s.tracker.planner_samples, s.tracker.particles) if pf_renewal else cfg.mc_samples
     field = "tracker.planner_samples" if pf_renewal else "planner.mc_samples"
-    if batch * samples > MAX_PLANNER_BATCH:
-        out.append(
-            (
-                field,
-                f"{samples} samples x {batch} candidates scored together (search "
-                f"{cfg.search!r}, horizon {R}) exceeds {MAX_PLANNER_BATCH:.1e} "
-                f"(about 1 GB, activetrack.limits): use at most {MAX_PLANNER_BATCH // batch} "
-                f"samples",
-            )
+    return out + _violated(
+        (
+            batch * samples > MAX_PLANNER_BATCH,
+            f"{field}: {samples} samples x {batch} candidates scored together (search "
+            f"{cfg.search!r}, horizon {R}) exceeds {MAX_PLANNER_BATCH:.1e} (about 1 GB, "
+            f"activetrack.limits): use at most {MAX_PLANNER_BATCH // batch} samples",
         )
-    return out
+    )
 
 
 def _criterion_problems(s: Scenario, criteria: Problems) -> Problems:
@@ -485,32 +456,26 @@ def _clutter_problems(where: str, cfg: Any) -> Problems:
     sensor = build_sensor(cfg)
     if not has_clutter_model(sensor):
         return [
-            (
-                f"{where}.clutter_density",
-                f"sensor kind {cfg.kind!r} has no clutter model (its clutter_volume is None; "
-                "docs/extending.md): keep clutter_density 0",
+            _problem(
+                f"{where}.clutter_density: sensor kind {cfg.kind!r} has no clutter model (its "
+                "clutter_volume is None; docs/extending.md): keep clutter_density 0"
             )
         ]
     width = cfg.beam_width or cfg.fov_width or 2.0 * math.pi
     volume = fov_volume(sensor, width, cfg.r_min, cfg.r_max)
-    if not math.isfinite(volume):
-        return [
-            (
-                f"{where}.r_max",
-                "must be finite for a range-bearing sensor with clutter (the clutter is uniform "
-                "over [r_min, r_max])",
-            )
-        ]
     mean = cfg.clutter_density * volume
-    if mean > MAX_CLUTTER_PER_SCAN:
-        return [
-            (
-                f"{where}.clutter_density",
-                f"the mean false alarms per scan (density x field of view {mean:.3g}) must be "
-                f"<= {MAX_CLUTTER_PER_SCAN:g}",
-            )
-        ]
-    return []
+    return _violated(
+        (
+            not math.isfinite(volume),
+            f"{where}.r_max: must be finite for a range-bearing sensor with clutter (the clutter "
+            "is uniform over [r_min, r_max])",
+        ),
+        (
+            math.isfinite(volume) and mean > MAX_CLUTTER_PER_SCAN,
+            f"{where}.clutter_density: the mean false alarms per scan (density x field of view "
+            f"{mean:.3g}) must be <= {MAX_CLUTTER_PER_SCAN:g}",
+        ),
+    )
 
 
 def _filter_associates(
@@ -530,6 +495,11 @@ _NO_UPDATE_PDA = (
 )
 
 
+def _starts_tracks(platforms: Sequence[PlatformConfig | TrackingPlatformConfig]) -> bool:
+    """Whether a sensor fixes a position from one detection (it starts tracks)."""
+    return any(starts_tracks(build_sensor(c)) for p in platforms for c in p.sensors)
+
+
 def _scene_problems(s: Scenario) -> Problems:
     """``(field, message)`` for every violated rule of the scene: the targets' lifetimes, the
     sensors' clutter and fields of view, and what associating detections (JPDA: several
@@ -537,60 +507,56 @@ def _scene_problems(s: Scenario) -> Problems:
     out = _sensor_problems(s.platforms)
     ids = [t.id for t in s.targets]
     dupes = sorted({v for v in ids if ids.count(v) > 1})
-    if dupes:
-        out.append(("targets", f"target ids must be unique, repeated: {dupes}"))
+    out += _violated((bool(dupes), f"targets: target ids must be unique, repeated: {dupes}"))
     for i, t in enumerate(s.targets):
-        if t.birth >= s.steps:
-            out.append((f"targets.{i}.birth", f"must be < steps ({s.steps}), got {t.birth}"))
-        if t.death is not None and t.death <= t.birth:
-            out.append((f"targets.{i}.death", f"must be > birth ({t.birth}), got {t.death}"))
+        out += _violated(
+            (
+                t.birth >= s.steps,
+                f"targets.{i}.birth: must be < steps ({s.steps}), got {t.birth}",
+            ),
+            (
+                t.death is not None and t.death <= t.birth,
+                f"targets.{i}.death: must be > birth ({t.birth}), got {t.death}",
+            ),
+        )
     beams = any(c.beam_width is not None for p in s.platforms for c in p.sensors)
     cfg = s.planner
+    one_target_planning = cfg.enabled and (cfg.search == "cautious" or cfg.selection.enabled)
     if s.known_association:
-        if beams and cfg.enabled and (cfg.search == "cautious" or cfg.selection.enabled):
-            out.append(
-                (
-                    "planner",
-                    "steerable beams are pointed by planning across tracks; search 'cautious' "
-                    "and planner.selection plan for one target without beams",
-                )
+        return out + _violated(
+            (
+                beams and one_target_planning,
+                "planner: steerable beams are pointed by planning across tracks; search "
+                "'cautious' and planner.selection plan for one target without beams",
             )
-        return out
+        )
     why = "when detections are associated (several targets, births and deaths, or clutter)"
     for i, t in enumerate(s.targets):
-        if t.motion.model not in ("ncv", "ncv_discrete"):
-            out.append(
-                (
-                    f"targets.{i}.motion.model",
-                    f"must be an NCV pv model ('ncv', 'ncv_discrete') {why}, "
-                    f"got {t.motion.model!r}",
-                )
-            )
-    initiating = any(starts_tracks(build_sensor(c)) for p in s.platforms for c in p.sensors)
-    if any(t.birth > 0 for t in s.targets) and not initiating:
-        out.append(
+        out += _violated(
             (
-                "targets",
-                "a target born after epoch 0 needs a sensor that fixes a position from one "
-                "detection (e.g. range_bearing) to start its track (bearings-only tracks start "
-                "from the priors of the targets present at epoch 0)",
+                t.motion.model not in ("ncv", "ncv_discrete"),
+                f"targets.{i}.motion.model: must be an NCV pv model ('ncv', 'ncv_discrete') "
+                f"{why}, got {t.motion.model!r}",
             )
         )
     first = s.targets[0]
     motion = s.tracker.motion or first.motion
-    if not _filter_associates(s.tracker, motion, first.prior.mean, first.prior.covariance()):
-        out.append(("tracker.filter", f"{_NO_UPDATE_PDA} {why}, got {s.tracker.filter!r}"))
-    if cfg.enabled and (cfg.search == "cautious" or cfg.selection.enabled):
-        out.append(
-            (
-                "planner",
-                "search 'cautious' and planner.selection plan for one target whose detections "
-                "are known to be its own (no clutter, no births or deaths)",
-            )
-        )
-    if cfg.enabled and cfg.mode != "renewal":
-        out.append(("planner.mode", f"must be 'renewal' {why}"))
-    return out
+    associates = _filter_associates(s.tracker, motion, first.prior.mean, first.prior.covariance())
+    return out + _violated(
+        (
+            any(t.birth > 0 for t in s.targets) and not _starts_tracks(s.platforms),
+            "targets: a target born after epoch 0 needs a sensor that fixes a position from one "
+            "detection (e.g. range_bearing) to start its track (bearings-only tracks start from "
+            "the priors of the targets present at epoch 0)",
+        ),
+        (not associates, f"tracker.filter: {_NO_UPDATE_PDA} {why}, got {s.tracker.filter!r}"),
+        (
+            one_target_planning,
+            "planner: search 'cautious' and planner.selection plan for one target whose "
+            "detections are known to be its own (no clutter, no births or deaths)",
+        ),
+        (cfg.enabled and cfg.mode != "renewal", f"planner.mode: must be 'renewal' {why}"),
+    )
 
 
 # --- tracker-only configurations ---------------------------------------------------------------
@@ -606,49 +572,41 @@ def tracking_problems(c: TrackingConfig) -> Problems:
     motion = c.tracker.motion
     assert motion is not None  # the schema's rule
     if c.association == "known":
-        if len(c.targets) != 1:
-            out.append(
-                (
-                    "targets",
-                    f"association 'known' tracks exactly one target (every detection is its "
-                    f"own): give one target, got {len(c.targets)}",
-                )
-            )
-        if clutter:
-            out.append(
-                (
-                    "association",
-                    f"must not be 'known' with sensors in clutter {clutter} (a detection may "
-                    "be a false alarm): use 'jpda' or 'auto'",
-                )
-            )
-        return out
+        return out + _violated(
+            (
+                len(c.targets) != 1,
+                "targets: association 'known' tracks exactly one target (every detection is its "
+                f"own): give one target, got {len(c.targets)}",
+            ),
+            (
+                bool(clutter),
+                f"association: must not be 'known' with sensors in clutter {clutter} (a detection "
+                "may be a false alarm): use 'jpda' or 'auto'",
+            ),
+        )
     if c.known_association:  # auto: one target, no clutter
         return out
     why = "when detections are associated (association 'jpda')"
     if MOTION_STATE[motion.model] != MOTION_STATE["ncv"]:
-        out.append(
-            (
-                "tracker.motion.model",
-                f"must be a model of the pv state {MOTION_STATE['ncv']}, one of {PV_MODELS}, "
-                f"{why} (tracks from detections start in it), got {motion.model!r}",
-            )
-        )
-        return out
-    initiating = any(starts_tracks(build_sensor(s)) for p in c.platforms for s in p.sensors)
-    if not c.targets and not initiating:
-        out.append(
-            (
-                "targets",
-                "without targets every track starts from detections: this needs a sensor that "
-                "fixes a position from one detection (e.g. range_bearing); give the targets' "
-                "priors for bearings-only sensors",
-            )
-        )
+        return [
+            *out,
+            _problem(
+                f"tracker.motion.model: must be a model of the pv state {MOTION_STATE['ncv']}, "
+                f"one of {PV_MODELS}, {why} (tracks from detections start in it), got "
+                f"{motion.model!r}"
+            ),
+        ]
     n = len(MOTION_STATE[motion.model])
     mean, cov = np.zeros(n), np.eye(n)
     if c.targets:
         mean, cov = np.array(c.targets[0].prior.mean), c.targets[0].prior.covariance()
-    if not _filter_associates(c.tracker, motion, mean, cov):
-        out.append(("tracker.filter", f"{_NO_UPDATE_PDA} {why}, got {c.tracker.filter!r}"))
-    return out
+    associates = _filter_associates(c.tracker, motion, mean, cov)
+    return out + _violated(
+        (
+            not c.targets and not _starts_tracks(c.platforms),
+            "targets: without targets every track starts from detections: this needs a sensor "
+            "that fixes a position from one detection (e.g. range_bearing); give the targets' "
+            "priors for bearings-only sensors",
+        ),
+        (not associates, f"tracker.filter: {_NO_UPDATE_PDA} {why}, got {c.tracker.filter!r}"),
+    )
