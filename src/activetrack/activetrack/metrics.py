@@ -34,25 +34,15 @@ __all__ = ["GospaResult", "gospa", "gospa_over_time", "ospa", "ospa_over_time"]
 
 @dataclass(frozen=True)
 class GospaResult:
-    """GOSPA distance of one epoch and its decomposition.
+    """GOSPA distance of one epoch and its decomposition,
+    ``distance**p == localisation + (c**p / alpha) * (missed + false_tracks)``.
 
-    With ``c`` the cut-off, ``p`` the order and ``alpha`` the GOSPA alpha,
-
-        distance**p == localisation + (c**p / alpha) * (missed + false_tracks).
-
-    For alpha = 2 (Rahmathullah et al. 2017, eq. (2)) a truth and an estimate are paired only if
-    they are closer than ``c``; every unpaired truth is a missed target and every unpaired
-    estimate a false track.  For alpha < 2 (eq. (1)) all min(m, n) pairs of the optimal
-    assignment are kept (their distances cut off at ``c``), and ``missed`` / ``false_tracks`` are
-    the cardinality surplus of the truths / the estimates.
-
-    Attributes:
-        distance: the GOSPA distance d_p^(c, alpha)(X, Y) (units of the points).
-        localisation: sum over ``assignment`` of d^(c)(x_i, y_j)^p (units to the power p).
-        missed: number of truths not in ``assignment``.
-        false_tracks: number of estimates not in ``assignment``.
-        assignment: pairs (i, j): truth row i of ``X`` matched with estimate row j of ``Y``,
-            sorted by i.
+    For alpha = 2 (eq. (2)) only pairs closer than ``c`` are kept; for alpha < 2 (eq. (1)) all
+    min(m, n) pairs of the optimal assignment are, and ``missed`` / ``false_tracks`` are the
+    cardinality surplus of the truths / the estimates. ``localisation``: sum over
+    ``assignment`` (pairs (i, j) of truth row i and estimate row j, sorted by i) of
+    d^(c)(x_i, y_j)^p (units to the power p); ``missed`` / ``false_tracks``: the truths /
+    estimates not in it.
     """
 
     distance: float
@@ -96,11 +86,8 @@ def _point_sets(X: ArrayLike, Y: ArrayLike) -> tuple[FloatArray, FloatArray]:
 def _assign(
     x: FloatArray, y: FloatArray, c: float, p: float
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Optimal assignment of min(m, n) pairs on the cut-off costs d^(c)(x_i, y_j)^p.
-
-    Returns the truth rows (k,), the estimate rows (k,) and the uncut distances (k,) of the
-    pairs, k = min(m, n).
-    """
+    """Optimal assignment of k = min(m, n) pairs on the cut-off costs d^(c)(x_i, y_j)^p: the
+    truth rows (k,), estimate rows (k,) and uncut distances (k,) of the pairs."""
     if x.shape[0] == 0 or y.shape[0] == 0:
         empty = np.zeros(0)
         return empty.astype(np.intp), empty.astype(np.intp), empty
@@ -120,17 +107,9 @@ def ospa(X: ArrayLike, Y: ArrayLike, c: float, p: float) -> float:
         d_p^(c)(X, Y) = ( (1/n) * ( min_pi sum_{i=1}^m d^(c)(x_i, y_pi(i))^p
                                     + c^p * (n - m) ) )^(1/p),
 
-    with pi over the injections of {1..m} into {1..n}; symmetric in X and Y (swap them when
-    m > n), 0 if both sets are empty, c if exactly one is.  The value lies in [0, c].
-
-    Args:
-        X: points, shape (m, d); an empty set may also be given as ``[]``.
-        Y: points, shape (n, d); an empty set may also be given as ``[]``.
-        c: cut-off, c > 0 (units of the points).
-        p: order, 1 <= p < inf.
-
-    Returns:
-        The OSPA distance (units of the points).
+    with pi over the injections of {1..m} into {1..n}; symmetric in X and Y, 0 if both sets
+    are empty, c if exactly one is (the value lies in [0, c]). ``X`` (m, d), ``Y`` (n, d)
+    (an empty set may be ``[]``); cut-off c > 0 (units of the points), order 1 <= p < inf.
     """
     c, p = _check_order_cutoff(c, p)
     x, y = _point_sets(X, Y)
@@ -157,19 +136,10 @@ def gospa(X: ArrayLike, Y: ArrayLike, c: float, p: float, alpha: float = 2.0) ->
         d_p^(c, 2)(X, Y) = ( sum_{(i, j) in gamma} d(x_i, y_j)^p
                              + (c^p / 2) * (|X| + |Y| - 2 |gamma|) )^(1/p),
 
-    i.e. localisation error plus c^p / 2 per missed target and per false track; the result
-    reports that split (see :class:`GospaResult`).  Unlike OSPA the value is not normalised by
-    max(m, n): it grows with the number of targets.
-
-    Args:
-        X: true target states, shape (m, d); an empty set may also be given as ``[]``.
-        Y: estimated states (tracks), shape (n, d); an empty set may also be given as ``[]``.
-        c: cut-off, c > 0 (units of the points).
-        p: order, 1 <= p < inf.
-        alpha: 0 < alpha <= 2; 2 gives the missed / false decomposition above.
-
-    Returns:
-        The distance, its localisation / missed / false-track parts and the assignment.
+    i.e. localisation error plus c^p / 2 per missed target and per false track (the split
+    :class:`GospaResult` reports). Unlike OSPA it is not normalised by max(m, n). ``X`` (m, d)
+    true states, ``Y`` (n, d) estimates (an empty set may be ``[]``); c and p as for
+    :func:`ospa`; 0 < alpha <= 2.
     """
     c, p = _check_order_cutoff(c, p)
     alpha = require_in_range("alpha", alpha, 0.0, 2.0, lo_inclusive=False)
@@ -203,17 +173,8 @@ def _check_series(truths: Sequence[ArrayLike], estimates: Sequence[ArrayLike]) -
 def ospa_over_time(
     truths: Sequence[ArrayLike], estimates: Sequence[ArrayLike], c: float, p: float
 ) -> FloatArray:
-    """OSPA (see :func:`ospa`) at each of K epochs.
-
-    Args:
-        truths: K point sets, entry k of shape (m_k, d).
-        estimates: K point sets, entry k of shape (n_k, d).
-        c: cut-off, c > 0.
-        p: order, 1 <= p < inf.
-
-    Returns:
-        OSPA distances, shape (K,).
-    """
+    """:func:`ospa` at each of K epochs ``(K,)``: ``truths[k]`` (m_k, d), ``estimates[k]``
+    (n_k, d)."""
     K = _check_series(truths, estimates)
     return np.array([ospa(truths[k], estimates[k], c, p) for k in range(K)], dtype=float)
 
@@ -225,20 +186,7 @@ def gospa_over_time(
     p: float,
     alpha: float = 2.0,
 ) -> FloatArray:
-    """GOSPA distance (see :func:`gospa`) at each of K epochs.
-
-    The per-epoch decomposition (localisation, missed, false tracks) is :func:`gospa`'s result.
-
-    Args:
-        truths: K sets of true states, entry k of shape (m_k, d).
-        estimates: K sets of estimates, entry k of shape (n_k, d).
-        c: cut-off, c > 0.
-        p: order, 1 <= p < inf.
-        alpha: 0 < alpha <= 2.
-
-    Returns:
-        GOSPA distances, shape (K,).
-    """
+    """:func:`gospa`'s distance at each of K epochs ``(K,)`` (its split: :func:`gospa`)."""
     K = _check_series(truths, estimates)
     return np.array(
         [gospa(truths[k], estimates[k], c, p, alpha).distance for k in range(K)], dtype=float

@@ -1,30 +1,17 @@
 """The Dask backend of :func:`activetrack.montecarlo.parallel_map`: seeded tasks on a cluster.
 
 ``parallel_map(fn, tasks, scheduler="tcp://host:8786")`` sends the tasks to the workers of a
-running Dask distributed scheduler (``dask scheduler`` / ``dask worker``, docs/dask.md) instead
-of forking local worker processes. The tasks are cut into chunks as for the local pool
-(:func:`activetrack.montecarlo.chunks.even_chunks`, four per worker thread); each chunk travels as
-one pickled payload and comes back as the list of its results, which are handed out in task
-order. Every task carries its own seed, so the results are bit-identical to ``jobs=1`` and to
-the local pool.
+running Dask distributed scheduler (docs/dask.md) in the local pool's chunks
+(:func:`~activetrack.montecarlo.chunks.even_chunks`, four per worker thread), each one pickled
+payload whose results come back in task order, bit-identical to ``jobs=1``.
 
-What a task needs on a worker of another host, which shares no forked state:
-
-- the same software: activetrack and the pinned packages (numpy, scipy, ...) of the client;
-  each payload carries the client's versions and a worker whose versions differ refuses the
-  chunk with :class:`WorkerSetupError` (other versions could change the numbers);
-- the process settings: a client that tuned the allocator (:mod:`activetrack.allocator`, as
-  the command line does) has the workers tune theirs, as forked workers inherit it (over the
-  ``MALLOC_TRIM_THRESHOLD_`` that Dask's nanny sets by default, not over a user's own);
-- the registrations (sensor kinds, filters, planner criteria) the client made before the call:
-  each payload carries the client's registries and the worker registers what it lacks or has
-  otherwise. A plugin defined in a script or notebook (``__main__``) travels by value; one
-  defined in a module must be importable on the worker, else :class:`WorkerSetupError` names
-  the missing module.
-
-The payload is unpickled inside the task, so these failures come back as clear errors rather
-than as the scheduler's failure to read the task graph. Only activetrack itself must be
-importable on the scheduler (it holds the tasks' function by reference).
+A worker of another host shares no forked state, so each payload carries the client's
+registrations (sensor kinds, filters, criteria: a ``__main__`` plugin travels by value, a
+module's must be importable on the worker), the versions of :data:`PINNED` (a worker whose
+versions differ refuses the chunk) and whether the client tuned the allocator (docs/dask.md,
+"What travels with the tasks"). The payload is unpickled inside the task, so these failures
+come back as one :class:`WorkerSetupError` rather than as the scheduler's failure to read the
+task graph; only activetrack itself must be importable on the scheduler.
 """
 
 from __future__ import annotations

@@ -1,19 +1,12 @@
-"""The one parallel Monte Carlo of the library: seeded tasks mapped over worker processes.
+""":func:`parallel_map`, the one entry of the Monte Carlo (package docstring), and progress.
 
 Every task carries its own seed (run r of a batch draws from ``SeedSequence([seed, r])``), so
-a result never depends on which process ran a task or how many there were: ``jobs=1`` and
-``jobs=N`` give bit-identical results, in task order. ``run_batch`` and every reproduction of
-the experiments package go through :func:`parallel_map`.
+``jobs=1``, ``jobs=N`` and a Dask cluster give bit-identical results, in task order.
+``run_batch`` and every reproduction of the experiments package go through it.
 
-Two backends: local worker processes (forked, ``jobs`` of them; the default) and the workers
-of a Dask distributed cluster (``scheduler="tcp://host:8786"`` or a ``distributed.Client``;
-:mod:`activetrack.montecarlo.dask`, docs/dask.md). The results are the same on either; both
-cut the tasks into the same chunks (:mod:`activetrack.montecarlo.chunks`).
-
-Progress: the library never prints. ``parallel_map(..., progress=f)`` calls ``f(done)`` in the
-calling process as tasks finish (1, 2, ..., N, in task order); :class:`TaskProgress` adds up
-several maps (and steps of other work) for one ``(done, total)`` callback. The command line
-draws its progress bars from these callbacks; the results never depend on them.
+Progress: the library never prints. ``progress(done)`` is called in the calling process as
+tasks finish; :class:`TaskProgress` adds up several maps (and steps of other work) for one
+``(done, total)`` callback, from which the command line draws its progress bars.
 """
 
 from __future__ import annotations
@@ -52,19 +45,14 @@ def parallel_map(
     progress: Progress | None = None,
     scheduler: Scheduler | None = None,
 ) -> list[R]:
-    """``[fn(t) for t in tasks]``, on up to ``jobs`` worker processes, in task order.
-
-    ``fn`` and the tasks must be picklable (a module-level function and plain data). Workers
-    are forked, so they see what the parent registered (sensor kinds, criteria) before the
-    call. With ``jobs=1`` or a single task everything runs in this process. An exception in a
-    task is raised here, with its traceback. ``progress(done)``, if given, is called in this
-    process once per task as the results come in (done = 1, ..., len(tasks)); it is never
-    pickled and does not change the results.
+    """``[fn(t) for t in tasks]``, on up to ``jobs`` forked worker processes (:mod:`.local`),
+    in task order; ``fn`` and the tasks must be picklable. An exception in a task is raised
+    here, with its traceback. ``progress(done)`` is called once per task as the results come in
+    (done = 1, ..., len(tasks)); it is never pickled.
 
     ``scheduler`` (an address ``tcp://host:port`` or a ``distributed.Client``): the tasks run
-    on that Dask cluster's workers instead, however many it has (``jobs`` is not used); the
-    tasks carry this process's registrations (:mod:`activetrack.montecarlo.dask`). A bad
-    address raises :class:`activetrack.montecarlo.dask.SchedulerError` before any task runs.
+    on that Dask cluster's workers instead (``jobs`` is not used; :mod:`.dask`); a bad address
+    raises :class:`~activetrack.montecarlo.dask.SchedulerError` before any task runs.
     """
     check_jobs(jobs)
     items: Sequence[T] = list(tasks)
