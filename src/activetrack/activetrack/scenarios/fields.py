@@ -12,7 +12,7 @@ import math
 import re
 from typing import TYPE_CHECKING, Annotated, Any, Self
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
 from activetrack.limits import (
     MAX_ACCELERATION,
@@ -111,6 +111,11 @@ def check_identifier(what: str, value: str, max_length: int) -> str:
     return value
 
 
+def identifier(what: str, max_length: int = MAX_ID_LENGTH) -> Any:
+    """A name checked by :func:`check_identifier` (``Annotated[str, identifier(what)]``)."""
+    return AfterValidator(lambda value: check_identifier(what, value, max_length))
+
+
 class Strict(BaseModel):
     """A section of a scenario file: unknown keys are errors, values are frozen."""
 
@@ -129,7 +134,6 @@ MOTION_STATE = {
     "circular": ("psi", "px", "py", "omega", "v"),
     "circular_known_omega": ("psi", "px", "py", "v"),
 }
-MOTION_STATE_DIM = {model: len(names) for model, names in MOTION_STATE.items()}
 # Linear dynamics on a pv state: what PCRLB / MRE planning and the cautious planner need.
 PV_MODELS = ("ncv", "ncv_discrete", "constant_turn")
 STATE_BOUND = {
@@ -172,7 +176,7 @@ class SensorConfigBase(Strict):
     ``kind: Literal["<kind>"]`` and its own fields, and is registered with its sensor class
     (:func:`activetrack.scenarios.registry.register_sensor`)."""
 
-    id: str
+    id: Annotated[str, identifier("a sensor id")]
     pd: Annotated[float, Field(gt=0, le=1)] = 1.0
     r_min: RangeM = 0.0
     r_max: Annotated[float, Field(gt=0)] = math.inf  # inf: no maximum range
@@ -189,11 +193,6 @@ class SensorConfigBase(Strict):
 
         # The kind's own fields (sigma, sigma_r, ...): the registry decides which at run time.
         def __getattr__(self, name: str) -> Any: ...
-
-    @field_validator("id")
-    @classmethod
-    def _id(cls, value: str) -> str:
-        return check_identifier("a sensor id", value, MAX_ID_LENGTH)
 
     @model_validator(mode="after")
     def _ranges(self) -> Self:

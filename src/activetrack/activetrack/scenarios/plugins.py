@@ -17,8 +17,11 @@ from __future__ import annotations
 
 import importlib
 import keyword
+from typing import Annotated
 
-__all__ = ["MAX_PLUGINS", "PluginError", "check_plugin_names", "import_plugins"]
+from pydantic import AfterValidator, Field
+
+__all__ = ["MAX_PLUGINS", "PluginError", "Plugins", "check_plugin_names", "import_plugins"]
 
 MAX_PLUGINS = 32  # modules per scenario
 MAX_PLUGIN_NAME = 200  # characters of one dotted name
@@ -57,6 +60,10 @@ def check_plugin_names(value: object) -> list[str]:
                 f"got {_shown(name)}"
             )
     return list(value)
+
+
+# A file's ``plugins:`` field: the names only (the loader imports them).
+Plugins = Annotated[list[str], Field(max_length=MAX_PLUGINS), AfterValidator(check_plugin_names)]
 
 
 def import_plugins(value: object) -> list[str]:

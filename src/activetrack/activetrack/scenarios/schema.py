@@ -28,7 +28,6 @@ from activetrack.limits import (
     MAX_DESCRIPTION_LENGTH,
     MAX_GATE_SIGMAS,
     MAX_HORIZON,
-    MAX_ID_LENGTH,
     MAX_NAME_LENGTH,
     MAX_PLATFORMS,
     MAX_RANGE,
@@ -41,7 +40,6 @@ from activetrack.limits import (
 )
 from activetrack.scenarios.fields import (
     MOTION_STATE,
-    MOTION_STATE_DIM,
     PV,
     Acceleration,
     BearingSigma,
@@ -74,11 +72,11 @@ from activetrack.scenarios.fields import (
     TurnRate,
     TurnRateStd,
     Variance,
-    check_identifier,
     check_state,
     float_range,
+    identifier,
 )
-from activetrack.scenarios.plugins import MAX_PLUGINS, check_plugin_names
+from activetrack.scenarios.plugins import Plugins
 from activetrack.scenarios.registry import on_registry_change, sensor_config_union
 
 # --- motion models -----------------------------------------------------------------------------
@@ -223,16 +221,11 @@ class ManoeuvreLimits(Strict):
 
 
 class PlatformConfig(Strict):
-    id: str
+    id: Annotated[str, identifier("a platform id")]
     initial_state: list[FiniteFloat] = Field(min_length=4, max_length=4)  # pv
     controllable: bool = False
     limits: ManoeuvreLimits | None = None
     sensors: list[SensorConfig] = Field(min_length=1, max_length=MAX_SENSORS)
-
-    @field_validator("id")
-    @classmethod
-    def _id(cls, value):
-        return check_identifier("a platform id", value, MAX_ID_LENGTH)
 
     @field_validator("initial_state")
     @classmethod
@@ -289,7 +282,7 @@ class PriorConfig(Strict):
 
 
 class TargetConfig(Strict):
-    id: str = "t1"
+    id: Annotated[str, identifier("the target id")] = "t1"
     motion: MotionConfig
     prior: PriorConfig
     # Truth at k = 0: a fixed state, or drawn from the prior with the simulator's generator.
@@ -301,32 +294,24 @@ class TargetConfig(Strict):
     death: Annotated[int, Field(ge=1, le=MAX_STEPS)] | None = None
     priority: Annotated[float, float_range(gt=0, hi=1e6)] = 1.0
 
-    @field_validator("id")
-    @classmethod
-    def _id(cls, value):
-        return check_identifier("the target id", value, MAX_ID_LENGTH)
-
     @model_validator(mode="after")
     def _dims(self):
         model = self.motion.model
-        n = MOTION_STATE_DIM[model]
-        if len(self.prior.mean) != n:
-            raise ValueError(
-                f"prior.mean: must have {n} entries {MOTION_STATE[model]} for motion {model}, "
-                f"got {len(self.prior.mean)}"
-            )
-        if self.initial_state is not None and len(self.initial_state) != n:
-            raise ValueError(
-                f"initial_state: must have {n} entries {MOTION_STATE[model]} for motion "
-                f"{model}, got {len(self.initial_state)}"
-            )
-        states = (("prior.mean", self.prior.mean), ("initial_state", self.initial_state))
+        names = MOTION_STATE[model]
+        states = [("prior.mean", self.prior.mean)]
+        if self.initial_state is not None:
+            states.append(("initial_state", self.initial_state))
         for field, values in states:
-            if values is not None:
-                try:
-                    check_state(values, MOTION_STATE[model])
-                except ValueError as exc:
-                    raise ValueError(f"{field}: {exc}") from None
+            if len(values) != len(names):
+                raise ValueError(
+                    f"{field}: must have {len(names)} entries {names} for motion {model}, got "
+                    f"{len(values)}"
+                )
+        for field, values in states:
+            try:
+                check_state(values, names)
+            except ValueError as exc:
+                raise ValueError(f"{field}: {exc}") from None
         return self
 
 
@@ -489,11 +474,11 @@ def check_platform_ids(platforms: list) -> list:
 
 
 class Scenario(Strict):
-    name: str
+    name: Annotated[str, identifier("the name (it names the run folder)", MAX_NAME_LENGTH)]
     description: str = Field(default="", max_length=MAX_DESCRIPTION_LENGTH)
     # Python modules imported before the rest of the file is validated (they register sensor
     # kinds, filters, criteria): scenarios.plugins. A file naming plugins runs their code.
-    plugins: list[str] = Field(default=[], max_length=MAX_PLUGINS)
+    plugins: Plugins = Field(default=[])
     seed: Seed = 0
     dt: Dt  # s between measurement / decision epochs (T)
     steps: Steps  # epochs k = 1..steps
@@ -516,16 +501,6 @@ class Scenario(Strict):
             data = {k: v for k, v in data.items() if k != "target"}
             data["targets"] = [one]
         return data
-
-    @field_validator("name")
-    @classmethod
-    def _name(cls, value):
-        return check_identifier("the name (it names the run folder)", value, MAX_NAME_LENGTH)
-
-    @field_validator("plugins")
-    @classmethod
-    def _plugins(cls, value: list[str]) -> list[str]:
-        return check_plugin_names(value)  # names only: scenarios.load imports them
 
     @field_validator("platforms")
     @classmethod

@@ -27,7 +27,6 @@ from pydantic import Field, field_validator, model_validator
 
 from activetrack.limits import (
     MAX_DESCRIPTION_LENGTH,
-    MAX_ID_LENGTH,
     MAX_NAME_LENGTH,
     MAX_PLATFORMS,
     MAX_SENSORS,
@@ -39,11 +38,11 @@ from activetrack.scenarios.fields import (
     Seed,
     Steps,
     Strict,
-    check_identifier,
     check_state,
     float_range,
+    identifier,
 )
-from activetrack.scenarios.plugins import MAX_PLUGINS, check_plugin_names
+from activetrack.scenarios.plugins import Plugins
 from activetrack.scenarios.registry import on_registry_change
 from activetrack.scenarios.schema import (
     EvaluationConfig,
@@ -70,35 +69,25 @@ ASSOCIATIONS = ("auto", "known", "jpda")
 class TrackingPlatformConfig(Strict):
     """A platform: its id and sensors (no initial state: each scan says where it was)."""
 
-    id: str
+    id: Annotated[str, identifier("a platform id")]
     sensors: list[SensorConfig] = Field(min_length=1, max_length=MAX_SENSORS)
-
-    @field_validator("id")
-    @classmethod
-    def _id(cls, value: str) -> str:
-        return check_identifier("a platform id", value, MAX_ID_LENGTH)
 
 
 class TrackedTargetConfig(Strict):
     """A target known at epoch 0: its track starts confirmed from ``prior`` (in the state of
     ``tracker.motion``), weighed ``priority`` by a planner."""
 
-    id: str
+    id: Annotated[str, identifier("the target id")]
     prior: PriorConfig
     priority: Annotated[float, float_range(gt=0, hi=1e6)] = 1.0
 
-    @field_validator("id")
-    @classmethod
-    def _id(cls, value: str) -> str:
-        return check_identifier("the target id", value, MAX_ID_LENGTH)
-
 
 class TrackingConfig(Strict):
-    name: str
+    name: Annotated[str, identifier("the name (it names the output folder)", MAX_NAME_LENGTH)]
     description: str = Field(default="", max_length=MAX_DESCRIPTION_LENGTH)
     # Python modules imported before the rest is validated (sensor kinds, filters): as in a
     # scenario file, a configuration naming plugins runs their code.
-    plugins: list[str] = Field(default=[], max_length=MAX_PLUGINS)
+    plugins: Plugins = Field(default=[])
     seed: Seed = 0  # the tracker's generator (with --run: component_rngs)
     dt: Dt  # s between epochs: the scans of epoch k are at t = k dt
     # The last epoch the data may hold: a scenario's steps (a file with ``steps:`` is read as
@@ -112,16 +101,6 @@ class TrackingConfig(Strict):
     # planner.targets.new_track_priority): tracks carry it.
     new_track_priority: Annotated[float, float_range(gt=0, hi=1e6)] = 1.0
     evaluation: EvaluationConfig = EvaluationConfig()
-
-    @field_validator("name")
-    @classmethod
-    def _name(cls, value: str) -> str:
-        return check_identifier("the name (it names the output folder)", value, MAX_NAME_LENGTH)
-
-    @field_validator("plugins")
-    @classmethod
-    def _plugins(cls, value: list[str]) -> list[str]:
-        return check_plugin_names(value)
 
     @field_validator("platforms")
     @classmethod
