@@ -1,32 +1,17 @@
-"""Recorded detections and truth from files, and back (docs/track-your-data.md).
+"""Recorded detections and truth from CSV or JSON files, and back (the formats, columns and
+units: docs/track-your-data.md).
 
-**Detections**, CSV: one row per detection, the header naming the columns ``epoch, time,
-sensor, sensor_x, sensor_y, sensor_vx, sensor_vy``, then the measurement components of the
-sensors by name (``range``, ``bearing``, ``range_rate``, a plugin sensor's own) and, for a
-sensor with a steerable beam, ``fov_centre`` (the beam's bearing [rad, world frame]). A scan is
-the consecutive rows of one sensor at one epoch; a row whose component cells are all empty is a
-scan that looked and saw nothing. The components of other sensors' kinds stay empty. JSON: the
-same content, ``{"scans": [{"epoch": .., "time": .., "sensor": .., "sensor_x": .., ...,
-"detections": [{"range": .., "bearing": ..}, ...]}, ...]}`` (an empty list: looked, saw
-nothing).
-
-Every value is checked before anything is tracked: epochs are integers >= 1 in non-decreasing
-order, ``time`` is ``epoch x dt`` (to :data:`TIME_TOLERANCE`; the scan keeps ``epoch x dt``
-exactly, as the simulator computes it), the sensor is one of the configuration's, each of its
-components a finite number in its range, the sensors of one platform at one epoch at the same
-place. A bad value is a :class:`DataFileError` naming the file, the row (the file's line,
-the header is row 1; in JSON the entry) and the column, and what is allowed.
-
-The scans of an epoch are kept in the configuration's sensor order (the order the tracker
-applies them in, as the simulator produces them), the detections of a scan in file order. The
-field of view of each scan is its sensor's from where it was (``fov_centre`` for a beam).
-
-**Truth**, CSV ``epoch, target, x, y, vx, vy`` (optional ``time``), JSON ``{"truth": [{"epoch":
-.., "target": .., "x": .., ...}]}``: the targets alive at each epoch (an epoch without a row
-has none).
-
-Floats are written with ``repr`` (the shortest text that reads back to the same double), so a
-file written here reads back bit for bit.
+A scan is the consecutive rows of one sensor at one epoch (in JSON one entry); a row whose
+component cells are all empty is a scan that looked and saw nothing. Every value is checked
+before anything is tracked: epochs in non-decreasing order, ``time`` = ``epoch x dt`` (to
+:data:`TIME_TOLERANCE`; the scan keeps ``epoch x dt`` exactly, as the simulator computes it),
+the sensor one of the configuration's, each component a finite number in its range, the sensors
+of one platform at one place per epoch. A bad value is a :class:`DataFileError` naming the
+file, the row (the file's line, the header is row 1; in JSON the entry), the column and what is
+allowed. The scans of an epoch are kept in the configuration's sensor order (the order the
+tracker applies them in), the detections of a scan in file order; each scan's field of view is
+its sensor's from where it was (``fov_centre`` for a beam). Floats are written with ``repr``,
+so a file written here reads back bit for bit.
 """
 
 from __future__ import annotations
@@ -175,6 +160,12 @@ def _time(where: Where, raw: Any, epoch: int, dt: float) -> float:
     return epoch * dt
 
 
+def _pv(where: Where, cells: Mapping[str, Any], columns: Sequence[str]) -> tuple[float, ...]:
+    """The pv cells ``columns`` (x, vx, y, vy order), each a finite number in its range."""
+    ranges = zip(columns, _PV_RANGES, strict=True)
+    return tuple(_number(where, c, cells.get(c), lo, hi) for c, (lo, hi) in ranges)
+
+
 def _given(raw: Any) -> bool:
     return raw is not None and not (isinstance(raw, str) and not raw.strip())
 
@@ -229,10 +220,7 @@ class _ScanReader:
                 f"{where('sensor')}: unknown sensor {sensor_id!r}: one of {list(self.sensors)} "
                 "(the configuration's)"
             )
-        pv = tuple(
-            _number(where, c, cells.get(c), lo, hi)
-            for c, (lo, hi) in zip(_SENSOR_PV, _PV_RANGES, strict=True)
-        )
+        pv = _pv(where, cells, _SENSOR_PV)
         sensor = self.sensors[sensor_id][1]
         raw = cells.get(FOV_CENTRE)
         fov_centre = None
@@ -505,17 +493,23 @@ def write_detections(path: str | Path, scans: Iterable[Scan], sensors: SensorTab
         Z = np.asarray(scan.Z, dtype=float).reshape(-1, len(own))
         entry["detections"] = [dict(zip(own, map(float, z), strict=True)) for z in Z]
         entries.append(entry)
-    if path.suffix.lower() == ".json":
-        path.write_text(json.dumps({"scans": entries}, indent=1) + "\n")
-        return
     columns = [*DETECTION_COLUMNS, *components, *((FOV_CENTRE,) if steerable else ())]
+    rows = ({**e, **z} for e in entries for z in e["detections"] or [{}])  # CSV: per detection
+    _write_entries(path, "scans", entries, columns, rows)
+
+
+def _write_entries(
+    path: Path, key: str, entries: list, columns: Sequence[str], rows: Iterable[dict]
+) -> None:
+    """``{key: entries}`` as JSON, or ``rows`` as CSV ``columns`` (floats exact, None empty)."""
+    if path.suffix.lower() == ".json":
+        path.write_text(json.dumps({key: entries}, indent=1) + "\n")
+        return
     with path.open("w", newline="") as f:
         out = csv.writer(f)
         out.writerow(columns)
-        for entry in entries:
-            for z in entry["detections"] or [{}]:
-                cells = {**entry, **z}
-                out.writerow([_cell(cells.get(c)) for c in columns])
+        for cells in rows:
+            out.writerow([_cell(cells.get(c)) for c in columns])
 
 
 def _cell(value: Any) -> str:
@@ -571,12 +565,7 @@ def _truth_sets(rows: list, dt: float, source: str) -> dict[int, TruthSet]:
             )
         first[(epoch, target)] = start
         last = (epoch, start)
-        targets.setdefault(epoch, {})[target] = np.array(
-            [
-                _number(where, c, cells.get(c), lo, hi)
-                for c, (lo, hi) in zip(_TRUTH_PV, _PV_RANGES, strict=True)
-            ]
-        )
+        targets.setdefault(epoch, {})[target] = np.array(_pv(where, cells, _TRUTH_PV))
     if not targets:
         raise DataFileError(f"{source}: holds no truth")
     return {k: truth_set(k, k * dt, by_id) for k, by_id in targets.items()}
@@ -600,12 +589,4 @@ def write_truth(path: str | Path, truth: Iterable[TruthSet]) -> None:
         for t in truth
         for tid, pv in zip(t.ids, np.asarray(t.pv, dtype=float).reshape(-1, 4), strict=True)
     ]
-    if path.suffix.lower() == ".json":
-        path.write_text(json.dumps({"truth": entries}, indent=1) + "\n")
-        return
-    columns = [*TRUTH_COLUMNS, "time"]
-    with path.open("w", newline="") as f:
-        out = csv.writer(f)
-        out.writerow(columns)
-        for e in entries:
-            out.writerow([_cell(e[c]) for c in columns])
+    _write_entries(path, "truth", entries, [*TRUTH_COLUMNS, "time"], entries)
