@@ -14,35 +14,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Self
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
-from activetrack.limits import (
-    MAX_ACCELERATION,
-    MAX_ANGLE,
-    MAX_BEARING_SIGMA,
-    MAX_CLUTTER_DENSITY,
-    MAX_DT,
-    MAX_DWELL,
-    MAX_GRID_SIZE,
-    MAX_HORIZON,
-    MAX_ID_LENGTH,
-    MAX_MEASUREMENTS,
-    MAX_PARTICLES,
-    MAX_POSITION,
-    MAX_PRIOR_VARIANCE,
-    MAX_Q,
-    MAX_QUADRANT_DIVISIONS,
-    MAX_RANGE,
-    MAX_ROUGHENING,
-    MAX_SAMPLES,
-    MAX_SECTOR_LEVELS,
-    MAX_SEED,
-    MAX_SENSOR_ITERATIONS,
-    MAX_SENSORS,
-    MAX_SPEED,
-    MAX_STEPS,
-    MAX_TURN_RATE,
-    MIN_DT,
-    MIN_SIGMA,
-)
+from activetrack import limits
 
 
 def float_range(
@@ -58,24 +30,24 @@ def float_range(
 
 FiniteFloat = Annotated[float, float_range()]
 # Magnitudes (activetrack.limits).
-Speed = Annotated[float, float_range(0, MAX_SPEED)]  # m/s
-PositiveSpeed = Annotated[float, float_range(gt=0, hi=MAX_SPEED)]
-Acceleration = Annotated[float, float_range(0, MAX_ACCELERATION)]  # m/s^2
-NoisePsd = Annotated[float, float_range(0, MAX_Q)]  # m^2/s^3
-TurnRate = Annotated[float, float_range(-MAX_TURN_RATE, MAX_TURN_RATE)]  # rad/s
-TurnRateStd = Annotated[float, float_range(0, MAX_TURN_RATE)]
-PositiveTurnRate = Annotated[float, float_range(gt=0, hi=MAX_TURN_RATE)]
+Speed = Annotated[float, float_range(0, limits.MAX_SPEED)]  # m/s
+PositiveSpeed = Annotated[float, float_range(gt=0, hi=limits.MAX_SPEED)]
+Acceleration = Annotated[float, float_range(0, limits.MAX_ACCELERATION)]  # m/s^2
+NoisePsd = Annotated[float, float_range(0, limits.MAX_Q)]  # m^2/s^3
+TurnRate = Annotated[float, float_range(-limits.MAX_TURN_RATE, limits.MAX_TURN_RATE)]  # rad/s
+TurnRateStd = Annotated[float, float_range(0, limits.MAX_TURN_RATE)]
+PositiveTurnRate = Annotated[float, float_range(gt=0, hi=limits.MAX_TURN_RATE)]
 # rad; a turn beyond pi is one the other way
 HeadingChange = Annotated[float, float_range(gt=0, hi=math.pi)]
-RangeM = Annotated[float, float_range(0, MAX_RANGE)]  # m
-BearingSigma = Annotated[float, float_range(MIN_SIGMA, MAX_BEARING_SIGMA)]  # rad
-RangeSigma = Annotated[float, float_range(MIN_SIGMA, MAX_RANGE)]  # m
-RateSigma = Annotated[float, float_range(MIN_SIGMA, MAX_SPEED)]  # m/s
-Variance = Annotated[float, float_range(0, MAX_PRIOR_VARIANCE)]
-Covariance = Annotated[float, float_range(-MAX_PRIOR_VARIANCE, MAX_PRIOR_VARIANCE)]
-Dt = Annotated[float, float_range(MIN_DT, MAX_DT)]  # s
-Dwell = Annotated[float, float_range(0, MAX_DWELL)]  # s
-Roughening = Annotated[float, float_range(0, MAX_ROUGHENING)]
+RangeM = Annotated[float, float_range(0, limits.MAX_RANGE)]  # m
+BearingSigma = Annotated[float, float_range(limits.MIN_SIGMA, limits.MAX_BEARING_SIGMA)]  # rad
+RangeSigma = Annotated[float, float_range(limits.MIN_SIGMA, limits.MAX_RANGE)]  # m
+RateSigma = Annotated[float, float_range(limits.MIN_SIGMA, limits.MAX_SPEED)]  # m/s
+Variance = Annotated[float, float_range(0, limits.MAX_PRIOR_VARIANCE)]
+Covariance = Annotated[float, float_range(-limits.MAX_PRIOR_VARIANCE, limits.MAX_PRIOR_VARIANCE)]
+Dt = Annotated[float, float_range(limits.MIN_DT, limits.MAX_DT)]  # s
+Dwell = Annotated[float, float_range(0, limits.MAX_DWELL)]  # s
+Roughening = Annotated[float, float_range(0, limits.MAX_ROUGHENING)]
 
 
 def int_range(lo: int, hi: int) -> Any:
@@ -83,17 +55,17 @@ def int_range(lo: int, hi: int) -> Any:
     return Field(ge=lo, le=hi)
 
 
-Particles = Annotated[int, int_range(1, MAX_PARTICLES)]
-Samples = Annotated[int, int_range(1, MAX_SAMPLES)]
-SensorCount = Annotated[int, int_range(1, MAX_SENSORS)]
-Horizon = Annotated[int, int_range(1, MAX_HORIZON)]
-GridSize = Annotated[int, int_range(3, MAX_GRID_SIZE)]
-Divisions = Annotated[int, int_range(1, MAX_QUADRANT_DIVISIONS)]
-SectorLevels = Annotated[int, int_range(1, MAX_SECTOR_LEVELS)]
-SensorIterations = Annotated[int, int_range(1, MAX_SENSOR_ITERATIONS)]
-Measurements = Annotated[int, int_range(1, MAX_MEASUREMENTS)]
-Seed = Annotated[int, int_range(0, MAX_SEED)]
-Steps = Annotated[int, int_range(1, MAX_STEPS)]
+Particles = Annotated[int, int_range(1, limits.MAX_PARTICLES)]
+Samples = Annotated[int, int_range(1, limits.MAX_SAMPLES)]
+SensorCount = Annotated[int, int_range(1, limits.MAX_SENSORS)]
+Horizon = Annotated[int, int_range(1, limits.MAX_HORIZON)]
+GridSize = Annotated[int, int_range(3, limits.MAX_GRID_SIZE)]
+Divisions = Annotated[int, int_range(1, limits.MAX_QUADRANT_DIVISIONS)]
+SectorLevels = Annotated[int, int_range(1, limits.MAX_SECTOR_LEVELS)]
+SensorIterations = Annotated[int, int_range(1, limits.MAX_SENSOR_ITERATIONS)]
+Measurements = Annotated[int, int_range(1, limits.MAX_MEASUREMENTS)]
+Seed = Annotated[int, int_range(0, limits.MAX_SEED)]
+Steps = Annotated[int, int_range(1, limits.MAX_STEPS)]
 
 
 # Scenario names become folder names (runs/<name>-<time>), ids go into messages and plots.
@@ -111,7 +83,7 @@ def check_identifier(what: str, value: str, max_length: int) -> str:
     return value
 
 
-def identifier(what: str, max_length: int = MAX_ID_LENGTH) -> Any:
+def identifier(what: str, max_length: int = limits.MAX_ID_LENGTH) -> Any:
     """A name checked by :func:`check_identifier` (``Annotated[str, identifier(what)]``)."""
     return AfterValidator(lambda value: check_identifier(what, value, max_length))
 
@@ -136,17 +108,11 @@ MOTION_STATE = {
 }
 # Linear dynamics on a pv state: what PCRLB / MRE planning and the cautious planner need.
 PV_MODELS = ("ncv", "ncv_discrete", "constant_turn")
-STATE_BOUND = {
-    "x": MAX_POSITION,
-    "y": MAX_POSITION,
-    "px": MAX_POSITION,
-    "py": MAX_POSITION,
-    "xdot": MAX_SPEED,
-    "ydot": MAX_SPEED,
-    "v": MAX_SPEED,
-    "psi": MAX_ANGLE,
-    "omega": MAX_TURN_RATE,
-}
+STATE_BOUND = (
+    dict.fromkeys(("x", "y", "px", "py"), limits.MAX_POSITION)
+    | dict.fromkeys(("xdot", "ydot", "v"), limits.MAX_SPEED)
+    | {"psi": limits.MAX_ANGLE, "omega": limits.MAX_TURN_RATE}
+)
 
 
 def check_state(values: Any, names: tuple[str, ...]) -> None:
@@ -184,7 +150,7 @@ class SensorConfigBase(Strict):
     # rad; per m rad for range-bearing) over the field of view, which is a bearing sector
     # fov_width wide centred fov_centre off the platform's heading (None: all around), or a
     # steerable beam beam_width wide the planner points at one track per epoch.
-    clutter_density: Annotated[float, float_range(0, MAX_CLUTTER_DENSITY)] = 0.0
+    clutter_density: Annotated[float, float_range(0, limits.MAX_CLUTTER_DENSITY)] = 0.0
     fov_centre: Annotated[float, float_range(-math.pi, math.pi)] = 0.0
     fov_width: Annotated[float, float_range(gt=0, hi=2 * math.pi)] | None = None
     beam_width: Annotated[float, float_range(gt=0, hi=2 * math.pi)] | None = None
@@ -196,9 +162,9 @@ class SensorConfigBase(Strict):
 
     @model_validator(mode="after")
     def _ranges(self) -> Self:
-        if math.isfinite(self.r_max) and self.r_max > MAX_RANGE:
+        if math.isfinite(self.r_max) and self.r_max > limits.MAX_RANGE:
             raise ValueError(
-                f"r_max: must be <= {MAX_RANGE:g} m or .inf (no maximum), got {self.r_max!r}"
+                f"r_max: must be <= {limits.MAX_RANGE:g} m or .inf (no maximum), got {self.r_max!r}"
             )
         if not self.r_min < self.r_max:
             raise ValueError(f"r_max: must be greater than r_min ({self.r_min}), got {self.r_max}")

@@ -17,15 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from activetrack import limits
 from activetrack.arraytypes import ArrayLike
 from activetrack.filters.registry import filter_kind, filter_names, make_filter
-from activetrack.limits import (
-    MAX_CLUTTER_PER_SCAN,
-    MAX_DURATION,
-    MAX_PLANNER_BATCH,
-    MAX_SEARCH_EVALUATIONS,
-    MIN_PARTICLES_FOR_PLANNING,
-)
 from activetrack.models.base import as_linear
 from activetrack.models.clutter import fov_volume, has_clutter_model, starts_tracks
 from activetrack.planning.cautious import caution_gamma, sigma_beta
@@ -123,9 +117,9 @@ def scenario_problems(s: Scenario) -> Problems:
     duration = s.dt * s.steps
     out = _violated(
         (
-            duration > MAX_DURATION,
-            f"steps: dt * steps must be <= {MAX_DURATION:g} s (ROS stamps hold int32 seconds), "
-            f"got {s.dt:g} * {s.steps} = {duration:.3g} s",
+            duration > limits.MAX_DURATION,
+            f"steps: dt * steps must be <= {limits.MAX_DURATION:g} s (ROS stamps hold int32 "
+            f"seconds), got {s.dt:g} * {s.steps} = {duration:.3g} s",
         )
     )
     # The filters start from the targets' priors, so they must estimate the same state.
@@ -188,8 +182,8 @@ def _planner_problems(s: Scenario) -> Problems:
     particles = _particle_based(s.tracker.filter)
     return out + _violated(
         (
-            uses_track and particles and s.tracker.particles < MIN_PARTICLES_FOR_PLANNING,
-            f"tracker.particles: must be >= {MIN_PARTICLES_FOR_PLANNING} with filter "
+            uses_track and particles and s.tracker.particles < limits.MIN_PARTICLES_FOR_PLANNING,
+            f"tracker.particles: must be >= {limits.MIN_PARTICLES_FOR_PLANNING} with filter "
             f"{s.tracker.filter!r} when the planner works from the track (its covariance must "
             f"stay invertible), got {s.tracker.particles}",
         )
@@ -221,11 +215,12 @@ def _steering_problems(s: Scenario, robots: list[tuple[int, PlatformConfig]]) ->
         R = cfg.horizon
         out += _violated(
             (
-                per_stage**R > MAX_SEARCH_EVALUATIONS or 16 * per_call**R > MAX_PLANNER_BATCH,
+                per_stage**R > limits.MAX_SEARCH_EVALUATIONS
+                or 16 * per_call**R > limits.MAX_PLANNER_BATCH,
                 f"planner.horizon: search {cfg.search!r} with cost 'mre' and horizon {R} costs "
                 f"{per_stage}^{R} = {float(per_stage**R):.3g} cost evaluations per platform and "
                 f"decision, {per_call}^{R} covariances scored together; at most "
-                f"{MAX_SEARCH_EVALUATIONS:.0e} and {MAX_PLANNER_BATCH // 16:.3g} "
+                f"{limits.MAX_SEARCH_EVALUATIONS:.0e} and {limits.MAX_PLANNER_BATCH // 16:.3g} "
                 "(activetrack.limits): lower the horizon or the search's size",
             )
         )
@@ -382,14 +377,14 @@ def _pcrlb_problems(
         batch = _EVOLUTION_POPSIZE * 2 * R
     else:
         per_stage, per_call = _search_size(cfg)
-        if per_stage**R > MAX_SEARCH_EVALUATIONS:
+        if per_stage**R > limits.MAX_SEARCH_EVALUATIONS:
             return [
                 *out,
                 _problem(
                     f"planner.horizon: search {cfg.search!r} with horizon {R} costs "
                     f"{per_stage}^{R} = {float(per_stage**R):.3g} cost evaluations per platform "
-                    f"and decision; at most {MAX_SEARCH_EVALUATIONS:.0e} (activetrack.limits): "
-                    "lower the horizon or the search's size"
+                    f"and decision; at most {limits.MAX_SEARCH_EVALUATIONS:.0e} "
+                    "(activetrack.limits): lower the horizon or the search's size"
                 ),
             ]
         batch = per_call**R
@@ -398,10 +393,10 @@ def _pcrlb_problems(
     field = "tracker.planner_samples" if pf_renewal else "planner.mc_samples"
     return out + _violated(
         (
-            batch * samples > MAX_PLANNER_BATCH,
+            batch * samples > limits.MAX_PLANNER_BATCH,
             f"{field}: {samples} samples x {batch} candidates scored together (search "
-            f"{cfg.search!r}, horizon {R}) exceeds {MAX_PLANNER_BATCH:.1e} (about 1 GB, "
-            f"activetrack.limits): use at most {MAX_PLANNER_BATCH // batch} samples",
+            f"{cfg.search!r}, horizon {R}) exceeds {limits.MAX_PLANNER_BATCH:.1e} (about 1 GB, "
+            f"activetrack.limits): use at most {limits.MAX_PLANNER_BATCH // batch} samples",
         )
     )
 
@@ -471,9 +466,9 @@ def _clutter_problems(where: str, cfg: Any) -> Problems:
             "is uniform over [r_min, r_max])",
         ),
         (
-            math.isfinite(volume) and mean > MAX_CLUTTER_PER_SCAN,
+            math.isfinite(volume) and mean > limits.MAX_CLUTTER_PER_SCAN,
             f"{where}.clutter_density: the mean false alarms per scan (density x field of view "
-            f"{mean:.3g}) must be <= {MAX_CLUTTER_PER_SCAN:g}",
+            f"{mean:.3g}) must be <= {limits.MAX_CLUTTER_PER_SCAN:g}",
         ),
     )
 

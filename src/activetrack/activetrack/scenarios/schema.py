@@ -23,21 +23,9 @@ from pydantic import (
 )
 from pydantic_core import core_schema
 
+from activetrack import limits
 from activetrack.checks import require_spd
-from activetrack.limits import (
-    MAX_DESCRIPTION_LENGTH,
-    MAX_GATE_SIGMAS,
-    MAX_HORIZON,
-    MAX_NAME_LENGTH,
-    MAX_PLATFORMS,
-    MAX_RANGE,
-    MAX_SENSORS,
-    MAX_STATE_DIM,
-    MAX_STEPS,
-    MAX_TARGETS,
-    MAX_TRACKS,
-    MIN_PRIOR_VARIANCE,
-)
+from activetrack.limits import MAX_SENSORS  # in PlatformConfig, whose field limits hides the module
 from activetrack.scenarios.fields import (
     MOTION_STATE,
     PV,
@@ -246,9 +234,9 @@ class PlatformConfig(Strict):
 class PriorConfig(Strict):
     """Gaussian prior of the target state: mean and either cov (full) or var (diagonal)."""
 
-    mean: list[FiniteFloat] = Field(min_length=1, max_length=MAX_STATE_DIM)
-    cov: list[list[Covariance]] | None = Field(default=None, max_length=MAX_STATE_DIM)
-    var: list[Variance] | None = Field(default=None, max_length=MAX_STATE_DIM)
+    mean: list[FiniteFloat] = Field(min_length=1, max_length=limits.MAX_STATE_DIM)
+    cov: list[list[Covariance]] | None = Field(default=None, max_length=limits.MAX_STATE_DIM)
+    var: list[Variance] | None = Field(default=None, max_length=limits.MAX_STATE_DIM)
 
     @model_validator(mode="after")
     def _one_cov(self):
@@ -270,10 +258,10 @@ class PriorConfig(Strict):
         except ValueError as exc:
             raise ValueError(f"{field}: {exc}") from None
         smallest = float(np.linalg.eigvalsh(P)[0])
-        if not smallest >= MIN_PRIOR_VARIANCE:
+        if not smallest >= limits.MIN_PRIOR_VARIANCE:
             raise ValueError(
                 f"{field}: the covariance's smallest eigenvalue must be >= "
-                f"{MIN_PRIOR_VARIANCE:g} (activetrack.limits), got {smallest:.3g}"
+                f"{limits.MIN_PRIOR_VARIANCE:g} (activetrack.limits), got {smallest:.3g}"
             )
         return self
 
@@ -286,12 +274,12 @@ class TargetConfig(Strict):
     motion: MotionConfig
     prior: PriorConfig
     # Truth at k = 0: a fixed state, or drawn from the prior with the simulator's generator.
-    initial_state: list[FiniteFloat] | None = Field(default=None, max_length=MAX_STATE_DIM)
+    initial_state: list[FiniteFloat] | None = Field(default=None, max_length=limits.MAX_STATE_DIM)
     # Multi-target scenarios: the target exists for epochs birth <= k < death (its truth at
     # ``birth`` is initial_state or a draw from the prior); priority weighs it in the planner's
     # weighted sum. Targets present at epoch 0 are tracked from their priors.
-    birth: Annotated[int, Field(ge=0, le=MAX_STEPS)] = 0
-    death: Annotated[int, Field(ge=1, le=MAX_STEPS)] | None = None
+    birth: Annotated[int, Field(ge=0, le=limits.MAX_STEPS)] = 0
+    death: Annotated[int, Field(ge=1, le=limits.MAX_STEPS)] | None = None
     priority: Annotated[float, float_range(gt=0, hi=1e6)] = 1.0
 
     @model_validator(mode="after")
@@ -329,13 +317,13 @@ class TrackManagementConfig(Strict):
     range-bearing sensors that no track gated, with velocity zero and ``init_speed_std``.
     """
 
-    gate_sigmas: Annotated[float, Field(gt=0, le=MAX_GATE_SIGMAS)] = 3.5
+    gate_sigmas: Annotated[float, Field(gt=0, le=limits.MAX_GATE_SIGMAS)] = 3.5
     confirm_m: Annotated[int, Field(ge=1, le=100)] = 2
     confirm_n: Annotated[int, Field(ge=1, le=100)] = 3
     delete_misses: Annotated[int, Field(ge=1, le=1000)] = 4
     init_speed_std: Annotated[float, Field(gt=0, le=1e6)] = 10.0  # m/s
-    max_position_std: Annotated[float, Field(gt=0, le=MAX_RANGE)] = 1e5  # m
-    max_tracks: Annotated[int, Field(ge=1, le=MAX_TRACKS)] = 50
+    max_position_std: Annotated[float, Field(gt=0, le=limits.MAX_RANGE)] = 1e5  # m
+    max_tracks: Annotated[int, Field(ge=1, le=limits.MAX_TRACKS)] = 50
 
     @model_validator(mode="after")
     def _m_of_n(self) -> TrackManagementConfig:
@@ -427,9 +415,10 @@ class PlannerConfig(Strict):
         eq. 16, the DP nested R deep or evolution): an integer, neither a bool nor a fraction."""
         if isinstance(value, float) and value.is_integer():
             value = int(value)
-        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_HORIZON:
+        top = limits.MAX_HORIZON
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
             raise ValueError(
-                f"must be an integer in [1, {MAX_HORIZON}] (the planning horizon R: 1 "
+                f"must be an integer in [1, {top}] (the planning horizon R: 1 "
                 f"single-step, 2 two-step, 3 three-step, ...), got {value!r}"
             )
         return value
@@ -440,7 +429,7 @@ class EvaluationConfig(Strict):
     cut-off ``c`` [m], order ``p`` and GOSPA's ``alpha`` (2: the metric splits into
     localisation, missed and false-target terms)."""
 
-    cutoff: Annotated[float, Field(gt=0, le=MAX_RANGE)] = 1000.0
+    cutoff: Annotated[float, Field(gt=0, le=limits.MAX_RANGE)] = 1000.0
     order: Annotated[float, Field(ge=1, le=100)] = 2.0
     alpha: Annotated[float, Field(gt=0, le=2)] = 2.0
 
@@ -466,16 +455,17 @@ def check_platform_ids(platforms: list) -> list:
         dupes = sorted({v for v in values if values.count(v) > 1})
         if dupes:
             raise ValueError(f"{what} ids must be unique, repeated: {dupes}")
-    if len(sensor_ids) > MAX_SENSORS:
+    if len(sensor_ids) > limits.MAX_SENSORS:
         raise ValueError(
-            f"at most {MAX_SENSORS} sensors in total (activetrack.limits), got {len(sensor_ids)}"
+            f"at most {limits.MAX_SENSORS} sensors in total (activetrack.limits), got "
+            f"{len(sensor_ids)}"
         )
     return platforms
 
 
 class Scenario(Strict):
-    name: Annotated[str, identifier("the name (it names the run folder)", MAX_NAME_LENGTH)]
-    description: str = Field(default="", max_length=MAX_DESCRIPTION_LENGTH)
+    name: Annotated[str, identifier("the name (it names the run folder)", limits.MAX_NAME_LENGTH)]
+    description: str = Field(default="", max_length=limits.MAX_DESCRIPTION_LENGTH)
     # Python modules imported before the rest of the file is validated (they register sensor
     # kinds, filters, criteria): scenarios.plugins. A file naming plugins runs their code.
     plugins: Plugins = Field(default=[])
@@ -483,8 +473,8 @@ class Scenario(Strict):
     dt: Dt  # s between measurement / decision epochs (T)
     steps: Steps  # epochs k = 1..steps
     # The targets: one (the papers) or many; a file may give a single one as ``target:``.
-    targets: list[TargetConfig] = Field(min_length=1, max_length=MAX_TARGETS)
-    platforms: list[PlatformConfig] = Field(min_length=1, max_length=MAX_PLATFORMS)
+    targets: list[TargetConfig] = Field(min_length=1, max_length=limits.MAX_TARGETS)
+    platforms: list[PlatformConfig] = Field(min_length=1, max_length=limits.MAX_PLATFORMS)
     tracker: TrackerConfig = TrackerConfig()
     planner: PlannerConfig = PlannerConfig()
     evaluation: EvaluationConfig = EvaluationConfig()

@@ -25,13 +25,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from activetrack.limits import (
-    MAX_DESCRIPTION_LENGTH,
-    MAX_NAME_LENGTH,
-    MAX_PLATFORMS,
-    MAX_SENSORS,
-    MAX_TARGETS,
-)
+from activetrack import limits
 from activetrack.scenarios.fields import (
     MOTION_STATE,
     Dt,
@@ -70,7 +64,7 @@ class TrackingPlatformConfig(Strict):
     """A platform: its id and sensors (no initial state: each scan says where it was)."""
 
     id: Annotated[str, identifier("a platform id")]
-    sensors: list[SensorConfig] = Field(min_length=1, max_length=MAX_SENSORS)
+    sensors: list[SensorConfig] = Field(min_length=1, max_length=limits.MAX_SENSORS)
 
 
 class TrackedTargetConfig(Strict):
@@ -83,8 +77,10 @@ class TrackedTargetConfig(Strict):
 
 
 class TrackingConfig(Strict):
-    name: Annotated[str, identifier("the name (it names the output folder)", MAX_NAME_LENGTH)]
-    description: str = Field(default="", max_length=MAX_DESCRIPTION_LENGTH)
+    name: Annotated[
+        str, identifier("the name (it names the output folder)", limits.MAX_NAME_LENGTH)
+    ]
+    description: str = Field(default="", max_length=limits.MAX_DESCRIPTION_LENGTH)
     # Python modules imported before the rest is validated (sensor kinds, filters): as in a
     # scenario file, a configuration naming plugins runs their code.
     plugins: Plugins = Field(default=[])
@@ -93,9 +89,9 @@ class TrackingConfig(Strict):
     # The last epoch the data may hold: a scenario's steps (a file with ``steps:`` is read as
     # a scenario); None: any.
     steps: Steps | None = None
-    platforms: list[TrackingPlatformConfig] = Field(min_length=1, max_length=MAX_PLATFORMS)
+    platforms: list[TrackingPlatformConfig] = Field(min_length=1, max_length=limits.MAX_PLATFORMS)
     tracker: TrackerConfig
-    targets: list[TrackedTargetConfig] = Field(default=[], max_length=MAX_TARGETS)
+    targets: list[TrackedTargetConfig] = Field(default=[], max_length=limits.MAX_TARGETS)
     association: Literal["auto", "known", "jpda"] = "auto"
     # The planner weight of a track started from detections (a scenario's
     # planner.targets.new_track_priority): tracks carry it.
