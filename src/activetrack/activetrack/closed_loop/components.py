@@ -65,8 +65,8 @@ from activetrack.scenarios.build import (
     build_motion_model,
     build_sensor,
     plan_settings,
-    platform_limits,
     search_settings,
+    steered_limits,
 )
 from activetrack.scenarios.schema import (
     PlannerConfig,
@@ -273,11 +273,7 @@ def _platform_specs(scenario: Scenario) -> tuple[PlatformSpec, ...]:
     """Each platform's sensor models and, when controllable, its limits per epoch."""
     return tuple(
         PlatformSpec(
-            p.id,
-            tuple(build_sensor(s) for s in p.sensors),
-            platform_limits(p.limits, scenario.dt)
-            if p.controllable and p.limits is not None
-            else None,
+            p.id, tuple(build_sensor(s) for s in p.sensors), steered_limits(p, scenario.dt)
         )
         for p in scenario.platforms
     )
@@ -290,16 +286,9 @@ def _cautious_controller(scenario: Scenario) -> CautiousController:
     c = scenario.planner.cautious
     if robot.limits is None:
         raise ValueError(f"platform {robot.id!r} is controllable but has no limits")
-    planner = CautiousPlanner(
-        sigma_s=robot.sensors[0].sigma,
-        prior_cov=scenario.target.prior.covariance(),
-        beta=c.beta,
-        c_d=c.c_d,
-        t_m=c.t_m,
-        r_min=c.r_min,
-        max_measurements=c.max_measurements,
-        tail=c.tail,
-    )
+    # CautiousConfig's fields are the planner's parameters (beta, c_d, t_m, r_min, tail, ...).
+    sigma_s, prior_cov = robot.sensors[0].sigma, scenario.target.prior.covariance()
+    planner = CautiousPlanner(sigma_s, prior_cov, **c.model_dump())
     return CautiousController(robot.id, robot.limits.v_max, scenario.dt, planner)
 
 
@@ -324,9 +313,7 @@ def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiT
             p.id,
             tuple((s.id, sensors[s.id][1]) for s in p.sensors),
             p.controllable,
-            platform_limits(p.limits, scenario.dt)
-            if cfg.enabled and p.controllable and p.limits is not None
-            else None,
+            steered_limits(p, scenario.dt) if cfg.enabled else None,
         )
         for p in scenario.platforms
     ]

@@ -43,6 +43,7 @@ from activetrack.scenarios.schema import (
     NcvDiscreteMotion,
     NcvMotion,
     PlannerConfig,
+    PlatformConfig,
     RangeBearingSensorConfig,
     RangeRateBearingSensorConfig,
     Scenario,
@@ -55,6 +56,7 @@ __all__ = [
     "planner_platforms",
     "platform_limits",
     "search_settings",
+    "steered_limits",
 ]
 
 # The built-in kinds, registered like any other (the order is that of the error messages).
@@ -94,6 +96,11 @@ def platform_limits(cfg: ManoeuvreLimits, dt: float) -> PlatformLimits:
     seconds apart (activetrack.planning.manoeuvre: dv_max = a_max T, dpsi_max = psi_rate_max T)."""
     dpsi_max, dv_max = cfg.per_epoch(dt)
     return PlatformLimits(min(float(dpsi_max), math.pi), float(dv_max), cfg.v_min, cfg.v_max)
+
+
+def steered_limits(cfg: PlatformConfig, dt: float) -> PlatformLimits | None:
+    """A controllable platform's limits per epoch (:func:`platform_limits`); None otherwise."""
+    return platform_limits(cfg.limits, dt) if cfg.controllable and cfg.limits is not None else None
 
 
 def search_settings(cfg: PlannerConfig, **overrides: Any) -> SearchSettings:
@@ -140,15 +147,8 @@ def planner_platforms(
     ``states`` maps platform id to a pv overriding the initial state."""
     out = []
     for cfg in scenario.platforms:
-        limits = (
-            platform_limits(cfg.limits, scenario.dt)
-            if cfg.controllable and cfg.limits is not None
-            else None
-        )
         pv = cfg.initial_state if states is None or cfg.id not in states else states[cfg.id]
-        out.append(
-            PlannerPlatform(
-                cfg.id, np.asarray(pv, float), tuple(build_sensor(s) for s in cfg.sensors), limits
-            )
-        )
+        sensors = tuple(build_sensor(s) for s in cfg.sensors)
+        limits = steered_limits(cfg, scenario.dt)
+        out.append(PlannerPlatform(cfg.id, np.asarray(pv, float), sensors, limits))
     return out
