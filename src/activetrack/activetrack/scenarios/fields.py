@@ -83,6 +83,12 @@ def check_identifier(what: str, value: str, max_length: int) -> str:
     return value
 
 
+def shown(value: object, limit: int = 60) -> str:
+    """``repr(value)`` for an error message, cut to ``limit`` characters ("..." after)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def identifier(what: str, max_length: int = limits.MAX_ID_LENGTH) -> Any:
     """A name checked by :func:`check_identifier` (``Annotated[str, identifier(what)]``)."""
     return AfterValidator(lambda value: check_identifier(what, value, max_length))

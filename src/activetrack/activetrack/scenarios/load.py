@@ -26,6 +26,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 from pydantic_core import ErrorDetails
 
+from activetrack.scenarios.fields import shown
 from activetrack.scenarios.plugins import PluginError, import_plugins
 from activetrack.scenarios.rules import (
     Problems,
@@ -43,7 +44,6 @@ MAX_FILE_BYTES = 1 << 20  # 1 MiB
 MAX_NESTING = 32  # levels of YAML collections (a scenario uses 5)
 MAX_NODES = 100_000  # YAML nodes with every alias expanded (a scenario has a few hundred)
 MAX_ERROR_LINES = 20  # invalid fields listed before "... and N more"
-_SHOW_INPUT = 60  # characters of an offending value shown in a message
 
 _FIELD_MESSAGE = re.compile(r"([A-Za-z_][\w.]*): (.+)", re.DOTALL)
 
@@ -55,11 +55,6 @@ _ONE_TARGET = re.compile(r"(^|\s)targets\.0(\.|:|\b)")
 
 class ScenarioError(ValueError):
     """A scenario file that cannot be used; the message lists every offending field."""
-
-
-def _shown(value: object) -> str:
-    text = repr(value)
-    return text if len(text) <= _SHOW_INPUT else text[:_SHOW_INPUT] + "..."
 
 
 def _describe(err: ErrorDetails) -> list[str]:
@@ -80,9 +75,9 @@ def _describe(err: ErrorDetails) -> list[str]:
     elif err["type"] == "extra_forbidden":
         msg = "unknown field (check the spelling; the fields: activetrack/scenarios/schema.py)"
     elif err["type"] == "union_tag_invalid" and "expected_tags" in ctx:
-        msg = f"must be one of {ctx['expected_tags']}, got {_shown(ctx.get('tag'))}"
+        msg = f"must be one of {ctx['expected_tags']}, got {shown(ctx.get('tag'))}"
     elif "input" in err and not isinstance(err["input"], dict | list):
-        msg = f"{msg} (got {_shown(err['input'])})"
+        msg = f"{msg} (got {shown(err['input'])})"
     return [f"  {'.'.join(loc) or '(top level)'}: {msg}"]
 
 
@@ -99,25 +94,19 @@ def _as_written(lines: list[str], data: dict) -> list[str]:
     return [_ONE_TARGET.sub(r"\1target\2", line) for line in lines]
 
 
-def _validated(data: dict) -> tuple[Scenario | None, list[str]]:
-    """The scenario of ``data`` and no error lines, or None and every invalid field."""
-    model, lines = _validated_as(Scenario, scenario_problems, data)
-    return model, _as_written(lines, data)
-
-
-def _validated_as(
+def _validated(
     cls: type[Configured], problems: Callable[[Configured], Problems], data: dict
 ) -> tuple[Configured | None, list[str]]:
     """``cls`` validated from ``data`` (the schema, then the registered names, then
     ``problems``, the rules across sections) and no error lines, or None and every invalid
-    field."""
+    field (:func:`_as_written`)."""
     try:
         model = cls.model_validate(data)
     except ValidationError as exc:
         lines = [line for e in exc.errors() for line in _describe(e)]
-        return None, lines + _lines(name_problems(data))
+        return None, _as_written(lines + _lines(name_problems(data)), data)
     names = name_problems(data)  # the rules across sections need registered names
-    lines = _lines(names or problems(model))
+    lines = _as_written(_lines(names or problems(model)), data)
     return (None, lines) if lines else (model, [])
 
 
@@ -125,7 +114,7 @@ def parse_scenario(data: object, source: str = "<dict>") -> Scenario:
     """Validate a scenario given as a dict (already parsed YAML): the schema, then the rules.
     Its ``plugins`` are imported first (they may register the sensor kinds, filters and
     criteria the rest names)."""
-    return _parse(data, source, "scenario", "name:, dt:, ...", _validated)
+    return _parse(data, source, "scenario", "name:, dt:, ...", Scenario, scenario_problems)
 
 
 def _parse(
@@ -133,10 +122,11 @@ def _parse(
     source: str,
     what: str,
     fields: str,
-    validated: Callable[[dict], tuple[Configured | None, list[str]]],
+    cls: type[Configured],
+    problems: Callable[[Configured], Problems],
 ) -> Configured:
-    """``validated(data)`` -> (the model, []) or (None, error lines) as one ScenarioError
-    naming ``source`` and ``what`` ("scenario", "tracker configuration"); plugins first."""
+    """``cls`` of ``data`` (:func:`_validated`), or one ScenarioError naming ``source``,
+    ``what`` ("scenario", "tracker configuration") and every invalid field; plugins first."""
     if not isinstance(data, dict):
         article = "an" if what[0] in "aeiou" else "a"
         raise ScenarioError(
@@ -149,19 +139,19 @@ def _parse(
         except PluginError as exc:
             raise ScenarioError(f"{source}: {exc}") from None
     try:
-        model, lines = validated(data)
+        model, lines = _validated(cls, problems, data)
     except RecursionError:
         raise ScenarioError(f"{source}: invalid {what}: nested too deeply") from None
     except Exception as exc:  # a check of ours failed unexpectedly: still one clear error
         raise ScenarioError(
             f"{source}: invalid {what} (internal check failed: {type(exc).__name__}: "
-            f"{_shown(str(exc))})"
+            f"{shown(str(exc))})"
         ) from None
     if model is None:
-        shown = lines[:MAX_ERROR_LINES]
+        listed = lines[:MAX_ERROR_LINES]
         if len(lines) > MAX_ERROR_LINES:
-            shown.append(f"  ... and {len(lines) - MAX_ERROR_LINES} more")
-        raise ScenarioError(f"{source}: invalid {what}\n" + "\n".join(shown))
+            listed.append(f"  ... and {len(lines) - MAX_ERROR_LINES} more")
+        raise ScenarioError(f"{source}: invalid {what}\n" + "\n".join(listed))
     return model
 
 
@@ -259,7 +249,7 @@ def _read_yaml(path: str | Path) -> tuple[Path, Any]:
         raise ScenarioError(f"{path}: nested too deeply") from None
     except Exception as exc:  # the YAML library failed some other way: one clear error
         raise ScenarioError(
-            f"{path}: not valid YAML ({type(exc).__name__}: {_shown(str(exc))})"
+            f"{path}: not valid YAML ({type(exc).__name__}: {shown(str(exc))})"
         ) from None
     if data is None:
         raise ScenarioError(f"{path}: the file holds no scenario (only comments)")
@@ -277,17 +267,11 @@ def load_scenario(path: str | Path) -> Scenario:
 # --- tracker-only configurations ---------------------------------------------------------------
 
 
-def _validated_tracking(data: dict) -> tuple[TrackingConfig | None, list[str]]:
-    """The tracker configuration of ``data`` and no error lines, or None and every invalid
-    field."""
-    return _validated_as(TrackingConfig, tracking_problems, data)
-
-
 def parse_tracking(data: object, source: str = "<dict>") -> TrackingConfig:
     """Validate a tracker configuration given as a dict (parsed YAML): the schema
     (:mod:`.tracking`), then the rules; its ``plugins`` are imported first."""
-    fields = "name:, dt:, platforms:, tracker:, ..."
-    return _parse(data, source, "tracker configuration", fields, _validated_tracking)
+    what, fields = "tracker configuration", "name:, dt:, platforms:, tracker:, ..."
+    return _parse(data, source, what, fields, TrackingConfig, tracking_problems)
 
 
 def load_tracking(path: str | Path) -> TrackingConfig:
@@ -320,7 +304,7 @@ def with_changes(scenario: Scenario, **changes: Any) -> Scenario:
     if not changes:
         return scenario
     data = _merged(scenario.model_dump(), changes)
-    return parse_scenario(data, f"{scenario.name} (with {_shown(changes)})")
+    return parse_scenario(data, f"{scenario.name} (with {shown(changes)})")
 
 
 def with_tracker_overrides(scenario: Configured, **overrides: object) -> Configured:

@@ -21,6 +21,8 @@ from typing import Annotated
 
 from pydantic import AfterValidator, Field
 
+from activetrack.scenarios.fields import shown
+
 __all__ = ["MAX_PLUGINS", "PluginError", "Plugins", "check_plugin_names", "import_plugins"]
 
 MAX_PLUGINS = 32  # modules per scenario
@@ -30,11 +32,6 @@ _SHOW = 200  # characters of an exception message shown in an error
 
 class PluginError(ValueError):
     """A ``plugins:`` entry that is not a module name or that cannot be imported (one line)."""
-
-
-def _shown(value: object, limit: int = 60) -> str:
-    text = repr(value)
-    return text if len(text) <= limit else text[:limit] + "..."
 
 
 def _is_module_name(name: object) -> bool:
@@ -48,7 +45,7 @@ def check_plugin_names(value: object) -> list[str]:
     if not isinstance(value, list):
         raise PluginError(
             f"plugins: must be a list of Python module names, got {type(value).__name__} "
-            f"{_shown(value)}"
+            f"{shown(value)}"
         )
     if len(value) > MAX_PLUGINS:
         raise PluginError(f"plugins: at most {MAX_PLUGINS} modules, got {len(value)}")
@@ -57,7 +54,7 @@ def check_plugin_names(value: object) -> list[str]:
             raise PluginError(
                 f"plugins[{i}]: must be a Python module name (identifiers joined by '.', e.g. "
                 f"my_package.my_sensors; at most {MAX_PLUGIN_NAME} characters), "
-                f"got {_shown(name)}"
+                f"got {shown(name)}"
             )
     return list(value)
 

@@ -26,7 +26,7 @@ from activetrack.planning.cautious import caution_gamma, sigma_beta
 from activetrack.planning.criteria import PCRLB, POSITIONING, criterion_names, get_criterion
 from activetrack.planning.selection import POSITIONING_SEARCHES
 from activetrack.scenarios.build import build_motion_model, build_sensor
-from activetrack.scenarios.fields import MOTION_STATE, PV_MODELS, position_of
+from activetrack.scenarios.fields import MOTION_STATE, PV_MODELS, position_of, shown
 from activetrack.scenarios.registry import registered_kinds, sensor_kind
 from activetrack.scenarios.schema import (
     CautiousConfig,
@@ -56,8 +56,7 @@ def _filter_problem(value: str) -> str | None:
     names = filter_names()
     if value in names:
         return None
-    shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
-    return f"must be one of {_one_of(names)}, got {shown}"
+    return f"must be one of {_one_of(names)}, got {shown(value, 40)}"
 
 
 def _criterion_problem(value: str, *uses: str) -> str | None:
