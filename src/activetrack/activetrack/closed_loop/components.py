@@ -17,14 +17,7 @@ asks for (:class:`activetrack.planning.decision.Planner`), in order:
 - ``cost: mre`` and/or ``selection.enabled`` (Ramdaras): MrePrediction, then for the
   controllable platforms PcrlbPlanning (``cost: pcrlb``) or MrePositioning (``cost: mre``),
   then the selection strategy of ``selection.strategy`` (``SELECTION_STRATEGIES``), then
-  MreOutlook (the plan report).
-
-MRE covariance (docs/ramdaras.md): in renewal mode each decision starts from the track,
-P_{k+1|k} = F P_{k|k} F^T + Q and x_{k+1|k} = F x_{k|k} (Ramdaras Fig. 5: the filter's
-P_{k|k} feeds the positioning and selection). In open-loop mode the planner keeps its own
-recursion from the prior: P_{k+1|k+1} = (1 - pd) P_{k+1|k} + pd P^(j)_{k+1|k+1} for the
-selected sensors at their planned positions, linearised at the noise-free predicted mean (the
-MRE bound the tests compare the filter against).
+  MreOutlook (the plan report). Renewal and open-loop MRE covariances: MrePrediction.
 """
 
 from __future__ import annotations

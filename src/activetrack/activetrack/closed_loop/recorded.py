@@ -46,14 +46,8 @@ class GospaSeries:
         return float(np.mean(self.gospa))
 
     def to_json(self) -> dict:
-        return {
-            "mean": self.mean,
-            "epochs": self.epochs.tolist(),
-            "gospa": self.gospa.tolist(),
-            "localisation": self.localisation.tolist(),
-            "missed": self.missed.tolist(),
-            "false": self.false.tolist(),
-        }
+        series = ("epochs", "gospa", "localisation", "missed", "false")
+        return {"mean": self.mean, **{name: getattr(self, name).tolist() for name in series}}
 
 
 @dataclass

@@ -307,15 +307,8 @@ class TargetConfig(Strict):
 
 
 class TrackManagementConfig(Strict):
-    """JPDA gating and M-of-N track management of the multi-target tracker.
-
-    A track is confirmed once it had a gated detection in ``confirm_m`` of its last
-    ``confirm_n`` looks (epochs where a sensor looked at its predicted position); a tentative
-    track that cannot reach that any more is deleted, and a confirmed one after
-    ``delete_misses`` consecutive looks without a gated detection, or when its position
-    standard deviation exceeds ``max_position_std``. New tracks start from detections of
-    range-bearing sensors that no track gated, with velocity zero and ``init_speed_std``.
-    """
+    """JPDA gating and M-of-N track management (the rules: activetrack.tracking.management);
+    tracks from detections start with velocity 0 and standard deviation ``init_speed_std``."""
 
     gate_sigmas: Annotated[float, Field(gt=0, le=limits.MAX_GATE_SIGMAS)] = 3.5
     confirm_m: Annotated[int, Field(ge=1, le=100)] = 2

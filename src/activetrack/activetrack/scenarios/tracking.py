@@ -1,22 +1,13 @@
-"""The tracker-only configuration (YAML): what tracking recorded detections needs.
+"""The tracker-only configuration (YAML): what tracking recorded detections needs (its fields:
+docs/track-your-data.md).
 
-A scenario describes a simulation (targets that move, platforms that start somewhere, a
-planner); tracking data recorded elsewhere needs only the tracker's side of it: the sensors
-with their noise, detection probability, ranges, clutter and fields of view, grouped by the
-platform that carries them (where a platform was comes with each scan), the tracker section
-(``tracker.motion`` required: no target motion to fall back on), optionally the targets known at
-epoch 0 (their tracks start confirmed from their priors; without them tracks start from
-detections only) and the evaluation's GOSPA parameters. ``dt`` is the epoch spacing: the scans
-of epoch k are taken at t = k dt, as everywhere in the graph. docs/track-your-data.md.
-
-A scenario is accepted where a tracker configuration is: :func:`tracking_of` takes its
-platforms' sensors, its tracker (with the first target's motion when ``tracker.motion`` is not
-given), the targets present at epoch 0 as priors, its association, seed, dt, steps and
-evaluation, so that the tracker built from it is the scenario's own.
-
-Like the scenario's schema, these classes check the file's shape and the rules inside it that
-need no component; the rules that ask the registries and components are
-:func:`activetrack.scenarios.rules.tracking_problems`, which the loader runs after them.
+Only the tracker's side of a scenario: the sensors grouped by the platform that carries them
+(where a platform was comes with each scan), the tracker section (``tracker.motion`` required:
+no target motion to fall back on), optionally the targets known at epoch 0 (their tracks start
+confirmed from their priors) and the evaluation. The scans of epoch k are at t = k dt.
+:func:`tracking_of` takes a scenario's, so that the tracker built from it is the scenario's
+own. As in the scenario's schema, these classes check the shape; the rules that ask registries
+and components are :func:`activetrack.scenarios.rules.tracking_problems`, run by the loader.
 """
 
 from __future__ import annotations
@@ -159,7 +150,8 @@ on_registry_change(_rebuild_sensor_models)
 
 
 def tracking_of(scenario: Scenario) -> TrackingConfig:
-    """The tracker configuration of a valid scenario: its tracker exactly (module docstring)."""
+    """The tracker configuration of a valid scenario, its tracker exactly: the targets present
+    at epoch 0 as priors, the first target's motion unless ``tracker.motion`` is given."""
     motion = scenario.tracker.motion or scenario.target.motion
     return TrackingConfig(
         name=scenario.name,

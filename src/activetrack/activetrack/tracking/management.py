@@ -1,45 +1,33 @@
 """Tracks and their management: M-of-N confirmation and deletion, probability of existence.
 
-A :class:`Track` is one filter (any registered one: activetrack.filters.registry) with its id,
-status and look history. :class:`TrackManager` holds the live tracks and applies the
-rules of ``tracker.tracks`` (:class:`~activetrack.scenarios.schema.
-TrackManagementConfig`) once per epoch (M-of-N confirmation and deletion: Blackman & Popoli,
-*Design and Analysis of Modern Tracking Systems*, 1999):
+A :class:`Track` is one filter (any registered one) with its id, status and look history;
+:class:`TrackManager` holds the live tracks and applies the rules of ``tracker.tracks`` once per
+epoch (M-of-N: Blackman & Popoli, *Design and Analysis of Modern Tracking Systems*, 1999):
 
-- a **look** is an epoch at which at least one scan's field of view held the track's predicted
-  position; a **hit** a look with at least one detection in the track's gate (any scan of the
-  epoch). The detection that starts a track is its first look and hit;
+- a **look** is an epoch at which a scan's field of view held the track's predicted position, a
+  **hit** a look with a detection in its gate (the detection that starts a track is its first);
 - a tentative track is **confirmed** once it has ``confirm_m`` hits in its last ``confirm_n``
-  looks and the existence below. It is **deleted** as soon as
-  ``hits + (confirm_n - looks) < confirm_m`` (within its first ``confirm_n`` looks: it can
-  no longer reach M). One that reached M without the existence stays tentative until that
-  rule (past ``confirm_n`` looks each look without a hit uses up one of its spare hits) or
-  its existence decides;
-- a confirmed track is deleted after ``delete_misses`` consecutive looks without a hit;
-- any track is deleted when its position standard deviation (sqrt of the largest eigenvalue of
-  its xy covariance block) exceeds ``max_position_std`` (lost: a planner cannot use it);
+  looks and the existence below; it is **deleted** once ``hits + (confirm_n - looks) <
+  confirm_m`` (it can no longer reach M; past ``confirm_n`` looks each look without a hit uses
+  up one of its spare hits);
+- a confirmed track is deleted after ``delete_misses`` consecutive looks without a hit, any track
+  once its position standard deviation (sqrt of the largest eigenvalue of its xy covariance)
+  exceeds ``max_position_std`` (lost: a planner cannot use it);
 - **coalescence** (two JPDA tracks drawn onto one target, Fitzgerald 1985; Blom & Bloem 2000):
-  two confirmed tracks whose positions are within Mahalanobis distance
-  ``d^2 = dp^T (P_a + P_b)^-1 dp <= COALESCE_D2`` at ``COALESCE_LOOKS`` consecutive epochs at
-  which both were looked at: the younger (the larger id: ids are given in order of creation)
-  is deleted. Two tracks on two targets that cross pass through that distance for an epoch or
-  two; tracks on one target stay there.
-- **probability of existence** (IPDA: Musicki, Evans & Stankovic, "Integrated probabilistic
-  data association", IEEE TAC 39(6), 1994; among tracks that share detections the linear
-  multi-target form, LM-IPDA: Musicki & La Scala, "Multi-target tracking in clutter without
-  measurement assignment", IEEE TAES 44(3), 2008): each track carries ``existence``, predicted
-  by ``EXISTENCE_SURVIVAL`` (Markov chain one) once per epoch at its first scan of the epoch
-  and updated by every scan whose field of view held it (:func:`existence_update`); a track
-  from a prior starts at 1, one from a detection at ``EXISTENCE_INIT``. A tentative track is
-  confirmed only once it also has ``existence >= EXISTENCE_CONFIRM``. A track started from
-  detections is deleted ("existence") when its existence falls below ``EXISTENCE_DELETE``,
-  once confirmed or past its first ``confirm_n`` looks (within them the M-of-N rule decides,
-  as above). Tracks from the scenario's priors are never deleted by existence: their targets
-  are known to exist, and a deleted one may never come back (bearings only start no track).
-  A detection in a track's gate that another, sharper track explains counts as a hit for
-  M-of-N but barely raises the wide track's existence (LM-IPDA adds the other track's
-  detection density to that detection's clutter density), so wide duplicates and clutter
-  tracks fed by stray detections die out.
+  of two confirmed tracks within Mahalanobis distance ``d^2 = dp^T (P_a + P_b)^-1 dp <=
+  COALESCE_D2`` at ``COALESCE_LOOKS`` consecutive joint looks the younger (larger id) is
+  deleted; tracks on two crossing targets pass through that distance for an epoch or two;
+- **probability of existence** (IPDA: Musicki, Evans & Stankovic, IEEE TAC 39(6), 1994; among
+  tracks that share detections LM-IPDA: Musicki & La Scala, IEEE TAES 44(3), 2008): predicted
+  by ``EXISTENCE_SURVIVAL`` once per epoch at the track's first scan, updated by every scan that
+  held it (:func:`existence_update`); 1 for a track from a prior, ``EXISTENCE_INIT`` from a
+  detection. Confirmation also needs ``existence >= EXISTENCE_CONFIRM``; a track from
+  detections, once confirmed or past ``confirm_n`` looks, is deleted ("existence") below
+  ``EXISTENCE_DELETE``. Tracks from priors never are: their targets are known to exist, and a
+  deleted one may never come back (bearings only start no track). A detection that a sharper
+  track explains counts as a hit for M-of-N but barely raises a wide track's existence (LM-IPDA
+  adds the other track's detection density to its clutter density), so wide duplicates and
+  clutter tracks fed by stray detections die out.
 """
 
 from __future__ import annotations
@@ -224,19 +212,14 @@ class Track:
 
     def estimate(self, epoch: int) -> TrackEstimate:
         """The track as the tracker reports it."""
-        state, state_cov = self.state, self.state_cov
-        if self.model.state_is_pv:
-            mean, cov = state, state_cov
-        else:
-            mean, cov = self.mean, self.cov
         particles = getattr(self.filter, "weights", None) if self.particle_based else None
         return TrackEstimate(
             track_id=self.track_id,
             status=self.status,
-            mean=mean,
-            cov=cov,
-            state=state,
-            state_cov=state_cov,
+            mean=self.mean,
+            cov=self.cov,
+            state=self.state,
+            state_cov=self.state_cov,
             origin=self.origin,
             priority=self.priority,
             age=epoch - self.born,
