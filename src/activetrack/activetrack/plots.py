@@ -56,12 +56,18 @@ def write_figures(
     return files
 
 
+def _saved(fig: Figure, path: str | Path, **options: Any) -> Path:
+    """``fig`` written as a PNG at ``path`` (110 dpi, its folder made); the file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, **options)
+    return path
+
+
 def plot_errors(summary: BatchSummary, path: str | Path) -> Path:
     """Write each target's RMSE against its PCRLB over time, x and y, as a PNG at ``path``
     (the summary's ``rmse_x_t`` / ``bound_x_t``; closed_loop.batch says what they average);
     returns the file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     k = np.arange(1, summary.steps + 1)
     fig = new_figure(figsize=(10, 4))
     axes = fig.subplots(1, 2, sharey=True)
@@ -78,8 +84,7 @@ def plot_errors(summary: BatchSummary, path: str | Path) -> Path:
         ax.set_yscale("log")
         ax.legend(fontsize="small")
     axes[0].set_ylabel("m")
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    return path
+    return _saved(fig, path, bbox_inches="tight")
 
 
 _CLUTTER = "0.8"  # light grey
@@ -151,8 +156,6 @@ def plot_run(
     """Write one run's plane view as a PNG at ``path`` (the targets' true paths, the
     confirmed tracks' paths with their ids, the clutter that fixes a position, the platforms'
     paths); ``sensors``: the scene's by id; returns the file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig = new_figure(figsize=(7, 7))
     ax = fig.subplots()
     _draw_run(ax, sensors, record)
@@ -161,8 +164,7 @@ def plot_run(
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(f"{name}: truth, confirmed tracks (ids), platforms")
     ax.legend(loc="best", fontsize="small")
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    return path
+    return _saved(fig, path, bbox_inches="tight")
 
 
 def plot_gospa(evaluations: dict[str, list[RunEvaluation]], path: str | Path) -> Path:
@@ -171,8 +173,6 @@ def plot_gospa(evaluations: dict[str, list[RunEvaluation]], path: str | Path) ->
     share the time grid."""
     if not evaluations or any(len(runs) == 0 for runs in evaluations.values()):
         raise ValueError("evaluations must map each strategy name to at least one run")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig = new_figure(figsize=(8, 4.5))
     ax = fig.subplots()
     for i, (name, runs) in enumerate(evaluations.items()):
@@ -188,5 +188,4 @@ def plot_gospa(evaluations: dict[str, list[RunEvaluation]], path: str | Path) ->
     ax.set_ylabel("GOSPA (m)")
     ax.legend(loc="best", fontsize="small")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path
+    return _saved(fig, path)

@@ -47,10 +47,8 @@ def _floats(values: np.ndarray) -> list:
 
 @dataclass
 class BatchSummary:
-    """``runs`` runs of one scenario (N targets, K epochs); the error vocabulary is the module
-    docstring's. Per target ``(N,)`` / ``(N, K)``: ``time_avg_rmse_x``, ``rmse_x_t`` and the
-    same for y and the bound; ``held_fraction``. Over the scene ``(K,)``: GOSPA and its split,
-    OSPA; per run ``run_gospa`` ``(R,)``; breaks and swaps per run."""
+    """``runs`` runs of one scenario (N targets, K epochs; the error vocabulary: module
+    docstring): per target ``(N,)`` / ``(N, K)``, over the scene ``(K,)``, per run ``(R,)``."""
 
     scenario: str
     runs: int
@@ -172,11 +170,10 @@ def run_batch(
     scheduler: Scheduler | None = None,
     keep_records: bool = True,
 ) -> BatchSummary:
-    """``runs`` seeded closed-loop runs on ``jobs`` worker processes, or on the workers of the
-    Dask cluster ``scheduler`` (``tcp://host:port`` or a ``distributed.Client``), summarised
+    """``runs`` seeded closed-loop runs on ``jobs`` worker processes or the Dask cluster
+    ``scheduler`` (:func:`activetrack.montecarlo.parallel_map`, ``progress`` too), summarised
     by :func:`summarize`. Run r draws from its own generators (:func:`component_rngs`), so the
-    result is the same for every ``jobs`` and backend. ``progress(done)`` is called as runs
-    finish (:func:`activetrack.montecarlo.parallel_map`); it does not change the result."""
+    result is the same for every ``jobs`` and backend."""
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ValueError(f"runs: must be an integer >= 1, got {runs!r}")
     start = time.perf_counter()

@@ -153,11 +153,9 @@ def _check_shapes(scenario: Scenario, record: RunRecord) -> int:
 
 
 def alive_mask(scenario: Scenario, record: RunRecord) -> np.ndarray:
-    """``(K+1, N)`` bool: target n alive at epoch k (its truth row is not NaN).
-
-    Checks the record against the scenario (shapes, target and sensor order) and that each
-    target is alive exactly for epochs ``birth <= k < death``, as the scenario says; ValueError
-    naming the field otherwise."""
+    """``(K+1, N)`` bool: target n alive at epoch k (its truth row is not NaN). ValueError
+    naming the field unless the record fits the scenario (shapes, target and sensor order) and
+    each target is alive exactly for epochs ``birth <= k < death``."""
     K = _check_shapes(scenario, record)
     truth = np.asarray(record.truth, dtype=float)
     alive = ~np.isnan(truth[..., 0])

@@ -21,8 +21,7 @@ class RunRecord:
     ``looked`` ``(K, S)``: which sensors scanned at epochs 1..K (selection, stop-and-measure);
     ``detected`` ``(K, S)``: and reported at least one detection; ``observed`` ``(K, S, N)``:
     sensor s scanned at epoch k and target n was alive inside its field of view and detection
-    ranges;
-    ``decisions``: one per epoch 0..K-1."""
+    ranges; ``decisions``: one per epoch 0..K-1."""
 
     target_ids: tuple[str, ...]
     sensor_ids: tuple[str, ...]
@@ -49,9 +48,7 @@ class RunRecord:
         """The filter state ``(K+1, n)`` and covariance ``(K+1, n, n)`` of one track at
         epochs 0..K (NaN where it is not live); track 1 is the first target's from its prior
         (the papers' one target)."""
-        rows = []
-        for ts in self.tracks:
-            rows.append(next((t for t in ts.tracks if t.track_id == track_id), None))
+        rows = [next((t for t in ts.tracks if t.track_id == track_id), None) for ts in self.tracks]
         found = next((t for t in rows if t is not None), None)
         if found is None:
             raise ValueError(f"track_id: no track {track_id} in the run")

@@ -90,12 +90,6 @@ def name_problems(data: object) -> Problems:
     return out
 
 
-def _particle_based(name: str) -> bool:
-    """Whether the registered filter ``name`` is a particle filter (its posterior a weighted
-    particle set: the particle options and rules apply)."""
-    return filter_kind(name).particle_based
-
-
 # --- across sections ---------------------------------------------------------------------------
 
 
@@ -178,7 +172,7 @@ def _planner_problems(s: Scenario) -> Problems:
         criteria.append(("planner.criterion", cfg.criterion))
     if criteria and s.target.motion.model in PV_MODELS:
         out += _criterion_problems(s, criteria)
-    particles = _particle_based(s.tracker.filter)
+    particles = filter_kind(s.tracker.filter).particle_based  # the particle rules apply
     return out + _violated(
         (
             uses_track and particles and s.tracker.particles < limits.MIN_PARTICLES_FOR_PLANNING,
@@ -305,24 +299,20 @@ def _cautious_problems(s: Scenario, robots: list[tuple[int, PlatformConfig]]) ->
     return out
 
 
-def _bearing_only_kinds() -> tuple[str, ...]:
-    """The registered kinds whose sensors measure one bearing (components ``("bearing",)``)."""
-    return tuple(
-        kind
-        for kind in registered_kinds()
-        if tuple(getattr(sensor_kind(kind).sensor_class, "components", ())) == ("bearing",)
-    )
-
-
 def _cautious_robot_problems(c: CautiousConfig, i: int, robot: PlatformConfig) -> Problems:
     """The robot's one bearing sensor and the beta-cautious strategy's existence for it."""
     sensors = [build_sensor(cfg) for cfg in robot.sensors]
     if len(sensors) != 1 or tuple(sensors[0].components) != ("bearing",):
         kinds = [cfg.kind for cfg in robot.sensors]
+        bearing_only = tuple(  # the registered kinds that measure one bearing
+            kind
+            for kind in registered_kinds()
+            if tuple(getattr(sensor_kind(kind).sensor_class, "components", ())) == ("bearing",)
+        )
         return [
             _problem(
                 f"platforms.{i}.sensors: search 'cautious' needs exactly one sensor of kind "
-                f"{_bearing_only_kinds()} on the robot, got {kinds}"
+                f"{bearing_only} on the robot, got {kinds}"
             )
         ]
     # The bearing's standard deviation (sqrt of R: exactly sigma for the built-in kinds).
@@ -387,7 +377,7 @@ def _pcrlb_problems(
                 ),
             ]
         batch = per_call**R
-    pf_renewal = _particle_based(s.tracker.filter) and cfg.mode == "renewal"
+    pf_renewal = filter_kind(s.tracker.filter).particle_based and cfg.mode == "renewal"
     samples = min(s.tracker.planner_samples, s.tracker.particles) if pf_renewal else cfg.mc_samples
     field = "tracker.planner_samples" if pf_renewal else "planner.mc_samples"
     return out + _violated(

@@ -50,20 +50,13 @@ class TrackManagementConfig(Protocol):
     """The M-of-N and deletion settings (a scenario's ``tracker.tracks``,
     :class:`activetrack.scenarios.schema.TrackManagementConfig`, or any object with them)."""
 
-    @property
-    def gate_sigmas(self) -> float: ...
-    @property
-    def confirm_m(self) -> int: ...
-    @property
-    def confirm_n(self) -> int: ...
-    @property
-    def delete_misses(self) -> int: ...
-    @property
-    def init_speed_std(self) -> float: ...
-    @property
-    def max_position_std(self) -> float: ...
-    @property
-    def max_tracks(self) -> int: ...
+    gate_sigmas: float
+    confirm_m: int
+    confirm_n: int
+    delete_misses: int
+    init_speed_std: float
+    max_position_std: float
+    max_tracks: int
 
 
 __all__ = [

@@ -8,30 +8,23 @@ sensor order:
 2. every track's filter predicts to the epoch's time (its motion model);
 3. the scans update the tracks, by the scene's association:
 
-   - **known** (one target, known to exist from epoch 0 on, and no clutter: every detection is
-     the target's): the track's filter takes the epoch's scans as its measurements, a scan
-     without a detection as "looked, saw nothing" (``filter.step``; Hernandez sec. 2.3, the
-     papers' single-target tracking);
-   - **JPDA** (several targets, births or clutter): each scan, in turn, updates the tracks
-     whose predicted position is inside its field of view. The chi-square gate
-     ``gamma = gate_sigmas^2`` of each track's predicted measurement (its filter's moments,
-     linearised at the mean), the likelihood ratios and the JPDA marginals ``beta`` (Bar-Shalom,
-     Daum & Huang 2009; :func:`activetrack.filters.jpda.jpda_association`) over each cluster of
-     tracks that share gated detections (exact: the joint events factorise over clusters; a
-     cluster whose events could exceed :data:`~activetrack.filters.jpda.DEFAULT_MAX_EVENTS`
-     is split into one PDA per track, counted in ``split_clusters``); each track's filter then
-     takes its row of ``beta`` (``update_pda``: the PDAF update of the EKF, the JPDA weighting
-     of the particle filter, a plugin's own). Zero clutter and ``Pd = 1`` go through the floor
-     and cap of :mod:`activetrack.filters.clutter_likelihood`. Before the update the same
-     predicted measurements give each track's probability of existence its LM-IPDA update
-     (:func:`~activetrack.tracking.management.existence_update`; once per epoch first its
-     survival), with Pd times the probability that the target lies in the scan's bearing
-     sector. Detections no track gated start tentative tracks at once, where the sensor fixes
-     a position from one detection (``inverse_position`` of the sensor: a range-bearing
-     radar does, a bearing sensor does not): position from the inverse measurement, velocity
-     0, covariance ``J R J^T`` and ``init_speed_std^2``; at most ``max_tracks`` live tracks,
-     the rest counted in ``not_started``. Then M-of-N confirmation, existence, deletion and
-     coalescence (:mod:`.management`).
+   - **known** (one target, known to exist from epoch 0 on, and no clutter): the track's
+     filter takes the epoch's scans as its measurements, a scan without a detection as
+     "looked, saw nothing" (``filter.step``; Hernandez sec. 2.3, the papers' tracking);
+   - **JPDA** (several targets, births or clutter): each scan in turn updates the tracks whose
+     predicted position is inside its field of view: the chi-square gate ``gamma =
+     gate_sigmas^2`` on each track's predicted measurement (its filter's moments, linearised at
+     the mean), the likelihood ratios and the JPDA marginals ``beta`` (Bar-Shalom, Daum & Huang
+     2009; :func:`activetrack.filters.jpda.jpda_association`) per cluster of tracks that share
+     gated detections (exact: the joint events factorise over clusters; a cluster whose events
+     could exceed :data:`~activetrack.filters.jpda.DEFAULT_MAX_EVENTS` is split into one PDA per
+     track, counted in ``split_clusters``); each track's filter takes its row of ``beta``
+     (``update_pda``). Zero clutter and ``Pd = 1`` go through the floor and cap of
+     :mod:`activetrack.filters.clutter_likelihood`. The same predicted measurements first give
+     each track's existence its LM-IPDA update, with Pd times the probability that the target
+     lies in the scan's sector. Detections no track gated start tentative tracks at once where
+     the sensor fixes a position from one (:meth:`Tracker._start_from_detection`). Then M-of-N
+     confirmation, existence, deletion and coalescence (:mod:`.management`).
 
 Tracks from the priors of the targets present at epoch 0 start confirmed, ids 1, 2, ... in
 scenario order; later tracks take the next id; ids are never reused. The tracker draws only
@@ -342,9 +335,10 @@ class Tracker:
     def _start_from_detection(
         self, z: FloatArray, c: _Checked, epoch: int, t: float
     ) -> Track | None:
-        """A tentative track at the position the detection fixes (the sensor's inverse
-        measurement, :meth:`inverse_position`), or None: the sensor fixes none (a bearing) or
-        the tracker is full (counted in ``not_started``)."""
+        """A tentative track at the position the detection fixes (the sensor's
+        ``inverse_position``: a range-bearing radar does, a bearing sensor does not), velocity 0,
+        covariance ``J R J^T`` and ``init_speed_std^2``; None where the sensor fixes none or the
+        tracker holds ``max_tracks`` (counted in ``not_started``)."""
         fix = c.sensor.base.inverse_position(z, c.s)
         if fix is None:
             return None
