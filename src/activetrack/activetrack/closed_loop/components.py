@@ -61,12 +61,7 @@ from activetrack.scenarios.build import (
     search_settings,
     steered_limits,
 )
-from activetrack.scenarios.schema import (
-    PlannerConfig,
-    Scenario,
-    SelectionConfig,
-    TargetConfig,
-)
+from activetrack.scenarios.schema import PlannerConfig, Scenario, SelectionConfig, TargetConfig
 from activetrack.scenarios.tracking import TrackingConfig, tracking_of
 from activetrack.simulation.simulator import SimPlatform, SimTarget, Simulator
 from activetrack.tracking.tracker import FilterSpec, Tracker, TrackPrior
@@ -105,9 +100,7 @@ def scene_targets(scenario: Scenario) -> list[TargetConfig]:
     return list(scenario.targets)
 
 
-def scene_sensors(
-    source: Scenario | TrackingConfig,
-) -> dict[str, tuple[str, ClutteredSensor]]:
+def scene_sensors(source: Scenario | TrackingConfig) -> dict[str, tuple[str, ClutteredSensor]]:
     """Every sensor by id in the order of a scenario or tracker configuration: (platform id,
     the sensor in the scene: its field of view, clutter, and the tracker's gate unless the
     association is known)."""

@@ -9,7 +9,7 @@ same call a plugin makes (:func:`activetrack.scenarios.registry.register_sensor`
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, cast
 
 import numpy as np
@@ -35,13 +35,8 @@ from activetrack.scenarios.registry import register_sensor, sensor_kind
 from activetrack.scenarios.schema import (
     AmbiguousBearingSensorConfig,
     BearingSensorConfig,
-    CircularKnownOmegaMotion,
-    CircularMotionConfig,
-    ConstantTurnMotion,
     ManoeuvreLimits,
     MotionConfig,
-    NcvDiscreteMotion,
-    NcvMotion,
     PlannerConfig,
     PlatformConfig,
     RangeBearingSensorConfig,
@@ -66,20 +61,21 @@ register_sensor(RangeBearingSensor, RangeBearingSensorConfig)
 register_sensor(RangeRateBearingSensor, RangeRateBearingSensorConfig)
 
 
+# The class of each motion block's model, built from the block's other fields.
+_MOTION_MODELS: dict[str, Callable[..., MotionModel]] = {
+    "ncv": NearlyConstantVelocity,
+    "ncv_discrete": NearlyConstantVelocityDiscrete,
+    "constant_turn": ConstantTurn,
+    "circular": CircularMotion,
+    "circular_known_omega": CircularMotionKnownOmega,
+}
+
+
 def build_motion_model(cfg: MotionConfig) -> MotionModel:
     """The motion model object a ``motion:`` block describes."""
-    match cfg:
-        case NcvMotion():
-            return NearlyConstantVelocity(q=cfg.q)
-        case NcvDiscreteMotion():
-            return NearlyConstantVelocityDiscrete(sigma_x=cfg.sigma_x, sigma_y=cfg.sigma_y)
-        case ConstantTurnMotion():
-            return ConstantTurn(omega=cfg.omega, q=cfg.q)
-        case CircularMotionConfig():
-            return CircularMotion(sigma_omega=cfg.sigma_omega, sigma_v=cfg.sigma_v)
-        case CircularKnownOmegaMotion():
-            return CircularMotionKnownOmega(omega=cfg.omega, sigma_v=cfg.sigma_v)
-    raise ValueError(f"motion.model: unknown {cfg.model!r}")
+    if cfg.model not in _MOTION_MODELS:
+        raise ValueError(f"motion.model: unknown {cfg.model!r}")
+    return _MOTION_MODELS[cfg.model](**cfg.model_dump(exclude={"model"}))
 
 
 def build_sensor(cfg: SensorConfigBase) -> SensorModel:
@@ -104,17 +100,9 @@ def steered_limits(cfg: PlatformConfig, dt: float) -> PlatformLimits | None:
 
 
 def search_settings(cfg: PlannerConfig, **overrides: Any) -> SearchSettings:
-    """The search of a ``planner:`` block (search, grid_size, quadrant_divisions,
-    quadrant_patience, sector_levels); keyword ``overrides`` replace any field."""
-    fields: dict[str, Any] = {
-        "search": cfg.search,
-        "grid_size": cfg.grid_size,
-        "quadrant_divisions": cfg.quadrant_divisions,
-        "quadrant_patience": cfg.quadrant_patience,
-        "sector_levels": cfg.sector_levels,
-    }
-    fields.update(overrides)
-    return SearchSettings(**fields)
+    """The search of a ``planner:`` block; keyword ``overrides`` replace any field."""
+    names = ("search", "grid_size", "quadrant_divisions", "quadrant_patience", "sector_levels")
+    return SearchSettings(**({name: getattr(cfg, name) for name in names} | overrides))
 
 
 def plan_settings(cfg: PlannerConfig, **overrides: Any) -> PlanSettings:

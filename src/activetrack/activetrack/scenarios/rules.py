@@ -494,10 +494,7 @@ def _scene_problems(s: Scenario) -> Problems:
     out += _violated((bool(dupes), f"targets: target ids must be unique, repeated: {dupes}"))
     for i, t in enumerate(s.targets):
         out += _violated(
-            (
-                t.birth >= s.steps,
-                f"targets.{i}.birth: must be < steps ({s.steps}), got {t.birth}",
-            ),
+            (t.birth >= s.steps, f"targets.{i}.birth: must be < steps ({s.steps}), got {t.birth}"),
             (
                 t.death is not None and t.death <= t.birth,
                 f"targets.{i}.death: must be > birth ({t.birth}), got {t.death}",
