@@ -65,9 +65,8 @@ def run_once(
     planner = (planner_factory or build_planner)(scenario, plan_rng)
     platform_ids = tuple(sim.platforms)
     tracks = tracker.snapshot()
-    truth = [sim.truth_array()]
-    track_sets = [tracks.without_samples()]
-    paths = [np.stack([sim.platforms[i].pv for i in platform_ids])]
+    track_sets: list[TrackSet] = []
+    truth, paths = [], []  # epochs 0..K, as track_sets
     record = RunRecord(
         target_ids=sim.target_ids,
         sensor_ids=tuple(sim.sensors),
@@ -87,9 +86,9 @@ def run_once(
             seen = {scan.sensor_id for scan in scans if len(scan.Z)}
             detected.append([sid in seen for sid in record.sensor_ids])
             observed.append(sim.last_observed.copy())
-            truth.append(sim.truth_array())
-            track_sets.append(tracks.without_samples())
-            paths.append(np.stack([sim.platforms[i].pv for i in platform_ids]))
+        truth.append(sim.truth_array())
+        track_sets.append(tracks.without_samples())
+        paths.append(np.stack([sim.platforms[i].pv for i in platform_ids]))
         if k < scenario.steps:
             decision = planner.decide(k, tracks, sim.platform_snapshots())
             record.decisions.append(decision)

@@ -1,9 +1,5 @@
-"""Tasks cut into chunks: the unit both backends send to a worker.
-
-A chunk is ``(fn, tasks)``; a worker returns ``[fn(t) for t in tasks]``. Fewer, larger chunks
-mean fewer round trips; :func:`even_chunks` keeps their sizes within one of each other, in task
-order, so no short last chunk leaves a worker idle.
-"""
+"""Tasks cut into chunks ``(fn, tasks)``: the unit both backends send to a worker, which
+returns ``[fn(t) for t in tasks]``."""
 
 from __future__ import annotations
 
@@ -16,9 +12,7 @@ __all__ = ["CHUNKS_PER_WORKER", "apply_chunk", "even_chunks"]
 T = TypeVar("T")
 R = TypeVar("R")
 
-# Chunks of tasks per worker (process or Dask worker thread): the tail a chunk leaves against
-# the round trips of many small ones.
-CHUNKS_PER_WORKER = 4
+CHUNKS_PER_WORKER = 4  # per process or Dask worker thread: a chunk's tail against round trips
 
 
 def even_chunks(items: Sequence[T], workers: int) -> list[list[T]]:

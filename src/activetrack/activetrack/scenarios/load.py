@@ -3,16 +3,12 @@
 Whatever a file holds, :func:`load_scenario` returns a valid :class:`Scenario` or raises
 :class:`ScenarioError` with a short reason: unreadable, too large, not UTF-8, not YAML, nested
 too deeply, an alias bomb, not a mapping, a ``plugins`` entry that cannot be imported, or the
-list of invalid fields.
-
-Validation is parse, then the schema (:mod:`.schema`: the file's shape), then the rules
-(:mod:`.rules`: names the registries hold, rules across sections). A scenario that differs from
-a valid one goes the same way: :func:`with_changes`. A tracker-only configuration
-(:mod:`.tracking`) goes the same way too: :func:`load_tracking`, :func:`parse_tracking`.
-
-The modules of a file's ``plugins:`` list are imported before its other fields are validated
-(:mod:`activetrack.scenarios.plugins`): importing runs their code, so a scenario file that names
-plugins is as trusted as a Python script (docs/extending.md).
+list of invalid fields. Validation is parse, then the schema (:mod:`.schema`: the file's
+shape), then the rules (:mod:`.rules`: names the registries hold, rules across sections); a
+changed scenario (:func:`with_changes`) and a tracker-only configuration (:func:`load_tracking`,
+:func:`parse_tracking`) go the same way. A file's ``plugins:`` are imported before its other
+fields are validated: a scenario file that names plugins is as trusted as a Python script
+(docs/extending.md).
 """
 
 from __future__ import annotations

@@ -1,25 +1,17 @@
-"""Sensor kinds that scenario files can name: each registered once, with its class and config.
+"""Sensor kinds that scenario files can name: each registered once, with its class and config
+(an example: docs/extending.md).
 
 A kind is the sensor class (contract :class:`activetrack.models.base.SensorModel`; its class
 attribute ``kind`` is the name) together with its scenario configuration: a pydantic model
 deriving from :class:`activetrack.scenarios.fields.SensorConfigBase` (id, pd, r_min, r_max)
-with ``kind: Literal["<kind>"]`` and the sensor's own fields, validated on load::
-
-    class RangeSensorConfig(SensorConfigBase):
-        kind: Literal["range"]
-        sigma_r: Annotated[float, Field(gt=0, le=1e6)]
-
-    register_sensor(RangeSensor, RangeSensorConfig)
-
-From then on a ``sensors:`` entry of that kind loads (the schema's sensor entries are the
-discriminated union, on ``kind``, of the registered configs; an unknown kind's error lists the
-registered ones) and :func:`activetrack.scenarios.build.build_sensor` makes the sensor: by
-default ``RangeSensor(**fields)`` with every config field but the scene's (``SCENE_FIELDS``),
-or ``build(config)`` when one is given. The built-in kinds register the same way
-(``scenarios.build``).
-
-The registry is scenario data: it holds classes and calls, and imports no component (a sensor
-class is checked for the members of the contract by name).
+with ``kind: Literal["<kind>"]`` and the sensor's own fields. Once registered, a ``sensors:``
+entry of that kind loads (the schema's sensor entries are the discriminated union, on ``kind``,
+of the registered configs; an unknown kind's error lists them) and
+:func:`activetrack.scenarios.build.build_sensor` makes the sensor: by default
+``SensorClass(**fields)`` with every config field but the scene's (``SCENE_FIELDS``), or
+``build(config)`` when one is given. The built-in kinds register the same way
+(``scenarios.build``). The registry is scenario data: it holds classes and calls, and imports
+no component (a sensor class is checked for the members of the contract by name).
 """
 
 from __future__ import annotations
