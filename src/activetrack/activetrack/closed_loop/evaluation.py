@@ -192,8 +192,7 @@ class EpochAssessment:
 
 def confirmed_positions(tracks: TrackSet, k: int = 0) -> FloatArray:
     """``(M, 2)`` x, y of the confirmed tracks; ValueError for a mean that is not finite."""
-    Y = np.array([np.asarray(t.mean)[[0, 2]] for t in tracks.confirmed], dtype=float)
-    Y = Y.reshape(-1, 2)
+    Y = np.array([np.asarray(t.mean)[[0, 2]] for t in tracks.confirmed], dtype=float).reshape(-1, 2)
     if not np.isfinite(Y).all():
         raise ValueError(f"record.tracks[{k}]: a confirmed track's mean must be finite")
     return Y
@@ -407,13 +406,9 @@ def target_bounds(
 
 def bound_sensors(scenario: Scenario) -> tuple[list[ClutteredSensor], list[int]]:
     """The scene's sensors in scenario order and their platforms' indices."""
-
     platform_ids = [p.id for p in scenario.platforms]
-    sensors, columns = [], []
-    for pid, sensor in scene_sensors(scenario).values():
-        sensors.append(sensor)
-        columns.append(platform_ids.index(pid))
-    return sensors, columns
+    scene = list(scene_sensors(scenario).values())  # (platform id, sensor)
+    return [sensor for _, sensor in scene], [platform_ids.index(pid) for pid, _ in scene]
 
 
 # --- one run -----------------------------------------------------------------------------------

@@ -65,12 +65,9 @@ class WorkerSetupError(RuntimeError):
 
 
 def check_scheduler(address: str) -> str:
-    """``address`` if it is a scheduler address that answers, else a :class:`SchedulerError`.
-
-    Accepts ``scheme://host:port`` with a scheme of :data:`SCHEMES` (``host:port`` means tcp)
-    and ``inproc://...`` (an in-process cluster). For TCP transports a plain connection is
-    tried first (``PROBE_TIMEOUT_S``), so a refused or unreachable address fails at once.
-    """
+    """``address`` if it is a scheduler address (``scheme://host:port``, a scheme of
+    :data:`SCHEMES`; ``host:port`` means tcp) that answers, else a :class:`SchedulerError`. For
+    TCP transports a plain connection is tried first, so a refused address fails at once."""
     if not isinstance(address, str) or not address.strip():
         raise SchedulerError(f"scheduler: must be an address like tcp://host:8786, got {address!r}")
     text = address.strip()
@@ -187,20 +184,16 @@ class ClientContext:
 def client_context() -> ClientContext:
     """This process's :class:`ClientContext`."""
     from activetrack.allocator import allocator_tuned
-
-    return ClientContext(_registrations(), _versions(), allocator_tuned())
-
-
-def _registrations() -> Registrations:
     from activetrack.filters.registry import filter_kind, filter_names
     from activetrack.planning.criteria import criteria
     from activetrack.scenarios.registry import registered_kinds, sensor_kind
 
-    return Registrations(
+    registrations = Registrations(
         sensors=tuple(sensor_kind(k) for k in registered_kinds()),
         filters=tuple(filter_kind(n) for n in filter_names()),
         criteria=criteria(),
     )
+    return ClientContext(registrations, _versions(), allocator_tuned())
 
 
 def _versions() -> dict[str, str]:

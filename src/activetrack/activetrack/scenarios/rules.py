@@ -93,15 +93,15 @@ def name_problems(data: object) -> Problems:
 # --- across sections ---------------------------------------------------------------------------
 
 
-def _problem(text: str) -> tuple[str, str]:
-    """``"field: message"`` as ``(field, message)``."""
+def _problem(text: str) -> Problems:
+    """``"field: message"`` as the one problem ``[(field, message)]``."""
     field, message = text.split(": ", 1)
-    return field, message
+    return [(field, message)]
 
 
 def _violated(*rules: tuple[bool, str]) -> Problems:
     """``(field, message)`` of each rule ``(violated, "field: message")`` that is violated."""
-    return [_problem(text) for violated, text in rules if violated]
+    return [problem for violated, text in rules if violated for problem in _problem(text)]
 
 
 def scenario_problems(s: Scenario) -> Problems:
@@ -288,12 +288,9 @@ def _cautious_problems(s: Scenario, robots: list[tuple[int, PlatformConfig]]) ->
         ),
     )
     if c.tail == "one_sided" and c.beta > 0.5:
-        return [
-            *out,
-            _problem(
-                f"planner.cautious.beta: must be in (0, 0.5] with tail 'one_sided', got {c.beta}"
-            ),
-        ]
+        return out + _problem(
+            f"planner.cautious.beta: must be in (0, 0.5] with tail 'one_sided', got {c.beta}"
+        )
     if len(robots) == 1:
         out += _cautious_robot_problems(c, *robots[0])
     return out
@@ -309,23 +306,19 @@ def _cautious_robot_problems(c: CautiousConfig, i: int, robot: PlatformConfig) -
             for kind in registered_kinds()
             if tuple(getattr(sensor_kind(kind).sensor_class, "components", ())) == ("bearing",)
         )
-        return [
-            _problem(
-                f"platforms.{i}.sensors: search 'cautious' needs exactly one sensor of kind "
-                f"{bearing_only} on the robot, got {kinds}"
-            )
-        ]
+        return _problem(
+            f"platforms.{i}.sensors: search 'cautious' needs exactly one sensor of kind "
+            f"{bearing_only} on the robot, got {kinds}"
+        )
     # The bearing's standard deviation (sqrt of R: exactly sigma for the built-in kinds).
     sigma = math.sqrt(float(np.atleast_2d(np.asarray(sensors[0].R, dtype=float))[0, 0]))
     sb = sigma_beta(c.beta, c.tail)
     if not sb > sigma:
-        return [
-            _problem(
-                f"platforms.{i}.sensors.0.sigma: must be < sigma_beta(beta={c.beta}, {c.tail}) = "
-                f"{sb:.6g} rad for a beta-cautious strategy to exist (Vander Hook sec. III), got "
-                f"{sigma}"
-            )
-        ]
+        return _problem(
+            f"platforms.{i}.sensors.0.sigma: must be < sigma_beta(beta={c.beta}, {c.tail}) = "
+            f"{sb:.6g} rad for a beta-cautious strategy to exist (Vander Hook sec. III), got "
+            f"{sigma}"
+        )
     return _violated(
         (
             math.isinf(caution_gamma(c.beta, sigma, c.tail)) and c.r_min <= 0.0,
@@ -367,15 +360,12 @@ def _pcrlb_problems(
     else:
         per_stage, per_call = _search_size(cfg)
         if per_stage**R > limits.MAX_SEARCH_EVALUATIONS:
-            return [
-                *out,
-                _problem(
-                    f"planner.horizon: search {cfg.search!r} with horizon {R} costs "
-                    f"{per_stage}^{R} = {float(per_stage**R):.3g} cost evaluations per platform "
-                    f"and decision; at most {limits.MAX_SEARCH_EVALUATIONS:.0e} "
-                    "(activetrack.limits): lower the horizon or the search's size"
-                ),
-            ]
+            return out + _problem(
+                f"planner.horizon: search {cfg.search!r} with horizon {R} costs "
+                f"{per_stage}^{R} = {float(per_stage**R):.3g} cost evaluations per platform "
+                f"and decision; at most {limits.MAX_SEARCH_EVALUATIONS:.0e} "
+                "(activetrack.limits): lower the horizon or the search's size"
+            )
         batch = per_call**R
     pf_renewal = filter_kind(s.tracker.filter).particle_based and cfg.mode == "renewal"
     samples = min(s.tracker.planner_samples, s.tracker.particles) if pf_renewal else cfg.mc_samples
@@ -439,12 +429,10 @@ def _sensor_problems(platforms: Sequence[PlatformConfig | TrackingPlatformConfig
 def _clutter_problems(where: str, cfg: Any) -> Problems:
     sensor = build_sensor(cfg)
     if not has_clutter_model(sensor):
-        return [
-            _problem(
-                f"{where}.clutter_density: sensor kind {cfg.kind!r} has no clutter model (its "
-                "clutter_volume is None; docs/extending.md): keep clutter_density 0"
-            )
-        ]
+        return _problem(
+            f"{where}.clutter_density: sensor kind {cfg.kind!r} has no clutter model (its "
+            "clutter_volume is None; docs/extending.md): keep clutter_density 0"
+        )
     width = cfg.beam_width or cfg.fov_width or 2.0 * math.pi
     volume = fov_volume(sensor, width, cfg.r_min, cfg.r_max)
     mean = cfg.clutter_density * volume
@@ -569,14 +557,11 @@ def tracking_problems(c: TrackingConfig) -> Problems:
         return out
     why = "when detections are associated (association 'jpda')"
     if MOTION_STATE[motion.model] != MOTION_STATE["ncv"]:
-        return [
-            *out,
-            _problem(
-                f"tracker.motion.model: must be a model of the pv state {MOTION_STATE['ncv']}, "
-                f"one of {PV_MODELS}, {why} (tracks from detections start in it), got "
-                f"{motion.model!r}"
-            ),
-        ]
+        return out + _problem(
+            f"tracker.motion.model: must be a model of the pv state {MOTION_STATE['ncv']}, "
+            f"one of {PV_MODELS}, {why} (tracks from detections start in it), got "
+            f"{motion.model!r}"
+        )
     n = len(MOTION_STATE[motion.model])
     mean, cov = np.zeros(n), np.eye(n)
     if c.targets:

@@ -71,23 +71,17 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def _json_fields(obj: Any, skip: str) -> dict:
+    """A dataclass's fields but ``skip``, JSON-ready."""
+    return {f.name: _plain(getattr(obj, f.name)) for f in fields(obj) if f.name != skip}
+
+
 def track_sets_json(track_sets: Iterable[TrackSet]) -> list[dict]:
     """The track sets as JSON-ready dicts (without samples)."""
-    out = []
-    for ts in track_sets:
-        entry = {
-            f.name: _plain(getattr(ts, f.name)) for f in fields(TrackSet) if f.name != "tracks"
-        }
-        entry["tracks"] = [
-            {
-                f.name: _plain(getattr(t, f.name))
-                for f in fields(TrackEstimate)
-                if f.name != "samples"
-            }
-            for t in ts.tracks
-        ]
-        out.append(entry)
-    return out
+    return [
+        {**_json_fields(ts, "tracks"), "tracks": [_json_fields(t, "samples") for t in ts.tracks]}
+        for ts in track_sets
+    ]
 
 
 def write_tracks_json(path: str | Path, track_sets: Iterable[TrackSet], **extra: Any) -> None:
