@@ -9,13 +9,11 @@ the Euclidean distance cut off at ``c``,
 and the best pairing of the two sets is found with the Hungarian algorithm
 (``scipy.optimize.linear_sum_assignment``) on the matrix of d^(c)(x_i, y_j)^p.
 
-References
-----------
-- OSPA: D. Schuhmacher, B.-T. Vo and B.-N. Vo, "A consistent metric for performance evaluation
-  of multi-object filters", IEEE Trans. Signal Processing 56(8), 2008, eq. (3).
-- GOSPA: A. S. Rahmathullah, A. F. Garcia-Fernandez and L. Svensson, "Generalized optimal
-  sub-pattern assignment metric", FUSION 2017, Definition 1 (eq. (1)) and, for alpha = 2,
-  Proposition 1 (eq. (2)): the localisation error plus c^p / 2 per missed and per false target.
+References. OSPA: D. Schuhmacher, B.-T. Vo and B.-N. Vo, "A consistent metric for performance
+evaluation of multi-object filters", IEEE Trans. Signal Processing 56(8), 2008, eq. (3).
+GOSPA: A. S. Rahmathullah, A. F. Garcia-Fernandez and L. Svensson, "Generalized optimal
+sub-pattern assignment metric", FUSION 2017, Definition 1 (eq. (1)) and, for alpha = 2,
+Proposition 1 (eq. (2)): the localisation error plus c^p / 2 per missed and per false target.
 """
 
 from __future__ import annotations

@@ -1,9 +1,5 @@
 """PNG plots of closed-loop runs (Agg canvas, no pyplot: the caller's backend is left alone):
-:func:`plot_run` (one run in the plane: true paths, confirmed tracks' paths with their ids,
-the clutter that fixes a position, platforms' paths), :func:`plot_errors` (each target's RMSE
-against its PCRLB over time), :func:`plot_gospa` (mean GOSPA vs time per strategy, +-1.96
-standard errors of the mean).
-"""
+a run in the plane, each target's RMSE against its PCRLB, mean GOSPA per strategy."""
 
 from __future__ import annotations
 

@@ -1,4 +1,2 @@
-"""The closed loop: simulator, tracker and planner components and the batch runner.
-
-See docs/closed-loop.md for the epoch protocol the ROS graph follows too.
-"""
+"""The closed loop: simulator, tracker and planner components and the batch runner (the epoch
+protocol, which the ROS graph follows too: docs/closed-loop.md)."""

@@ -79,9 +79,8 @@ NOT_HELD = -1  # in held_tracks: the target has no track (BeamCommand's "no trac
 @dataclass(frozen=True)
 class RunEvaluation:
     """The evaluation of one run at epochs 1..K, N targets in scenario order. ``bound`` is NaN
-    where not alive or for nonlinear dynamics; ``localisation`` (sum of d^p over the assigned
-    pairs), ``missed`` and ``false`` are GOSPA's alpha = 2 split: with alpha = 2
-    ``gospa**p == localisation + c**p / 2 * (missed + false)``."""
+    where not alive or for nonlinear dynamics; ``localisation``, ``missed`` and ``false`` are
+    GOSPA's alpha = 2 split (:class:`~activetrack.metrics.GospaResult`)."""
 
     time: np.ndarray  # (K,) [s]
     error: np.ndarray  # (K, N, 4)

@@ -1,14 +1,11 @@
 """Tracking recorded detections: the tracker alone, open loop (``activetrack track``,
 docs/track-your-data.md).
 
-:func:`track_detections` builds the configuration's tracker (:func:`~.components.build_tracker`,
-the same builder as a scenario's, with the generator of (seed, run) :func:`~.components.
-component_rngs` gives the tracker) and steps it through epochs 1..K, K the last epoch of the
-data, with each epoch's scans (none: it predicts). On the scans of a run with its scenario and
-run index it reproduces the run's tracks bit for bit. With truth, GOSPA at each epoch
-(:class:`GospaSeries`) between the alive targets and the confirmed tracks, with the
-configuration's cut-off, order and alpha (:func:`activetrack.metrics.gospa`; Rahmathullah,
-Garcia-Fernandez & Svensson 2017, eq. 1-2).
+:func:`track_detections` steps the configuration's tracker (the builder and generator of
+(seed, run) a scenario's run uses) through epochs 1..K, K the data's last, with each epoch's
+scans (none: it predicts): on the scans of a run with its scenario and run index it reproduces
+the run's tracks bit for bit. With truth, GOSPA at each epoch (:class:`GospaSeries`) with the
+configuration's cut-off, order and alpha (Rahmathullah, Garcia-Fernandez & Svensson 2017).
 """
 
 from __future__ import annotations

@@ -1,10 +1,6 @@
-"""The one parallel Monte Carlo of the library: seeded tasks mapped over worker processes.
-
-:func:`parallel_map` (:mod:`.parallel`) runs every task with its own seed on local forked
-processes (:mod:`.local`) or on the workers of a Dask cluster (:mod:`.dask`); both backends cut
-the tasks into the same chunks (:mod:`.chunks`), and the results are bit-identical whichever
-runs them and however many workers there are.
-"""
+"""The one parallel Monte Carlo of the library: :func:`parallel_map` runs every task with its
+own seed on local forked processes (:mod:`.local`) or on the workers of a Dask cluster
+(:mod:`.dask`), in the same chunks (:mod:`.chunks`), bit-identical whichever runs them."""
 
 from activetrack.montecarlo.chunks import CHUNKS_PER_WORKER, even_chunks
 from activetrack.montecarlo.dask import Scheduler

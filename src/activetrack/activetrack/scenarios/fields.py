@@ -48,24 +48,17 @@ Covariance = Annotated[float, float_range(-limits.MAX_PRIOR_VARIANCE, limits.MAX
 Dt = Annotated[float, float_range(limits.MIN_DT, limits.MAX_DT)]  # s
 Dwell = Annotated[float, float_range(0, limits.MAX_DWELL)]  # s
 Roughening = Annotated[float, float_range(0, limits.MAX_ROUGHENING)]
-
-
-def int_range(lo: int, hi: int) -> Any:
-    """The bounds of an integer field (``Annotated[int, int_range(lo, hi)]``)."""
-    return Field(ge=lo, le=hi)
-
-
-Particles = Annotated[int, int_range(1, limits.MAX_PARTICLES)]
-Samples = Annotated[int, int_range(1, limits.MAX_SAMPLES)]
-SensorCount = Annotated[int, int_range(1, limits.MAX_SENSORS)]
-Horizon = Annotated[int, int_range(1, limits.MAX_HORIZON)]
-GridSize = Annotated[int, int_range(3, limits.MAX_GRID_SIZE)]
-Divisions = Annotated[int, int_range(1, limits.MAX_QUADRANT_DIVISIONS)]
-SectorLevels = Annotated[int, int_range(1, limits.MAX_SECTOR_LEVELS)]
-SensorIterations = Annotated[int, int_range(1, limits.MAX_SENSOR_ITERATIONS)]
-Measurements = Annotated[int, int_range(1, limits.MAX_MEASUREMENTS)]
-Seed = Annotated[int, int_range(0, limits.MAX_SEED)]
-Steps = Annotated[int, int_range(1, limits.MAX_STEPS)]
+Particles = Annotated[int, Field(ge=1, le=limits.MAX_PARTICLES)]
+Samples = Annotated[int, Field(ge=1, le=limits.MAX_SAMPLES)]
+SensorCount = Annotated[int, Field(ge=1, le=limits.MAX_SENSORS)]
+Horizon = Annotated[int, Field(ge=1, le=limits.MAX_HORIZON)]
+GridSize = Annotated[int, Field(ge=3, le=limits.MAX_GRID_SIZE)]
+Divisions = Annotated[int, Field(ge=1, le=limits.MAX_QUADRANT_DIVISIONS)]
+SectorLevels = Annotated[int, Field(ge=1, le=limits.MAX_SECTOR_LEVELS)]
+SensorIterations = Annotated[int, Field(ge=1, le=limits.MAX_SENSOR_ITERATIONS)]
+Measurements = Annotated[int, Field(ge=1, le=limits.MAX_MEASUREMENTS)]
+Seed = Annotated[int, Field(ge=0, le=limits.MAX_SEED)]
+Steps = Annotated[int, Field(ge=1, le=limits.MAX_STEPS)]
 
 
 # Scenario names become folder names (runs/<name>-<time>), ids go into messages and plots.

@@ -1,16 +1,12 @@
-"""Plugins: Python modules a scenario file names, imported before the rest of it is validated.
+"""Plugins: Python modules a scenario file names, imported before the rest of it is validated
+(docs/extending.md, "Plugins").
 
-A scenario's top-level ``plugins: [my_sensors, my_package.filters]`` lists modules that
-register what the file uses (a sensor kind, a filter, a planner criterion:
-``register_sensor``, ``register_filter``, ``register_criterion``). :func:`import_plugins`
-imports them, in order, before the schema looks at the file's other fields, so every process
-that loads the scenario (the command line, each ROS node, the Monte Carlo workers) knows them.
-
-Security: importing a module runs its code with the rights of the process. A scenario file
-that names plugins is as trusted as a Python script: load it only if you would run it. The
-names are checked first (dotted Python identifiers, no paths, no relative imports); modules are
-found on the ordinary import path (installed packages, ``PYTHONPATH``), never next to the
-scenario file.
+A scenario's top-level ``plugins: [my_sensors, my_package.filters]`` lists modules that register
+what the file uses (a sensor kind, a filter, a planner criterion); :func:`import_plugins`
+imports them, in order, so every process that loads the scenario knows them. Importing a module
+runs its code with the rights of the process: a scenario file that names plugins is as trusted
+as a Python script. The names are checked first (dotted identifiers, no paths, no relative
+imports); modules are found on the ordinary import path, never next to the scenario file.
 """
 
 from __future__ import annotations

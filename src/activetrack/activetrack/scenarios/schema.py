@@ -1,13 +1,12 @@
 """The scenario file schema (YAML): its sections as pydantic classes, one schema for the batch
 loop, the experiments and the nodes. Units: m, s, rad; states pv (x, xdot, y, ydot) unless the
-motion model says otherwise.
+motion model says otherwise. Unknown keys are errors (a typo must not fall back to a default).
 
-Unknown keys are errors (a typo must not fall back to a default). The classes check shape and
-the rules inside one section that need no component (ranges, sizes bounded by
-:mod:`activetrack.limits`, dimensions, positive definite covariances); the rules that ask
-registries or components are :mod:`activetrack.scenarios.rules`, run by the loader after these
-(``Scenario.model_validate`` alone checks the shape only). The sensor entries are the
-registered kinds' configs (:mod:`.registry`); the built-in ones are below.
+The classes check shape and the rules inside one section that need no component (ranges, sizes
+bounded by :mod:`activetrack.limits`, dimensions, positive definite covariances); the rules
+that ask registries or components are :mod:`activetrack.scenarios.rules`, run by the loader
+after these (``Scenario.model_validate`` alone checks the shape only). The sensor entries are
+the registered kinds' configs (:mod:`.registry`).
 """
 
 from __future__ import annotations
@@ -454,8 +453,7 @@ def check_platform_ids(platforms: list) -> list:
 class Scenario(Strict):
     name: Annotated[str, identifier("the name (it names the run folder)", limits.MAX_NAME_LENGTH)]
     description: str = Field(default="", max_length=limits.MAX_DESCRIPTION_LENGTH)
-    # Python modules imported before the rest of the file is validated (they register sensor
-    # kinds, filters, criteria): scenarios.plugins. A file naming plugins runs their code.
+    # Modules that register kinds, filters, criteria; imported first (scenarios.plugins).
     plugins: Plugins = Field(default=[])
     seed: Seed = 0
     dt: Dt  # s between measurement / decision epochs (T)
@@ -484,10 +482,6 @@ class Scenario(Strict):
     @classmethod
     def _unique_ids(cls, platforms):
         return check_platform_ids(platforms)
-
-    @property
-    def duration(self) -> float:
-        return self.dt * self.steps
 
     @property
     def known_association(self) -> bool:

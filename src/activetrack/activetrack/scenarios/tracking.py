@@ -72,8 +72,7 @@ class TrackingConfig(Strict):
         str, identifier("the name (it names the output folder)", limits.MAX_NAME_LENGTH)
     ]
     description: str = Field(default="", max_length=limits.MAX_DESCRIPTION_LENGTH)
-    # Python modules imported before the rest is validated (sensor kinds, filters): as in a
-    # scenario file, a configuration naming plugins runs their code.
+    # Modules that register kinds, filters; imported first, as a scenario's (scenarios.plugins).
     plugins: Plugins = Field(default=[])
     seed: Seed = 0  # the tracker's generator (with --run: component_rngs)
     dt: Dt  # s between epochs: the scans of epoch k are at t = k dt

@@ -20,6 +20,7 @@ import csv
 import json
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -115,10 +116,8 @@ def _number(where: Where, column: str, raw: Any, lo: float, hi: float) -> float:
     """A finite number in [lo, hi] from a CSV cell (text) or a JSON value."""
     value: float | None = None
     if isinstance(raw, str):
-        try:
+        with suppress(ValueError):
             value = float(raw.strip())
-        except ValueError:
-            value = None
     elif isinstance(raw, int | float) and not isinstance(raw, bool):
         value = float(raw)
     if value is None or not (math.isfinite(value) and lo <= value <= hi):
@@ -318,13 +317,10 @@ def read_detections(
     for anything else."""
     path = Path(path)
     reader = _ScanReader(str(path), sensors, dt, steps)
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        _read_csv_scans(path, reader)
-    elif suffix == ".json":
-        _read_json_scans(path, reader)
-    else:
+    read = {".csv": _read_csv_scans, ".json": _read_json_scans}.get(path.suffix.lower())
+    if read is None:
         raise DataFileError(f"{path}: detections must be a .csv or .json file (or a bag)")
+    read(path, reader)
     if not reader.scans:
         raise DataFileError(f"{path}: holds no scans")
     return reader.detections()

@@ -100,15 +100,11 @@ class _Checked:
 
 
 class Tracker:
-    """The tracks of a scene (module docstring).
-
-    model: the filters' motion model (``motion_name`` its scenario name); filter: the
-    registered filter to run per track; sensors: the scene's sensors by id in scenario order;
-    priors: the targets present at epoch 0; known_association: one target, no clutter (module
-    docstring), else JPDA with ``management`` (gate, M-of-N, deletion, initiation);
-    planner_samples: posterior samples per particle track for the planner; rng: the
-    tracker's only source of randomness.
-    """
+    """The tracks of a scene (module docstring): the filters' motion ``model`` (``motion_name``
+    its scenario name), the ``filter`` run per track, the scene's ``sensors`` by id in scenario
+    order, the ``priors`` of the targets present at epoch 0, JPDA with ``management`` unless
+    ``known_association``, ``planner_samples`` per particle track, and ``rng``, the tracker's
+    only source of randomness."""
 
     def __init__(
         self,
