@@ -37,6 +37,7 @@ from activetrack.planning.manoeuvre import (
 from activetrack.planning.searches import (
     SEARCHES,
     SearchResult,
+    check_integer,
     evolution_search,
     grid_search,
     quadrant_search,
@@ -75,16 +76,14 @@ class SearchSettings:
     def __post_init__(self) -> None:
         if self.search not in SEARCHES:
             raise ValueError(f"search must be one of {SEARCHES}, got {self.search!r}")
-        for name, lo in (
-            ("grid_size", 2),
-            ("quadrant_divisions", 1),
-            ("sector_levels", 1),
-            ("evolution_popsize", 1),
-            ("evolution_maxiter", 1),
+        check_integer("grid_size", self.grid_size, 2)
+        for name in (
+            "quadrant_divisions",
+            "sector_levels",
+            "evolution_popsize",
+            "evolution_maxiter",
         ):
-            value = getattr(self, name)
-            if isinstance(value, bool) or int(value) != value or value < lo:
-                raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+            check_integer(name, getattr(self, name))
         p = self.quadrant_patience
         if p is not None and (isinstance(p, bool) or int(p) != p or p < 1):
             raise ValueError(f"quadrant_patience must be an integer >= 1 or None, got {p!r}")
