@@ -34,6 +34,7 @@ from activetrack.linalg import spd_inverse as _spd_inverse
 from activetrack.models.base import InformationKernel, SensorModel, jacobian_information
 
 __all__ = [
+    "check_sensor_paths",
     "covariance_bound",
     "gaussian_samples",
     "information_function",
@@ -62,8 +63,7 @@ def gaussian_samples(
     mean: ArrayLike, cov: ArrayLike, n_samples: int, rng: np.random.Generator
 ) -> FloatArray:
     """Draw ``n_samples`` states from N(mean, cov): ``(n_samples, n)`` (Hernandez sec. 3.2)."""
-    mean = np.asarray(mean, dtype=float)
-    require_finite("mean", mean)
+    mean = require_finite("mean", mean)
     if int(n_samples) < 1:
         raise ValueError(f"n_samples must be >= 1 (got {n_samples})")
     cov = np.asarray(cov, dtype=float)
@@ -93,6 +93,20 @@ def _as_sensor_batch(
     if not np.isfinite(states).all():
         raise ValueError(f"{name} must be finite (sensor positions/velocities)")
     return batch, states
+
+
+def check_sensor_paths(sensors: Sensors, sensor_paths: ArrayLike, n_steps: int) -> FloatArray:
+    """Sensor pv states at epochs 1..n_steps ``(n_steps, ..., S, 4)`` as a float array, checked
+    (``(n_steps, ..., 4)`` for one sensor)."""
+    paths = np.asarray(sensor_paths, dtype=float)
+    if paths.ndim < 2 or paths.shape[0] != int(n_steps):
+        raise ValueError(
+            f"sensor_paths must have shape (n_steps={n_steps}, ..., S, 4); got {paths.shape}"
+        )
+    _as_sensor_batch(sensors, paths[0], "sensor_paths")
+    if not np.isfinite(paths).all():
+        raise ValueError("sensor_paths must be finite (sensor positions/velocities)")
+    return paths
 
 
 def _check_samples(target_samples: ArrayLike, ndim: int = 2) -> FloatArray:
@@ -279,8 +293,7 @@ def propagate_samples(
     require_finite("target_samples", X)
     if int(n_steps) < 1:
         raise ValueError(f"n_steps must be >= 1 (got {n_steps})")
-    F = np.asarray(F, dtype=float)
-    require_finite("F", F)
+    F = require_finite("F", F)
     S = _psd_sqrt("Q", np.asarray(Q, dtype=float)) if rng is not None else None
     out = np.empty((int(n_steps), *X.shape))
     for k in range(int(n_steps)):
