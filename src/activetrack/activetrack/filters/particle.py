@@ -32,12 +32,13 @@ from typing import Any
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
-from activetrack.checks import require_finite, require_in_range, require_spd
+from activetrack.checks import require_finite, require_in_range
 from activetrack.filters.measurement import (
     Measurement,
     UpdateInfo,
     check_measurement_times,
     check_predict_time,
+    check_prior,
     pda_weights,
 )
 from activetrack.filters.resampling import roughen, systematic_resample
@@ -106,12 +107,7 @@ def _drawn_particles(
         raise ValueError("x0 and P0 are required unless particles are given")
     if weights is not None:
         raise ValueError("weights can only be given together with particles")
-    mean = require_finite("x0", x0)
-    if mean.shape != (n,):
-        raise ValueError(f"x0 must have shape ({n},) for this model, got {mean.shape}")
-    cov = require_spd("P0", P0)
-    if cov.shape != (n, n):
-        raise ValueError(f"P0 must have shape ({n}, {n}) for this model, got {cov.shape}")
+    mean, cov = check_prior(x0, P0, n)
     N = DEFAULT_PARTICLES if n_particles is None else n_particles
     return mean + rng.standard_normal((N, n)) @ np.linalg.cholesky(cov).T
 
