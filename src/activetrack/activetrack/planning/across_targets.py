@@ -1,33 +1,29 @@
-"""Planning across targets: platform manoeuvres against every confirmed track, and steerable
-beams assigned to tracks (``MultiTargetPlanner``, a strategy of
-:class:`activetrack.planning.decision.Planner`).
+"""Planning across targets (``MultiTargetPlanner``, a strategy of
+:class:`activetrack.planning.decision.Planner`): platform manoeuvres against every confirmed
+track, and steerable beams assigned to tracks.
 
-Each sensor is a :class:`activetrack.models.clutter.ClutteredSensor`: its information is the
-PCRLB's J_Z with the information reduction factor q in place of pd and its field of view
-applied (Hernandez eq. 8, IRF of Niu, Willett & Bar-Shalom 2001). A beam (``beam_width``)
-observes only the track it serves.
-
-Cost of a confirmed track, ``planner.cost``:
+Each sensor is a :class:`activetrack.models.clutter.ClutteredSensor`: J_Z with the information
+reduction factor q in place of pd and its field of view applied (Hernandez eq. 8, IRF of Niu,
+Willett & Bar-Shalom 2001); a beam (``beam_width``) observes only the track it serves. Cost of
+a confirmed track, ``planner.cost``:
 
 - ``pcrlb``: ``planner.criterion`` of the bound at k+1..k+R, renewal from the track (Hernandez
   eq. 3, footnote 2), J_Z by Monte Carlo (eq. 8) over the track's particles or ``mc_samples``
   Gaussian draws pushed through the dynamics (eq. 2);
 - ``mre``: ``planner.criterion`` of Ramdaras eq. 23 with q as detection factor at the CV
   prediction F^{r+1} x. A beam, pointed before the epoch's measurements, holds the target with
-  probability :func:`~activetrack.planning.assignment.beam_coverage`, lowered for each
-  unsuccessful look since the track's last hit
-  (:func:`~activetrack.planning.assignment.coverage_after_misses`: otherwise the beams keep
-  looking at a lost track's empty prediction).
+  probability ``assignment.beam_coverage``, lowered for each unsuccessful look since the
+  track's last hit (``assignment.coverage_after_misses``: otherwise the beams keep looking at a
+  lost track's empty prediction).
 
 Tracks combine by ``planner.targets.aggregate`` (``worst`` plus ``TIE_BREAK`` times the sum
 during the search, or ``weighted_sum``). Manoeuvres: platforms in turn, the others on their
-current plans (Hernandez sec. 4.1, :func:`~activetrack.planning.multisensor.coordinate_platforms`),
-each searching its R legs; pcrlb sums over the legs (eq. 15-16), mre takes leg R. During the
-search a beam serves its previous track if still confirmed, else the nearest. Beams, after the
-manoeuvres, from the planned k+1 positions (``planner.targets.assignment``): ``mre`` optimal
-assignment of eq. 23 costs, ``random`` (balanced), ``nearest``; a beam points at its track's
-predicted position. No confirmed track: every beam sweeps one ``beam_width`` per epoch from
-its platform's heading.
+current plans (Hernandez sec. 4.1, ``multisensor.coordinate_platforms``), each searching its R
+legs; pcrlb sums over the legs (eq. 15-16), mre takes leg R. During the search a beam serves
+its previous track if still confirmed, else the nearest. Beams, after the manoeuvres, from the
+planned k+1 positions (``planner.targets.assignment``): ``mre`` optimal assignment of eq. 23
+costs, ``random`` (balanced), ``nearest``; a beam points at its track's predicted position. No
+confirmed track: every beam sweeps one ``beam_width`` per epoch from its platform's heading.
 
 Random draws, all from the planner's generator, in order: the tracks' Gaussian samples and
 process noise (pcrlb), the evolutionary search, the random assignment.
@@ -264,10 +260,7 @@ class MultiTargetPlanner:
         steering = any(lim is not None for lim in self.limits)
         self.search = settings.search if steering else None
         self.horizon = settings.horizon if steering else 1
-        self.mc_samples = settings.mc_samples
-        self.max_iterations = settings.max_iterations
-        self.aggregate = settings.aggregate
-        self.assignment = settings.assignment
+        self.settings = settings
         self.last_track: dict[str, int] = {}  # beam sensor id -> track id it served last
         self.last_bearing: dict[str, float] = {}
         # track id -> (M since its last hit, its hits then); the looks for the next epoch:
@@ -347,7 +340,7 @@ class MultiTargetPlanner:
             for t in tracks:
                 X = t.samples
                 if X is None:
-                    X = gaussian_samples(t.mean, t.cov, self.mc_samples, self.rng)
+                    X = gaussian_samples(t.mean, t.cov, self.settings.mc_samples, self.rng)
                 ep.samples.append(propagate_samples(X, d.F, d.Q, R, self.rng))
         else:
             x = [np.stack([p.x for p in predictions])]  # x_{k+1+r|k} = F^r x_{k+1|k}
@@ -408,7 +401,7 @@ class MultiTargetPlanner:
 
     def _objective(self, ep: _Epoch, tie_break: float) -> Objective:
         """The tracks' aggregate criterion of J (pcrlb, eq. 15-16) or P (mre)."""
-        tracks = TrackAggregate(self.aggregate, ep.weights, tie_break)
+        tracks = TrackAggregate(self.settings.aggregate, ep.weights, tie_break)
         if self.cost_kind == "pcrlb":
             return Objective((InformationTerm(self.criterion, tracks),))
         return Objective((CovarianceTerm(self.criterion, cast(np.ndarray, ep.x), tracks),))
@@ -425,7 +418,7 @@ class MultiTargetPlanner:
             self.dt,
             self.search,
             self.horizon,
-            self.max_iterations,
+            self.settings.max_iterations,
             self.rng,
         )
         ep.plans = {j: plan for j, plan in enumerate(result.plans) if plan is not None}
@@ -447,9 +440,9 @@ class MultiTargetPlanner:
             return
         T = len(ep.tracks)
         pvs = np.stack([next_pv[self.sensors[i].platform] for i in beams])
-        if self.assignment == "random":
+        if self.settings.assignment == "random":
             picks = random_assignment(len(beams), T, self.rng)
-        elif self.assignment == "nearest":
+        elif self.settings.assignment == "nearest":
             xy = np.array([[p.x[0], p.x[2]] for p in ep.predictions])
             picks = nearest_assignment(pvs[:, ::2], xy)
         else:
@@ -468,7 +461,7 @@ class MultiTargetPlanner:
                 ),
                 self.criterion.name,
                 ep.weights,
-                self.aggregate,
+                self.settings.aggregate,
             )
         for i, t in zip(beams, picks, strict=True):
             ep.serves[i] = np.arange(T) == t
@@ -542,7 +535,7 @@ class MultiTargetPlanner:
             _, _, before = self.looks.get(track.track_id, (0, 0, 1.0))
             self.looks[track.track_id] = (track.hits, track.misses, before * fail)
         ids = [t.track_id for t in ep.tracks]
-        total = float(aggregate_costs(costs, ep.weights, self.aggregate))
+        total = float(aggregate_costs(costs, ep.weights, self.settings.aggregate))
         return self._outcome(
             ep.epoch,
             ep.platforms,

@@ -304,11 +304,12 @@ class MrePositioning:
 
 class _Selection:
     """Common part of the selection strategies (Ramdaras sec. 3): every sensor at its
-    platform's pv at k+1 is a candidate; ``count`` of them measure at k+1."""
+    platform's pv at k+1 is a candidate; ``count`` of them measure at k+1; ``criterion`` the
+    MRE cost they are scored (or, for the baselines, reported) by."""
 
     name = ""
 
-    def __init__(self, sensors: Sequence[SensorEntry], count: int):
+    def __init__(self, sensors: Sequence[SensorEntry], count: int, criterion: str = "det_pos"):
         self.sensors = tuple(sensors)
         self.models = [s.model for s in self.sensors]
         if not 1 <= count <= len(self.sensors):
@@ -316,6 +317,9 @@ class _Selection:
                 f"planner.selection.count must be <= {len(self.sensors)} sensors, got {count}"
             )
         self.count = count
+        self.criterion = get_criterion(
+            criterion, SELECTION, what="planner.selection.criterion"
+        ).name
 
     def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
         raise NotImplementedError
@@ -334,18 +338,13 @@ class _Selection:
         return DecisionPart(selection=choice, evaluations=result.evaluations)
 
 
-def _selection_criterion(name: str) -> str:
-    return get_criterion(name, SELECTION, what="planner.selection.criterion").name
-
-
 class MreSelection(_Selection):
     """Ramdaras eq. 27: argmin of the criterion of eq. 23 (greedy for count > 1)."""
 
     name = "mre"
 
     def __init__(self, sensors: Sequence[SensorEntry], criterion: str, count: int = 1):
-        super().__init__(sensors, count)
-        self.criterion = _selection_criterion(criterion)
+        super().__init__(sensors, count, criterion)
 
     def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
         return select_by_criterion(
@@ -374,8 +373,7 @@ class RandomSelection(_Selection):
         count: int,
         rng: np.random.Generator,
     ):
-        super().__init__(sensors, count)
-        self.criterion = _selection_criterion(criterion)
+        super().__init__(sensors, count, criterion)
         self.rng = rng
 
     def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
@@ -390,8 +388,7 @@ class FixedSelection(_Selection):
     name = "fixed"
 
     def __init__(self, sensors: Sequence[SensorEntry], criterion: str, sensor_id: str | None):
-        super().__init__(sensors, 1)
-        self.criterion = _selection_criterion(criterion)
+        super().__init__(sensors, 1, criterion)
         ids = [s.sensor_id for s in self.sensors]
         if sensor_id not in ids:
             raise ValueError(f"planner.selection.fixed_sensor must be one of {ids}")
