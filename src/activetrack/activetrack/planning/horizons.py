@@ -5,14 +5,11 @@ eq. 3, :class:`activetrack.planning.costs.HorizonModel`, or P by Ramdaras eq. 23
 :class:`activetrack.planning.selection.MreStage`); the objective
 (:class:`activetrack.planning.objective.Objective`) what those states cost.
 
-Searches (:class:`SearchSettings`, over :mod:`activetrack.planning.manoeuvre`'s unit square):
-single step (eq. 11); lockstep grid, quadrant or sector searches nested one per leg, the
-dynamic programme of eq. 13-16, the inner searches of all outer candidates batched and each
-J_prev's share (:meth:`HorizonStage.prepare`) done once; ``"evolution"``, differential evolution
-over all R manoeuvres (eq. 16, sec. 3.3.4) seeded with "hold course".
-
-Every candidate state counts as one cost evaluation. Returns ``(R, 2)`` rows of (dpsi, v');
-only the first is flown (receding horizon).
+Searches (:class:`SearchSettings`): lockstep grid, quadrant or sector searches nested one per
+leg, the dynamic programme of eq. 13-16 (eq. 11 for one leg), the inner searches of all outer
+candidates batched and each J_prev's share (:meth:`HorizonStage.prepare`) done once; or
+``"evolution"`` over all R manoeuvres (eq. 16, sec. 3.3.4) seeded with "hold course". Every
+candidate state counts as one cost evaluation; only the first of the R legs is flown.
 """
 
 from __future__ import annotations
@@ -92,8 +89,7 @@ class SearchSettings:
 
     def evaluations_per_platform(self, horizon: int) -> int:
         """Cost evaluations of one platform's R-step optimisation (at most, for the quadrant
-        search with patience): per_stage^R for the nested lockstep searches, the population
-        over all generations for evolution."""
+        search with patience)."""
         if self.search == "evolution":
             return self.evolution_popsize * 2 * horizon * (self.evolution_maxiter + 1)
         per_stage = {
@@ -307,9 +303,7 @@ def _evolve(
 
 
 def warm_up() -> None:
-    """Compile (or load) the planner's kernels (``planning._kernels``, through
-    ``activetrack.kernels.warm_up``) with the argument types the planner passes (a payload and
-    none)."""
+    """Compile (or load) ``planning._kernels`` with the argument types the planner passes."""
     from activetrack.planning._kernels import candidate_legs
 
     def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

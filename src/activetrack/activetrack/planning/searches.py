@@ -131,12 +131,8 @@ _CORNERS = ((0, 0), (0, 1), (1, 0), (1, 1))
 def quadrant_search(
     cost_fn: CostFn, n_problems: int = 1, divisions: int = 6, patience: int | None = None
 ) -> SearchResult:
-    """Hernandez's efficient search (sec. 4.1, Fig. 1), B problems in lockstep.
-
-    Each problem holds a square and its 3 x 3 points' costs; division 1 evaluates all 9, later
-    ones the 5 new points of the chosen quadrant. The bookkeeping is compiled
-    (``planning._kernels``) when kernels are enabled, with the same decisions (tested).
-    """
+    """Hernandez's efficient search (sec. 4.1, Fig. 1), B problems in lockstep; the bookkeeping
+    is compiled (``planning._kernels``) when kernels are enabled, with the same decisions."""
     B, divisions = check_integer("n_problems", n_problems), check_integer("divisions", divisions)
     patience = check_integer("patience", divisions if patience is None else patience)
     if not kernels_enabled():
@@ -269,12 +265,9 @@ def evolution_search(
     tol: float = 1e-6,
     x0: np.ndarray | None = None,
 ) -> SearchResult:
-    """Differential evolution (scipy) over [0, 1]^dim for one problem (Hernandez sec. 3.3.4:
-    an evolutionary search over all R manoeuvres at once).
-
-    ``cost_fn(rows, u)`` is called with rows = [0] and ``u`` ``(1, P, dim)`` for a whole
-    population. ``x0`` ``(dim,)`` seeds the population (e.g. "hold course").
-    """
+    """Differential evolution (scipy) over [0, 1]^dim for one problem (Hernandez sec. 3.3.4):
+    ``cost_fn`` gets rows = [0] and a whole population ``u`` ``(1, P, dim)``; ``x0`` ``(dim,)``
+    seeds the population (e.g. "hold course")."""
     from scipy.optimize import differential_evolution
 
     dim = check_integer("dim", dim)
