@@ -215,7 +215,6 @@ class ParticleFilter:
         """Start from a given particle set ``(N, n)`` and optional weights ``(N,)``."""
         return cls(model, particles=particles, weights=weights, t0=t0, **options)
 
-    # --- state -------------------------------------------------------------------------------
     @property
     def time(self) -> float:
         """Time of the particles (s)."""
@@ -277,7 +276,6 @@ class ParticleFilter:
         """Weighted covariance ``sum w_i (x_i - mean)(x_i - mean)^T``, shape ``(n, n)``."""
         return self._compute_moments()[1].copy()
 
-    # --- filtering ---------------------------------------------------------------------------
     def predict(self, t: float) -> None:
         """Draw every particle from the transition prior to time ``t`` (>= ``time``)."""
         t = check_predict_time(t, self._t)

@@ -276,8 +276,6 @@ class MultiTargetPlanner:
             d.commands, report=d.report, evaluations=evaluations, extra=d.extra, beams=d.beams
         )
 
-    # --- the decision ---------------------------------------------------------------------
-
     def plan(self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]) -> Decision:
         """Commands for the leg epoch -> epoch+1, beam pointings for epoch+1, the report."""
         start = time.perf_counter()
@@ -368,8 +366,6 @@ class MultiTargetPlanner:
                 serves[i] = np.arange(len(tracks)) == t
         return serves
 
-    # --- manoeuvres -----------------------------------------------------------------------
-
     def _state0(self, ep: _Epoch) -> np.ndarray:
         if self.cost_kind == "pcrlb":
             return np.stack([covariance_bound(t.cov) for t in ep.tracks])
@@ -430,8 +426,6 @@ class MultiTargetPlanner:
             state = stage.advance(stage.prepare(state, r), r, dummy)
             states.append(state)
         return self._objective(ep, 0.0).along(states)
-
-    # --- beams and the outcome --------------------------------------------------------------
 
     def _assign(self, ep: _Epoch, next_pv: np.ndarray) -> None:
         """Every beam to one confirmed track at the planned k+1 positions: ``ep.serves``."""

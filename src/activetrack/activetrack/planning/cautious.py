@@ -303,8 +303,6 @@ class CautiousPlanner:
         return ambiguous_bearing_update(x_hat, P, z, s, self.sigma_s)
 
 
-# --- stop-and-measure control of the robot ----------------------------------------------------
-
 _ARRIVED = 1e-6  # m: a robot this close to its waypoint is on it
 
 

@@ -140,9 +140,8 @@ class PlanSettings:
 
 @dataclass(frozen=True)
 class PlannedManoeuvre:
-    """The manoeuvre of one controllable platform for the leg k -> k+1, and its plan.
-
-    plan: ``(R, 2)`` rows (dpsi, v') over the horizon (only row 0 is flown)."""
+    """The manoeuvre of one controllable platform for the leg k -> k+1, and its ``plan`` ``(R,
+    2)`` of (dpsi, v') over the horizon (only row 0 is flown)."""
 
     platform_id: str
     heading_change: float

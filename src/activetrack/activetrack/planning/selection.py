@@ -6,19 +6,10 @@ criteria`: eq. 24-26) of the expected covariance one step ahead, eq. 23
 
     P^(j)_{k+1|k} = F [(1 - pd_j) P_{k|k-1} + pd_j P^(j)_{k|k}] F^T + Q
 
-with H_j (eq. 13) at the predicted state and the sensor's planned position
-(:class:`TargetPrediction`).
-
-- Positioning (sec. 4): :func:`position_platform`, each controllable platform searching its
-  reachable envelope with the nine-sector search; over R legs (sec. 7's future work)
-  :func:`plan_positions` with :class:`MreStage`; both through
-  :func:`activetrack.planning.horizons.search_horizon`.
-- Selection (sec. 3, eq. 27): :func:`select_by_criterion` over every sensor; baselines
-  (Ramdaras and Absil 2007a) :func:`select_random`, :func:`select_fixed` and
-  :func:`select_by_trace` (trace of P^(j)_{k|k}, eq. 22, pd ignored). ``count`` > 1 selects
-  greedily, each pick folded into P_{k|k-1} (pd-weighted) before scoring the rest.
-
-Shapes: pv states ``(4,)``, covariances ``(4, 4)``; candidates batched ``(..., 4)``.
+with H_j (eq. 13) at the predicted state and the sensor's planned position: positioning (sec.
+4; over R legs, sec. 7) through :func:`activetrack.planning.horizons.search_horizon`, selection
+(sec. 3, eq. 27) and the baselines of Ramdaras and Absil 2007a. Shapes: pv states ``(4,)``,
+covariances ``(4, 4)``; candidates batched ``(..., 4)``.
 """
 
 from __future__ import annotations
@@ -328,9 +319,6 @@ def position_platform(
     return plan_positions(
         platform, prediction, dt, criterion=criterion, search=search, horizon=horizon
     )
-
-
-# --- several epochs ahead (Ramdaras sec. 7: "multiple time steps ahead sensor positioning") ----
 
 
 @dataclass(frozen=True)

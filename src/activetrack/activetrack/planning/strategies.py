@@ -1,11 +1,5 @@
-"""Planner strategies of the papers, run in order by
-:class:`activetrack.planning.decision.Planner`: :class:`HoldCourse` (planner off),
-:class:`PcrlbPlanning` (Hernandez sec. 3-4), :class:`CautiousLocalisation` (Vander Hook et al.,
-Alg. 1), :class:`MrePrediction` (x_{k+1|k}, P_{k+1|k}, Ramdaras Fig. 5),
-:class:`MrePositioning` (sec. 4), :class:`MreSelection` (eq. 27) and baselines
-:class:`TraceSelection`, :class:`RandomSelection`, :class:`FixedSelection` (Ramdaras and Absil
-2007a), :class:`MreOutlook` (the MRE plan report). They take built objects
-(:func:`activetrack.closed_loop.components.build_planner` makes them). Only
+"""Planner strategies of the papers, run in order by :class:`activetrack.planning.decision.
+Planner` and built by :func:`activetrack.closed_loop.components.build_planner`. Only
 :class:`PcrlbPlanning` and :class:`RandomSelection` draw, from the planner's generator, in that
 order.
 """
@@ -95,9 +89,6 @@ def _require_pv(track: TrackEstimate) -> None:
             f"track: renewal planning needs a pv track (x, xdot, y, ydot), got a state of "
             f"{track.state.shape[0]} entries"
         )
-
-
-# --- steering ----------------------------------------------------------------------------------
 
 
 class HoldCourse:
@@ -209,9 +200,6 @@ class CautiousLocalisation:
             predicted_costs=(float(c.measurements), float(c.done)),
         )
         return DecisionPart(commands=(command,), report=report)
-
-
-# --- Ramdaras: MRE prediction, positioning, selection, outlook ----------------------------------
 
 
 class MrePrediction:
