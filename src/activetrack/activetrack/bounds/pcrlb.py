@@ -310,7 +310,6 @@ def pcrlb_trajectory(
         F, Q: linear target dynamics (eq. 2), ``(4, 4)``.
         target_samples: prior samples ``(M, 4)`` at k = 0, propagated with ``rng`` (None:
             noise-free; Hernandez sec. 3.2), or propagated ones ``(K, M, 4)`` for epochs 1..K.
-        sensors: one sensor or a sequence of S sensors.
         sensor_paths: sensor pv states at epochs 1..K, ``(K, ..., S, 4)``
             (``(K, ..., 4)`` for a single sensor); ``...`` are candidate paths.
         active: optional ``(K, S)`` bool, the sensors that measure at each epoch (None: all).

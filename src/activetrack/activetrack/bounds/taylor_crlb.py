@@ -71,8 +71,6 @@ def taylor_crlb(
     """Fisher information J_k about x_k, k = 1..n_steps, along the nominal path (eq. 50-51).
 
     Args:
-        model: motion model (contract ``activetrack.models.base.MotionModel``).
-        sensors: one sensor or a sequence of S sensors.
         sensor_paths: sensor pv states at epochs 1..n_steps, ``(n_steps, ..., S, 4)``.
         x0: nominal initial state ``(n,)``.
         P0: optional prior covariance S_0 ``(n, n)`` (eq. 44); without it J_0 = 0.

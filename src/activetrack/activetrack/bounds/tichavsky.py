@@ -127,9 +127,7 @@ def tichavsky_pcrlb(
     """Fisher information J_k, k = 1..n_steps, of a nonlinear model (Valverde eq. 56-64).
 
     Args:
-        model: a motion model (contract ``activetrack.models.base.MotionModel``), e.g.
-            ``ConstantTurn`` or ``CircularMotion``; Q must not depend on the state.
-        sensors: one sensor or a sequence of S sensors.
+        model: e.g. ``ConstantTurn`` or ``CircularMotion``; Q must not depend on the state.
         sensor_paths: sensor pv states at epochs 1..n_steps, ``(n_steps, ..., S, 4)``
             (``(n_steps, ..., 4)`` for one sensor); ``...`` are candidate paths.
         x0, P0: Gaussian prior of the model state, ``(n,)`` and ``(n, n)`` SPD; J_0 = P0^{-1}.

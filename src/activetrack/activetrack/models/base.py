@@ -1,11 +1,9 @@
 """The two contracts of the core's models: a target motion model and a sensor.
 
 ``MotionModel`` (``LinearMotionModel``) and ``SensorModel`` are ``typing.Protocol`` classes
-(structural typing, checked by mypy): the motion models share no implementation and a sensor
-may be written from scratch. A sensor owns its maths, so no consumer special-cases by class:
-``linearize`` (EKF), ``log_likelihood`` / ``log_miss_likelihood`` (particle weights for a
-detection and for a look without one, Hernandez sec. 2.3), ``fisher_information`` (Hernandez
-eq. 8-9; optionally a compiled ``information_kernel()``), clutter and track initiation.
+(structural typing, checked by mypy): a sensor may be written from scratch, and it owns its
+maths (EKF linearisation, particle weights, Fisher information, clutter, track initiation), so
+no consumer special-cases by class.
 
 ``GaussianSensor`` is the optional base class for z = h(x) + v, v ~ N(0, R): a subclass defines
 ``kind``, ``components``, ``R``, ``measure`` and ``jacobian`` (and its angle entries) and
