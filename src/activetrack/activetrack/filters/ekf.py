@@ -13,10 +13,9 @@ Update, one detection at a time (Ramdaras eq. 16-22, Valverde eq. 5-9)::
     x  = x + K nu                                                    (eq. 21)
     P  = (I - K H) P (I - K H)^T + K R K^T    Joseph form            (eq. 22)
 
-with h, H and nu from the sensor's ``linearize`` at the state's pv, H chained with the model's
-``kinematics_jacobian`` unless ``model.state_is_pv``: filterpy's ``ExtendedKalmanFilter``
-equations (tested to 1e-9) in plain numpy on small matrices for low per-step overhead, or one
-compiled call each with ``ACTIVETRACK_KERNELS=compiled`` (equal to round-off).
+with h, H and nu from the sensor's ``linearize`` (H chained with ``kinematics_jacobian``):
+filterpy's ``ExtendedKalmanFilter`` equations (tested to 1e-9) in plain numpy, or compiled with
+``ACTIVETRACK_KERNELS=compiled`` (equal to round-off).
 
 Several detections per step are processed sequentially, each linearised at the state the ones
 before it updated (exactly the stacked update for a linear model; the NIS add up to a

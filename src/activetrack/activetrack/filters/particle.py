@@ -18,8 +18,7 @@ with probability pd), by ``min_range``:
 - ``"negative"``: a detection weighted by pd I_r(x) N(z; h(x), R), a non-detection by
   1 - pd I_r(x) (mass moves towards "inside r_min or outside r_max").
 
-The likelihoods are the sensors' own (``sensor.log_likelihood``, ``log_miss_likelihood``). The
-compiled kernels (``ACTIVETRACK_KERNELS``) give the numpy path's bits on the same draws.
+The likelihoods are the sensors' own; the compiled kernels give the numpy path's bits.
 """
 
 from __future__ import annotations

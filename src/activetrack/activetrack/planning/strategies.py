@@ -118,8 +118,7 @@ class PcrlbPlanning:
     ):
         self.settings = settings
         self.platforms = tuple(platforms)
-        self.open_loop = open_loop_prior is not None
-        self.prior = open_loop_prior
+        self.prior = open_loop_prior  # None: renewal
         self.mc_samples = mc_samples
         self.dynamics = dynamics
         self.rng = rng
@@ -129,9 +128,8 @@ class PcrlbPlanning:
         self, epoch: int, track: TrackEstimate, platforms: list[PlannerPlatform]
     ) -> TargetBelief:
         d = self.dynamics
-        if self.open_loop:
+        if self.prior is not None:
             if self._open_loop_belief is None:
-                assert self.prior is not None  # open loop: given
                 mean, cov = self.prior
                 self._open_loop_belief = TargetBelief.from_gaussian(
                     mean, cov, self.mc_samples, self.rng
@@ -214,15 +212,13 @@ class MrePrediction:
         dynamics: LinearDynamics,
         open_loop_prior: tuple[np.ndarray, np.ndarray] | None = None,
     ):
-        self.open_loop = open_loop_prior is not None
-        self.prior = open_loop_prior
+        self.prior = open_loop_prior  # None: renewal
         self.dynamics = dynamics
         self._posterior: tuple[np.ndarray, np.ndarray] | None = None
 
     def decide(self, context: DecisionContext) -> DecisionPart:
-        if self.open_loop:
+        if self.prior is not None:
             if self._posterior is None:
-                assert self.prior is not None  # open loop: given
                 mean, cov = self.prior
                 self._posterior = (np.array(mean, dtype=float), np.array(cov, dtype=float))
             x, P = self._posterior
@@ -234,7 +230,7 @@ class MrePrediction:
 
     def commit(self, x: np.ndarray, P_updated: np.ndarray) -> None:
         """Open loop: the expected posterior at k+1 the next decision predicts from."""
-        if self.open_loop:
+        if self.prior is not None:
             self._posterior = (x, P_updated)
 
 
