@@ -163,14 +163,10 @@ class _MreStage:
         out = np.empty((*pv.shape[:-1], self.x.shape[1], 4, 4))
         for t, x in enumerate(self.x[level]):
             P0 = Pt = P[..., t, :, :]
-            for sensor, at in self.fixed[level][t]:
+            own = [(sensor, pv) for sensor, serves in self.own if serves[t]]
+            for sensor, at in [*self.fixed[level][t], *own]:  # the other platforms' sensors first
                 d = sensor.detection(x, at, P0, self.missed[t])
                 Pt = mre_update(Pt, sensor.model.jacobian(x, at), sensor.model.R, d)
-            for sensor, serves in self.own:
-                if serves[t]:
-                    H = sensor.model.jacobian(x, pv)
-                    d = sensor.detection(x, pv, P0, self.missed[t])
-                    Pt = mre_update(Pt, H, sensor.model.R, d)
             out[..., t, :, :] = self.F @ Pt @ self.F.T + self.Q
         return out
 
