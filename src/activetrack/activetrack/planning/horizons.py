@@ -115,9 +115,8 @@ class SearchSettings:
 
 
 class HorizonStage(Protocol):
-    """How one platform's candidate manoeuvres change a state leg by leg. The state is an array
-    whose trailing axes the stage owns (J or P of every track, ``(T, 4, 4)``); ``state0`` at
-    epoch k is shared by every candidate, the states of later legs carry leading axes."""
+    """How one platform's candidate manoeuvres change a state (J or P of every track, trailing
+    axes ``(T, 4, 4)``) leg by leg; ``state0`` at epoch k is shared by every candidate."""
 
     def prepare(self, state: np.ndarray, level: int) -> np.ndarray:
         """What leg ``level`` starts from, computed once for all its candidates: from

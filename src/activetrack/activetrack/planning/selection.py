@@ -325,8 +325,7 @@ def position_platform(
 class MreStage:
     """One platform's sensors over R legs of eq. 23 for one target (a :class:`HorizonStage`):
     P_{k+1+r|k+r} ``(..., 1, 4, 4)``, updated by the sensors in turn at the CV prediction
-    x_{k+1+r|k} = F^r x_{k+1|k} (``x`` ``(R, 4)``), then predicted one interval. R = 1 is the
-    one-step positioning's cost, operation for operation."""
+    x_{k+1+r|k} = F^r x_{k+1|k} (``x`` ``(R, 4)``), then predicted one interval."""
 
     sensors: tuple[SensorModel, ...]
     x: np.ndarray
