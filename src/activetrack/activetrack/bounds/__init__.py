@@ -1,13 +1,6 @@
-"""Performance bounds and cost functions (Hernandez 2004, Valverde, Ramdaras et al. 2010).
-
-- ``pcrlb``: PCRLB for linear dynamics, Hernandez eq. 3 with the Monte Carlo measurement
-  contribution of eq. 8-9, batched over candidate sensor positions.
-- ``tichavsky``: general nonlinear PCRLB (Valverde eq. 56-65).
-- ``taylor_crlb``: CRLB without process noise along a nominal path (Valverde eq. 44-51).
-- ``mre``: modified Riccati equation with detection probability (Ramdaras eq. 23).
-- ``costs``: b_k (Hernandez eq. 10), trace, determinant, position determinant (Ramdaras eq. 24)
-  and heading / range / Doppler / bearing variance (Ramdaras eq. 25-26). The planner criteria
-  built on them are registered in :mod:`activetrack.planning.criteria`.
+"""Performance bounds and cost functions: ``pcrlb`` (Hernandez eq. 3, 8-9), ``tichavsky``
+(Valverde eq. 56-65), ``taylor_crlb`` (Valverde eq. 44-51), ``mre`` (Ramdaras eq. 23) and
+``costs`` (Hernandez eq. 10, Ramdaras eq. 24-26).
 """
 
 from activetrack.bounds.costs import (

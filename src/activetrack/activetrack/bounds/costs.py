@@ -1,11 +1,7 @@
 """Scalar costs ``(...)`` of covariance batches ``P`` ``(..., n, n)`` (a PCRLB J^{-1} or an MRE
-prediction); positions are pv entries 0 and 2 unless ``position_indices`` says otherwise. The
-planner criteria built on them: :mod:`activetrack.planning.criteria`.
-
-- ``rmse_bound``: Hernandez eq. 10, b_k = max(sqrt(P(1,1)), sqrt(P(3,3))) (1-based as in the
-  paper); ``rmse_bound_of_information`` from J directly (one solve, no inverse).
-- ``trace_cost``, ``determinant_cost``; ``position_determinant``: Ramdaras eq. 24.
-- ``criterion_variance``: Ramdaras eq. 25, H^c P H^c^T with H^c of eq. 26 (``EQ26_ROWS``).
+prediction; Hernandez eq. 10, Ramdaras eq. 24-26); positions are pv entries 0 and 2 unless
+``position_indices`` says otherwise. The planner criteria built on them:
+:mod:`activetrack.planning.criteria`.
 """
 
 from __future__ import annotations

@@ -53,10 +53,7 @@ def mre_step(
     """Ramdaras eq. 23: P_{k+1|k} from P_{k|k-1} ``(..., n, n)``, batched over ``H`` and pd."""
     P = np.asarray(P, dtype=float)
     _cholesky("P", P)
-    F = np.asarray(F, dtype=float)
-    Q = np.asarray(Q, dtype=float)
-    require_finite("F", F)
-    require_finite("Q", Q)
+    F, Q = require_finite("F", F), require_finite("Q", Q)
     return symmetrize(F @ mre_update(P, H, R, pd) @ F.T + Q)
 
 
@@ -102,12 +99,8 @@ def mre_predict(
     """
     P_pred = np.asarray(P_pred, dtype=float)
     _cholesky("P_pred", P_pred)
-    x_pred = np.asarray(x_pred, dtype=float)
-    require_finite("x_pred", x_pred)
-    F = np.asarray(F, dtype=float)
-    Q = np.asarray(Q, dtype=float)
-    require_finite("F", F)
-    require_finite("Q", Q)
+    x_pred = require_finite("x_pred", x_pred)
+    F, Q = require_finite("F", F), require_finite("Q", Q)
     P = _sensor_update(P_pred, sensors, sensor_states, x_pred, kinematics_jacobian)
     return symmetrize(F @ P @ F.T + Q)
 

@@ -9,12 +9,9 @@ distribution propagated to each epoch (Hernandez sec. 3.2)::
 
     J_Z(k) = sum_j E[ pd_j * I_r(X^j_S; X_k) * H_j(X_k)^T R_j^{-1} H_j(X_k) ]
 
-``I_r`` is the detection-range indicator (``sensor.in_range``: zero inside the minimum detection
-range r, Hernandez sec. 2.3) and the detection probability ``pd`` multiplies each sensor's
-information (information-reduction factor). Everything is batched over leading dimensions so
-that one call scores many candidate sensor positions (the planner's inner loop).
-
-States are kinematic pv vectors ``(x, xdot, y, ydot)`` (Hernandez eq. 6-7).
+with ``I_r`` the detection-range indicator (``sensor.in_range``, Hernandez sec. 2.3). States are
+pv vectors ``(x, xdot, y, ydot)`` (eq. 6-7), batched over leading dimensions so that one call
+scores many candidate sensor positions (the planner's inner loop).
 """
 
 from __future__ import annotations
@@ -34,6 +31,7 @@ from activetrack.linalg import spd_inverse as _spd_inverse
 from activetrack.models.base import InformationKernel, SensorModel, jacobian_information
 
 __all__ = [
+    "check_sensor_paths",
     "covariance_bound",
     "gaussian_samples",
     "information_function",
@@ -45,10 +43,6 @@ __all__ = [
     "sensor_information",
 ]
 
-# How J_Z is evaluated: each sensor's compiled kernel where it has one, else its own
-# fisher_information ("auto"); always its numpy fisher_information (its closed form where it
-# has one, e.g. bearing sensors, Hernandez eq. 9: "numpy", the reference of the kernels); or
-# the Jacobian form of eq. 8 for every sensor ("jacobian").
 _METHODS = ("auto", "numpy", "jacobian")
 Sensors = SensorModel | Sequence[SensorModel]
 
@@ -62,8 +56,7 @@ def gaussian_samples(
     mean: ArrayLike, cov: ArrayLike, n_samples: int, rng: np.random.Generator
 ) -> FloatArray:
     """Draw ``n_samples`` states from N(mean, cov): ``(n_samples, n)`` (Hernandez sec. 3.2)."""
-    mean = np.asarray(mean, dtype=float)
-    require_finite("mean", mean)
+    mean = require_finite("mean", mean)
     if int(n_samples) < 1:
         raise ValueError(f"n_samples must be >= 1 (got {n_samples})")
     cov = np.asarray(cov, dtype=float)
@@ -93,6 +86,20 @@ def _as_sensor_batch(
     if not np.isfinite(states).all():
         raise ValueError(f"{name} must be finite (sensor positions/velocities)")
     return batch, states
+
+
+def check_sensor_paths(sensors: Sensors, sensor_paths: ArrayLike, n_steps: int) -> FloatArray:
+    """Sensor pv states at epochs 1..n_steps ``(n_steps, ..., S, 4)`` as a float array, checked
+    (``(n_steps, ..., 4)`` for one sensor)."""
+    paths = np.asarray(sensor_paths, dtype=float)
+    if paths.ndim < 2 or paths.shape[0] != int(n_steps):
+        raise ValueError(
+            f"sensor_paths must have shape (n_steps={n_steps}, ..., S, 4); got {paths.shape}"
+        )
+    _as_sensor_batch(sensors, paths[0], "sensor_paths")
+    if not np.isfinite(paths).all():
+        raise ValueError("sensor_paths must be finite (sensor positions/velocities)")
+    return paths
 
 
 def _check_samples(target_samples: ArrayLike, ndim: int = 2) -> FloatArray:
@@ -155,9 +162,7 @@ def measurement_information(
 
 def information_kernel(sensor: SensorModel) -> InformationKernel | None:
     """The sensor's compiled Fisher information (its optional ``information_kernel()``), or
-    None for a sensor without one or while the kernels are off
-    (:func:`activetrack.kernels.kernels_enabled`: every sensor then uses its numpy
-    ``fisher_information``)."""
+    None without one or while the kernels are off (``activetrack.kernels.kernels_enabled``)."""
     get = getattr(sensor, "information_kernel", None)
     if get is None or not kernels_enabled():
         return None
@@ -194,12 +199,8 @@ def sensor_information(
 
 
 def pcrlb_step(J_prev: ArrayLike, F: ArrayLike, Q: ArrayLike, J_Z: ArrayLike) -> FloatArray:
-    """One step of Hernandez eq. 3: J_{k+1} = (Q + F J_k^{-1} F^T)^{-1} + J_Z(k+1).
-
-    Batched: ``J_prev`` ``(..., n, n)``, ``F`` and ``Q`` ``(n, n)``, ``J_Z`` ``(..., n, n)``
-    broadcast together. Uses Cholesky solves (no explicit inverse of J_k):
-    with L L^T = J_k and X = L^{-1} F^T, F J_k^{-1} F^T = X^T X.
-    """
+    """One step of Hernandez eq. 3: J_{k+1} = (Q + F J_k^{-1} F^T)^{-1} + J_Z(k+1), with
+    ``J_prev`` ``(..., n, n)``, ``F`` and ``Q`` ``(n, n)``, ``J_Z`` ``(..., n, n)`` broadcast."""
     J_prev = np.asarray(J_prev, dtype=float)
     F, Q = check_dynamics(F, Q, J_prev.shape[-1])
     J_Z = np.asarray(J_Z, dtype=float)
@@ -228,7 +229,7 @@ def predicted_information(J_prev: FloatArray, F: FloatArray, Q: FloatArray) -> F
     """
     if J_prev.ndim == 3 and kernels_enabled():
         return _predicted_stack(J_prev, F, Q)
-    L = _cholesky("J_prev", J_prev)
+    L = _cholesky("J_prev", J_prev)  # no explicit inverse of J_k: F J_k^{-1} F^T = X^T X
     Xt = _lower_solve(L, F.T)  # (..., n, n) = L^{-1} F^T
     C = Q + np.swapaxes(Xt, -1, -2) @ Xt  # predicted-state bound Q + F J^{-1} F^T
     # C and its inverse L^{-T} L^{-1} are symmetric by construction.
@@ -279,8 +280,7 @@ def propagate_samples(
     require_finite("target_samples", X)
     if int(n_steps) < 1:
         raise ValueError(f"n_steps must be >= 1 (got {n_steps})")
-    F = np.asarray(F, dtype=float)
-    require_finite("F", F)
+    F = require_finite("F", F)
     S = _psd_sqrt("Q", np.asarray(Q, dtype=float)) if rng is not None else None
     out = np.empty((int(n_steps), *X.shape))
     for k in range(int(n_steps)):
@@ -310,7 +310,6 @@ def pcrlb_trajectory(
         F, Q: linear target dynamics (eq. 2), ``(4, 4)``.
         target_samples: prior samples ``(M, 4)`` at k = 0, propagated with ``rng`` (None:
             noise-free; Hernandez sec. 3.2), or propagated ones ``(K, M, 4)`` for epochs 1..K.
-        sensors: one sensor or a sequence of S sensors.
         sensor_paths: sensor pv states at epochs 1..K, ``(K, ..., S, 4)``
             (``(K, ..., 4)`` for a single sensor); ``...`` are candidate paths.
         active: optional ``(K, S)`` bool, the sensors that measure at each epoch (None: all).

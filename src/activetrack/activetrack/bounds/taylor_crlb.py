@@ -18,7 +18,7 @@ import numpy as np
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.bounds.pcrlb import (
     Sensors,
-    _as_sensor_batch,
+    check_sensor_paths,
     measurement_information,
     pcrlb_step,
 )
@@ -31,8 +31,7 @@ __all__ = ["nominal_path", "taylor_crlb", "taylor_information_initial"]
 
 def nominal_path(model: MotionModel, x0: ArrayLike, n_steps: int, dt: float) -> FloatArray:
     """Noise-free path x_k = f(x_{k-1}) for k = 0..n_steps: ``(n_steps + 1, n)``."""
-    x = np.asarray(x0, dtype=float)
-    require_finite("x0", x)
+    x = require_finite("x0", x0)
     if x.shape != (int(model.dim),):
         raise ValueError(f"x0 must have shape ({model.dim},); got {x.shape}")
     if int(n_steps) < 1:
@@ -44,18 +43,6 @@ def nominal_path(model: MotionModel, x0: ArrayLike, n_steps: int, dt: float) -> 
         x = np.asarray(model.propagate(x, dt), dtype=float)
         path.append(x)
     return np.stack(path)
-
-
-def _check_paths(sensors: Sensors, sensor_paths: ArrayLike, n_steps: int) -> FloatArray:
-    paths = np.asarray(sensor_paths, dtype=float)
-    if paths.ndim < 2 or paths.shape[0] != int(n_steps):
-        raise ValueError(
-            f"sensor_paths must have shape (n_steps={n_steps}, ..., S, 4); got {paths.shape}"
-        )
-    _as_sensor_batch(sensors, paths[0], "sensor_paths")
-    if not np.isfinite(paths).all():
-        raise ValueError("sensor_paths must be finite (sensor positions/velocities)")
-    return paths
 
 
 def _nominal_information(
@@ -84,8 +71,6 @@ def taylor_crlb(
     """Fisher information J_k about x_k, k = 1..n_steps, along the nominal path (eq. 50-51).
 
     Args:
-        model: motion model (contract ``activetrack.models.base.MotionModel``).
-        sensors: one sensor or a sequence of S sensors.
         sensor_paths: sensor pv states at epochs 1..n_steps, ``(n_steps, ..., S, 4)``.
         x0: nominal initial state ``(n,)``.
         P0: optional prior covariance S_0 ``(n, n)`` (eq. 44); without it J_0 = 0.
@@ -95,7 +80,7 @@ def taylor_crlb(
         J ``(n_steps, ..., n, n)``; positive definite once the state is observable.
     """
     path = nominal_path(model, x0, n_steps, dt)
-    paths = _check_paths(sensors, sensor_paths, n_steps)
+    paths = check_sensor_paths(sensors, sensor_paths, n_steps)
     n = path.shape[-1]
     J: FloatArray
     if P0 is None:
@@ -135,7 +120,7 @@ def taylor_information_initial(
     Returns ``(n_steps, ..., n, n)``.
     """
     path = nominal_path(model, x0, n_steps, dt)
-    paths = _check_paths(sensors, sensor_paths, n_steps)
+    paths = check_sensor_paths(sensors, sensor_paths, n_steps)
     n = path.shape[-1]
     J = np.zeros((n, n)) if P0 is None else spd_inverse("P0", np.asarray(P0, dtype=float))
     Phi_k0 = np.eye(n)

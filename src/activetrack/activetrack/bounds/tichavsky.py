@@ -22,7 +22,7 @@ import numpy as np
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.bounds.pcrlb import (
     Sensors,
-    _as_sensor_batch,
+    check_sensor_paths,
     gaussian_samples,
     measurement_information,
 )
@@ -54,9 +54,8 @@ def _check_setup(
     q_floor: float,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Checked ``(x0, J_0 = P0^{-1}, sensor paths)`` of :func:`tichavsky_pcrlb`."""
-    x0 = np.asarray(x0, dtype=float)
+    x0 = require_finite("x0", x0)
     P0 = np.asarray(P0, dtype=float)
-    require_finite("x0", x0)
     n = int(model.dim)
     if x0.shape != (n,) or P0.shape != (n, n):
         raise ValueError(f"x0 must be ({n},) and P0 ({n}, {n}); got {x0.shape}, {P0.shape}")
@@ -67,15 +66,7 @@ def _check_setup(
         raise ValueError(f"dt must be finite and > 0 (got {dt})")
     if not (np.isfinite(q_floor) and q_floor >= 0):
         raise ValueError(f"q_floor must be finite and >= 0 (got {q_floor})")
-    paths = np.asarray(sensor_paths, dtype=float)
-    if paths.ndim < 2 or paths.shape[0] != int(n_steps):
-        raise ValueError(
-            f"sensor_paths must have shape (n_steps={n_steps}, ..., S, 4); got {paths.shape}"
-        )
-    _as_sensor_batch(sensors, paths[0], "sensor_paths")  # shape and finiteness check
-    if not np.isfinite(paths).all():
-        raise ValueError("sensor_paths must be finite (sensor positions/velocities)")
-    return x0, J0, paths
+    return x0, J0, check_sensor_paths(sensors, sensor_paths, n_steps)
 
 
 def _noise_information(model: MotionModel, dt: float, q_floor: float) -> FloatArray:
@@ -136,9 +127,7 @@ def tichavsky_pcrlb(
     """Fisher information J_k, k = 1..n_steps, of a nonlinear model (Valverde eq. 56-64).
 
     Args:
-        model: a motion model (contract ``activetrack.models.base.MotionModel``), e.g.
-            ``ConstantTurn`` or ``CircularMotion``; Q must not depend on the state.
-        sensors: one sensor or a sequence of S sensors.
+        model: e.g. ``ConstantTurn`` or ``CircularMotion``; Q must not depend on the state.
         sensor_paths: sensor pv states at epochs 1..n_steps, ``(n_steps, ..., S, 4)``
             (``(n_steps, ..., 4)`` for one sensor); ``...`` are candidate paths.
         x0, P0: Gaussian prior of the model state, ``(n,)`` and ``(n, n)`` SPD; J_0 = P0^{-1}.

@@ -1,10 +1,6 @@
-"""Target-state filters: an EKF and a bootstrap SIR particle filter with one interface.
-
-Both offer ``predict(t)``, ``update(measurements) -> UpdateInfo``, ``step(t, measurements)``,
-``mean``, ``cov`` and ``time`` (:class:`TrackingFilter`). Scenario files name a filter
-(``tracker.filter``) from a registry (:mod:`activetrack.filters.registry`): the built-in
-``"ekf"`` and ``"pf"`` are registered below like any other, and :func:`register_filter` adds
-one (docs/extending.md, "A filter"); :func:`make_filter` builds one by name.
+"""Target-state filters with one interface (:class:`TrackingFilter`): an EKF and a bootstrap
+SIR particle filter, registered below as ``"ekf"`` and ``"pf"`` like any other filter
+(:mod:`activetrack.filters.registry`, docs/extending.md, "A filter").
 """
 
 from typing import Any
@@ -58,17 +54,6 @@ __all__ = [
 ]
 
 
-def _ekf(
-    model: MotionModel,
-    x0: FloatArray,
-    P0: FloatArray,
-    config: Any,
-    rng: np.random.Generator,
-    t0: float = 0.0,
-) -> TrackingFilter:
-    return ExtendedKalmanFilter(model, x0, P0, t0=t0)
-
-
 def _pf(
     model: MotionModel,
     x0: FloatArray,
@@ -92,7 +77,11 @@ def _pf(
     )
 
 
-_register_built_in("ekf", _ekf, description="extended Kalman filter (ExtendedKalmanFilter)")
+_register_built_in(
+    "ekf",
+    lambda model, x0, P0, config, rng, t0=0.0: ExtendedKalmanFilter(model, x0, P0, t0=t0),
+    description="extended Kalman filter (ExtendedKalmanFilter)",
+)
 _register_built_in(
     "pf",
     _pf,

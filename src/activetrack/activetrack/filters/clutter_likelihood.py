@@ -1,10 +1,7 @@
 """The two limits of the clutter model that the JPDA keeps finite on purpose, so that every
-filter can track in any scene (the association: :mod:`activetrack.filters.jpda`; the tracker:
-:mod:`activetrack.tracking.tracker`).
-
-The likelihood ratio of "z_j is the target's" against clutter is ``Pd N(z_j; zhat, S) /
-lambda`` (Bar-Shalom, Daum & Huang, "The probabilistic data association filter", IEEE Control
-Systems Magazine 29(6), 2009), with false alarms Poisson of density ``lambda`` per unit of z:
+filter can track in any scene. The likelihood ratio of "z_j is the target's" against clutter is
+``Pd N(z_j; zhat, S) / lambda`` (:mod:`activetrack.filters.jpda`), with false alarms Poisson of
+density ``lambda`` per unit of z:
 
 - no clutter (``lambda = 0``): the ratio divides by lambda, so lambda is floored at
   :data:`CLUTTER_FLOOR` (per unit of z). With it a detection is "surely the target's" unless

@@ -13,10 +13,9 @@ Update, one detection at a time (Ramdaras eq. 16-22, Valverde eq. 5-9)::
     x  = x + K nu                                                    (eq. 21)
     P  = (I - K H) P (I - K H)^T + K R K^T    Joseph form            (eq. 22)
 
-with h, H and nu from the sensor's ``linearize`` at the state's pv, H chained with the model's
-``kinematics_jacobian`` unless ``model.state_is_pv``: filterpy's ``ExtendedKalmanFilter``
-equations (tested to 1e-9) in plain numpy on small matrices for low per-step overhead, or one
-compiled call each with ``ACTIVETRACK_KERNELS=compiled`` (equal to round-off).
+with h, H and nu from the sensor's ``linearize`` (H chained with ``kinematics_jacobian``):
+filterpy's ``ExtendedKalmanFilter`` equations (tested to 1e-9) in plain numpy, or compiled with
+``ACTIVETRACK_KERNELS=compiled`` (equal to round-off).
 
 Several detections per step are processed sequentially, each linearised at the state the ones
 before it updated (exactly the stacked update for a linear model; the NIS add up to a
@@ -33,13 +32,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
-from activetrack.checks import require_finite, require_spd
 from activetrack.filters.jpda import pda_residuals, pda_update
 from activetrack.filters.measurement import (
     Measurement,
     UpdateInfo,
     check_measurement_times,
     check_predict_time,
+    check_prior,
     pda_weights,
 )
 from activetrack.kernels import ekf_kernels
@@ -101,12 +100,7 @@ class ExtendedKalmanFilter:
 
     def __init__(self, model: MotionModel, x0: ArrayLike, P0: ArrayLike, t0: float = 0.0):
         n = int(model.dim)
-        x = require_finite("x0", x0)
-        if x.shape != (n,):
-            raise ValueError(f"x0 must have shape ({n},) for this model, got {x.shape}")
-        P = require_spd("P0", P0)
-        if P.shape != (n, n):
-            raise ValueError(f"P0 must have shape ({n}, {n}) for this model, got {P.shape}")
+        x, P = check_prior(x0, P0, n)
         t0 = float(t0)
         if not math.isfinite(t0):
             raise ValueError(f"t0 must be finite, got {t0!r}")

@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -291,9 +292,11 @@ def jpda_association(
     pd: ArrayLike | None = None,
     max_events: int = DEFAULT_MAX_EVENTS,
 ) -> JPDAResult:
-    """Gate, likelihood ratios and marginals ``beta`` of ``T`` predicted tracks with one scan,
-    the tracks left as predicted (each filter's ``update_pda`` takes its row). Arguments as
-    :func:`jpda_update`."""
+    """Gate, likelihood ratios and marginals ``beta`` of ``T`` predicted tracks (``means``
+    ``(T, n)``, ``covs`` ``(T, n, n)``) with one scan ``z`` ``(m, d)`` of ``sensor`` at pv
+    ``sensor_state``, the tracks left as predicted (each filter's ``update_pda`` takes its
+    row); ``clutter_density`` per unit of z, chi-square gate ``gamma``, ``pd`` per track
+    (default ``sensor.pd``)."""
     X = np.asarray(means, dtype=float)
     P = np.asarray(covs, dtype=float)
     zhat, _, S = predict_measurements(X, P, sensor, sensor_state, model)
@@ -334,29 +337,12 @@ def jpda_update(
     sensor: SensorModel,
     sensor_state: ArrayLike,
     model: MotionModel,
-    *,
-    clutter_density: float,
-    gamma: float,
-    pd: ArrayLike | None = None,
-    max_events: int = DEFAULT_MAX_EVENTS,
+    **association: Any,
 ) -> JPDAResult:
-    """JPDA-EKF update of ``T`` predicted tracks (``means`` ``(T, n)``, ``covs`` ``(T, n, n)``)
-    with one scan ``z`` ``(m, d)`` of ``sensor`` at pv ``sensor_state``; ``clutter_density``
-    per unit of z, chi-square gate ``gamma``, ``pd`` per track (default ``sensor.pd``). One
-    track is the PDAF; a track with no gated measurement keeps its prediction.
-    """
-    a = jpda_association(
-        means,
-        covs,
-        z,
-        sensor,
-        sensor_state,
-        model,
-        clutter_density=clutter_density,
-        gamma=gamma,
-        pd=pd,
-        max_events=max_events,
-    )
+    """JPDA-EKF update of ``T`` predicted tracks: :func:`jpda_association` (its arguments),
+    then the PDAF update of each track. One track is the PDAF; a track with no gated
+    measurement keeps its prediction."""
+    a = jpda_association(means, covs, z, sensor, sensor_state, model, **association)
     R = np.asarray(sensor.R, dtype=float)
     new_X = a.means.copy()
     new_P = a.covs.copy()

@@ -13,6 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from activetrack.arraytypes import FloatArray
+from activetrack.checks import require_finite, require_spd
 from activetrack.models.base import SensorModel
 
 __all__ = [
@@ -22,6 +23,7 @@ __all__ = [
     "UpdateInfo",
     "check_measurement_times",
     "check_predict_time",
+    "check_prior",
     "pda_weights",
 ]
 
@@ -168,6 +170,17 @@ def pda_weights(measurements: Sequence[Measurement], beta: object) -> FloatArray
                 f"measurements[{i}]: a PDA update takes one scan (one sensor, one platform state)"
             )
     return b
+
+
+def check_prior(x0: object, P0: object, n: int) -> tuple[FloatArray, FloatArray]:
+    """The prior mean ``(n,)`` and SPD covariance ``(n, n)`` of a model of dimension n."""
+    mean = require_finite("x0", x0)
+    if mean.shape != (n,):
+        raise ValueError(f"x0 must have shape ({n},) for this model, got {mean.shape}")
+    cov = require_spd("P0", P0)
+    if cov.shape != (n, n):
+        raise ValueError(f"P0 must have shape ({n}, {n}) for this model, got {cov.shape}")
+    return mean, cov
 
 
 def check_predict_time(t: float, current: float) -> float:

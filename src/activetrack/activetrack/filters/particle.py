@@ -18,8 +18,7 @@ with probability pd), by ``min_range``:
 - ``"negative"``: a detection weighted by pd I_r(x) N(z; h(x), R), a non-detection by
   1 - pd I_r(x) (mass moves towards "inside r_min or outside r_max").
 
-The likelihoods are the sensors' own (``sensor.log_likelihood``, ``log_miss_likelihood``). The
-compiled kernels (``ACTIVETRACK_KERNELS``) give the numpy path's bits on the same draws.
+The likelihoods are the sensors' own; the compiled kernels give the numpy path's bits.
 """
 
 from __future__ import annotations
@@ -32,12 +31,13 @@ from typing import Any
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
-from activetrack.checks import require_finite, require_in_range, require_spd
+from activetrack.checks import require_finite, require_in_range
 from activetrack.filters.measurement import (
     Measurement,
     UpdateInfo,
     check_measurement_times,
     check_predict_time,
+    check_prior,
     pda_weights,
 )
 from activetrack.filters.resampling import roughen, systematic_resample
@@ -106,12 +106,7 @@ def _drawn_particles(
         raise ValueError("x0 and P0 are required unless particles are given")
     if weights is not None:
         raise ValueError("weights can only be given together with particles")
-    mean = require_finite("x0", x0)
-    if mean.shape != (n,):
-        raise ValueError(f"x0 must have shape ({n},) for this model, got {mean.shape}")
-    cov = require_spd("P0", P0)
-    if cov.shape != (n, n):
-        raise ValueError(f"P0 must have shape ({n}, {n}) for this model, got {cov.shape}")
+    mean, cov = check_prior(x0, P0, n)
     N = DEFAULT_PARTICLES if n_particles is None else n_particles
     return mean + rng.standard_normal((N, n)) @ np.linalg.cholesky(cov).T
 
@@ -219,7 +214,6 @@ class ParticleFilter:
         """Start from a given particle set ``(N, n)`` and optional weights ``(N,)``."""
         return cls(model, particles=particles, weights=weights, t0=t0, **options)
 
-    # --- state -------------------------------------------------------------------------------
     @property
     def time(self) -> float:
         """Time of the particles (s)."""
@@ -281,7 +275,6 @@ class ParticleFilter:
         """Weighted covariance ``sum w_i (x_i - mean)(x_i - mean)^T``, shape ``(n, n)``."""
         return self._compute_moments()[1].copy()
 
-    # --- filtering ---------------------------------------------------------------------------
     def predict(self, t: float) -> None:
         """Draw every particle from the transition prior to time ``t`` (>= ``time``)."""
         t = check_predict_time(t, self._t)

@@ -94,12 +94,9 @@ def register_filter(
     description: str = "",
     replace: bool = False,
 ) -> FilterKind:
-    """Make the filter ``name`` available to scenario files (module docstring).
-
-    Raises ValueError for a name that is not 1-32 lower-case letters, digits and '_' starting
-    with a letter, a factory that is not callable, a built-in name, or a name registered
-    before (unless ``replace``; registering the same factory again is a no-op).
-    """
+    """Make the filter ``name`` available to scenario files (module docstring). ValueError for a
+    bad or built-in name, a factory that is not callable, or a name registered before (unless
+    ``replace``; registering the same factory again is a no-op)."""
     if not (isinstance(name, str) and _NAME.fullmatch(name)):
         raise ValueError(
             f"filter name must be 1-32 lower-case letters, digits and '_', starting with a "

@@ -1,45 +1,30 @@
 """Compiled kernels (numba) for the hot loops, with the numpy code kept as the reference.
 
 The particle-filter step kernels (:func:`particle_kernels`) do the very operations of their numpy
-references, in the same order and on the same random draws, so the two paths give the same
-particles and weights bit for bit (tests/core/test_pf_kernels.py): which one runs changes the
-speed, never a result. The EKF and moment kernels agree to round-off only (see ``compiled``).
+references, in the same order and on the same random draws: the same particles and weights bit
+for bit (tests/core/test_pf_kernels.py), so which one runs changes the speed, never a result.
 
-Which path runs is one process-wide switch, the environment variable ``ACTIVETRACK_KERNELS``
-(read at each call unless :func:`set_kernels` chose a mode), for every kernel of the library:
-the filters' here and the PCRLB planner's (``models._fisher_kernels``, ``bounds._kernels``,
+One process-wide switch, ``ACTIVETRACK_KERNELS`` (or :func:`set_kernels`), decides for every
+kernel, the filters' here and the planner's (``models._fisher_kernels``, ``bounds._kernels``,
 ``planning._kernels``; docs/planning-speed.md):
 
-- ``auto`` (the default): numpy first, the compiled kernels once they pay off, i.e. as soon as
-  numba is already imported (another kernel loaded it) or once the process has done
-  :data:`AUTO_WORK` particle updates (particles x steps; each ``ParticleFilter.update`` counts
-  its N). Loading numba and its cached machine code costs about 0.5 s of CPU per process
-  (more on a loaded machine), about what the numpy path spends on that much work; a short
-  command such as ``activetrack run`` on the default scenario (30 steps of 10,000 particles)
-  never pays it, a Monte Carlo campaign pays it once. Without numba: numpy throughout.
-  The kernels that agree with numpy to round-off only (the Fisher information, the eq. 3
-  prediction and b_k of the planner: :func:`kernels_enabled`) run in ``auto`` only where the
-  caller expects heavy work and says so (:func:`prefer_kernels`; the planner does for a decision
-  of at least ``planning.planner.HEAVY_DECISION`` candidates per platform): what ran earlier in
-  the process never decides it, so a Monte Carlo task gives the same bits on every worker.
+- ``auto`` (the default): numpy first, the compiled kernels once they pay off: as soon as numba
+  is imported or once the process has done :data:`AUTO_WORK` particle updates (particles x
+  steps). Loading numba costs about 0.5 s of CPU per process, what the numpy path spends on
+  that much work: ``activetrack run`` on the default scenario never pays it, a Monte Carlo
+  campaign once. The planner's kernels, equal to numpy to round-off only
+  (:func:`kernels_enabled`), run in ``auto`` only inside :func:`prefer_kernels` (a decision of
+  at least ``planning.planner.HEAVY_DECISION`` candidates per platform), never because of what
+  ran before, so a Monte Carlo task gives the same bits on every worker. Without numba: numpy.
 - ``numpy``: always the numpy code;
-- ``compiled``: the compiled kernels from the first step; an ImportError if numba is missing.
-  This mode also runs the EKF kernels (:func:`ekf_kernels`) and the particle filter's
-  mean and covariance (:func:`moment_kernels`), which agree with numpy's BLAS products to
-  round-off only and so are left out of ``auto``.
+- ``compiled``: the compiled kernels from the first step (ImportError without numba), also
+  the EKF (:func:`ekf_kernels`) and particle moments (:func:`moment_kernels`), which agree
+  with numpy's BLAS products to round-off only and so are left out of ``auto``.
 
-:func:`set_kernels` changes the mode within a process (tests and benchmarks compare both).
-
-Every kernel is compiled with ``cache=True``: the machine code is kept in ``__pycache__`` next
-to the source and loaded from there by later processes; ``make setup`` compiles them once
-(:func:`warm_up`, run by ``tools/setup.sh`` when the kernel sources change;
-``python -m activetrack.kernels`` does the same by hand).
-
-The consumers stay free of type tests (``tests/core/test_no_type_dispatch.py``): a built-in
-sensor or motion model calls the kernel inside its own method (``BearingSensor`` /
-``RangeBearingSensor.log_likelihood``, the NCV models' ``sample``), so a sensor or model without
-a kernel simply runs its own numpy maths, and the filter's own part (systematic resampling)
-goes through :func:`particle_kernels` like any other caller.
+Every kernel is compiled with ``cache=True`` (machine code in ``__pycache__``); ``make setup``
+compiles them once (:func:`warm_up`; ``python -m activetrack.kernels`` by hand). Consumers stay
+free of type tests (tests/core/test_no_type_dispatch.py): a built-in sensor or motion model
+calls its kernel inside its own method, so one without a kernel runs its own numpy maths.
 """
 
 from __future__ import annotations
@@ -88,8 +73,7 @@ _PREFERRED: ContextVar[bool] = ContextVar("activetrack_prefer_kernels", default=
 # particle updates counted so far.
 _mode: str | None = None
 _particle: ModuleType | None = None
-_ekf: ModuleType | None = None
-_moments: ModuleType | None = None
+_compiled_only: dict[str, ModuleType] = {}
 _unavailable = False  # numba did not import: do not retry at every call
 _work = 0
 
@@ -175,27 +159,21 @@ def ekf_kernels() -> ModuleType | None:
     """The compiled EKF kernels (:mod:`activetrack.kernels.ekf`) in ``compiled`` mode only,
     else None: they agree with numpy's BLAS products to round-off, not to the bit, so ``auto``
     (which may switch mid-process) keeps the numpy EKF."""
-    global _ekf
-    if _current_mode() != "compiled":
-        return None
-    if _ekf is None:
-        from activetrack.kernels import ekf
-
-        _ekf = ekf
-    return _ekf
+    return _only_compiled("ekf")
 
 
 def moment_kernels() -> ModuleType | None:
     """The compiled particle moments (:mod:`activetrack.kernels.moments`) in ``compiled``
     mode only, else None (round-off agreement with numpy's BLAS sums, like the EKF's)."""
-    global _moments
+    return _only_compiled("moments")
+
+
+def _only_compiled(name: str) -> ModuleType | None:
     if _current_mode() != "compiled":
         return None
-    if _moments is None:
-        from activetrack.kernels import moments
-
-        _moments = moments
-    return _moments
+    if name not in _compiled_only:
+        _compiled_only[name] = importlib.import_module(f"activetrack.kernels.{name}")
+    return _compiled_only[name]
 
 
 def compiled_enabled() -> bool:

@@ -1,9 +1,6 @@
-"""Target motion models and sensor measurement models (see docs/core-interfaces.md).
-
-The contracts are :class:`MotionModel` / :class:`LinearMotionModel` and :class:`SensorModel`
-(``activetrack.models.base``); :class:`GaussianSensor` is the base class that gives a new sensor
-generic versions of everything but its h(x), Jacobian and R. A sensor kind is made available to
-scenario files by ``activetrack.scenarios.register_sensor``.
+"""Target motion models and sensor measurement models; their contracts in ``models.base``
+(docs/core-interfaces.md). A sensor kind reaches scenario files through
+``activetrack.scenarios.register_sensor``.
 """
 
 from activetrack.models.base import (

@@ -1,11 +1,9 @@
 """The two contracts of the core's models: a target motion model and a sensor.
 
 ``MotionModel`` (``LinearMotionModel``) and ``SensorModel`` are ``typing.Protocol`` classes
-(structural typing, checked by mypy): the motion models share no implementation and a sensor
-may be written from scratch. A sensor owns its maths, so no consumer special-cases by class:
-``linearize`` (EKF), ``log_likelihood`` / ``log_miss_likelihood`` (particle weights for a
-detection and for a look without one, Hernandez sec. 2.3), ``fisher_information`` (Hernandez
-eq. 8-9; optionally a compiled ``information_kernel()``), clutter and track initiation.
+(structural typing, checked by mypy): a sensor may be written from scratch, and it owns its
+maths (EKF linearisation, particle weights, Fisher information, clutter, track initiation), so
+no consumer special-cases by class.
 
 ``GaussianSensor`` is the optional base class for z = h(x) + v, v ~ N(0, R): a subclass defines
 ``kind``, ``components``, ``R``, ``measure`` and ``jacobian`` (and its angle entries) and
@@ -288,32 +286,31 @@ class GaussianSensor(ABC):
 
     def validate_detection(self) -> None:
         """Check and store pd in (0, 1] and 0 <= r_min < r_max <= inf (from __post_init__)."""
-        object.__setattr__(
-            self, "pd", require_in_range("pd", self.pd, 0.0, 1.0, lo_inclusive=False)
-        )
+        pd = require_in_range("pd", self.pd, 0.0, 1.0, lo_inclusive=False)
         r_min = require_in_range("r_min", self.r_min, 0.0, math.inf, hi_inclusive=False)
         r_max = require_in_range("r_max", self.r_max, 0.0, math.inf)
         if not r_min < r_max:
             raise ValueError(f"r_max must be > r_min = {r_min}, got {r_max}")
-        object.__setattr__(self, "r_min", r_min)
-        object.__setattr__(self, "r_max", r_max)
+        for name, value in (("pd", pd), ("r_min", r_min), ("r_max", r_max)):
+            object.__setattr__(self, name, value)
 
     @property
     def dim_z(self) -> int:
         return len(self.components)
 
-    def _wrap(self, a: ArrayLike) -> FloatArray:
-        return wrap_angle(a) if self.angle_period == 2.0 * np.pi else wrap_half_angle(a)
+    def _wrapped(self, z: FloatArray) -> FloatArray:
+        """``z`` with its angle entries wrapped in place (period ``angle_period``)."""
+        wrap = wrap_angle if self.angle_period == 2.0 * np.pi else wrap_half_angle
+        for i in self.angle_indices:
+            z[..., i] = wrap(z[..., i])
+        return z
 
     def residual(self, z: ArrayLike, zhat: ArrayLike) -> FloatArray:
         """z - zhat, ``(..., dim_z)``, with the angle entries wrapped (period ``angle_period``)."""
         d = np.asarray(z, dtype=float) - np.asarray(zhat, dtype=float)
         if d.ndim == 0 or d.shape[-1] != self.dim_z:
             raise ValueError(f"z and zhat must have shape (..., {self.dim_z}), got {d.shape}")
-        d = np.array(d)
-        for i in self.angle_indices:
-            d[..., i] = self._wrap(d[..., i])
-        return d
+        return self._wrapped(np.array(d))
 
     def in_range(self, target_pv: ArrayLike, sensor_pv: ArrayLike) -> BoolArray:
         """I_r indicator (Hernandez eq. 8): r_min <= range <= r_max, bool ``(...)``."""
@@ -327,10 +324,7 @@ class GaussianSensor(ABC):
         """h + v, v ~ N(0, R), angle entries wrapped, ``(..., dim_z)``."""
         check_rng(rng)
         h = self.measure(target_pv, sensor_pv)
-        z = h + rng.standard_normal(h.shape) @ self._noise_factor.T
-        for i in self.angle_indices:
-            z[..., i] = self._wrap(z[..., i])
-        return z
+        return self._wrapped(h + rng.standard_normal(h.shape) @ self._noise_factor.T)
 
     def detect(
         self, target_pv: ArrayLike, sensor_pv: ArrayLike, rng: np.random.Generator

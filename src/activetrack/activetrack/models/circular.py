@@ -131,11 +131,16 @@ class CircularMotion:
         return np.insert(rows, 3, 0.0, axis=-1)
 
 
+# Eq. 29 is eq. 24 with omega fixed: CircularMotion on (psi, px, py, omega, v), _KNOWN its rows.
+_FULL = CircularMotion(0.0, 0.0)
+_KNOWN = [0, 1, 2, 4]
+
+
 @dataclass(frozen=True)
 class CircularMotionKnownOmega:
-    """Circular motion with a known turn rate ``omega`` (Valverde eq. 29); state (psi, px, py, v).
-
-    The noise covariance is eq. 25 without the omega entry: blkdiag(0_3, T sigma_v^2).
+    """Circular motion with a known turn rate ``omega`` (Valverde eq. 29); state (psi, px, py, v):
+    eq. 24-28 with omega fixed. The noise covariance is eq. 25 without the omega entry:
+    blkdiag(0_3, T sigma_v^2).
     """
 
     omega: float
@@ -150,25 +155,17 @@ class CircularMotionKnownOmega:
         object.__setattr__(self, "omega", float(require_finite("omega", self.omega)))
         object.__setattr__(self, "sigma_v", require_nonnegative("sigma_v", self.sigma_v))
 
+    def _with_omega(self, x: ArrayLike) -> FloatArray:
+        """(psi, px, py, omega, v), ``(..., 5)``."""
+        return np.insert(check_state("x", x, 4), 3, self.omega, axis=-1)
+
     def propagate(self, x: ArrayLike, dt: float) -> FloatArray:
-        """Noise-free eq. 29 (eq. 24 with omega fixed), ``(..., 4) -> (..., 4)``."""
-        x = check_state("x", x, 4)
-        T = check_dt(dt)
-        psi, px, py, v = np.moveaxis(x, -1, 0)
-        (px1, py1), _ = _circular_step(psi, px, py, self.omega, v, T)
-        return np.stack([psi + self.omega * T, px1, py1, v], axis=-1)
+        """Noise-free eq. 29, ``(..., 4) -> (..., 4)``."""
+        return _FULL.propagate(self._with_omega(x), dt)[..., _KNOWN]
 
     def jacobian(self, x: ArrayLike, dt: float) -> FloatArray:
         """Eq. 26-28 with the omega row and column deleted, ``(..., 4, 4)``."""
-        x = check_state("x", x, 4)
-        T = check_dt(dt)
-        psi, px, py, v = np.moveaxis(x, -1, 0)
-        _, (A, B, _, _) = _circular_step(psi, px, py, self.omega, v, T)
-        F = np.zeros((*x.shape[:-1], 4, 4))
-        F[..., range(4), range(4)] = 1.0
-        F[..., 1, 0], F[..., 1, 3] = -v * B, A
-        F[..., 2, 0], F[..., 2, 3] = v * A, B
-        return F
+        return _FULL.jacobian(self._with_omega(x), dt)[..., _KNOWN, :][..., _KNOWN]
 
     def process_noise(self, dt: float, x: ArrayLike | None = None) -> FloatArray:
         """Q = diag(0, 0, 0, T sigma_v^2), (4, 4)."""
@@ -182,11 +179,8 @@ class CircularMotionKnownOmega:
 
     def kinematics(self, x: ArrayLike) -> FloatArray:
         """pv = (px, v cos psi, py, v sin psi), ``(..., 4)``."""
-        x = check_state("x", x, 4)
-        psi, px, py, v = np.moveaxis(x, -1, 0)
-        return _pv_from_heading(psi, px, py, v)
+        return _FULL.kinematics(self._with_omega(x))
 
     def kinematics_jacobian(self, x: ArrayLike) -> FloatArray:
         """d pv / d x, ``(..., 4, 4)``."""
-        x = check_state("x", x, 4)
-        return np.stack(_pv_jacobian_rows(x[..., 0], x[..., 3]), axis=-2)
+        return _FULL.kinematics_jacobian(self._with_omega(x))[..., _KNOWN]

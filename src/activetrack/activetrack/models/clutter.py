@@ -58,10 +58,7 @@ def fov_volume(sensor: SensorModel, width: float, r_min: float, r_max: float) ->
     """Volume of ``sensor``'s field of view in its measurement space (its ``clutter_volume``
     of the sector ``width`` [rad] and ranges [r_min, r_max] [m]; infinite for an unbounded
     range where the range is measured); ValueError for a sensor without a clutter model."""
-    volume = sensor.clutter_volume(FieldOfView(0.0, width, r_min, r_max))
-    if volume is None:
-        raise ValueError(f"sensor kind {sensor.kind!r} has no clutter model")
-    return float(volume)
+    return ClutteredSensor(sensor).clutter_volume(FieldOfView(0.0, width, r_min, r_max))
 
 
 @dataclass(frozen=True)
@@ -117,9 +114,7 @@ class ClutteredSensor:
         return FieldOfView(0.0, _TWO_PI, r_min, r_max)
 
     def clutter_volume(self, fov: FieldOfView) -> float:
-        """The field of view's volume in measurement units (the base sensor's
-        ``clutter_volume``: rad, m rad, ...); ValueError for a sensor without a clutter
-        model."""
+        """The base sensor's ``clutter_volume`` (rad, m rad, ...); ValueError without one."""
         volume = self.base.clutter_volume(fov)
         if volume is None:
             raise ValueError(f"sensor kind {self.base.kind!r} has no clutter model")
@@ -186,10 +181,9 @@ class ClutteredSensor:
         return scale * out
 
     def information_kernel(self) -> InformationKernel | None:
-        """The base sensor's compiled J_Z times ``q / pd``, as :meth:`fisher_information` does
-        with the numpy form; None with a fixed field of view (its per-sample mask is the numpy
-        form's) or a base without a kernel. Defined here so that the forwarding of unknown
-        members to the base never hands out the base's kernel without the IRF."""
+        """The base sensor's compiled J_Z times ``q / pd``; None with a fixed field of view (its
+        per-sample mask is the numpy form's) or a base without a kernel. Defined here so that
+        forwarding unknown members never hands out the base's kernel without the IRF."""
         get = getattr(self.base, "information_kernel", None)
         kernel = None if get is None or self.fov_width is not None else get()
         if kernel is None:

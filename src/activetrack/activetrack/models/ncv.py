@@ -108,9 +108,9 @@ class _LinearPV(ABC):
     is_linear: ClassVar[bool] = True
     state_is_pv: ClassVar[bool] = True
 
-    @abstractmethod
     def transition_matrix(self, dt: float) -> FloatArray:
-        """The constant F, (4, 4)."""
+        """The constant F, (4, 4): Ramdaras eq. 4 unless the model turns."""
+        return cv_transition(check_dt(dt))
 
     @abstractmethod
     def process_noise(self, dt: float, x: ArrayLike | None = None) -> FloatArray:
@@ -178,10 +178,6 @@ class NearlyConstantVelocity(_LinearPV):
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", require_nonnegative("q", self.q))
 
-    def transition_matrix(self, dt: float) -> FloatArray:
-        """F of Ramdaras eq. 4, (4, 4)."""
-        return cv_transition(check_dt(dt))
-
     def process_noise(self, dt: float, x: ArrayLike | None = None) -> FloatArray:
         """Q = q * blkdiag(Q1, Q1), Q1 = [[T^3/3, T^2/2], [T^2/2, T]], shape (4, 4)."""
         T = check_dt(dt)
@@ -201,10 +197,6 @@ class NearlyConstantVelocityDiscrete(_LinearPV):
     def __post_init__(self) -> None:
         object.__setattr__(self, "sigma_x", require_nonnegative("sigma_x", self.sigma_x))
         object.__setattr__(self, "sigma_y", require_nonnegative("sigma_y", self.sigma_y))
-
-    def transition_matrix(self, dt: float) -> FloatArray:
-        """F of Ramdaras eq. 4, (4, 4)."""
-        return cv_transition(check_dt(dt))
 
     def noise_gain(self, dt: float) -> FloatArray:
         """G of Ramdaras eq. 4, (4, 2): the noise enters as G u with u ~ N(0, I_2)."""

@@ -9,11 +9,8 @@ ValueError. ``in_range`` is I_r of Hernandez eq. 8; detection then succeeds with
 ``pd`` (Ramdaras eq. 14-22).
 
 Each sensor is a :class:`~activetrack.models.base.GaussianSensor` overriding, with the same
-numbers, what has a faster form: plain-float EKF linearisations and arcsin-wrapped particle
-likelihoods (bearing, range-bearing; compiled by ``activetrack.kernels`` when enabled, same
-bits), the closed form of Hernandez eq. 9 and compiled Fisher information
-(``information_kernel``, ``models._fisher_kernels``), and the missed-detection likelihood from
-the particle ranges.
+numbers, what has a faster form: plain-float EKF linearisations, arcsin-wrapped particle
+likelihoods, the closed form of Hernandez eq. 9 and compiled Fisher information.
 """
 
 from __future__ import annotations

@@ -1,9 +1,5 @@
-"""Platform and sensor planning (Hernandez 2004 sec. 3-4; Ramdaras 2010 sec. 4).
-
-``plan`` (:mod:`.planner`) is the PCRLB entry point. Building blocks: ``manoeuvre``,
-``searches``, ``horizons`` (the horizon search), ``objective`` (a weighted sum of terms),
-``multisensor`` (platform coordination), ``costs`` (the PCRLB over the horizon), ``criteria``
-(the one criterion registry) and ``selection`` (MRE positioning and selection).
+"""Platform and sensor planning (Hernandez 2004 sec. 3-4; Ramdaras 2010 sec. 4); ``plan``
+(:mod:`.planner`) is the PCRLB entry point.
 """
 
 from activetrack.planning.costs import HorizonModel, platform_information

@@ -169,18 +169,9 @@ def quadrant_accept(
             payload[r, 3 * new[c, 0] + new[c, 1], :] = aux[i, c, :]
         better = _offer(i, r, u, costs, aux, best_u, best_cost, best_aux)
         stale[r] = 0 if better else stale[r] + 1
-    keep = np.empty(0, dtype=rows.dtype)
     if last:
-        return keep
-    n = 0
-    for i in range(rows.shape[0]):
-        n += stale[rows[i]] < patience
-    keep = np.empty(n, dtype=rows.dtype)
-    n = 0
-    for i in range(rows.shape[0]):
-        if stale[rows[i]] < patience:
-            keep[n] = rows[i]
-            n += 1
+        return np.empty(0, dtype=rows.dtype)
+    keep = rows[stale[rows] < patience]
     for r in keep:
         _split(r, values, payload, origin, side)
     return keep

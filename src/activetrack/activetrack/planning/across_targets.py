@@ -1,33 +1,29 @@
-"""Planning across targets: platform manoeuvres against every confirmed track, and steerable
-beams assigned to tracks (``MultiTargetPlanner``, a strategy of
-:class:`activetrack.planning.decision.Planner`).
+"""Planning across targets (``MultiTargetPlanner``, a strategy of
+:class:`activetrack.planning.decision.Planner`): platform manoeuvres against every confirmed
+track, and steerable beams assigned to tracks.
 
-Each sensor is a :class:`activetrack.models.clutter.ClutteredSensor`: its information is the
-PCRLB's J_Z with the information reduction factor q in place of pd and its field of view
-applied (Hernandez eq. 8, IRF of Niu, Willett & Bar-Shalom 2001). A beam (``beam_width``)
-observes only the track it serves.
-
-Cost of a confirmed track, ``planner.cost``:
+Each sensor is a :class:`activetrack.models.clutter.ClutteredSensor`: J_Z with the information
+reduction factor q in place of pd and its field of view applied (Hernandez eq. 8, IRF of Niu,
+Willett & Bar-Shalom 2001); a beam (``beam_width``) observes only the track it serves. Cost of
+a confirmed track, ``planner.cost``:
 
 - ``pcrlb``: ``planner.criterion`` of the bound at k+1..k+R, renewal from the track (Hernandez
   eq. 3, footnote 2), J_Z by Monte Carlo (eq. 8) over the track's particles or ``mc_samples``
   Gaussian draws pushed through the dynamics (eq. 2);
 - ``mre``: ``planner.criterion`` of Ramdaras eq. 23 with q as detection factor at the CV
   prediction F^{r+1} x. A beam, pointed before the epoch's measurements, holds the target with
-  probability :func:`~activetrack.planning.assignment.beam_coverage`, lowered for each
-  unsuccessful look since the track's last hit
-  (:func:`~activetrack.planning.assignment.coverage_after_misses`: otherwise the beams keep
-  looking at a lost track's empty prediction).
+  probability ``assignment.beam_coverage``, lowered for each unsuccessful look since the
+  track's last hit (``assignment.coverage_after_misses``: otherwise the beams keep looking at a
+  lost track's empty prediction).
 
 Tracks combine by ``planner.targets.aggregate`` (``worst`` plus ``TIE_BREAK`` times the sum
 during the search, or ``weighted_sum``). Manoeuvres: platforms in turn, the others on their
-current plans (Hernandez sec. 4.1, :func:`~activetrack.planning.multisensor.coordinate_platforms`),
-each searching its R legs; pcrlb sums over the legs (eq. 15-16), mre takes leg R. During the
-search a beam serves its previous track if still confirmed, else the nearest. Beams, after the
-manoeuvres, from the planned k+1 positions (``planner.targets.assignment``): ``mre`` optimal
-assignment of eq. 23 costs, ``random`` (balanced), ``nearest``; a beam points at its track's
-predicted position. No confirmed track: every beam sweeps one ``beam_width`` per epoch from
-its platform's heading.
+current plans (Hernandez sec. 4.1, ``multisensor.coordinate_platforms``), each searching its R
+legs; pcrlb sums over the legs (eq. 15-16), mre takes leg R. During the search a beam serves
+its previous track if still confirmed, else the nearest. Beams, after the manoeuvres, from the
+planned k+1 positions (``planner.targets.assignment``): ``mre`` optimal assignment of eq. 23
+costs, ``random`` (balanced), ``nearest``; a beam points at its track's predicted position. No
+confirmed track: every beam sweeps one ``beam_width`` per epoch from its platform's heading.
 
 Random draws, all from the planner's generator, in order: the tracks' Gaussian samples and
 process noise (pcrlb), the evolutionary search, the random assignment.
@@ -39,7 +35,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -167,14 +163,10 @@ class _MreStage:
         out = np.empty((*pv.shape[:-1], self.x.shape[1], 4, 4))
         for t, x in enumerate(self.x[level]):
             P0 = Pt = P[..., t, :, :]
-            for sensor, at in self.fixed[level][t]:
+            own = [(sensor, pv) for sensor, serves in self.own if serves[t]]
+            for sensor, at in [*self.fixed[level][t], *own]:  # the other platforms' sensors first
                 d = sensor.detection(x, at, P0, self.missed[t])
                 Pt = mre_update(Pt, sensor.model.jacobian(x, at), sensor.model.R, d)
-            for sensor, serves in self.own:
-                if serves[t]:
-                    H = sensor.model.jacobian(x, pv)
-                    d = sensor.detection(x, pv, P0, self.missed[t])
-                    Pt = mre_update(Pt, H, sensor.model.R, d)
             out[..., t, :, :] = self.F @ Pt @ self.F.T + self.Q
         return out
 
@@ -264,10 +256,7 @@ class MultiTargetPlanner:
         steering = any(lim is not None for lim in self.limits)
         self.search = settings.search if steering else None
         self.horizon = settings.horizon if steering else 1
-        self.mc_samples = settings.mc_samples
-        self.max_iterations = settings.max_iterations
-        self.aggregate = settings.aggregate
-        self.assignment = settings.assignment
+        self.settings = settings
         self.last_track: dict[str, int] = {}  # beam sensor id -> track id it served last
         self.last_bearing: dict[str, float] = {}
         # track id -> (M since its last hit, its hits then); the looks for the next epoch:
@@ -282,8 +271,6 @@ class MultiTargetPlanner:
         return DecisionPart(
             d.commands, report=d.report, evaluations=evaluations, extra=d.extra, beams=d.beams
         )
-
-    # --- the decision ---------------------------------------------------------------------
 
     def plan(self, epoch: int, tracks: TrackSet, platforms: Sequence[PlatformSnapshot]) -> Decision:
         """Commands for the leg epoch -> epoch+1, beam pointings for epoch+1, the report."""
@@ -347,7 +334,7 @@ class MultiTargetPlanner:
             for t in tracks:
                 X = t.samples
                 if X is None:
-                    X = gaussian_samples(t.mean, t.cov, self.mc_samples, self.rng)
+                    X = gaussian_samples(t.mean, t.cov, self.settings.mc_samples, self.rng)
                 ep.samples.append(propagate_samples(X, d.F, d.Q, R, self.rng))
         else:
             x = [np.stack([p.x for p in predictions])]  # x_{k+1+r|k} = F^r x_{k+1|k}
@@ -375,8 +362,6 @@ class MultiTargetPlanner:
                 serves[i] = np.arange(len(tracks)) == t
         return serves
 
-    # --- manoeuvres -----------------------------------------------------------------------
-
     def _state0(self, ep: _Epoch) -> np.ndarray:
         if self.cost_kind == "pcrlb":
             return np.stack([covariance_bound(t.cov) for t in ep.tracks])
@@ -387,34 +372,16 @@ class MultiTargetPlanner:
         (``j`` None: all fixed, for the objective of the plans)."""
         own = [(s, ep.serves[i]) for i, s in enumerate(self.sensors) if s.platform == j]
         others = [(s, ep.serves[i]) for i, s in enumerate(self.sensors) if s.platform != j]
-        if self.cost_kind == "pcrlb":
-            return self._pcrlb_stage(ep, own, others)
-        return self._mre_stage(ep, own, others)
-
-    def _pcrlb_stage(
-        self,
-        ep: _Epoch,
-        own: list[tuple[_Sensor, np.ndarray]],
-        others: list[tuple[_Sensor, np.ndarray]],
-    ) -> _PcrlbStage:
-        fixed = np.zeros((self.horizon, len(ep.tracks), 4, 4))
-        for s, serves in others:
-            path = ep.paths[s.platform]
-            for t in np.flatnonzero(serves):
-                for r in range(self.horizon):
-                    fixed[r, t] += s.model.fisher_information(ep.samples[t][r], path[r])
         d = self.dynamics
-        return _PcrlbStage(
-            d.F, d.Q, ep.samples, fixed, tuple((s.model, serves) for s, serves in own)
-        )
-
-    def _mre_stage(
-        self,
-        ep: _Epoch,
-        own: list[tuple[_Sensor, np.ndarray]],
-        others: list[tuple[_Sensor, np.ndarray]],
-    ) -> _MreStage:
-        d, x = self.dynamics, cast(np.ndarray, ep.x)
+        if self.cost_kind == "pcrlb":
+            fixed = np.zeros((self.horizon, len(ep.tracks), 4, 4))
+            for s, serves in others:
+                path = ep.paths[s.platform]
+                for t in np.flatnonzero(serves):
+                    for r in range(self.horizon):
+                        fixed[r, t] += s.model.fisher_information(ep.samples[t][r], path[r])
+            own_models = tuple((s.model, serves) for s, serves in own)
+            return _PcrlbStage(d.F, d.Q, ep.samples, fixed, own_models)
         updates: list[list[list[tuple[_Sensor, np.ndarray]]]] = [
             [[] for _ in ep.tracks] for _ in range(self.horizon)
         ]
@@ -422,11 +389,11 @@ class MultiTargetPlanner:
             for r in range(self.horizon):
                 for t in np.flatnonzero(serves):
                     updates[r][t].append((s, ep.paths[s.platform][r]))
-        return _MreStage(d.F, d.Q, x, updates, tuple(own), ep.missed)
+        return _MreStage(d.F, d.Q, cast(np.ndarray, ep.x), updates, tuple(own), ep.missed)
 
     def _objective(self, ep: _Epoch, tie_break: float) -> Objective:
         """The tracks' aggregate criterion of J (pcrlb, eq. 15-16) or P (mre)."""
-        tracks = TrackAggregate(self.aggregate, ep.weights, tie_break)
+        tracks = TrackAggregate(self.settings.aggregate, ep.weights, tie_break)
         if self.cost_kind == "pcrlb":
             return Objective((InformationTerm(self.criterion, tracks),))
         return Objective((CovarianceTerm(self.criterion, cast(np.ndarray, ep.x), tracks),))
@@ -443,7 +410,7 @@ class MultiTargetPlanner:
             self.dt,
             self.search,
             self.horizon,
-            self.max_iterations,
+            self.settings.max_iterations,
             self.rng,
         )
         ep.plans = {j: plan for j, plan in enumerate(result.plans) if plan is not None}
@@ -456,8 +423,6 @@ class MultiTargetPlanner:
             states.append(state)
         return self._objective(ep, 0.0).along(states)
 
-    # --- beams and the outcome --------------------------------------------------------------
-
     def _assign(self, ep: _Epoch, next_pv: np.ndarray) -> None:
         """Every beam to one confirmed track at the planned k+1 positions: ``ep.serves``."""
         beams = [i for i, s in enumerate(self.sensors) if s.steerable]
@@ -465,9 +430,9 @@ class MultiTargetPlanner:
             return
         T = len(ep.tracks)
         pvs = np.stack([next_pv[self.sensors[i].platform] for i in beams])
-        if self.assignment == "random":
+        if self.settings.assignment == "random":
             picks = random_assignment(len(beams), T, self.rng)
-        elif self.assignment == "nearest":
+        elif self.settings.assignment == "nearest":
             xy = np.array([[p.x[0], p.x[2]] for p in ep.predictions])
             picks = nearest_assignment(pvs[:, ::2], xy)
         else:
@@ -486,42 +451,46 @@ class MultiTargetPlanner:
                 ),
                 self.criterion.name,
                 ep.weights,
-                self.aggregate,
+                self.settings.aggregate,
             )
         for i, t in zip(beams, picks, strict=True):
             ep.serves[i] = np.arange(T) == t
 
+    @staticmethod
+    def _expected_update(
+        p: TargetPrediction, sensors: list[_Sensor], next_pv: np.ndarray, missed: float
+    ) -> np.ndarray:
+        """P_{k+1|k} with the expected updates (eq. 23's bracket) of ``sensors`` at their
+        platforms' planned pvs, :meth:`_Sensor.detection` as the detection factors."""
+        if not sensors:
+            return p.P
+        pvs = np.stack([next_pv[s.platform] for s in sensors])
+        factors = [
+            float(s.detection(p.x, pv, p.P, missed)) for s, pv in zip(sensors, pvs, strict=True)
+        ]
+        return expected_update(p.P, p.x, [s.model for s in sensors], pvs, detection=factors)
+
     def _fixed_updates(self, ep: _Epoch, next_pv: np.ndarray) -> list[TargetPrediction]:
         """Each track's prediction with the fixed (non-steerable) sensors' expected updates."""
         fixed = [s for s in self.sensors if not s.steerable]
-        out = []
-        for p in ep.predictions:
-            if fixed:
-                pvs = np.stack([next_pv[s.platform] for s in fixed])
-                factors = [float(s.detection(p.x, pv)) for s, pv in zip(fixed, pvs, strict=True)]
-                P = expected_update(p.P, p.x, [s.model for s in fixed], pvs, detection=factors)
-                p = p.with_covariance(P)
-            out.append(p)
-        return out
+        if not fixed:
+            return list(ep.predictions)
+        return [
+            p.with_covariance(self._expected_update(p, fixed, next_pv, 1.0)) for p in ep.predictions
+        ]
 
     def _track_costs(self, ep: _Epoch, next_pv: np.ndarray) -> np.ndarray:
         """Each track's cost at k+1 with the chosen manoeuvres and beams ``(T,)``."""
         out = np.empty(len(ep.tracks))
         for t, (track, p) in enumerate(zip(ep.tracks, ep.predictions, strict=True)):
             serving = [s for i, s in enumerate(self.sensors) if ep.serves[i, t]]
-            pvs = np.stack([next_pv[s.platform] for s in serving]) if serving else np.zeros((0, 4))
             if self.cost_kind == "pcrlb":
                 J = predicted_information(covariance_bound(track.cov), p.F, p.Q)
-                for s, pv in zip(serving, pvs, strict=True):
-                    J = J + s.model.fisher_information(ep.samples[t][0], pv)
+                for s in serving:
+                    J = J + s.model.fisher_information(ep.samples[t][0], next_pv[s.platform])
                 out[t] = float(self.criterion.of_information(J))
             else:
-                factors = [
-                    float(s.detection(p.x, pv, p.P, ep.missed[t]))
-                    for s, pv in zip(serving, pvs, strict=True)
-                ]
-                models = [s.model for s in serving]
-                P = expected_update(p.P, p.x, models, pvs, detection=factors) if serving else p.P
+                P = self._expected_update(p, serving, next_pv, ep.missed[t])
                 out[t] = float(self.criterion.of_covariance(p.F @ P @ p.F.T + p.Q, p.x))
         return out
 
@@ -541,49 +510,38 @@ class MultiTargetPlanner:
     def _decision(
         self, ep: _Epoch, next_pv: np.ndarray, costs: np.ndarray, objective: float, wall: float
     ) -> Decision:
-        beams, assignment = [], {}
+        beams = []
         for i, s in enumerate(self.sensors):
             if not s.steerable:
                 continue
             t = int(np.flatnonzero(ep.serves[i])[0])
             x, pv = ep.predictions[t].x, next_pv[s.platform]
             bearing = math.atan2(x[2] - pv[2], x[0] - pv[0])
-            track_id = ep.tracks[t].track_id
-            beams.append(BeamCommand(s.sensor_id, ep.epoch, bearing, track_id))
-            assignment[s.sensor_id] = track_id
-            self.last_track[s.sensor_id] = track_id
-            self.last_bearing[s.sensor_id] = bearing
             track = ep.tracks[t]
+            beams.append(BeamCommand(s.sensor_id, ep.epoch, bearing, track.track_id))
+            self.last_track[s.sensor_id] = track.track_id
+            self.last_bearing[s.sensor_id] = bearing
             fail = 1.0 - float(s.model.pd) * float(s.model.in_range(x, pv))
-            _, _, before = self.looks.get(track_id, (0, 0, 1.0))
-            self.looks[track_id] = (track.hits, track.misses, before * fail)
+            _, _, before = self.looks.get(track.track_id, (0, 0, 1.0))
+            self.looks[track.track_id] = (track.hits, track.misses, before * fail)
         ids = [t.track_id for t in ep.tracks]
-        total = float(aggregate_costs(costs, ep.weights, self.aggregate))
-        report = PlanReportData(
-            epoch=ep.epoch,
-            cost_kind=self.cost_kind,
-            criterion=self.criterion.name,
+        total = float(aggregate_costs(costs, ep.weights, self.settings.aggregate))
+        return self._outcome(
+            ep.epoch,
+            ep.platforms,
+            ep.plans,
+            beams,
+            dict(zip(ids, (float(c) for c in costs), strict=True)),
             search=self.search.search if self.search is not None and ep.plans else "hold",
-            horizon=self.horizon,
             cost_names=("aggregate", "objective", *(f"track_{i}" for i in ids)),
             predicted_costs=(total, objective, *(float(c) for c in costs)),
             evaluations=ep.evaluations,
             wall_time_s=wall,
         )
-        return Decision(
-            ep.epoch,
-            commands=tuple(self._commands(ep.platforms, ep.epoch, ep.plans)),
-            beams=tuple(beams),
-            report=report,
-            extra={
-                "track_costs": dict(zip(ids, (float(c) for c in costs), strict=True)),
-                "assignment": assignment,
-            },
-        )
 
     def _sweep(self, epoch: int, planners: list[PlannerPlatform], start: float) -> Decision:
         """No confirmed track: hold course, every beam one beam width on from where it was."""
-        beams, assignment = [], {}
+        beams = []
         for s in self.sensors:
             if s.model.beam_width is None:
                 continue
@@ -591,21 +549,31 @@ class MultiTargetPlanner:
             heading = planners[s.platform].heading_and_speed[0]
             bearing = heading if last is None else float(wrap_angle(last + s.model.beam_width))
             beams.append(BeamCommand(s.sensor_id, epoch, bearing, -1))
-            assignment[s.sensor_id] = -1
             self.last_bearing[s.sensor_id] = bearing
             self.last_track.pop(s.sensor_id, None)
-        report = PlanReportData(
-            epoch=epoch,
-            cost_kind=self.cost_kind,
-            criterion=self.criterion.name,
-            search="sweep",
-            horizon=self.horizon,
-            wall_time_s=time.perf_counter() - start,
-        )
+        wall = time.perf_counter() - start
+        return self._outcome(epoch, planners, {}, beams, {}, search="sweep", wall_time_s=wall)
+
+    def _outcome(
+        self,
+        epoch: int,
+        planners: list[PlannerPlatform],
+        plans: dict,
+        beams: list[BeamCommand],
+        track_costs: dict[int, float],
+        **report: Any,
+    ) -> Decision:
+        """The decision: ``plans``' commands, the beams and the report (``report``: its
+        fields beyond epoch, cost kind, criterion and horizon)."""
         return Decision(
             epoch,
-            commands=tuple(self._commands(planners, epoch, {})),
+            commands=tuple(self._commands(planners, epoch, plans)),
             beams=tuple(beams),
-            report=report,
-            extra={"track_costs": {}, "assignment": assignment},
+            report=PlanReportData(
+                epoch, self.cost_kind, self.criterion.name, horizon=self.horizon, **report
+            ),
+            extra={
+                "track_costs": track_costs,
+                "assignment": {b.sensor_id: b.track_id for b in beams},
+            },
         )

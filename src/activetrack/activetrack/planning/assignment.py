@@ -11,10 +11,7 @@ beam), one *round* gives each track at most one sensor, exactly:
 
 More sensors than tracks: rounds, each taking in the previous rounds' expected updates (greedy
 over rounds, not jointly optimal). Pair costs (:func:`mre_pair_costs`): the criterion of
-Ramdaras eq. 23 with the sensor's expected update, so ``C <= c0`` (round-off clipped). A beam
-holds its target only with probability :func:`beam_coverage`, lowered after looks that found
-nothing (:func:`coverage_after_misses`; the tracker does not move a track away from where a
-beam saw nothing). Baselines: :func:`random_assignment`, :func:`nearest_assignment`.
+Ramdaras eq. 23 with the sensor's expected update, so ``C <= c0`` (round-off clipped).
 """
 
 from __future__ import annotations
@@ -47,8 +44,7 @@ __all__ = [
 
 
 def _linear_sum_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """scipy's optimal linear assignment (rows, cols) of a cost matrix ``(n, m)``; imported
-    here, not at module import (importing scipy.optimize installs warning filters)."""
+    """scipy's (rows, cols), imported here: importing scipy.optimize installs warning filters."""
     from scipy.optimize import linear_sum_assignment as lsa
 
     rows, cols = lsa(cost)
@@ -58,20 +54,18 @@ def _linear_sum_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def beam_coverage(
     beam_width: float, x: np.ndarray, P: np.ndarray, sensor_pv: np.ndarray
 ) -> np.ndarray:
-    """Probability that a target N(x, P) lies inside a beam ``beam_width`` wide pointed at x
-    from sensor pvs ``(..., 4)``: erf(w / (2 sqrt(2) sigma_b)) (:func:`sector_coverage` with
-    the sector centred on x). x ``(4,)``, P ``(..., 4, 4)`` broadcasting against the sensors;
-    returns ``(...)``."""
+    """Probability ``(...)`` that a target N(x, P) (``(4,)``, ``(..., 4, 4)``) lies inside a
+    beam ``beam_width`` wide pointed at x from sensor pvs ``(..., 4)``: erf(w / (2 sqrt(2)
+    sigma_b)), :func:`sector_coverage` centred on x."""
     return sector_coverage(beam_width, 0.0, x, P, sensor_pv)
 
 
 def coverage_after_misses(coverage: ArrayLike, miss_factor: ArrayLike) -> np.ndarray:
-    """The probability that the target lies in the beam after unsuccessful looks (Bayes' rule:
-    Stone, *Theory of Optimal Search*, 1975; the IPDA existence update has the same form)::
-
-        c' = c M / (c M + 1 - c),    M = prod over the looks of (1 - pd_look)
-
-    ``coverage`` c and ``miss_factor`` M in [0, 1] broadcast."""
+    """c' = c M / (c M + 1 - c), M = prod over the looks of (1 - pd_look): the probability that
+    the target lies in the beam after unsuccessful looks (Bayes' rule: Stone, *Theory of Optimal
+    Search*, 1975; the IPDA existence update has the same form). c and M in [0, 1] broadcast;
+    without it the beams keep looking at a lost track's empty prediction (the tracker does not
+    move a track away from where a beam saw nothing)."""
     c = np.asarray(coverage, dtype=float)
     M = np.asarray(miss_factor, dtype=float)
     if not (np.all((c >= 0.0) & (c <= 1.0)) and np.all((M >= 0.0) & (M <= 1.0))):
@@ -109,10 +103,8 @@ def assignment_value(
 
 def round_assignment(C: ArrayLike, c0: ArrayLike, weights: ArrayLike, aggregate: str) -> np.ndarray:
     """One round: the track of each sensor ``(S,)``, each track at most once (-1: the sensor
-    waits for the next round, only when S > T), minimising ``aggregate`` (module docstring).
-
-    ``C`` ``(S, T)``: track t's cost served by sensor s; ``c0`` ``(T,)``: unserved;
-    ``weights`` ``(T,)`` > 0."""
+    waits for the next round, only when S > T), minimising ``aggregate`` (module docstring) of
+    ``C`` ``(S, T)``, ``c0`` ``(T,)`` and ``weights`` ``(T,)`` > 0."""
     C, c0, w = _check_round(C, c0, weights)
     if check_aggregate(aggregate) == "worst":
         rows, cols = _minimax(C, c0, C - c0)

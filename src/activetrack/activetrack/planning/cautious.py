@@ -6,8 +6,7 @@ modulo pi; the EKF takes the more likely of z and z + pi, wrong when the target 
 the sensor (eq. 2). Measuring from far enough away keeps that probability below beta (eq. 3);
 measuring perpendicular to the major axis of P reduces its larger eigenvalue (Lemma 2), from
 the closer of the two candidate points (line 7). Positions ``(..., 2)``, covariances ``(...,
-2, 2)``, all batched. :class:`CautiousPlanner`: after each measurement ``next_action(mean,
-cov, robot_position)`` gives the waypoint to measure from (``t_m`` s stop); ``done`` ends it.
+2, 2)``, all batched.
 """
 
 from __future__ import annotations
@@ -154,11 +153,10 @@ def ambiguous_bearing_update(
 ) -> AmbiguousUpdate:
     """EKF update of a stationary 2-D target with an ambiguous bearing (003 sec. II-III).
 
-    h(x, s) = atan2(x_y - s_y, x_x - s_x); H = [-dy, dx] / r^2 = [-sin a, cos a] / r;
-    S = H P H^T + sigma_s^2; K = P H^T / S; x = x_hat + K y; P by the Joseph form.
-    The line measurement z stands for the bearings z and z + pi. Both give Gaussian
-    innovations with the same S, so the more likely one has the smaller |y|:
-    y = wrap_half_angle(z - h) (sec. III), which is AmbiguousBearingSensor.residual.
+    h(x, s) = atan2(x_y - s_y, x_x - s_x), H = [-dy, dx] / r^2, S = H P H^T + sigma_s^2,
+    K = P H^T / S, P in Joseph form. The line measurement z stands for the bearings z and
+    z + pi, whose innovations share S, so the more likely one has the smaller |y|:
+    y = wrap_half_angle(z - h) (sec. III, ``AmbiguousBearingSensor.residual``).
 
     x_hat, sensor: ``(..., 2)``; P ``(..., 2, 2)`` SPD; z ``(...)`` radians (any branch);
     sigma_s > 0 rad. Raises ValueError when the sensor sits on x_hat (range 0).
@@ -211,9 +209,8 @@ def position_estimate(mean: ArrayLike, cov: ArrayLike) -> tuple[np.ndarray, np.n
 
 @dataclass(frozen=True)
 class CautiousAction:
-    """What the robot does next: drive to ``waypoint`` (2,) and measure for ``dwell`` seconds,
-    or stop (``done``, waypoint None). ``range`` is the planned range to x_hat (m) and
-    ``travel`` the straight-line distance from the robot (m)."""
+    """Drive to ``waypoint`` (2,) and measure for ``dwell`` s, or stop (``done``, waypoint
+    None); ``range`` to x_hat and straight-line ``travel`` from the robot in m."""
 
     done: bool
     waypoint: np.ndarray | None
@@ -224,14 +221,13 @@ class CautiousAction:
 
 @dataclass(frozen=True)
 class CautiousPlanner:
-    """Algorithm 1 as a stateless step: one call per processed measurement.
+    """Algorithm 1 as a stateless step, one call per processed measurement.
 
     sigma_s: sensor noise (rad); beta: caution risk in (0, 1); c_d: desired reduction of both
-    standard deviations in (0, 1); prior_cov: the prior position covariance Sigma_0 (2, 2)
-    (or pv (4, 4)), the reference of the stopping rule; t_m: dwell per measurement (s);
-    r_min: smallest standoff (m), a floor under the cautious range (must be > 0 when
-    sigma_beta is infinite); max_measurements: hard stop (None: none); tail: which
-    sigma_beta formula (:func:`sigma_beta`).
+    standard deviations in (0, 1); prior_cov: Sigma_0 (2, 2) or pv (4, 4), the reference of
+    the stopping rule; t_m: dwell per measurement (s); r_min: smallest standoff (m, > 0 when
+    sigma_beta is infinite); max_measurements: hard stop (None: none); tail: see
+    :func:`sigma_beta`.
     """
 
     sigma_s: float
@@ -245,7 +241,6 @@ class CautiousPlanner:
     _P0: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        # Validates beta, sigma_s, tail and sigma_beta > sigma_s.
         gamma = caution_gamma(self.beta, self.sigma_s, self.tail)
         require_in_range("c_d", self.c_d, 0.0, 1.0, lo_inclusive=False, hi_inclusive=False)
         require_nonnegative("t_m", self.t_m)
@@ -279,11 +274,9 @@ class CautiousPlanner:
     def next_action(
         self, mean: ArrayLike, cov: ArrayLike, robot_position: ArrayLike, n_measurements: int = 0
     ) -> CautiousAction:
-        """Algorithm 1 lines 4-7 for the current estimate.
-
-        mean/cov: the target estimate, position (2,)/(2, 2) or pv (4,)/(4, 4);
-        robot_position: (2,) or the robot's pv (4,); n_measurements: taken so far.
-        """
+        """Algorithm 1 lines 4-7 for the target estimate ``mean``/``cov`` (position (2,)/(2, 2)
+        or pv (4,)/(4, 4)), the robot at ``robot_position`` ((2,) or pv (4,)) and the
+        ``n_measurements`` taken so far."""
         x_hat, P = position_estimate(mean, cov)
         robot = require_finite("robot_position", robot_position)
         if robot.shape == (4,):
@@ -309,8 +302,6 @@ class CautiousPlanner:
             s = s[[0, 2]]
         return ambiguous_bearing_update(x_hat, P, z, s, self.sigma_s)
 
-
-# --- stop-and-measure control of the robot ----------------------------------------------------
 
 _ARRIVED = 1e-6  # m: a robot this close to its waypoint is on it
 

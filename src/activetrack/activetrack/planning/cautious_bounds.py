@@ -1,12 +1,8 @@
 """Time bounds of the beta-cautious strategy (Vander Hook, Tokekar, Isler (003), sec. IV), in
-metres and seconds at the paper's robot speed of 1 m/s (a distance is a travel time);
-``sigma_s`` in radians: :func:`lemma4_measurements` (Lemma 4 as printed),
-:func:`alternating_measurements` (Algorithm 1's exact count for a circular prior, up to one
-more), :func:`distance_bound` (Lemma 5, eq. 4), :func:`time_upper_bound` (Theorem 1, eq. 5),
-:func:`time_lower_bound` (Theorem 2, eq. 6) and :func:`cautious_schedule` (Algorithm 1's
-deterministic ranges and covariances from a prior, with Lemma 5's argument summed term by term:
-eq. 4's closed form drops the first term of the geometric series and is not a bound for large
-gamma).
+metres and seconds at the paper's robot speed of 1 m/s; ``sigma_s`` in radians. Lemma 4, 5
+(eq. 4), Theorem 1 (eq. 5) and 2 (eq. 6) as printed, and :func:`cautious_schedule`, which sums
+Lemma 5's argument term by term: eq. 4's closed form drops the first term of the geometric
+series and is not a bound for large gamma.
 """
 
 from __future__ import annotations
@@ -52,12 +48,10 @@ def alternating_measurements(
 ) -> int:
     """Measurements Algorithm 1 takes from a circular prior: 2 ceil(2 log_gamma(1 / c_d)).
 
-    Each cautious step divides the current major variance by gamma (eq. 1 with line 6:
-    1/sigma'^2 = 1/sigma^2 + (sigma_beta^2 - sigma_s^2) / (sigma^2 sigma_s^2) = gamma/sigma^2)
-    and the two axes alternate, so each axis needs k = ceil(log_gamma(1 / c_d^2)) steps.
-    Lemma 4 rounds 4 log_gamma(1 / c_d) up once for both axes, which is one short when the
-    fractional part of 2 log_gamma(1 / c_d) exceeds 1/2 (e.g. c_d = 0.25, beta = 0.1,
-    sigma_s = 15 deg: N_z = 3 but 4 are needed).
+    Each step divides the major variance by gamma (eq. 1 with line 6) and the axes alternate,
+    so each axis needs ceil(log_gamma(1 / c_d^2)) steps. Lemma 4 rounds 4 log_gamma(1 / c_d)
+    up once for both axes: one short when the fractional part of 2 log_gamma(1 / c_d) exceeds
+    1/2 (c_d = 0.25, beta = 0.1, sigma_s = 15 deg: N_z = 3 but 4 are needed).
     """
     gamma = caution_gamma(beta, sigma_s, tail)
     return 2 * math.ceil(2.0 * math.log(1.0 / _c_d(c_d)) / math.log(gamma) - 1e-12)
@@ -109,14 +103,10 @@ def time_upper_bound(n_measurements: float, t_m: float, D_A: ArrayLike) -> np.nd
 def time_lower_bound(
     r0_true: ArrayLike, sigma_max: float, t_m: float, c_d: float, sigma_s: float
 ) -> np.ndarray:
-    """T_LB (Theorem 2, eq. 6), ``r0_true``'s shape:
-
-    T_LB = max(r0* - sigma_max^2 / (2 t_m (1/c^2 - 1) sigma_s^2) + t_m, t_m),
-
-    r0*: range from the start to the true target (m); sigma_max the larger prior standard
-    deviation (m). The subtracted term is the range at which repeated measurements from a
-    single point (Lemma 7) trade travel against dwell optimally.
-    """
+    """T_LB = max(r0* - sigma_max^2 / (2 t_m (1/c^2 - 1) sigma_s^2) + t_m, t_m) (Theorem 2,
+    eq. 6), ``r0_true``'s shape: r0* the range from the start to the true target, sigma_max
+    the larger prior standard deviation (m). The subtracted term is the range at which
+    repeated measurements from one point (Lemma 7) trade travel against dwell optimally."""
     r0 = require_finite("r0_true", r0_true)
     if np.any(r0 < 0.0):
         raise ValueError("r0_true must be >= 0")
@@ -130,11 +120,9 @@ def time_lower_bound(
 
 @dataclass(frozen=True)
 class CautiousSchedule:
-    """Algorithm 1 run on the covariance alone (no measurements needed).
-
-    ranges (N,): r_i (m); major_std (N,): sigma_{i-1}(1) before step i (m); shift_bound (N,):
-    Lemma 3's bound on ||x_i - x_{i-1}|| (m); variances (2,): final eigenvalues (m^2).
-    """
+    """Algorithm 1 run on the covariance alone: ranges r_i (N,), major_std sigma_{i-1}(1)
+    before step i (N,), shift_bound (N,) Lemma 3's bound on ||x_i - x_{i-1}|| (m), final
+    variances (2,) (m^2)."""
 
     ranges: np.ndarray
     major_std: np.ndarray
@@ -146,14 +134,9 @@ class CautiousSchedule:
         return len(self.ranges)
 
     def travel_bound(self, d01: ArrayLike) -> np.ndarray:
-        """Upper bound on the distance travelled (m), Lemma 5's argument term by term:
-
-        D <= d(s0, s1) + sum_{i=1}^{N-1} (sqrt(r_i^2 + r_{i+1}^2) + shift_i).
-
-        s_{i+1} lies on the axis perpendicular to s_i's line of sight through x_i (Lemma 1:
-        the axes do not rotate), and x_i moved by at most shift_i (Lemma 3) along it, so each
-        leg is at most the right-triangle hypotenuse plus the shift. d01 scalar or array.
-        """
+        """D <= d(s0, s1) + sum_{i=1}^{N-1} (sqrt(r_i^2 + r_{i+1}^2) + shift_i) (m), Lemma 5's
+        argument term by term: s_{i+1} lies on the axis perpendicular to s_i's line of sight
+        through x_i (Lemma 1), which moved by at most shift_i (Lemma 3). d01 scalar or array."""
         d01 = require_finite("d01", d01)
         r = self.ranges
         legs = np.sqrt(r[:-1] ** 2 + r[1:] ** 2) + self.shift_bound[:-1]
@@ -169,13 +152,11 @@ def cautious_schedule(
     r_min: float = 0.0,
     max_measurements: int = 1000,
 ) -> CautiousSchedule:
-    """Ranges and covariances of Algorithm 1 from the prior P0 (2, 2) (eq. 1, 3, Lemma 1-3).
-
-    In the principal frame each step measures from r_i = max(sqrt(sigma^2(1) /
-    (sigma_beta^2 - sigma_s^2)), r_min) at alpha = pi/2, which only shrinks the major variance
-    (Lemma 1): 1/sigma'^2 = 1/sigma^2 + 1/(r_i^2 sigma_s^2) (eq. 1). Lemma 3 bounds the shift
-    of the estimate by pi sigma^2 / (sigma^2 / r_i + r_i sigma_s^2).
-    """
+    """Ranges and covariances of Algorithm 1 from the prior P0 (2, 2) (eq. 1, 3, Lemma 1-3):
+    each step measures from r_i = max(sqrt(sigma^2(1) / (sigma_beta^2 - sigma_s^2)), r_min) at
+    alpha = pi/2, shrinking only the major variance (Lemma 1): 1/sigma'^2 = 1/sigma^2 +
+    1/(r_i^2 sigma_s^2) (eq. 1); the estimate shifts by at most pi sigma^2 / (sigma^2 / r_i +
+    r_i sigma_s^2) (Lemma 3)."""
     P0 = np.asarray(P0, dtype=float)
     var = np.sort(np.linalg.eigvalsh(P0))[::-1].copy()
     if P0.shape != (2, 2) or not np.all(var > 0.0):

@@ -66,10 +66,7 @@ class HorizonModel:
     """Batched PCRLB steps over k+1..k+R of one target for the optimised platform (a
     :class:`HorizonStage`, state J ``(..., 1, 4, 4)``): F, Q ``(4, 4)`` (eq. 2), ``samples``
     ``(R, M, 4)``, ``fixed_information`` ``(R, 4, 4)`` the other platforms' J_Z, ``sensors``
-    the platform's. ``cache``: an :class:`InformationCache` of the platform's own J_Z per batch
-    of candidates, shared within a decision (the coordinate descent searches a platform again;
-    its J_Z does not depend on the others).
-    """
+    the platform's, ``cache`` its own J_Z per candidate batch (:class:`FleetInformation`)."""
 
     def __init__(
         self,

@@ -166,9 +166,6 @@ def get_criterion(name: str, *uses: str, what: str = "criterion") -> Criterion:
     return found
 
 
-# --- the built-in criteria ----------------------------------------------------------------------
-
-
 def _moving(x: np.ndarray) -> str | None:
     if math.hypot(x[1], x[3]) == 0.0:
         return "needs a moving target, but the predicted target velocity is zero"

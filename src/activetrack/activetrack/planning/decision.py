@@ -1,8 +1,6 @@
 """The one planner: :class:`Planner` runs its :class:`PlannerStrategy` objects in order, each
 ``decide(context) -> DecisionPart`` seeing the epoch's tracks and platforms and what the
-strategies before it decided (``context.so_far``), and adding commands, beams, planned
-positions, a selection, a report, evaluations or extra data. Strategies take built objects;
-:func:`activetrack.closed_loop.components.build_planner` composes them from a scenario.
+strategies before it decided (``context.so_far``).
 """
 
 from __future__ import annotations
@@ -131,10 +129,9 @@ class PlannerStrategy(Protocol):
 
 
 class Planner:
-    """Decides, each epoch, the manoeuvres of the controllable platforms, the beam pointings
-    and the sensors that measure next by running ``strategies`` in order; ``platform_ids``:
-    every platform whose state a decision needs; ``dt`` the decision interval. Draws only from
-    the generator its strategies were built with."""
+    """Decides, each epoch, the manoeuvres, the beam pointings and the sensors that measure
+    next by running ``strategies`` in order; ``platform_ids``: every platform whose state a
+    decision needs; ``dt`` the decision interval."""
 
     def __init__(
         self, strategies: Sequence[PlannerStrategy], platform_ids: Sequence[str], dt: float

@@ -5,14 +5,11 @@ eq. 3, :class:`activetrack.planning.costs.HorizonModel`, or P by Ramdaras eq. 23
 :class:`activetrack.planning.selection.MreStage`); the objective
 (:class:`activetrack.planning.objective.Objective`) what those states cost.
 
-Searches (:class:`SearchSettings`, over :mod:`activetrack.planning.manoeuvre`'s unit square):
-single step (eq. 11); lockstep grid, quadrant or sector searches nested one per leg, the
-dynamic programme of eq. 13-16, the inner searches of all outer candidates batched and each
-J_prev's share (:meth:`HorizonStage.prepare`) done once; ``"evolution"``, differential evolution
-over all R manoeuvres (eq. 16, sec. 3.3.4) seeded with "hold course".
-
-Every candidate state counts as one cost evaluation. Returns ``(R, 2)`` rows of (dpsi, v');
-only the first is flown (receding horizon).
+Searches (:class:`SearchSettings`): lockstep grid, quadrant or sector searches nested one per
+leg, the dynamic programme of eq. 13-16 (eq. 11 for one leg), the inner searches of all outer
+candidates batched and each J_prev's share (:meth:`HorizonStage.prepare`) done once; or
+``"evolution"`` over all R manoeuvres (eq. 16, sec. 3.3.4) seeded with "hold course". Every
+candidate state counts as one cost evaluation; only the first of the R legs is flown.
 """
 
 from __future__ import annotations
@@ -37,6 +34,7 @@ from activetrack.planning.manoeuvre import (
 from activetrack.planning.searches import (
     SEARCHES,
     SearchResult,
+    check_integer,
     evolution_search,
     grid_search,
     quadrant_search,
@@ -75,16 +73,14 @@ class SearchSettings:
     def __post_init__(self) -> None:
         if self.search not in SEARCHES:
             raise ValueError(f"search must be one of {SEARCHES}, got {self.search!r}")
-        for name, lo in (
-            ("grid_size", 2),
-            ("quadrant_divisions", 1),
-            ("sector_levels", 1),
-            ("evolution_popsize", 1),
-            ("evolution_maxiter", 1),
+        check_integer("grid_size", self.grid_size, 2)
+        for name in (
+            "quadrant_divisions",
+            "sector_levels",
+            "evolution_popsize",
+            "evolution_maxiter",
         ):
-            value = getattr(self, name)
-            if isinstance(value, bool) or int(value) != value or value < lo:
-                raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+            check_integer(name, getattr(self, name))
         p = self.quadrant_patience
         if p is not None and (isinstance(p, bool) or int(p) != p or p < 1):
             raise ValueError(f"quadrant_patience must be an integer >= 1 or None, got {p!r}")
@@ -93,8 +89,7 @@ class SearchSettings:
 
     def evaluations_per_platform(self, horizon: int) -> int:
         """Cost evaluations of one platform's R-step optimisation (at most, for the quadrant
-        search with patience): per_stage^R for the nested lockstep searches, the population
-        over all generations for evolution."""
+        search with patience)."""
         if self.search == "evolution":
             return self.evolution_popsize * 2 * horizon * (self.evolution_maxiter + 1)
         per_stage = {
@@ -120,9 +115,8 @@ class SearchSettings:
 
 
 class HorizonStage(Protocol):
-    """How one platform's candidate manoeuvres change a state leg by leg. The state is an array
-    whose trailing axes the stage owns (J or P of every track, ``(T, 4, 4)``); ``state0`` at
-    epoch k is shared by every candidate, the states of later legs carry leading axes."""
+    """How one platform's candidate manoeuvres change a state (J or P of every track, trailing
+    axes ``(T, 4, 4)``) leg by leg; ``state0`` at epoch k is shared by every candidate."""
 
     def prepare(self, state: np.ndarray, level: int) -> np.ndarray:
         """What leg ``level`` starts from, computed once for all its candidates: from
@@ -308,9 +302,7 @@ def _evolve(
 
 
 def warm_up() -> None:
-    """Compile (or load) the planner's kernels (``planning._kernels``, through
-    ``activetrack.kernels.warm_up``) with the argument types the planner passes (a payload and
-    none)."""
+    """Compile (or load) ``planning._kernels`` with the argument types the planner passes."""
     from activetrack.planning._kernels import candidate_legs
 
     def cost_fn(rows: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,8 +1,6 @@
 """Several platforms: optimise each in turn given the others' current plans (Hernandez
-sec. 4.1), until no plan changes or ``max_iterations`` passes (footnote 4: 10). The others fly
-their whole current plans; a platform is searched again only when another changed its plan
-since (the search is deterministic). Platforms without limits hold course. What the others'
-paths mean for platform j's search is the caller's :class:`PlatformStages`.
+sec. 4.1), until no plan changes or ``max_iterations`` passes (footnote 4: 10). A platform is
+searched again only when another changed its plan since (the search is deterministic).
 """
 
 from __future__ import annotations

@@ -1,10 +1,5 @@
-"""Top-level PCRLB manoeuvre planning: one decision for all controllable platforms.
-
-``plan(platforms, belief, settings, F=..., Q=..., dt=...)`` takes the platforms at epoch k
-(pv, heading, speed, limits, sensors), the target information state at epoch k (Fisher
-information J_k and Monte Carlo samples of the target at k) and the planner settings, and
-returns one manoeuvre per controllable platform plus a report (predicted costs, cost
-evaluations, wall time).
+"""PCRLB manoeuvre planning (:func:`plan`): one manoeuvre per controllable platform at epoch k
+from the target's information state (J_k and Monte Carlo samples at k), and a report.
 
 Planning modes (Hernandez sec. 3.2 and footnote 2) differ only in the belief passed in:
 
@@ -43,6 +38,7 @@ from activetrack.planning.horizons import SearchSettings
 from activetrack.planning.manoeuvre import PlannerPlatform
 from activetrack.planning.multisensor import coordinate_platforms
 from activetrack.planning.objective import InformationTerm, Objective
+from activetrack.planning.searches import check_integer
 
 __all__ = [
     "PlanReport",
@@ -137,18 +133,15 @@ class PlanSettings:
     def __post_init__(self) -> None:
         get_criterion(self.criterion, PCRLB, what="settings.criterion")
         for name in ("horizon", "max_sensor_iterations"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or int(value) != value or value < 1:
-                raise ValueError(f"settings.{name} must be an integer >= 1, got {value!r}")
+            check_integer(f"settings.{name}", getattr(self, name))
         if not isinstance(self.search, SearchSettings):
             raise ValueError("settings.search must be a SearchSettings")
 
 
 @dataclass(frozen=True)
 class PlannedManoeuvre:
-    """The manoeuvre of one controllable platform for the leg k -> k+1, and its plan.
-
-    plan: ``(R, 2)`` rows (dpsi, v') over the horizon (only row 0 is flown)."""
+    """The manoeuvre of one controllable platform for the leg k -> k+1, and its ``plan`` ``(R,
+    2)`` of (dpsi, v') over the horizon (only row 0 is flown)."""
 
     platform_id: str
     heading_change: float

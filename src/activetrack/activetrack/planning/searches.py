@@ -28,6 +28,7 @@ from activetrack.kernels import kernels_enabled
 __all__ = [
     "SEARCHES",
     "SearchResult",
+    "check_integer",
     "evolution_search",
     "grid_search",
     "quadrant_search",
@@ -93,10 +94,11 @@ class _Best:
         return SearchResult(self.u, self.cost, self.aux, int(evaluations))
 
 
-def _check_problems(n_problems: int) -> int:
-    if isinstance(n_problems, bool) or int(n_problems) != n_problems or n_problems < 1:
-        raise ValueError(f"n_problems must be an integer >= 1, got {n_problems!r}")
-    return int(n_problems)
+def check_integer(name: str, value: int, lo: int = 1) -> int:
+    """``value`` as an int if it is an integer >= ``lo`` (not a bool), else ValueError."""
+    if isinstance(value, bool) or int(value) != value or value < lo:
+        raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+    return int(value)
 
 
 def grid_search(
@@ -104,12 +106,10 @@ def grid_search(
 ) -> SearchResult:
     """Enumerative search on a ``size`` x ``size`` grid over the unit square (Hernandez
     sec. 4.2), evaluated in chunks of at most ``chunk`` points per problem per call."""
-    B = _check_problems(n_problems)
-    if isinstance(size, bool) or int(size) != size or size < 2:
-        raise ValueError(f"size must be an integer >= 2, got {size!r}")
+    B, size = check_integer("n_problems", n_problems), check_integer("size", size, 2)
     if int(chunk) < 1:
         raise ValueError(f"chunk must be >= 1, got {chunk!r}")
-    g = np.linspace(0.0, 1.0, int(size))
+    g = np.linspace(0.0, 1.0, size)
     pts = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
     rows = np.arange(B)
     best = _Best(B)
@@ -124,25 +124,19 @@ def grid_search(
 # the chosen quadrant (its corners are inherited), in row-major order as the costs are stored.
 _QUADRANT_ALL = np.stack(np.meshgrid(np.arange(3), np.arange(3), indexing="ij"), -1).reshape(9, 2)
 _QUADRANT_NEW = _QUADRANT_ALL[[1, 3, 4, 5, 7]]
+# A square's corner offsets (a chosen quadrant's or sector's corners become the new square's).
+_CORNERS = ((0, 0), (0, 1), (1, 0), (1, 1))
 
 
 def quadrant_search(
     cost_fn: CostFn, n_problems: int = 1, divisions: int = 6, patience: int | None = None
 ) -> SearchResult:
-    """Hernandez's efficient search (sec. 4.1, Fig. 1), B problems in lockstep.
-
-    Each problem holds a square and its 3 x 3 points' costs; division 1 evaluates all 9, later
-    ones the 5 new points of the chosen quadrant. The bookkeeping is compiled
-    (``planning._kernels``) when kernels are enabled, with the same decisions (tested).
-    """
-    B = _check_problems(n_problems)
-    if isinstance(divisions, bool) or int(divisions) != divisions or divisions < 1:
-        raise ValueError(f"divisions must be an integer >= 1, got {divisions!r}")
-    patience = int(divisions) if patience is None else patience
-    if isinstance(patience, bool) or int(patience) != patience or patience < 1:
-        raise ValueError(f"patience must be an integer >= 1, got {patience!r}")
+    """Hernandez's efficient search (sec. 4.1, Fig. 1), B problems in lockstep; the bookkeeping
+    is compiled (``planning._kernels``) when kernels are enabled, with the same decisions."""
+    B, divisions = check_integer("n_problems", n_problems), check_integer("divisions", divisions)
+    patience = check_integer("patience", divisions if patience is None else patience)
     if not kernels_enabled():
-        return _quadrant_search_numpy(cost_fn, B, int(divisions), int(patience))
+        return _quadrant_search_numpy(cost_fn, B, divisions, patience)
     from activetrack.planning._kernels import quadrant_accept, quadrant_points
 
     origin, side = np.zeros((B, 2)), np.ones(B)
@@ -153,7 +147,7 @@ def quadrant_search(
     rows = np.arange(B, dtype=np.int64)
     aux_shape: tuple[int, ...] | None = None
     evaluations = 0
-    for division in range(int(divisions)):
+    for division in range(divisions):
         new = _QUADRANT_ALL if division == 0 else _QUADRANT_NEW
         u = quadrant_points(origin, side, rows, new)
         costs, aux = _call(cost_fn, rows, u)
@@ -165,8 +159,8 @@ def quadrant_search(
             best = (best[0], best[1], np.zeros((B, P)))
             state = (values, np.zeros((B, 9, P)), origin, side, stale)
         flat = np.zeros((b, C, 0)) if aux is None else np.asarray(aux, float).reshape(b, C, -1)
-        last = division == int(divisions) - 1
-        rows = quadrant_accept(*state, *best, rows, new, u, costs, flat, last, int(patience))
+        last = division == divisions - 1
+        rows = quadrant_accept(*state, *best, rows, new, u, costs, flat, last, patience)
         if rows.size == 0:
             break
     payload = None if aux_shape is None else best[2].reshape(B, *aux_shape)
@@ -208,16 +202,13 @@ def _quadrant_search_numpy(cost_fn: CostFn, B: int, divisions: int, patience: in
         quad = 0.25 * (v[:, :2, :2] + v[:, 1:, :2] + v[:, :2, 1:] + v[:, 1:, 1:])
         q = np.argmin(quad.reshape(len(rows), 4), axis=1)
         a, b = q // 2, q % 2
-        # The chosen quadrant's corners become the new square's corners (indices 0 and 2).
         child = np.full((len(rows), 3, 3), np.nan)
-        for da in (0, 1):
-            for db in (0, 1):
-                child[:, 2 * da, 2 * db] = v[np.arange(len(rows)), a + da, b + db]
+        for da, db in _CORNERS:
+            child[:, 2 * da, 2 * db] = v[np.arange(len(rows)), a + da, b + db]
         if payload is not None:
             pchild = np.zeros((len(rows), 3, 3, *payload.shape[3:]))
-            for da in (0, 1):
-                for db in (0, 1):
-                    pchild[:, 2 * da, 2 * db] = payload[rows, a + da, b + db]
+            for da, db in _CORNERS:
+                pchild[:, 2 * da, 2 * db] = payload[rows, a + da, b + db]
             payload[rows] = pchild
         values[rows] = child
         origin[rows] = origin[rows] + 0.5 * side[rows, None] * np.stack([a, b], axis=1)
@@ -232,9 +223,7 @@ def sector_search(cost_fn: CostFn, n_problems: int = 1, levels: int = 3) -> Sear
     are new inside the chosen sector. After ``levels`` levels the centre of the last chosen
     sector is evaluated and returned: 16 + 12 (levels - 1) + 1 evaluations per problem.
     """
-    B = _check_problems(n_problems)
-    if isinstance(levels, bool) or int(levels) != levels or levels < 1:
-        raise ValueError(f"levels must be an integer >= 1, got {levels!r}")
+    B, levels = check_integer("n_problems", n_problems), check_integer("levels", levels)
     offsets = np.arange(4) / 3.0
     ij = np.stack(np.meshgrid(np.arange(4), np.arange(4), indexing="ij"), -1).reshape(16, 2)
     origin = np.zeros((B, 2))
@@ -242,7 +231,7 @@ def sector_search(cost_fn: CostFn, n_problems: int = 1, levels: int = 3) -> Sear
     values = np.full((B, 4, 4), np.nan)
     rows = np.arange(B)
     evaluations = 0
-    for _ in range(int(levels)):
+    for _ in range(levels):
         new = ij[np.isnan(values[0]).reshape(-1)]
         u = origin[:, None, :] + side * offsets[new]
         costs, _ = _call(cost_fn, rows, u)
@@ -254,9 +243,8 @@ def sector_search(cost_fn: CostFn, n_problems: int = 1, levels: int = 3) -> Sear
         s = np.argmin(total.reshape(B, 9), axis=1)
         a, b = s // 3, s % 3
         child = np.full((B, 4, 4), np.nan)
-        for da in (0, 1):
-            for db in (0, 1):
-                child[:, 3 * da, 3 * db] = v[rows, a + da, b + db]
+        for da, db in _CORNERS:
+            child[:, 3 * da, 3 * db] = v[rows, a + da, b + db]
         values = child
         origin = origin + side / 3.0 * np.stack([a, b], axis=1)
         side = side / 3.0
@@ -277,21 +265,15 @@ def evolution_search(
     tol: float = 1e-6,
     x0: np.ndarray | None = None,
 ) -> SearchResult:
-    """Differential evolution (scipy) over [0, 1]^dim for one problem (Hernandez sec. 3.3.4:
-    an evolutionary search over all R manoeuvres at once).
-
-    ``cost_fn(rows, u)`` is called with rows = [0] and ``u`` ``(1, P, dim)`` for a whole
-    population. ``x0`` ``(dim,)`` seeds the population (e.g. "hold course").
-    """
+    """Differential evolution (scipy) over [0, 1]^dim for one problem (Hernandez sec. 3.3.4):
+    ``cost_fn`` gets rows = [0] and a whole population ``u`` ``(1, P, dim)``; ``x0`` ``(dim,)``
+    seeds the population (e.g. "hold course")."""
     from scipy.optimize import differential_evolution
 
-    if isinstance(dim, bool) or int(dim) != dim or dim < 1:
-        raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
-    for name, value in (("popsize", popsize), ("maxiter", maxiter)):
-        if isinstance(value, bool) or int(value) != value or value < 1:
-            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    dim = check_integer("dim", dim)
+    popsize, maxiter = check_integer("popsize", popsize), check_integer("maxiter", maxiter)
     rows = np.zeros(1, dtype=int)
-    best = _Best(1, int(dim))
+    best = _Best(1, dim)
     count = [0]
 
     def f(x: np.ndarray) -> np.ndarray:
@@ -304,9 +286,9 @@ def evolution_search(
     seed = rng if rng is None or isinstance(rng, np.random.Generator) else int(rng)
     differential_evolution(
         f,
-        bounds=[(0.0, 1.0)] * int(dim),
-        popsize=int(popsize),
-        maxiter=int(maxiter),
+        bounds=[(0.0, 1.0)] * dim,
+        popsize=popsize,
+        maxiter=maxiter,
         tol=float(tol),
         polish=False,
         vectorized=True,

@@ -6,19 +6,10 @@ criteria`: eq. 24-26) of the expected covariance one step ahead, eq. 23
 
     P^(j)_{k+1|k} = F [(1 - pd_j) P_{k|k-1} + pd_j P^(j)_{k|k}] F^T + Q
 
-with H_j (eq. 13) at the predicted state and the sensor's planned position
-(:class:`TargetPrediction`).
-
-- Positioning (sec. 4): :func:`position_platform`, each controllable platform searching its
-  reachable envelope with the nine-sector search; over R legs (sec. 7's future work)
-  :func:`plan_positions` with :class:`MreStage`; both through
-  :func:`activetrack.planning.horizons.search_horizon`.
-- Selection (sec. 3, eq. 27): :func:`select_by_criterion` over every sensor; baselines
-  (Ramdaras and Absil 2007a) :func:`select_random`, :func:`select_fixed` and
-  :func:`select_by_trace` (trace of P^(j)_{k|k}, eq. 22, pd ignored). ``count`` > 1 selects
-  greedily, each pick folded into P_{k|k-1} (pd-weighted) before scoring the rest.
-
-Shapes: pv states ``(4,)``, covariances ``(4, 4)``; candidates batched ``(..., 4)``.
+with H_j (eq. 13) at the predicted state and the sensor's planned position: positioning (sec.
+4; over R legs, sec. 7) through :func:`activetrack.planning.horizons.search_horizon`, selection
+(sec. 3, eq. 27) and the baselines of Ramdaras and Absil 2007a. Shapes: pv states ``(4,)``,
+covariances ``(4, 4)``; candidates batched ``(..., 4)``.
 """
 
 from __future__ import annotations
@@ -35,7 +26,7 @@ from activetrack.bounds.mre import mre_predict, mre_update
 from activetrack.checks import require_finite, require_spd, symmetrize
 from activetrack.planning.criteria import POSITIONING, SELECTION, Criterion, get_criterion
 from activetrack.planning.horizons import SearchSettings, check_horizon, search_horizon
-from activetrack.planning.manoeuvre import PlannerPlatform, PlatformLimits, step_platform
+from activetrack.planning.manoeuvre import PlannerPlatform, step_platform
 from activetrack.planning.objective import CovarianceTerm, Objective
 
 if TYPE_CHECKING:
@@ -123,9 +114,7 @@ def expected_update(
     (e.g. an IRF times a field-of-view indicator); outside [r_min, r_max] there is no update.
     """
     P, x = _check_inputs(P_pred, x_pred)
-    pvs = require_finite("sensor_pvs", np.asarray(sensor_pvs, dtype=float).reshape(-1, 4))
-    if len(pvs) != len(sensors):
-        raise ValueError(f"sensor_pvs must hold {len(sensors)} pv rows, got {len(pvs)}")
+    pvs = require_finite("sensor_pvs", _sensor_rows(sensors, sensor_pvs))
     factors = _detection_factors(sensors, detection, use_pd)
     for sensor, s, factor in zip(sensors, pvs, factors, strict=True):
         pd = factor * float(sensor.in_range(x, s))
@@ -199,21 +188,24 @@ def _check_count(count: int, n_sensors: int) -> int:
     return int(count)
 
 
-# Scores of the remaining sensors given the covariance with the picks so far folded in.
-_RestCosts = Callable[[TargetPrediction, list[int]], np.ndarray]
+# costs_of(prediction, sensors (S,), pvs (S, 4)) -> the sensors' costs (S,)
+_CostsOf = Callable[[TargetPrediction, list["SensorModel"], np.ndarray], np.ndarray]
 
 
 def _greedy(
     prediction: TargetPrediction,
     sensors: Sequence[SensorModel],
-    pvs: np.ndarray,
-    costs: np.ndarray,
+    sensor_pvs: ArrayLike,
     count: int,
     use_pd: bool,
-    rest_costs: _RestCosts,
-) -> tuple[tuple[int, ...], int]:
-    """argmin of ``costs``, then (count > 1) each further pick the argmin of ``rest_costs`` with
-    the picks folded into the prediction. Returns the picks and the evaluations spent."""
+    costs_of: _CostsOf,
+    cost_name: str,
+) -> SelectionResult:
+    """argmin of ``costs_of``, then (count > 1) each further pick the argmin over the rest with
+    the picks folded into the prediction (pd-weighted with ``use_pd``)."""
+    count = _check_count(count, len(sensors))
+    pvs = _sensor_rows(sensors, sensor_pvs)
+    costs = np.asarray(costs_of(prediction, list(sensors), pvs), dtype=float)
     picks = [int(np.argmin(costs))]
     remaining = [i for i in range(len(sensors)) if i != picks[0]]
     evaluations = len(sensors)
@@ -221,10 +213,11 @@ def _greedy(
         P_sel = expected_update(
             prediction.P, prediction.x, [sensors[i] for i in picks], pvs[picks], use_pd=use_pd
         )
-        c = rest_costs(prediction.with_covariance(P_sel), remaining)
+        rest = [sensors[i] for i in remaining]
+        c = costs_of(prediction.with_covariance(P_sel), rest, pvs[remaining])
         evaluations += len(remaining)
         picks.append(remaining.pop(int(np.argmin(c))))
-    return tuple(picks), evaluations
+    return SelectionResult(tuple(picks), costs, cost_name, evaluations)
 
 
 def select_by_criterion(
@@ -239,15 +232,15 @@ def select_by_criterion(
 
     Ties go to the lower index; ``count`` > 1 picks greedily, folding each pick in with its pd.
     """
-    count = _check_count(count, len(sensors))
-    pvs = _sensor_rows(sensors, sensor_pvs)
-    costs, _ = sensor_costs(prediction, sensors, pvs, criterion)
-
-    def rest(p: TargetPrediction, remaining: list[int]) -> np.ndarray:
-        return sensor_costs(p, [sensors[i] for i in remaining], pvs[remaining], criterion)[0]
-
-    picks, evaluations = _greedy(prediction, sensors, pvs, costs, count, True, rest)
-    return SelectionResult(picks, np.asarray(costs, dtype=float), criterion, evaluations)
+    return _greedy(
+        prediction,
+        sensors,
+        sensor_pvs,
+        count,
+        True,
+        lambda p, rest, pvs: sensor_costs(p, rest, pvs, criterion)[0],
+        criterion,
+    )
 
 
 def select_by_trace(
@@ -258,15 +251,7 @@ def select_by_trace(
     count: int = 1,
 ) -> SelectionResult:
     """The trace baseline: argmin tr(P_{k|k}) of the Kalman update (eq. 22, pd ignored)."""
-    count = _check_count(count, len(sensors))
-    pvs = _sensor_rows(sensors, sensor_pvs)
-    costs = trace_costs(prediction, sensors, pvs)
-
-    def rest(p: TargetPrediction, remaining: list[int]) -> np.ndarray:
-        return trace_costs(p, [sensors[i] for i in remaining], pvs[remaining])
-
-    picks, evaluations = _greedy(prediction, sensors, pvs, costs, count, False, rest)
-    return SelectionResult(picks, np.asarray(costs, dtype=float), "trace", evaluations)
+    return _greedy(prediction, sensors, sensor_pvs, count, False, trace_costs, "trace")
 
 
 def select_random(
@@ -328,34 +313,19 @@ def position_platform(
     horizon: int = 1,
 ) -> PositioningResult:
     """Ramdaras sec. 4: the controllable ``platform``'s next position minimising the MRE
-    criterion (``horizon`` >= 2: :func:`plan_positions`, the first of R manoeuvres).
-
-    The reachable envelope is searched by ``search`` (``"sector"``: ``sector_levels`` = d_max;
-    ``"quadrant"``, ``"grid"`` for comparison); a candidate's cost is eq. 23 with all the
-    platform's sensors there in turn, then ``criterion``.
-    """
+    criterion of eq. 23 with all its sensors there in turn, by ``search`` (``"sector"``:
+    ``sector_levels`` = d_max; ``"quadrant"``, ``"grid"`` for comparison); ``horizon`` >= 2:
+    :func:`plan_positions`, the first of R manoeuvres."""
     return plan_positions(
         platform, prediction, dt, criterion=criterion, search=search, horizon=horizon
     )
-
-
-def _positioning_limits(platform: PlannerPlatform, search: SearchSettings) -> PlatformLimits:
-    if platform.limits is None:
-        raise ValueError(f"platform {platform.platform_id!r} must be controllable (have limits)")
-    if search.search not in POSITIONING_SEARCHES:
-        raise ValueError(f"search must be one of {POSITIONING_SEARCHES}, got {search.search!r}")
-    return platform.limits
-
-
-# --- several epochs ahead (Ramdaras sec. 7: "multiple time steps ahead sensor positioning") ----
 
 
 @dataclass(frozen=True)
 class MreStage:
     """One platform's sensors over R legs of eq. 23 for one target (a :class:`HorizonStage`):
     P_{k+1+r|k+r} ``(..., 1, 4, 4)``, updated by the sensors in turn at the CV prediction
-    x_{k+1+r|k} = F^r x_{k+1|k} (``x`` ``(R, 4)``), then predicted one interval. R = 1 is the
-    one-step positioning's cost, operation for operation."""
+    x_{k+1+r|k} = F^r x_{k+1|k} (``x`` ``(R, 4)``), then predicted one interval."""
 
     sensors: tuple[SensorModel, ...]
     x: np.ndarray
@@ -389,9 +359,11 @@ def plan_positions(
     holds every update along the path, so a sum would count the early gains again and pull
     towards the greedy one-step choice. R = 1 is :func:`position_platform`.
     """
-
     R = check_horizon(horizon)
-    _positioning_limits(platform, search)
+    if platform.limits is None:
+        raise ValueError(f"platform {platform.platform_id!r} must be controllable (have limits)")
+    if search.search not in POSITIONING_SEARCHES:
+        raise ValueError(f"search must be one of {POSITIONING_SEARCHES}, got {search.search!r}")
     crit = _mre_criterion(criterion)
     p = prediction
     x = np.stack([np.linalg.matrix_power(p.F, r) @ p.x for r in range(R)])

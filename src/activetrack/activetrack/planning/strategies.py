@@ -1,11 +1,5 @@
-"""Planner strategies of the papers, run in order by
-:class:`activetrack.planning.decision.Planner`: :class:`HoldCourse` (planner off),
-:class:`PcrlbPlanning` (Hernandez sec. 3-4), :class:`CautiousLocalisation` (Vander Hook et al.,
-Alg. 1), :class:`MrePrediction` (x_{k+1|k}, P_{k+1|k}, Ramdaras Fig. 5),
-:class:`MrePositioning` (sec. 4), :class:`MreSelection` (eq. 27) and baselines
-:class:`TraceSelection`, :class:`RandomSelection`, :class:`FixedSelection` (Ramdaras and Absil
-2007a), :class:`MreOutlook` (the MRE plan report). They take built objects
-(:func:`activetrack.closed_loop.components.build_planner` makes them). Only
+"""Planner strategies of the papers, run in order by :class:`activetrack.planning.decision.
+Planner` and built by :func:`activetrack.closed_loop.components.build_planner`. Only
 :class:`PcrlbPlanning` and :class:`RandomSelection` draw, from the planner's generator, in that
 order.
 """
@@ -97,9 +91,6 @@ def _require_pv(track: TrackEstimate) -> None:
         )
 
 
-# --- steering ----------------------------------------------------------------------------------
-
-
 class HoldCourse:
     """Hold course and speed: the commands of a planner that is off."""
 
@@ -127,8 +118,7 @@ class PcrlbPlanning:
     ):
         self.settings = settings
         self.platforms = tuple(platforms)
-        self.open_loop = open_loop_prior is not None
-        self.prior = open_loop_prior
+        self.prior = open_loop_prior  # None: renewal
         self.mc_samples = mc_samples
         self.dynamics = dynamics
         self.rng = rng
@@ -138,9 +128,8 @@ class PcrlbPlanning:
         self, epoch: int, track: TrackEstimate, platforms: list[PlannerPlatform]
     ) -> TargetBelief:
         d = self.dynamics
-        if self.open_loop:
+        if self.prior is not None:
             if self._open_loop_belief is None:
-                assert self.prior is not None  # open loop: given
                 mean, cov = self.prior
                 self._open_loop_belief = TargetBelief.from_gaussian(
                     mean, cov, self.mc_samples, self.rng
@@ -211,9 +200,6 @@ class CautiousLocalisation:
         return DecisionPart(commands=(command,), report=report)
 
 
-# --- Ramdaras: MRE prediction, positioning, selection, outlook ----------------------------------
-
-
 class MrePrediction:
     """x_{k+1|k} = F x, P_{k+1|k} = F P F^T + Q for the MRE strategies after it.
 
@@ -226,15 +212,13 @@ class MrePrediction:
         dynamics: LinearDynamics,
         open_loop_prior: tuple[np.ndarray, np.ndarray] | None = None,
     ):
-        self.open_loop = open_loop_prior is not None
-        self.prior = open_loop_prior
+        self.prior = open_loop_prior  # None: renewal
         self.dynamics = dynamics
         self._posterior: tuple[np.ndarray, np.ndarray] | None = None
 
     def decide(self, context: DecisionContext) -> DecisionPart:
-        if self.open_loop:
+        if self.prior is not None:
             if self._posterior is None:
-                assert self.prior is not None  # open loop: given
                 mean, cov = self.prior
                 self._posterior = (np.array(mean, dtype=float), np.array(cov, dtype=float))
             x, P = self._posterior
@@ -246,7 +230,7 @@ class MrePrediction:
 
     def commit(self, x: np.ndarray, P_updated: np.ndarray) -> None:
         """Open loop: the expected posterior at k+1 the next decision predicts from."""
-        if self.open_loop:
+        if self.prior is not None:
             self._posterior = (x, P_updated)
 
 
@@ -304,11 +288,12 @@ class MrePositioning:
 
 class _Selection:
     """Common part of the selection strategies (Ramdaras sec. 3): every sensor at its
-    platform's pv at k+1 is a candidate; ``count`` of them measure at k+1."""
+    platform's pv at k+1 is a candidate; ``count`` of them measure at k+1; ``criterion`` the
+    MRE cost they are scored (or, for the baselines, reported) by."""
 
     name = ""
 
-    def __init__(self, sensors: Sequence[SensorEntry], count: int):
+    def __init__(self, sensors: Sequence[SensorEntry], count: int, criterion: str = "det_pos"):
         self.sensors = tuple(sensors)
         self.models = [s.model for s in self.sensors]
         if not 1 <= count <= len(self.sensors):
@@ -316,6 +301,9 @@ class _Selection:
                 f"planner.selection.count must be <= {len(self.sensors)} sensors, got {count}"
             )
         self.count = count
+        self.criterion = get_criterion(
+            criterion, SELECTION, what="planner.selection.criterion"
+        ).name
 
     def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
         raise NotImplementedError
@@ -334,18 +322,13 @@ class _Selection:
         return DecisionPart(selection=choice, evaluations=result.evaluations)
 
 
-def _selection_criterion(name: str) -> str:
-    return get_criterion(name, SELECTION, what="planner.selection.criterion").name
-
-
 class MreSelection(_Selection):
     """Ramdaras eq. 27: argmin of the criterion of eq. 23 (greedy for count > 1)."""
 
     name = "mre"
 
     def __init__(self, sensors: Sequence[SensorEntry], criterion: str, count: int = 1):
-        super().__init__(sensors, count)
-        self.criterion = _selection_criterion(criterion)
+        super().__init__(sensors, count, criterion)
 
     def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
         return select_by_criterion(
@@ -374,8 +357,7 @@ class RandomSelection(_Selection):
         count: int,
         rng: np.random.Generator,
     ):
-        super().__init__(sensors, count)
-        self.criterion = _selection_criterion(criterion)
+        super().__init__(sensors, count, criterion)
         self.rng = rng
 
     def select(self, prediction: TargetPrediction, pvs: np.ndarray) -> SelectionResult:
@@ -390,8 +372,7 @@ class FixedSelection(_Selection):
     name = "fixed"
 
     def __init__(self, sensors: Sequence[SensorEntry], criterion: str, sensor_id: str | None):
-        super().__init__(sensors, 1)
-        self.criterion = _selection_criterion(criterion)
+        super().__init__(sensors, 1, criterion)
         ids = [s.sensor_id for s in self.sensors]
         if sensor_id not in ids:
             raise ValueError(f"planner.selection.fixed_sensor must be one of {ids}")
