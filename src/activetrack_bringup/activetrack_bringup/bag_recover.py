@@ -18,16 +18,16 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
 from activetrack_bringup.bag_io import (
-    INCOMPLETE,
-    LOST,
+    UNLISTED,
     BagError,
     Rosbag2Writer,
     TopicSpec,
     _parse_qos,
+    listed_topics,
     open_bag,
     read_metadata,
 )
-from activetrack_bringup.mcap_reader import McapFileError, McapScan
+from activetrack_bringup.mcap_reader import INCOMPLETE, LOST, McapFileError, McapScan
 
 RECOVER_CHUNK_SIZE = 1 << 20  # the recovered file is written at once: larger chunks
 
@@ -151,14 +151,10 @@ def _note_metadata_losses(
 ) -> None:
     """Add to ``report.lost`` what the old metadata.yaml listed beyond what was kept."""
     if old_meta is not None:
-        listed = {
-            e["topic_metadata"]["name"]: e["message_count"]
-            for e in old_meta["topics_with_message_count"]
-        }
         short = [
-            f"{topic} {n} (kept {report.kept.get(topic, 0)})"
-            for topic, n in sorted(listed.items())
-            if n > report.kept.get(topic, 0)
+            f"{topic} {t.count} (kept {report.kept.get(topic, 0)})"
+            for topic, t in sorted(listed_topics(old_meta).items())
+            if t.count > report.kept.get(topic, 0)
         ]
         if short:
             report.lost.append(f"{bag_dir}/metadata.yaml listed more: {', '.join(short)}")
@@ -186,12 +182,7 @@ def _install(
 
 def _topics(scan: McapScan, old_meta: dict | None, report: RecoverReport):
     """TopicSpecs for the channels that can be kept, and ``{channel id: topic}``."""
-    old_hash = {}
-    if old_meta is not None:
-        for e in old_meta["topics_with_message_count"]:
-            h = e["topic_metadata"].get("type_description_hash")
-            if isinstance(h, str):
-                old_hash[e["topic_metadata"]["name"]] = h
+    listed = listed_topics(old_meta)
     specs, channel_topic, seen = [], {}, {}
     for cid, ch in sorted(scan.channels.items()):
         schema = scan.schemas.get(ch.schema_id)
@@ -217,7 +208,7 @@ def _topics(scan: McapScan, old_meta: dict | None, report: RecoverReport):
                 topic=ch.topic,
                 msgtype=schema.name,
                 msgdef=schema.data.decode("utf-8", errors="replace"),
-                rihs01=meta.get("topic_type_hash") or old_hash.get(ch.topic, ""),
+                rihs01=meta.get("topic_type_hash") or listed.get(ch.topic, UNLISTED).rihs01,
                 qos=_parse_qos(meta.get("offered_qos_profiles", "")),
                 serialization_format=ch.message_encoding,
                 schema_encoding=schema.encoding,
