@@ -45,9 +45,7 @@ def add_track_parser(sub) -> None:
         help="targets' truth: a .csv or .json file, or a bag with ground_truth (default: the "
         "detections bag's own, if it has one)",
     )
-    track.add_argument(
-        "--run", type=cli_types.run_index, default=None, help="Monte Carlo run index (seeding)"
-    )
+    track.add_argument("--run", type=cli_types.run_index, help="Monte Carlo run index (seeding)")
     track.add_argument(
         "--out", help="output folder (default runs/<name>-<timestamp>; must not exist)"
     )
