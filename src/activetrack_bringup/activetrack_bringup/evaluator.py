@@ -1,20 +1,14 @@
-"""The run's evaluator: the only reader of ground truth; rebuilds the run's
-:class:`~activetrack.closed_loop.record.RunRecord` from the graph's own outputs (truth arrays,
-scans, track arrays, platform states, commands, beams, selections and plan reports, each
-checked as the nodes check them), so that the runner scores it with the batch loop's code
-(:func:`activetrack.closed_loop.evaluation.evaluate_run`): in lockstep, `activetrack run`
-equals `activetrack batch` bit for bit, for every scenario.
+"""The run's evaluator, the only reader of ground truth: it rebuilds the run's
+:class:`~activetrack.closed_loop.record.RunRecord` from the graph's own outputs, each checked as
+the nodes check them, so that the runner scores it with the batch loop's code
+(:func:`~activetrack.closed_loop.evaluation.evaluate_run`): in lockstep, `activetrack run` equals
+`activetrack batch` bit for bit. What the sim does not publish is rebuilt from what it does:
+which sensors scanned (the scans), and which had which alive target in view (each scan's field
+of view and the truth, with the simulator's own test); the detections' labels stay in the sim.
 
-What the sim knows and does not publish is rebuilt from what it does: which sensors scanned
-(the scans), and which sensor had which alive target in its field of view (the per-target
-bound's ``observed``) from each scan's field of view and the truth, with the simulator's own
-test. The detections' labels stay in the sim, so a run's plot shows the detections unlabelled.
-
-As each epoch closes it publishes the run's figures so far (``RunMetrics``: each target's error
-and PCRLB, GOSPA: the summary's numbers) and markers of what only it knows or nobody draws
-(the targets' truth and paths, the sensors that scanned, each platform's planned next leg):
-what Foxglove shows live and from a bag (docs/live-view.md). Publishing reads nothing the
-result depends on."""
+As each epoch closes it publishes the figures so far (``RunMetrics``) and the markers only it
+knows (truth, sensors that scanned, planned legs) for the live view (docs/live-view.md);
+publishing reads nothing the result depends on."""
 
 from __future__ import annotations
 
@@ -137,13 +131,10 @@ def evaluator_params(scenario_given: bool, report_grace_s: float) -> tuple[Param
 
 
 class EvaluatorNode(GraphNode):
-    """Collects a run per epoch (module docstring); ``record()`` gives it. Also the graph's
-    result messages checked as faults, the nodes' counters from /diagnostics, and when the sim
-    said it finished."""
+    """Collects a run per epoch (module docstring); ``record()`` gives it. ``scenario``: the
+    run's, or None to load the file of its ``scenario`` parameter (a standalone evaluator)."""
 
     def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
-        """``scenario``: the run's scenario, or None to load the file its ``scenario``
-        parameter names (a standalone evaluator)."""
         super().__init__("activetrack_evaluator", **kwargs)
         changes = {"exit_when_done": self._set_exit_when_done}
         p = self.declare_params(evaluator_params(scenario is not None, report_grace_s), changes)
@@ -179,8 +170,7 @@ class EvaluatorNode(GraphNode):
         self.beams: dict[int, dict[str, BeamCommand]] = {}
         self.selections: dict[int, tuple[str, ...]] = {}
         self.reports: dict[int, PlanReportData] = {}
-        # The live view's inputs (docs/live-view.md): per-epoch metrics and markers; the
-        # summary's bound generator for one run, drawn as the evaluation draws.
+        # The live view's figures: the summary's bound, its generator drawn as evaluate_run's.
         self.assess = EpochAssessor(scenario)
         rng = component_rngs(scenario.seed, None)[3]
         sensors, self.bound_columns = bound_sensors(scenario)
@@ -245,9 +235,7 @@ class EvaluatorNode(GraphNode):
 
     def on_truth(self, msg: GroundTruthArray) -> None:
         truth = truth_array_from_msg(msg, self.scenario)
-        pv = np.full((len(self.target_ids), 4), math.nan)
-        for tid, row in zip(truth.ids, truth.pv, strict=True):
-            pv[self.target_index[tid]] = row
+        pv = truth_rows(truth, self.target_index)
         self.truth.put(truth.epoch, pv, f"truth array of {truth.epoch}")
         self._close_epochs()
 
@@ -361,11 +349,7 @@ class EvaluatorNode(GraphNode):
         truth = self.truth.values[k]
         tracks = self.tracks[k]
         a = self.assess(truth, tracks, k)
-        means = {t.track_id: np.asarray(t.mean) for t in tracks.confirmed}
-        est = np.full_like(truth, math.nan)
-        for n, track_id in enumerate(a.held):
-            if track_id in means:
-                est[n] = means[int(track_id)]
+        est = held_estimates(a, tracks, truth)
         error = np.abs(est - truth)[:, [0, 2]]  # the summary's RMSE of one run
         looked = self._looked(k)
         counts = bound_counts(self.bound_sensors, looked, self._observed_at(k))
@@ -599,6 +583,24 @@ class EvaluatorNode(GraphNode):
             seen[alive] = scan.fov.contains(x, pv) & sensor.in_range(x, pv)
             out[self.sensor_index[scan.sensor_id]] = seen
         return out
+
+
+def truth_rows(truth, target_index: dict[str, int]) -> np.ndarray:
+    """``(N, 4)``: a truth array's pv rows in the scenario's target order (NaN: absent)."""
+    pv = np.full((len(target_index), 4), math.nan)
+    for tid, row in zip(truth.ids, truth.pv, strict=True):
+        pv[target_index[tid]] = row
+    return pv
+
+
+def held_estimates(assessment, tracks: TrackSet, truth: np.ndarray) -> np.ndarray:
+    """``(N, 4)``: the mean of the confirmed track that holds each target (NaN: none)."""
+    means = {t.track_id: np.asarray(t.mean) for t in tracks.confirmed}
+    est = np.full_like(truth, math.nan)
+    for n, track_id in enumerate(assessment.held):
+        if track_id in means:
+            est[n] = means[int(track_id)]
+    return est
 
 
 def _marker_size(scenario) -> float:
