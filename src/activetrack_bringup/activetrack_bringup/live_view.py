@@ -194,13 +194,6 @@ def attach(server: LiveServer, graph_key, namespace: str = ""):
 
     def before_spin(graph) -> None:
         options = {"namespace": namespace} if namespace else {}
-        graph.add(
-            LiveViewNode(
-                server,
-                graph_key=graph_key,
-                context=graph.context,
-                **options,
-            )
-        )
+        graph.add(LiveViewNode(server, graph_key=graph_key, context=graph.context, **options))
 
     return before_spin
