@@ -1,9 +1,5 @@
 """``activetrack ros graph|echo|hz|param|tf|bag``: the parsers and what each command prints.
-
-Every command takes ``--namespace NS`` (relative topic and node names resolve in it) and
-``--domain D`` (the DDS domain to join; default ROS_DOMAIN_ID, else 0: ``activetrack run``
-prints the one a run uses). Exit codes: 0 done, 1 nothing answered in time (no publisher, a
-node without parameter services, a refused ``param set``), 2 bad input.
+Exit codes: 0 done, 1 nothing answered in time, 2 bad input (docs/ros-tools.md).
 """
 
 from __future__ import annotations
