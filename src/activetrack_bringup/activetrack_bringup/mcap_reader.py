@@ -106,24 +106,23 @@ def _string(buf, pos: int, end: int) -> tuple[str, int]:
         raise _Bad("a string field is not UTF-8") from None
 
 
-def _prefixed(buf, pos: int, end: int) -> tuple[bytes, int]:
+def _span(buf, pos: int, end: int, what: str) -> tuple[int, int]:
+    """``(start, stop)`` of the u32-length-prefixed field at ``pos``, inside ``end``."""
     if pos + 4 > end:
-        raise _Bad("a field runs past its record")
+        raise _Bad(f"a {what} runs past its record")
     (n,) = _U32.unpack_from(buf, pos)
-    pos += 4
-    if pos + n > end:
-        raise _Bad("a field runs past its record")
-    return bytes(buf[pos : pos + n]), pos + n
+    if pos + 4 + n > end:
+        raise _Bad(f"a {what} runs past its record")
+    return pos + 4, pos + 4 + n
+
+
+def _prefixed(buf, pos: int, end: int) -> tuple[bytes, int]:
+    start, stop = _span(buf, pos, end, "field")
+    return bytes(buf[start:stop]), stop
 
 
 def _map(buf, pos: int, end: int) -> tuple[tuple, int]:
-    if pos + 4 > end:
-        raise _Bad("a map field runs past its record")
-    (n,) = _U32.unpack_from(buf, pos)
-    pos += 4
-    stop = pos + n
-    if stop > end:
-        raise _Bad("a map field runs past its record")
+    pos, stop = _span(buf, pos, end, "map field")
     items = []
     while pos < stop:
         key, pos = _string(buf, pos, stop)
@@ -629,12 +628,10 @@ class McapScan:
                 n = sum(counts.values())
                 ok = ok and not n
                 if offset not in reported:
-                    what = (
-                        f"indexed chunk unreadable ({n} messages)"
-                        if n
-                        else ("indexed chunk unreadable (definitions only)")
+                    held = f"{n} messages" if n else "definitions only"
+                    self._damage(
+                        LOST if n else HARMLESS, f"indexed chunk unreadable ({held})", offset
                     )
-                    self._damage(LOST if n else HARMLESS, what, offset)
         for table, key in ((self.schemas, "schemas"), (self.channels, "channels")):
             for rid, record in summary[key].items():
                 mine = table.get(rid)
@@ -651,11 +648,9 @@ class McapScan:
                 if self.counts.get(cid, 0) != n:
                     ok = False
                     if not any(d.kind == LOST for d in self.damage):
-                        c = self.channels.get(cid)
                         self._damage(
                             LOST,
-                            f"the summary counts {n} messages on "
-                            f"{c.topic if c else f'channel {cid}'}, "
+                            f"the summary counts {n} messages on {self._topic(cid)}, "
                             f"{self.counts.get(cid, 0)} are readable",
                         )
         return ok
@@ -670,12 +665,15 @@ class McapScan:
                 continue
             missing = max(seqs) - len(set(seqs))
             if missing > 0:
-                c = self.channels.get(cid)
-                gaps.append(f"{c.topic if c else f'channel {cid}'} {missing}")
+                gaps.append(f"{self._topic(cid)} {missing}")
         if gaps:
             self._damage(
                 LOST, f"messages missing (gaps in their sequence numbers): {', '.join(gaps)}"
             )
+
+    def _topic(self, cid: int) -> str:
+        c = self.channels.get(cid)
+        return c.topic if c else f"channel {cid}"
 
     def _orphans(self) -> None:
         for cid, n in sorted(self.counts.items()):
