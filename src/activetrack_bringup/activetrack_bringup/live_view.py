@@ -1,24 +1,7 @@
-"""Live view in Foxglove: the running graph served on a local WebSocket (docs/live-view.md).
-
-``activetrack run SCENARIO --foxglove`` starts a :class:`LiveServer` (the ``foxglove-sdk``
-WebSocket server, bound to 127.0.0.1:8765 by default) before the run, and adds a
-:class:`LiveViewNode` to the runner's graph. The node forwards every graph topic
-(``activetrack_ros.graph.GRAPH_TOPICS``) as the raw CDR bytes it receives, on a Foxglove channel
-of the topic's resolved name with the message definition as a ``ros2msg`` schema: exactly what
-the run's bag holds (same names, same bytes, same schemas), so one layout
-(``docs/foxglove-layout.json``) shows a live run and a recorded bag alike. Nothing is computed
-here: the scene comes from the nodes' own topics (the tracker's 2-sigma ellipse, pose and
-particles; the sim's platform paths and ``/tf``; the evaluator's truth, measuring sensors and
-planned legs) and the RMSE vs PCRLB figures from the evaluator's ``RunMetrics``.
-
-Only the graph's own messages are shown: on the per-epoch (msgs_defs) topics and
-``/diagnostics`` a message that does not verify under the run's key is counted as foreign and
-dropped, as the nodes do (``activetrack_ros.trust``). Log time is the simulated time of the
-latest ``/clock`` (as a ``--use-sim-time`` recorder stamps it), and the server announces that
-time to clients (the Foxglove ``time`` capability), so live and bag timelines agree.
-
-The view only reads: it publishes nothing on the graph, so the run's result is the same with
-and without it (tested).
+"""Live view in Foxglove (docs/live-view.md): a :class:`LiveServer` (foxglove-sdk WebSocket)
+with one channel per graph topic, fed by a :class:`LiveViewNode` in the runner's graph with the
+raw CDR bytes it receives, the graph's own only, under the names and schemas the run's bag has;
+log time is the latest ``/clock``. The view only reads: it publishes nothing on the graph.
 """
 
 from __future__ import annotations

@@ -1,19 +1,9 @@
 """``activetrack track DETECTIONS --config CONFIG``: the tracker on recorded detections
-(docs/track-your-data.md).
-
-DETECTIONS is a CSV or JSON file (:mod:`activetrack.tracking.detections`) or a rosbag2 of
-``Scan`` messages (:mod:`activetrack_bringup.track_bag`); CONFIG a tracker configuration or a
-scenario file (:func:`activetrack.scenarios.load_tracking`). The configuration's tracker runs
-epochs 1..K, K the data's last epoch (:func:`activetrack.closed_loop.recorded.track_detections`;
-``--run`` seeds it as ``run`` and ``batch`` do, so a run's scans with its scenario and run
-index give the run's tracks bit for bit). With truth (``--truth``, or the detections bag's
-own ground truth) it scores GOSPA at every epoch.
-
-The output folder (``--out``, default ``runs/<name>-<timestamp>``) holds ``tracks.csv``,
-``tracks.json`` (the track sets, GOSPA), ``gospa.csv`` with truth, and ``bag/`` (scans,
-platform states, track arrays, truth: ``activetrack play`` and Foxglove read it); ``--json``
-and ``--csv`` write the tracks elsewhere too. A bad file or configuration is one ``error:``
-line and exit code 2, before anything is tracked.
+(docs/track-your-data.md): a CSV or JSON file (:mod:`activetrack.tracking.detections`) or a bag
+of ``Scan`` messages (:mod:`activetrack_bringup.track_bag`), with a tracker configuration or a
+scenario file; ``--run`` seeds as ``run`` and ``batch`` do, so a run's scans with its scenario
+and run index give the run's tracks bit for bit. A bad input is one ``error:`` line, exit 2,
+before anything is tracked.
 """
 
 from __future__ import annotations
