@@ -280,6 +280,7 @@ class _GraphRunner:
         self.sim_started = self.wait is None
         if self.wait is not None:
             self.params["sim"].update(self.wait.params())
+        self.params["sim"].update(opts.sim_params or {})
         self.remote = remote_nodes(opts.nodes)  # started on other hosts, not here
         self.network = ros_network(opts.processes, not self.remote)
         # The node processes' domain; in one process the context needs no domain of its own.
@@ -341,21 +342,35 @@ class _GraphRunner:
             )  # fmt: skip
         if o.processes:
             self._await_remote()
-            restartable = o.restartable or tuple(self.scenario.graph.restartable)
-            self.supervisor = _start_processes(
-                self.params, o.sim_params, self.key, self.domain, restartable,
-                self.scenario.graph.max_restarts, o.namespace,
-                NODE_NAMES if o.nodes is None else o.nodes,
-            )  # fmt: skip
+            self.supervisor = self._start_processes()
             graph.supervisor = self.supervisor  # for during_spin hooks (fault-injection tests)
         else:
-            for name in ("tracker", "planner"):
+            for name in ("tracker", "planner", "sim"):
                 options = self._node_options(self.params[name])
                 self.nodes[name] = graph.add(NODES[name](**options))
-            sim = {**self.params["sim"], **(o.sim_params or {})}
-            self.nodes["sim"] = graph.add(NODES["sim"](**self._node_options(sim)))
         if o.before_spin is not None:
             o.before_spin(graph)
+
+    def _start_processes(self) -> Supervisor:
+        """The node processes started here (``nodes``, default all), each its console entry
+        point, talking over DDS in the run's domain: on this host only when it runs them all,
+        else with the caller's discovery settings (ROS_AUTOMATIC_DISCOVERY_RANGE,
+        ROS_STATIC_PEERS), which reach the other hosts. The caller's environment is not changed."""
+        o = self.opts
+        restartable = o.restartable or tuple(self.scenario.graph.restartable)
+        env = dict(os.environ)
+        env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
+        env["ROS_DOMAIN_ID"] = str(self.domain)
+        if not self.remote:
+            env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        env[KEY_ENV] = self.key.hex()  # the environment, not a parameter: parameters are readable
+        log = lambda text: print(f"activetrack: {text}", file=sys.stderr)  # noqa: E731
+        supervisor = Supervisor(env, self.scenario.graph.max_restarts, log=log)
+        for name in ("tracker", "planner", "sim"):
+            if o.nodes is None or name in o.nodes:
+                supervisor.add(f"{name}_node", self.params[name], name in restartable, o.namespace)
+        supervisor.start()
+        return supervisor
 
     def _check_started(self) -> None:
         """``--wait-for``: the held sim must start its first epoch within ``wait_timeout``
@@ -522,37 +537,3 @@ def _finite_metrics(summary: BatchSummary) -> bool:
             return False
     bounds = (*summary.time_avg_bound_x, *summary.time_avg_bound_y)
     return not any(math.isinf(v) for v in bounds)
-
-
-def _start_processes(
-    params,
-    sim_params,
-    key: GraphKey,
-    domain: int,
-    restartable,
-    max_restarts: int,
-    namespace,
-    names: tuple[str, ...] = NODE_NAMES,
-) -> Supervisor:
-    """The nodes ``names``, each as its own OS process (its console entry point), talking
-    over DDS in the runner's domain: on this host only when it runs them all, else with the
-    caller's discovery settings (ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_STATIC_PEERS), which reach
-    the other hosts. The caller's environment is not changed."""
-    env = dict(os.environ)
-    env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
-    env["ROS_DOMAIN_ID"] = str(domain)
-    if set(names) == set(NODE_NAMES):
-        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env[KEY_ENV] = key.hex()  # the environment, not a parameter: parameters are readable
-    supervisor = Supervisor(
-        env, max_restarts, log=lambda text: print(f"activetrack: {text}", file=sys.stderr)
-    )
-    for name, extra in (("tracker", {}), ("planner", {}), ("sim", sim_params or {})):
-        if name not in names:
-            continue
-        supervisor.add(
-            f"{name}_node", {**params[name], **extra}, restartable=name in restartable,
-            namespace=namespace,
-        )  # fmt: skip
-    supervisor.start()
-    return supervisor
