@@ -22,15 +22,6 @@ from pathlib import Path
 from ament_index_python.packages import get_package_share_directory
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
-from rosbags.interfaces import (
-    Qos,
-    QosDurability,
-    QosHistory,
-    QosLiveliness,
-    QosReliability,
-    QosTime,
-)
-from rosbags.rosbag2.metadata import dump_qos_v9
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosgraph_msgs.msg import Clock
 
@@ -125,24 +116,23 @@ def installed_type_hash(msgtype: str) -> str | None:
 
 
 def bag_qos(topic: str, depth: int | None = None) -> list[dict]:
-    """Offered QoS written to the bag, so that a real `ros2 bag play` matches ours."""
+    """Offered QoS written to the bag (rosbag2 v9 dictionaries), so that a real `ros2 bag play`
+    matches ours."""
     qos = writer_qos(topic, depth)
     latched = qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
-    return dump_qos_v9(
-        [
-            Qos(
-                history=QosHistory.KEEP_LAST,
-                depth=qos.depth,
-                reliability=QosReliability.RELIABLE,
-                durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
-                deadline=QosTime(0, 0),
-                lifespan=QosTime(0, 0),
-                liveliness=QosLiveliness.AUTOMATIC,
-                liveliness_lease_duration=QosTime(0, 0),
-                avoid_ros_namespace_conventions=False,
-            )
-        ]
-    )
+    return [
+        {
+            "history": "keep_last",
+            "depth": qos.depth,
+            "reliability": "reliable",
+            "durability": "transient_local" if latched else "volatile",
+            "deadline": {"sec": 0, "nsec": 0},
+            "lifespan": {"sec": 0, "nsec": 0},
+            "liveliness": "automatic",
+            "liveliness_lease_duration": {"sec": 0, "nsec": 0},
+            "avoid_ros_namespace_conventions": False,
+        }
+    ]
 
 
 def first_stamp_ns(data: bytes) -> int:
