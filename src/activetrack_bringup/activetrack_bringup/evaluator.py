@@ -241,11 +241,10 @@ class EvaluatorNode(GraphNode):
 
     def on_tracks(self, msg: TrackArray) -> None:
         tracks = self.check_tracks(msg)
-        if tracks.epoch in self.tracks:
-            raise Rejected("duplicate", f"second track array of epoch {tracks.epoch}")
         # Without the planner's posterior samples: a run keeps results, not messages (a PF
         # track's samples are kB an epoch; the record and the figures never read them).
-        self.tracks[tracks.epoch] = tracks.without_samples()
+        what = f"track array of epoch {tracks.epoch}"
+        _put_once(self.tracks, tracks.epoch, tracks.without_samples(), what)
         self._close_epochs()
 
     def on_platform(self, msg: PlatformState) -> None:
@@ -259,10 +258,8 @@ class EvaluatorNode(GraphNode):
 
     def on_scan(self, msg: ScanMsg) -> None:
         scan = scan_from_msg(msg, self.scenario, self.sensors)
-        scans = self.scans.setdefault(scan.epoch, {})
-        if scan.sensor_id in scans:
-            raise Rejected("duplicate", f"second scan of {scan.sensor_id!r} at {scan.epoch}")
-        scans[scan.sensor_id] = scan
+        what = f"scan of {scan.sensor_id!r} at {scan.epoch}"
+        _put_once(self.scans.setdefault(scan.epoch, {}), scan.sensor_id, scan, what)
         self._close_epochs()
 
     def on_command(self, msg: ManoeuvreCommand) -> None:
@@ -278,10 +275,7 @@ class EvaluatorNode(GraphNode):
         if not math.isnan(msg.commanded_speed):
             finite((msg.commanded_speed,), f"{what} speed", MAX_SPEED)
         finite((msg.waypoint.x, msg.waypoint.y), f"{what} waypoint", MAX_COORDINATE)
-        commands = self.commands.setdefault(msg.epoch, {})
-        if msg.platform_id in commands:
-            raise Rejected("duplicate", f"second {what} at {msg.epoch}")
-        commands[msg.platform_id] = Command(
+        command = Command(
             msg.platform_id,
             msg.epoch,
             msg.heading_change,
@@ -291,16 +285,16 @@ class EvaluatorNode(GraphNode):
             msg.take_measurement if msg.gate_measurement else None,
             (msg.waypoint.x, msg.waypoint.y) if msg.has_waypoint else None,
         )
+        commands = self.commands.setdefault(msg.epoch, {})
+        _put_once(commands, msg.platform_id, command, f"{what} at {msg.epoch}")
         if self.command_epoch.get(msg.platform_id, -1) < msg.epoch:
             self.command_epoch[msg.platform_id] = msg.epoch
             self._draw_leg(msg)
 
     def on_beam(self, msg: BeamCommandMsg) -> None:
         beam = beam_from_msg(msg, self.scenario)
-        beams = self.beams.setdefault(beam.epoch, {})
-        if beam.sensor_id in beams:
-            raise Rejected("duplicate", f"second beam of {beam.sensor_id!r} at {beam.epoch}")
-        beams[beam.sensor_id] = beam
+        what = f"beam of {beam.sensor_id!r} at {beam.epoch}"
+        _put_once(self.beams.setdefault(beam.epoch, {}), beam.sensor_id, beam, what)
 
     def on_selection(self, msg: SensorSelection) -> None:
         ids = selection_from_msg(msg, self.scenario, self.sensors)
@@ -310,9 +304,7 @@ class EvaluatorNode(GraphNode):
 
     def on_report(self, msg: PlanReport) -> None:
         report = report_from_msg(msg, self.scenario)
-        if report.epoch in self.reports:
-            raise Rejected("duplicate", f"second plan report of epoch {report.epoch}")
-        self.reports[report.epoch] = report
+        _put_once(self.reports, report.epoch, report, f"plan report of epoch {report.epoch}")
 
     # --- what the live view shows (docs/live-view.md) --------------------------------------
 
@@ -583,6 +575,13 @@ class EvaluatorNode(GraphNode):
             seen[alive] = scan.fov.contains(x, pv) & sensor.in_range(x, pv)
             out[self.sensor_index[scan.sensor_id]] = seen
         return out
+
+
+def _put_once(table: dict, key, value, what: str) -> None:
+    """``table[key] = value``; a second value for ``key`` is a duplicate (e.g. a replay)."""
+    if key in table:
+        raise Rejected("duplicate", f"second {what}")
+    table[key] = value
 
 
 def truth_rows(truth, target_index: dict[str, int]) -> np.ndarray:
