@@ -42,8 +42,6 @@ OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_ATTACHMENT, OP_ATTACHMENT_INDEX = 7, 8, 9, 
 OP_STATISTICS, OP_METADATA, OP_METADATA_INDEX, OP_SUMMARY_OFFSET, OP_DATA_END = 11, 12, 13, 14, 15
 _KNOWN_DATA_OPS = {OP_HEADER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_MESSAGE_INDEX}
 _KNOWN_DATA_OPS |= {OP_ATTACHMENT, OP_METADATA, OP_DATA_END}
-_SUMMARY_OPS = {OP_CHUNK_INDEX, OP_ATTACHMENT_INDEX, OP_STATISTICS}
-_SUMMARY_OPS |= {OP_METADATA_INDEX, OP_SUMMARY_OFFSET}
 
 
 class McapFileError(ValueError):
@@ -91,7 +89,6 @@ class ChunkInfo:
     """A chunk that verified: where it is and what it holds."""
 
     offset: int
-    end: int  # offset just after the record
     counts: dict[int, int] = field(default_factory=dict)
 
 
@@ -227,7 +224,6 @@ class McapScan:
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
-        self.name = self.path.name
         self.profile = ""
         self.library = ""
         self.schemas: dict[int, SchemaInfo] = {}
@@ -485,7 +481,7 @@ class McapScan:
         _, _, records, crc = parse_chunk(self._mm, body, end)
         if not crc:
             self.unverified_chunks += 1
-        info = ChunkInfo(pos, end)
+        info = ChunkInfo(pos)
         defs = []
         msgs = []
         for op, b, e in chunk_records(records):

@@ -79,15 +79,14 @@ def _write_outputs(args: argparse.Namespace, folder: Path, config, sensors, dete
         extra["gospa"] = run.gospa.to_json()
     folder.mkdir(parents=True, exist_ok=True)
     warnings = write_track_bag(folder / "bag", config, sensors, detections, run, truth)
-    targets = [(folder / "tracks.csv", folder / "tracks.json")]
-    targets.append((Path(args.csv) if args.csv else None, Path(args.json) if args.json else None))
-    for csv_path, json_path in targets:
+    copies = [(folder / "tracks.csv", folder / "tracks.json"), (args.csv, args.json)]
+    for csv_path, json_path in copies:  # the folder's, and --csv and --json if given
         for path in (csv_path, json_path):
-            if path is not None:
-                path.parent.mkdir(parents=True, exist_ok=True)
-        if csv_path is not None:
+            if path:
+                Path(path).parent.mkdir(parents=True, exist_ok=True)
+        if csv_path:
             write_tracks_csv(csv_path, run.track_sets)
-        if json_path is not None:
+        if json_path:
             write_tracks_json(json_path, run.track_sets, **extra)
     if run.gospa is not None:
         with (folder / "gospa.csv").open("w", newline="") as f:
