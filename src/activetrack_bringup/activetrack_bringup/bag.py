@@ -213,18 +213,14 @@ class BagRecorder(Node):
             p = declare(self, recorder_params(path, topic_types, depth, clock_lead))
             warn_unknown(self)
             self.topic_types = recorded_topics(p["topics"].split())
-        except ValueError:
-            super().destroy_node()
-            raise
-        self.path = Path(p["bag"])
-        depth, clock_lead = p["depth"] or None, p["clock_lead"]
-        schemas = graph_schemas(self.topic_types.values())
-        names = {t: self.resolve_topic_name(t) for t in self.topic_types}
-        specs = [
-            TopicSpec(names[topic], msgtype, *schemas[msgtype], qos=bag_qos(topic, depth))
-            for topic, msgtype in self.topic_types.items()
-        ]
-        try:
+            self.path = Path(p["bag"])
+            depth, clock_lead = p["depth"] or None, p["clock_lead"]
+            schemas = graph_schemas(self.topic_types.values())
+            names = {t: self.resolve_topic_name(t) for t in self.topic_types}
+            specs = [
+                TopicSpec(names[topic], msgtype, *schemas[msgtype], qos=bag_qos(topic, depth))
+                for topic, msgtype in self.topic_types.items()
+            ]
             self.writer = Rosbag2Writer(self.path, specs)  # BagError if the path exists
         except BaseException:
             super().destroy_node()

@@ -1,13 +1,8 @@
-"""``activetrack bag recover BAG``: rebuild a readable bag from whatever of it verifies.
-
-For an MCAP file whose writer died (no summary, a record cut off at the end), with corrupt
-chunks, or with a missing, stale or garbled ``metadata.yaml``: every chunk that verifies (CRC)
-is read (:class:`mcap_reader.McapScan`, which stops cleanly at a truncation and resumes after
-damage at the next verified chunk), its messages are written to a clean MCAP file with a
-summary, and a fresh ``metadata.yaml`` is written from what was kept. The damaged original is
-kept next to it as ``<name>.mcap.damaged`` (and a replaced ``metadata.yaml`` as
-``metadata.yaml.old``); nothing is ever deleted. The report says how many messages were kept
-per topic and, one line each, what was lost.
+"""``activetrack bag recover BAG``: rebuild a readable bag from whatever of it verifies (a writer
+that died, corrupt chunks, a missing, stale or garbled ``metadata.yaml``): the messages of every
+verified chunk go to a clean MCAP file with a summary and a fresh ``metadata.yaml``. Nothing is
+deleted: the originals are kept as ``<name>.mcap.damaged`` and ``metadata.yaml.old``. The report
+names what was kept per topic and, one line each, what was lost.
 """
 
 from __future__ import annotations

@@ -68,7 +68,7 @@ class LiveServer:
                 host=host,
                 port=port,
                 capabilities=[Capability.Time],
-                server_listener=_Listener(self),
+                server_listener=self,
                 context=self.context,
                 message_backlog_size=BACKLOG,
             )
@@ -105,6 +105,14 @@ class LiveServer:
             self._subscribed.wait(min(left, 0.1))
         return True
 
+    def on_subscribe(self, client, channel) -> None:
+        """The server's callback (on the SDK's thread): a client watches ``channel``."""
+        self.subscriptions[channel.topic] += 1
+        self._subscribed.set()
+
+    def on_unsubscribe(self, client, channel) -> None:
+        self.subscriptions[channel.topic] -= 1
+
     def log(self, topic: str, data: bytes, log_time_ns: int) -> None:
         self.channels[topic].log(data, log_time=log_time_ns)
 
@@ -128,20 +136,6 @@ class LiveServer:
 
     def __exit__(self, *exc) -> None:
         self.stop()
-
-
-class _Listener:
-    """The server's callbacks (on the SDK's own thread): which channels clients watch."""
-
-    def __init__(self, live: LiveServer):
-        self.live = live
-
-    def on_subscribe(self, client, channel) -> None:
-        self.live.subscriptions[channel.topic] += 1
-        self.live._subscribed.set()
-
-    def on_unsubscribe(self, client, channel) -> None:
-        self.live.subscriptions[channel.topic] -= 1
 
 
 class LiveViewNode(GraphNode):

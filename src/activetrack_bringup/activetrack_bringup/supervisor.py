@@ -1,11 +1,8 @@
-"""One OS process per node, supervised: a death is noticed at the next poll, a restartable node
-is started again (a bounded number of times), any other death fails the run at once; children
-never outlive the runner.
-
-Children die with the runner whatever kills it: each is started through a tiny launcher that
-asks the kernel for SIGKILL when its parent dies (Linux ``PR_SET_PDEATHSIG``, kept across the
-exec into the node and the ROS wheels' re-exec) and then execs the node; each runs in its own
-session, so a terminal's Ctrl-C reaches only the runner, which stops the children in order.
+"""One OS process per node, supervised: a restartable node that dies is started again (a bounded
+number of times), any other death fails the run. Children never outlive the runner: a tiny
+launcher asks the kernel for SIGKILL when its parent dies (Linux ``PR_SET_PDEATHSIG``, kept
+across the exec into the node and the ROS wheels' re-exec); each child has its own session, so
+a terminal's Ctrl-C reaches only the runner, which stops the children in order.
 """
 
 from __future__ import annotations
