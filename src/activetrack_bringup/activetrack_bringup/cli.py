@@ -304,14 +304,14 @@ def _cmd_record(args: argparse.Namespace) -> int:
         topic_types = recorded_topics(args.topics or (), "--topics")
         if Path(args.bag).exists():
             raise ValueError(f"{args.bag} exists already: record into a new path")
-        namespace = check_namespace(args.namespace)
+        namespace = check_namespace(args.namespace) or None  # None: the node's default
     except ValueError as exc:  # GraphSetupError too
         return _error(exc)
-    node_options = {"context": None, "namespace": namespace} if namespace else {}
     try:
         with InProcessGraph() as graph:
-            node_options["context"] = graph.context
-            recorder = graph.add(BagRecorder(args.bag, topic_types, **node_options))
+            recorder = graph.add(
+                BagRecorder(args.bag, topic_types, context=graph.context, namespace=namespace)
+            )
             print(f"recording {len(topic_types)} topics to {args.bag} (Ctrl-C to stop)")
             end = time.monotonic() + (args.duration if args.duration else float("inf"))
             try:  # signals wait while a chunk is written (interrupts.deferred in the recorder)

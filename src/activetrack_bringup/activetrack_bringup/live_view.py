@@ -170,7 +170,7 @@ def attach(server: LiveServer, graph_key, namespace: str = ""):
     """A runner ``before_spin`` hook that adds the live view's node to the run's graph."""
 
     def before_spin(graph) -> None:
-        options = {"namespace": namespace} if namespace else {}
-        graph.add(LiveViewNode(server, graph_key=graph_key, context=graph.context, **options))
+        ns = namespace or None  # none: the node's default
+        graph.add(LiveViewNode(server, graph_key=graph_key, context=graph.context, namespace=ns))
 
     return before_spin

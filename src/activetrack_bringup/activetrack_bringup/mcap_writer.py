@@ -150,13 +150,9 @@ class McapWriter:
             self._chunk_end = log_time
         seq = self._seq[channel_id] = self._seq[channel_id] + 1
         self._index[channel_id] += (log_time, len(buf))
+        publish = log_time if publish_time is None else publish_time
         buf += _MESSAGE.pack(
-            Opcode.MESSAGE,
-            22 + len(data),
-            channel_id,
-            seq & 0xFFFFFFFF,
-            log_time,
-            log_time if publish_time is None else publish_time,
+            Opcode.MESSAGE, 22 + len(data), channel_id, seq & 0xFFFFFFFF, log_time, publish
         )
         buf += data
         # Age by the monotonic clock, not log time (sim time can run far faster or slower).

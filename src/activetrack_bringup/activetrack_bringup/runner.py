@@ -244,21 +244,17 @@ def _check_filter(scenario, opts: RunOptions) -> None:
     from activetrack.filters import filter_names
 
     name = (opts.tracker_params or {}).get("filter")
-    if name is None:
-        return
-    if name not in filter_names():
+    if name is not None and name not in filter_names():
         raise GraphSetupError(f"--filter must be one of {list(filter_names())}, got {name!r}")
 
 
 def _check_wait_for(opts: RunOptions) -> WaitFor | None:
     """``wait_for`` parsed; it needs the sim started here (GraphSetupError otherwise)."""
-    if opts.wait_for is None:
-        return None
     try:
-        wait = WaitFor.parse(str(opts.wait_for))
+        wait = WaitFor.parse("" if opts.wait_for is None else str(opts.wait_for))
     except ValueError as exc:
         raise GraphSetupError(str(exc)) from None
-    if opts.nodes is not None and "sim" not in opts.nodes:
+    if wait is not None and opts.nodes is not None and "sim" not in opts.nodes:
         raise GraphSetupError(
             "--wait-for holds the first epoch of the sim started here: add sim to --nodes (a "
             "sim on another host holds with -p wait_for_subscribers:=N or wait_for_topic:=T)"
@@ -288,9 +284,7 @@ class _GraphRunner:
         self.graph = InProcessGraph(domain_id=self.domain)
         # Every node answers parameter services, in one process too (ROS tools see it there):
         # measured, +28 ms median of 3.5 s (default scenario), within the noise.
-        self.common = {"context": self.graph.context}
-        if opts.namespace:
-            self.common["namespace"] = opts.namespace
+        self.common = {"context": self.graph.context, "namespace": opts.namespace or None}
         named = [Parameter(k, value=self.params["planner"][k]) for k in ("scenario", "run")]
         self.evaluator = self.graph.add(
             EvaluatorNode(

@@ -123,24 +123,14 @@ def platform_states(
             )
             continue
         epochs = sorted(known)
+        ids, kinds = tuple(s.id for s in p.sensors), tuple(s.kind for s in p.sensors)
         for k in range(1, K + 1):
             i = bisect.bisect_right(epochs, k)  # epochs[i - 1] <= k < epochs[i]
             before, after = epochs[max(i - 1, 0)], epochs[min(i, len(epochs) - 1)]
             j = before if before <= k and k - before <= abs(after - k) else after
             pv = known[j] + (k - j) * dt * np.array([known[j][1], 0.0, known[j][3], 0.0])
             heading, speed = heading_speed(pv)
-            states[k].append(
-                PlatformSnapshot(
-                    p.id,
-                    k,
-                    k * dt,
-                    pv,
-                    heading,
-                    speed,
-                    tuple(s.id for s in p.sensors),
-                    tuple(s.kind for s in p.sensors),
-                )
-            )
+            states[k].append(PlatformSnapshot(p.id, k, k * dt, pv, heading, speed, ids, kinds))
     return states, warnings
 
 
