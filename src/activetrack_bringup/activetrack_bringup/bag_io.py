@@ -322,8 +322,6 @@ class Bag:
         if metadata is not None:
             self._compare_metadata(metadata)
 
-    # --- building ----------------------------------------------------------------------
-
     def _collect_topics(self) -> None:
         listed = listed_topics(self.metadata)
         for i, scan in enumerate(self.scans):
@@ -404,8 +402,6 @@ class Bag:
 
     def _meta(self, text: str) -> None:
         self.damage.append(Damage(METADATA, text))
-
-    # --- results -----------------------------------------------------------------------
 
     @property
     def usable_topics(self) -> dict[str, BagTopic]:

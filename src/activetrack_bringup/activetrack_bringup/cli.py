@@ -41,6 +41,7 @@ from activetrack_bringup.track import add_track_parser
 EXPERIMENTS = ("hernandez", "multitarget", "ramdaras", "valverde", "vanderhook")
 WAIT_TIMEOUT_S = 60.0  # --wait-for's default --wait-timeout
 LAYOUT = "docs/foxglove-layout.json"  # the Foxglove layout of a live run and of a bag
+NOTABLE_COUNTERS = ("rejected", "errors", "dropped", "incompatible_writers")  # shown after a run
 
 
 def _print_summary(s) -> None:
@@ -127,11 +128,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         f"{result.real_time_factor:.1f}x ({mode})"
     )
     for node, counts in result.diagnostics.items():
-        notable = {
-            k: v
-            for k, v in counts.items()
-            if k.split(".")[0] in ("rejected", "errors", "dropped", "incompatible_writers")
-        }
+        notable = {k: v for k, v in counts.items() if k.split(".")[0] in NOTABLE_COUNTERS}
         if notable:
             print(f"  {node}: {notable}")
     foreign = sum(result.foreign.values())

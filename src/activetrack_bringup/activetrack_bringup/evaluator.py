@@ -213,8 +213,6 @@ class EvaluatorNode(GraphNode):
                 self.faults.append(f"{type(msg).__name__} epoch {msg.epoch}: {r}")
             raise
 
-    # --- inputs ---------------------------------------------------------------------------
-
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         """Counters of the graph's nodes (only the graph's own statuses arrive with a key)."""
         for status in msg.status:

@@ -87,8 +87,6 @@ class McapWriter:
         self.started = False
         self.closed = False
 
-    # --- definitions ---------------------------------------------------------------------
-
     def add_schema(self, name: str, encoding: str, data: bytes) -> int:
         schema = Schema(id=len(self._schemas) + 1, data=data, encoding=encoding, name=name)
         self._schemas[schema.id] = schema
@@ -135,8 +133,6 @@ class McapWriter:
             record.write(builder)
         self._pending_defs.clear()
         self._write_chunk(builder.end(), 0, 0, {})
-
-    # --- messages ------------------------------------------------------------------------
 
     def write(self, channel_id: int, log_time: int, data, publish_time: int | None = None) -> None:
         """Append one message (raw bytes) to the open chunk; closes the chunk when full/old."""
@@ -227,8 +223,6 @@ class McapWriter:
             for p in parts:
                 self._crc = zlib.crc32(p, self._crc)
         self._pos += total
-
-    # --- end -----------------------------------------------------------------------------
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         """A Metadata record in the data section (rosbag2 stores its metadata this way)."""
