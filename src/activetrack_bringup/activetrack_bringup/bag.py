@@ -389,9 +389,7 @@ class BagPlayer(Node):
         self.messages = bag.messages(list(classes))
         self.published = 0
         self.done = False
-        self._next = None
-        self._t0_bag = None
-        self._t0_wall = None
+        self._next = self._t0_bag = self._t0_wall = None
 
     def _publisher(self, name: str, cls):
         """Publish on the recorded (resolved) name with the graph's QoS for that topic; a

@@ -449,7 +449,7 @@ class Bag:
             }
             if not wanted:
                 continue
-            for cid, log_time, data in scan.messages(wanted):
+            for cid, log_time, _, data in scan.records(wanted):
                 yield wanted[cid], log_time, data
 
     def close(self) -> None:

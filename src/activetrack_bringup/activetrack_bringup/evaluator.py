@@ -173,9 +173,8 @@ class EvaluatorNode(GraphNode):
         # The live view's figures: the summary's bound, its generator drawn as evaluate_run's.
         self.assess = EpochAssessor(scenario)
         rng = component_rngs(scenario.seed, None)[3]
-        sensors, self.bound_columns = bound_sensors(scenario)
-        self.bound_sensors = sensors
-        self.bounds = [TargetBound(t, sensors, scenario.dt, rng) for t in targets]
+        self.bound_sensors, self.bound_columns = bound_sensors(scenario)
+        self.bounds = [TargetBound(t, self.bound_sensors, scenario.dt, rng) for t in targets]
         self.metrics_epoch = 1  # the next epoch to publish figures of
         self.sums = np.zeros((4, len(targets)))  # error x, y (where held), bound x, y
         self.held_epochs = np.zeros(len(targets))

@@ -216,11 +216,8 @@ def chunk_records(records: bytes):
 
 
 class McapScan:
-    """One pass over an MCAP file: definitions, verified chunks, counts and damage.
-
-    ``messages()`` then reads the verified chunks again (second pass). Use as a context
-    manager or call ``close()``.
-    """
+    """One pass over an MCAP file: definitions, verified chunks, counts and damage;
+    ``records()`` reads the verified chunks again. A context manager (or call ``close()``)."""
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
@@ -687,14 +684,9 @@ class McapScan:
         """The writer finished: the file has a valid footer (and DataEnd)."""
         return self.summary is not None
 
-    def messages(self, channel_ids=None):
-        """``(channel_id, log_time, data)`` of every readable message, chunk by chunk in file
-        order, in log-time order within a chunk (as rosbags reads them)."""
-        for cid, log_time, _, data in self.records(channel_ids):
-            yield cid, log_time, data
-
     def records(self, channel_ids=None):
-        """Like :meth:`messages`, as ``(channel_id, log_time, publish_time, data)``."""
+        """``(channel_id, log_time, publish_time, data)`` of every readable message, chunk by
+        chunk in file order, in log-time order within a chunk (as rosbags reads them)."""
         wanted = None if channel_ids is None else set(channel_ids)
         mm = self._mm
         sources = [(c.offset, c) for c in self.chunks] + [(o, None) for o in self.loose]
