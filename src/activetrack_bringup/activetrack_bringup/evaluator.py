@@ -180,7 +180,6 @@ class EvaluatorNode(GraphNode):
         self.held_epochs = np.zeros(len(targets))
         self.bound_epochs = np.zeros(len(targets))
         self.gospa_sum = 0.0
-        self.last_metrics: RunMetrics | None = None
         self.command_epoch: dict[str, int] = {}  # the latest command's epoch per platform
         self.undrawn: dict[tuple, ManoeuvreCommand] = {}  # (platform, epoch): awaits its state
         self.marker_size = _marker_size(scenario)
@@ -324,8 +323,7 @@ class EvaluatorNode(GraphNode):
             k = self.metrics_epoch
             self.metrics_epoch += 1
             hdr = header(k * self.scenario.dt, self.frame_id)
-            self.last_metrics = self._metrics(k, hdr)
-            self.metrics_pub.publish(self.last_metrics)
+            self.metrics_pub.publish(self._metrics(k, hdr))
             self.marker_pub.publish(self._epoch_markers(k, hdr))
 
     def _looked(self, k: int) -> np.ndarray:

@@ -310,13 +310,11 @@ class _EpochPlayer(GraphNode):
         self.pubs = {
             t: self.create_publisher(_CLASSES[t], t, writer_qos(t)) for t in REPLAYED_TOPICS
         }
-        self.published = 0
 
     def publish_epoch(self, k: int) -> None:
         for topic, data in self.raw.get(k, ()):
             msg = deserialize_message(data, _CLASSES[topic])  # re-serialised: drops padding
             self.pubs[topic].publish(self.graph_key.sign(serialize_message(msg)))
-            self.published += 1
 
 
 class _TrackCollector(GraphNode):
