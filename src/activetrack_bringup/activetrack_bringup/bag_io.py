@@ -97,6 +97,7 @@ class Rosbag2Writer:
         self.topics = list(topics)
         self.state = state
         self._mcap = McapWriter(self.mcap_path, chunk_size=chunk_size, chunk_age_s=chunk_age_s)
+        self.write = self._mcap.write  # (channel_id, log_time, data, publish_time=None)
         schema_ids: dict[tuple, int] = {}
         self.channel_ids: dict[str, int] = {}
         for spec in self.topics:
@@ -114,9 +115,6 @@ class Rosbag2Writer:
         self._written_counts: tuple | None = None
         self._metadata_at = 0
         self.write_metadata()
-
-    def write(self, channel_id: int, log_time: int, data, publish_time: int | None = None):
-        self._mcap.write(channel_id, log_time, data, publish_time)
 
     def tick(self) -> None:
         """For a timer: close an old chunk, and rewrite metadata.yaml if the messages on disk
@@ -203,7 +201,8 @@ class Rosbag2Writer:
 # --- reading -----------------------------------------------------------------------------
 
 
-def _need(d: dict, key: str, kind, where: str):
+def _need(d: dict, key: str, kind, where: str, counts: bool = False):
+    """``d[key]``, of type ``kind`` (and not negative if it ``counts``), else BagError."""
     if key not in d:
         raise BagError(f"{where}: '{key}' is missing")
     value = d[key]
@@ -211,6 +210,8 @@ def _need(d: dict, key: str, kind, where: str):
         raise BagError(f"{where}: '{key}' must be an integer, got {value!r:.40}")
     if kind is not int and not isinstance(value, kind):
         raise BagError(f"{where}: '{key}' must be a {kind.__name__}, got {value!r:.40}")
+    if counts and value < 0:
+        raise BagError(f"{where}: negative {key}")
     return value
 
 
@@ -263,12 +264,8 @@ def read_metadata(bag_dir: Path) -> dict:
         tm = _need(entry, "topic_metadata", dict, at)
         _need(tm, "name", str, at)
         _need(tm, "type", str, at)
-        count = _need(entry, "message_count", int, at)
-        if count < 0:
-            raise BagError(f"{at}: negative message_count")
-    count = _need(info, "message_count", int, where)
-    if count < 0:
-        raise BagError(f"{meta}: negative message_count")
+        _need(entry, "message_count", int, at, counts=True)
+    _need(info, "message_count", int, where, counts=True)
     return info
 
 

@@ -52,13 +52,15 @@ class RecoverReport:
         }
 
 
-def _backup_name(path: Path, suffix: str) -> Path:
-    candidate = path.with_name(path.name + suffix)
+def _move_aside(path: Path, suffix: str, report: RecoverReport) -> None:
+    """Rename ``path`` to the first free ``<name><suffix>[.n]``, listed in ``report.backups``."""
+    backup = path.with_name(path.name + suffix)
     n = 1
-    while candidate.exists():
-        candidate = path.with_name(f"{path.name}{suffix}.{n}")
+    while backup.exists():
+        backup = path.with_name(f"{path.name}{suffix}.{n}")
         n += 1
-    return candidate
+    os.replace(path, backup)
+    report.backups.append(backup)
 
 
 def _mcap_file(bag_dir: Path) -> tuple[Path, dict | None, str | None]:
@@ -163,15 +165,11 @@ def _install(
     """Move the rebuilt files from ``tmp`` into the bag; the originals keep their data under
     new names (listed in ``report.backups``), nothing is deleted."""
     if mcap_damaged:
-        backup = _backup_name(mcap_path, ".damaged")
-        os.replace(mcap_path, backup)
-        report.backups.append(backup)
+        _move_aside(mcap_path, ".damaged", report)
         os.replace(tmp / mcap_path.name, mcap_path)
     meta_path = bag_dir / "metadata.yaml"
     if meta_path.exists():
-        backup = _backup_name(meta_path, ".old")
-        os.replace(meta_path, backup)
-        report.backups.append(backup)
+        _move_aside(meta_path, ".old", report)
     os.replace(tmp / "metadata.yaml", meta_path)
 
 

@@ -479,8 +479,7 @@ class McapScan:
         if not crc:
             self.unverified_chunks += 1
         info = ChunkInfo(pos)
-        defs = []
-        msgs = []
+        defs, msgs = [], []
         for op, b, e in chunk_records(records):
             if op == OP_SCHEMA:
                 defs.append(parse_schema(records, b, e))

@@ -71,7 +71,6 @@ class McapWriter:
         self._pending_defs: list = []
         self._chunk_indexes: list[ChunkIndex] = []
         self._metadata_indexes: list[MetadataIndex] = []
-        self._metadata_count = 0
         # The open message chunk.
         self._buf = bytearray()
         self._index: dict[int, list[int]] = defaultdict(list)  # channel -> [time, offset, ...]
@@ -232,7 +231,6 @@ class McapWriter:
         record = builder.end()
         index = MetadataIndex(offset=self._pos, length=len(record), name=name)
         self._metadata_indexes.append(index)
-        self._metadata_count += 1
         self._out([record])
 
     def close(self) -> None:
@@ -285,7 +283,7 @@ class McapWriter:
                     message_count=sum(counts.values()),
                     message_end_time=self.flushed_end,
                     message_start_time=0 if self.flushed_start is None else self.flushed_start,
-                    metadata_count=self._metadata_count,
+                    metadata_count=len(self._metadata_indexes),
                     schema_count=len(self._schemas),
                 )
             ],

@@ -99,14 +99,10 @@ def epoch_hook(bar: Bar):
     feeds ``bar`` with the epochs the run's evaluator has tracked so far."""
     from activetrack_bringup.evaluator import EvaluatorNode
 
-    found: list[EvaluatorNode] = []
-
     def during_spin(graph) -> None:
-        if not found:
-            found.extend(n for n in graph.nodes if isinstance(n, EvaluatorNode))
-            if not found:
+        for node in graph.nodes:
+            if isinstance(node, EvaluatorNode):
+                bar(max(len(node.tracks) - 1, 0), node.scenario.steps)
                 return
-        evaluator = found[0]
-        bar(max(len(evaluator.tracks) - 1, 0), evaluator.scenario.steps)
 
     return during_spin
