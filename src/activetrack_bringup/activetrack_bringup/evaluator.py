@@ -495,7 +495,9 @@ class EvaluatorNode(GraphNode):
             if given_up or not self.expects_reports
             else [k for k in range(K) if k not in self.reports],
         }
-        return lacks_text(lacks)
+        return ", ".join(
+            f"{what} missing at epochs {_ranges(ks)}" for what, ks in lacks.items() if ks
+        )
 
     def completed_epochs(self) -> int:
         """The last epoch K' such that truth, tracks, platform states and scans of 0..K' are
@@ -608,11 +610,6 @@ def _marker_size(scenario) -> float:
         for p in scenario.platforms
     )
     return max(0.01 * far, 0.1)
-
-
-def lacks_text(lacks: dict[str, list[int]]) -> str:
-    """'truth missing at epochs 3-5, track missing at epochs 7' (what -> epochs lacking)."""
-    return ", ".join(f"{what} missing at epochs {_ranges(ks)}" for what, ks in lacks.items() if ks)
 
 
 def _ranges(ks: list[int]) -> str:

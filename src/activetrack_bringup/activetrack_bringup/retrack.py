@@ -348,10 +348,6 @@ class RetrackReport:
         return dict(self.__dict__)
 
 
-def _trouble(counters) -> dict:
-    return {k: v for k, v in counters.items() if v and k.startswith(_TROUBLE)}
-
-
 def _differences(a: TrackSet, b: TrackSet) -> tuple[bool, float, float]:
     """(identical, max |state difference|, max |covariance difference|) over tracks of the
     same id; inf when the ids differ."""
@@ -429,7 +425,9 @@ def retrack(
                 player.publish_epoch(k)  # lockstep: epoch k once the tracks of k - 1 are out
                 state.update(next=k + 1, at=now)
             reached = max(collector.arrays, default=-1)
-            trouble = _trouble(tracker.counters.counts)
+            trouble = {
+                k: v for k, v in tracker.counters.counts.items() if v and k.startswith(_TROUBLE)
+            }
             if trouble:
                 raise RetrackError(
                     f"the fresh tracker did not take the replay of epoch {reached + 1}: "

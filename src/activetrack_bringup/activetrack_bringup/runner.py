@@ -111,12 +111,6 @@ class GraphRun:
         return json_safe(d)
 
 
-def _node_params(scenario_path: str, run: int | None, mode: str) -> dict[str, dict]:
-    """Each node's parameters (the planner plans alike in both modes: it has no ``mode``)."""
-    common = {"scenario": str(scenario_path), "run": -1 if run is None else int(run)}
-    return {"sim": {**common, "mode": mode}, "tracker": {**common, "mode": mode}, "planner": common}
-
-
 def check_namespace(namespace: str) -> str:
     """'' (none) or a ROS namespace like ``g1`` or ``/fleet/g1``, returned absolute."""
     ns = namespace.strip("/")
@@ -270,7 +264,9 @@ class _GraphRunner:
         self.scenario = scenario
         self.opts = opts
         self.key = key
-        self.params = _node_params(scenario_path, opts.run, opts.mode)
+        every = {"scenario": scenario_path, "run": -1 if opts.run is None else int(opts.run)}
+        mode = {"mode": opts.mode}  # the planner plans alike in both modes: it has no mode
+        self.params = {"sim": every | mode, "tracker": every | mode, "planner": dict(every)}
         self.params["tracker"].update(opts.tracker_params or {})
         self.wait = wait  # --wait-for: the sim holds its first epoch (activetrack_ros.hold)
         self.sim_started = self.wait is None

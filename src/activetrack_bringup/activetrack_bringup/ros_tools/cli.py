@@ -16,11 +16,12 @@ def _session(args, name: str) -> ToolSession:
 
 
 def _cmd_graph(args) -> int:
-    from activetrack_bringup.ros_tools.introspect import graph_text, run_graph_command
+    from activetrack_bringup.ros_tools.introspect import describe_graph, graph_text
     from activetrack_bringup.ros_tools.messages import to_yaml
 
     with _session(args, "graph") as s:
-        graph = run_graph_command(s, args.all, args.wait)
+        s.discover(args.wait)  # let discovery fill in the graph
+        graph = describe_graph(s, args.all)
     print(to_yaml(graph) if args.yaml else graph_text(graph))
     return 0
 
