@@ -332,15 +332,8 @@ def _cmd_play(args: argparse.Namespace) -> int:
 
     try:
         with InProcessGraph() as graph:
-            player = graph.add(
-                BagPlayer(
-                    args.bag,
-                    args.topics,
-                    args.rate,
-                    skip_damaged=getattr(args, "skip_damaged", False),
-                    context=graph.context,
-                )
-            )
+            options = {"skip_damaged": args.skip_damaged, "context": graph.context}
+            player = graph.add(BagPlayer(args.bag, args.topics, args.rate, **options))
             _warn(player.warnings)
             graph.spin_until(
                 lambda: (player.play_step(), player.done)[1], timeout=float("inf"), step=0.001
