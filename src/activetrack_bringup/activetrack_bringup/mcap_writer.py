@@ -51,6 +51,14 @@ _MESSAGE_INDEX = struct.Struct("<BQHI")  # opcode, record length, channel, recor
 _CHUNK_HEAD = struct.Struct("<BQQQQIIQ")
 
 
+def _encoded(*records) -> bytes:
+    """The records as MCAP bytes (the ``mcap`` library's encoding)."""
+    builder = RecordBuilder()
+    for record in records:
+        record.write(builder)
+    return builder.end()
+
+
 class McapWriter:
     """Appends an MCAP file chunk by chunk (module docstring); not thread-safe by itself."""
 
@@ -117,9 +125,7 @@ class McapWriter:
         """Write magic, header and the definitions so far, and flush them to the OS."""
         if self.started:
             return
-        builder = RecordBuilder()
-        Header("ros2", "activetrack").write(builder)
-        self._out([MAGIC, builder.end()])
+        self._out([MAGIC, _encoded(Header("ros2", "activetrack"))])
         self.started = True
         self._write_definitions()
 
@@ -127,11 +133,9 @@ class McapWriter:
         if not self._pending_defs:
             return
         self._close_chunk()  # messages before definitions keep their order in the file
-        builder = RecordBuilder()
-        for record in self._pending_defs:
-            record.write(builder)
+        records = _encoded(*self._pending_defs)
         self._pending_defs.clear()
-        self._write_chunk(builder.end(), 0, 0, {})
+        self._write_chunk(records, 0, 0, {})
 
     def write(self, channel_id: int, log_time: int, data, publish_time: int | None = None) -> None:
         """Append one message (raw bytes) to the open chunk; closes the chunk when full/old."""
@@ -226,9 +230,7 @@ class McapWriter:
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         """A Metadata record in the data section (rosbag2 stores its metadata this way)."""
         self._close_chunk()
-        builder = RecordBuilder()
-        Metadata(name=name, metadata=dict(data)).write(builder)
-        record = builder.end()
+        record = _encoded(Metadata(name=name, metadata=dict(data)))
         index = MetadataIndex(offset=self._pos, length=len(record), name=name)
         self._metadata_indexes.append(index)
         self._out([record])
@@ -242,9 +244,7 @@ class McapWriter:
                 self.start()
             self._write_definitions()
             self._close_chunk()
-            builder = RecordBuilder()
-            DataEnd(self._crc).write(builder)
-            self._out([builder.end()])
+            self._out([_encoded(DataEnd(self._crc))])
             self._out([self._summary()], data_section=False)
         finally:
             self.closed = True
@@ -272,22 +272,18 @@ class McapWriter:
         group(Opcode.SCHEMA, list(self._schemas.values()))
         group(Opcode.CHANNEL, list(self._channels.values()))
         counts = {c: n for c, n in sorted(self.flushed_counts.items()) if n}
-        group(
-            Opcode.STATISTICS,
-            [
-                Statistics(
-                    attachment_count=0,
-                    channel_count=len(self._channels),
-                    channel_message_counts=counts,
-                    chunk_count=len(self._chunk_indexes),
-                    message_count=sum(counts.values()),
-                    message_end_time=self.flushed_end,
-                    message_start_time=0 if self.flushed_start is None else self.flushed_start,
-                    metadata_count=len(self._metadata_indexes),
-                    schema_count=len(self._schemas),
-                )
-            ],
+        statistics = Statistics(
+            attachment_count=0,
+            channel_count=len(self._channels),
+            channel_message_counts=counts,
+            chunk_count=len(self._chunk_indexes),
+            message_count=sum(counts.values()),
+            message_end_time=self.flushed_end,
+            message_start_time=0 if self.flushed_start is None else self.flushed_start,
+            metadata_count=len(self._metadata_indexes),
+            schema_count=len(self._schemas),
         )
+        group(Opcode.STATISTICS, [statistics])
         group(Opcode.CHUNK_INDEX, self._chunk_indexes)
         group(Opcode.METADATA_INDEX, self._metadata_indexes)
         summary_offset_start = summary_start + builder.count
@@ -298,6 +294,4 @@ class McapWriter:
         crc = zlib.crc32(
             struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, summary_offset_start), crc
         )
-        builder = RecordBuilder()
-        Footer(summary_start, summary_offset_start, crc).write(builder)
-        return summary + builder.end() + MAGIC
+        return summary + _encoded(Footer(summary_start, summary_offset_start, crc)) + MAGIC
