@@ -198,18 +198,23 @@ def parse_chunk(buf, pos: int, end: int) -> tuple[int, int, bytes, int]:
     return start, stop, records, crc
 
 
-def chunk_records(records: bytes):
-    """``(opcode, body_start, body_end)`` of each record inside a chunk's records."""
-    pos, n = 0, len(records)
-    while pos < n:
-        if pos + 9 > n:
-            raise _Bad("a record inside the chunk is cut off")
-        op, length = _RECORD.unpack_from(records, pos)
+def records_in(buf, pos: int, stop: int, what: str, past: str):
+    """``(opcode, body_start, body_end)`` of each record in ``buf[pos:stop]``; ``_Bad`` naming
+    ``what`` (the records) for one cut off or running ``past`` them."""
+    while pos < stop:
+        if pos + 9 > stop:
+            raise _Bad(f"{what} is cut off")
+        op, length = _RECORD.unpack_from(buf, pos)
         body = pos + 9
-        if body + length > n:
-            raise _Bad("a record inside the chunk runs past it")
+        if body + length > stop:
+            raise _Bad(f"{what} runs past {past}")
         yield op, body, body + length
         pos = body + length
+
+
+def chunk_records(records: bytes):
+    """``(opcode, body_start, body_end)`` of each record inside a chunk's records."""
+    return records_in(records, 0, len(records), "a record inside the chunk", "it")
 
 
 # --- the scan ---------------------------------------------------------------------------
@@ -319,14 +324,8 @@ class McapScan:
             return summary_start
         summary = {"schemas": {}, "channels": {}, "chunks": [], "stats": None}
         try:
-            pos = summary_start
-            while pos < footer:
-                if pos + 9 > footer:
-                    raise _Bad("a summary record is cut off")
-                op, length = _RECORD.unpack_from(mm, pos)
-                body, end = pos + 9, pos + 9 + length
-                if end > footer:
-                    raise _Bad("a summary record runs past the footer")
+            records = records_in(mm, summary_start, footer, "a summary record", "the footer")
+            for op, body, end in records:
                 if op == OP_SCHEMA:
                     s = parse_schema(mm, body, end)
                     summary["schemas"][s.id] = s
@@ -337,7 +336,6 @@ class McapScan:
                     summary["chunks"].append(self._parse_chunk_index(body, end))
                 elif op == OP_STATISTICS:
                     summary["stats"] = self._parse_statistics(body, end)
-                pos = end
         except (_Bad, struct.error, ValueError) as exc:
             self._damage(HARMLESS, f"unreadable summary ({exc}; ignored)", summary_start)
             return summary_start
