@@ -410,13 +410,11 @@ class Bag:
 
     @property
     def start_time(self) -> int | None:
-        times = [s.start_time for s in self.scans if s.start_time is not None]
-        return min(times) if times else None
+        return min((s.start_time for s in self.scans if s.start_time is not None), default=None)
 
     @property
     def end_time(self) -> int | None:
-        times = [s.end_time for s in self.scans if s.end_time is not None]
-        return max(times) if times else None
+        return max((s.end_time for s in self.scans if s.end_time is not None), default=None)
 
     @property
     def duration_ns(self) -> int:

@@ -310,11 +310,8 @@ class EvaluatorNode(GraphNode):
     def _epoch_closed(self, k: int) -> bool:
         """Truth (of k and k - 1: the path's last leg), tracks, every platform state and every
         scan the sim announced of epoch k are in (or the tracker has moved on past it)."""
-        if k not in self.truth or k - 1 not in self.truth:
-            return False
-        if k not in self.tracks or k not in self.platforms:
-            return False
-        return self._scans_in(k) or k + 1 in self.tracks
+        ready = k in self.truth and k - 1 in self.truth and k in self.tracks and k in self.platforms
+        return ready and (self._scans_in(k) or k + 1 in self.tracks)
 
     def _close_epochs(self) -> None:
         """Publish the figures and markers of each newly closed epoch, in order (the bound's
