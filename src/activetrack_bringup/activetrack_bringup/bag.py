@@ -1,22 +1,11 @@
 """Record and replay graph topics as standard rosbag2 directories (no rosbag2 on PyPI).
 
-Recording writes raw CDR bytes as received (``raw=True`` subscriptions) into MCAP storage with
-the message definitions and RIHS01 hashes embedded, as rosbag2 does, so plain ``rosbags``,
-Foxglove, ``mcap`` + ``mcap_ros2`` and ``ros2 bag info`` read the bag without this package.
-The bag stays readable while it grows and after the recorder is killed (``bag_io``,
-``mcap_writer``): chunks of at most 64 KiB or 0.5 s reach the OS whole, each with its CRC, and
-``metadata.yaml`` is rewritten (atomically) at most once a second. Replay republishes the stored
-bytes unchanged.
-
-Reading checks every CRC (``mcap_reader``). A damaged bag is handled so:
-
-* ``bag info`` shows what is readable, then one ``warning:`` line per problem (file, offset,
-  what was lost), and exits 2 unless the bag is intact;
-* ``play`` plays an incomplete bag (a killed recording: every complete chunk) with a warning,
-  but refuses one with lost data (a corrupt chunk, an unreadable stretch) unless
-  ``--skip-damaged``; a topic whose type cannot be published here is skipped with a warning;
-* ``bag retrack`` refuses lost data (a replay with holes would not be comparable);
-* ``bag recover`` rewrites a readable bag from whatever verifies.
+Recording writes the raw CDR bytes as received into MCAP storage with the message definitions
+and RIHS01 hashes embedded, as rosbag2 does, so ``rosbags``, Foxglove, ``mcap`` and ``ros2 bag
+info`` read the bag without this package; it stays readable while it grows and after the
+recorder is killed (:mod:`bag_io`, :mod:`mcap_writer`). Replay republishes the stored bytes.
+Reading checks every CRC (:mod:`mcap_reader`): what each command does with a damaged bag is in
+the README (Command line).
 """
 
 from __future__ import annotations
@@ -33,15 +22,6 @@ from pathlib import Path
 from ament_index_python.packages import get_package_share_directory
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
-from rosbags.interfaces import (
-    Qos,
-    QosDurability,
-    QosHistory,
-    QosLiveliness,
-    QosReliability,
-    QosTime,
-)
-from rosbags.rosbag2.metadata import dump_qos_v9
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosgraph_msgs.msg import Clock
 
@@ -59,12 +39,15 @@ from activetrack_ros.params import ParamSpec, declare, fix_use_sim_time, warn_un
 from activetrack_ros.trust import is_signed_type
 
 
-def _msgs_defs_files() -> list[Path]:
+def _share(package: str) -> Path:
     try:
-        share = Path(get_package_share_directory("msgs_defs"))
-    except (OSError, LookupError):  # no AMENT_PREFIX_PATH: msgs_defs is installed in this prefix
-        share = Path(sys.prefix) / "share" / "msgs_defs"
-    return sorted((share / "msg").glob("*.msg"))
+        return Path(get_package_share_directory(package))
+    except (OSError, LookupError, ValueError):  # no AMENT_PREFIX_PATH: installed in this prefix
+        return Path(sys.prefix) / "share" / package
+
+
+def _msgs_defs_files() -> list[Path]:
+    return sorted((_share("msgs_defs") / "msg").glob("*.msg"))
 
 
 def graph_typestore():
@@ -77,10 +60,8 @@ def graph_typestore():
     return store
 
 
-# Schemas (message definition text and RIHS01 hash) of the graph's types: building the
-# typestore and hashing 13 types costs ~0.4 s, so set-up writes them to a file in the install
-# (tools/setup.sh), and a process computes them at most once when that file is missing or
-# stale. Nothing is written at run time.
+# The graph types' schemas cost ~0.4 s to build: set-up (tools/setup.sh) writes them to the
+# install, and a process computes them at most once when that file is missing or stale.
 SCHEMA_CACHE = Path(sys.prefix) / "share" / "activetrack" / "bag_schemas.json"
 _schemas_in_memory: dict[str, dict] = {}
 
@@ -128,35 +109,30 @@ def installed_type_hash(msgtype: str) -> str | None:
     file), or None when it cannot be found."""
     package, _, name = msgtype.partition("/msg/")
     try:
-        share = Path(get_package_share_directory(package))
-    except (OSError, LookupError, ValueError):
-        share = Path(sys.prefix) / "share" / package
-    try:
-        hashes = json.loads((share / "msg" / f"{name}.json").read_text())["type_hashes"]
+        hashes = json.loads((_share(package) / "msg" / f"{name}.json").read_text())["type_hashes"]
         return next(h["hash_string"] for h in hashes if h["type_name"] == msgtype)
     except (OSError, ValueError, KeyError, TypeError, StopIteration):
         return None
 
 
 def bag_qos(topic: str, depth: int | None = None) -> list[dict]:
-    """Offered QoS written to the bag, so that a real `ros2 bag play` matches ours."""
+    """Offered QoS written to the bag (rosbag2 v9 dictionaries), so that a real `ros2 bag play`
+    matches ours."""
     qos = writer_qos(topic, depth)
     latched = qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
-    return dump_qos_v9(
-        [
-            Qos(
-                history=QosHistory.KEEP_LAST,
-                depth=qos.depth,
-                reliability=QosReliability.RELIABLE,
-                durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
-                deadline=QosTime(0, 0),
-                lifespan=QosTime(0, 0),
-                liveliness=QosLiveliness.AUTOMATIC,
-                liveliness_lease_duration=QosTime(0, 0),
-                avoid_ros_namespace_conventions=False,
-            )
-        ]
-    )
+    return [
+        {
+            "history": "keep_last",
+            "depth": qos.depth,
+            "reliability": "reliable",
+            "durability": "transient_local" if latched else "volatile",
+            "deadline": {"sec": 0, "nsec": 0},
+            "lifespan": {"sec": 0, "nsec": 0},
+            "liveliness": "automatic",
+            "liveliness_lease_duration": {"sec": 0, "nsec": 0},
+            "avoid_ros_namespace_conventions": False,
+        }
+    ]
 
 
 def first_stamp_ns(data: bytes) -> int:
@@ -195,38 +171,28 @@ def recorder_params(path, topic_types, depth, clock_lead) -> tuple[ParamSpec, ..
     )  # fmt: skip
 
 
-def recorded_topics(names: str) -> dict[str, str]:
-    """Graph topic -> type for a recorder's ``topics`` parameter ('' : every graph topic)."""
-    if not names.strip():
+def recorded_topics(names, what: str = "parameter 'topics'") -> dict[str, str]:
+    """Graph topic -> type of the graph topics ``names`` (none: every graph topic); ValueError
+    naming ``what`` for a name that is not one."""
+    if not names:
         return dict(GRAPH_TOPICS)
-    unknown = [t for t in names.split() if graph_topic_of(t) is None]
+    unknown = [t for t in names if graph_topic_of(t) is None]
     if unknown:
-        raise ValueError(f"parameter 'topics' must name graph topics {sorted(GRAPH_TOPICS)}; "
-                         f"got {unknown}")  # fmt: skip
-    return {graph_topic_of(t): GRAPH_TOPICS[graph_topic_of(t)] for t in names.split()}
+        raise ValueError(f"{what} must name graph topics {sorted(GRAPH_TOPICS)}; got {unknown}")
+    return {graph_topic_of(t): GRAPH_TOPICS[graph_topic_of(t)] for t in names}
 
 
 class BagRecorder(Node):
-    """Subscribes to topics (raw CDR) and writes them to a rosbag2 directory (MCAP) that stays
-    readable while it grows; ``close()`` finishes it (summary, final metadata.yaml).
+    """Subscribes to topics (raw CDR, stored under their resolved names) and writes them to a
+    rosbag2 directory; ``close()`` finishes it (summary, final metadata.yaml).
 
-    Log time is simulated time, the latest ``clock`` the recorder received (what
-    ``ros2 bag record --use-sim-time`` does; 0 before the first), so a bag's timeline spans the
-    scenario's simulated duration and replays at sim speed. Topics are stored under their
-    resolved names (``/<namespace>/activetrack/track``).
-
-    With ``graph_key`` (activetrack_ros.trust), messages of the signed (msgs_defs) types whose
-    trailer does not verify come from outside the graph: they are dropped and counted in
-    ``foreign``, not recorded. ``clock`` cannot be signed (a standard type): with a key, a
-    clock value is taken as the time only while it stays within ``clock_lead`` seconds after
-    the newest stamp of the graph's own signed messages and never goes back, so another
-    writer's clock can shift log times by less than an epoch, never reorder or stretch the
-    run (``clock_refused`` counts the values not taken). ``depth``: the history depth written
-    as the per-epoch topics' offered QoS (the run's, graph.history_depth).
-
-    The arguments are the defaults of read-only parameters (``bag``, ``topics``, ``depth``,
-    ``clock_lead``: :func:`recorder_params`), so ``param describe`` shows what the recorder
-    does and a standalone recorder (``activetrack_recorder``) takes them from ``--ros-args``.
+    Log time is the latest ``clock`` received (``ros2 bag record --use-sim-time``; 0 before).
+    With ``graph_key`` (activetrack_ros.trust), signed-type messages that do not verify are
+    counted in ``foreign``, not recorded; ``clock`` cannot be signed, so a clock value is taken
+    only while it never goes back and stays within ``clock_lead`` s of the newest verified
+    stamp: another writer's clock can shift log times by less than an epoch, never reorder the
+    run (``clock_refused`` counts the values not taken). The arguments are the defaults of
+    read-only parameters (:func:`recorder_params`) a standalone recorder takes from --ros-args.
     """
 
     TICK_S = 0.25  # timer period: closes chunks older than 0.5 s, rewrites metadata.yaml (1 s)
@@ -246,19 +212,15 @@ class BagRecorder(Node):
             fix_use_sim_time(self)
             p = declare(self, recorder_params(path, topic_types, depth, clock_lead))
             warn_unknown(self)
-            self.topic_types = recorded_topics(p["topics"])
-        except ValueError:
-            super().destroy_node()
-            raise
-        self.path = Path(p["bag"])
-        depth, clock_lead = p["depth"] or None, p["clock_lead"]
-        schemas = graph_schemas(self.topic_types.values())
-        names = {t: self.resolve_topic_name(t) for t in self.topic_types}
-        specs = [
-            TopicSpec(names[topic], msgtype, *schemas[msgtype], qos=bag_qos(topic, depth))
-            for topic, msgtype in self.topic_types.items()
-        ]
-        try:
+            self.topic_types = recorded_topics(p["topics"].split())
+            self.path = Path(p["bag"])
+            depth, clock_lead = p["depth"] or None, p["clock_lead"]
+            schemas = graph_schemas(self.topic_types.values())
+            names = {t: self.resolve_topic_name(t) for t in self.topic_types}
+            specs = [
+                TopicSpec(names[topic], msgtype, *schemas[msgtype], qos=bag_qos(topic, depth))
+                for topic, msgtype in self.topic_types.items()
+            ]
             self.writer = Rosbag2Writer(self.path, specs)  # BagError if the path exists
         except BaseException:
             super().destroy_node()
@@ -313,30 +275,26 @@ class BagRecorder(Node):
         return on_raw
 
     def _write(self, topic: str, data: bytes) -> None:
-        # Signals wait (interrupts.deferred): Ctrl-C or SIGTERM raised inside a chunk's
-        # write(2) would leave half a chunk on disk before the bag is closed.
-        with self._lock, interrupts.deferred():
-            if self.writer is None or self.failed:
-                return
-            try:
-                self.writer.write(self._channel[topic], self._now_ns, data)
-            except OSError as exc:  # a full disk must not stop the graph: stop recording
-                self._fail(exc)
-                return
-            self.count += 1
+        self._guarded(self._append, self._channel[topic], data)
+
+    def _append(self, channel: int, data: bytes) -> None:
+        self.writer.write(channel, self._now_ns, data)
+        self.count += 1
 
     def _tick(self) -> None:
+        self._guarded(lambda: self.writer.tick())
+
+    def _guarded(self, action, *args) -> None:
+        """``action(*args)`` unless the bag is closed or failed. Signals wait
+        (interrupts.deferred): raised inside a chunk's write(2) they would leave half a chunk."""
         with self._lock, interrupts.deferred():
             if self.writer is None or self.failed:
                 return
             try:
-                self.writer.tick()
-            except OSError as exc:
-                self._fail(exc)
-
-    def _fail(self, exc: OSError) -> None:
-        self.failed = f"recording to {self.path} stopped: {exc.strerror or exc}"
-        self.get_logger().error(self.failed)
+                action(*args)
+            except OSError as exc:  # a full disk must not stop the graph: stop recording
+                self.failed = f"recording to {self.path} stopped: {exc.strerror or exc}"
+                self.get_logger().error(self.failed)
 
     def close(self) -> None:
         """Finish the bag (summary, final metadata.yaml); idempotent."""
@@ -431,9 +389,7 @@ class BagPlayer(Node):
         self.messages = bag.messages(list(classes))
         self.published = 0
         self.done = False
-        self._next = None
-        self._t0_bag = None
-        self._t0_wall = None
+        self._next = self._t0_bag = self._t0_wall = None
 
     def _publisher(self, name: str, cls):
         """Publish on the recorded (resolved) name with the graph's QoS for that topic; a

@@ -1,18 +1,15 @@
 """rosbag2 directories (``metadata.yaml`` version 9 + MCAP storage), written so that they stay
 readable while they grow and read so that damage is reported, never decoded.
 
-Writing (:class:`Rosbag2Writer`): ``metadata.yaml`` is written when the bag opens and rewritten
-(atomically: a temporary file, then rename) at most once per ``metadata_interval_s`` while
-messages reach the disk, and at close; it counts the messages in complete chunks, so it never
-lists more than the file holds, and ``custom_data.activetrack_state`` says ``recording`` until
-the bag is closed (``closed``) or recovered (``recovered``).
+Writing (:class:`Rosbag2Writer`): ``metadata.yaml`` is rewritten atomically (temporary file,
+rename) at most once a second while messages reach the disk, and at close; it counts only the
+messages in complete chunks, and ``custom_data.activetrack_state`` says ``recording`` until the
+bag is ``closed`` or ``recovered``.
 
-Reading (:func:`open_bag`): the MCAP files are the truth (topics, types, counts come from a scan
-that checks every CRC, see :mod:`mcap_reader`); ``metadata.yaml`` must be valid and is compared
-with them. Problems come in three severities: :class:`BagError` (nothing usable: the command
-says ``error: ...`` and exits 2), damage (:class:`mcap_reader.Damage`, one line each, kinds
-``lost``/``incomplete``/``harmless`` plus ``metadata`` for a metadata.yaml that disagrees with
-the file) and notes (a topic that cannot be used, e.g. an unknown encoding; it is skipped).
+Reading (:func:`open_bag`): the MCAP files are the truth (a scan that checks every CRC,
+:mod:`mcap_reader`); ``metadata.yaml`` must be valid and is compared with them. Problems:
+:class:`BagError` (nothing usable), damage (:class:`mcap_reader.Damage` kinds plus ``metadata``:
+a metadata.yaml that disagrees with the files) and notes (a topic that cannot be used, skipped).
 """
 
 from __future__ import annotations
@@ -24,40 +21,20 @@ import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path, PurePath
+from typing import NamedTuple
 
 import yaml
 
-from activetrack_bringup.mcap_reader import (
-    HARMLESS,
-    INCOMPLETE,
-    LOST,
-    Damage,
-    McapFileError,
-    McapScan,
-)
+from activetrack_bringup.mcap_reader import LOST, Damage, McapFileError, McapScan
 from activetrack_bringup.mcap_writer import CHUNK_AGE_S, CHUNK_SIZE, McapWriter
 
 METADATA = "metadata"  # damage kind: metadata.yaml disagrees with the MCAP file(s)
 METADATA_VERSION = 9
 STATE_KEY = "activetrack_state"  # custom_data: recording | closed | recovered
+METADATA_INTERVAL_NS = 1_000_000_000  # metadata.yaml is rewritten at most this often
 _TYPE_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*/(msg|srv|action)/[A-Za-z][A-Za-z0-9_]*$")
 _Dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 _Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-
-__all__ = [
-    "HARMLESS",
-    "INCOMPLETE",
-    "LOST",
-    "METADATA",
-    "Bag",
-    "BagError",
-    "BagTopic",
-    "Damage",
-    "Rosbag2Writer",
-    "TopicSpec",
-    "open_bag",
-    "read_metadata",
-]
 
 
 class BagError(ValueError):
@@ -105,8 +82,6 @@ class Rosbag2Writer:
         *,
         chunk_size: int = CHUNK_SIZE,
         chunk_age_s: float = CHUNK_AGE_S,
-        metadata_interval_s: float = 1.0,
-        library: str = "activetrack",
         state: str = "recording",
         file_name: str | None = None,
     ):
@@ -121,10 +96,8 @@ class Rosbag2Writer:
         self.metadata_path = self.path / "metadata.yaml"
         self.topics = list(topics)
         self.state = state
-        self.metadata_interval_ns = int(metadata_interval_s * 1e9)
-        self._mcap = McapWriter(
-            self.mcap_path, library=library, chunk_size=chunk_size, chunk_age_s=chunk_age_s
-        )
+        self._mcap = McapWriter(self.mcap_path, chunk_size=chunk_size, chunk_age_s=chunk_age_s)
+        self.write = self._mcap.write  # (channel_id, log_time, data, publish_time=None)
         schema_ids: dict[tuple, int] = {}
         self.channel_ids: dict[str, int] = {}
         for spec in self.topics:
@@ -143,19 +116,11 @@ class Rosbag2Writer:
         self._metadata_at = 0
         self.write_metadata()
 
-    def write(self, channel_id: int, log_time: int, data, publish_time: int | None = None):
-        self._mcap.write(channel_id, log_time, data, publish_time)
-
-    @property
-    def written(self) -> int:
-        return self._mcap.written
-
     def tick(self) -> None:
-        """For a timer: close a chunk whose first message is old, and rewrite metadata.yaml if
-        the messages on disk changed and the last rewrite is ``metadata_interval_s`` old."""
+        """For a timer: close an old chunk, and rewrite metadata.yaml if the messages on disk
+        changed and the last rewrite is METADATA_INTERVAL_NS old."""
         self._mcap.flush_if_older()
-        now = time.monotonic_ns()
-        if now - self._metadata_at >= self.metadata_interval_ns:
+        if time.monotonic_ns() - self._metadata_at >= METADATA_INTERVAL_NS:
             self.write_metadata(only_if_changed=True)
 
     def metadata(self) -> dict:
@@ -236,7 +201,8 @@ class Rosbag2Writer:
 # --- reading -----------------------------------------------------------------------------
 
 
-def _need(d: dict, key: str, kind, where: str):
+def _need(d: dict, key: str, kind, where: str, counts: bool = False):
+    """``d[key]``, of type ``kind`` (and not negative if it ``counts``), else BagError."""
     if key not in d:
         raise BagError(f"{where}: '{key}' is missing")
     value = d[key]
@@ -244,6 +210,8 @@ def _need(d: dict, key: str, kind, where: str):
         raise BagError(f"{where}: '{key}' must be an integer, got {value!r:.40}")
     if kind is not int and not isinstance(value, kind):
         raise BagError(f"{where}: '{key}' must be a {kind.__name__}, got {value!r:.40}")
+    if counts and value < 0:
+        raise BagError(f"{where}: negative {key}")
     return value
 
 
@@ -296,13 +264,31 @@ def read_metadata(bag_dir: Path) -> dict:
         tm = _need(entry, "topic_metadata", dict, at)
         _need(tm, "name", str, at)
         _need(tm, "type", str, at)
-        count = _need(entry, "message_count", int, at)
-        if count < 0:
-            raise BagError(f"{at}: negative message_count")
-    count = _need(info, "message_count", int, where)
-    if count < 0:
-        raise BagError(f"{meta}: negative message_count")
+        _need(entry, "message_count", int, at, counts=True)
+    _need(info, "message_count", int, where, counts=True)
     return info
+
+
+class ListedTopic(NamedTuple):
+    """A topic as a (validated) metadata.yaml lists it."""
+
+    msgtype: str
+    count: int
+    rihs01: str  # "" when not given
+
+
+UNLISTED = ListedTopic("", 0, "")
+
+
+def listed_topics(info: dict | None) -> dict[str, ListedTopic]:
+    """The topics of a :func:`read_metadata` result (None: none)."""
+    listed = {}
+    for entry in (info or {}).get("topics_with_message_count", ()):
+        tm = entry["topic_metadata"]
+        rihs01 = tm.get("type_description_hash")
+        rihs01 = rihs01 if isinstance(rihs01, str) else ""
+        listed[tm["name"]] = ListedTopic(tm["type"], entry["message_count"], rihs01)
+    return listed
 
 
 @dataclass
@@ -333,26 +319,18 @@ class Bag:
         if metadata is not None:
             self._compare_metadata(metadata)
 
-    # --- building ----------------------------------------------------------------------
-
     def _collect_topics(self) -> None:
-        meta_types = {}
-        meta_hash = {}
-        if self.metadata is not None:
-            for entry in self.metadata["topics_with_message_count"]:
-                tm = entry["topic_metadata"]
-                meta_types[tm["name"]] = tm["type"]
-                if isinstance(tm.get("type_description_hash"), str):
-                    meta_hash[tm["name"]] = tm["type_description_hash"]
+        listed = listed_topics(self.metadata)
         for i, scan in enumerate(self.scans):
             for cid, ch in sorted(scan.channels.items()):
                 schema = scan.schemas.get(ch.schema_id)
-                msgtype = schema.name if schema else meta_types.get(ch.topic, "")
+                entry = listed.get(ch.topic, UNLISTED)
+                msgtype = schema.name if schema else entry.msgtype
                 meta = ch.meta
                 topic = self.topics.get(ch.topic)
                 if topic is None:
                     topic = self.topics[ch.topic] = BagTopic(ch.topic, msgtype)
-                    topic.rihs01 = meta.get("topic_type_hash") or meta_hash.get(ch.topic, "")
+                    topic.rihs01 = meta.get("topic_type_hash") or entry.rihs01
                     topic.serialization_format = ch.message_encoding
                     topic.qos = _parse_qos(meta.get("offered_qos_profiles", ""))
                     if schema is not None:
@@ -378,13 +356,10 @@ class Bag:
         state = custom if isinstance(custom, dict) else {}
         recording = state.get(STATE_KEY) == "recording"
         unfinished = any(not s.finished for s in self.scans)
-        listed = {}
-        for entry in info["topics_with_message_count"]:
-            tm = entry["topic_metadata"]
-            listed[tm["name"]] = (tm["type"], entry["message_count"])
+        listed = listed_topics(info)
         meta = self.path / "metadata.yaml"
         absent, types, counts = [], [], []
-        for name, (msgtype, count) in listed.items():
+        for name, (msgtype, count, _) in listed.items():
             topic = self.topics.get(name)
             if topic is None:
                 absent.append(name)
@@ -393,12 +368,13 @@ class Bag:
                 types.append(f"{name} {msgtype} (file: {topic.msgtype})")
             if count > topic.count or (count < topic.count and not (recording or unfinished)):
                 counts.append(f"{name} {count} (file: {topic.count})")
-        if absent:
-            self._meta(f"{meta} lists topics the bag's files do not hold: {', '.join(absent)}")
-        if types:
-            self._meta(f"{meta} gives other types: {', '.join(types)}")
-        if counts:
-            self._meta(f"{meta} gives other message counts: {', '.join(counts)}")
+        for items, what in (
+            (absent, "lists topics the bag's files do not hold"),
+            (types, "gives other types"),
+            (counts, "gives other message counts"),
+        ):
+            if items:
+                self._meta(f"{meta} {what}: {', '.join(items)}")
         unlisted = sorted(self.topics.keys() - listed.keys())
         if unlisted:
             self._meta(f"{meta} does not list topics {', '.join(unlisted)} (stale or damaged)")
@@ -424,8 +400,6 @@ class Bag:
     def _meta(self, text: str) -> None:
         self.damage.append(Damage(METADATA, text))
 
-    # --- results -----------------------------------------------------------------------
-
     @property
     def usable_topics(self) -> dict[str, BagTopic]:
         return {t: v for t, v in self.topics.items() if v.problem is None}
@@ -436,13 +410,11 @@ class Bag:
 
     @property
     def start_time(self) -> int | None:
-        times = [s.start_time for s in self.scans if s.start_time is not None]
-        return min(times) if times else None
+        return min((s.start_time for s in self.scans if s.start_time is not None), default=None)
 
     @property
     def end_time(self) -> int | None:
-        times = [s.end_time for s in self.scans if s.end_time is not None]
-        return max(times) if times else None
+        return max((s.end_time for s in self.scans if s.end_time is not None), default=None)
 
     @property
     def duration_ns(self) -> int:
@@ -472,7 +444,7 @@ class Bag:
             }
             if not wanted:
                 continue
-            for cid, log_time, data in scan.messages(wanted):
+            for cid, log_time, _, data in scan.records(wanted):
                 yield wanted[cid], log_time, data
 
     def close(self) -> None:

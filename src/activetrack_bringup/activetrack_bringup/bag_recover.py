@@ -1,13 +1,8 @@
-"""``activetrack bag recover BAG``: rebuild a readable bag from whatever of it verifies.
-
-For an MCAP file whose writer died (no summary, a record cut off at the end), with corrupt
-chunks, or with a missing, stale or garbled ``metadata.yaml``: every chunk that verifies (CRC)
-is read (:class:`mcap_reader.McapScan`, which stops cleanly at a truncation and resumes after
-damage at the next verified chunk), its messages are written to a clean MCAP file with a
-summary, and a fresh ``metadata.yaml`` is written from what was kept. The damaged original is
-kept next to it as ``<name>.mcap.damaged`` (and a replaced ``metadata.yaml`` as
-``metadata.yaml.old``); nothing is ever deleted. The report says how many messages were kept
-per topic and, one line each, what was lost.
+"""``activetrack bag recover BAG``: rebuild a readable bag from whatever of it verifies (a writer
+that died, corrupt chunks, a missing, stale or garbled ``metadata.yaml``): the messages of every
+verified chunk go to a clean MCAP file with a summary and a fresh ``metadata.yaml``. Nothing is
+deleted: the originals are kept as ``<name>.mcap.damaged`` and ``metadata.yaml.old``. The report
+names what was kept per topic and, one line each, what was lost.
 """
 
 from __future__ import annotations
@@ -18,16 +13,16 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
 from activetrack_bringup.bag_io import (
-    INCOMPLETE,
-    LOST,
+    UNLISTED,
     BagError,
     Rosbag2Writer,
     TopicSpec,
     _parse_qos,
+    listed_topics,
     open_bag,
     read_metadata,
 )
-from activetrack_bringup.mcap_reader import McapFileError, McapScan
+from activetrack_bringup.mcap_reader import INCOMPLETE, LOST, McapFileError, McapScan
 
 RECOVER_CHUNK_SIZE = 1 << 20  # the recovered file is written at once: larger chunks
 
@@ -57,13 +52,15 @@ class RecoverReport:
         }
 
 
-def _backup_name(path: Path, suffix: str) -> Path:
-    candidate = path.with_name(path.name + suffix)
+def _move_aside(path: Path, suffix: str, report: RecoverReport) -> None:
+    """Rename ``path`` to the first free ``<name><suffix>[.n]``, listed in ``report.backups``."""
+    backup = path.with_name(path.name + suffix)
     n = 1
-    while candidate.exists():
-        candidate = path.with_name(f"{path.name}{suffix}.{n}")
+    while backup.exists():
+        backup = path.with_name(f"{path.name}{suffix}.{n}")
         n += 1
-    return candidate
+    os.replace(path, backup)
+    report.backups.append(backup)
 
 
 def _mcap_file(bag_dir: Path) -> tuple[Path, dict | None, str | None]:
@@ -151,14 +148,10 @@ def _note_metadata_losses(
 ) -> None:
     """Add to ``report.lost`` what the old metadata.yaml listed beyond what was kept."""
     if old_meta is not None:
-        listed = {
-            e["topic_metadata"]["name"]: e["message_count"]
-            for e in old_meta["topics_with_message_count"]
-        }
         short = [
-            f"{topic} {n} (kept {report.kept.get(topic, 0)})"
-            for topic, n in sorted(listed.items())
-            if n > report.kept.get(topic, 0)
+            f"{topic} {t.count} (kept {report.kept.get(topic, 0)})"
+            for topic, t in sorted(listed_topics(old_meta).items())
+            if t.count > report.kept.get(topic, 0)
         ]
         if short:
             report.lost.append(f"{bag_dir}/metadata.yaml listed more: {', '.join(short)}")
@@ -172,26 +165,17 @@ def _install(
     """Move the rebuilt files from ``tmp`` into the bag; the originals keep their data under
     new names (listed in ``report.backups``), nothing is deleted."""
     if mcap_damaged:
-        backup = _backup_name(mcap_path, ".damaged")
-        os.replace(mcap_path, backup)
-        report.backups.append(backup)
+        _move_aside(mcap_path, ".damaged", report)
         os.replace(tmp / mcap_path.name, mcap_path)
     meta_path = bag_dir / "metadata.yaml"
     if meta_path.exists():
-        backup = _backup_name(meta_path, ".old")
-        os.replace(meta_path, backup)
-        report.backups.append(backup)
+        _move_aside(meta_path, ".old", report)
     os.replace(tmp / "metadata.yaml", meta_path)
 
 
 def _topics(scan: McapScan, old_meta: dict | None, report: RecoverReport):
     """TopicSpecs for the channels that can be kept, and ``{channel id: topic}``."""
-    old_hash = {}
-    if old_meta is not None:
-        for e in old_meta["topics_with_message_count"]:
-            h = e["topic_metadata"].get("type_description_hash")
-            if isinstance(h, str):
-                old_hash[e["topic_metadata"]["name"]] = h
+    listed = listed_topics(old_meta)
     specs, channel_topic, seen = [], {}, {}
     for cid, ch in sorted(scan.channels.items()):
         schema = scan.schemas.get(ch.schema_id)
@@ -217,7 +201,7 @@ def _topics(scan: McapScan, old_meta: dict | None, report: RecoverReport):
                 topic=ch.topic,
                 msgtype=schema.name,
                 msgdef=schema.data.decode("utf-8", errors="replace"),
-                rihs01=meta.get("topic_type_hash") or old_hash.get(ch.topic, ""),
+                rihs01=meta.get("topic_type_hash") or listed.get(ch.topic, UNLISTED).rihs01,
                 qos=_parse_qos(meta.get("offered_qos_profiles", "")),
                 serialization_format=ch.message_encoding,
                 schema_encoding=schema.encoding,

@@ -41,6 +41,7 @@ from activetrack_bringup.track import add_track_parser
 EXPERIMENTS = ("hernandez", "multitarget", "ramdaras", "valverde", "vanderhook")
 WAIT_TIMEOUT_S = 60.0  # --wait-for's default --wait-timeout
 LAYOUT = "docs/foxglove-layout.json"  # the Foxglove layout of a live run and of a bag
+NOTABLE_COUNTERS = ("rejected", "errors", "dropped", "incompatible_writers")  # shown after a run
 
 
 def _print_summary(s) -> None:
@@ -106,10 +107,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
         code = 0
     except (ScenarioError, FileExistsError, GraphSetupError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return _error(exc)
     except RunIncomplete as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        _error(exc)
         result, code = exc.result, exc.exit_code
     finally:
         bar.close()
@@ -128,11 +128,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         f"{result.real_time_factor:.1f}x ({mode})"
     )
     for node, counts in result.diagnostics.items():
-        notable = {
-            k: v
-            for k, v in counts.items()
-            if k.split(".")[0] in ("rejected", "errors", "dropped", "incompatible_writers")
-        }
+        notable = {k: v for k, v in counts.items() if k.split(".")[0] in NOTABLE_COUNTERS}
         if notable:
             print(f"  {node}: {notable}")
     foreign = sum(result.foreign.values())
@@ -250,8 +246,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     try:
         scenario = load_scenario(args.scenario)
     except ScenarioError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return _error(exc)
     with Bar("batch", total=args.runs) as bar, _scheduler_errors():  # bar: on a terminal only
         s = run_batch(
             scenario,
@@ -284,7 +279,7 @@ def _scheduler_errors():
 
 
 def _error(exc) -> int:
-    """A bag command's failure: one ``error:`` line on stderr, exit code 2."""
+    """A command's failure: one ``error:`` line on stderr, exit code 2."""
     print(f"error: {exc}", file=sys.stderr)
     return 2
 
@@ -297,29 +292,23 @@ def _warn(lines) -> None:
 def _cmd_record(args: argparse.Namespace) -> int:
     import time
 
-    from activetrack_bringup.bag import BagRecorder
+    from activetrack_bringup.bag import BagRecorder, recorded_topics
     from activetrack_bringup.bag_io import BagError
     from activetrack_bringup.inprocess import InProcessGraph
-    from activetrack_bringup.runner import GraphSetupError, check_namespace
-    from activetrack_ros.graph import GRAPH_TOPICS, graph_topic_of
+    from activetrack_bringup.runner import check_namespace
 
-    topic_types = GRAPH_TOPICS
-    if args.topics:  # relative (activetrack/track) or absolute (/activetrack/track) names
-        unknown = [t for t in args.topics if graph_topic_of(t) is None]
-        if unknown:
-            return _error(f"--topics must be among {sorted(GRAPH_TOPICS)}; got {unknown}")
-        topic_types = {graph_topic_of(t): GRAPH_TOPICS[graph_topic_of(t)] for t in args.topics}
-    if Path(args.bag).exists():
-        return _error(f"{args.bag} exists already: record into a new path")
-    try:
-        namespace = check_namespace(args.namespace)
-    except GraphSetupError as exc:
+    try:  # relative (activetrack/track) or absolute (/activetrack/track) names
+        topic_types = recorded_topics(args.topics or (), "--topics")
+        if Path(args.bag).exists():
+            raise ValueError(f"{args.bag} exists already: record into a new path")
+        namespace = check_namespace(args.namespace) or None  # None: the node's default
+    except ValueError as exc:  # GraphSetupError too
         return _error(exc)
-    node_options = {"context": None, "namespace": namespace} if namespace else {}
     try:
         with InProcessGraph() as graph:
-            node_options["context"] = graph.context
-            recorder = graph.add(BagRecorder(args.bag, topic_types, **node_options))
+            recorder = graph.add(
+                BagRecorder(args.bag, topic_types, context=graph.context, namespace=namespace)
+            )
             print(f"recording {len(topic_types)} topics to {args.bag} (Ctrl-C to stop)")
             end = time.monotonic() + (args.duration if args.duration else float("inf"))
             try:  # signals wait while a chunk is written (interrupts.deferred in the recorder)
@@ -343,15 +332,8 @@ def _cmd_play(args: argparse.Namespace) -> int:
 
     try:
         with InProcessGraph() as graph:
-            player = graph.add(
-                BagPlayer(
-                    args.bag,
-                    args.topics,
-                    args.rate,
-                    skip_damaged=getattr(args, "skip_damaged", False),
-                    context=graph.context,
-                )
-            )
+            options = {"skip_damaged": args.skip_damaged, "context": graph.context}
+            player = graph.add(BagPlayer(args.bag, args.topics, args.rate, **options))
             _warn(player.warnings)
             graph.spin_until(
                 lambda: (player.play_step(), player.done)[1], timeout=float("inf"), step=0.001
@@ -459,9 +441,7 @@ def _add_bag_parser(sub) -> None:
     rt.add_argument(
         "--filter", help="another registered filter: ekf, pf or a plugin's (default: as run)"
     )
-    rt.add_argument(
-        "--run", type=cli_types.run_index, default=None, help="Monte Carlo run index of the run"
-    )
+    rt.add_argument("--run", type=cli_types.run_index, help="Monte Carlo run index of the run")
     rt.add_argument("--json", help="write the report to this JSON file")
     rt.set_defaults(func=_cmd_bag_retrack)
     rec_b = bag_sub.add_parser(
@@ -484,9 +464,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", help="scenario YAML file")
     run.add_argument("--processes", action="store_true", help="one OS process per node (DDS)")
     run.add_argument("--mode", choices=("lockstep", "free"), default="lockstep")
-    run.add_argument(
-        "--run", type=cli_types.run_index, default=None, help="Monte Carlo run index (seeding)"
-    )
+    run.add_argument("--run", type=cli_types.run_index, help="Monte Carlo run index (seeding)")
     run.add_argument(
         "--namespace", default="", help="ROS namespace of the graph (several graphs per domain)"
     )

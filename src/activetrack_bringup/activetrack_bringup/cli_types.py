@@ -1,8 +1,6 @@
-"""argparse ``type=`` functions of the ``activetrack`` command line's numbers.
-
-A bad number is a one-line usage error (``error: argument --runs: must be an integer in
-[1, 100000], got '0'``, exit code 2) before anything runs. The helpers and limits are the
-core's (:mod:`activetrack.argtypes`, :mod:`activetrack.limits`), shared with the experiments.
+"""argparse ``type=`` functions of the ``activetrack`` command line's numbers: a bad one is a
+one-line usage error, exit code 2 (helpers and limits: :mod:`activetrack.argtypes`,
+:mod:`activetrack.limits`).
 """
 
 from __future__ import annotations

@@ -1,20 +1,14 @@
-"""The run's evaluator: the only reader of ground truth; rebuilds the run's
-:class:`~activetrack.closed_loop.record.RunRecord` from the graph's own outputs (truth arrays,
-scans, track arrays, platform states, commands, beams, selections and plan reports, each
-checked as the nodes check them), so that the runner scores it with the batch loop's code
-(:func:`activetrack.closed_loop.evaluation.evaluate_run`): in lockstep, `activetrack run`
-equals `activetrack batch` bit for bit, for every scenario.
+"""The run's evaluator, the only reader of ground truth: it rebuilds the run's
+:class:`~activetrack.closed_loop.record.RunRecord` from the graph's own outputs, each checked as
+the nodes check them, so that the runner scores it with the batch loop's code
+(:func:`~activetrack.closed_loop.evaluation.evaluate_run`): in lockstep, `activetrack run` equals
+`activetrack batch` bit for bit. What the sim does not publish is rebuilt from what it does:
+which sensors scanned (the scans), and which had which alive target in view (each scan's field
+of view and the truth, with the simulator's own test); the detections' labels stay in the sim.
 
-What the sim knows and does not publish is rebuilt from what it does: which sensors scanned
-(the scans), and which sensor had which alive target in its field of view (the per-target
-bound's ``observed``) from each scan's field of view and the truth, with the simulator's own
-test. The detections' labels stay in the sim, so a run's plot shows the detections unlabelled.
-
-As each epoch closes it publishes the run's figures so far (``RunMetrics``: each target's error
-and PCRLB, GOSPA: the summary's numbers) and markers of what only it knows or nobody draws
-(the targets' truth and paths, the sensors that scanned, each platform's planned next leg):
-what Foxglove shows live and from a bag (docs/live-view.md). Publishing reads nothing the
-result depends on."""
+As each epoch closes it publishes the figures so far (``RunMetrics``) and the markers only it
+knows (truth, sensors that scanned, planned legs) for the live view (docs/live-view.md);
+publishing reads nothing the result depends on."""
 
 from __future__ import annotations
 
@@ -137,13 +131,10 @@ def evaluator_params(scenario_given: bool, report_grace_s: float) -> tuple[Param
 
 
 class EvaluatorNode(GraphNode):
-    """Collects a run per epoch (module docstring); ``record()`` gives it. Also the graph's
-    result messages checked as faults, the nodes' counters from /diagnostics, and when the sim
-    said it finished."""
+    """Collects a run per epoch (module docstring); ``record()`` gives it. ``scenario``: the
+    run's, or None to load the file of its ``scenario`` parameter (a standalone evaluator)."""
 
     def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
-        """``scenario``: the run's scenario, or None to load the file its ``scenario``
-        parameter names (a standalone evaluator)."""
         super().__init__("activetrack_evaluator", **kwargs)
         changes = {"exit_when_done": self._set_exit_when_done}
         p = self.declare_params(evaluator_params(scenario is not None, report_grace_s), changes)
@@ -179,19 +170,16 @@ class EvaluatorNode(GraphNode):
         self.beams: dict[int, dict[str, BeamCommand]] = {}
         self.selections: dict[int, tuple[str, ...]] = {}
         self.reports: dict[int, PlanReportData] = {}
-        # The live view's inputs (docs/live-view.md): per-epoch metrics and markers; the
-        # summary's bound generator for one run, drawn as the evaluation draws.
+        # The live view's figures: the summary's bound, its generator drawn as evaluate_run's.
         self.assess = EpochAssessor(scenario)
         rng = component_rngs(scenario.seed, None)[3]
-        sensors, self.bound_columns = bound_sensors(scenario)
-        self.bound_sensors = sensors
-        self.bounds = [TargetBound(t, sensors, scenario.dt, rng) for t in targets]
+        self.bound_sensors, self.bound_columns = bound_sensors(scenario)
+        self.bounds = [TargetBound(t, self.bound_sensors, scenario.dt, rng) for t in targets]
         self.metrics_epoch = 1  # the next epoch to publish figures of
         self.sums = np.zeros((4, len(targets)))  # error x, y (where held), bound x, y
         self.held_epochs = np.zeros(len(targets))
         self.bound_epochs = np.zeros(len(targets))
         self.gospa_sum = 0.0
-        self.last_metrics: RunMetrics | None = None
         self.command_epoch: dict[str, int] = {}  # the latest command's epoch per platform
         self.undrawn: dict[tuple, ManoeuvreCommand] = {}  # (platform, epoch): awaits its state
         self.marker_size = _marker_size(scenario)
@@ -223,8 +211,6 @@ class EvaluatorNode(GraphNode):
                 self.faults.append(f"{type(msg).__name__} epoch {msg.epoch}: {r}")
             raise
 
-    # --- inputs ---------------------------------------------------------------------------
-
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         """Counters of the graph's nodes (only the graph's own statuses arrive with a key)."""
         for status in msg.status:
@@ -245,19 +231,16 @@ class EvaluatorNode(GraphNode):
 
     def on_truth(self, msg: GroundTruthArray) -> None:
         truth = truth_array_from_msg(msg, self.scenario)
-        pv = np.full((len(self.target_ids), 4), math.nan)
-        for tid, row in zip(truth.ids, truth.pv, strict=True):
-            pv[self.target_index[tid]] = row
+        pv = truth_rows(truth, self.target_index)
         self.truth.put(truth.epoch, pv, f"truth array of {truth.epoch}")
         self._close_epochs()
 
     def on_tracks(self, msg: TrackArray) -> None:
         tracks = self.check_tracks(msg)
-        if tracks.epoch in self.tracks:
-            raise Rejected("duplicate", f"second track array of epoch {tracks.epoch}")
         # Without the planner's posterior samples: a run keeps results, not messages (a PF
         # track's samples are kB an epoch; the record and the figures never read them).
-        self.tracks[tracks.epoch] = tracks.without_samples()
+        what = f"track array of epoch {tracks.epoch}"
+        _put_once(self.tracks, tracks.epoch, tracks.without_samples(), what)
         self._close_epochs()
 
     def on_platform(self, msg: PlatformState) -> None:
@@ -271,10 +254,8 @@ class EvaluatorNode(GraphNode):
 
     def on_scan(self, msg: ScanMsg) -> None:
         scan = scan_from_msg(msg, self.scenario, self.sensors)
-        scans = self.scans.setdefault(scan.epoch, {})
-        if scan.sensor_id in scans:
-            raise Rejected("duplicate", f"second scan of {scan.sensor_id!r} at {scan.epoch}")
-        scans[scan.sensor_id] = scan
+        what = f"scan of {scan.sensor_id!r} at {scan.epoch}"
+        _put_once(self.scans.setdefault(scan.epoch, {}), scan.sensor_id, scan, what)
         self._close_epochs()
 
     def on_command(self, msg: ManoeuvreCommand) -> None:
@@ -290,10 +271,7 @@ class EvaluatorNode(GraphNode):
         if not math.isnan(msg.commanded_speed):
             finite((msg.commanded_speed,), f"{what} speed", MAX_SPEED)
         finite((msg.waypoint.x, msg.waypoint.y), f"{what} waypoint", MAX_COORDINATE)
-        commands = self.commands.setdefault(msg.epoch, {})
-        if msg.platform_id in commands:
-            raise Rejected("duplicate", f"second {what} at {msg.epoch}")
-        commands[msg.platform_id] = Command(
+        command = Command(
             msg.platform_id,
             msg.epoch,
             msg.heading_change,
@@ -303,16 +281,16 @@ class EvaluatorNode(GraphNode):
             msg.take_measurement if msg.gate_measurement else None,
             (msg.waypoint.x, msg.waypoint.y) if msg.has_waypoint else None,
         )
+        commands = self.commands.setdefault(msg.epoch, {})
+        _put_once(commands, msg.platform_id, command, f"{what} at {msg.epoch}")
         if self.command_epoch.get(msg.platform_id, -1) < msg.epoch:
             self.command_epoch[msg.platform_id] = msg.epoch
             self._draw_leg(msg)
 
     def on_beam(self, msg: BeamCommandMsg) -> None:
         beam = beam_from_msg(msg, self.scenario)
-        beams = self.beams.setdefault(beam.epoch, {})
-        if beam.sensor_id in beams:
-            raise Rejected("duplicate", f"second beam of {beam.sensor_id!r} at {beam.epoch}")
-        beams[beam.sensor_id] = beam
+        what = f"beam of {beam.sensor_id!r} at {beam.epoch}"
+        _put_once(self.beams.setdefault(beam.epoch, {}), beam.sensor_id, beam, what)
 
     def on_selection(self, msg: SensorSelection) -> None:
         ids = selection_from_msg(msg, self.scenario, self.sensors)
@@ -322,9 +300,7 @@ class EvaluatorNode(GraphNode):
 
     def on_report(self, msg: PlanReport) -> None:
         report = report_from_msg(msg, self.scenario)
-        if report.epoch in self.reports:
-            raise Rejected("duplicate", f"second plan report of epoch {report.epoch}")
-        self.reports[report.epoch] = report
+        _put_once(self.reports, report.epoch, report, f"plan report of epoch {report.epoch}")
 
     # --- what the live view shows (docs/live-view.md) --------------------------------------
 
@@ -334,11 +310,8 @@ class EvaluatorNode(GraphNode):
     def _epoch_closed(self, k: int) -> bool:
         """Truth (of k and k - 1: the path's last leg), tracks, every platform state and every
         scan the sim announced of epoch k are in (or the tracker has moved on past it)."""
-        if k not in self.truth or k - 1 not in self.truth:
-            return False
-        if k not in self.tracks or k not in self.platforms:
-            return False
-        return self._scans_in(k) or k + 1 in self.tracks
+        ready = k in self.truth and k - 1 in self.truth and k in self.tracks and k in self.platforms
+        return ready and (self._scans_in(k) or k + 1 in self.tracks)
 
     def _close_epochs(self) -> None:
         """Publish the figures and markers of each newly closed epoch, in order (the bound's
@@ -347,8 +320,7 @@ class EvaluatorNode(GraphNode):
             k = self.metrics_epoch
             self.metrics_epoch += 1
             hdr = header(k * self.scenario.dt, self.frame_id)
-            self.last_metrics = self._metrics(k, hdr)
-            self.metrics_pub.publish(self.last_metrics)
+            self.metrics_pub.publish(self._metrics(k, hdr))
             self.marker_pub.publish(self._epoch_markers(k, hdr))
 
     def _looked(self, k: int) -> np.ndarray:
@@ -361,11 +333,7 @@ class EvaluatorNode(GraphNode):
         truth = self.truth.values[k]
         tracks = self.tracks[k]
         a = self.assess(truth, tracks, k)
-        means = {t.track_id: np.asarray(t.mean) for t in tracks.confirmed}
-        est = np.full_like(truth, math.nan)
-        for n, track_id in enumerate(a.held):
-            if track_id in means:
-                est[n] = means[int(track_id)]
+        est = held_estimates(a, tracks, truth)
         error = np.abs(est - truth)[:, [0, 2]]  # the summary's RMSE of one run
         looked = self._looked(k)
         counts = bound_counts(self.bound_sensors, looked, self._observed_at(k))
@@ -524,7 +492,9 @@ class EvaluatorNode(GraphNode):
             if given_up or not self.expects_reports
             else [k for k in range(K) if k not in self.reports],
         }
-        return lacks_text(lacks)
+        return ", ".join(
+            f"{what} missing at epochs {_ranges(ks)}" for what, ks in lacks.items() if ks
+        )
 
     def completed_epochs(self) -> int:
         """The last epoch K' such that truth, tracks, platform states and scans of 0..K' are
@@ -601,6 +571,31 @@ class EvaluatorNode(GraphNode):
         return out
 
 
+def _put_once(table: dict, key, value, what: str) -> None:
+    """``table[key] = value``; a second value for ``key`` is a duplicate (e.g. a replay)."""
+    if key in table:
+        raise Rejected("duplicate", f"second {what}")
+    table[key] = value
+
+
+def truth_rows(truth, target_index: dict[str, int]) -> np.ndarray:
+    """``(N, 4)``: a truth array's pv rows in the scenario's target order (NaN: absent)."""
+    pv = np.full((len(target_index), 4), math.nan)
+    for tid, row in zip(truth.ids, truth.pv, strict=True):
+        pv[target_index[tid]] = row
+    return pv
+
+
+def held_estimates(assessment, tracks: TrackSet, truth: np.ndarray) -> np.ndarray:
+    """``(N, 4)``: the mean of the confirmed track that holds each target (NaN: none)."""
+    means = {t.track_id: np.asarray(t.mean) for t in tracks.confirmed}
+    est = np.full_like(truth, math.nan)
+    for n, track_id in enumerate(assessment.held):
+        if track_id in means:
+            est[n] = means[int(track_id)]
+    return est
+
+
 def _marker_size(scenario) -> float:
     """A marker size for the scenario's scale: 1 % of the distance from the first target's
     prior mean to the farthest platform (Hernandez: ~20 m; Valverde: ~0.5 m), at least 0.1 m."""
@@ -612,11 +607,6 @@ def _marker_size(scenario) -> float:
         for p in scenario.platforms
     )
     return max(0.01 * far, 0.1)
-
-
-def lacks_text(lacks: dict[str, list[int]]) -> str:
-    """'truth missing at epochs 3-5, track missing at epochs 7' (what -> epochs lacking)."""
-    return ", ".join(f"{what} missing at epochs {_ranges(ks)}" for what, ks in lacks.items() if ks)
 
 
 def _ranges(ks: list[int]) -> str:

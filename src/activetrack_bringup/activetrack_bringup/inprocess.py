@@ -46,14 +46,15 @@ class InProcessGraph:
         return True
 
     def spin_until_quiet(
-        self, progress: Callable[[], int], quiet: float = 0.02, timeout: float = 1.0
+        self, progress: Callable, quiet: float = 0.02, timeout: float = 1.0, step: float = 0.0
     ) -> bool:
         """Spin until ``progress()`` (e.g. a message count) has not changed for ``quiet``
-        seconds, or ``timeout`` seconds pass."""
+        seconds, or ``timeout`` seconds pass; it is read after each executor step (at most
+        ``step`` s, default quiet / 4)."""
         deadline = time.monotonic() + timeout
         last, since = progress(), time.monotonic()
         while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=quiet / 4)
+            self.executor.spin_once(timeout_sec=step or quiet / 4)
             now = progress()
             if now != last:
                 last, since = now, time.monotonic()

@@ -1,24 +1,7 @@
-"""Live view in Foxglove: the running graph served on a local WebSocket (docs/live-view.md).
-
-``activetrack run SCENARIO --foxglove`` starts a :class:`LiveServer` (the ``foxglove-sdk``
-WebSocket server, bound to 127.0.0.1:8765 by default) before the run, and adds a
-:class:`LiveViewNode` to the runner's graph. The node forwards every graph topic
-(``activetrack_ros.graph.GRAPH_TOPICS``) as the raw CDR bytes it receives, on a Foxglove channel
-of the topic's resolved name with the message definition as a ``ros2msg`` schema: exactly what
-the run's bag holds (same names, same bytes, same schemas), so one layout
-(``docs/foxglove-layout.json``) shows a live run and a recorded bag alike. Nothing is computed
-here: the scene comes from the nodes' own topics (the tracker's 2-sigma ellipse, pose and
-particles; the sim's platform paths and ``/tf``; the evaluator's truth, measuring sensors and
-planned legs) and the RMSE vs PCRLB figures from the evaluator's ``RunMetrics``.
-
-Only the graph's own messages are shown: on the per-epoch (msgs_defs) topics and
-``/diagnostics`` a message that does not verify under the run's key is counted as foreign and
-dropped, as the nodes do (``activetrack_ros.trust``). Log time is the simulated time of the
-latest ``/clock`` (as a ``--use-sim-time`` recorder stamps it), and the server announces that
-time to clients (the Foxglove ``time`` capability), so live and bag timelines agree.
-
-The view only reads: it publishes nothing on the graph, so the run's result is the same with
-and without it (tested).
+"""Live view in Foxglove (docs/live-view.md): a :class:`LiveServer` (foxglove-sdk WebSocket)
+with one channel per graph topic, fed by a :class:`LiveViewNode` in the runner's graph with the
+raw CDR bytes it receives, the graph's own only, under the names and schemas the run's bag has;
+log time is the latest ``/clock``. The view only reads: it publishes nothing on the graph.
 """
 
 from __future__ import annotations
@@ -85,7 +68,7 @@ class LiveServer:
                 host=host,
                 port=port,
                 capabilities=[Capability.Time],
-                server_listener=_Listener(self),
+                server_listener=self,
                 context=self.context,
                 message_backlog_size=BACKLOG,
             )
@@ -122,6 +105,14 @@ class LiveServer:
             self._subscribed.wait(min(left, 0.1))
         return True
 
+    def on_subscribe(self, client, channel) -> None:
+        """The server's callback (on the SDK's thread): a client watches ``channel``."""
+        self.subscriptions[channel.topic] += 1
+        self._subscribed.set()
+
+    def on_unsubscribe(self, client, channel) -> None:
+        self.subscriptions[channel.topic] -= 1
+
     def log(self, topic: str, data: bytes, log_time_ns: int) -> None:
         self.channels[topic].log(data, log_time=log_time_ns)
 
@@ -145,20 +136,6 @@ class LiveServer:
 
     def __exit__(self, *exc) -> None:
         self.stop()
-
-
-class _Listener:
-    """The server's callbacks (on the SDK's own thread): which channels clients watch."""
-
-    def __init__(self, live: LiveServer):
-        self.live = live
-
-    def on_subscribe(self, client, channel) -> None:
-        self.live.subscriptions[channel.topic] += 1
-        self.live._subscribed.set()
-
-    def on_unsubscribe(self, client, channel) -> None:
-        self.live.subscriptions[channel.topic] -= 1
 
 
 class LiveViewNode(GraphNode):
@@ -193,14 +170,7 @@ def attach(server: LiveServer, graph_key, namespace: str = ""):
     """A runner ``before_spin`` hook that adds the live view's node to the run's graph."""
 
     def before_spin(graph) -> None:
-        options = {"namespace": namespace} if namespace else {}
-        graph.add(
-            LiveViewNode(
-                server,
-                graph_key=graph_key,
-                context=graph.context,
-                **options,
-            )
-        )
+        ns = namespace or None  # none: the node's default
+        graph.add(LiveViewNode(server, graph_key=graph_key, context=graph.context, namespace=ns))
 
     return before_spin

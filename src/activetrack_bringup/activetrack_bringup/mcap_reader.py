@@ -42,8 +42,6 @@ OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_ATTACHMENT, OP_ATTACHMENT_INDEX = 7, 8, 9, 
 OP_STATISTICS, OP_METADATA, OP_METADATA_INDEX, OP_SUMMARY_OFFSET, OP_DATA_END = 11, 12, 13, 14, 15
 _KNOWN_DATA_OPS = {OP_HEADER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_MESSAGE_INDEX}
 _KNOWN_DATA_OPS |= {OP_ATTACHMENT, OP_METADATA, OP_DATA_END}
-_SUMMARY_OPS = {OP_CHUNK_INDEX, OP_ATTACHMENT_INDEX, OP_STATISTICS}
-_SUMMARY_OPS |= {OP_METADATA_INDEX, OP_SUMMARY_OFFSET}
 
 
 class McapFileError(ValueError):
@@ -91,7 +89,6 @@ class ChunkInfo:
     """A chunk that verified: where it is and what it holds."""
 
     offset: int
-    end: int  # offset just after the record
     counts: dict[int, int] = field(default_factory=dict)
 
 
@@ -106,24 +103,23 @@ def _string(buf, pos: int, end: int) -> tuple[str, int]:
         raise _Bad("a string field is not UTF-8") from None
 
 
-def _prefixed(buf, pos: int, end: int) -> tuple[bytes, int]:
+def _span(buf, pos: int, end: int, what: str) -> tuple[int, int]:
+    """``(start, stop)`` of the u32-length-prefixed field at ``pos``, inside ``end``."""
     if pos + 4 > end:
-        raise _Bad("a field runs past its record")
+        raise _Bad(f"a {what} runs past its record")
     (n,) = _U32.unpack_from(buf, pos)
-    pos += 4
-    if pos + n > end:
-        raise _Bad("a field runs past its record")
-    return bytes(buf[pos : pos + n]), pos + n
+    if pos + 4 + n > end:
+        raise _Bad(f"a {what} runs past its record")
+    return pos + 4, pos + 4 + n
+
+
+def _prefixed(buf, pos: int, end: int) -> tuple[bytes, int]:
+    start, stop = _span(buf, pos, end, "field")
+    return bytes(buf[start:stop]), stop
 
 
 def _map(buf, pos: int, end: int) -> tuple[tuple, int]:
-    if pos + 4 > end:
-        raise _Bad("a map field runs past its record")
-    (n,) = _U32.unpack_from(buf, pos)
-    pos += 4
-    stop = pos + n
-    if stop > end:
-        raise _Bad("a map field runs past its record")
+    pos, stop = _span(buf, pos, end, "map field")
     items = []
     while pos < stop:
         key, pos = _string(buf, pos, stop)
@@ -202,33 +198,34 @@ def parse_chunk(buf, pos: int, end: int) -> tuple[int, int, bytes, int]:
     return start, stop, records, crc
 
 
-def chunk_records(records: bytes):
-    """``(opcode, body_start, body_end)`` of each record inside a chunk's records."""
-    pos, n = 0, len(records)
-    while pos < n:
-        if pos + 9 > n:
-            raise _Bad("a record inside the chunk is cut off")
-        op, length = _RECORD.unpack_from(records, pos)
+def records_in(buf, pos: int, stop: int, what: str, past: str):
+    """``(opcode, body_start, body_end)`` of each record in ``buf[pos:stop]``; ``_Bad`` naming
+    ``what`` (the records) for one cut off or running ``past`` them."""
+    while pos < stop:
+        if pos + 9 > stop:
+            raise _Bad(f"{what} is cut off")
+        op, length = _RECORD.unpack_from(buf, pos)
         body = pos + 9
-        if body + length > n:
-            raise _Bad("a record inside the chunk runs past it")
+        if body + length > stop:
+            raise _Bad(f"{what} runs past {past}")
         yield op, body, body + length
         pos = body + length
+
+
+def chunk_records(records: bytes):
+    """``(opcode, body_start, body_end)`` of each record inside a chunk's records."""
+    return records_in(records, 0, len(records), "a record inside the chunk", "it")
 
 
 # --- the scan ---------------------------------------------------------------------------
 
 
 class McapScan:
-    """One pass over an MCAP file: definitions, verified chunks, counts and damage.
-
-    ``messages()`` then reads the verified chunks again (second pass). Use as a context
-    manager or call ``close()``.
-    """
+    """One pass over an MCAP file: definitions, verified chunks, counts and damage;
+    ``records()`` reads the verified chunks again. A context manager (or call ``close()``)."""
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
-        self.name = self.path.name
         self.profile = ""
         self.library = ""
         self.schemas: dict[int, SchemaInfo] = {}
@@ -327,14 +324,8 @@ class McapScan:
             return summary_start
         summary = {"schemas": {}, "channels": {}, "chunks": [], "stats": None}
         try:
-            pos = summary_start
-            while pos < footer:
-                if pos + 9 > footer:
-                    raise _Bad("a summary record is cut off")
-                op, length = _RECORD.unpack_from(mm, pos)
-                body, end = pos + 9, pos + 9 + length
-                if end > footer:
-                    raise _Bad("a summary record runs past the footer")
+            records = records_in(mm, summary_start, footer, "a summary record", "the footer")
+            for op, body, end in records:
                 if op == OP_SCHEMA:
                     s = parse_schema(mm, body, end)
                     summary["schemas"][s.id] = s
@@ -345,7 +336,6 @@ class McapScan:
                     summary["chunks"].append(self._parse_chunk_index(body, end))
                 elif op == OP_STATISTICS:
                     summary["stats"] = self._parse_statistics(body, end)
-                pos = end
         except (_Bad, struct.error, ValueError) as exc:
             self._damage(HARMLESS, f"unreadable summary ({exc}; ignored)", summary_start)
             return summary_start
@@ -486,9 +476,8 @@ class McapScan:
         _, _, records, crc = parse_chunk(self._mm, body, end)
         if not crc:
             self.unverified_chunks += 1
-        info = ChunkInfo(pos, end)
-        defs = []
-        msgs = []
+        info = ChunkInfo(pos)
+        defs, msgs = [], []
         for op, b, e in chunk_records(records):
             if op == OP_SCHEMA:
                 defs.append(parse_schema(records, b, e))
@@ -629,12 +618,10 @@ class McapScan:
                 n = sum(counts.values())
                 ok = ok and not n
                 if offset not in reported:
-                    what = (
-                        f"indexed chunk unreadable ({n} messages)"
-                        if n
-                        else ("indexed chunk unreadable (definitions only)")
+                    held = f"{n} messages" if n else "definitions only"
+                    self._damage(
+                        LOST if n else HARMLESS, f"indexed chunk unreadable ({held})", offset
                     )
-                    self._damage(LOST if n else HARMLESS, what, offset)
         for table, key in ((self.schemas, "schemas"), (self.channels, "channels")):
             for rid, record in summary[key].items():
                 mine = table.get(rid)
@@ -651,11 +638,9 @@ class McapScan:
                 if self.counts.get(cid, 0) != n:
                     ok = False
                     if not any(d.kind == LOST for d in self.damage):
-                        c = self.channels.get(cid)
                         self._damage(
                             LOST,
-                            f"the summary counts {n} messages on "
-                            f"{c.topic if c else f'channel {cid}'}, "
+                            f"the summary counts {n} messages on {self._topic(cid)}, "
                             f"{self.counts.get(cid, 0)} are readable",
                         )
         return ok
@@ -670,12 +655,15 @@ class McapScan:
                 continue
             missing = max(seqs) - len(set(seqs))
             if missing > 0:
-                c = self.channels.get(cid)
-                gaps.append(f"{c.topic if c else f'channel {cid}'} {missing}")
+                gaps.append(f"{self._topic(cid)} {missing}")
         if gaps:
             self._damage(
                 LOST, f"messages missing (gaps in their sequence numbers): {', '.join(gaps)}"
             )
+
+    def _topic(self, cid: int) -> str:
+        c = self.channels.get(cid)
+        return c.topic if c else f"channel {cid}"
 
     def _orphans(self) -> None:
         for cid, n in sorted(self.counts.items()):
@@ -693,14 +681,9 @@ class McapScan:
         """The writer finished: the file has a valid footer (and DataEnd)."""
         return self.summary is not None
 
-    def messages(self, channel_ids=None):
-        """``(channel_id, log_time, data)`` of every readable message, chunk by chunk in file
-        order, in log-time order within a chunk (as rosbags reads them)."""
-        for cid, log_time, _, data in self.records(channel_ids):
-            yield cid, log_time, data
-
     def records(self, channel_ids=None):
-        """Like :meth:`messages`, as ``(channel_id, log_time, publish_time, data)``."""
+        """``(channel_id, log_time, publish_time, data)`` of every readable message, chunk by
+        chunk in file order, in log-time order within a chunk (as rosbags reads them)."""
         wanted = None if channel_ids is None else set(channel_ids)
         mm = self._mm
         sources = [(c.offset, c) for c in self.chunks] + [(o, None) for o in self.loose]

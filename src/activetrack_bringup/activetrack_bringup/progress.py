@@ -1,10 +1,6 @@
-"""Progress bars of the command line (tqdm), on a terminal only.
-
-A bar is drawn on stderr when stderr is a terminal; in CI, in pipes and when stderr goes to a
-file nothing at all is written, so logs and captured output stay as they were. The library
-never prints: it calls back with counts (``activetrack.montecarlo``), and :class:`Bar` is such
-a callback. While a bar is shown, other lines written to stderr (the reproductions' per-case
-reports) are printed above it instead of through it.
+"""Progress bars of the command line (tqdm), drawn on stderr only when it is a terminal (CI,
+pipes and log files get nothing). The library never prints: it calls back with counts, and
+:class:`Bar` is such a callback; meanwhile other stderr lines are printed above the bar.
 """
 
 from __future__ import annotations
@@ -51,12 +47,9 @@ class _AboveTheBar(io.TextIOBase):
 
 
 class Bar:
-    """A progress bar fed with counts: ``bar(done)`` or ``bar(done, total)``.
-
-    A no-op unless ``file`` (default stderr) is a terminal. Use it as a context manager: the
-    bar is removed at the end (the command's own output follows), and stderr lines written
-    meanwhile appear above it.
-    """
+    """A progress bar fed with counts, ``bar(done)`` or ``bar(done, total)``; a no-op unless
+    ``file`` (default stderr) is a terminal. As a context manager it is removed at the end and
+    stderr lines written meanwhile appear above it."""
 
     def __init__(self, description: str, total: int | None = None, unit: str = "run", file=None):
         self.file = sys.stderr if file is None else file
@@ -106,14 +99,10 @@ def epoch_hook(bar: Bar):
     feeds ``bar`` with the epochs the run's evaluator has tracked so far."""
     from activetrack_bringup.evaluator import EvaluatorNode
 
-    found: list[EvaluatorNode] = []
-
     def during_spin(graph) -> None:
-        if not found:
-            found.extend(n for n in graph.nodes if isinstance(n, EvaluatorNode))
-            if not found:
+        for node in graph.nodes:
+            if isinstance(node, EvaluatorNode):
+                bar(max(len(node.tracks) - 1, 0), node.scenario.steps)
                 return
-        evaluator = found[0]
-        bar(max(len(evaluator.tracks) - 1, 0), evaluator.scenario.steps)
 
     return during_spin

@@ -1,21 +1,12 @@
-"""Replay a recorded run's scans into a fresh tracker and compare the tracks
-(``activetrack bag retrack``), for every scenario.
+"""``activetrack bag retrack``: replay a recorded run's scans into a fresh tracker and compare
+the tracks (README: Command line).
 
-With the recorded configuration the replayed track arrays equal the recorded ones exactly (the
-tracker is deterministic for a seed: ids, status, states, covariances); with another filter
-(``--filter``) the report compares both against the recorded ground truth, with the run
-summary's vocabulary: each target's time-averaged RMSE (README "Errors and bounds") and the
-time-averaged GOSPA.
-
-The replay is a player (the run's platform states and scans, their recorded bytes re-signed
-with the replay's own key, epoch by epoch: epoch k once the track array of k - 1 is out, as
-the simulator does in lockstep) -> a fresh ``TrackerNode`` -> a collector of its track arrays.
-Before anything spins, the bag is checked against the scenario (sensor and platform ids, the
-recorded tracks' state, the epochs and steps, dt against the message stamps), so a wrong
-``--scenario`` fails at once with one line (:class:`RetrackError`); so does a bag recorded
-before scans carried every measurement. While it spins, the wait is bounded: a tracker that
-rejects or drops replayed messages, closes an epoch incomplete or stops producing tracks ends
-the replay with the epoch it reached.
+The replay is a player (the run's platform states and scans, re-signed with the replay's own
+key, epoch k once the track array of k - 1 is out, as the lockstep simulator does) -> a fresh
+``TrackerNode`` -> a collector of its track arrays. The bag is checked against the scenario
+before anything spins, so a wrong ``--scenario`` fails at once with one line
+(:class:`RetrackError`); while it spins, a tracker that rejects replayed messages, closes an
+epoch incomplete or stops producing tracks ends the replay with the epoch it reached.
 """
 
 from __future__ import annotations
@@ -37,6 +28,7 @@ from activetrack.filters import registry as filter_kinds
 from activetrack.scenarios import load_scenario, with_tracker_overrides
 from activetrack_bringup.bag import bag_topic, installed_type_hash
 from activetrack_bringup.bag_io import BagError, open_bag
+from activetrack_bringup.evaluator import held_estimates, truth_rows
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import MessageError, TrackArrayChecker, truth_array_from_msg
@@ -318,13 +310,11 @@ class _EpochPlayer(GraphNode):
         self.pubs = {
             t: self.create_publisher(_CLASSES[t], t, writer_qos(t)) for t in REPLAYED_TOPICS
         }
-        self.published = 0
 
     def publish_epoch(self, k: int) -> None:
         for topic, data in self.raw.get(k, ()):
             msg = deserialize_message(data, _CLASSES[topic])  # re-serialised: drops padding
             self.pubs[topic].publish(self.graph_key.sign(serialize_message(msg)))
-            self.published += 1
 
 
 class _TrackCollector(GraphNode):
@@ -358,10 +348,6 @@ class RetrackReport:
         return dict(self.__dict__)
 
 
-def _trouble(counters) -> dict:
-    return {k: v for k, v in counters.items() if v and k.startswith(_TROUBLE)}
-
-
 def _differences(a: TrackSet, b: TrackSet) -> tuple[bool, float, float]:
     """(identical, max |state difference|, max |covariance difference|) over tracks of the
     same id; inf when the ids differ."""
@@ -382,19 +368,12 @@ def _differences(a: TrackSet, b: TrackSet) -> tuple[bool, float, float]:
 def _scores(scenario, tracks: dict[int, TrackSet], truth: dict, epochs: int):
     """Each target's time-averaged RMSE (x, y) and the time-averaged GOSPA over 1..epochs."""
     assess = EpochAssessor(scenario)
-    order = [t.id for t in scene_targets(scenario)]
+    index = {t.id: n for n, t in enumerate(scene_targets(scenario))}
     errors, gospas = [], []
     for k in range(1, epochs + 1):
-        pv = np.full((len(order), 4), math.nan)
-        for tid, row in zip(truth[k].ids, truth[k].pv, strict=True):
-            pv[order.index(tid)] = row
+        pv = truth_rows(truth[k], index)
         a = assess(pv, tracks[k], k)
-        means = {t.track_id: np.asarray(t.mean) for t in tracks[k].confirmed}
-        err = np.full((len(order), 2), math.nan)
-        for n, track_id in enumerate(a.held):
-            if track_id in means:
-                err[n] = np.abs(means[int(track_id)] - pv[n])[[0, 2]]
-        errors.append(err)
+        errors.append(np.abs(held_estimates(a, tracks[k], pv) - pv)[:, [0, 2]])
         gospas.append(a.gospa)
     with np.errstate(invalid="ignore"):
         rmse = np.nanmean(np.array(errors), axis=0)  # one run: the mean absolute error
@@ -446,7 +425,9 @@ def retrack(
                 player.publish_epoch(k)  # lockstep: epoch k once the tracks of k - 1 are out
                 state.update(next=k + 1, at=now)
             reached = max(collector.arrays, default=-1)
-            trouble = _trouble(tracker.counters.counts)
+            trouble = {
+                k: v for k, v in tracker.counters.counts.items() if v and k.startswith(_TROUBLE)
+            }
             if trouble:
                 raise RetrackError(
                     f"the fresh tracker did not take the replay of epoch {reached + 1}: "
@@ -470,12 +451,9 @@ def retrack(
     common = [k for k in range(last + 1) if k in recorded and k in replayed]
     compared = [_differences(recorded[k], replayed[k]) for k in common]
     scored = all(k in truth and k in recorded for k in range(1, last + 1))
-    nan_rmse = [(math.nan, math.nan)] * len(scene_targets(scenario))
-    rec_rmse, rec_gospa = (
-        _scores(scenario, recorded, truth, last) if scored else (nan_rmse, math.nan)
-    )
-    rep_rmse, rep_gospa = (
-        _scores(scenario, replayed, truth, last) if scored else (nan_rmse, math.nan)
+    unscored = ([(math.nan, math.nan)] * len(scene_targets(scenario)), math.nan)
+    (rec_rmse, rec_gospa), (rep_rmse, rep_gospa) = (
+        _scores(scenario, t, truth, last) if scored else unscored for t in (recorded, replayed)
     )
     return RetrackReport(
         epochs=len(common) - 1,

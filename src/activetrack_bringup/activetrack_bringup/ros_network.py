@@ -10,7 +10,7 @@ node itself, discovery on this host only (``LOCALHOST``).
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 RMW_DEFAULT_DOMAIN = 0
 RMW_DEFAULT_RANGE = "SUBNET"  # Jazzy's default when ROS_AUTOMATIC_DISCOVERY_RANGE is unset
@@ -42,12 +42,7 @@ class RosNetwork:
         )
 
     def to_json(self) -> dict:
-        return {
-            "domain_id": self.domain_id,
-            "discovery_range": self.discovery_range,
-            "static_peers": self.static_peers,
-            "private": self.private,
-        }
+        return asdict(self)
 
 
 def _env(name: str) -> str:

@@ -1,11 +1,9 @@
 """Run the node graph on a scenario: in one process (default) or one OS process per node.
 
-Each run makes a fresh graph key (activetrack_ros.trust), so the nodes, the evaluator and the
-recorder count only the run's own messages. The evaluator (here, not in the graph) is the only
-reader of ground truth and summarises with the batch loop's code: in lockstep, `activetrack
-run` equals `activetrack batch`. A run that cannot finish (Ctrl-C, SIGTERM, a dead node
-process, the timeout) still closes its bag and writes ``summary.json`` marked incomplete, then
-raises :class:`RunIncomplete`.
+Each run makes a fresh graph key (activetrack_ros.trust): the nodes, the evaluator and the
+recorder count only the run's own messages. A run that cannot finish (Ctrl-C, SIGTERM, a dead
+node process, the timeout) still closes its bag and writes ``summary.json`` marked incomplete,
+then raises :class:`RunIncomplete`.
 """
 
 from __future__ import annotations
@@ -113,16 +111,6 @@ class GraphRun:
         return json_safe(d)
 
 
-def _node_params(scenario_path: str, run: int | None, mode: str) -> dict[str, dict]:
-    """Each node's parameters (the planner plans alike in both modes: it has no ``mode``)."""
-    common = {"scenario": str(scenario_path), "run": -1 if run is None else int(run)}
-    return {
-        "sim": {**common, "mode": mode},
-        "tracker": {**common, "mode": mode},
-        "planner": common,
-    }
-
-
 def check_namespace(namespace: str) -> str:
     """'' (none) or a ROS namespace like ``g1`` or ``/fleet/g1``, returned absolute."""
     ns = namespace.strip("/")
@@ -180,30 +168,26 @@ def _check_remote(opts: RunOptions, key: GraphKey | None) -> GraphKey | None:
     return key or remote_key(opts.nodes)
 
 
-def default_run_dir(scenario_name: str) -> Path:
-    return run_dir_for(scenario_name)
-
-
 @dataclass
 class RunOptions:
-    """How run_graph runs a scenario (see its docstring)."""
+    """How run_graph runs a scenario."""
 
-    run: int | None = None
-    mode: str = "lockstep"
-    processes: bool = False
-    record: bool = True
+    run: int | None = None  # Monte Carlo run index
+    mode: str = "lockstep"  # or free
+    processes: bool = False  # one OS process per node
+    record: bool = True  # the bag
     plots: bool = True
-    timeout: float = 600.0
-    sim_params: dict | None = None
-    before_spin: object = None
-    during_spin: object = None
-    restartable: tuple[str, ...] | None = None
-    namespace: str = ""
-    nodes: tuple[str, ...] | None = None
-    tracker_params: dict | None = None
-    wait_for: str | None = None
-    wait_timeout: float = 60.0
-    announce: object = None
+    timeout: float = 600.0  # wall seconds
+    sim_params: dict | None = None  # sim node parameters
+    before_spin: object = None  # before_spin(graph): may add nodes to the in-process graph
+    during_spin: object = None  # during_spin(graph): between executor steps (fault injection)
+    restartable: tuple[str, ...] | None = None  # node names (default: the scenario's)
+    namespace: str = ""  # of every node, the evaluator and the recorder
+    nodes: tuple[str, ...] | None = None  # node processes started here (the others: remote)
+    tracker_params: dict | None = None  # tracker node parameters
+    wait_for: str | None = None  # N | TOPIC: hold the first epoch for outside subscribers
+    wait_timeout: float = 60.0  # s, for wait_for
+    announce: object = None  # announce(network): the run's RosNetwork, before the graph starts
 
 
 def run_graph(
@@ -213,25 +197,13 @@ def run_graph(
     graph_key: GraphKey | None = None,
     **options,
 ) -> GraphRun:
-    """Bring the graph up on a scenario, run it to the end, summarise and save the run folder.
-
-    Options (RunOptions): ``run`` (Monte Carlo index), ``mode`` (lockstep | free),
-    ``processes`` (one OS process per node), ``record`` (the bag), ``plots``, ``timeout`` (s),
-    ``sim_params`` (sim node parameters), ``before_spin(graph)`` (may add nodes to the
-    in-process graph before it runs), ``during_spin(graph)`` (called between executor steps:
-    fault-injection tests), ``restartable`` (node names, default the scenario's
-    ``graph.restartable``), ``namespace`` (every node, the evaluator and the recorder in it:
-    several graphs share a domain), ``nodes`` (with processes: the node processes started here,
-    default all; the others run on other hosts, docs/multi-host.md), ``tracker_params``
-    (tracker node parameters), ``wait_for`` (``N`` or a topic: hold the first epoch until that
-    many outside subscribers, or one of the topic, have joined; activetrack_ros.hold) within
-    ``wait_timeout`` s, ``announce(network)`` (called with the run's RosNetwork before
-    the graph starts). Raises RunIncomplete when the run stops early, ScenarioError,
+    """Bring the graph up on a scenario (``options``: RunOptions), run it to the end, summarise
+    and save the run folder. Raises RunIncomplete when the run stops early, ScenarioError,
     FileExistsError or GraphSetupError before anything starts.
     """
     opts = RunOptions(**options)
     opts.namespace = check_namespace(opts.namespace)
-    _check_wait_for(opts)
+    wait = _check_wait_for(opts)
     scenario = load_scenario(scenario_path)  # fails before anything starts
     if opts.processes and os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").upper() == "OFF":
         raise GraphSetupError(
@@ -239,13 +211,13 @@ def run_graph(
             "ROS_AUTOMATIC_DISCOVERY_RANGE is OFF: set it to LOCALHOST (or unset it)"
         )
     _check_filter(scenario, opts)
-    graph_key = _check_remote(opts, graph_key)
-    run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name)
+    graph_key = _check_remote(opts, graph_key) or GraphKey.generate()
+    run_dir = Path(run_dir) if run_dir else run_dir_for(scenario.name)
     bag_path = run_dir / "bag" if opts.record else None
     if bag_path is not None and bag_path.exists():
         raise FileExistsError(f"{bag_path} exists already: choose another run folder (--out)")
     run_dir.mkdir(parents=True, exist_ok=True)
-    runner = _GraphRunner(scenario, str(scenario_path), opts, graph_key or GraphKey.generate())
+    runner = _GraphRunner(scenario, str(scenario_path), opts, graph_key, wait)
     if opts.announce is not None:
         opts.announce(runner.network)
     with interrupts.raising(), runner.graph:
@@ -256,9 +228,7 @@ def run_graph(
         runner.exit_code = 1  # the run finished, but not well (non-finite metrics, node errors)
     if runner.exit_code:
         raise RunIncomplete(
-            f"scenario {scenario.name}: {result.status}: {result.detail}",
-            result,
-            runner.exit_code,
+            f"scenario {scenario.name}: {result.status}: {result.detail}", result, runner.exit_code
         )
     return result
 
@@ -268,21 +238,17 @@ def _check_filter(scenario, opts: RunOptions) -> None:
     from activetrack.filters import filter_names
 
     name = (opts.tracker_params or {}).get("filter")
-    if name is None:
-        return
-    if name not in filter_names():
+    if name is not None and name not in filter_names():
         raise GraphSetupError(f"--filter must be one of {list(filter_names())}, got {name!r}")
 
 
 def _check_wait_for(opts: RunOptions) -> WaitFor | None:
     """``wait_for`` parsed; it needs the sim started here (GraphSetupError otherwise)."""
-    if opts.wait_for is None:
-        return None
     try:
-        wait = WaitFor.parse(str(opts.wait_for))
+        wait = WaitFor.parse("" if opts.wait_for is None else str(opts.wait_for))
     except ValueError as exc:
         raise GraphSetupError(str(exc)) from None
-    if opts.nodes is not None and "sim" not in opts.nodes:
+    if wait is not None and opts.nodes is not None and "sim" not in opts.nodes:
         raise GraphSetupError(
             "--wait-for holds the first epoch of the sim started here: add sim to --nodes (a "
             "sim on another host holds with -p wait_for_subscribers:=N or wait_for_topic:=T)"
@@ -294,28 +260,27 @@ class _GraphRunner:
     """One run: the in-process graph (evaluator, recorder and, unless processes, the nodes),
     the supervised node processes, and how the run ended."""
 
-    def __init__(self, scenario, scenario_path: str, opts: RunOptions, key: GraphKey):
+    def __init__(self, scenario, scenario_path: str, opts: RunOptions, key: GraphKey, wait):
         self.scenario = scenario
         self.opts = opts
         self.key = key
-        self.params = _node_params(scenario_path, opts.run, opts.mode)
+        every = {"scenario": scenario_path, "run": -1 if opts.run is None else int(opts.run)}
+        mode = {"mode": opts.mode}  # the planner plans alike in both modes: it has no mode
+        self.params = {"sim": every | mode, "tracker": every | mode, "planner": dict(every)}
         self.params["tracker"].update(opts.tracker_params or {})
-        # --wait-for: the sim holds its first epoch (activetrack_ros.hold)
-        self.wait = WaitFor.parse(str(opts.wait_for or ""))
+        self.wait = wait  # --wait-for: the sim holds its first epoch (activetrack_ros.hold)
         self.sim_started = self.wait is None
         if self.wait is not None:
             self.params["sim"].update(self.wait.params())
+        self.params["sim"].update(opts.sim_params or {})
         self.remote = remote_nodes(opts.nodes)  # started on other hosts, not here
         self.network = ros_network(opts.processes, not self.remote)
         # The node processes' domain; in one process the context needs no domain of its own.
         self.domain = self.network.domain_id if opts.processes else None
         self.graph = InProcessGraph(domain_id=self.domain)
-        # Every node answers parameter services, in one process too (its graph is on the
-        # caller's domain, where ROS tools see it): measured, they cost no wall time a run shows
-        # (default scenario, 6 pairs: +28 ms median of 3.5 s, within the noise).
-        self.common = {"context": self.graph.context}
-        if opts.namespace:
-            self.common["namespace"] = opts.namespace
+        # Every node answers parameter services, in one process too (ROS tools see it there):
+        # measured, +28 ms median of 3.5 s (default scenario), within the noise.
+        self.common = {"context": self.graph.context, "namespace": opts.namespace or None}
         named = [Parameter(k, value=self.params["planner"][k]) for k in ("scenario", "run")]
         self.evaluator = self.graph.add(
             EvaluatorNode(
@@ -367,21 +332,35 @@ class _GraphRunner:
             )  # fmt: skip
         if o.processes:
             self._await_remote()
-            restartable = o.restartable or tuple(self.scenario.graph.restartable)
-            self.supervisor = _start_processes(
-                self.params, o.sim_params, self.key, self.domain, restartable,
-                self.scenario.graph.max_restarts, o.namespace,
-                NODE_NAMES if o.nodes is None else o.nodes,
-            )  # fmt: skip
+            self.supervisor = self._start_processes()
             graph.supervisor = self.supervisor  # for during_spin hooks (fault-injection tests)
         else:
-            for name in ("tracker", "planner"):
+            for name in ("tracker", "planner", "sim"):
                 options = self._node_options(self.params[name])
                 self.nodes[name] = graph.add(NODES[name](**options))
-            sim = {**self.params["sim"], **(o.sim_params or {})}
-            self.nodes["sim"] = graph.add(NODES["sim"](**self._node_options(sim)))
         if o.before_spin is not None:
             o.before_spin(graph)
+
+    def _start_processes(self) -> Supervisor:
+        """The node processes started here (``nodes``, default all), each its console entry
+        point, talking over DDS in the run's domain: on this host only when it runs them all,
+        else with the caller's discovery settings (ROS_AUTOMATIC_DISCOVERY_RANGE,
+        ROS_STATIC_PEERS), which reach the other hosts. The caller's environment is not changed."""
+        o = self.opts
+        restartable = o.restartable or tuple(self.scenario.graph.restartable)
+        env = dict(os.environ)
+        env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
+        env["ROS_DOMAIN_ID"] = str(self.domain)
+        if not self.remote:
+            env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        env[KEY_ENV] = self.key.hex()  # the environment, not a parameter: parameters are readable
+        log = lambda text: print(f"activetrack: {text}", file=sys.stderr)  # noqa: E731
+        supervisor = Supervisor(env, self.scenario.graph.max_restarts, log=log)
+        for name in ("tracker", "planner", "sim"):
+            if o.nodes is None or name in o.nodes:
+                supervisor.add(f"{name}_node", self.params[name], name in restartable, o.namespace)
+        supervisor.start()
+        return supervisor
 
     def _check_started(self) -> None:
         """``--wait-for``: the held sim must start its first epoch within ``wait_timeout``
@@ -548,37 +527,3 @@ def _finite_metrics(summary: BatchSummary) -> bool:
             return False
     bounds = (*summary.time_avg_bound_x, *summary.time_avg_bound_y)
     return not any(math.isinf(v) for v in bounds)
-
-
-def _start_processes(
-    params,
-    sim_params,
-    key: GraphKey,
-    domain: int,
-    restartable,
-    max_restarts: int,
-    namespace,
-    names: tuple[str, ...] = NODE_NAMES,
-) -> Supervisor:
-    """The nodes ``names``, each as its own OS process (its console entry point), talking
-    over DDS in the runner's domain: on this host only when it runs them all, else with the
-    caller's discovery settings (ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_STATIC_PEERS), which reach
-    the other hosts. The caller's environment is not changed."""
-    env = dict(os.environ)
-    env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
-    env["ROS_DOMAIN_ID"] = str(domain)
-    if set(names) == set(NODE_NAMES):
-        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env[KEY_ENV] = key.hex()  # the environment, not a parameter: parameters are readable
-    supervisor = Supervisor(
-        env, max_restarts, log=lambda text: print(f"activetrack: {text}", file=sys.stderr)
-    )
-    for name, extra in (("tracker", {}), ("planner", {}), ("sim", sim_params or {})):
-        if name not in names:
-            continue
-        supervisor.add(
-            f"{name}_node", {**params[name], **extra}, restartable=name in restartable,
-            namespace=namespace,
-        )  # fmt: skip
-    supervisor.start()
-    return supervisor

@@ -1,15 +1,13 @@
-"""The runner's evaluator and recorder as node executables of their own, for a graph started
-by ``ros2 launch`` (src/activetrack_bringup/launch/activetrack.launch.py) or by hand:
+"""The runner's evaluator and recorder as executables of their own, for a graph started by
+``ros2 launch`` (launch/activetrack.launch.py) or by hand:
 
     activetrack_evaluator --ros-args -p scenario:=S [-p run:=N] [-p summary:=PATH]
                                      [-p exit_when_done:=true]
     activetrack_recorder --ros-args -p bag:=DIR [-p topics:='clock tf activetrack/track']
 
-Both take the graph key from ``ACTIVETRACK_GRAPH_KEY`` (count and keep only the graph's own
-messages; without it, trust every writer) and every setting as a parameter (described, typed,
-read-only where a running node cannot change it: ``activetrack ros param describe``). Once
-the run is complete it logs the summary's figures, writes ``summary.json`` if ``summary``
-names a path and, with ``exit_when_done``, exits. The recorder finishes its bag when it is stopped.
+Both take the graph key from ``ACTIVETRACK_GRAPH_KEY`` (without it they trust every writer).
+The evaluator logs the summary once the run is complete, writes it to ``summary`` if given
+and, with ``exit_when_done``, exits; the recorder finishes its bag when it is stopped.
 """
 
 from __future__ import annotations
@@ -20,8 +18,6 @@ from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_ros.spin import spin_node
 from activetrack_ros.trust import GraphKey
-
-EVALUATOR = "activetrack_evaluator"
 
 
 def activetrack_evaluator(**kwargs):

@@ -1,11 +1,8 @@
-"""One OS process per node, supervised: a death is noticed at the next poll, a restartable node
-is started again (a bounded number of times), any other death fails the run at once; children
-never outlive the runner.
-
-Children die with the runner whatever kills it: each is started through a tiny launcher that
-asks the kernel for SIGKILL when its parent dies (Linux ``PR_SET_PDEATHSIG``, kept across the
-exec into the node and the ROS wheels' re-exec) and then execs the node; each runs in its own
-session, so a terminal's Ctrl-C reaches only the runner, which stops the children in order.
+"""One OS process per node, supervised: a restartable node that dies is started again (a bounded
+number of times), any other death fails the run. Children never outlive the runner: a tiny
+launcher asks the kernel for SIGKILL when its parent dies (Linux ``PR_SET_PDEATHSIG``, kept
+across the exec into the node and the ROS wheels' re-exec); each child has its own session, so
+a terminal's Ctrl-C reaches only the runner, which stops the children in order.
 """
 
 from __future__ import annotations
@@ -15,7 +12,7 @@ import signal
 import subprocess
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 # Run with ``python -S`` (no site: the ROS wheels' start-up hook would re-exec first). Exits if
@@ -49,7 +46,6 @@ class NodeProcess:
     restartable: bool
     popen: subprocess.Popen | None = None
     restarts: int = 0
-    exits: list[int] = field(default_factory=list)
 
 
 class Supervisor:
@@ -85,7 +81,6 @@ class Supervisor:
             code = node.popen.poll() if node.popen else None
             if code is None:
                 continue
-            node.exits.append(code)
             if node.restartable and node.restarts < self.max_restarts:
                 node.restarts += 1
                 self.log(
@@ -98,9 +93,8 @@ class Supervisor:
             extra = f" (after {node.restarts} restarts)" if node.restarts else ""
             raise NodeDied(node.name, code, extra)
 
-    def stop(self, grace: float = 1.0) -> dict[str, int]:
-        """SIGTERM every running child, SIGKILL what is left after ``grace`` seconds; returns
-        the exit statuses."""
+    def stop(self, grace: float = 1.0) -> None:
+        """SIGTERM every running child, SIGKILL what is left after ``grace`` seconds."""
         running = [n for n in self.nodes if n.popen is not None and n.popen.poll() is None]
         for n in running:
             n.popen.send_signal(signal.SIGTERM)
@@ -111,7 +105,6 @@ class Supervisor:
             except subprocess.TimeoutExpired:
                 n.popen.kill()
                 n.popen.wait()
-        return {n.name: n.popen.returncode for n in self.nodes if n.popen is not None}
 
     @property
     def restarts(self) -> dict[str, int]:

@@ -1,19 +1,9 @@
 """``activetrack track DETECTIONS --config CONFIG``: the tracker on recorded detections
-(docs/track-your-data.md).
-
-DETECTIONS is a CSV or JSON file (:mod:`activetrack.tracking.detections`) or a rosbag2 of
-``Scan`` messages (:mod:`activetrack_bringup.track_bag`); CONFIG a tracker configuration or a
-scenario file (:func:`activetrack.scenarios.load_tracking`). The configuration's tracker runs
-epochs 1..K, K the data's last epoch (:func:`activetrack.closed_loop.recorded.track_detections`;
-``--run`` seeds it as ``run`` and ``batch`` do, so a run's scans with its scenario and run
-index give the run's tracks bit for bit). With truth (``--truth``, or the detections bag's
-own ground truth) it scores GOSPA at every epoch.
-
-The output folder (``--out``, default ``runs/<name>-<timestamp>``) holds ``tracks.csv``,
-``tracks.json`` (the track sets, GOSPA), ``gospa.csv`` with truth, and ``bag/`` (scans,
-platform states, track arrays, truth: ``activetrack play`` and Foxglove read it); ``--json``
-and ``--csv`` write the tracks elsewhere too. A bad file or configuration is one ``error:``
-line and exit code 2, before anything is tracked.
+(docs/track-your-data.md): a CSV or JSON file (:mod:`activetrack.tracking.detections`) or a bag
+of ``Scan`` messages (:mod:`activetrack_bringup.track_bag`), with a tracker configuration or a
+scenario file; ``--run`` seeds as ``run`` and ``batch`` do, so a run's scans with its scenario
+and run index give the run's tracks bit for bit. A bad input is one ``error:`` line, exit 2,
+before anything is tracked.
 """
 
 from __future__ import annotations
@@ -45,9 +35,7 @@ def add_track_parser(sub) -> None:
         help="targets' truth: a .csv or .json file, or a bag with ground_truth (default: the "
         "detections bag's own, if it has one)",
     )
-    track.add_argument(
-        "--run", type=cli_types.run_index, default=None, help="Monte Carlo run index (seeding)"
-    )
+    track.add_argument("--run", type=cli_types.run_index, help="Monte Carlo run index (seeding)")
     track.add_argument(
         "--out", help="output folder (default runs/<name>-<timestamp>; must not exist)"
     )
@@ -91,15 +79,14 @@ def _write_outputs(args: argparse.Namespace, folder: Path, config, sensors, dete
         extra["gospa"] = run.gospa.to_json()
     folder.mkdir(parents=True, exist_ok=True)
     warnings = write_track_bag(folder / "bag", config, sensors, detections, run, truth)
-    targets = [(folder / "tracks.csv", folder / "tracks.json")]
-    targets.append((Path(args.csv) if args.csv else None, Path(args.json) if args.json else None))
-    for csv_path, json_path in targets:
+    copies = [(folder / "tracks.csv", folder / "tracks.json"), (args.csv, args.json)]
+    for csv_path, json_path in copies:  # the folder's, and --csv and --json if given
         for path in (csv_path, json_path):
-            if path is not None:
-                path.parent.mkdir(parents=True, exist_ok=True)
-        if csv_path is not None:
+            if path:
+                Path(path).parent.mkdir(parents=True, exist_ok=True)
+        if csv_path:
             write_tracks_csv(csv_path, run.track_sets)
-        if json_path is not None:
+        if json_path:
             write_tracks_json(json_path, run.track_sets, **extra)
     if run.gospa is not None:
         with (folder / "gospa.csv").open("w", newline="") as f:

@@ -1,19 +1,8 @@
-"""Bags for ``activetrack track`` (docs/track-your-data.md): its detections (and truth) from a
-rosbag2 of ``Scan`` messages, and its result as a bag.
-
-Reading takes the bag's ``activetrack/scans`` under any namespace (one) and, when present, its
-``activetrack/ground_truth`` (:func:`activetrack_bringup.retrack.read_run`: lost data, a
-topic of another type or version are refused with one line); every scan is checked against the
-configuration's sensor (:func:`activetrack_ros.convert.scan_from_msg`: kind, platform, R,
-clutter density, field of view, stamp ``epoch x dt``).
-
-Writing (:func:`write_track_bag`) is the project's recorder format (rosbag2 directory, MCAP,
-:class:`~activetrack_bringup.bag_io.Rosbag2Writer`): per epoch k, at log time k dt, the truth
-when given, a ``PlatformState`` of every platform, the scans and the ``TrackArray``.
-``activetrack play`` republishes it (a ``tracker_node`` in free mode tracks the scans and
-platform states) and Foxglove opens it. The platform states are synthesised from the scans: a
-platform is where its sensors' scans say at the epochs it scanned, and elsewhere on the
-constant-velocity line of its nearest scan (a platform that never scanned has no state).
+"""Bags for ``activetrack track`` (docs/track-your-data.md): its detections (and truth) read from
+a rosbag2 of ``Scan`` messages (:func:`activetrack_bringup.retrack.read_run`'s refusals, every
+scan checked against the configuration's sensor by ``scan_from_msg``), and its result written
+as the recorder's format: per epoch k, at log time k dt, the truth, a ``PlatformState`` per
+platform (synthesised from the scans: :func:`platform_states`), the scans and the track array.
 """
 
 from __future__ import annotations
@@ -114,8 +103,9 @@ def _truth(msg, config: TrackingConfig) -> TruthSet:
 def platform_states(
     config: TrackingConfig, detections: Detections
 ) -> tuple[dict[int, list[PlatformSnapshot]], list[str]]:
-    """Each platform's state at epochs 1..K, synthesised from the scans (module docstring),
-    and a warning per platform that never scanned."""
+    """Each platform's state at epochs 1..K: where its sensors' scans say at the epochs it
+    scanned, elsewhere on the constant-velocity line of its nearest scan; and a warning per
+    platform that never scanned (it has no state)."""
     dt, K = config.dt, detections.last_epoch
     platform_of = {s.id: p.id for p in config.platforms for s in p.sensors}
     seen: dict[str, dict[int, np.ndarray]] = {p.id: {} for p in config.platforms}
@@ -133,24 +123,14 @@ def platform_states(
             )
             continue
         epochs = sorted(known)
+        ids, kinds = tuple(s.id for s in p.sensors), tuple(s.kind for s in p.sensors)
         for k in range(1, K + 1):
             i = bisect.bisect_right(epochs, k)  # epochs[i - 1] <= k < epochs[i]
             before, after = epochs[max(i - 1, 0)], epochs[min(i, len(epochs) - 1)]
             j = before if before <= k and k - before <= abs(after - k) else after
             pv = known[j] + (k - j) * dt * np.array([known[j][1], 0.0, known[j][3], 0.0])
             heading, speed = heading_speed(pv)
-            states[k].append(
-                PlatformSnapshot(
-                    p.id,
-                    k,
-                    k * dt,
-                    pv,
-                    heading,
-                    speed,
-                    tuple(s.id for s in p.sensors),
-                    tuple(s.kind for s in p.sensors),
-                )
-            )
+            states[k].append(PlatformSnapshot(p.id, k, k * dt, pv, heading, speed, ids, kinds))
     return states, warnings
 
 

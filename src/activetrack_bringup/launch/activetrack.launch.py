@@ -1,30 +1,16 @@
-"""The activetrack graph on a full ROS 2 Jazzy install: simulator, tracker and planner, one
-process each, and the run's evaluator and recorder (what ``activetrack run --processes``
-starts where launch is not available: the ``launch`` packages are not on PyPI).
+"""The activetrack graph on a full ROS 2 Jazzy install (README: On a full ROS 2 install): sim,
+tracker and planner, the run's evaluator and recorder, one process each, what
+``activetrack run --processes`` starts where launch is not available (not on PyPI).
 
     ros2 launch activetrack_bringup activetrack.launch.py scenario:=/path/to/default.yaml \\
         [namespace:=graph1] [run:=-1] [mode:=lockstep|free] [rate:=1.0] [filter:=pf]
         [frame_id:=world] [wait_for_subscribers:=0] [wait_for_topic:=tf] [exit:=false]
         [evaluator:=true] [summary:=summary.json] [recorder:=true] [bag:=activetrack_bag]
 
-Every setting ``activetrack run`` takes has an argument here (tests/setup/test_launch_file.py
-compares them, and each node parameter with the node's declaration): ``rate`` is the sim's
-free-mode rate, ``filter`` the tracker's, ``wait_for_subscribers``/``wait_for_topic`` hold
-the first epoch until outside subscribers joined (``--wait-for``), ``exit`` ends the launch
-once the run is done (when the evaluator has it and exits; without an evaluator, when the sim
-exits after its last epoch).
-``evaluator`` and ``recorder`` start ``activetrack_evaluator`` (per-epoch RMSE and PCRLB on
-activetrack/metrics; ``summary`` names the summary.json it writes) and ``activetrack_recorder``
-(the run's rosbag2 directory ``bag``, which must not exist).
-
-``namespace`` puts every node and every topic of the graph (its names are relative) under
-/graph1, so several graphs can share a DDS domain. There is no ``use_sim_time`` argument: the
-simulator publishes /clock and every message of the graph is stamped with simulated time by
-the nodes themselves, while the nodes' own timers (the tracker's epoch_timeout, the free-run
-tick) must keep wall time: on /clock, which stands still while lockstep waits for them, they
-would never fire (the nodes refuse it). Tools that follow the run (RViz, a recorder of your
-own) take ``use_sim_time:=true``. For the graph's writer authentication, export the same
-``ACTIVETRACK_GRAPH_KEY`` first.
+Every setting of ``activetrack run`` is an argument (tests/setup/test_launch_file.py). There is
+no ``use_sim_time``: the nodes stamp with simulated time themselves, and their own timers (the
+tracker's epoch_timeout, the free-run tick) must keep wall time, as /clock stands still while
+lockstep waits for them. Export the same ``ACTIVETRACK_GRAPH_KEY`` first.
 """
 
 from launch import LaunchDescription

@@ -1,9 +1,5 @@
 """``activetrack ros graph|echo|hz|param|tf|bag``: the parsers and what each command prints.
-
-Every command takes ``--namespace NS`` (relative topic and node names resolve in it) and
-``--domain D`` (the DDS domain to join; default ROS_DOMAIN_ID, else 0: ``activetrack run``
-prints the one a run uses). Exit codes: 0 done, 1 nothing answered in time (no publisher, a
-node without parameter services, a refused ``param set``), 2 bad input.
+Exit codes: 0 done, 1 nothing answered in time, 2 bad input (docs/ros-tools.md).
 """
 
 from __future__ import annotations
@@ -20,11 +16,12 @@ def _session(args, name: str) -> ToolSession:
 
 
 def _cmd_graph(args) -> int:
-    from activetrack_bringup.ros_tools.introspect import graph_text, run_graph_command
+    from activetrack_bringup.ros_tools.introspect import describe_graph, graph_text
     from activetrack_bringup.ros_tools.messages import to_yaml
 
     with _session(args, "graph") as s:
-        graph = run_graph_command(s, args.all, args.wait)
+        s.discover(args.wait)  # let discovery fill in the graph
+        graph = describe_graph(s, args.all)
     print(to_yaml(graph) if args.yaml else graph_text(graph))
     return 0
 

@@ -18,7 +18,7 @@ def topic_type(session: ToolSession, topic: str, wait: float) -> str:
     def published() -> bool:
         return bool(session.node.get_publishers_info_by_topic(topic))
 
-    if not session.wait_for_graph(published, wait):
+    if not session.spin_until(published, wait):
         raise ToolError(f"no publisher of {topic} appeared within {wait:g} s (--wait)")
     types = sorted({i.topic_type for i in session.node.get_publishers_info_by_topic(topic)})
     if len(types) > 1:

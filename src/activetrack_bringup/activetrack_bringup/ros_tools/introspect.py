@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
-from activetrack_bringup.ros_tools.session import DISCOVERY_S, ToolSession
+from activetrack_bringup.ros_tools.session import ToolSession
 
 # Every node's own plumbing: shown only with --all.
 _PLUMBING = ("/rosout", "/parameter_events")
@@ -63,9 +63,3 @@ def graph_text(graph: dict) -> str:
             for endpoint, qos in t[role]:
                 lines.append(f"    {role[:-1]:<10} {endpoint}  ({qos})")
     return "\n".join(lines)
-
-
-def run_graph_command(session: ToolSession, everything: bool, wait: float = DISCOVERY_S) -> dict:
-    """Let discovery fill in the graph (at most ``wait`` seconds), then describe it."""
-    session.discover(wait)
-    return describe_graph(session, everything)

@@ -1,10 +1,9 @@
-"""A tool's connection to a graph: one rclpy context on a chosen domain, one node, an
-executor, and the namespace that relative names resolve in."""
+"""A tool's connection to a graph: a node of its own on a chosen domain, and the namespace that
+relative names resolve in."""
 
 from __future__ import annotations
 
 import os
-import time
 
 from rclpy.expand_topic_name import expand_topic_name
 from rclpy.node import Node
@@ -59,20 +58,15 @@ class ToolSession:
         self.graph.spin_until(lambda: False, timeout=seconds, step=0.01)
 
     def spin_until(self, condition, timeout: float) -> bool:
+        """Spin until ``condition()`` holds (e.g. a node or topic was discovered)."""
         return self.graph.spin_until(condition, timeout=timeout, step=0.01)
+
+    wait_for_graph = spin_until
 
     def discover(self, wait: float = DISCOVERY_S) -> None:
         """Spin until the graph this participant sees has not changed for SETTLE_S seconds,
         or ``wait`` seconds pass."""
-        deadline = time.monotonic() + wait
-        last, since = None, time.monotonic()
-        while time.monotonic() < deadline:
-            self.spin(0.1)
-            now = self._census()
-            if now != last:
-                last, since = now, time.monotonic()
-            elif time.monotonic() - since >= SETTLE_S:
-                return
+        self.graph.spin_until_quiet(self._census, quiet=SETTLE_S, timeout=wait, step=0.1)
 
     def _census(self) -> tuple:
         """Nodes and, per topic, its endpoint counts: what discovery may still fill in."""
@@ -95,15 +89,6 @@ class ToolSession:
     def in_namespace(self, name: str) -> bool:
         """Whether an absolute node or topic name lies in the session's namespace."""
         return not self.namespace or name.startswith(self.namespace + "/")
-
-    def wait_for_graph(self, condition, timeout: float) -> bool:
-        """Spin until ``condition()`` holds (e.g. a node or topic was discovered)."""
-        deadline = time.monotonic() + timeout
-        while not condition():
-            if time.monotonic() > deadline:
-                return False
-            self.spin(0.05)
-        return True
 
     def close(self) -> None:
         self.graph.close()
