@@ -94,12 +94,14 @@ class GraphNode(Node):
 
     def __init__(self, node_name: str, *, graph_key: GraphKey | None = None, **kwargs):
         super().__init__(node_name, **kwargs)
+        self.role = node_name  # its diagnostics' name, whatever the node is remapped to
         params.fix_use_sim_time(self)
         self.graph_key = graph_key if graph_key is not None else GraphKey.from_environment()
         self.counters = NodeCounters()
         self.log_limited = RateLimitedLog(self.get_logger())
         self.inputs: dict[str, str] = {}  # message type name -> topic subscribed
         self.frame_id = graph.FIXED_FRAME
+        self.mode: str | None = None  # lockstep | free (None: a node without a mode parameter)
         self.history_depth: int | None = None  # per-epoch writers' depth (size_history)
 
     # --- parameters and run size -----------------------------------------------------------
@@ -107,29 +109,35 @@ class GraphNode(Node):
     def declare_params(
         self, specs: tuple[params.ParamSpec, ...], apply=None, *, last: bool = True
     ) -> dict:
-        """Declare the node's parameters (activetrack_ros.params); ``apply``: name ->
-        callable for those a running node can change. Returns the values (ValueError on a bad
-        one). ``last``: the node declares no more, so unknown overrides are reported now."""
+        """Declare the node's parameters (activetrack_ros.params) and take its frame_id and
+        mode; ``apply``: name -> callable for those a running node can change. Returns the
+        values (ValueError on a bad one). ``last``: report unknown overrides now."""
         values = params.declare(self, specs)
         params.on_change(self, specs, {} if apply is None else apply)
         if last:
             params.warn_unknown(self)
         self.frame_id = values.get("frame_id", self.frame_id)
+        self.mode = values.get("mode", self.mode)
         return values
 
     def use_scenario(self, scenario) -> None:
-        """Take the node's scenario: size the per-epoch histories for it."""
+        """Take the node's scenario: size the per-epoch histories for it, publish diagnostics."""
+        self.scenario = scenario
         self.size_history(scenario)
+        self.diag_pub = self.publisher(DiagnosticArray, graph.DIAGNOSTICS)
+
+    def setter(self, attribute: str) -> Callable:
+        """The ``apply`` entry (declare_params) of a parameter the node keeps in ``attribute``."""
+        return lambda value: setattr(self, attribute, value)
 
     def size_history(self, scenario) -> None:
-        """Per-epoch writers keep the whole run for late joiners (graph.history_depth); a run
-        too long for that says so."""
+        """Per-epoch writers keep the whole run for late joiners; a run too long says so."""
         self.history_depth = graph.history_depth(scenario)
-        if graph.run_history(scenario) > self.history_depth:
+        most = graph.run_history(scenario)
+        if most > self.history_depth:
             self.get_logger().warning(
-                f"the run has {graph.run_history(scenario)} per-epoch messages per topic at "
-                f"most; writers keep the last {self.history_depth}: a late joiner misses the "
-                "start"
+                f"the run has {most} per-epoch messages per topic at most; writers keep the "
+                f"last {self.history_depth}: a late joiner misses the start"
             )
 
     # --- inputs --------------------------------------------------------------------------
@@ -169,9 +177,8 @@ class GraphNode(Node):
         self._raw_subscription(msg_type, topic, on_raw)
 
     def _trust_filter(self, msg_type, topic: str) -> Callable[[bytes], tuple[bool, object]]:
-        """``trusted(data)``: counts the sample; ``(False, None)`` for a writer outside the
-        graph (counted as foreign), else ``(True, msg)`` with the message if it had to be
-        decoded for the check (diagnostics), else None."""
+        """``trusted(data)``: counts the sample; ``(False, None)`` for a foreign writer, else
+        ``(True, msg)``, msg decoded if the check had to (diagnostics), else None."""
         name = msg_type.__name__
         self.inputs[name] = topic
         key = self.graph_key
@@ -263,17 +270,18 @@ class GraphNode(Node):
     def publisher(self, msg_type, topic: str) -> GraphPublisher:
         return GraphPublisher(self, msg_type, topic, self.graph_key, self.history_depth)
 
-    def diagnostics_array(self, header: Header, name: str, hardware_id: str, message: str):
-        """This node's counters as one DiagnosticStatus (WARN once anything was rejected)."""
+    def publish_diagnostics(self, header: Header, message: str) -> None:
+        """This node's counters as one DiagnosticStatus ``activetrack/<node>`` of the scenario
+        (WARN once anything was rejected)."""
         warn = self.counters.total_rejected or self.counters.total("errors.")
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK,
-            name=name,
-            hardware_id=hardware_id,
+            name=f"activetrack/{self.role}",
+            hardware_id=self.scenario.name,
             message=message,
             values=[KeyValue(key=k, value=v) for k, v in self.counters.as_pairs()],
         )
-        return DiagnosticArray(header=header, status=[status])
+        self.diag_pub.publish(DiagnosticArray(header=header, status=[status]))
 
 
 def _interrupt_inside(exc: BaseException) -> BaseException | None:

@@ -1,15 +1,10 @@
-"""planner_node: the scenario's planner (activetrack.closed_loop.components.build_planner: PCRLB and
-modified-Riccati manoeuvre planning, sensor selection, cautious localisation, planning across
-targets with beam assignment).
+"""planner_node: the scenario's planner (activetrack.closed_loop.components.build_planner).
 
 Answers each track array (epoch k) with a ManoeuvreCommand per controllable platform, a
 BeamCommand per steerable sensor, a SensorSelection (when the scenario selects sensors) and a
 PlanReport, once it also holds every platform's state of epoch k. Renewal mode: every decision
-starts from the tracks' posteriors. Only the graph's own tracker and simulator count
-(activetrack_ros.trust); bad messages are rejected, counted and logged; the node keeps running.
+starts from the tracks' posteriors.
 """
-
-from diagnostic_msgs.msg import DiagnosticArray
 
 from activetrack.closed_loop.components import build_planner, component_rngs
 from activetrack.data import PlatformSnapshot, TrackSet
@@ -44,8 +39,7 @@ class PlannerNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("planner_node", **kwargs)
         p = self.declare_params((SCENARIO, RUN, FRAME_ID))  # no mode: it plans alike in both
-        self.scenario = load_scenario(p["scenario"])
-        self.use_scenario(self.scenario)
+        self.use_scenario(load_scenario(p["scenario"]))
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[2]
         self.core = build_planner(self.scenario, rng)
         self.check_tracks = TrackArrayChecker(self.scenario)
@@ -57,7 +51,6 @@ class PlannerNode(GraphNode):
         self.beam_pub = self.publisher(BeamCommand, topics.BEAM_COMMANDS)
         self.selection_pub = self.publisher(SensorSelection, topics.SENSOR_SELECTION)
         self.report_pub = self.publisher(PlanReport, topics.PLAN_REPORT)
-        self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
         self.subscribe(TrackArray, topics.TRACKS, self.on_tracks)
         self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
 
@@ -92,30 +85,13 @@ class PlannerNode(GraphNode):
         for beam in decision.beams:
             self.beam_pub.publish(beam_msg(beam, dt, frame))
         if decision.selected_sensor_ids is not None:
-            self.selection_pub.publish(
-                selection_msg(
-                    k,
-                    dt,
-                    frame,
-                    decision.selected_sensor_ids,
-                    decision.candidate_sensor_ids,
-                    decision.selection_costs,
-                    decision.selection_criterion,
-                )
-            )
+            self.selection_pub.publish(selection_msg(k, dt, frame, decision))
         hdr = header(k * dt, frame)
         if decision.report is not None:
             self.report_pub.publish(report_msg(decision.report, hdr))
         self.counters.count("decisions")
         confirmed = len(self.tracks.confirmed)
-        self.diag_pub.publish(
-            self.diagnostics_array(
-                hdr,
-                "activetrack/planner_node",
-                self.scenario.name,
-                f"decided epoch {k} for {confirmed} confirmed track(s)",
-            )
-        )
+        self.publish_diagnostics(hdr, f"decided epoch {k} for {confirmed} confirmed track(s)")
 
 
 class AwaitedStates:

@@ -1,24 +1,17 @@
-"""tracker_node: the scenario's tracker (any registered filter per track, known or JPDA
-association, track management: activetrack.tracking.Tracker) on the sim's scans.
+"""tracker_node: the scenario's tracker (activetrack.tracking.Tracker) on the sim's scans.
 
 The ``scenario`` parameter names a scenario file or a tracker-only configuration
-(activetrack.scenarios.tracking, docs/track-your-data.md); the tracker is built from either by
-the same builder (activetrack.closed_loop.components.build_tracker). With a tracker
-configuration the node tracks scans from anywhere: in free mode, those ``activetrack play``
-publishes from a bag ``activetrack track`` wrote (its scans and platform states).
+(docs/track-your-data.md): with the latter the node tracks scans from anywhere, e.g. in free
+mode those ``activetrack play`` publishes from a bag ``activetrack track`` wrote.
 
-An epoch k is announced by the simulator's platform states of epoch k (one per platform, each
-saying how many scans the sim published at k); the tracker updates once it holds them all,
-sorted in scenario order, and publishes every live track with its id and covariance
-(``TrackArray``, with the planner's posterior samples for a particle filter). Each scan must
-agree with its platform's announced position. An epoch that stays incomplete for
-``epoch_timeout`` seconds is closed with what arrived (warned and counted), like a missing
-command in the simulator, so nothing can stall the tracker. In lockstep mode only epoch last + 1
-is accepted. For standard tools: each confirmed track's pose with covariance
-(``geometry_msgs/PoseWithCovarianceStamped``) and tf frame, a subsampled particle cloud
-(``geometry_msgs/PoseArray``), a 2-sigma ellipse and an id label per confirmed track
-(``MarkerArray``). Bad messages are rejected, counted and logged (activetrack_ros.node_base);
-the node keeps running.
+An epoch k is announced by the platform states of epoch k (one per platform, each saying how
+many scans the sim published at k); the tracker updates once it holds them all, sorted in
+scenario order, and publishes every live track (``TrackArray``, with the planner's posterior
+samples for a particle filter). Each scan must agree with its platform's announced position.
+An epoch incomplete for ``epoch_timeout`` seconds is closed with what arrived (warned and
+counted), so nothing can stall the tracker. In lockstep mode only epoch last + 1 is accepted.
+For standard tools: each confirmed track's pose with covariance and tf frame, a subsampled
+particle cloud, a 2-sigma ellipse and an id label per confirmed track.
 """
 
 import math
@@ -26,7 +19,6 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
@@ -99,16 +91,16 @@ def track_frame(track) -> str:
 class TrackerNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("tracker_node", **kwargs)
-        changes = {"cloud_size": self._set_cloud_size, "epoch_timeout": self._set_epoch_timeout}
+        changes = {
+            "cloud_size": self.setter("cloud_size"),
+            "epoch_timeout": self.setter("epoch_timeout"),
+        }
         p = self.declare_params(PARAMS, changes, last=False)
         # A tracker configuration, or a scenario's; imports its plugins: their filters too.
         config = load_tracking(p["scenario"])
         filter_name = self.declare_params((FILTER,), changes)["filter"]
-        self.scenario = with_tracker_overrides(
-            config, filter=filter_name or None, particles=p["particles"] or None
-        )
-        self.use_scenario(self.scenario)
-        self.mode = p["mode"]
+        overrides = {"filter": filter_name or None, "particles": p["particles"] or None}
+        self.use_scenario(with_tracker_overrides(config, **overrides))
         self.epoch_timeout = p["epoch_timeout"]
         self.cloud_size = p["cloud_size"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[1]
@@ -124,7 +116,6 @@ class TrackerNode(GraphNode):
         self.tracks_pub = self.publisher(TrackArray, topics.TRACKS)
         self.pose_pub = self.publisher(PoseWithCovarianceStamped, topics.TRACK_POSE)
         self.cloud_pub = self.publisher(PoseArray, topics.PARTICLES)
-        self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.tf_pub = self.publisher(TFMessage, topics.TF)
         self.subscribe(ScanMsg, topics.SCANS, self.on_scan)
@@ -135,12 +126,6 @@ class TrackerNode(GraphNode):
         # other processes (a viewer the run waited for) have matched them.
         prior = self.core.snapshot()
         self.prior_views = (prior, self.publish_estimate(prior))
-
-    def _set_cloud_size(self, size: int) -> None:
-        self.cloud_size = size
-
-    def _set_epoch_timeout(self, seconds: float) -> None:
-        self.epoch_timeout = seconds
 
     # --- inputs --------------------------------------------------------------------------
 
@@ -283,9 +268,7 @@ class TrackerNode(GraphNode):
             f"{len(tracks.tracks)} tracks, {tracks.detections} detections"
             + (f", lowest ESS {min(ess):.0f}" if ess else "")
         )
-        self.diag_pub.publish(
-            self.diagnostics_array(hdr, "activetrack/tracker_node", self.scenario.name, message)
-        )
+        self.publish_diagnostics(hdr, message)
 
     def publish_cloud(self, hdr, tracks: TrackSet) -> None:
         """The particle tracks' posterior samples, subsampled to about ``cloud_size`` each."""
