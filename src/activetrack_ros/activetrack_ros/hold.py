@@ -1,22 +1,16 @@
 """Hold a sim's first epoch until viewers have joined (``activetrack run --wait-for``; the
-sim's ``wait_for_subscribers`` and ``wait_for_topic`` parameters under launch or by hand).
+sim's ``wait_for_*`` parameters), so a viewer started before a fast run (RViz, Foxglove's
+bridge) does not miss its start on the volatile streams (``clock``, ``tf``).
 
-A viewer started before a fast run (RViz, Foxglove's bridge, ``activetrack ros echo tf``)
-would miss its start on the volatile streams (``clock``, ``tf``): the run begins as soon as
-its own nodes have joined. A sim whose ``wait_for`` is ``N`` publishes nothing of the run (its
-latched static frames excepted) until, as its own participant sees the graph,
-``wait_for_subscribers`` nodes outside the graph subscribe to any of the graph's topics and,
-if ``wait_for_topic`` names one, one subscribes to that topic (relative names resolve in the
-sim's namespace). Outside means any node but the graph's own (:data:`GRAPH_NODE_NAMES`) in the
-sim's namespace. Seeing a viewer's subscription does not mean the viewer knows the graph's
-writers yet: DDS discovery is per endpoint and per participant, and a volatile reader drops
-what a writer sent before the reader matched it, which no writer can observe (measured: a
-viewer seen by the sim missed the sim's first clocks, or the tracker's first estimates). So
-the sim then lets discovery settle for ``SETTLE_S`` (Fast DDS announces participants and
-heartbeats its discovery data every 3 s) and waits until each of its publishers has matched
-every subscription it has discovered on that topic (at most ``MATCH_WAIT_S`` more); then the
-viewer gets epoch 0 from every node.
-Setting both to 0 and '' while it holds starts the run at once; once the run has started they
+The sim publishes nothing of the run (its latched static frames excepted) until, as its own
+participant sees the graph, the subscribers asked for (:class:`WaitFor`) are there; outside
+means any node but the graph's own (:data:`GRAPH_NODE_NAMES`) in the sim's namespace. Seeing
+a viewer's subscription does not mean the viewer knows the graph's writers yet: discovery is
+per endpoint and participant, and a volatile reader drops what a writer sent before it matched
+(measured: a viewer seen by the sim missed the first clocks, or the tracker's first
+estimates). So the sim then lets discovery settle for ``SETTLE_S`` and waits until each of
+its publishers has matched every subscription it has discovered (at most ``MATCH_WAIT_S``
+more). Clearing the parameters while it holds starts the run at once; once started they
 cannot change.
 """
 
@@ -51,12 +45,12 @@ WAIT_FOR_NODES = ParamSpec(
     read_only=False, pattern=r"[A-Za-z_][A-Za-z0-9_]*( +[A-Za-z_][A-Za-z0-9_]*)*",
 )  # fmt: skip
 WAIT_FOR = (WAIT_FOR_SUBSCRIBERS, WAIT_FOR_TOPIC, WAIT_FOR_NODES)
-SETTLE_S = 3.5  # once satisfied: one Fast DDS announcement and heartbeat period, and a margin
+SETTLE_S = 3.5  # once satisfied: Fast DDS announces and heartbeats discovery every 3 s
 MATCH_WAIT_S = 2.0  # after settling: the longest wait for discovered readers to match
 STARTED = "the wait_for parameters hold the first epoch only: the run has started"
 _NOT_THE_RUNS = ("/rosout", "/parameter_events")  # every node's own, not the run's streams
 
-# The graph's own node names (either stack's nodes; the runner's evaluator, recorder, view).
+# The graph's own node names: its nodes, and the runner's evaluator, recorder and live view.
 _NODES = ("sim_node", "tracker_node", "planner_node")
 _RUNNERS = ("activetrack_evaluator", "activetrack_recorder", "activetrack_live_view")
 GRAPH_NODE_NAMES = frozenset((*_NODES, *_RUNNERS))

@@ -61,14 +61,13 @@ class ParamSpec:
             description=self.description,
             read_only=self.read_only,
         )
-        if self.type is float and self.low is not None and self.high is not None:
+        low, high = self.low, self.high
+        if self.type is float and low is not None and high is not None:
             d.floating_point_range = [
-                FloatingPointRange(from_value=float(self.low), to_value=float(self.high))
+                FloatingPointRange(from_value=float(low), to_value=float(high))
             ]
-        elif self.type is int and self.low is not None and self.high is not None:
-            d.integer_range = [
-                IntegerRange(from_value=int(self.low), to_value=int(self.high), step=1)
-            ]
+        elif self.type is int and low is not None and high is not None:
+            d.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
         allowed = self.allowed()
         if allowed:
             d.additional_constraints = f"one of {list(allowed)}" + (
@@ -130,16 +129,23 @@ FRAME_ID = ParamSpec(
 COMMON = (SCENARIO, RUN, MODE, FRAME_ID)
 
 
+def _as_float(p: Parameter, floats) -> Parameter:
+    """An integer given for a float parameter (``-p rate:=5``, ``ros2 param set /sim_node rate
+    5``) taken as that float, where rclpy would refuse it as the wrong type."""
+    if p.name in floats and p.type_ == Parameter.Type.INTEGER:
+        return Parameter(p.name, value=float(p.value))
+    return p
+
+
 def declare(node, specs: tuple[ParamSpec, ...]) -> dict:
     """Declare ``specs`` on ``node`` and return their values; ValueError (naming the
-    parameter and what is allowed) on a bad value. An integer given for a float parameter
-    (``-p rate:=5``) is taken as that float."""
+    parameter and what is allowed) on a bad value; an integer for a float is that float."""
     overrides = node._parameter_overrides  # what --ros-args / params files / the caller gave
+    floats = {s.name for s in specs if s.type is float}
     values = {}
     for spec in specs:
-        given = overrides.get(spec.name)
-        if given is not None and spec.type is float and given.type_ == Parameter.Type.INTEGER:
-            overrides[spec.name] = Parameter(spec.name, value=float(given.value))
+        if spec.name in overrides:
+            overrides[spec.name] = _as_float(overrides[spec.name], floats)
         try:
             value = node.declare_parameter(spec.name, spec.default, spec.descriptor()).value
         except ParameterException as exc:
@@ -165,10 +171,8 @@ def warn_unknown(node) -> None:
         )
 
 
-# rclpy declares use_sim_time on every node (False, undescribed, writable). The graph's nodes
-# stamp their messages with simulated time themselves and their timers must keep wall time:
-# /clock stands still while lockstep waits for them, so on sim time they would never fire
-# (setting it true froze a free run's clock; setting it back made sim time jump).
+# rclpy declares use_sim_time on every node (False, undescribed, writable); on sim time a
+# graph node's timers would never fire while lockstep waits (true froze a free run's clock).
 USE_SIM_TIME = "use_sim_time"
 USE_SIM_TIME_DESCRIPTION = (
     "fixed false: the node stamps messages with simulated time itself and its timers keep "
@@ -178,9 +182,8 @@ USE_SIM_TIME_DESCRIPTION = (
 
 
 def fix_use_sim_time(node) -> None:
-    """Make ``use_sim_time`` read-only and described on a graph node: a change is refused
-    (rclpy: "Trying to set a read-only parameter"), and ``true`` given at start-up (``-p``, a
-    params file's ``/**`` section) is a ValueError naming the parameter (exit 2)."""
+    """Make ``use_sim_time`` read-only and described on a graph node: a change is refused, and
+    ``true`` given at start-up (``-p``, a params file's ``/**``) is a ValueError (exit 2)."""
     if node.get_parameter(USE_SIM_TIME).value is not False:
         raise ValueError(
             f"parameter '{USE_SIM_TIME}' must be false for {node.get_name()}: "
@@ -207,14 +210,7 @@ def on_change(node, specs: tuple[ParamSpec, ...], apply: dict[str, Callable | st
     floats = {s.name for s in specs if s.type is float}
 
     def as_float(params: list[Parameter]) -> list[Parameter]:
-        """An integer for a float parameter (``ros2 param set /sim_node rate 5``) is taken as
-        that float, as at start-up; rclpy would refuse it as the wrong type."""
-        return [
-            Parameter(p.name, value=float(p.value))
-            if p.name in floats and p.type_ == Parameter.Type.INTEGER
-            else p
-            for p in params
-        ]
+        return [_as_float(p, floats) for p in params]
 
     def validate(params: list[Parameter]) -> SetParametersResult:
         for p in params:
