@@ -79,6 +79,7 @@ _TRACK_FLOATS = ("priority", "existence", "nis", "ess")
 # PlanReport fields of a PlanReportData field of the same name (labels: interned on the way in).
 _REPORT_COUNTS = ("epoch", "horizon", "evaluations")
 _REPORT_LABELS = ("cost_kind", "criterion", "search")
+_ARRAY_COUNTS = ("updates", "detections", "unassociated")  # of a TrackArray and a TrackSet
 
 # sensor id -> (platform id, the sensor in the scene)
 SensorTable = dict[str, tuple[str, ClutteredSensor]]
@@ -109,23 +110,19 @@ def marker(hdr: Header, ns: str, id_: int, kind: int, rgba, points=()) -> Marker
     return m
 
 
-def stamp_seconds(stamp, what: str) -> float:
-    """Seconds of a builtin_interfaces/Time, rejecting negative or denormal stamps."""
+def check_epoch_stamp(msg, scenario: Scenario | TrackingConfig, what: str) -> float:
+    """The epoch is within the run (without steps: any) and the stamp, a valid time, is its
+    time k T; returns the stamp."""
+    if scenario.steps is not None and msg.epoch > scenario.steps:
+        raise MessageError("future_epoch", f"{what}: epoch {msg.epoch} > steps {scenario.steps}")
+    stamp = msg.header.stamp
     if stamp.sec < 0 or not 0 <= stamp.nanosec < 1_000_000_000:
         raise MessageError(
             "bad_stamp",
             f"{what}: header.stamp must be sec >= 0, 0 <= nanosec < 1e9, got "
             f"({stamp.sec}, {stamp.nanosec})",
         )
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
-def check_epoch_stamp(msg, scenario: Scenario | TrackingConfig, what: str) -> float:
-    """The epoch is within the run (without steps: any) and the stamp is its time k T; returns
-    the stamp."""
-    if scenario.steps is not None and msg.epoch > scenario.steps:
-        raise MessageError("future_epoch", f"{what}: epoch {msg.epoch} > steps {scenario.steps}")
-    t = stamp_seconds(msg.header.stamp, what)
+    t = stamp.sec + stamp.nanosec * 1e-9
     if abs(t - msg.epoch * scenario.dt) > STAMP_TOLERANCE:
         raise MessageError(
             "bad_stamp", f"{what}: stamp {t} s is not epoch {msg.epoch} x dt {scenario.dt} s"
@@ -174,15 +171,10 @@ def _shown(text: str) -> str:
     return repr(text if len(text) <= 40 else text[:40] + "...")
 
 
-def _check_covariance(msg, sensor, what: str) -> int:
-    """The message's ``covariance`` is the sensor's R (dim_z x dim_z, SPD); returns dim_z."""
-    n = int(sensor.dim_z)
-    if len(msg.covariance) != n * n:
-        raise MessageError("bad_covariance", f"{what}: covariance must have {n * n} values")
-    R = spd(finite(msg.covariance, f"{what} covariance", math.inf).reshape(n, n), what)
-    if not np.allclose(R, sensor.R, rtol=1e-9, atol=0.0):
-        raise MessageError("sensor_mismatch", f"{what}: covariance differs from the scenario's R")
-    return n
+def _check_known(name: str, known, reason: str, field: str = "") -> None:
+    """``name`` is one of ``known``, else MessageError(reason) listing them."""
+    if name not in known:
+        raise MessageError(reason, f"{field}{_shown(name)} is not one of {sorted(known)}")
 
 
 # --- platforms and their commands --------------------------------------------------------------
@@ -207,16 +199,11 @@ def platform_state_msg(s: PlatformSnapshot, scan_count: int, frame_id: str) -> P
 def platform_from_msg(msg, scenario: Scenario | TrackingConfig, platform_ids) -> PlatformSnapshot:
     """A PlatformState as a PlatformSnapshot (epoch, stamp, ids and kinematics checked)."""
     what = f"platform state of {_shown(msg.platform_id)}"
-    if msg.platform_id not in platform_ids:
-        raise MessageError(
-            "unknown_platform",
-            f"{_shown(msg.platform_id)} is not one of {sorted(platform_ids)}",
-        )
+    _check_known(msg.platform_id, platform_ids, "unknown_platform")
     t = check_epoch_stamp(msg, scenario, what)
     platform = next(p for p in scenario.platforms if p.id == msg.platform_id)
-    if list(msg.sensor_ids) != [s.id for s in platform.sensors] or list(msg.sensor_kinds) != [
-        s.kind for s in platform.sensors
-    ]:
+    expected = ([s.id for s in platform.sensors], [s.kind for s in platform.sensors])
+    if (list(msg.sensor_ids), list(msg.sensor_kinds)) != expected:
         raise MessageError(
             "sensor_mismatch", f"{what}: sensors {list(msg.sensor_ids)[:8]} are not the scenario's"
         )
@@ -254,11 +241,7 @@ def command_from_msg(
     """A ManoeuvreCommand for one of the ``controllable`` platforms as a Command of ``epoch``
     (the sim's current one); the message's epoch is the caller's (the mode's) business."""
     what = f"command for {_shown(msg.platform_id)}"
-    if msg.platform_id not in controllable:
-        raise MessageError(
-            "unknown_platform",
-            f"{_shown(msg.platform_id)} is not one of {list(controllable)}",
-        )
+    _check_known(msg.platform_id, controllable, "unknown_platform")
     check_epoch_stamp(msg, scenario, what)
     # A heading change beyond half a turn or a speed change beyond the platform's whole speed
     # range is not a command to clamp but garbage: reject it.
@@ -337,11 +320,8 @@ def scan_msg(
 
 
 def _scan_sensor(msg: ScanMsg, sensors: SensorTable, what: str) -> ClutteredSensor:
-    """The scan's sensor, with its platform, kind, R and clutter density as in the scenario."""
-    if msg.sensor_id not in sensors:
-        raise MessageError(
-            "unknown_sensor", f"sensor_id {_shown(msg.sensor_id)} is not one of {sorted(sensors)}"
-        )
+    """The scan's sensor, with its platform, kind, clutter density and R as in the scenario."""
+    _check_known(msg.sensor_id, sensors, "unknown_sensor", "sensor_id ")
     platform_id, sensor = sensors[msg.sensor_id]
     if msg.platform_id != platform_id:
         raise MessageError(
@@ -359,7 +339,12 @@ def _scan_sensor(msg: ScanMsg, sensors: SensorTable, what: str) -> ClutteredSens
             f"{what}: clutter_density {msg.clutter_density!r} is not the scenario's "
             f"{sensor.clutter_density!r}",
         )
-    _check_covariance(msg, sensor, what)
+    n = int(sensor.dim_z)  # covariance: the sensor's R (n x n, SPD)
+    if len(msg.covariance) != n * n:
+        raise MessageError("bad_covariance", f"{what}: covariance must have {n * n} values")
+    R = spd(finite(msg.covariance, f"{what} covariance", math.inf).reshape(n, n), what)
+    if not np.allclose(R, sensor.R, rtol=1e-9, atol=0.0):
+        raise MessageError("sensor_mismatch", f"{what}: covariance differs from the scenario's R")
     return sensor
 
 
@@ -457,10 +442,8 @@ def track_array_msg(tracks: TrackSet, frame_id: str = FRAME_ID) -> TrackArray:
         filter_kind=tracks.filter_kind,
         motion_model=tracks.motion_model,
         state_names=list(tracks.state_names),
-        updates=int(tracks.updates),
         tracks=[_track_item(t) for t in tracks.tracks],
-        detections=int(tracks.detections),
-        unassociated=int(tracks.unassociated),
+        **{name: int(getattr(tracks, name)) for name in _ARRAY_COUNTS},
     )
 
 
@@ -506,9 +489,7 @@ class TrackArrayChecker:
             motion_model=msg.motion_model,
             state_names=self.state_names,
             tracks=tuple(self._track(item, what) for item in msg.tracks),
-            updates=msg.updates,
-            detections=msg.detections,
-            unassociated=msg.unassociated,
+            **{name: getattr(msg, name) for name in _ARRAY_COUNTS},
         )
 
     def _track(self, item: TrackItem, what: str) -> TrackEstimate:
@@ -642,21 +623,16 @@ def truth_array_from_msg(msg: GroundTruthArray, scenario: Scenario) -> TruthSet:
             "wrong_dimension", f"{what}: positions and velocities need one entry per target id"
         )
     names = [tuple(build_motion_model(targets[r].motion).state_names) for r in rank]
-    if list(msg.state_sizes) != [len(n) for n in names] or list(msg.state_names) != [
-        name for n in names for name in n
-    ]:
+    every_name = [name for n in names for name in n]
+    if list(msg.state_sizes) != [len(n) for n in names] or list(msg.state_names) != every_name:
         raise MessageError(
             "wrong_dimension", f"{what}: state_sizes and state_names must be the targets' models'"
         )
     if len(msg.states) != sum(len(n) for n in names):
         raise MessageError("wrong_dimension", f"{what}: states must hold every target's state")
     check_epoch_stamp(msg, scenario, what)
-    pv = np.array(
-        [
-            pv_of(p, v, f"{what} target {i}")
-            for i, p, v in zip(ids, msg.positions, msg.velocities, strict=True)
-        ]
-    ).reshape(-1, 4)
+    kinematics = zip(ids, msg.positions, msg.velocities, strict=True)
+    pv = np.array([pv_of(p, v, f"{what} target {i}") for i, p, v in kinematics]).reshape(-1, 4)
     flat = finite(msg.states, f"{what} states", MAX_STATE_VALUE)
     cuts = np.cumsum([0, *(len(n) for n in names)])
     states = tuple(flat[a:b].copy() for a, b in itertools.pairwise(cuts))

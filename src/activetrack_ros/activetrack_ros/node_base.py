@@ -145,12 +145,8 @@ class GraphNode(Node):
     def subscribe(self, msg_type, topic: str, callback: Callable) -> None:
         """Subscribe with the graph's reader QoS; ``callback(msg)`` may raise Rejected."""
         name = msg_type.__name__
-        trusted = self._trust_filter(msg_type, topic)
 
-        def on_raw(data: bytes) -> None:
-            ok, msg = trusted(data)
-            if not ok:
-                return
+        def on_trusted(data: bytes, msg) -> None:
             if msg is None:
                 try:
                     msg = deserialize_message(data, msg_type)
@@ -163,48 +159,38 @@ class GraphNode(Node):
                 )
             self.guarded(callback, msg)
 
-        self._raw_subscription(msg_type, topic, on_raw)
+        self._subscribe_trusted(msg_type, topic, on_trusted)
 
     def subscribe_raw(self, msg_type, topic: str, callback: Callable[[bytes], None]) -> None:
         """Like :meth:`subscribe` for a node that passes the bytes on (the live view):
         ``callback(data)`` gets the graph's own messages, undecoded, counted and guarded."""
-        trusted = self._trust_filter(msg_type, topic)
+        self._subscribe_trusted(msg_type, topic, lambda data, _: self.guarded(callback, data))
 
-        def on_raw(data: bytes) -> None:
-            if trusted(data)[0]:
-                self.guarded(callback, data)
-
-        self._raw_subscription(msg_type, topic, on_raw)
-
-    def _trust_filter(self, msg_type, topic: str) -> Callable[[bytes], tuple[bool, object]]:
-        """``trusted(data)``: counts the sample; ``(False, None)`` for a foreign writer, else
-        ``(True, msg)``, msg decoded if the check had to (diagnostics), else None."""
+    def _subscribe_trusted(self, msg_type, topic: str, on_trusted: Callable) -> None:
+        """A raw subscription that counts every sample and DDS event and drops a foreign
+        writer's; ``on_trusted(data, msg)`` gets the rest (``msg`` decoded if the check had to,
+        for diagnostics, else None)."""
         name = msg_type.__name__
         self.inputs[name] = topic
         key = self.graph_key
         signed = key is not None and is_signed_type(msg_type)
         diagnostics = key is not None and msg_type is DiagnosticArray
 
-        def trusted(data: bytes) -> tuple[bool, object]:
+        def on_raw(data: bytes) -> None:
             self.counters.received(name)
-            if signed and not key.verify(data):
-                self._foreign(name, topic)
-                return False, None
-            if not diagnostics:
-                return True, None
-            try:
-                msg = deserialize_message(data, msg_type)
-            except Exception:  # no tag can be read from it: not the graph's
-                msg = None
-            if msg is None or not key.verify_diagnostics(msg):
-                self._foreign(name, topic)
-                return False, None
-            return True, msg
+            msg, ok = None, True
+            if signed:
+                ok = key.verify(data)
+            elif diagnostics:  # the tag travels inside the message
+                try:
+                    msg = deserialize_message(data, msg_type)
+                except Exception:  # no tag can be read from it: not the graph's
+                    msg = None
+                ok = msg is not None and key.verify_diagnostics(msg)
+            if not ok:
+                return self._foreign(name, topic)
+            on_trusted(data, msg)
 
-        return trusted
-
-    def _raw_subscription(self, msg_type, topic: str, on_raw: Callable[[bytes], None]) -> None:
-        name = msg_type.__name__
         events = SubscriptionEventCallbacks(
             message_lost=lambda info: self._lost(name, info),
             incompatible_qos=lambda info: self._incompatible(name, topic, info),

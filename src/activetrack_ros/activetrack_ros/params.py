@@ -88,14 +88,10 @@ class ParamSpec:
                 f"parameter '{self.name}' must be a {self.type.__name__}, got "
                 f"{type(value).__name__} {value!r}"
             )
-        if self.type in (int, float):
-            bad = not math.isfinite(value) or (
-                (self.low is not None and value < self.low)
-                or (self.high is not None and value > self.high)
-            )
-            if bad:
-                limits = f"[{self.low}, {self.high}]"
-                return f"parameter '{self.name}' must be in {limits}, got {value!r}"
+        low = -math.inf if self.low is None else self.low
+        high = math.inf if self.high is None else self.high
+        if self.type in (int, float) and not (math.isfinite(value) and low <= value <= high):
+            return f"parameter '{self.name}' must be in [{self.low}, {self.high}], got {value!r}"
         allowed = self.allowed()
         if self.type is str and allowed and value not in allowed and (value or self.required):
             empty = "" if self.required else " (or empty)"

@@ -84,23 +84,11 @@ class GraphKey:
         """Tag of a canonical text of the array (CDR is not canonical: its padding bytes are
         whatever the serialiser's buffer held), the ``graph_auth`` value left out."""
         h = array.header
-        text = json.dumps(
-            [
-                h.stamp.sec,
-                h.stamp.nanosec,
-                h.frame_id,
-                [
-                    [
-                        bytes(s.level).hex(),
-                        s.name,
-                        s.message,
-                        s.hardware_id,
-                        [[kv.key, kv.value] for kv in s.values if kv.key != AUTH_FIELD],
-                    ]
-                    for s in array.status
-                ],
-            ]
-        )
+        statuses = []
+        for s in array.status:
+            values = [[kv.key, kv.value] for kv in s.values if kv.key != AUTH_FIELD]
+            statuses.append([bytes(s.level).hex(), s.name, s.message, s.hardware_id, values])
+        text = json.dumps([h.stamp.sec, h.stamp.nanosec, h.frame_id, statuses])
         return self.tag(text.encode()).hex()
 
     def sign_diagnostics(self, array: DiagnosticArray) -> DiagnosticArray:
