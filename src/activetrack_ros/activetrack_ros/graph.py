@@ -1,10 +1,8 @@
 """The activetrack node graph in one table: topic names, message types and QoS.
 
-Topic names are relative (``activetrack/tracks``, ``clock``, ``tf``): a node started in a
-namespace (``--ros-args -r __ns:=/g1``) uses ``/g1/activetrack/tracks``, ``/g1/clock`` and
-``/g1/tf``, so several graphs share a DDS domain, and any name can be remapped
-(``-r activetrack/tracks:=/fleet/tracks``). Bags store the resolved (absolute) names;
-:func:`find_topic` finds a graph topic among them whatever the namespace.
+Topic names are relative, so several graphs share a DDS domain under their namespaces
+(README, "Topics, namespaces, frames and QoS"); bags store the resolved names, among which
+:func:`find_topic` finds a graph topic whatever the namespace.
 
 Per-epoch topics (:data:`LATCHED_TOPICS`) are reliable and transient-local with a deep
 history, so a node or recorder that joins late (another process still discovering, a restarted

@@ -187,17 +187,15 @@ class FirstEpochHold:
         elif self.state == "held" and self.wait.satisfied(self.node, self.node.get_namespace()):
             self.state, self._settled = "settling", now + SETTLE_S
             self._deadline = self._settled + MATCH_WAIT_S
-        if (
-            self.state == "settling"
-            and now >= self._settled
-            and (self._matched() or now > self._deadline)
-        ):
-            self.state = "started"
-            self._fix()
-            self.node.get_logger().info("first epoch released")
-            self._start()
-            return False
-        return True
+        if self.state != "settling" or now < self._settled:
+            return True
+        if not self._matched() and now <= self._deadline:
+            return True
+        self.state = "started"
+        self._fix()
+        self.node.get_logger().info("first epoch released")
+        self._start()
+        return False
 
     def _matched(self) -> bool:
         """Every subscription this participant knows of, on each of the node's topics, is

@@ -1,17 +1,13 @@
 """The base of every activetrack node: trusted writers only, callbacks that never raise, exact
 counters and rate-limited logs.
 
-Every message a subscription takes ends in exactly one counter:
-- ``foreign.<Type>``: from a writer outside the graph (``activetrack_ros.trust``), dropped
-  before deserialisation;
-- ``rejected.<reason>``: from the graph or, without a key, from anyone, but invalid (the node's
-  callback raised :class:`Rejected`, or the header names another frame than the node's
-  ``frame_id``: ``rejected.wrong_frame``);
-- ``ignored.<reason>``: valid but not needed (e.g. history replayed to a late joiner);
-- otherwise it was used. ``received.<Type>`` counts them all. DDS reports samples it lost
-  (``dropped.<Type>``, from the message-lost event) and writers it could not match
-  (``incompatible_writers.<Type>``); an unexpected exception in a callback is counted as
-  ``errors.<callback>`` and logged with its traceback, and the node keeps running.
+Every message a subscription takes ends in exactly one counter (docs/robustness.md):
+``foreign.<Type>`` (a writer outside the graph, dropped before deserialisation),
+``rejected.<reason>`` (the callback raised :class:`Rejected`, or the header names another frame
+than the node's ``frame_id``), ``ignored.<reason>`` (valid but not needed), or none: used.
+``received.<Type>`` counts them all; ``dropped.<Type>`` and ``incompatible_writers.<Type>``
+count DDS's events, ``errors.<callback>`` an unexpected exception (logged with its traceback;
+the node keeps running).
 """
 
 from __future__ import annotations

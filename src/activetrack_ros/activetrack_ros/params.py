@@ -208,22 +208,19 @@ def on_change(node, specs: tuple[ParamSpec, ...], apply: dict[str, Callable | st
     def as_float(params: list[Parameter]) -> list[Parameter]:
         return [_as_float(p, floats) for p in params]
 
+    def refusal(p: Parameter) -> str | None:
+        spec = by_name.get(p.name)
+        if spec is None:
+            return None  # use_sim_time and rclpy's own
+        if spec.read_only or p.name not in apply:
+            return f"parameter '{p.name}' cannot change while the node runs"
+        if isinstance(apply[p.name], str):  # changeable, but not in this node's state
+            return apply[p.name]
+        return spec.check(p.value)
+
     def validate(params: list[Parameter]) -> SetParametersResult:
-        for p in params:
-            spec = by_name.get(p.name)
-            if spec is None:
-                continue  # use_sim_time and rclpy's own
-            if spec.read_only or p.name not in apply:
-                return SetParametersResult(
-                    successful=False,
-                    reason=f"parameter '{p.name}' cannot change while the node runs",
-                )
-            if isinstance(apply[p.name], str):  # changeable, but not in this node's state
-                return SetParametersResult(successful=False, reason=apply[p.name])
-            problem = spec.check(p.value)
-            if problem:
-                return SetParametersResult(successful=False, reason=problem)
-        return SetParametersResult(successful=True)
+        reasons = [r for r in map(refusal, params) if r]
+        return SetParametersResult(successful=not reasons, reason=reasons[0] if reasons else "")
 
     def applied(params: list[Parameter]) -> None:
         for p in params:

@@ -36,6 +36,11 @@ STATE_WINDOW = 64
 
 
 class PlannerNode(GraphNode):
+    """Platform states are kept by epoch until the planner has decided for their epoch: a state
+    of an epoch already decided is ignored (a latched state replayed), a second one for a
+    platform and epoch rejected, and at most STATE_WINDOW epochs kept (a late joiner's
+    replayed history, oldest evicted first)."""
+
     def __init__(self, **kwargs):
         super().__init__("planner_node", **kwargs)
         p = self.declare_params((SCENARIO, RUN, FRAME_ID))  # no mode: it plans alike in both
@@ -44,7 +49,8 @@ class PlannerNode(GraphNode):
         self.core = build_planner(self.scenario, rng)
         self.check_tracks = TrackArrayChecker(self.scenario)
         self.tracks: TrackSet | None = None
-        self.platforms = AwaitedStates(self, self.scenario)
+        self.platform_ids = {p.id for p in self.scenario.platforms}
+        self.states: dict[int, dict[str, PlatformSnapshot]] = {}  # by epoch
         self.last_decided = -1
 
         self.command_pub = self.publisher(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS)
@@ -66,19 +72,34 @@ class PlannerNode(GraphNode):
         self.try_decide()
 
     def on_platform(self, msg: PlatformState) -> None:
-        if self.platforms.add(msg, self.last_decided):
-            self.try_decide()
+        snap = platform_from_msg(msg, self.scenario, self.platform_ids)
+        if snap.epoch <= self.last_decided:
+            return self.ignore("old_state")
+        states = self.states.setdefault(snap.epoch, {})
+        if snap.platform_id in states:
+            raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
+        states[snap.platform_id] = snap
+        while len(self.states) > STATE_WINDOW:
+            del self.states[min(self.states)]
+            self.ignore("evicted_states")
+        self.try_decide()
 
     def try_decide(self) -> None:
         if self.tracks is None:
             return
         k = self.tracks.epoch
-        ordered = self.platforms.complete(k)
-        if k <= self.last_decided or k >= self.scenario.steps or ordered is None:
+        states = self.states.get(k, {})
+        if (
+            k <= self.last_decided
+            or k >= self.scenario.steps
+            or len(states) < len(self.platform_ids)
+        ):
             return
+        ordered = [states[p.id] for p in self.scenario.platforms]
         decision = self.core.decide(k, self.tracks, ordered)
         self.last_decided = k
-        self.platforms.decided(k)
+        for e in [e for e in self.states if e <= k]:
+            del self.states[e]
         dt, frame = self.scenario.dt, self.frame_id
         for c in decision.commands:
             self.command_pub.publish(command_msg(c, dt, frame))
@@ -94,49 +115,5 @@ class PlannerNode(GraphNode):
         self.publish_diagnostics(hdr, f"decided epoch {k} for {confirmed} confirmed track(s)")
 
 
-class AwaitedStates:
-    """Platform states by epoch, kept until the planner has decided for their epoch: a state
-    of an epoch already decided is ignored (a latched state replayed), a second one for a
-    platform and epoch rejected, and at most STATE_WINDOW epochs kept (a late joiner's
-    replayed history, oldest evicted first)."""
-
-    def __init__(self, node, scenario):
-        self.node = node
-        self.scenario = scenario
-        self.platform_ids = {p.id for p in scenario.platforms}
-        self.by_epoch: dict[int, dict[str, PlatformSnapshot]] = {}
-
-    def add(self, msg: PlatformState, last_decided: int) -> bool:
-        """Take a state; False when it is not news (counted as ignored)."""
-        snap = platform_from_msg(msg, self.scenario, self.platform_ids)
-        if snap.epoch <= last_decided:
-            self.node.ignore("old_state")
-            return False
-        states = self.by_epoch.setdefault(snap.epoch, {})
-        if snap.platform_id in states:
-            raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
-        states[snap.platform_id] = snap
-        while len(self.by_epoch) > STATE_WINDOW:
-            del self.by_epoch[min(self.by_epoch)]
-            self.node.ignore("evicted_states")
-        return True
-
-    def complete(self, k: int) -> list[PlatformSnapshot] | None:
-        """Every platform's state of epoch k in scenario order, or None while one is missing."""
-        states = self.by_epoch.get(k, {})
-        if len(states) < len(self.platform_ids):
-            return None
-        return [states[p.id] for p in self.scenario.platforms]
-
-    def decided(self, k: int) -> None:
-        """Drop the states of epochs up to k."""
-        for e in [e for e in self.by_epoch if e <= k]:
-            del self.by_epoch[e]
-
-
 def main(args=None):
     spin_node(PlannerNode, args)
-
-
-if __name__ == "__main__":
-    main()

@@ -2,17 +2,13 @@
 (activetrack.simulation.Simulator).
 
 Publishes /clock, every alive target's truth (evaluators only), platform states and one
-``Scan`` of unlabelled detections per looking sensor and epoch; obeys the planner's
-ManoeuvreCommand (clamped to each platform's limits, counted), BeamCommand (a steerable
-sensor's pointing for the next epoch) and SensorSelection.
-
-Modes (parameter ``mode``):
-- ``lockstep`` (default): epoch k+1 is simulated once every controllable platform's command,
-  every steerable sensor's beam and (with selection on) the selection of epoch k have arrived
-  (with none of them, once the track array of epoch k has), so a run is deterministic for a
-  seed; one missing after ``command_timeout`` wall seconds means hold course, keep the beam and
-  the selection (warned and counted).
-- ``free``: sim time runs at ``rate`` x wall time; answers apply to the current leg at once.
+``Scan`` per looking sensor and epoch; obeys the planner's ManoeuvreCommand (clamped to each
+platform's limits, counted), BeamCommand and SensorSelection. ``lockstep`` mode: epoch k+1 is
+simulated once every command, beam and (with selection on) the selection of epoch k have
+arrived (with none to await, the track array of epoch k), so a run is deterministic for a
+seed; one missing after ``command_timeout`` wall seconds means hold course, keep the beam and
+the selection (warned and counted). ``free`` mode: sim time runs at ``rate`` x wall time and
+answers apply at once.
 """
 
 import math
@@ -337,7 +333,3 @@ class SimNode(GraphNode):
 
 def main(args=None):
     spin_node(SimNode, args, done=lambda node: node.exit_when_done and node.done)
-
-
-if __name__ == "__main__":
-    main()

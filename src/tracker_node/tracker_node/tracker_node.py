@@ -19,7 +19,7 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped
+from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovarianceStamped
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -197,18 +197,15 @@ class TrackerNode(GraphNode):
                 f"epoch {k} closed incomplete after {time.monotonic() - epoch.opened:.2f} s: "
                 f"{len(epoch.scans)} scans, states of {sorted(epoch.states)}",
             )
-        ordered = sorted(epoch.scans.values(), key=lambda s: self.sensor_order[s.sensor_id])
         used = []
-        for scan in ordered:  # each where its platform says it is
+        for scan in sorted(epoch.scans.values(), key=lambda s: self.sensor_order[s.sensor_id]):
             state = epoch.states.get(self.sensors[scan.sensor_id][0])
-            if state is not None and not np.allclose(
-                scan.sensor_pv, state.pv, rtol=0, atol=POSITION_TOLERANCE
-            ):
-                self.reject(
-                    "inconsistent", f"{scan.sensor_id!r} at {k} is not where its platform is"
-                )
-                continue
-            used.append(scan)
+            pv = scan.sensor_pv if state is None else state.pv  # where its platform says it is
+            if np.allclose(scan.sensor_pv, pv, rtol=0, atol=POSITION_TOLERANCE):
+                used.append(scan)
+            else:
+                where = f"{scan.sensor_id!r} at {k} is not where its platform is"
+                self.reject("inconsistent", where)
         tracks = self.core.step(k, k * self.scenario.dt, used)
         self.last_epoch = k
         for e in [e for e in self.epochs if e <= k]:
@@ -278,10 +275,8 @@ class TrackerNode(GraphNode):
         cloud = PoseArray(header=hdr)
         for samples in clouds:
             step = max(1, len(samples) // self.cloud_size)
-            for x in self.core.model.kinematics(samples[::step]):
-                p = Pose()
-                p.position.x, p.position.y = float(x[0]), float(x[2])
-                cloud.poses.append(p)
+            kinematics = self.core.model.kinematics(samples[::step])
+            cloud.poses += [Pose(position=Point(x=float(x[0]), y=float(x[2]))) for x in kinematics]
         self.cloud_pub.publish(cloud)
 
 
@@ -299,7 +294,3 @@ def _pose(hdr, xy, course: float, P_xy) -> PoseWithCovarianceStamped:
 
 def main(args=None):
     spin_node(TrackerNode, args)
-
-
-if __name__ == "__main__":
-    main()
