@@ -86,8 +86,7 @@ SensorTable = dict[str, tuple[str, ClutteredSensor]]
 
 
 class MessageError(Rejected, ValueError):
-    """An invalid message: a Rejected for the nodes (``rejected.<reason>``), a ValueError outside
-    ROS."""
+    """An invalid message: a Rejected for the nodes, a ValueError outside ROS."""
 
 
 # --- shared helpers ----------------------------------------------------------------------------
@@ -101,8 +100,7 @@ def header(seconds: float, frame_id: str = FRAME_ID) -> Header:
 
 
 def marker(hdr: Header, ns: str, id_: int, kind: int, rgba, points=()) -> Marker:
-    """A Marker to ADD: identity pose, colour ``rgba``, plane ``points`` ((x, y) pairs); the
-    caller sets its scale (and pose)."""
+    """A Marker to ADD (identity pose, colour ``rgba``, plane ``points``); the caller scales it."""
     m = Marker(header=hdr, ns=ns, id=id_, type=kind, action=Marker.ADD)
     m.pose.orientation.w = 1.0
     m.color = ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
@@ -111,8 +109,7 @@ def marker(hdr: Header, ns: str, id_: int, kind: int, rgba, points=()) -> Marker
 
 
 def check_epoch_stamp(msg, scenario: Scenario | TrackingConfig, what: str) -> float:
-    """The epoch is within the run (without steps: any) and the stamp, a valid time, is its
-    time k T; returns the stamp."""
+    """The epoch is within the run and the stamp a valid time k T for it; returns the stamp."""
     if scenario.steps is not None and msg.epoch > scenario.steps:
         raise MessageError("future_epoch", f"{what}: epoch {msg.epoch} > steps {scenario.steps}")
     stamp = msg.header.stamp
@@ -397,8 +394,7 @@ def _field_of_view(msg: ScanMsg, sensor: ClutteredSensor, pv, what: str) -> Fiel
 def scan_from_msg(
     msg: ScanMsg, scenario: Scenario | TrackingConfig, sensors: SensorTable | None = None
 ) -> Scan:
-    """A Scan message as a core Scan, every field checked against the scenario's (or tracker
-    configuration's) sensor; ``sensors`` as for :func:`scan_msg`."""
+    """A Scan message as a core Scan, checked against its sensor; ``sensors`` as in scan_msg."""
     what = f"scan of {_shown(msg.sensor_id)} epoch {msg.epoch}"
     sensors = scene_sensors(scenario) if sensors is None else sensors
     sensor = _scan_sensor(msg, sensors, what)
@@ -448,8 +444,7 @@ def track_array_msg(tracks: TrackSet, frame_id: str = FRAME_ID) -> TrackArray:
 
 
 class TrackArrayChecker:
-    """Validates TrackArray messages against what the scenario's tracker publishes (its filter,
-    motion model and state, its targets, its sample and track counts)."""
+    """Validates TrackArray messages against what the scenario's tracker publishes."""
 
     def __init__(self, scenario: Scenario):
         self.scenario = scenario

@@ -87,8 +87,7 @@ def history_depth(scenario) -> int:
 
 
 def writer_qos(topic: str, depth: int | None = None) -> QoSProfile:
-    """The QoS the graph's publishers offer on ``topic`` (``depth``: the per-epoch topics'
-    history, default LATCHED_DEPTH)."""
+    """The graph's publishers' QoS on ``topic`` (``depth``: per-epoch ones', or LATCHED_DEPTH)."""
     if topic != TF_STATIC and topic not in LATCHED_TOPICS:
         return QoSProfile(depth=STREAM_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
     return QoSProfile(
@@ -113,8 +112,7 @@ qos_for = writer_qos  # for a tool that both reads and writes a topic like the g
 
 
 def graph_topic_of(name: str) -> str | None:
-    """The graph topic (relative name) that a resolved name like ``/g1/activetrack/tracks``
-    stands for, or None."""
+    """The graph topic a resolved name like ``/g1/activetrack/tracks`` stands for, or None."""
     for topic in GRAPH_TOPICS:
         if name == topic or name == "/" + topic or name.endswith("/" + topic):
             return topic

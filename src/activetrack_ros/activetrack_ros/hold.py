@@ -76,8 +76,7 @@ class WaitFor:
 
     @classmethod
     def parse(cls, text: str) -> WaitFor | None:
-        """``--wait-for N|TOPIC``: a whole number >= 1 or a topic name ('': None, no wait);
-        ValueError naming the option."""
+        """``--wait-for N|TOPIC``: N >= 1 or a topic name ('': None); ValueError naming it."""
         text = text.strip()
         if not text:
             return None
@@ -90,8 +89,7 @@ class WaitFor:
         return cls(topic=text)
 
     def params(self) -> dict:
-        """The sim's parameters that hold for this (only those not at their defaults: an
-        empty string cannot be given as ``-p name:=``)."""
+        """The sim's parameters for this, those off their defaults (``-p name:=`` cannot be '')."""
         given = {WAIT_FOR_SUBSCRIBERS.name: self.count, WAIT_FOR_TOPIC.name: self.topic}
         return {k: v for k, v in given.items() if v}
 
@@ -125,9 +123,8 @@ def resolve(topic: str, namespace: str) -> str:
 def subscribers(
     node, namespace: str, topics=None, outside: bool = True
 ) -> dict[str, set[tuple[str, str]]]:
-    """Resolved topic (default: every graph topic) -> the (namespace, name) of the nodes that
-    subscribe to it (``outside``: only nodes outside the graph), as ``node``'s participant
-    sees the graph now."""
+    """Resolved topic (default: every graph topic) -> (namespace, name) of its subscriber nodes
+    (``outside``: those outside the graph), as ``node``'s participant sees the graph now."""
     ns = namespace or "/"
     names = topics if topics is not None else [resolve(t, namespace) for t in GRAPH_TOPICS]
     found: dict[str, set[tuple[str, str]]] = {}
@@ -143,9 +140,8 @@ def subscribers(
 
 
 class FirstEpochHold:
-    """The hold of one sim node: ``start()`` publishes its first epoch; ``changes`` is the
-    node's run-time parameter table (activetrack_ros.params.on_change), which gets
-    ``wait_for``. Call :attr:`waiting` from the node's timer."""
+    """The hold of one sim node (call :attr:`waiting` from its timer): ``start()`` publishes its
+    first epoch; the wait_for parameters' entries go into ``changes`` (params.on_change)."""
 
     def __init__(self, node, params: dict, start: Callable[[], None], changes: dict):
         self.node = node
@@ -177,8 +173,7 @@ class FirstEpochHold:
 
     @property
     def waiting(self) -> bool:
-        """True while the first epoch is held; starts it once the outside subscribers are
-        there and matched."""
+        """True while the first epoch is held; starts it once the subscribers are there, matched."""
         if self.state == "started":
             return False
         now = time.monotonic()
@@ -198,8 +193,7 @@ class FirstEpochHold:
         return False
 
     def _matched(self) -> bool:
-        """Every subscription this participant knows of, on each of the node's topics, is
-        matched with the node's publisher."""
+        """Each publisher of the node matched every subscription the participant knows of."""
         node = self.node
         return all(
             pub.get_subscription_count() >= node.count_subscribers(pub.topic_name)

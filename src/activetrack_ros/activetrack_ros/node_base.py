@@ -37,10 +37,8 @@ class Rejected(Exception):
 
 
 class RateLimitedLog:
-    """At most one line per key and ``interval`` seconds; the lines say how many were held back.
-
-    The counters stay exact; only the log is thinned (a flood must not become a log flood).
-    """
+    """At most one line per key and ``interval`` seconds, saying how many were held back: a
+    flood must not become a log flood (the counters stay exact)."""
 
     def __init__(self, logger, interval: float = 1.0):
         self.logger = logger
@@ -100,8 +98,6 @@ class GraphNode(Node):
         self.mode: str | None = None  # lockstep | free (None: a node without a mode parameter)
         self.history_depth: int | None = None  # per-epoch writers' depth (size_history)
 
-    # --- parameters and run size -----------------------------------------------------------
-
     def declare_params(
         self, specs: tuple[params.ParamSpec, ...], apply=None, *, last: bool = True
     ) -> dict:
@@ -136,8 +132,6 @@ class GraphNode(Node):
                 f"last {self.history_depth}: a late joiner misses the start"
             )
 
-    # --- inputs --------------------------------------------------------------------------
-
     def subscribe(self, msg_type, topic: str, callback: Callable) -> None:
         """Subscribe with the graph's reader QoS; ``callback(msg)`` may raise Rejected."""
         name = msg_type.__name__
@@ -163,9 +157,8 @@ class GraphNode(Node):
         self._subscribe_trusted(msg_type, topic, lambda data, _: self.guarded(callback, data))
 
     def _subscribe_trusted(self, msg_type, topic: str, on_trusted: Callable) -> None:
-        """A raw subscription that counts every sample and DDS event and drops a foreign
-        writer's; ``on_trusted(data, msg)`` gets the rest (``msg`` decoded if the check had to,
-        for diagnostics, else None)."""
+        """A raw subscription counting every sample and DDS event, dropping a foreign writer's;
+        ``on_trusted(data, msg)`` gets the rest (``msg``: decoded if the check had to, or None)."""
         name = msg_type.__name__
         self.inputs[name] = topic
         key = self.graph_key
@@ -247,14 +240,11 @@ class GraphNode(Node):
     def guarded_timer(self, period: float, callback: Callable):
         return self.create_timer(period, lambda: self.guarded(callback))
 
-    # --- outputs -------------------------------------------------------------------------
-
     def publisher(self, msg_type, topic: str) -> GraphPublisher:
         return GraphPublisher(self, msg_type, topic, self.graph_key, self.history_depth)
 
     def publish_diagnostics(self, header: Header, message: str) -> None:
-        """This node's counters as one DiagnosticStatus ``activetrack/<node>`` of the scenario
-        (WARN once anything was rejected)."""
+        """Publish the node's counters as status ``activetrack/<node>`` (WARN once rejecting)."""
         warn = self.counters.total_rejected or self.counters.total("errors.")
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK,

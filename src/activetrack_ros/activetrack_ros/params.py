@@ -134,8 +134,7 @@ def _as_float(p: Parameter, floats) -> Parameter:
 
 
 def declare(node, specs: tuple[ParamSpec, ...]) -> dict:
-    """Declare ``specs`` on ``node`` and return their values; ValueError (naming the
-    parameter and what is allowed) on a bad value; an integer for a float is that float."""
+    """Declare ``specs`` on ``node``; their values, or ValueError naming a bad one's limits."""
     overrides = node._parameter_overrides  # what --ros-args / params files / the caller gave
     floats = {s.name for s in specs if s.type is float}
     values = {}
@@ -201,7 +200,7 @@ def on_change(node, specs: tuple[ParamSpec, ...], apply: dict[str, Callable | st
     after they are set) and refuse every other change with a reason (``apply[name]`` may be
     that reason, for a change the node's present state cannot take; the dict may change while
     the node runs). rclpy refuses read-only ones itself ("Trying to set a read-only
-    parameter"). An integer for a float parameter is taken as that float."""
+    parameter")."""
     by_name = {s.name: s for s in specs}
     floats = {s.name for s in specs if s.type is float}
 

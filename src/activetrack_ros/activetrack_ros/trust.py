@@ -65,8 +65,7 @@ class GraphKey:
 
     def verify(self, serialized: bytes) -> bool:
         """True if the message was signed with this key. Between processes DDS pads a payload
-        to a multiple of 4 bytes (without saying so in the encapsulation options), so the
-        trailer may end up to 3 bytes before the end."""
+        to a multiple of 4 bytes, unmarked: the trailer may end up to 3 bytes before the end."""
         view = memoryview(serialized)
         for pad in range(4):
             end = len(view) - pad
@@ -77,8 +76,6 @@ class GraphKey:
             ):
                 return True
         return False
-
-    # --- diagnostics (standard type: the tag travels in a KeyValue) -------------------------
 
     def _diagnostics_tag(self, array: DiagnosticArray) -> str:
         """Tag of a canonical text of the array (CDR is not canonical: its padding bytes are

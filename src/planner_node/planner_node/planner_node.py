@@ -36,10 +36,9 @@ STATE_WINDOW = 64
 
 
 class PlannerNode(GraphNode):
-    """Platform states are kept by epoch until the planner has decided for their epoch: a state
-    of an epoch already decided is ignored (a latched state replayed), a second one for a
-    platform and epoch rejected, and at most STATE_WINDOW epochs kept (a late joiner's
-    replayed history, oldest evicted first)."""
+    """Platform states are kept by epoch until decided: one of a decided epoch is ignored (a
+    latched state replayed), a second one for a platform and epoch rejected, and at most
+    STATE_WINDOW epochs kept (a late joiner's replayed history, oldest evicted first)."""
 
     def __init__(self, **kwargs):
         super().__init__("planner_node", **kwargs)

@@ -132,8 +132,6 @@ class SimNode(GraphNode):
         self.publish_epoch([])
         self.epoch_started = time.monotonic()
 
-    # --- run-time parameter changes (activetrack_ros.params) -------------------------------
-
     def _set_rate(self, rate: float) -> None:
         """Sim time stays continuous: the new rate counts from now."""
         self.clock_origin = (time.monotonic(), self.sim_time_now())
@@ -142,8 +140,6 @@ class SimNode(GraphNode):
     def sim_time_now(self) -> float:
         wall, sim = self.clock_origin
         return sim + (time.monotonic() - wall) * self.rate
-
-    # --- inputs --------------------------------------------------------------------------
 
     def _check_epoch(self, epoch: int, what: str) -> None:
         """Lockstep: an answer must be of the sim's current epoch."""
@@ -194,8 +190,6 @@ class SimNode(GraphNode):
             raise Rejected("future_epoch", f"track array of epoch {msg.epoch} > {self.sim.epoch}")
         self.last_track_epoch = max(self.last_track_epoch, msg.epoch)
         self.step_if_ready()
-
-    # --- stepping ------------------------------------------------------------------------
 
     def apply(self, cmd: Command) -> None:
         result = self.sim.apply_command(cmd)
@@ -267,8 +261,6 @@ class SimNode(GraphNode):
         self.publish_epoch(self.sim.advance())
         self.epoch_started = time.monotonic()
 
-    # --- outputs -------------------------------------------------------------------------
-
     def publish_epoch(self, scans) -> None:
         t = self.sim.time
         self.clock_pub.publish(Clock(clock=header(t, self.frame_id).stamp))
@@ -312,9 +304,8 @@ class SimNode(GraphNode):
         self.tf_static_pub.publish(TFMessage(transforms=transforms))
 
     def publish_markers(self, t: float) -> None:
-        """Each platform's path as line strips of PATH_CHUNK points (namespace
-        ``platforms/<id>``, marker id = chunk index): only the newest chunk is republished, so
-        a long run costs linear, not quadratic, bytes; chunks share their end points."""
+        """Each platform's path as line strips of PATH_CHUNK points (``platforms/<id>``, id: the
+        chunk's index) sharing end points: only the newest is republished (linear bytes)."""
         array = MarkerArray()
         for pid, p in self.sim.platforms.items():
             path = self.paths[pid]

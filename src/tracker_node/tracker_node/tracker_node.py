@@ -4,14 +4,13 @@ The ``scenario`` parameter names a scenario file or a tracker-only configuration
 (docs/track-your-data.md): with the latter the node tracks scans from anywhere, e.g. in free
 mode those ``activetrack play`` publishes from a bag ``activetrack track`` wrote.
 
-An epoch k is announced by the platform states of epoch k (one per platform, each saying how
-many scans the sim published at k); the tracker updates once it holds them all, sorted in
-scenario order, and publishes every live track (``TrackArray``, with the planner's posterior
-samples for a particle filter). Each scan must agree with its platform's announced position.
-An epoch incomplete for ``epoch_timeout`` seconds is closed with what arrived (warned and
-counted), so nothing can stall the tracker. In lockstep mode only epoch last + 1 is accepted.
-For standard tools: each confirmed track's pose with covariance and tf frame, a subsampled
-particle cloud, a 2-sigma ellipse and an id label per confirmed track.
+Epoch k is announced by its platform states (each saying how many scans the sim published);
+the tracker updates once it holds them all and every scan, each where its platform's state
+says, and publishes every live track (with the planner's posterior samples for a particle
+filter). An epoch incomplete for ``epoch_timeout`` seconds is closed with what arrived
+(warned, counted), so nothing can stall the tracker; lockstep accepts epoch last + 1 only.
+For standard tools: each confirmed track's pose with covariance, tf frame, 2-sigma ellipse
+and id label, and a subsampled particle cloud.
 """
 
 import math
@@ -54,7 +53,6 @@ class OpenEpoch:
     announced: int = 0  # scans the sim published at the epoch
 
 
-# The scenario parameter names a scenario file or a tracker configuration.
 TRACKED = replace(
     SCENARIO,
     description="scenario or tracker configuration YAML file (checked on load: docs in README, "
@@ -83,8 +81,7 @@ FILTER = ParamSpec(
 
 
 def track_frame(track) -> str:
-    """The tf frame of a track's estimate: its target's for a track from a prior, else one
-    named by its id."""
+    """Its target's estimate frame for a track from a prior, else ``target/track<id>/...``."""
     return estimate_frame(track.origin or f"track{track.track_id}")
 
 
@@ -127,8 +124,6 @@ class TrackerNode(GraphNode):
         prior = self.core.snapshot()
         self.prior_views = (prior, self.publish_estimate(prior))
 
-    # --- inputs --------------------------------------------------------------------------
-
     def on_scan(self, msg: ScanMsg) -> None:
         scan = scan_from_msg(msg, self.scenario, self.sensors)
         epoch = self.open_epoch(scan.epoch, f"scan of {scan.sensor_id!r}")
@@ -160,8 +155,6 @@ class TrackerNode(GraphNode):
         if k not in self.epochs:
             self.epochs[k] = OpenEpoch(time.monotonic())
         return self.epochs[k]
-
-    # --- epochs --------------------------------------------------------------------------
 
     def complete(self, epoch: OpenEpoch) -> bool:
         """Every platform announced the epoch and every announced scan is here."""
@@ -217,22 +210,18 @@ class TrackerNode(GraphNode):
             self.counters.count("epochs_without_scans")
         self.publish_tracks(tracks)
 
-    # --- outputs -------------------------------------------------------------------------
-
     def publish_tracks(self, tracks: TrackSet) -> None:
         """The track array (latched) and its views."""
         self.publish_views(tracks, self.publish_estimate(tracks))
 
     def publish_estimate(self, tracks: TrackSet):
-        """The track array (latched, per epoch: what the planner and evaluator read); returns
-        its header."""
+        """Publish the track array (latched: what the planner and evaluator read); its header."""
         msg = track_array_msg(tracks, self.frame_id)
         self.tracks_pub.publish(msg)
         return msg.header
 
     def publish_views(self, tracks: TrackSet, hdr) -> None:
-        """What tools show of the tracks: pose, tf, 2-sigma ellipses and ids, particles,
-        diagnostics."""
+        """What tools show of the tracks: pose, tf, ellipses and ids, particles, diagnostics."""
         markers, transforms, now = [], [], set()
         for t in tracks.confirmed:
             xy = np.asarray(t.mean)[[0, 2]]
