@@ -1,19 +1,11 @@
-"""Messages to the core's plain data (:mod:`activetrack.data`) and back, every field checked on
-the way in.
+"""Messages (msgs_defs) to the core's plain data (:mod:`activetrack.data`) and back: a
+``*_msg`` / ``*_from_msg`` pair per message type, every field checked on the way in.
 
-``scan_msg`` / ``scan_from_msg`` (msgs_defs/Scan), ``track_array_msg`` /
-``track_array_from_msg`` (TrackArray), ``beam_msg`` / ``beam_from_msg`` (BeamCommand),
-``truth_array_msg`` / ``truth_array_from_msg`` (GroundTruthArray), ``platform_state_msg`` /
-``platform_from_msg`` (PlatformState), ``command_msg`` / ``command_from_msg``
-(ManoeuvreCommand), ``selection_msg`` / ``selection_from_msg`` (SensorSelection) and
-``report_msg`` / ``report_from_msg`` (PlanReport). A round trip gives the same numbers bit for
-bit: arrays travel as float64 and times are ``epoch x dt``, as the core computes them (the
-stamp is checked against it, not used).
-
-Each ``*_from_msg`` returns core data or raises :class:`MessageError`, a
-:class:`~activetrack_ros.node_base.Rejected` (a node counts it as ``rejected.<reason>``) that is
-also a ValueError; its text names the field and what is allowed. Shared by the nodes, the
-runner's evaluator and the bag tools, so one message is judged the same way everywhere.
+A round trip gives the same numbers bit for bit: arrays travel as float64 and times are
+``epoch x dt``, as the core computes them (the stamp is checked against it, not used). Each
+``*_from_msg`` returns core data or raises :class:`MessageError` naming the field and what is
+allowed. Shared by the nodes, the runner's evaluator and the bag tools, so one message is
+judged the same way everywhere.
 """
 
 from __future__ import annotations
@@ -36,6 +28,7 @@ from activetrack.data import (
     TENTATIVE,
     BeamCommand,
     Command,
+    Decision,
     PlanReportData,
     PlatformSnapshot,
     Scan,
@@ -77,16 +70,23 @@ MAX_SCAN_DETECTIONS = int(2 * limits.MAX_CLUTTER_PER_SCAN) + limits.MAX_TARGETS
 _COMPONENT_LIMITS = {"bearing": math.pi + 1e-9, "range": limits.MAX_RANGE, "range_rate": MAX_SPEED}
 _TWO_PI = 2.0 * math.pi
 _ANGLE_TOLERANCE = 1e-9  # rad between a scan's field of view and the sensor's
+_FOV_FIELDS = ("centre", "width", "r_min", "r_max")  # a Scan's fov_<name>: FieldOfView.<name>
 _STATUS = {TENTATIVE: TrackItem.TENTATIVE, CONFIRMED: TrackItem.CONFIRMED}
 _STATUS_NAME = {v: k for k, v in _STATUS.items()}
+# TrackItem fields copied as they are from and to the TrackEstimate field of the same name.
+_TRACK_COUNTS = ("hits", "misses", "missed_detections", "age", "particle_count")
+_TRACK_FLOATS = ("priority", "existence", "nis", "ess")
+# PlanReport fields of a PlanReportData field of the same name (labels: interned on the way in).
+_REPORT_COUNTS = ("epoch", "horizon", "evaluations")
+_REPORT_LABELS = ("cost_kind", "criterion", "search")
+_ARRAY_COUNTS = ("updates", "detections", "unassociated")  # of a TrackArray and a TrackSet
 
 # sensor id -> (platform id, the sensor in the scene)
 SensorTable = dict[str, tuple[str, ClutteredSensor]]
 
 
 class MessageError(Rejected, ValueError):
-    """An invalid message: counted by the nodes like any Rejected, and a ValueError (naming the
-    field and the allowed range) for code outside ROS."""
+    """An invalid message: a Rejected for the nodes, a ValueError outside ROS."""
 
 
 # --- shared helpers ----------------------------------------------------------------------------
@@ -100,8 +100,7 @@ def header(seconds: float, frame_id: str = FRAME_ID) -> Header:
 
 
 def marker(hdr: Header, ns: str, id_: int, kind: int, rgba, points=()) -> Marker:
-    """A visualization_msgs Marker to ADD: identity pose, colour ``rgba`` (4 floats), the
-    plane ``points`` ((x, y) pairs); the caller sets its scale (and pose) for its kind."""
+    """A Marker to ADD (identity pose, colour ``rgba``, plane ``points``); the caller scales it."""
     m = Marker(header=hdr, ns=ns, id=id_, type=kind, action=Marker.ADD)
     m.pose.orientation.w = 1.0
     m.color = ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
@@ -109,23 +108,18 @@ def marker(hdr: Header, ns: str, id_: int, kind: int, rgba, points=()) -> Marker
     return m
 
 
-def stamp_seconds(stamp, what: str) -> float:
-    """Seconds of a builtin_interfaces/Time, rejecting negative or denormal stamps."""
+def check_epoch_stamp(msg, scenario: Scenario | TrackingConfig, what: str) -> float:
+    """The epoch is within the run and the stamp a valid time k T for it; returns the stamp."""
+    if scenario.steps is not None and msg.epoch > scenario.steps:
+        raise MessageError("future_epoch", f"{what}: epoch {msg.epoch} > steps {scenario.steps}")
+    stamp = msg.header.stamp
     if stamp.sec < 0 or not 0 <= stamp.nanosec < 1_000_000_000:
         raise MessageError(
             "bad_stamp",
             f"{what}: header.stamp must be sec >= 0, 0 <= nanosec < 1e9, got "
             f"({stamp.sec}, {stamp.nanosec})",
         )
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
-def check_epoch_stamp(msg, scenario: Scenario | TrackingConfig, what: str) -> float:
-    """The epoch is within the run (a tracker configuration without steps: any) and the stamp
-    is its time k T; returns the stamp."""
-    if scenario.steps is not None and msg.epoch > scenario.steps:
-        raise MessageError("future_epoch", f"{what}: epoch {msg.epoch} > steps {scenario.steps}")
-    t = stamp_seconds(msg.header.stamp, what)
+    t = stamp.sec + stamp.nanosec * 1e-9
     if abs(t - msg.epoch * scenario.dt) > STAMP_TOLERANCE:
         raise MessageError(
             "bad_stamp", f"{what}: stamp {t} s is not epoch {msg.epoch} x dt {scenario.dt} s"
@@ -174,15 +168,10 @@ def _shown(text: str) -> str:
     return repr(text if len(text) <= 40 else text[:40] + "...")
 
 
-def _check_covariance(msg, sensor, what: str) -> int:
-    """The message's ``covariance`` is the sensor's R (dim_z x dim_z, SPD); returns dim_z."""
-    n = int(sensor.dim_z)
-    if len(msg.covariance) != n * n:
-        raise MessageError("bad_covariance", f"{what}: covariance must have {n * n} values")
-    R = spd(finite(msg.covariance, f"{what} covariance", math.inf).reshape(n, n), what)
-    if not np.allclose(R, sensor.R, rtol=1e-9, atol=0.0):
-        raise MessageError("sensor_mismatch", f"{what}: covariance differs from the scenario's R")
-    return n
+def _check_known(name: str, known, reason: str, field: str = "") -> None:
+    """``name`` is one of ``known``, else MessageError(reason) listing them."""
+    if name not in known:
+        raise MessageError(reason, f"{field}{_shown(name)} is not one of {sorted(known)}")
 
 
 # --- platforms and their commands --------------------------------------------------------------
@@ -207,16 +196,11 @@ def platform_state_msg(s: PlatformSnapshot, scan_count: int, frame_id: str) -> P
 def platform_from_msg(msg, scenario: Scenario | TrackingConfig, platform_ids) -> PlatformSnapshot:
     """A PlatformState as a PlatformSnapshot (epoch, stamp, ids and kinematics checked)."""
     what = f"platform state of {_shown(msg.platform_id)}"
-    if msg.platform_id not in platform_ids:
-        raise MessageError(
-            "unknown_platform",
-            f"{_shown(msg.platform_id)} is not one of {sorted(platform_ids)}",
-        )
+    _check_known(msg.platform_id, platform_ids, "unknown_platform")
     t = check_epoch_stamp(msg, scenario, what)
     platform = next(p for p in scenario.platforms if p.id == msg.platform_id)
-    if list(msg.sensor_ids) != [s.id for s in platform.sensors] or list(msg.sensor_kinds) != [
-        s.kind for s in platform.sensors
-    ]:
+    expected = ([s.id for s in platform.sensors], [s.kind for s in platform.sensors])
+    if (list(msg.sensor_ids), list(msg.sensor_kinds)) != expected:
         raise MessageError(
             "sensor_mismatch", f"{what}: sensors {list(msg.sensor_ids)[:8]} are not the scenario's"
         )
@@ -225,16 +209,8 @@ def platform_from_msg(msg, scenario: Scenario | TrackingConfig, platform_ids) ->
     pv = pv_of(msg.position, msg.velocity, what)
     finite((msg.heading,), f"{what} heading", 4 * math.pi)
     finite((msg.speed,), f"{what} speed", MAX_SPEED)
-    return PlatformSnapshot(
-        msg.platform_id,
-        msg.epoch,
-        t,
-        pv,
-        msg.heading,
-        msg.speed,
-        tuple(msg.sensor_ids),
-        tuple(msg.sensor_kinds),
-    )
+    ids, kinds = tuple(msg.sensor_ids), tuple(msg.sensor_kinds)
+    return PlatformSnapshot(msg.platform_id, msg.epoch, t, pv, msg.heading, msg.speed, ids, kinds)
 
 
 def command_msg(cmd: Command, dt: float, frame_id: str) -> ManoeuvreCommand:
@@ -260,14 +236,9 @@ def command_from_msg(
     msg: ManoeuvreCommand, scenario: Scenario, epoch: int, controllable
 ) -> Command:
     """A ManoeuvreCommand for one of the ``controllable`` platforms as a Command of ``epoch``
-    (the sim's current one), every field checked; the message's epoch is the caller's (the
-    mode's) business."""
+    (the sim's current one); the message's epoch is the caller's (the mode's) business."""
     what = f"command for {_shown(msg.platform_id)}"
-    if msg.platform_id not in controllable:
-        raise MessageError(
-            "unknown_platform",
-            f"{_shown(msg.platform_id)} is not one of {list(controllable)}",
-        )
+    _check_known(msg.platform_id, controllable, "unknown_platform")
     check_epoch_stamp(msg, scenario, what)
     # A heading change beyond half a turn or a speed change beyond the platform's whole speed
     # range is not a command to clamp but garbage: reject it.
@@ -284,17 +255,15 @@ def command_from_msg(
     )
 
 
-def selection_msg(
-    epoch: int, dt: float, frame_id: str, selected, candidates, costs, criterion: str
-) -> SensorSelection:
-    """The sensors chosen at ``epoch`` to measure at epoch + 1."""
+def selection_msg(epoch: int, dt: float, frame_id: str, decision: Decision) -> SensorSelection:
+    """The sensors the decision of ``epoch`` chose to measure at epoch + 1."""
     return SensorSelection(
         header=header(epoch * dt, frame_id),
         epoch=epoch,
-        selected_sensor_ids=list(selected),
-        candidate_sensor_ids=list(candidates),
-        predicted_cost=[float(c) for c in costs],
-        criterion=criterion,
+        selected_sensor_ids=list(decision.selected_sensor_ids),
+        candidate_sensor_ids=list(decision.candidate_sensor_ids),
+        predicted_cost=[float(c) for c in decision.selection_costs],
+        criterion=decision.selection_criterion,
     )
 
 
@@ -321,15 +290,14 @@ def scan_msg(
     frame_id: str = FRAME_ID,
     sensors: SensorTable | None = None,
 ) -> ScanMsg:
-    """A core Scan as a Scan message; the sensor's platform, kind, R and clutter density come
-    from the scenario (ValueError naming ``sensor_id`` if it has no such sensor). ``sensors``:
-    the scene's sensors (:func:`activetrack.closed_loop.components.scene_sensors`), built once
-    by a caller that converts many scans."""
+    """A core Scan as a Scan message with its sensor's platform, kind, R and clutter density
+    (ValueError naming ``sensor_id`` for an unknown sensor). ``sensors``: the scene's sensors
+    (:func:`~activetrack.closed_loop.components.scene_sensors`), built once for many scans."""
     sensors = scene_sensors(scenario) if sensors is None else sensors
     if scan.sensor_id not in sensors:
         raise ValueError(f"sensor_id must be one of {sorted(sensors)}, got {scan.sensor_id!r}")
     platform_id, sensor = sensors[scan.sensor_id]
-    pv, fov = scan.sensor_pv, scan.fov
+    pv = scan.sensor_pv
     msg = ScanMsg(
         header=header(scan.time, frame_id),
         platform_id=platform_id,
@@ -337,14 +305,11 @@ def scan_msg(
         sensor_kind=sensor.kind,
         epoch=scan.epoch,
         epoch_scan_count=epoch_scan_count,
-        fov_centre=float(fov.centre),
-        fov_width=float(fov.width),
-        fov_r_min=float(fov.r_min),
-        fov_r_max=float(fov.r_max),
         dim=int(sensor.dim_z),
         detections=_doubles(scan.Z),
         covariance=_doubles(sensor.R),
         clutter_density=float(sensor.clutter_density),
+        **{f"fov_{name}": float(getattr(scan.fov, name)) for name in _FOV_FIELDS},
     )
     msg.sensor_position.x, msg.sensor_position.y = float(pv[0]), float(pv[2])
     msg.sensor_velocity.x, msg.sensor_velocity.y = float(pv[1]), float(pv[3])
@@ -352,11 +317,8 @@ def scan_msg(
 
 
 def _scan_sensor(msg: ScanMsg, sensors: SensorTable, what: str) -> ClutteredSensor:
-    """The scan's sensor, with its platform, kind, R and clutter density as in the scenario."""
-    if msg.sensor_id not in sensors:
-        raise MessageError(
-            "unknown_sensor", f"sensor_id {_shown(msg.sensor_id)} is not one of {sorted(sensors)}"
-        )
+    """The scan's sensor, with its platform, kind, clutter density and R as in the scenario."""
+    _check_known(msg.sensor_id, sensors, "unknown_sensor", "sensor_id ")
     platform_id, sensor = sensors[msg.sensor_id]
     if msg.platform_id != platform_id:
         raise MessageError(
@@ -374,7 +336,12 @@ def _scan_sensor(msg: ScanMsg, sensors: SensorTable, what: str) -> ClutteredSens
             f"{what}: clutter_density {msg.clutter_density!r} is not the scenario's "
             f"{sensor.clutter_density!r}",
         )
-    _check_covariance(msg, sensor, what)
+    n = int(sensor.dim_z)  # covariance: the sensor's R (n x n, SPD)
+    if len(msg.covariance) != n * n:
+        raise MessageError("bad_covariance", f"{what}: covariance must have {n * n} values")
+    R = spd(finite(msg.covariance, f"{what} covariance", math.inf).reshape(n, n), what)
+    if not np.allclose(R, sensor.R, rtol=1e-9, atol=0.0):
+        raise MessageError("sensor_mismatch", f"{what}: covariance differs from the scenario's R")
     return sensor
 
 
@@ -427,9 +394,7 @@ def _field_of_view(msg: ScanMsg, sensor: ClutteredSensor, pv, what: str) -> Fiel
 def scan_from_msg(
     msg: ScanMsg, scenario: Scenario | TrackingConfig, sensors: SensorTable | None = None
 ) -> Scan:
-    """A Scan message as a core Scan, every field checked against the scenario's (or tracker
-    configuration's) sensor (``sensors``: the scene's sensors, to build them once for many
-    scans)."""
+    """A Scan message as a core Scan, checked against its sensor; ``sensors`` as in scan_msg."""
     what = f"scan of {_shown(msg.sensor_id)} epoch {msg.epoch}"
     sensors = scene_sensors(scenario) if sensors is None else sensors
     sensor = _scan_sensor(msg, sensors, what)
@@ -454,21 +419,14 @@ def _track_item(t: TrackEstimate) -> TrackItem:
         track_id=int(t.track_id),
         status=_STATUS[t.status],
         origin=t.origin,
-        priority=float(t.priority),
         state=_doubles(t.state),
         state_covariance=_doubles(t.state_cov),
         mean=np.asarray(t.mean, dtype=float).reshape(4),
         covariance=np.asarray(t.cov, dtype=float).reshape(16),
-        hits=int(t.hits),
-        misses=int(t.misses),
-        missed_detections=int(t.missed_detections),
-        age=int(t.age),
-        existence=float(t.existence),
-        nis=float(t.nis),
-        ess=float(t.ess),
-        particle_count=int(t.particle_count),
         samples=_doubles(samples),
         sample_count=int(samples.shape[0]),
+        **{name: int(getattr(t, name)) for name in _TRACK_COUNTS},
+        **{name: float(getattr(t, name)) for name in _TRACK_FLOATS},
     )
 
 
@@ -480,16 +438,13 @@ def track_array_msg(tracks: TrackSet, frame_id: str = FRAME_ID) -> TrackArray:
         filter_kind=tracks.filter_kind,
         motion_model=tracks.motion_model,
         state_names=list(tracks.state_names),
-        updates=int(tracks.updates),
         tracks=[_track_item(t) for t in tracks.tracks],
-        detections=int(tracks.detections),
-        unassociated=int(tracks.unassociated),
+        **{name: int(getattr(tracks, name)) for name in _ARRAY_COUNTS},
     )
 
 
 class TrackArrayChecker:
-    """Validates TrackArray messages against what the scenario's tracker publishes (its filter,
-    motion model and state, its targets, its sample and track counts)."""
+    """Validates TrackArray messages against what the scenario's tracker publishes."""
 
     def __init__(self, scenario: Scenario):
         self.scenario = scenario
@@ -529,9 +484,7 @@ class TrackArrayChecker:
             motion_model=msg.motion_model,
             state_names=self.state_names,
             tracks=tuple(self._track(item, what) for item in msg.tracks),
-            updates=msg.updates,
-            detections=msg.detections,
-            unassociated=msg.unassociated,
+            **{name: getattr(msg, name) for name in _ARRAY_COUNTS},
         )
 
     def _track(self, item: TrackItem, what: str) -> TrackEstimate:
@@ -582,16 +535,8 @@ class TrackArrayChecker:
             state=state,
             state_cov=spd(state_cov.reshape(n, n).copy(), what),
             origin=item.origin,
-            priority=item.priority,
-            age=item.age,
-            hits=item.hits,
-            misses=item.misses,
-            missed_detections=item.missed_detections,
-            existence=item.existence,
-            nis=item.nis,
-            ess=item.ess,
-            particle_count=item.particle_count,
             samples=samples,
+            **{name: getattr(item, name) for name in (*_TRACK_COUNTS, *_TRACK_FLOATS)},
         )
 
 
@@ -673,21 +618,16 @@ def truth_array_from_msg(msg: GroundTruthArray, scenario: Scenario) -> TruthSet:
             "wrong_dimension", f"{what}: positions and velocities need one entry per target id"
         )
     names = [tuple(build_motion_model(targets[r].motion).state_names) for r in rank]
-    if list(msg.state_sizes) != [len(n) for n in names] or list(msg.state_names) != [
-        name for n in names for name in n
-    ]:
+    every_name = [name for n in names for name in n]
+    if list(msg.state_sizes) != [len(n) for n in names] or list(msg.state_names) != every_name:
         raise MessageError(
             "wrong_dimension", f"{what}: state_sizes and state_names must be the targets' models'"
         )
     if len(msg.states) != sum(len(n) for n in names):
         raise MessageError("wrong_dimension", f"{what}: states must hold every target's state")
     check_epoch_stamp(msg, scenario, what)
-    pv = np.array(
-        [
-            pv_of(p, v, f"{what} target {i}")
-            for i, p, v in zip(ids, msg.positions, msg.velocities, strict=True)
-        ]
-    ).reshape(-1, 4)
+    kinematics = zip(ids, msg.positions, msg.velocities, strict=True)
+    pv = np.array([pv_of(p, v, f"{what} target {i}") for i, p, v in kinematics]).reshape(-1, 4)
     flat = finite(msg.states, f"{what} states", MAX_STATE_VALUE)
     cuts = np.cumsum([0, *(len(n) for n in names)])
     states = tuple(flat[a:b].copy() for a, b in itertools.pairwise(cuts))
@@ -701,15 +641,10 @@ def report_msg(r: PlanReportData, hdr: Header) -> PlanReport:
     """The planner's report of a decision as a PlanReport message."""
     return PlanReport(
         header=hdr,
-        epoch=r.epoch,
-        cost_kind=r.cost_kind,
-        criterion=r.criterion,
-        search=r.search,
-        horizon=r.horizon,
         cost_names=list(r.cost_names),
         predicted_costs=[float(v) for v in r.predicted_costs],
-        evaluations=r.evaluations,
         planning_wall_time=r.wall_time_s,
+        **{name: getattr(r, name) for name in (*_REPORT_COUNTS, *_REPORT_LABELS)},
     )
 
 
@@ -724,13 +659,9 @@ def report_from_msg(msg: PlanReport, scenario: Scenario) -> PlanReportData:
         raise MessageError("wrong_dimension", "predicted_costs and cost_names differ in length")
     finite((msg.planning_wall_time,), "planning_wall_time", 1e9)
     return PlanReportData(
-        epoch=msg.epoch,
-        cost_kind=sys.intern(msg.cost_kind),
-        criterion=sys.intern(msg.criterion),
-        search=sys.intern(msg.search),
-        horizon=msg.horizon,
         cost_names=tuple(sys.intern(n) for n in msg.cost_names),
         predicted_costs=tuple(costs.tolist()),
-        evaluations=msg.evaluations,
         wall_time_s=msg.planning_wall_time,
+        **{name: getattr(msg, name) for name in _REPORT_COUNTS},
+        **{name: sys.intern(getattr(msg, name)) for name in _REPORT_LABELS},
     )

@@ -1,15 +1,6 @@
-"""The graph's frame tree (docs/frames.md), as tf2 transforms.
-
-::
-
-    <frame_id>                       fixed frame (parameter, default "world"): x east, y north
-    ├── platform/<id>                each platform: x along its heading (REP 103), sim_node
-    │   └── sensor/<id>              each sensor, on its platform (tf_static), sim_node
-    ├── target/<id>/truth            the simulated target, sim_node (evaluation and views only)
-    └── target/<id>/estimate         the track's mean, course from its velocity, tracker_node
-
-Names are relative to the node's namespace only through the topic (``<ns>/tf``): frames do not
-carry the namespace, so two graphs in one domain keep separate trees.
+"""The graph's frame tree as tf2 transforms: ``platform/<id>`` and its ``sensor/<id>``,
+``target/<id>/truth`` and ``target/<id>/estimate`` under the fixed frame (docs/frames.md).
+Frames carry no namespace: two graphs in one domain keep separate trees on their own ``tf``.
 """
 
 from __future__ import annotations

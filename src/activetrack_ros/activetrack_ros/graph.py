@@ -1,17 +1,13 @@
 """The activetrack node graph in one table: topic names, message types and QoS.
 
-Topic names are relative (``activetrack/tracks``, ``clock``, ``tf``): a node started in a
-namespace (``--ros-args -r __ns:=/g1``) uses ``/g1/activetrack/tracks``, ``/g1/clock`` and
-``/g1/tf``, so several graphs share a DDS domain, and any name can be remapped
-(``-r activetrack/tracks:=/fleet/tracks``). Bags store the resolved (absolute) names;
-:func:`find_topic` finds a graph topic among them whatever the namespace.
+Topic names are relative, so several graphs share a DDS domain under their namespaces
+(README, "Topics, namespaces, frames and QoS"); bags store the resolved names, among which
+:func:`find_topic` finds a graph topic whatever the namespace.
 
-Per-epoch topics (scans, truth, platform states, track arrays, commands, beam commands,
-selections, plan reports, metrics) are reliable and transient-local with a deep history, so a
-node or recorder that joins late (another process still discovering, a restarted planner)
-still gets the run so far. Their messages carry the graph's authentication trailer
-(``activetrack_ros.trust``). The other topics are streams for people and tools (clock,
-diagnostics, markers, poses).
+Per-epoch topics (:data:`LATCHED_TOPICS`) are reliable and transient-local with a deep
+history, so a node or recorder that joins late (another process still discovering, a restarted
+planner) still gets the run so far; their messages carry the graph's authentication trailer
+(``activetrack_ros.trust``). The other topics are streams for people and tools.
 
 Readers keep every sample (KEEP_ALL): with a reliable writer a full reader makes the writer
 wait instead of overwriting, so a flood on a topic cannot push the graph's own messages out of
@@ -24,25 +20,22 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 # The default fixed frame (every node's ``frame_id`` parameter); the frame tree: docs/frames.md.
 FIXED_FRAME = "world"
 
+# The topics; their types: GRAPH_TOPICS.
 CLOCK = "clock"
 PLATFORM_STATES = "activetrack/platform_states"
-# Every sensor's scans of unlabelled detections (msgs_defs/Scan), one per looking sensor.
-SCANS = "activetrack/scans"
-# Every alive target's truth (msgs_defs/GroundTruthArray): evaluators only, tracker and planner
-# never read it.
-GROUND_TRUTH = "activetrack/ground_truth"
-TRACKS = "activetrack/tracks"  # msgs_defs/TrackArray: every live track with its id
+SCANS = "activetrack/scans"  # one per looking sensor and epoch
+GROUND_TRUTH = "activetrack/ground_truth"  # for evaluators: tracker and planner never read it
+TRACKS = "activetrack/tracks"
 MANOEUVRE_COMMANDS = "activetrack/manoeuvre_commands"
-BEAM_COMMANDS = "activetrack/beam_commands"  # msgs_defs/BeamCommand, one per steerable sensor
+BEAM_COMMANDS = "activetrack/beam_commands"  # one per steerable sensor and epoch
 SENSOR_SELECTION = "activetrack/sensor_selection"
 PLAN_REPORT = "activetrack/plan_report"
 DIAGNOSTICS = "diagnostics"
-TRACK_POSE = "activetrack/track_pose"  # geometry_msgs/PoseWithCovarianceStamped per track
-PARTICLES = "activetrack/particles"  # geometry_msgs/PoseArray, subsampled particle clouds
-MARKERS = "activetrack/markers"  # visualization_msgs/MarkerArray
-# msgs_defs/RunMetrics: per-epoch errors, PCRLB and GOSPA from the runner's evaluator
-METRICS = "activetrack/metrics"
-TF = "tf"  # tf2_msgs/TFMessage: platforms, target truth and estimates (docs/frames.md)
+TRACK_POSE = "activetrack/track_pose"  # per confirmed track
+PARTICLES = "activetrack/particles"  # subsampled particle clouds
+MARKERS = "activetrack/markers"
+METRICS = "activetrack/metrics"  # per-epoch errors, PCRLB and GOSPA from the runner's evaluator
+TF = "tf"  # platforms, target truth and estimates (docs/frames.md)
 TF_STATIC = "tf_static"  # sensors on their platforms, latched
 
 # Every topic of the graph with its type (what `activetrack record` records by default).
@@ -65,20 +58,8 @@ GRAPH_TOPICS = {
     TF_STATIC: "tf2_msgs/msg/TFMessage",
 }
 
-# Transient-local per-epoch topics; their messages are authenticated (msgs_defs types).
-LATCHED_TOPICS = frozenset(
-    {
-        SCANS,
-        PLAN_REPORT,
-        GROUND_TRUTH,
-        PLATFORM_STATES,
-        TRACKS,
-        MANOEUVRE_COMMANDS,
-        BEAM_COMMANDS,
-        SENSOR_SELECTION,
-        METRICS,
-    }
-)
+# The per-epoch topics, transient-local: those of the msgs_defs types (authenticated).
+LATCHED_TOPICS = frozenset(t for t, kind in GRAPH_TOPICS.items() if kind.startswith("msgs_defs/"))
 
 # History depths of the writers. Per-epoch topics keep the whole run for late joiners: the
 # nodes size them from the scenario (history_depth); LATCHED_DEPTH is the depth of tools that
@@ -92,9 +73,8 @@ MAX_HISTORY_DEPTH = 1_000_000
 
 def run_history(scenario, steps: int | None = None) -> int:
     """Depth that keeps every per-epoch message of a run: (steps + 1) epochs (``steps``, else
-    the scenario's; a tracker configuration without steps: LATCHED_DEPTH epochs) times the
-    most messages one topic carries per epoch (one per sensor or per platform; a scan and a
-    beam command are per sensor, a track array and a truth array per epoch)."""
+    the scenario's; without steps: LATCHED_DEPTH epochs) times the most messages one topic
+    carries per epoch (one per sensor, e.g. scans, or per platform)."""
     steps = steps if steps is not None else scenario.steps
     epochs = LATCHED_DEPTH if steps is None else steps + 1
     sensors = sum(len(p.sensors) for p in scenario.platforms)
@@ -107,21 +87,14 @@ def history_depth(scenario) -> int:
 
 
 def writer_qos(topic: str, depth: int | None = None) -> QoSProfile:
-    """The QoS the graph's publishers offer on ``topic`` (``depth``: the per-epoch topics'
-    history, default LATCHED_DEPTH)."""
-    if topic == TF_STATIC:
-        return QoSProfile(
-            depth=TF_STATIC_DEPTH,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-        )
-    if topic in LATCHED_TOPICS:
-        return QoSProfile(
-            depth=depth or LATCHED_DEPTH,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-        )
-    return QoSProfile(depth=STREAM_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+    """The graph's publishers' QoS on ``topic`` (``depth``: per-epoch ones', or LATCHED_DEPTH)."""
+    if topic != TF_STATIC and topic not in LATCHED_TOPICS:
+        return QoSProfile(depth=STREAM_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+    return QoSProfile(
+        depth=TF_STATIC_DEPTH if topic == TF_STATIC else depth or LATCHED_DEPTH,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
 
 
 def reader_qos(topic: str) -> QoSProfile:
@@ -135,14 +108,11 @@ def reader_qos(topic: str) -> QoSProfile:
     )
 
 
-def qos_for(topic: str, depth: int | None = None) -> QoSProfile:
-    """QoS for a tool that both reads and writes a topic like the graph does (player, tests)."""
-    return writer_qos(topic, depth)
+qos_for = writer_qos  # for a tool that both reads and writes a topic like the graph does
 
 
 def graph_topic_of(name: str) -> str | None:
-    """The graph topic (relative name) that a resolved name like ``/g1/activetrack/tracks``
-    stands for, or None."""
+    """The graph topic a resolved name like ``/g1/activetrack/tracks`` stands for, or None."""
     for topic in GRAPH_TOPICS:
         if name == topic or name == "/" + topic or name.endswith("/" + topic):
             return topic

@@ -1,22 +1,16 @@
 """Hold a sim's first epoch until viewers have joined (``activetrack run --wait-for``; the
-sim's ``wait_for_subscribers`` and ``wait_for_topic`` parameters under launch or by hand).
+sim's ``wait_for_*`` parameters), so a viewer started before a fast run (RViz, Foxglove's
+bridge) does not miss its start on the volatile streams (``clock``, ``tf``).
 
-A viewer started before a fast run (RViz, Foxglove's bridge, ``activetrack ros echo tf``)
-would miss its start on the volatile streams (``clock``, ``tf``): the run begins as soon as
-its own nodes have joined. A sim whose ``wait_for`` is ``N`` publishes nothing of the run (its
-latched static frames excepted) until, as its own participant sees the graph,
-``wait_for_subscribers`` nodes outside the graph subscribe to any of the graph's topics and,
-if ``wait_for_topic`` names one, one subscribes to that topic (relative names resolve in the
-sim's namespace). Outside means any node but the graph's own (:data:`GRAPH_NODE_NAMES`) in the
-sim's namespace. Seeing a viewer's subscription does not mean the viewer knows the graph's
-writers yet: DDS discovery is per endpoint and per participant, and a volatile reader drops
-what a writer sent before the reader matched it, which no writer can observe (measured: a
-viewer seen by the sim missed the sim's first clocks, or the tracker's first estimates). So
-the sim then lets discovery settle for ``SETTLE_S`` (Fast DDS announces participants and
-heartbeats its discovery data every 3 s) and waits until each of its publishers has matched
-every subscription it has discovered on that topic (at most ``MATCH_WAIT_S`` more); then the
-viewer gets epoch 0 from every node.
-Setting both to 0 and '' while it holds starts the run at once; once the run has started they
+The sim publishes nothing of the run (its latched static frames excepted) until, as its own
+participant sees the graph, the subscribers asked for (:class:`WaitFor`) are there; outside
+means any node but the graph's own (:data:`GRAPH_NODE_NAMES`) in the sim's namespace. Seeing
+a viewer's subscription does not mean the viewer knows the graph's writers yet: discovery is
+per endpoint and participant, and a volatile reader drops what a writer sent before it matched
+(measured: a viewer seen by the sim missed the first clocks, or the tracker's first
+estimates). So the sim then lets discovery settle for ``SETTLE_S`` and waits until each of
+its publishers has matched every subscription it has discovered (at most ``MATCH_WAIT_S``
+more). Clearing the parameters while it holds starts the run at once; once started they
 cannot change.
 """
 
@@ -51,12 +45,12 @@ WAIT_FOR_NODES = ParamSpec(
     read_only=False, pattern=r"[A-Za-z_][A-Za-z0-9_]*( +[A-Za-z_][A-Za-z0-9_]*)*",
 )  # fmt: skip
 WAIT_FOR = (WAIT_FOR_SUBSCRIBERS, WAIT_FOR_TOPIC, WAIT_FOR_NODES)
-SETTLE_S = 3.5  # once satisfied: one Fast DDS announcement and heartbeat period, and a margin
+SETTLE_S = 3.5  # once satisfied: Fast DDS announces and heartbeats discovery every 3 s
 MATCH_WAIT_S = 2.0  # after settling: the longest wait for discovered readers to match
 STARTED = "the wait_for parameters hold the first epoch only: the run has started"
 _NOT_THE_RUNS = ("/rosout", "/parameter_events")  # every node's own, not the run's streams
 
-# The graph's own node names (either stack's nodes; the runner's evaluator, recorder, view).
+# The graph's own node names: its nodes, and the runner's evaluator, recorder and live view.
 _NODES = ("sim_node", "tracker_node", "planner_node")
 _RUNNERS = ("activetrack_evaluator", "activetrack_recorder", "activetrack_live_view")
 GRAPH_NODE_NAMES = frozenset((*_NODES, *_RUNNERS))
@@ -82,8 +76,7 @@ class WaitFor:
 
     @classmethod
     def parse(cls, text: str) -> WaitFor | None:
-        """``--wait-for N|TOPIC``: a whole number >= 1 or a topic name ('': None, no wait);
-        ValueError naming the option."""
+        """``--wait-for N|TOPIC``: N >= 1 or a topic name ('': None); ValueError naming it."""
         text = text.strip()
         if not text:
             return None
@@ -96,8 +89,7 @@ class WaitFor:
         return cls(topic=text)
 
     def params(self) -> dict:
-        """The sim's parameters that hold for this (only those not at their defaults: an
-        empty string cannot be given as ``-p name:=``)."""
+        """The sim's parameters for this, those off their defaults (``-p name:=`` cannot be '')."""
         given = {WAIT_FOR_SUBSCRIBERS.name: self.count, WAIT_FOR_TOPIC.name: self.topic}
         return {k: v for k, v in given.items() if v}
 
@@ -131,9 +123,8 @@ def resolve(topic: str, namespace: str) -> str:
 def subscribers(
     node, namespace: str, topics=None, outside: bool = True
 ) -> dict[str, set[tuple[str, str]]]:
-    """Resolved topic (default: every graph topic) -> the (namespace, name) of the nodes that
-    subscribe to it (``outside``: only nodes outside the graph), as ``node``'s participant
-    sees the graph now."""
+    """Resolved topic (default: every graph topic) -> (namespace, name) of its subscriber nodes
+    (``outside``: those outside the graph), as ``node``'s participant sees the graph now."""
     ns = namespace or "/"
     names = topics if topics is not None else [resolve(t, namespace) for t in GRAPH_TOPICS]
     found: dict[str, set[tuple[str, str]]] = {}
@@ -149,9 +140,8 @@ def subscribers(
 
 
 class FirstEpochHold:
-    """The hold of one sim node: ``start()`` publishes its first epoch; ``changes`` is the
-    node's run-time parameter table (activetrack_ros.params.on_change), which gets
-    ``wait_for``. Call :attr:`waiting` from the node's timer."""
+    """The hold of one sim node (call :attr:`waiting` from its timer): ``start()`` publishes its
+    first epoch; the wait_for parameters' entries go into ``changes`` (params.on_change)."""
 
     def __init__(self, node, params: dict, start: Callable[[], None], changes: dict):
         self.node = node
@@ -183,8 +173,7 @@ class FirstEpochHold:
 
     @property
     def waiting(self) -> bool:
-        """True while the first epoch is held; starts it once the outside subscribers are
-        there and matched."""
+        """True while the first epoch is held; starts it once the subscribers are there, matched."""
         if self.state == "started":
             return False
         now = time.monotonic()
@@ -193,21 +182,18 @@ class FirstEpochHold:
         elif self.state == "held" and self.wait.satisfied(self.node, self.node.get_namespace()):
             self.state, self._settled = "settling", now + SETTLE_S
             self._deadline = self._settled + MATCH_WAIT_S
-        if (
-            self.state == "settling"
-            and now >= self._settled
-            and (self._matched() or now > self._deadline)
-        ):
-            self.state = "started"
-            self._fix()
-            self.node.get_logger().info("first epoch released")
-            self._start()
-            return False
-        return True
+        if self.state != "settling" or now < self._settled:
+            return True
+        if not self._matched() and now <= self._deadline:
+            return True
+        self.state = "started"
+        self._fix()
+        self.node.get_logger().info("first epoch released")
+        self._start()
+        return False
 
     def _matched(self) -> bool:
-        """Every subscription this participant knows of, on each of the node's topics, is
-        matched with the node's publisher."""
+        """Each publisher of the node matched every subscription the participant knows of."""
         node = self.node
         return all(
             pub.get_subscription_count() >= node.count_subscribers(pub.topic_name)

@@ -1,17 +1,13 @@
 """The base of every activetrack node: trusted writers only, callbacks that never raise, exact
 counters and rate-limited logs.
 
-Every message a subscription takes ends in exactly one counter:
-- ``foreign.<Type>``: from a writer outside the graph (``activetrack_ros.trust``), dropped
-  before deserialisation;
-- ``rejected.<reason>``: from the graph or, without a key, from anyone, but invalid (the node's
-  callback raised :class:`Rejected`, or the header names another frame than the node's
-  ``frame_id``: ``rejected.wrong_frame``);
-- ``ignored.<reason>``: valid but not needed (e.g. history replayed to a late joiner);
-- otherwise it was used. ``received.<Type>`` counts them all. DDS reports samples it lost
-  (``dropped.<Type>``, from the message-lost event) and writers it could not match
-  (``incompatible_writers.<Type>``); an unexpected exception in a callback is counted as
-  ``errors.<callback>`` and logged with its traceback, and the node keeps running.
+Every message a subscription takes ends in exactly one counter (docs/robustness.md):
+``foreign.<Type>`` (a writer outside the graph, dropped before deserialisation),
+``rejected.<reason>`` (the callback raised :class:`Rejected`, or the header names another frame
+than the node's ``frame_id``), ``ignored.<reason>`` (valid but not needed), or none: used.
+``received.<Type>`` counts them all; ``dropped.<Type>`` and ``incompatible_writers.<Type>``
+count DDS's events, ``errors.<callback>`` an unexpected exception (logged with its traceback;
+the node keeps running).
 """
 
 from __future__ import annotations
@@ -41,10 +37,8 @@ class Rejected(Exception):
 
 
 class RateLimitedLog:
-    """At most one line per key and ``interval`` seconds; the lines say how many were held back.
-
-    The counters stay exact; only the log is thinned (a flood must not become a log flood).
-    """
+    """At most one line per key and ``interval`` seconds, saying how many were held back: a
+    flood must not become a log flood (the counters stay exact)."""
 
     def __init__(self, logger, interval: float = 1.0):
         self.logger = logger
@@ -94,55 +88,55 @@ class GraphNode(Node):
 
     def __init__(self, node_name: str, *, graph_key: GraphKey | None = None, **kwargs):
         super().__init__(node_name, **kwargs)
+        self.role = node_name  # its diagnostics' name, whatever the node is remapped to
         params.fix_use_sim_time(self)
         self.graph_key = graph_key if graph_key is not None else GraphKey.from_environment()
         self.counters = NodeCounters()
         self.log_limited = RateLimitedLog(self.get_logger())
         self.inputs: dict[str, str] = {}  # message type name -> topic subscribed
         self.frame_id = graph.FIXED_FRAME
+        self.mode: str | None = None  # lockstep | free (None: a node without a mode parameter)
         self.history_depth: int | None = None  # per-epoch writers' depth (size_history)
-
-    # --- parameters and run size -----------------------------------------------------------
 
     def declare_params(
         self, specs: tuple[params.ParamSpec, ...], apply=None, *, last: bool = True
     ) -> dict:
-        """Declare the node's parameters (activetrack_ros.params); ``apply``: name ->
-        callable for those a running node can change. Returns the values (ValueError on a bad
-        one). ``last``: the node declares no more, so unknown overrides are reported now."""
+        """Declare the node's parameters (activetrack_ros.params) and take its frame_id and
+        mode; ``apply``: name -> callable for those a running node can change. Returns the
+        values (ValueError on a bad one). ``last``: report unknown overrides now."""
         values = params.declare(self, specs)
         params.on_change(self, specs, {} if apply is None else apply)
         if last:
             params.warn_unknown(self)
         self.frame_id = values.get("frame_id", self.frame_id)
+        self.mode = values.get("mode", self.mode)
         return values
 
     def use_scenario(self, scenario) -> None:
-        """Take the node's scenario: size the per-epoch histories for it."""
+        """Take the node's scenario: size the per-epoch histories for it, publish diagnostics."""
+        self.scenario = scenario
         self.size_history(scenario)
+        self.diag_pub = self.publisher(DiagnosticArray, graph.DIAGNOSTICS)
+
+    def setter(self, attribute: str) -> Callable:
+        """The ``apply`` entry (declare_params) of a parameter the node keeps in ``attribute``."""
+        return lambda value: setattr(self, attribute, value)
 
     def size_history(self, scenario) -> None:
-        """Per-epoch writers keep the whole run for late joiners (graph.history_depth); a run
-        too long for that says so."""
+        """Per-epoch writers keep the whole run for late joiners; a run too long says so."""
         self.history_depth = graph.history_depth(scenario)
-        if graph.run_history(scenario) > self.history_depth:
+        most = graph.run_history(scenario)
+        if most > self.history_depth:
             self.get_logger().warning(
-                f"the run has {graph.run_history(scenario)} per-epoch messages per topic at "
-                f"most; writers keep the last {self.history_depth}: a late joiner misses the "
-                "start"
+                f"the run has {most} per-epoch messages per topic at most; writers keep the "
+                f"last {self.history_depth}: a late joiner misses the start"
             )
-
-    # --- inputs --------------------------------------------------------------------------
 
     def subscribe(self, msg_type, topic: str, callback: Callable) -> None:
         """Subscribe with the graph's reader QoS; ``callback(msg)`` may raise Rejected."""
         name = msg_type.__name__
-        trusted = self._trust_filter(msg_type, topic)
 
-        def on_raw(data: bytes) -> None:
-            ok, msg = trusted(data)
-            if not ok:
-                return
+        def on_trusted(data: bytes, msg) -> None:
             if msg is None:
                 try:
                     msg = deserialize_message(data, msg_type)
@@ -155,49 +149,37 @@ class GraphNode(Node):
                 )
             self.guarded(callback, msg)
 
-        self._raw_subscription(msg_type, topic, on_raw)
+        self._subscribe_trusted(msg_type, topic, on_trusted)
 
     def subscribe_raw(self, msg_type, topic: str, callback: Callable[[bytes], None]) -> None:
         """Like :meth:`subscribe` for a node that passes the bytes on (the live view):
         ``callback(data)`` gets the graph's own messages, undecoded, counted and guarded."""
-        trusted = self._trust_filter(msg_type, topic)
+        self._subscribe_trusted(msg_type, topic, lambda data, _: self.guarded(callback, data))
 
-        def on_raw(data: bytes) -> None:
-            if trusted(data)[0]:
-                self.guarded(callback, data)
-
-        self._raw_subscription(msg_type, topic, on_raw)
-
-    def _trust_filter(self, msg_type, topic: str) -> Callable[[bytes], tuple[bool, object]]:
-        """``trusted(data)``: counts the sample; ``(False, None)`` for a writer outside the
-        graph (counted as foreign), else ``(True, msg)`` with the message if it had to be
-        decoded for the check (diagnostics), else None."""
+    def _subscribe_trusted(self, msg_type, topic: str, on_trusted: Callable) -> None:
+        """A raw subscription counting every sample and DDS event, dropping a foreign writer's;
+        ``on_trusted(data, msg)`` gets the rest (``msg``: decoded if the check had to, or None)."""
         name = msg_type.__name__
         self.inputs[name] = topic
         key = self.graph_key
         signed = key is not None and is_signed_type(msg_type)
         diagnostics = key is not None and msg_type is DiagnosticArray
 
-        def trusted(data: bytes) -> tuple[bool, object]:
+        def on_raw(data: bytes) -> None:
             self.counters.received(name)
-            if signed and not key.verify(data):
-                self._foreign(name, topic)
-                return False, None
-            if not diagnostics:
-                return True, None
-            try:
-                msg = deserialize_message(data, msg_type)
-            except Exception:  # no tag can be read from it: not the graph's
-                msg = None
-            if msg is None or not key.verify_diagnostics(msg):
-                self._foreign(name, topic)
-                return False, None
-            return True, msg
+            msg, ok = None, True
+            if signed:
+                ok = key.verify(data)
+            elif diagnostics:  # the tag travels inside the message
+                try:
+                    msg = deserialize_message(data, msg_type)
+                except Exception:  # no tag can be read from it: not the graph's
+                    msg = None
+                ok = msg is not None and key.verify_diagnostics(msg)
+            if not ok:
+                return self._foreign(name, topic)
+            on_trusted(data, msg)
 
-        return trusted
-
-    def _raw_subscription(self, msg_type, topic: str, on_raw: Callable[[bytes], None]) -> None:
-        name = msg_type.__name__
         events = SubscriptionEventCallbacks(
             message_lost=lambda info: self._lost(name, info),
             incompatible_qos=lambda info: self._incompatible(name, topic, info),
@@ -258,22 +240,20 @@ class GraphNode(Node):
     def guarded_timer(self, period: float, callback: Callable):
         return self.create_timer(period, lambda: self.guarded(callback))
 
-    # --- outputs -------------------------------------------------------------------------
-
     def publisher(self, msg_type, topic: str) -> GraphPublisher:
         return GraphPublisher(self, msg_type, topic, self.graph_key, self.history_depth)
 
-    def diagnostics_array(self, header: Header, name: str, hardware_id: str, message: str):
-        """This node's counters as one DiagnosticStatus (WARN once anything was rejected)."""
+    def publish_diagnostics(self, header: Header, message: str) -> None:
+        """Publish the node's counters as status ``activetrack/<node>`` (WARN once rejecting)."""
         warn = self.counters.total_rejected or self.counters.total("errors.")
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK,
-            name=name,
-            hardware_id=hardware_id,
+            name=f"activetrack/{self.role}",
+            hardware_id=self.scenario.name,
             message=message,
             values=[KeyValue(key=k, value=v) for k, v in self.counters.as_pairs()],
         )
-        return DiagnosticArray(header=header, status=[status])
+        self.diag_pub.publish(DiagnosticArray(header=header, status=[status]))
 
 
 def _interrupt_inside(exc: BaseException) -> BaseException | None:

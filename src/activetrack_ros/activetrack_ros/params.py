@@ -61,14 +61,13 @@ class ParamSpec:
             description=self.description,
             read_only=self.read_only,
         )
-        if self.type is float and self.low is not None and self.high is not None:
+        low, high = self.low, self.high
+        if self.type is float and low is not None and high is not None:
             d.floating_point_range = [
-                FloatingPointRange(from_value=float(self.low), to_value=float(self.high))
+                FloatingPointRange(from_value=float(low), to_value=float(high))
             ]
-        elif self.type is int and self.low is not None and self.high is not None:
-            d.integer_range = [
-                IntegerRange(from_value=int(self.low), to_value=int(self.high), step=1)
-            ]
+        elif self.type is int and low is not None and high is not None:
+            d.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
         allowed = self.allowed()
         if allowed:
             d.additional_constraints = f"one of {list(allowed)}" + (
@@ -89,14 +88,10 @@ class ParamSpec:
                 f"parameter '{self.name}' must be a {self.type.__name__}, got "
                 f"{type(value).__name__} {value!r}"
             )
-        if self.type in (int, float):
-            bad = not math.isfinite(value) or (
-                (self.low is not None and value < self.low)
-                or (self.high is not None and value > self.high)
-            )
-            if bad:
-                limits = f"[{self.low}, {self.high}]"
-                return f"parameter '{self.name}' must be in {limits}, got {value!r}"
+        low = -math.inf if self.low is None else self.low
+        high = math.inf if self.high is None else self.high
+        if self.type in (int, float) and not (math.isfinite(value) and low <= value <= high):
+            return f"parameter '{self.name}' must be in [{self.low}, {self.high}], got {value!r}"
         allowed = self.allowed()
         if self.type is str and allowed and value not in allowed and (value or self.required):
             empty = "" if self.required else " (or empty)"
@@ -130,16 +125,22 @@ FRAME_ID = ParamSpec(
 COMMON = (SCENARIO, RUN, MODE, FRAME_ID)
 
 
+def _as_float(p: Parameter, floats) -> Parameter:
+    """An integer given for a float parameter (``-p rate:=5``, ``ros2 param set /sim_node rate
+    5``) taken as that float, where rclpy would refuse it as the wrong type."""
+    if p.name in floats and p.type_ == Parameter.Type.INTEGER:
+        return Parameter(p.name, value=float(p.value))
+    return p
+
+
 def declare(node, specs: tuple[ParamSpec, ...]) -> dict:
-    """Declare ``specs`` on ``node`` and return their values; ValueError (naming the
-    parameter and what is allowed) on a bad value. An integer given for a float parameter
-    (``-p rate:=5``) is taken as that float."""
+    """Declare ``specs`` on ``node``; their values, or ValueError naming a bad one's limits."""
     overrides = node._parameter_overrides  # what --ros-args / params files / the caller gave
+    floats = {s.name for s in specs if s.type is float}
     values = {}
     for spec in specs:
-        given = overrides.get(spec.name)
-        if given is not None and spec.type is float and given.type_ == Parameter.Type.INTEGER:
-            overrides[spec.name] = Parameter(spec.name, value=float(given.value))
+        if spec.name in overrides:
+            overrides[spec.name] = _as_float(overrides[spec.name], floats)
         try:
             value = node.declare_parameter(spec.name, spec.default, spec.descriptor()).value
         except ParameterException as exc:
@@ -165,10 +166,8 @@ def warn_unknown(node) -> None:
         )
 
 
-# rclpy declares use_sim_time on every node (False, undescribed, writable). The graph's nodes
-# stamp their messages with simulated time themselves and their timers must keep wall time:
-# /clock stands still while lockstep waits for them, so on sim time they would never fire
-# (setting it true froze a free run's clock; setting it back made sim time jump).
+# rclpy declares use_sim_time on every node (False, undescribed, writable); on sim time a
+# graph node's timers would never fire while lockstep waits (true froze a free run's clock).
 USE_SIM_TIME = "use_sim_time"
 USE_SIM_TIME_DESCRIPTION = (
     "fixed false: the node stamps messages with simulated time itself and its timers keep "
@@ -178,9 +177,8 @@ USE_SIM_TIME_DESCRIPTION = (
 
 
 def fix_use_sim_time(node) -> None:
-    """Make ``use_sim_time`` read-only and described on a graph node: a change is refused
-    (rclpy: "Trying to set a read-only parameter"), and ``true`` given at start-up (``-p``, a
-    params file's ``/**`` section) is a ValueError naming the parameter (exit 2)."""
+    """Make ``use_sim_time`` read-only and described on a graph node: a change is refused, and
+    ``true`` given at start-up (``-p``, a params file's ``/**``) is a ValueError (exit 2)."""
     if node.get_parameter(USE_SIM_TIME).value is not False:
         raise ValueError(
             f"parameter '{USE_SIM_TIME}' must be false for {node.get_name()}: "
@@ -202,36 +200,26 @@ def on_change(node, specs: tuple[ParamSpec, ...], apply: dict[str, Callable | st
     after they are set) and refuse every other change with a reason (``apply[name]`` may be
     that reason, for a change the node's present state cannot take; the dict may change while
     the node runs). rclpy refuses read-only ones itself ("Trying to set a read-only
-    parameter"). An integer for a float parameter is taken as that float."""
+    parameter")."""
     by_name = {s.name: s for s in specs}
     floats = {s.name for s in specs if s.type is float}
 
     def as_float(params: list[Parameter]) -> list[Parameter]:
-        """An integer for a float parameter (``ros2 param set /sim_node rate 5``) is taken as
-        that float, as at start-up; rclpy would refuse it as the wrong type."""
-        return [
-            Parameter(p.name, value=float(p.value))
-            if p.name in floats and p.type_ == Parameter.Type.INTEGER
-            else p
-            for p in params
-        ]
+        return [_as_float(p, floats) for p in params]
+
+    def refusal(p: Parameter) -> str | None:
+        spec = by_name.get(p.name)
+        if spec is None:
+            return None  # use_sim_time and rclpy's own
+        if spec.read_only or p.name not in apply:
+            return f"parameter '{p.name}' cannot change while the node runs"
+        if isinstance(apply[p.name], str):  # changeable, but not in this node's state
+            return apply[p.name]
+        return spec.check(p.value)
 
     def validate(params: list[Parameter]) -> SetParametersResult:
-        for p in params:
-            spec = by_name.get(p.name)
-            if spec is None:
-                continue  # use_sim_time and rclpy's own
-            if spec.read_only or p.name not in apply:
-                return SetParametersResult(
-                    successful=False,
-                    reason=f"parameter '{p.name}' cannot change while the node runs",
-                )
-            if isinstance(apply[p.name], str):  # changeable, but not in this node's state
-                return SetParametersResult(successful=False, reason=apply[p.name])
-            problem = spec.check(p.value)
-            if problem:
-                return SetParametersResult(successful=False, reason=problem)
-        return SetParametersResult(successful=True)
+        reasons = [r for r in map(refusal, params) if r]
+        return SetParametersResult(successful=not reasons, reason=reasons[0] if reasons else "")
 
     def applied(params: list[Parameter]) -> None:
         for p in params:

@@ -14,8 +14,7 @@ from activetrack.scenarios import ScenarioError
 
 
 def spin_node(node_class, args=None, done: Callable[[object], bool] | None = None) -> None:
-    """Run one node until shutdown (Ctrl-C, SIGTERM) or ``done(node)``; exit 2 on bad
-    parameters, before anything is published."""
+    """Run one node until shutdown or ``done(node)``; exit 2 on bad parameters, unpublished."""
     tune_allocator()  # a node process: numpy temporaries stay on the heap (faster)
     rclpy.init(args=args)
     try:

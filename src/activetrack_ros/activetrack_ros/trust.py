@@ -1,21 +1,13 @@
-"""Which writers count: the graph's own, recognised by a per-run key.
+"""Which writers count: the graph's own, recognised by a per-run key (docs/robustness.md).
 
-Threat model (README, "Trust"): a DDS domain is shared with other robots, tools, bag players and
-other activetrack graphs, and anyone on it may publish on our topics. rclpy does not hand a
-subscription callback the writer's identity (its MessageInfo has no publisher GID) and the
-Fast DDS of the PyPI wheels has no security plugins, so the graph recognises its own messages
-itself: every per-epoch message (the msgs_defs types) ends with ``graph_auth``, a 16-byte keyed
-BLAKE2b hash of the serialised bytes before it, under a key made fresh for each run and handed
-to the graph's nodes out of band (constructor argument in one process, the
-``ACTIVETRACK_GRAPH_KEY`` environment variable for child processes; never a ROS parameter,
-which other nodes could read). A message whose hash does not verify comes from outside the
-graph: it is counted and dropped before it is even deserialised. This stops accidental
-cross-talk and malformed or forged data from writers that do not hold the key; it does not hide
-the topics (they are readable by anyone on the domain) and does not stop a flood from costing
-CPU. Writers who can read the key's process memory are out of scope: use DDS Security (SROS2)
-on a ROS install built with it.
-
-``/diagnostics`` (a standard type) carries the same hash in a ``graph_auth`` key-value pair.
+Anyone on a shared DDS domain may publish on our topics, rclpy does not tell a callback the
+writer (no publisher GID) and the PyPI wheels' Fast DDS has no security plugins. So every
+msgs_defs message ends with ``graph_auth``, a 16-byte keyed BLAKE2b hash of the serialised bytes
+before it, under a key made fresh for each run and handed to the nodes out of band (never a ROS
+parameter, which other nodes could read); ``/diagnostics`` carries it in a key-value pair. A
+message that does not verify is counted and dropped before it is deserialised. This stops
+cross-talk and forged data from writers without the key; it does not hide the topics or stop a
+flood from costing CPU.
 """
 
 from __future__ import annotations
@@ -73,8 +65,7 @@ class GraphKey:
 
     def verify(self, serialized: bytes) -> bool:
         """True if the message was signed with this key. Between processes DDS pads a payload
-        to a multiple of 4 bytes (without saying so in the encapsulation options), so the
-        trailer may end up to 3 bytes before the end."""
+        to a multiple of 4 bytes, unmarked: the trailer may end up to 3 bytes before the end."""
         view = memoryview(serialized)
         for pad in range(4):
             end = len(view) - pad
@@ -86,29 +77,15 @@ class GraphKey:
                 return True
         return False
 
-    # --- diagnostics (standard type: the tag travels in a KeyValue) -------------------------
-
     def _diagnostics_tag(self, array: DiagnosticArray) -> str:
         """Tag of a canonical text of the array (CDR is not canonical: its padding bytes are
         whatever the serialiser's buffer held), the ``graph_auth`` value left out."""
         h = array.header
-        text = json.dumps(
-            [
-                h.stamp.sec,
-                h.stamp.nanosec,
-                h.frame_id,
-                [
-                    [
-                        bytes(s.level).hex(),
-                        s.name,
-                        s.message,
-                        s.hardware_id,
-                        [[kv.key, kv.value] for kv in s.values if kv.key != AUTH_FIELD],
-                    ]
-                    for s in array.status
-                ],
-            ]
-        )
+        statuses = []
+        for s in array.status:
+            values = [[kv.key, kv.value] for kv in s.values if kv.key != AUTH_FIELD]
+            statuses.append([bytes(s.level).hex(), s.name, s.message, s.hardware_id, values])
+        text = json.dumps([h.stamp.sec, h.stamp.nanosec, h.frame_id, statuses])
         return self.tag(text.encode()).hex()
 
     def sign_diagnostics(self, array: DiagnosticArray) -> DiagnosticArray:

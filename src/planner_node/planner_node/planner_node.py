@@ -1,15 +1,10 @@
-"""planner_node: the scenario's planner (activetrack.closed_loop.components.build_planner: PCRLB and
-modified-Riccati manoeuvre planning, sensor selection, cautious localisation, planning across
-targets with beam assignment).
+"""planner_node: the scenario's planner (activetrack.closed_loop.components.build_planner).
 
 Answers each track array (epoch k) with a ManoeuvreCommand per controllable platform, a
 BeamCommand per steerable sensor, a SensorSelection (when the scenario selects sensors) and a
 PlanReport, once it also holds every platform's state of epoch k. Renewal mode: every decision
-starts from the tracks' posteriors. Only the graph's own tracker and simulator count
-(activetrack_ros.trust); bad messages are rejected, counted and logged; the node keeps running.
+starts from the tracks' posteriors.
 """
-
-from diagnostic_msgs.msg import DiagnosticArray
 
 from activetrack.closed_loop.components import build_planner, component_rngs
 from activetrack.data import PlatformSnapshot, TrackSet
@@ -41,23 +36,26 @@ STATE_WINDOW = 64
 
 
 class PlannerNode(GraphNode):
+    """Platform states are kept by epoch until decided: one of a decided epoch is ignored (a
+    latched state replayed), a second one for a platform and epoch rejected, and at most
+    STATE_WINDOW epochs kept (a late joiner's replayed history, oldest evicted first)."""
+
     def __init__(self, **kwargs):
         super().__init__("planner_node", **kwargs)
         p = self.declare_params((SCENARIO, RUN, FRAME_ID))  # no mode: it plans alike in both
-        self.scenario = load_scenario(p["scenario"])
-        self.use_scenario(self.scenario)
+        self.use_scenario(load_scenario(p["scenario"]))
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[2]
         self.core = build_planner(self.scenario, rng)
         self.check_tracks = TrackArrayChecker(self.scenario)
         self.tracks: TrackSet | None = None
-        self.platforms = AwaitedStates(self, self.scenario)
+        self.platform_ids = {p.id for p in self.scenario.platforms}
+        self.states: dict[int, dict[str, PlatformSnapshot]] = {}  # by epoch
         self.last_decided = -1
 
         self.command_pub = self.publisher(ManoeuvreCommand, topics.MANOEUVRE_COMMANDS)
         self.beam_pub = self.publisher(BeamCommand, topics.BEAM_COMMANDS)
         self.selection_pub = self.publisher(SensorSelection, topics.SENSOR_SELECTION)
         self.report_pub = self.publisher(PlanReport, topics.PLAN_REPORT)
-        self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
         self.subscribe(TrackArray, topics.TRACKS, self.on_tracks)
         self.subscribe(PlatformState, topics.PLATFORM_STATES, self.on_platform)
 
@@ -73,94 +71,48 @@ class PlannerNode(GraphNode):
         self.try_decide()
 
     def on_platform(self, msg: PlatformState) -> None:
-        if self.platforms.add(msg, self.last_decided):
-            self.try_decide()
+        snap = platform_from_msg(msg, self.scenario, self.platform_ids)
+        if snap.epoch <= self.last_decided:
+            return self.ignore("old_state")
+        states = self.states.setdefault(snap.epoch, {})
+        if snap.platform_id in states:
+            raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
+        states[snap.platform_id] = snap
+        while len(self.states) > STATE_WINDOW:
+            del self.states[min(self.states)]
+            self.ignore("evicted_states")
+        self.try_decide()
 
     def try_decide(self) -> None:
         if self.tracks is None:
             return
         k = self.tracks.epoch
-        ordered = self.platforms.complete(k)
-        if k <= self.last_decided or k >= self.scenario.steps or ordered is None:
+        states = self.states.get(k, {})
+        if (
+            k <= self.last_decided
+            or k >= self.scenario.steps
+            or len(states) < len(self.platform_ids)
+        ):
             return
+        ordered = [states[p.id] for p in self.scenario.platforms]
         decision = self.core.decide(k, self.tracks, ordered)
         self.last_decided = k
-        self.platforms.decided(k)
+        for e in [e for e in self.states if e <= k]:
+            del self.states[e]
         dt, frame = self.scenario.dt, self.frame_id
         for c in decision.commands:
             self.command_pub.publish(command_msg(c, dt, frame))
         for beam in decision.beams:
             self.beam_pub.publish(beam_msg(beam, dt, frame))
         if decision.selected_sensor_ids is not None:
-            self.selection_pub.publish(
-                selection_msg(
-                    k,
-                    dt,
-                    frame,
-                    decision.selected_sensor_ids,
-                    decision.candidate_sensor_ids,
-                    decision.selection_costs,
-                    decision.selection_criterion,
-                )
-            )
+            self.selection_pub.publish(selection_msg(k, dt, frame, decision))
         hdr = header(k * dt, frame)
         if decision.report is not None:
             self.report_pub.publish(report_msg(decision.report, hdr))
         self.counters.count("decisions")
         confirmed = len(self.tracks.confirmed)
-        self.diag_pub.publish(
-            self.diagnostics_array(
-                hdr,
-                "activetrack/planner_node",
-                self.scenario.name,
-                f"decided epoch {k} for {confirmed} confirmed track(s)",
-            )
-        )
-
-
-class AwaitedStates:
-    """Platform states by epoch, kept until the planner has decided for their epoch: a state
-    of an epoch already decided is ignored (a latched state replayed), a second one for a
-    platform and epoch rejected, and at most STATE_WINDOW epochs kept (a late joiner's
-    replayed history, oldest evicted first)."""
-
-    def __init__(self, node, scenario):
-        self.node = node
-        self.scenario = scenario
-        self.platform_ids = {p.id for p in scenario.platforms}
-        self.by_epoch: dict[int, dict[str, PlatformSnapshot]] = {}
-
-    def add(self, msg: PlatformState, last_decided: int) -> bool:
-        """Take a state; False when it is not news (counted as ignored)."""
-        snap = platform_from_msg(msg, self.scenario, self.platform_ids)
-        if snap.epoch <= last_decided:
-            self.node.ignore("old_state")
-            return False
-        states = self.by_epoch.setdefault(snap.epoch, {})
-        if snap.platform_id in states:
-            raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
-        states[snap.platform_id] = snap
-        while len(self.by_epoch) > STATE_WINDOW:
-            del self.by_epoch[min(self.by_epoch)]
-            self.node.ignore("evicted_states")
-        return True
-
-    def complete(self, k: int) -> list[PlatformSnapshot] | None:
-        """Every platform's state of epoch k in scenario order, or None while one is missing."""
-        states = self.by_epoch.get(k, {})
-        if len(states) < len(self.platform_ids):
-            return None
-        return [states[p.id] for p in self.scenario.platforms]
-
-    def decided(self, k: int) -> None:
-        """Drop the states of epochs up to k."""
-        for e in [e for e in self.by_epoch if e <= k]:
-            del self.by_epoch[e]
+        self.publish_diagnostics(hdr, f"decided epoch {k} for {confirmed} confirmed track(s)")
 
 
 def main(args=None):
     spin_node(PlannerNode, args)
-
-
-if __name__ == "__main__":
-    main()

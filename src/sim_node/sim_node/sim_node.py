@@ -1,26 +1,19 @@
-"""sim_node: the simulated targets and sensor platforms of a scenario, one target or many
+"""sim_node: the simulated targets and sensor platforms of a scenario
 (activetrack.simulation.Simulator).
 
-Publishes /clock, every alive target's truth (``GroundTruthArray``, evaluators only), platform
-states and one ``Scan`` of unlabelled detections per looking sensor and epoch; obeys the
-planner's ManoeuvreCommand (clamped to each platform's limits, logged and counted),
-BeamCommand (a steerable sensor's pointing for the next epoch) and SensorSelection, from the
-graph's planner only (activetrack_ros.trust).
-
-Modes (parameter ``mode``):
-- ``lockstep`` (default): epoch k+1 is simulated once every controllable platform's command,
-  every steerable sensor's beam and (with selection on) the selection of epoch k have arrived
-  (with none of them, once the track array of epoch k has), so a run is deterministic for a
-  seed; one missing after ``command_timeout`` wall seconds means hold course, keep the beam and
-  the selection (warned and counted).
-- ``free``: sim time runs at ``rate`` x wall time; commands, beams and selections apply to the
-  current leg when they arrive.
+Publishes /clock, every alive target's truth (evaluators only), platform states and one
+``Scan`` per looking sensor and epoch; obeys the planner's ManoeuvreCommand (clamped to each
+platform's limits, counted), BeamCommand and SensorSelection. ``lockstep`` mode: epoch k+1 is
+simulated once every command, beam and (with selection on) the selection of epoch k have
+arrived (with none to await, the track array of epoch k), so a run is deterministic for a
+seed; one missing after ``command_timeout`` wall seconds means hold course, keep the beam and
+the selection (warned and counted). ``free`` mode: sim time runs at ``rate`` x wall time and
+answers apply at once.
 """
 
 import math
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
 from rosgraph_msgs.msg import Clock
 from tf2_msgs.msg import TFMessage
@@ -89,9 +82,7 @@ class SimNode(GraphNode):
         super().__init__("sim_node", **kwargs)
         changes: dict = {}  # filled below, once the mode is known
         p = self.declare_params(PARAMS, changes)
-        self.scenario = load_scenario(p["scenario"])
-        self.use_scenario(self.scenario)
-        self.mode = p["mode"]
+        self.use_scenario(load_scenario(p["scenario"]))
         self.rate = p["rate"]
         self.timeout = p["command_timeout"]
         self.exit_when_done = p["exit_when_done"]
@@ -99,8 +90,8 @@ class SimNode(GraphNode):
         self.sim = build_simulator(self.scenario, rng)
         self.sensors = scene_sensors(self.scenario)
         changes.update(
-            command_timeout=self._set_timeout,
-            exit_when_done=self._set_exit_when_done,
+            command_timeout=self.setter("timeout"),
+            exit_when_done=self.setter("exit_when_done"),
             rate=self._set_rate
             if self.mode == "free"
             else "parameter 'rate' applies in free "
@@ -112,7 +103,6 @@ class SimNode(GraphNode):
         self.truth_pub = self.publisher(GroundTruthArray, topics.GROUND_TRUTH)
         self.platform_pub = self.publisher(PlatformState, topics.PLATFORM_STATES)
         self.scan_pub = self.publisher(Scan, topics.SCANS)
-        self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.paths: dict[str, list[Point]] = {pid: [] for pid in self.sim.platforms}
         self.path_chunk = dict.fromkeys(self.sim.platforms, 0)
@@ -142,52 +132,45 @@ class SimNode(GraphNode):
         self.publish_epoch([])
         self.epoch_started = time.monotonic()
 
-    # --- run-time parameter changes (activetrack_ros.params) -------------------------------
-
     def _set_rate(self, rate: float) -> None:
         """Sim time stays continuous: the new rate counts from now."""
         self.clock_origin = (time.monotonic(), self.sim_time_now())
         self.rate = rate
 
-    def _set_timeout(self, seconds: float) -> None:
-        self.timeout = seconds
-
-    def _set_exit_when_done(self, value: bool) -> None:
-        self.exit_when_done = value
-
     def sim_time_now(self) -> float:
         wall, sim = self.clock_origin
         return sim + (time.monotonic() - wall) * self.rate
 
-    # --- inputs --------------------------------------------------------------------------
-
     def _check_epoch(self, epoch: int, what: str) -> None:
-        if self.mode == "lockstep":
-            check_lockstep_epoch(epoch, self.sim.epoch, what)
+        """Lockstep: an answer must be of the sim's current epoch."""
+        current = self.sim.epoch
+        if self.mode == "lockstep" and epoch < current:
+            raise Rejected("stale_epoch", f"{what} for epoch {epoch} < {current}")
+        if self.mode == "lockstep" and epoch > current:
+            raise Rejected("future_epoch", f"{what} for epoch {epoch} > {current}")
+
+    def _answer(self, answers: dict, key: str, answer, epoch: int, what: str, apply) -> None:
+        """Free mode: ``apply(answer)`` now; lockstep: keep it (one per ``key``) for the step."""
+        self._check_epoch(epoch, what)
+        if self.mode == "free":
+            return apply(answer)
+        if key in answers:
+            raise Rejected("duplicate", f"second {what} at epoch {epoch}")
+        answers[key] = answer
+        self.step_if_ready()
 
     def on_command(self, msg: ManoeuvreCommand) -> None:
         cmd = command_from_msg(msg, self.scenario, self.sim.epoch, self.sim.controllable_ids)
         what = f"command for {msg.platform_id!r}"
-        self._check_epoch(msg.epoch, what)
-        if self.mode == "free":
-            self.apply(cmd)
-            return
-        if msg.platform_id in self.pending:
-            raise Rejected("duplicate", f"second {what} at epoch {msg.epoch}")
-        self.pending[msg.platform_id] = cmd
-        self.step_if_ready()
+        self._answer(self.pending, msg.platform_id, cmd, msg.epoch, what, self.apply)
 
     def on_beam(self, msg: BeamCommandMsg) -> None:
         beam = beam_from_msg(msg, self.scenario)
         what = f"beam command of {beam.sensor_id!r}"
-        self._check_epoch(beam.epoch, what)
-        if self.mode == "free":
-            self.sim.apply_beam(BeamCommand(beam.sensor_id, self.sim.epoch, beam.bearing))
-            return
-        if beam.sensor_id in self.beams:
-            raise Rejected("duplicate", f"second {what} at epoch {beam.epoch}")
-        self.beams[beam.sensor_id] = beam
-        self.step_if_ready()
+        self._answer(self.beams, beam.sensor_id, beam, beam.epoch, what, self._beam_now)
+
+    def _beam_now(self, beam: BeamCommand) -> None:
+        self.sim.apply_beam(BeamCommand(beam.sensor_id, self.sim.epoch, beam.bearing))
 
     def on_selection(self, msg: SensorSelection) -> None:
         if not self.expects_selection:
@@ -207,8 +190,6 @@ class SimNode(GraphNode):
             raise Rejected("future_epoch", f"track array of epoch {msg.epoch} > {self.sim.epoch}")
         self.last_track_epoch = max(self.last_track_epoch, msg.epoch)
         self.step_if_ready()
-
-    # --- stepping ------------------------------------------------------------------------
 
     def apply(self, cmd: Command) -> None:
         result = self.sim.apply_command(cmd)
@@ -237,7 +218,7 @@ class SimNode(GraphNode):
             return
         if self.sim.finished:
             self.done = True
-            self.publish_diagnostics(finished=True)
+            self.publish_diagnostics(header(self.sim.time, self.frame_id), "finished")
             self.get_logger().info(f"scenario {self.scenario.name} finished")
             return
         if self.mode == "free":
@@ -280,8 +261,6 @@ class SimNode(GraphNode):
         self.publish_epoch(self.sim.advance())
         self.epoch_started = time.monotonic()
 
-    # --- outputs -------------------------------------------------------------------------
-
     def publish_epoch(self, scans) -> None:
         t = self.sim.time
         self.clock_pub.publish(Clock(clock=header(t, self.frame_id).stamp))
@@ -300,7 +279,8 @@ class SimNode(GraphNode):
         self.counters.count("epochs_published")
         self.publish_frames(t, truth)
         self.publish_markers(t)
-        self.publish_diagnostics()
+        message = f"epoch {self.sim.epoch}/{self.scenario.steps}"
+        self.publish_diagnostics(header(t, self.frame_id), message)
 
     def publish_frames(self, t: float, truth) -> None:
         """Platforms and each alive target's truth in the fixed frame (docs/frames.md)."""
@@ -324,9 +304,8 @@ class SimNode(GraphNode):
         self.tf_static_pub.publish(TFMessage(transforms=transforms))
 
     def publish_markers(self, t: float) -> None:
-        """Each platform's path as line strips of PATH_CHUNK points (namespace
-        ``platforms/<id>``, marker id = chunk index): only the newest chunk is republished, so
-        a long run costs linear, not quadratic, bytes; chunks share their end points."""
+        """Each platform's path as line strips of PATH_CHUNK points (``platforms/<id>``, id: the
+        chunk's index) sharing end points: only the newest is republished (linear bytes)."""
         array = MarkerArray()
         for pid, p in self.sim.platforms.items():
             path = self.paths[pid]
@@ -342,26 +321,6 @@ class SimNode(GraphNode):
             array.markers.append(m)
         self.marker_pub.publish(array)
 
-    def publish_diagnostics(self, finished: bool = False) -> None:
-        sim = self.sim
-        message = "finished" if finished else f"epoch {sim.epoch}/{self.scenario.steps}"
-        hdr = header(sim.time, self.frame_id)
-        self.diag_pub.publish(
-            self.diagnostics_array(hdr, "activetrack/sim_node", self.scenario.name, message)
-        )
-
-
-def check_lockstep_epoch(epoch: int, current: int, what: str) -> None:
-    """Lockstep: an answer must be of the sim's current epoch (Rejected otherwise)."""
-    if epoch < current:
-        raise Rejected("stale_epoch", f"{what} for epoch {epoch} < {current}")
-    if epoch > current:
-        raise Rejected("future_epoch", f"{what} for epoch {epoch} > {current}")
-
 
 def main(args=None):
     spin_node(SimNode, args, done=lambda node: node.exit_when_done and node.done)
-
-
-if __name__ == "__main__":
-    main()

@@ -1,24 +1,16 @@
-"""tracker_node: the scenario's tracker (any registered filter per track, known or JPDA
-association, track management: activetrack.tracking.Tracker) on the sim's scans.
+"""tracker_node: the scenario's tracker (activetrack.tracking.Tracker) on the sim's scans.
 
 The ``scenario`` parameter names a scenario file or a tracker-only configuration
-(activetrack.scenarios.tracking, docs/track-your-data.md); the tracker is built from either by
-the same builder (activetrack.closed_loop.components.build_tracker). With a tracker
-configuration the node tracks scans from anywhere: in free mode, those ``activetrack play``
-publishes from a bag ``activetrack track`` wrote (its scans and platform states).
+(docs/track-your-data.md): with the latter the node tracks scans from anywhere, e.g. in free
+mode those ``activetrack play`` publishes from a bag ``activetrack track`` wrote.
 
-An epoch k is announced by the simulator's platform states of epoch k (one per platform, each
-saying how many scans the sim published at k); the tracker updates once it holds them all,
-sorted in scenario order, and publishes every live track with its id and covariance
-(``TrackArray``, with the planner's posterior samples for a particle filter). Each scan must
-agree with its platform's announced position. An epoch that stays incomplete for
-``epoch_timeout`` seconds is closed with what arrived (warned and counted), like a missing
-command in the simulator, so nothing can stall the tracker. In lockstep mode only epoch last + 1
-is accepted. For standard tools: each confirmed track's pose with covariance
-(``geometry_msgs/PoseWithCovarianceStamped``) and tf frame, a subsampled particle cloud
-(``geometry_msgs/PoseArray``), a 2-sigma ellipse and an id label per confirmed track
-(``MarkerArray``). Bad messages are rejected, counted and logged (activetrack_ros.node_base);
-the node keeps running.
+Epoch k is announced by its platform states (each saying how many scans the sim published);
+the tracker updates once it holds them all and every scan, each where its platform's state
+says, and publishes every live track (with the planner's posterior samples for a particle
+filter). An epoch incomplete for ``epoch_timeout`` seconds is closed with what arrived
+(warned, counted), so nothing can stall the tracker; lockstep accepts epoch last + 1 only.
+For standard tools: each confirmed track's pose with covariance, tf frame, 2-sigma ellipse
+and id label, and a subsampled particle cloud.
 """
 
 import math
@@ -26,8 +18,7 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped
+from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovarianceStamped
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -62,7 +53,6 @@ class OpenEpoch:
     announced: int = 0  # scans the sim published at the epoch
 
 
-# The scenario parameter names a scenario file or a tracker configuration.
 TRACKED = replace(
     SCENARIO,
     description="scenario or tracker configuration YAML file (checked on load: docs in README, "
@@ -91,24 +81,23 @@ FILTER = ParamSpec(
 
 
 def track_frame(track) -> str:
-    """The tf frame of a track's estimate: its target's for a track from a prior, else one
-    named by its id."""
+    """Its target's estimate frame for a track from a prior, else ``target/track<id>/...``."""
     return estimate_frame(track.origin or f"track{track.track_id}")
 
 
 class TrackerNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("tracker_node", **kwargs)
-        changes = {"cloud_size": self._set_cloud_size, "epoch_timeout": self._set_epoch_timeout}
+        changes = {
+            "cloud_size": self.setter("cloud_size"),
+            "epoch_timeout": self.setter("epoch_timeout"),
+        }
         p = self.declare_params(PARAMS, changes, last=False)
         # A tracker configuration, or a scenario's; imports its plugins: their filters too.
         config = load_tracking(p["scenario"])
         filter_name = self.declare_params((FILTER,), changes)["filter"]
-        self.scenario = with_tracker_overrides(
-            config, filter=filter_name or None, particles=p["particles"] or None
-        )
-        self.use_scenario(self.scenario)
-        self.mode = p["mode"]
+        overrides = {"filter": filter_name or None, "particles": p["particles"] or None}
+        self.use_scenario(with_tracker_overrides(config, **overrides))
         self.epoch_timeout = p["epoch_timeout"]
         self.cloud_size = p["cloud_size"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[1]
@@ -124,7 +113,6 @@ class TrackerNode(GraphNode):
         self.tracks_pub = self.publisher(TrackArray, topics.TRACKS)
         self.pose_pub = self.publisher(PoseWithCovarianceStamped, topics.TRACK_POSE)
         self.cloud_pub = self.publisher(PoseArray, topics.PARTICLES)
-        self.diag_pub = self.publisher(DiagnosticArray, topics.DIAGNOSTICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.tf_pub = self.publisher(TFMessage, topics.TF)
         self.subscribe(ScanMsg, topics.SCANS, self.on_scan)
@@ -135,14 +123,6 @@ class TrackerNode(GraphNode):
         # other processes (a viewer the run waited for) have matched them.
         prior = self.core.snapshot()
         self.prior_views = (prior, self.publish_estimate(prior))
-
-    def _set_cloud_size(self, size: int) -> None:
-        self.cloud_size = size
-
-    def _set_epoch_timeout(self, seconds: float) -> None:
-        self.epoch_timeout = seconds
-
-    # --- inputs --------------------------------------------------------------------------
 
     def on_scan(self, msg: ScanMsg) -> None:
         scan = scan_from_msg(msg, self.scenario, self.sensors)
@@ -175,8 +155,6 @@ class TrackerNode(GraphNode):
         if k not in self.epochs:
             self.epochs[k] = OpenEpoch(time.monotonic())
         return self.epochs[k]
-
-    # --- epochs --------------------------------------------------------------------------
 
     def complete(self, epoch: OpenEpoch) -> bool:
         """Every platform announced the epoch and every announced scan is here."""
@@ -212,18 +190,15 @@ class TrackerNode(GraphNode):
                 f"epoch {k} closed incomplete after {time.monotonic() - epoch.opened:.2f} s: "
                 f"{len(epoch.scans)} scans, states of {sorted(epoch.states)}",
             )
-        ordered = sorted(epoch.scans.values(), key=lambda s: self.sensor_order[s.sensor_id])
         used = []
-        for scan in ordered:  # each where its platform says it is
+        for scan in sorted(epoch.scans.values(), key=lambda s: self.sensor_order[s.sensor_id]):
             state = epoch.states.get(self.sensors[scan.sensor_id][0])
-            if state is not None and not np.allclose(
-                scan.sensor_pv, state.pv, rtol=0, atol=POSITION_TOLERANCE
-            ):
-                self.reject(
-                    "inconsistent", f"{scan.sensor_id!r} at {k} is not where its platform is"
-                )
-                continue
-            used.append(scan)
+            pv = scan.sensor_pv if state is None else state.pv  # where its platform says it is
+            if np.allclose(scan.sensor_pv, pv, rtol=0, atol=POSITION_TOLERANCE):
+                used.append(scan)
+            else:
+                where = f"{scan.sensor_id!r} at {k} is not where its platform is"
+                self.reject("inconsistent", where)
         tracks = self.core.step(k, k * self.scenario.dt, used)
         self.last_epoch = k
         for e in [e for e in self.epochs if e <= k]:
@@ -235,22 +210,18 @@ class TrackerNode(GraphNode):
             self.counters.count("epochs_without_scans")
         self.publish_tracks(tracks)
 
-    # --- outputs -------------------------------------------------------------------------
-
     def publish_tracks(self, tracks: TrackSet) -> None:
         """The track array (latched) and its views."""
         self.publish_views(tracks, self.publish_estimate(tracks))
 
     def publish_estimate(self, tracks: TrackSet):
-        """The track array (latched, per epoch: what the planner and evaluator read); returns
-        its header."""
+        """Publish the track array (latched: what the planner and evaluator read); its header."""
         msg = track_array_msg(tracks, self.frame_id)
         self.tracks_pub.publish(msg)
         return msg.header
 
     def publish_views(self, tracks: TrackSet, hdr) -> None:
-        """What tools show of the tracks: pose, tf, 2-sigma ellipses and ids, particles,
-        diagnostics."""
+        """What tools show of the tracks: pose, tf, ellipses and ids, particles, diagnostics."""
         markers, transforms, now = [], [], set()
         for t in tracks.confirmed:
             xy = np.asarray(t.mean)[[0, 2]]
@@ -283,9 +254,7 @@ class TrackerNode(GraphNode):
             f"{len(tracks.tracks)} tracks, {tracks.detections} detections"
             + (f", lowest ESS {min(ess):.0f}" if ess else "")
         )
-        self.diag_pub.publish(
-            self.diagnostics_array(hdr, "activetrack/tracker_node", self.scenario.name, message)
-        )
+        self.publish_diagnostics(hdr, message)
 
     def publish_cloud(self, hdr, tracks: TrackSet) -> None:
         """The particle tracks' posterior samples, subsampled to about ``cloud_size`` each."""
@@ -295,10 +264,8 @@ class TrackerNode(GraphNode):
         cloud = PoseArray(header=hdr)
         for samples in clouds:
             step = max(1, len(samples) // self.cloud_size)
-            for x in self.core.model.kinematics(samples[::step]):
-                p = Pose()
-                p.position.x, p.position.y = float(x[0]), float(x[2])
-                cloud.poses.append(p)
+            kinematics = self.core.model.kinematics(samples[::step])
+            cloud.poses += [Pose(position=Point(x=float(x[0]), y=float(x[2]))) for x in kinematics]
         self.cloud_pub.publish(cloud)
 
 
@@ -316,7 +283,3 @@ def _pose(hdr, xy, course: float, P_xy) -> PoseWithCovarianceStamped:
 
 def main(args=None):
     spin_node(TrackerNode, args)
-
-
-if __name__ == "__main__":
-    main()
