@@ -77,9 +77,20 @@ def _pf(
     )
 
 
+def _ekf(
+    model: MotionModel,
+    x0: FloatArray,
+    P0: FloatArray,
+    config: Any,
+    rng: np.random.Generator,
+    t0: float = 0.0,
+) -> TrackingFilter:
+    return ExtendedKalmanFilter(model, x0, P0, t0=t0)
+
+
 _register_built_in(
     "ekf",
-    lambda model, x0, P0, config, rng, t0=0.0: ExtendedKalmanFilter(model, x0, P0, t0=t0),
+    _ekf,
     description="extended Kalman filter (ExtendedKalmanFilter)",
 )
 _register_built_in(

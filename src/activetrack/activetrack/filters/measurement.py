@@ -12,7 +12,7 @@ from typing import Protocol
 
 import numpy as np
 
-from activetrack.arraytypes import FloatArray
+from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite, require_spd
 from activetrack.models.base import SensorModel
 
@@ -172,7 +172,7 @@ def pda_weights(measurements: Sequence[Measurement], beta: object) -> FloatArray
     return b
 
 
-def check_prior(x0: object, P0: object, n: int) -> tuple[FloatArray, FloatArray]:
+def check_prior(x0: ArrayLike, P0: ArrayLike, n: int) -> tuple[FloatArray, FloatArray]:
     """The prior mean ``(n,)`` and SPD covariance ``(n, n)`` of a model of dimension n."""
     mean = require_finite("x0", x0)
     if mean.shape != (n,):
