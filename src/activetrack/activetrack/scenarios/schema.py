@@ -495,6 +495,10 @@ class Scenario(Strict):
     # kinds, filters, criteria): scenarios.plugins. A file naming plugins runs their code.
     plugins: list[str] = Field(default=[], max_length=MAX_PLUGINS)
     seed: Seed = 0
+    # common: each target's motion, each sensor's detections and clutter draw from their own
+    # streams (policies compared on the same world); sequential: one generator
+    # (activetrack.simulation.streams).
+    random_streams: Literal["common", "sequential"] = "common"
     dt: Dt  # s between measurement / decision epochs (T)
     steps: Steps  # epochs k = 1..steps
     # The targets: one (the papers) or many; a file may give a single one as ``target:``.
