@@ -18,6 +18,7 @@ import numpy as np
 from pydantic import (
     Field,
     GetCoreSchemaHandler,
+    StrictBool,
     field_validator,
     model_validator,
 )
@@ -341,7 +342,8 @@ class TrackManagementConfig(Strict):
     track that cannot reach that any more is deleted, and a confirmed one after
     ``delete_misses`` consecutive looks without a gated detection, or when its position
     standard deviation exceeds ``max_position_std``. New tracks start from detections of
-    range-bearing sensors that no track gated, with velocity zero and ``init_speed_std``.
+    range-bearing sensors that no track gated, with velocity zero and ``init_speed_std``
+    (``initiate: false``: only the priors' tracks).
     """
 
     gate_sigmas: Annotated[float, Field(gt=0, le=MAX_GATE_SIGMAS)] = 3.5
@@ -351,6 +353,7 @@ class TrackManagementConfig(Strict):
     init_speed_std: Annotated[float, Field(gt=0, le=1e6)] = 10.0  # m/s
     max_position_std: Annotated[float, Field(gt=0, le=MAX_RANGE)] = 1e5  # m
     max_tracks: Annotated[int, Field(ge=1, le=MAX_TRACKS)] = 50
+    initiate: StrictBool = True  # false: tracks only from the priors
 
     @model_validator(mode="after")
     def _m_of_n(self) -> TrackManagementConfig:

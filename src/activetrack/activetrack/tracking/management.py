@@ -21,9 +21,9 @@ TrackManagementConfig`) once per epoch (M-of-N confirmation and deletion: Blackm
 - **coalescence** (two JPDA tracks drawn onto one target, Fitzgerald 1985; Blom & Bloem 2000):
   two confirmed tracks whose positions are within Mahalanobis distance
   ``d^2 = dp^T (P_a + P_b)^-1 dp <= COALESCE_D2`` at ``COALESCE_LOOKS`` consecutive epochs at
-  which both were looked at: the younger (the larger id: ids are given in order of creation)
-  is deleted. Two tracks on two targets that cross pass through that distance for an epoch or
-  two; tracks on one target stay there.
+  which both were looked at: the less supported is deleted (lower existence, then fewer hits
+  per look, then the younger: ids are given in order of creation). Two tracks on two targets
+  that cross pass through that distance for an epoch or two; tracks on one target stay there.
 - **probability of existence** (IPDA: Musicki, Evans & Stankovic, "Integrated probabilistic
   data association", IEEE TAC 39(6), 1994; among tracks that share detections the linear
   multi-target form, LM-IPDA: Musicki & La Scala, "Multi-target tracking in clutter without
@@ -76,6 +76,8 @@ class TrackManagementConfig(Protocol):
     def max_position_std(self) -> float: ...
     @property
     def max_tracks(self) -> int: ...
+    @property
+    def initiate(self) -> bool: ...
 
 
 __all__ = [
@@ -89,6 +91,7 @@ __all__ = [
     "TrackManager",
     "existence_update",
     "position_std",
+    "weaker",
 ]
 
 COALESCE_D2 = 0.5  # squared Mahalanobis distance of the two positions (2 dof: ~22 % quantile)
@@ -299,7 +302,8 @@ class TrackManager:
 
     def _coalesced(self, looked: dict[int, bool]) -> list[int]:
         """Update the closeness count of every pair of confirmed tracks both looked at this
-        epoch; the younger track of each pair that reached ``COALESCE_LOOKS``."""
+        epoch; the less supported track of each pair that reached ``COALESCE_LOOKS``
+        (:func:`weaker`)."""
         seen = [t for t in self.live() if t.confirmed and t.track_id in looked]
         out: set[int] = set()
         for i, a in enumerate(seen):
@@ -310,5 +314,15 @@ class TrackManager:
                 count = self._close.get(pair, 0) + 1 if d2 <= COALESCE_D2 else 0
                 self._close[pair] = count
                 if count >= COALESCE_LOOKS:
-                    out.add(b.track_id)  # b has the larger id: the younger
+                    out.add(weaker(a, b).track_id)
         return sorted(out)
+
+
+def weaker(a: Track, b: Track) -> Track:
+    """Of two coalesced tracks, the one to delete: the lower probability of existence, then
+    the lower fraction of hits per look, then the younger (the larger id)."""
+
+    def support(t: Track) -> tuple[float, float, int]:
+        return (t.existence, t.hits / max(t.looks, 1), -t.track_id)
+
+    return a if support(a) < support(b) else b

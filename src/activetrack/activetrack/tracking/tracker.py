@@ -344,7 +344,9 @@ class Tracker:
     ) -> Track | None:
         """A tentative track at the position the detection fixes (the sensor's inverse
         measurement, :meth:`inverse_position`), or None: the sensor fixes none (a bearing) or
-        the tracker is full (counted in ``not_started``)."""
+        the tracker is full (counted in ``not_started``) or does not initiate."""
+        if not self.book.cfg.initiate:
+            return None
         fix = c.sensor.base.inverse_position(z, c.s)
         if fix is None:
             return None
