@@ -63,7 +63,9 @@ from activetrack.tracking.management import (
     EXISTENCE_DELETE,
     EXISTENCE_INIT,
     EXISTENCE_SURVIVAL,
+    Track,
     existence_update,
+    weaker,
 )
 
 SENSOR_PV = np.array([0.0, 0.0, -3000.0, 0.0])
@@ -774,3 +776,28 @@ def test_snapshots_draw_nothing():
         np.testing.assert_array_equal(a.mean, b.mean)
         np.testing.assert_array_equal(a.samples, b.samples)
         np.testing.assert_array_equal(again.samples, b.samples)  # the same samples each look
+
+
+def test_coalescence_keeps_the_better_supported_track():
+    def track(track_id, existence, hits, looks):
+        return Track(
+            track_id, CONFIRMED, None, None, 0, existence=existence, hits=hits, looks=looks
+        )
+
+    old_weak, young_strong = track(1, 0.4, 9, 10), track(2, 0.95, 3, 4)
+    assert weaker(old_weak, young_strong) is old_weak  # lower existence goes, older or not
+    assert weaker(track(1, 0.9, 3, 10), track(2, 0.9, 4, 5)).track_id == 1  # fewer hits per look
+    assert weaker(track(1, 0.9, 4, 8), track(2, 0.9, 2, 4)).track_id == 2  # a tie: the younger
+
+
+def test_initiation_from_detections_can_be_switched_off():
+    sc = make_scenario(CROSSING, [range_bearing(pd=0.9, clutter_density=2e-4)])
+    _, scans = simulate(sc, 15, np.random.default_rng(11))
+    on = run(sc, scans, 11)[1]
+    off_sc = make_scenario(
+        CROSSING, [range_bearing(pd=0.9, clutter_density=2e-4)], tracks={"initiate": False}
+    )
+    tracker, off = run(off_sc, scans, 11)
+    assert max(t.track_id for ts in on for t in ts.tracks) > 3  # clutter starts tentatives
+    assert all({t.track_id for t in ts.tracks} <= {1, 2, 3} for ts in off)
+    assert tracker.book.not_started == 0 and tracker.book.next_id == 4

@@ -7,7 +7,7 @@ warning filters, and importing the core changes no process-wide setting
 
 from __future__ import annotations
 
-__all__ = ["chi2_cdf"]
+__all__ = ["chi2_cdf", "t_quantile"]
 
 
 def chi2_cdf(x: float, dof: float) -> float:
@@ -16,3 +16,10 @@ def chi2_cdf(x: float, dof: float) -> float:
     from scipy.special import gammainc
 
     return float(gammainc(0.5 * dof, 0.5 * x))
+
+
+def t_quantile(q: float, dof: float) -> float:
+    """The q quantile of Student's t with ``dof`` degrees of freedom."""
+    from scipy.special import stdtrit
+
+    return float(stdtrit(dof, q))

@@ -136,7 +136,7 @@ def build_simulator(scenario: Scenario, rng: np.random.Generator) -> Simulator:
         )
         for p in scenario.platforms
     ]
-    return Simulator(targets, platforms, scenario.dt, scenario.steps, rng)
+    return Simulator(targets, platforms, scenario.dt, scenario.steps, rng, scenario.random_streams)
 
 
 def build_tracker(

@@ -14,7 +14,7 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, GetCoreSchemaHandler, field_validator, model_validator
+from pydantic import Field, GetCoreSchemaHandler, StrictBool, field_validator, model_validator
 from pydantic_core import core_schema
 
 from activetrack import limits
@@ -302,7 +302,8 @@ class TargetConfig(Strict):
 
 class TrackManagementConfig(Strict):
     """JPDA gating and M-of-N track management (the rules: activetrack.tracking.management);
-    tracks from detections start with velocity 0 and standard deviation ``init_speed_std``."""
+    tracks from detections start with velocity 0 and standard deviation ``init_speed_std``
+    (``initiate: false``: only the priors' tracks)."""
 
     gate_sigmas: Annotated[float, Field(gt=0, le=limits.MAX_GATE_SIGMAS)] = 3.5
     confirm_m: Annotated[int, Field(ge=1, le=100)] = 2
@@ -311,6 +312,7 @@ class TrackManagementConfig(Strict):
     init_speed_std: Annotated[float, Field(gt=0, le=1e6)] = 10.0  # m/s
     max_position_std: Annotated[float, Field(gt=0, le=limits.MAX_RANGE)] = 1e5  # m
     max_tracks: Annotated[int, Field(ge=1, le=limits.MAX_TRACKS)] = 50
+    initiate: StrictBool = True  # false: tracks only from the priors
 
     @model_validator(mode="after")
     def _m_of_n(self) -> TrackManagementConfig:
@@ -456,6 +458,10 @@ class Scenario(Strict):
     # Modules that register kinds, filters, criteria; imported first (scenarios.plugins).
     plugins: Plugins = Field(default=[])
     seed: Seed = 0
+    # common: each target's motion, each sensor's detections and clutter draw from their own
+    # streams (policies compared on the same world); sequential: one generator
+    # (activetrack.simulation.streams).
+    random_streams: Literal["common", "sequential"] = "common"
     dt: Dt  # s between measurement / decision epochs (T)
     steps: Steps  # epochs k = 1..steps
     # The targets: one (the papers) or many; a file may give a single one as ``target:``.

@@ -14,7 +14,10 @@ nothing about their origin, and reach the tracker without labels. The labels are
 :class:`~activetrack.data.ScanTruth` for evaluation only. One target and no clutter is the
 simplest case: a scan of at most one detection, the papers' measurement.
 
-Random draws, all from the simulator's generator, in this order each epoch: the targets' motion
+Random draws (:mod:`activetrack.simulation.streams`): with ``common`` streams (the default)
+each target's motion, each sensor's detections and noise and each sensor's clutter at each
+epoch have their own stream, so the world does not depend on the policy. With ``sequential``
+streams all come from the one generator in this order each epoch: the targets' motion
 (scenario order; a target born this epoch draws its start from its prior), then per looking
 sensor (scenario order) for each alive target (scenario order) the detection draw (one whether
 the target is in view or not) and, if detected, its measurement noise; then the clutter and the
@@ -42,6 +45,8 @@ from activetrack.data import (
 )
 from activetrack.models.base import MotionModel
 from activetrack.models.clutter import ClutteredSensor
+from activetrack.models.fov import FieldOfView
+from activetrack.simulation.streams import RandomStreams, StreamsMode
 
 __all__ = ["ApplyResult", "ManoeuvreLimits", "SimPlatform", "SimTarget", "Simulator"]
 
@@ -116,10 +121,11 @@ class ApplyResult:
 
 
 class Simulator:
-    """Truth of every target and the platforms for one run; draws only from its own ``rng``.
-    ``advance`` returns the epoch's scans; :attr:`last_truth` their labels, :attr:`looked`
-    ``(S,)`` which sensors scanned and :attr:`last_observed` ``(S, N)`` which sensor had which
-    alive target inside its field of view and detection ranges."""
+    """Truth of every target and the platforms for one run; draws only from ``rng`` (its
+    seed sequence keys the ``common`` streams). ``advance`` returns the epoch's scans;
+    :attr:`last_truth` their labels, :attr:`looked` ``(S,)`` which sensors scanned and
+    :attr:`last_observed` ``(S, N)`` which sensor had which alive target inside its field of
+    view and detection ranges."""
 
     def __init__(
         self,
@@ -128,13 +134,15 @@ class Simulator:
         dt: float,
         steps: int,
         rng: np.random.Generator,
+        random_streams: StreamsMode = "common",
     ):
-        self.rng = rng
+        self.streams = RandomStreams(rng, random_streams)
         self.dt = float(dt)
         self.steps = int(steps)
         self.targets = tuple(targets)
         self.states: list[np.ndarray | None] = [
-            t.draw_start(rng) if t.birth == 0 else None for t in self.targets
+            t.draw_start(self.streams.target(i)) if t.birth == 0 else None
+            for i, t in enumerate(self.targets)
         ]
         self.platforms: dict[str, _Platform] = {}
         # sensor id -> (platform id, sensor), scenario order
@@ -242,9 +250,9 @@ class Simulator:
             if t.death is not None and k >= t.death:
                 self.states[i] = None
             elif x is not None:
-                self.states[i] = t.model.sample(x, self.dt, self.rng)
+                self.states[i] = t.model.sample(x, self.dt, self.streams.target(i))
             elif t.birth == k:
-                self.states[i] = t.draw_start(self.rng)
+                self.states[i] = t.draw_start(self.streams.target(i))
 
     def _move_platforms(self) -> None:
         """Every platform flies its constant-velocity leg to the next epoch."""
@@ -264,17 +272,41 @@ class Simulator:
         if alive.size:
             X = truth[alive]
             self.last_observed[j, alive] = fov.contains(X, s_pv) & sensor.in_range(X, s_pv)
-        rows, names = [], []
-        for i in alive:
-            if sensor.detect(truth[i], s_pv, self.rng, fov):
-                rows.append(sensor.sample(truth[i], s_pv, self.rng))
-                names.append(self.targets[i].target_id)
-        clutter = sensor.sample_clutter(fov, self.rng)
+        rows, names = self._detections(j, sensor, s_pv, truth, alive, fov)
+        rng = self.streams.clutter(j, self.epoch)
+        clutter = sensor.sample_clutter(fov, rng)
         Z = np.vstack([np.reshape(rows, (-1, sensor.dim_z)), clutter])
         all_names = names + [""] * len(clutter)
-        order = self.rng.permutation(len(Z))  # no draw for 0 or 1 detections
+        order = rng.permutation(len(Z))  # no draw for 0 or 1 detections
         scan = Scan(sensor_id, self.epoch, self.time, s_pv, Z[order], fov)
         return scan, ScanTruth(sensor_id, self.epoch, tuple(all_names[i] for i in order))
+
+    def _detections(
+        self,
+        j: int,
+        sensor: ClutteredSensor,
+        s_pv: np.ndarray,
+        truth: np.ndarray,
+        alive: np.ndarray,
+        fov: FieldOfView,
+    ) -> tuple[list, list[str]]:
+        """The target-originated rows ``z`` and their target ids. Common streams: one detection
+        draw and one noise draw for every alive target, all at once, detected or not;
+        sequential: per target, noise only if detected."""
+        rng = self.streams.detection(j, self.epoch)
+        if self.streams.common:
+            if not alive.size:
+                return [], []
+            X = truth[alive]
+            hit = np.asarray(sensor.detect(X, s_pv, rng, fov), dtype=bool).reshape(-1)
+            Z = np.asarray(sensor.sample(X, s_pv, rng), dtype=float).reshape(len(alive), -1)
+            return list(Z[hit]), [self.targets[i].target_id for i in alive[hit]]
+        rows, names = [], []
+        for i in alive:
+            if sensor.detect(truth[i], s_pv, rng, fov):
+                rows.append(sensor.sample(truth[i], s_pv, rng))
+                names.append(self.targets[i].target_id)
+        return rows, names
 
     # --- commands ----------------------------------------------------------------------------
     def apply_command(self, cmd: Command) -> ApplyResult:

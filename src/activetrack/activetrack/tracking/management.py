@@ -15,8 +15,9 @@ epoch (M-of-N: Blackman & Popoli, *Design and Analysis of Modern Tracking System
   exceeds ``max_position_std`` (lost: a planner cannot use it);
 - **coalescence** (two JPDA tracks drawn onto one target, Fitzgerald 1985; Blom & Bloem 2000):
   of two confirmed tracks within Mahalanobis distance ``d^2 = dp^T (P_a + P_b)^-1 dp <=
-  COALESCE_D2`` at ``COALESCE_LOOKS`` consecutive joint looks the younger (larger id) is
-  deleted; tracks on two crossing targets pass through that distance for an epoch or two;
+  COALESCE_D2`` at ``COALESCE_LOOKS`` consecutive joint looks the less supported is deleted
+  (lower existence, then fewer hits per look, then the younger: the larger id); tracks on two
+  crossing targets pass through that distance for an epoch or two;
 - **probability of existence** (IPDA: Musicki, Evans & Stankovic, IEEE TAC 39(6), 1994; among
   tracks that share detections LM-IPDA: Musicki & La Scala, IEEE TAES 44(3), 2008): predicted
   by ``EXISTENCE_SURVIVAL`` once per epoch at the track's first scan, updated by every scan that
@@ -57,6 +58,7 @@ class TrackManagementConfig(Protocol):
     init_speed_std: float
     max_position_std: float
     max_tracks: int
+    initiate: bool
 
 
 __all__ = [
@@ -70,6 +72,7 @@ __all__ = [
     "TrackManager",
     "existence_update",
     "position_std",
+    "weaker",
 ]
 
 COALESCE_D2 = 0.5  # squared Mahalanobis distance of the two positions (2 dof: ~22 % quantile)
@@ -275,7 +278,8 @@ class TrackManager:
 
     def _coalesced(self, looked: dict[int, bool]) -> list[int]:
         """Update the closeness count of every pair of confirmed tracks both looked at this
-        epoch; the younger track of each pair that reached ``COALESCE_LOOKS``."""
+        epoch; the less supported track of each pair that reached ``COALESCE_LOOKS``
+        (:func:`weaker`)."""
         seen = [t for t in self.live() if t.confirmed and t.track_id in looked]
         out: set[int] = set()
         for i, a in enumerate(seen):
@@ -286,5 +290,15 @@ class TrackManager:
                 count = self._close.get(pair, 0) + 1 if d2 <= COALESCE_D2 else 0
                 self._close[pair] = count
                 if count >= COALESCE_LOOKS:
-                    out.add(b.track_id)  # b has the larger id: the younger
+                    out.add(weaker(a, b).track_id)
         return sorted(out)
+
+
+def weaker(a: Track, b: Track) -> Track:
+    """Of two coalesced tracks, the one to delete: the lower probability of existence, then
+    the lower fraction of hits per look, then the younger (the larger id)."""
+
+    def support(t: Track) -> tuple[float, float, int]:
+        return (t.existence, t.hits / max(t.looks, 1), -t.track_id)
+
+    return a if support(a) < support(b) else b

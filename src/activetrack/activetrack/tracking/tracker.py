@@ -334,7 +334,9 @@ class Tracker:
         """A tentative track at the position the detection fixes (the sensor's
         ``inverse_position``: a range-bearing radar does, a bearing sensor does not), velocity 0,
         covariance ``J R J^T`` and ``init_speed_std^2``; None where the sensor fixes none or the
-        tracker holds ``max_tracks`` (counted in ``not_started``)."""
+        tracker holds ``max_tracks`` (counted in ``not_started``) or does not initiate."""
+        if not self.book.cfg.initiate:
+            return None
         fix = c.sensor.base.inverse_position(z, c.s)
         if fix is None:
             return None
