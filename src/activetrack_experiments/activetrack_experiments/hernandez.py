@@ -6,15 +6,6 @@ bounds sqrt(J_k^-1(1,1)), sqrt(J_k^-1(3,3)) over k = 1..30, then track the targe
 planned paths with a 10,000-particle SIR filter (sec. 5.2) over seeded Monte Carlo runs and
 average the filter RMSEs the same way. Also compares the quadrant search with the 101 x 101
 grid on the 1-sensor single-step case (sec. 4.2, Fig. 2). See docs/hernandez.md.
-
-In a notebook::
-
-    from activetrack_experiments import hernandez
-    res = hernandez.reproduce(runs=4, particles=2000, jobs=2)
-    res.table()                     # one flat dict per case (pandas.DataFrame(res.table()))
-    print(hernandez.format_results(res))
-
-On the command line: ``activetrack reproduce hernandez --help``.
 """
 
 from __future__ import annotations
@@ -48,37 +39,13 @@ from activetrack.limits import (
 )
 from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.montecarlo.dask import connected
-from activetrack.planning import (
-    PlannerPlatform,
-    TargetBelief,
-    plan,
-    platform_information,
-)
-from activetrack.plots import new_figure, write_figures
+from activetrack.planning import PlannerPlatform, TargetBelief, plan, platform_information
+from activetrack.plots import write_figures
 from activetrack.scenarios import Scenario, build_motion_model, load_scenario
 from activetrack.scenarios.build import plan_settings, planner_platforms
 from activetrack.scenarios.schema import PlannerConfig
 from activetrack_experiments.paths import find_scenarios_dir, scenario_path
-from activetrack_experiments.reproduction import Reproduction, RunsOption, map_groups
-
-__all__ = [
-    "PAPER_TABLE1",
-    "PAPER_TABLE2",
-    "REPRODUCTION",
-    "CaseResult",
-    "HernandezResults",
-    "PlannedCase",
-    "SearchComparison",
-    "check_options",
-    "format_progress",
-    "format_results",
-    "main",
-    "plan_case",
-    "prior_samples",
-    "reproduce",
-    "save_figures",
-    "track_case",
-]
+from activetrack_experiments.reproduction import Reproduction, RunsOption, figure_axes, map_groups
 
 # Hernandez Table 1: (sensors, horizon) -> (bound_x, bound_y, pf_rmse_x, pf_rmse_y), metres.
 PAPER_TABLE1 = {
@@ -248,9 +215,7 @@ def track_case(
     scheduler: Scheduler | None = None,
 ) -> np.ndarray:
     """PF RMSE per epoch (K, 2) in x and y over ``runs`` seeded runs (run r: SeedSequence
-    ([seed, r]) split into truth/measurement and filter generators), on ``jobs`` processes
-    or the Dask cluster ``scheduler``; the result does not depend on either (nor on
-    ``progress``, called with the runs done)."""
+    ([seed, r]) split into truth/measurement and filter generators)."""
     tasks = [_RunTask(scenario, paths, r, particles, seed) for r in range(runs)]
     expect_particle_work(runs * scenario.steps * particles)  # kernels loaded before the fork
     return _rmse(parallel_map(_track_run, tasks, jobs, progress, scheduler))
@@ -295,21 +260,11 @@ class CaseResult:
     def key(self) -> tuple[int, int]:
         return (self.plan.sensors, self.plan.horizon)
 
-    @property
-    def bound_x(self) -> float:
-        return float(self.plan.bounds[:, 0].mean())
-
-    @property
-    def bound_y(self) -> float:
-        return float(self.plan.bounds[:, 1].mean())
-
-    @property
-    def pf_rmse_x(self) -> float | None:
-        return None if self.rmse is None else float(self.rmse[:, 0].mean())
-
-    @property
-    def pf_rmse_y(self) -> float | None:
-        return None if self.rmse is None else float(self.rmse[:, 1].mean())
+    # Time averages over k = 1..K of the bounds and (runs > 0) the PF RMSEs, m.
+    bound_x = property(lambda self: float(self.plan.bounds[:, 0].mean()))
+    bound_y = property(lambda self: float(self.plan.bounds[:, 1].mean()))
+    pf_rmse_x = property(lambda self: None if self.rmse is None else float(self.rmse[:, 0].mean()))
+    pf_rmse_y = property(lambda self: None if self.rmse is None else float(self.rmse[:, 1].mean()))
 
     def summary(self) -> dict:
         """The case's scalar numbers (a row of ``HernandezResults.table()``)."""
@@ -318,18 +273,12 @@ class CaseResult:
             "sensors": self.plan.sensors,
             "horizon": self.plan.horizon,
             "search": self.plan.search,
-            "bound_x": self.bound_x,
-            "bound_y": self.bound_y,
-            "pf_rmse_x": self.pf_rmse_x,
-            "pf_rmse_y": self.pf_rmse_y,
+            **{key: getattr(self, key) for key in TABLE2_KEYS},
             "evaluations_per_decision": _mean(self.plan.evaluations),
             "decision_time_s": _mean(self.plan.decision_times),
             "sensor_iterations_per_decision": _mean(self.plan.iterations),
             "planning_time_s": self.planning_time_s,
-            "paper_bound_x": paper[0],
-            "paper_bound_y": paper[1],
-            "paper_pf_rmse_x": paper[2],
-            "paper_pf_rmse_y": paper[3],
+            **{f"paper_{key}": v for key, v in zip(TABLE2_KEYS, paper, strict=True)},
         }
 
     def to_json(self) -> dict:
@@ -495,7 +444,7 @@ def check_options(
 
 
 def _plan_task(task: tuple[Scenario, dict]) -> CaseResult:
-    """Plan one case (a task of :func:`reproduce`'s first map): its plan and planning time."""
+    """One case's plan and planning time (a task of the plan map)."""
     scenario, plan_kw = task
     t0 = time.perf_counter()
     case = plan_case(scenario, **plan_kw)
@@ -528,10 +477,7 @@ def _plan_all(
     last on an otherwise idle pool; results in the tasks' order."""
     order = sorted(range(len(plan_tasks)), key=lambda i: _plan_order(plan_tasks[i]))
     done = parallel_map(_plan_task, [plan_tasks[i] for i in order], jobs, tasks.of_map(), scheduler)
-    results = list(done)
-    for i, res in zip(order, done, strict=True):
-        results[i] = res
-    return results
+    return [done[order.index(i)] for i in range(len(order))]
 
 
 def _plan_and_track(
@@ -546,12 +492,11 @@ def _plan_and_track(
     extra_plans: Sequence[tuple[Scenario, dict]] = (),
     **plan_kw,
 ) -> tuple[list[CaseResult], list[CaseResult]]:
-    """Every case planned (one map, a task per case, with ``extra_plans``: the search
-    comparison's plans, each ``(scenario, plan_case keywords)``), then every case's ``runs`` PF
-    runs along its paths (one map over all cases' runs, so the workers stay busy across cases).
-    The numbers are those of planning and tracking each case alone (each task carries its
-    seeds); a case's ``tracking_time_s`` is the sum of its runs' times in the workers. Returns
-    the cases and the extra plans."""
+    """Every case planned (one map, with ``extra_plans``: the search comparison's ``(scenario,
+    plan_case keywords)``), then every case's ``runs`` PF runs along its paths (one map over all
+    cases' runs). Each task carries its seeds, so the numbers are those of each case alone; a
+    case's ``tracking_time_s`` sums its runs' times in the workers. Returns the cases and the
+    extra plans."""
     seeds = [sc.seed if seed is None else seed for sc in scenarios]
     plan_tasks = [(sc, {**plan_kw, "seed": sd}) for sc, sd in zip(scenarios, seeds, strict=True)]
     planned = _plan_all(plan_tasks + list(extra_plans), jobs, tasks, scheduler)
@@ -569,22 +514,6 @@ def _plan_and_track(
         res.runs, res.particles = runs, particles
         res.tracking_time_s = sum(t for _, t in part)
     return results, extra
-
-
-def _comparison_plans(
-    reference: Scenario,
-    has_quadrant: bool,
-    grid_size: int,
-    mc_samples: int | None,
-    seed: int | None,
-) -> list[tuple[Scenario, dict]]:
-    """The plan tasks of the quadrant vs grid comparison on the 1-sensor single-step case:
-    the grid, and the quadrant unless the cases plan it already."""
-    kw = {"mc_samples": mc_samples, "seed": reference.seed if seed is None else seed}
-    plans = [(reference, {**kw, "search": "grid", "grid_size": grid_size})]
-    if not has_quadrant:
-        plans.append((reference, {**kw, "search": "quadrant"}))
-    return plans
 
 
 def reproduce(
@@ -608,13 +537,10 @@ def reproduce(
 
     Every case is planned open loop (``mc_samples`` planner samples, scenario: 1,000; the
     scenarios' search unless ``search``), then ``runs`` PF runs of ``particles`` particles track
-    along the planned paths (0: the bounds only) on ``jobs`` processes or the Dask cluster
-    ``scheduler`` (``tcp://host:port``: the same numbers); ``seed`` (default: the
-    scenarios' seed) fixes both. ``comparison`` re-plans the 1-sensor single-step case on a
-    ``grid_size`` x ``grid_size`` grid (with 1 among ``sensors``). ``progress`` is called with
-    each case, in order, once all are tracked; ``task_progress(done, total)`` as tasks finish
-    (a case's planning, each of its PF runs, the comparison: the command line's progress bar);
-    neither changes the numbers. Scenario files come from ``scenarios_dir`` or the package data.
+    along the planned paths (0: the bounds only); ``seed`` (default: the scenarios') fixes both.
+    ``comparison`` re-plans the 1-sensor single-step case on a ``grid_size`` x ``grid_size``
+    grid (with 1 among ``sensors``). ``progress`` is called with each case, in order, once all
+    are tracked. Scenario files come from ``scenarios_dir`` or the package data.
     """
     if runs < 0 or particles < 1:
         raise ValueError(f"runs must be >= 0 and particles >= 1, got {runs} and {particles}")
@@ -636,7 +562,10 @@ def reproduce(
     has_quadrant = (1, 1) in files and (search or reference.planner.search) == "quadrant"
     extra = []
     if compare:
-        extra = _comparison_plans(reference, has_quadrant, grid_size, mc_samples, seed)
+        kw = {"mc_samples": mc_samples, "seed": reference.seed if seed is None else seed}
+        extra = [(reference, {**kw, "search": "grid", "grid_size": grid_size})]
+        if not has_quadrant:
+            extra.append((reference, {**kw, "search": "quadrant"}))
     tasks = TaskProgress(len(files) * (1 + runs) + len(extra), task_progress)
     run_kw = dict(runs=runs, particles=particles, seed=seed, jobs=jobs, mc_samples=mc_samples)
     scenarios = [load_scenario(files[key]) for key in sorted(files)]
@@ -747,11 +676,6 @@ def format_results(res: HernandezResults) -> str:
 # Figures (matplotlib Figure + Agg canvas, no pyplot)
 
 
-def _new_figure(nrows: int, ncols: int, figsize: tuple[float, float]):
-    fig = new_figure(figsize=figsize)
-    return fig, fig.subplots(nrows, ncols)
-
-
 def _ellipse(ax, centre, P, scale=10.0, **kw):
     """Outline of the 1-sigma ellipse of the position block of P, magnified ``scale`` times."""
     pts = covariance_ellipse(centre, P[np.ix_([0, 2], [0, 2])], scale)
@@ -773,7 +697,7 @@ def _plot_paths(ax, case: PlannedCase, title: str) -> None:
 
 def _figure2(res: HernandezResults):
     """Fig. 2: prior samples, quadrant and grid paths with 10x PCRLB ellipses, b_k."""
-    fig, axs = _new_figure(2, 2, (11, 9))
+    fig, axs = figure_axes((11, 9), 2, 2)
     X = res.prior_samples
     for k in range(0, X.shape[0], 2):
         axs[0, 0].plot(X[k, :, 0], X[k, :, 2], ",", color="tab:blue", alpha=0.3)
@@ -792,7 +716,7 @@ def _figure2(res: HernandezResults):
 
 def _figure3(res: HernandezResults):
     """Fig. 3: 2-sensor paths single vs two-step, y bound and y PF RMSE."""
-    fig, axs = _new_figure(2, 2, (11, 9))
+    fig, axs = figure_axes((11, 9), 2, 2)
     _plot_paths(axs[0, 0], res.case(2, 1).plan, "(a) 2 sensors, single-step")
     _plot_paths(axs[0, 1], res.case(2, 2).plan, "(b) 2 sensors, two-step")
     for R, lab in ((1, "single-step"), (2, "two-step")):
@@ -810,7 +734,7 @@ def _figure3(res: HernandezResults):
 
 def _figure_all(res: HernandezResults):
     """All cases: b_k and the max(x, y) PF RMSE against time."""
-    fig, axs = _new_figure(1, 2, (12, 4.5))
+    fig, axs = figure_axes((12, 4.5), 1, 2)
     for c in res.cases:
         lab = f"{c.plan.sensors} sensor(s), {HORIZON_NAMES[c.plan.horizon]}-step"
         (line,) = axs[0].plot(res.times, c.plan.bounds.max(axis=1), label=lab)
@@ -894,10 +818,6 @@ def _check_cli(args: argparse.Namespace) -> None:
     )
 
 
-def _print_progress(case: CaseResult) -> None:
-    print(format_progress(case), file=sys.stderr, flush=True)
-
-
 def _arguments(args: argparse.Namespace) -> dict:
     """The arguments of :func:`reproduce` the options set (besides the runs and workers)."""
     return dict(
@@ -910,7 +830,7 @@ def _arguments(args: argparse.Namespace) -> dict:
         search=args.search,
         grid_size=args.grid_size,
         mc_samples=args.mc_samples,
-        progress=_print_progress,
+        progress=lambda case: print(format_progress(case), file=sys.stderr, flush=True),
     )
 
 

@@ -35,10 +35,11 @@ import numpy as np
 from activetrack.closed_loop.batch import BatchSummary, run_batch
 from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs
 from activetrack.montecarlo.dask import connected
+from activetrack.plots import write_figures
 from activetrack.scenarios import load_scenario, with_changes
 from activetrack.scenarios.schema import Scenario
 from activetrack_experiments.paths import scenario_path
-from activetrack_experiments.reproduction import Reproduction, RunsOption
+from activetrack_experiments.reproduction import Reproduction, RunsOption, figure_axes
 
 __all__ = ["SCENARIOS", "STRATEGIES", "MultiTargetResult", "reproduce", "strategy_scenario"]
 
@@ -183,11 +184,9 @@ def format_report(res: MultiTargetResult) -> str:
 
 def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
     """GOSPA vs time per scenario, the three strategies."""
-    from activetrack.plots import new_figure, write_figures
 
     def figure(sc: ScenarioResult):
-        fig = new_figure(figsize=(7, 4))
-        ax = fig.add_subplot()
+        fig, ax = figure_axes((7, 4))
         for strategy in STRATEGIES:
             s = sc.summaries[strategy]
             t = s.dt * np.arange(1, s.steps + 1)

@@ -13,15 +13,7 @@ Fig. 5: number of measurements and final error against beta, with the greedy (no
 baseline, and the wrong-side (ambiguity failure) rates of cautious and greedy runs.
 
 Every batch of localisations (``vanderhook_sim.simulate_localisation``, seeded with
-``default_rng(seed)``) is one task of a single :func:`activetrack.montecarlo.parallel_map`.
-
-In a notebook::
-
-    from activetrack_experiments import vanderhook
-    res = vanderhook.reproduce(runs=400, quick=True, jobs=2)
-    res.table()  # Table I, one flat row per sweep value; res.table("failures") for Fig. 5
-
-On the command line: ``activetrack reproduce vanderhook --help``.
+``default_rng(seed)``) is one task of a single parallel map.
 """
 
 from __future__ import annotations
@@ -48,34 +40,13 @@ from activetrack.planning.cautious_bounds import (
     time_lower_bound,
     time_upper_bound,
 )
-from activetrack.plots import new_figure, write_figures
-from activetrack_experiments.reproduction import Reproduction, RunsOption, split
+from activetrack.plots import write_figures
+from activetrack_experiments.reproduction import Reproduction, RunsOption, figure_axes, split
 from activetrack_experiments.vanderhook_sim import (
     SIGMA_S_DEFAULT,
     LocalisationBatch,
     simulate_localisation,
 )
-
-__all__ = [
-    "PAPER_TABLE1",
-    "REPRODUCTION",
-    "ExampleRun",
-    "FailureRow",
-    "SimTask",
-    "Table1Row",
-    "VanderHookResults",
-    "WorkedExample",
-    "example_trajectory",
-    "format_failures",
-    "format_report",
-    "format_table1",
-    "main",
-    "reproduce",
-    "save_figures",
-    "simulate_all",
-    "table1",
-    "worked_example",
-]
 
 SIGMA0 = 60.0  # m, Table I prior
 R_MIN = 1.0  # m, floor under the cautious range (reached only when sigma_beta is infinite)
@@ -131,9 +102,8 @@ def simulate_all(
     progress: Progress | None = None,
     scheduler: Scheduler | None = None,
 ) -> list[LocalisationBatch]:
-    """The batches of ``tasks`` in task order, equal tasks run once, on ``jobs`` processes or
-    the Dask cluster ``scheduler`` (:func:`activetrack.montecarlo.parallel_map`; the results
-    do not depend on either); ``progress`` is called with the count of distinct tasks done."""
+    """The batches of ``tasks`` in task order, equal tasks run once (one parallel map;
+    ``progress`` counts the distinct tasks done)."""
     unique = list(dict.fromkeys(tasks))
     batches = parallel_map(simulate_task, unique, jobs, progress, scheduler)
     done = dict(zip(unique, batches, strict=True))
@@ -416,11 +386,8 @@ def reproduce(
     """Vander Hook et al. (003): the worked example (min(runs, 1000) runs), Table I and the
     Fig. 5 failure rows (``betas``, default ``BETAS``, ``QUICK_BETAS`` when ``quick``; and
     ``TWO_SIDED_BETAS`` with the two-sided sigma_beta), ``runs`` localisations per batch
-    (default 4000, 400 when ``quick``), each batch from ``default_rng(seed)``. ``jobs`` worker
-    processes or the Dask cluster ``scheduler`` (``tcp://host:port``): one
-    :func:`activetrack.montecarlo.parallel_map` over all batches (the results do not depend on
-    either). Fig. 4's single run always uses seed 1. ``task_progress(done,
-    total)`` is called as batches finish (the command line's progress bar).
+    (default 4000, 400 when ``quick``), each batch from ``default_rng(seed)``, all batches in
+    one parallel map. Fig. 4's single run always uses seed 1.
     """
     runs = (400 if quick else 4000) if runs is None else runs
     require_int("runs", runs, 1, MAX_RUNS)
@@ -522,8 +489,7 @@ def _fig_beta(failures: list[FailureRow]):
     cautious = [f for f in failures if f.strategy == "cautious"]
     greedy = next(f for f in failures if f.strategy == "greedy")
     betas = [f.beta for f in cautious]
-    fig = new_figure(figsize=(6, 6))
-    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    fig, (ax1, ax2) = figure_axes((6, 6), 2, 1, sharex=True)
     ax1.semilogx(betas, [f.n_measurements for f in cautious], "o-", label="cautious")
     ax1.axhline(greedy.n_measurements, color="r", ls="--", label="greedy (10 m standoff)")
     ax1.set_ylabel("measurements")
@@ -539,8 +505,7 @@ def _fig_beta(failures: list[FailureRow]):
 
 def _fig_table1(rows: list[Table1Row]):
     """Table I: our ratios, the paper's and our bound, per sweep."""
-    fig = new_figure(figsize=(6, 4))
-    ax = fig.subplots()
+    fig, ax = figure_axes((6, 4))
     sweeps = list(dict.fromkeys(r.sweep for r in rows))
     for i, sweep in enumerate(sweeps):
         sel = [r for r in rows if r.sweep == sweep]
@@ -558,8 +523,7 @@ def _fig_table1(rows: list[Table1Row]):
 
 def _fig_run(run: ExampleRun):
     """Fig. 4: sensing locations and estimates of one cautious run."""
-    fig = new_figure(figsize=(5, 5))
-    ax = fig.subplots()
+    fig, ax = figure_axes((5, 5))
     ax.plot(*np.vstack([[BASE["r0_hat"], 0.0], run.sensors]).T, "g.-", label="sensor locations")
     ax.plot(*run.estimates.T, "r.-", label="estimates")
     ax.plot(*run.truth, "k*", ms=12, label="true target")
@@ -570,8 +534,6 @@ def _fig_run(run: ExampleRun):
 
 def save_figures(res: VanderHookResults, out: str | Path) -> list[Path]:
     """``fig5_beta.png``, ``table1.png`` and ``fig4_run.png`` in ``out``; returns the files."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     figures = (
         ("fig5_beta.png", lambda: _fig_beta(res.failures)),
         ("table1.png", lambda: _fig_table1(res.table1)),
