@@ -15,10 +15,12 @@ import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from activetrack import limits
 from activetrack.argtypes import int_in_range
 from activetrack.bounds.pcrlb import (
     covariance_bound,
@@ -29,14 +31,6 @@ from activetrack.bounds.pcrlb import (
 from activetrack.filters import Measurement, ParticleFilter
 from activetrack.geometry import covariance_ellipse
 from activetrack.kernels import expect_particle_work
-from activetrack.limits import (
-    MAX_GRID_SIZE,
-    MAX_PARTICLES,
-    MAX_PLANNER_BATCH,
-    MAX_SAMPLES,
-    MAX_SEARCH_EVALUATIONS,
-    MAX_SEED,
-)
 from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.montecarlo.dask import connected
 from activetrack.planning import PlannerPlatform, TargetBelief, plan, platform_information
@@ -73,10 +67,6 @@ FIGURE_SAMPLES = 1000  # prior samples drawn for Fig. 2(a)
 def scenario_name(sensors: int, horizon: int) -> str:
     """The scenario file stem of a case: ``hernandez_2sensor_two``."""
     return f"hernandez_{sensors}sensor_{HORIZON_NAMES[horizon]}"
-
-
-# ---------------------------------------------------------------------------------------------
-# Planning (sec. 3.2) and tracking along the planned paths (sec. 5.2)
 
 
 @dataclass
@@ -237,10 +227,6 @@ def prior_samples(scenario: Scenario, count: int = FIGURE_SAMPLES) -> np.ndarray
     return np.concatenate([X0[None], propagate_samples(X0, F, Q, scenario.steps, rng)])
 
 
-# ---------------------------------------------------------------------------------------------
-# Results
-
-
 def _mean(values) -> float:
     return float(np.mean(values))
 
@@ -359,13 +345,9 @@ class HernandezResults:
         out = {}
         for n in SENSOR_COUNTS:
             s, t = self.case(n, 1), self.case(n, 2)
-            if s is None or t is None:
-                continue
-            vals = []
-            for key in TABLE2_KEYS:
-                a, b = getattr(s, key), getattr(t, key)
-                vals.append(None if a is None or b is None else 100.0 * (a - b) / a)
-            out[n] = vals
+            if s is not None and t is not None:
+                pairs = [(getattr(s, key), getattr(t, key)) for key in TABLE2_KEYS]
+                out[n] = [None if a is None or b is None else 100 * (a - b) / a for a, b in pairs]
         return out
 
     def to_json(self) -> dict:
@@ -393,10 +375,6 @@ class HernandezResults:
             row.update(pf_runs=c.runs, pf_particles=c.particles, tracking_time_s=c.tracking_time_s)
             rows.append(row)
         return rows
-
-
-# ---------------------------------------------------------------------------------------------
-# The experiment
 
 
 def _sorted_choice(values: Iterable[int], allowed: tuple[int, ...], option: str) -> list[int]:
@@ -427,18 +405,18 @@ def check_options(
     # --search grid plans on the scenarios' grid (101 x 101): two steps nest two grids.
     if search == "grid" and 2 in horizon_list:
         per_decision = PlannerConfig().grid_size ** 4
-        if per_decision > MAX_SEARCH_EVALUATIONS:
+        if per_decision > limits.MAX_SEARCH_EVALUATIONS:
             raise ValueError(
                 f"--search grid with --horizons 2 costs {per_decision:.2e} cost evaluations per "
-                f"decision, at most {MAX_SEARCH_EVALUATIONS:.0e}: use --horizons 1"
+                f"decision, at most {limits.MAX_SEARCH_EVALUATIONS:.0e}: use --horizons 1"
             )
     # The grid comparison scores up to 2,048 grid points against every planner sample at once.
     samples = 1000 if mc_samples is None else mc_samples
     batch = min(grid_size**2, 2048) * samples
-    if comparison and 1 in counts and batch > MAX_PLANNER_BATCH:
+    if comparison and 1 in counts and batch > limits.MAX_PLANNER_BATCH:
         raise ValueError(
             f"--mc-samples {samples} with --grid-size {grid_size} scores {batch:.2e} "
-            f"sample-candidate pairs at once, at most {MAX_PLANNER_BATCH:.1e} (about 1 GB)"
+            f"sample-candidate pairs at once, at most {limits.MAX_PLANNER_BATCH:.1e} (about 1 GB)"
         )
     return counts, horizon_list
 
@@ -492,11 +470,9 @@ def _plan_and_track(
     extra_plans: Sequence[tuple[Scenario, dict]] = (),
     **plan_kw,
 ) -> tuple[list[CaseResult], list[CaseResult]]:
-    """Every case planned (one map, with ``extra_plans``: the search comparison's ``(scenario,
-    plan_case keywords)``), then every case's ``runs`` PF runs along its paths (one map over all
-    cases' runs). Each task carries its seeds, so the numbers are those of each case alone; a
-    case's ``tracking_time_s`` sums its runs' times in the workers. Returns the cases and the
-    extra plans."""
+    """Every case planned, with ``extra_plans`` (``(scenario, plan_case keywords)``), in one
+    map, then all cases' ``runs`` PF runs along their paths in another; each task carries its
+    seeds. A case's ``tracking_time_s`` sums its runs' times. Returns the cases and extra plans."""
     seeds = [sc.seed if seed is None else seed for sc in scenarios]
     plan_tasks = [(sc, {**plan_kw, "seed": sd}) for sc, sd in zip(scenarios, seeds, strict=True)]
     planned = _plan_all(plan_tasks + list(extra_plans), jobs, tasks, scheduler)
@@ -586,10 +562,6 @@ def reproduce(
     return res
 
 
-# ---------------------------------------------------------------------------------------------
-# Printing
-
-
 def format_progress(case: CaseResult) -> str:
     """The one-line progress report of a finished case."""
     s = case.summary()
@@ -672,23 +644,14 @@ def format_results(res: HernandezResults) -> str:
     return "\n\n".join(parts)
 
 
-# ---------------------------------------------------------------------------------------------
-# Figures (matplotlib Figure + Agg canvas, no pyplot)
-
-
-def _ellipse(ax, centre, P, scale=10.0, **kw):
-    """Outline of the 1-sigma ellipse of the position block of P, magnified ``scale`` times."""
-    pts = covariance_ellipse(centre, P[np.ix_([0, 2], [0, 2])], scale)
-    ax.plot(pts[:, 0], pts[:, 1], **kw)
-
-
 def _plot_paths(ax, case: PlannedCase, title: str) -> None:
     tm = case.target_mean
     ax.plot(tm[:, 0], tm[:, 2], "k--", lw=1, label="target (prior mean)")
     for i, pid in enumerate(case.platform_ids):
         ax.plot(case.paths[:, i, 0], case.paths[:, i, 2], "-o", ms=2, label=f"sensor {pid}")
-    for k in range(1, len(case.P) + 1, 3):
-        _ellipse(ax, tm[k, [0, 2]], case.P[k - 1], color="tab:red", lw=0.7)
+    for k in range(1, len(case.P) + 1, 3):  # 1-sigma ellipses of the position, 10x
+        pts = covariance_ellipse(tm[k, [0, 2]], case.P[k - 1][np.ix_([0, 2], [0, 2])], 10.0)
+        ax.plot(pts[:, 0], pts[:, 1], color="tab:red", lw=0.7)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(title, fontsize=9)
     ax.set(xlabel="x (m)", ylabel="y (m)")
@@ -748,48 +711,35 @@ def _figure_all(res: HernandezResults):
     return fig
 
 
-_FIGURES = {
-    "fig2": ("fig2_1sensor_quadrant_vs_grid.png", _figure2),
-    "fig3": ("fig3_2sensors_single_vs_two.png", _figure3),
-    "all": ("bounds_and_rmse_all_cases.png", _figure_all),
-}
-
-
-def _render(task: tuple[str, HernandezResults, Path]) -> Path:
+def _render(task: tuple[str, Callable, HernandezResults, Path]) -> Path:
     """One figure of :func:`save_figures` (a task of its map)."""
-    name, res, out = task
-    file, draw = _FIGURES[name]
-    return write_figures([(file, lambda: draw(res))], out, dpi=110)[0]
+    file, draw, res, out = task
+    return write_figures([(file, partial(draw, res))], out, dpi=110)[0]
 
 
 def save_figures(res: HernandezResults, out: str | Path, jobs: int = 1) -> list[Path]:
     """Write the PNG figures into ``out``: Fig. 2 (with the comparison and the 1-sensor
-    single-step case), Fig. 3 (with both 2-sensor cases) and all cases; returns the files.
-    ``jobs``: render them on that many processes (about 0.4 s each)."""
-    names = []
-    if res.comparison is not None and res.case(1, 1) is not None:
-        names.append("fig2")
+    single-step case), Fig. 3 (with both 2-sensor cases) and all cases, on ``jobs``
+    processes (about 0.4 s each); returns the files."""
+    figures = [("bounds_and_rmse_all_cases.png", _figure_all)]
     if res.case(2, 1) is not None and res.case(2, 2) is not None:
-        names.append("fig3")
-    names.append("all")
-    return parallel_map(_render, [(name, res, Path(out)) for name in names], jobs)
-
-
-# ---------------------------------------------------------------------------------------------
-# Command line
+        figures.insert(0, ("fig3_2sensors_single_vs_two.png", _figure3))
+    if res.comparison is not None and res.case(1, 1) is not None:
+        figures.insert(0, ("fig2_1sensor_quadrant_vs_grid.png", _figure2))
+    return parallel_map(_render, [(*f, res, Path(out)) for f in figures], jobs)
 
 
 def _options(parser: argparse.ArgumentParser) -> None:
     add = parser.add_argument
     add(
         "--particles",
-        type=int_in_range(1, MAX_PARTICLES),
+        type=int_in_range(1, limits.MAX_PARTICLES),
         default=10000,
         help="PF particles (10,000)",
     )
     add(
         "--mc-samples",
-        type=int_in_range(1, MAX_SAMPLES),
+        type=int_in_range(1, limits.MAX_SAMPLES),
         help="planner Monte Carlo samples (scenario: 1000)",
     )
     add("--sensors", default="1,2,3", help="sensor counts, e.g. 1,2,3")
@@ -797,12 +747,12 @@ def _options(parser: argparse.ArgumentParser) -> None:
     add("--search", choices=SEARCHES, help="override the scenarios' search (quadrant)")
     add(
         "--grid-size",
-        type=int_in_range(2, MAX_GRID_SIZE),
+        type=int_in_range(2, limits.MAX_GRID_SIZE),
         default=101,
         help="grid of the comparison (101)",
     )
     add("--no-comparison", action="store_true", help="skip the quadrant vs 101x101 grid comparison")
-    add("--seed", type=int_in_range(0, MAX_SEED), help="seed (scenario seed)")
+    add("--seed", type=int_in_range(0, limits.MAX_SEED), help="seed (scenario seed)")
     add("--scenarios", help="directory with hernandez_*.yaml")
 
 

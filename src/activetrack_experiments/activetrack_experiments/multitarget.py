@@ -12,19 +12,10 @@ seeded closed-loop runs of three strategies on the same truth and detections dra
 The figure of merit is the time-averaged GOSPA (cut-off and order from the scenario's
 ``evaluation``), averaged over runs, with its Monte Carlo standard error; the improvement is
 ``1 - GOSPA(planner) / GOSPA(baseline)`` (the issue asks for >= 20 % against both).
-
-In a notebook::
-
-    from activetrack_experiments import multitarget
-    res = multitarget.reproduce(runs=20, jobs=2)
-    res.table()
-
-On the command line: ``activetrack reproduce multitarget --help``.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -134,8 +125,7 @@ def reproduce(
     task_progress: Callable[[int, int], None] | None = None,
 ) -> MultiTargetResult:
     """Every strategy on every scenario, ``runs`` seeded runs each (run r of every strategy
-    draws the same truth and detections: the simulator's generator is the run's), on ``jobs``
-    worker processes or the Dask cluster ``scheduler`` (the numbers do not depend on either)."""
+    draws the same truth and detections: the simulator's generator is the run's)."""
     check_jobs(jobs, scheduler)
     result = MultiTargetResult(runs)
     tasks = TaskProgress(len(scenarios) * len(STRATEGIES), task_progress)
@@ -202,17 +192,13 @@ def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
     )
 
 
-def _options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
-    )
-
-
 REPRODUCTION = Reproduction(
     "multitarget",
     __doc__.splitlines()[0],
     RunsOption(1, 100, "Monte Carlo runs per row (100)"),
-    options=_options,
+    options=lambda ap: ap.add_argument(
+        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
+    ),
     arguments=lambda args: dict(scenarios=tuple(args.scenario or SCENARIOS)),
 )
 main = REPRODUCTION.main

@@ -1,19 +1,12 @@
 """Reproduce Ramdaras, Absil, van Genderen (ICCRTS 2010) sec. 5-6 (``activetrack reproduce
 ramdaras``).
 
-Runs the paper's cases through the closed-loop cores (Simulator, TrackerCore with the EKF,
-PlannerCore with MRE positioning and selection), seeded Monte Carlo:
-
-- Case 1: s1, s2, s3 co-located and stationary at (0, 0), (3, 9) or (10, 8) km (Fig. 7-9);
-- Case 2: stationary at (9, 4), (4, 8), (4, 2) km; Case 3: moving platforms, nine-sector
-  positioning with d_max = 5 (Fig. 10-12); plus Pd < 1 variants of Cases 2 and 3;
-
-each with MRE selection (eq. 23-27) and the baselines: trace of the updated covariance, random,
-fixed (each sensor) and no selection (all sensors measure). Reports per case the selection
-counts per sensor and the time-averaged det(P_pos) of the EKF's P_{k|k} with its spread over
-runs, the margins of MRE selection over the baselines, the selection counts per criterion
-(heading, range, Doppler, bearing; eq. 25-26) and, for Pd < 1, the MRE bound against the
-filter's covariance. See docs/ramdaras.md.
+The paper's cases (``CASES``; Fig. 7-12 and Pd < 1 variants of Cases 2 and 3) run through the
+closed loop (EKF tracker, MRE positioning and selection, eq. 23-27) over seeded Monte Carlo
+runs, with MRE selection against the baselines (trace, random, fixed, all sensors): selection
+counts, time-averaged det(P_pos) of the EKF's P_{k|k}, margins of MRE over the baselines, the
+selection criteria (eq. 24-26) and, for Pd < 1, the MRE bound against the filter's covariance.
+See docs/ramdaras.md.
 """
 
 from __future__ import annotations
@@ -73,7 +66,7 @@ DRAWS = 40000  # detection sequences of the exact bound check
 
 def load_case(case: str, scenarios_dir: str | Path | None = None) -> Scenario:
     """The scenario of case ``case`` (``CASE_KEYS``) from ``scenarios_dir`` (default: the
-    package's scenario files, :func:`activetrack_experiments.paths.scenario_path`)."""
+    package's)."""
     files = {key: name for key, name, _ in CASES}
     if case not in files:
         raise ValueError(f"case must be one of {tuple(files)}, got {case!r}")
@@ -166,8 +159,7 @@ def run_traced(scenario: Scenario, run: int | None = None) -> RunTrace:
 
 def _recursion_inputs(scenario: Scenario, trace: RunTrace, mask: np.ndarray):
     """F, Q, P_{0|0} and, for each epoch k = 1..K, the ``(sensor, platform pv at k)`` of the
-    sensors that ``mask[k - 1]`` (K, S) marks (``trace.measured`` or ``trace.detected``): what a
-    covariance recursion along a run uses."""
+    sensors ``mask[k - 1]`` marks (``trace.measured`` or ``trace.detected``, (K, S))."""
     model = build_motion_model(scenario.target.motion)
     F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
     sensors = {s.id: (p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors}
@@ -484,9 +476,6 @@ def detection_average_realized(scenario: Scenario, trace: RunTrace) -> np.ndarra
     return np.array(out)
 
 
-# --- the reproduction ----------------------------------------------------------------------------
-
-
 @dataclass
 class RamdarasResults:
     """What :func:`reproduce` computed: the cases under each strategy, the criteria study
@@ -559,8 +548,8 @@ def _check_args(
 def _specs(
     keys, strategies, runs, bound_runs, *, scenarios_dir, **kw
 ) -> tuple[list[_Spec], list[_Spec], list[_Spec]]:
-    """The Monte Carlo groups of :func:`reproduce`: cases x strategies, the criteria study on
-    ``CRITERIA_CASE`` and the open-loop bound checks of the Pd < 1 cases."""
+    """The groups of :func:`reproduce`: cases x strategies, the criteria study and the
+    open-loop bound checks."""
     loaded = {case: load_case(case, scenarios_dir) for case in keys}
     cases = [
         _case_spec(case, s, runs=runs, scenario=loaded[case], **kw)
@@ -635,9 +624,6 @@ def reproduce(
         margins=margins(results),
         wall_time_s=time.perf_counter() - start,
     )
-
-
-# --- output ------------------------------------------------------------------------------------
 
 
 def _counts(r: CaseResult) -> str:
@@ -743,9 +729,6 @@ def format_report(res: RamdarasResults) -> str:
     return "\n".join(lines)
 
 
-# --- figures -----------------------------------------------------------------------------------
-
-
 def _fig_tracks(mre: dict[str, CaseResult]):
     """Fig. 7/10: truth and sensor paths of run 0."""
     keys = [c for c in ("case1_3_9", "case2", "case3", "case3_pd") if c in mre]
@@ -817,7 +800,7 @@ def _fig_bound(checks: list[BoundCheck]):
 
 def save_figures(res: RamdarasResults, out: str | Path) -> list[Path]:
     """Fig. 7/10 (tracks and sensor paths), 8/11 (selection timelines), 9/12 (det_pos) and
-    the Pd < 1 bound check, as PNG files in ``out``; returns the files written."""
+    the Pd < 1 bound check as PNG files in ``out``; returns the files."""
     mre = res.mre()
     figures = (
         ("fig10_tracks_sensor_paths.png", lambda: _fig_tracks(mre)),
@@ -827,9 +810,6 @@ def save_figures(res: RamdarasResults, out: str | Path) -> list[Path]:
         ("pd_bound_vs_filter.png", lambda: _fig_bound(res.checks)),
     )
     return write_figures(figures, out, dpi=110, tight_layout=False, bbox_inches="tight")
-
-
-# --- command line ------------------------------------------------------------------------------
 
 
 def _options(parser: argparse.ArgumentParser) -> None:

@@ -1,26 +1,12 @@
 """Reproduce Valverde (USBL range/bearing tracking) Tables I-V and Figs. 2-8.
 
-A vehicle circles at constant speed and turn rate in view of a stationary USBL-style
-range+bearing sensor (Valverde sec. III, eq. 10-14). Two EKFs (eq. 2-9) track it:
-
-- ``circular``: the circular-motion state model (psi, px, py, omega, v), eq. 24-25;
-- ``constant_turn``: the constant-turn model with known turn rate on pv, eq. 35-37.
-
-For each measurement-noise pair of Table III, each model is run over Monte Carlo runs in two
-cases, and the time-averaged square errors of px and py are compared with a bound:
-
-- ``crlb`` (Table IV): no process noise. The truth is the nominal circle; the filter's prior
-  mean is drawn from N(x0, S0) (eq. 44) and the bound is Taylor's CRLB along the nominal path
-  (eq. 50-51, ``bounds.taylor_crlb``, J_0 = S0^{-1}).
-- ``pcrb`` (Tables III and V): process noise. Each model's truth is sampled from that model
-  (x0 ~ N(x_bar, P0), then eq. 24 / eq. 34 with noise) and the bound is the PCRB of eq. 65
-  linearised along the nominal path, as in the paper. For the linear constant-turn dynamics the
-  Monte Carlo Tichavsky recursion (eq. 56-64) on the same truth trajectories is reported too.
-
-The models, bounds and observability rank are the core's; the EKF of a row runs all its
-trajectories at once (:func:`activetrack.filters.ekf_over_runs`) and the rows are the tasks of
-one parallel map. Tables I-II are the rank of the eq. 38 observability matrix. The scenario
-choices (Fig. 2 is lost) are in :class:`ValverdeSetup` and docs/valverde.md.
+Two EKFs (eq. 2-9; ``circular``: eq. 24-25; ``constant_turn``, known turn rate: eq. 35-37)
+track a vehicle circling a stationary range+bearing sensor (eq. 10-14) for every noise pair of
+Table III in two cases: ``crlb`` (no process noise; Taylor's CRLB along the nominal path, eq.
+50-51; Table IV) and ``pcrb`` (process noise; the eq. 65 PCRB along the nominal path and, for
+constant turn, the Monte Carlo Tichavsky PCRB, eq. 56-64; Tables III and V). Tables I-II are the
+rank of the eq. 38 observability matrix. docs/valverde.md explains the cases and the scenario
+choices (Fig. 2 is lost).
 """
 
 from __future__ import annotations
@@ -51,6 +37,7 @@ from activetrack.plots import write_figures
 from activetrack_experiments.reproduction import Reproduction, RunsOption, figure_axes
 
 MODELS = ("circular", "constant_turn")
+NAMES = {"circular": "circular motion", "constant_turn": "constant turn (known rate)"}
 CASES = ("crlb", "pcrb")
 # Index of (px, py) in each model's state.
 POSITION_INDEX = {"circular": (1, 2), "constant_turn": (0, 2)}
@@ -119,16 +106,10 @@ RANK_CONDITIONS = (
 
 @dataclass(frozen=True)
 class ValverdeSetup:
-    """Scenario choices (the paper's Fig. 2 is lost; see docs/valverde.md).
-
-    A USBL at the origin; the vehicle circles the centre ``centre`` with radius ``radius`` at
-    speed ``speed`` counter-clockwise (omega = speed / radius = 0.05 rad/s, period 126 s),
-    starting at the bottom of the circle heading east, so the range varies from 10 to 50 m.
-    Process noise (pcrb case): sigma_omega [rad/s/sqrt(s)] and sigma_v [m/s/sqrt(s)] of eq. 25
-    for the circular model, acceleration PSD q = sigma_v^2 [m^2/s^3] for the constant-turn one.
-    Prior standard deviations: heading, position, turn rate, speed (the constant-turn prior is
-    the same prior mapped to pv by the kinematics Jacobian).
-    """
+    """Scenario choices (docs/valverde.md): the vehicle circles ``centre`` counter-clockwise
+    from the bottom, heading east. Process noise (pcrb case): sigma_omega [rad/s/sqrt(s)] and
+    sigma_v [m/s/sqrt(s)] of eq. 25, q = sigma_v^2 [m^2/s^3] for constant turn. Prior standard
+    deviations: heading, position, turn rate, speed."""
 
     sensor_xy: tuple[float, float] = (0.0, 0.0)
     centre: tuple[float, float] = (30.0, 0.0)
@@ -172,9 +153,8 @@ class ValverdeSetup:
 
     def model(self, model: str, process_noise: bool):
         if model == "circular":
-            if process_noise:
-                return CircularMotion(self.sigma_omega, self.sigma_v)
-            return CircularMotion(0.0, 0.0)
+            noise = (self.sigma_omega, self.sigma_v) if process_noise else (0.0, 0.0)
+            return CircularMotion(*noise)
         return ConstantTurn(self.omega, self.q if process_noise else 0.0)
 
     @staticmethod
@@ -237,9 +217,6 @@ class RankRow:
     rank_constant_turn: int
     paper_circular: int | None
     paper_constant_turn: int | None
-
-
-# --- the Monte Carlo ---------------------------------------------------------------------------
 
 
 def _gaussian(mean, P, shape, rng):
@@ -378,9 +355,6 @@ def observability_table(setup: ValverdeSetup, n_steps: int = 10, rtol: float = 1
     return rows
 
 
-# --- the reproduction --------------------------------------------------------------------------
-
-
 @dataclass
 class ValverdeResults:
     """What :func:`reproduce` computed: the Monte Carlo rows (``CASES`` x ``MODELS`` x noise
@@ -464,9 +438,6 @@ def reproduce(
     return ValverdeResults(setup, runs, seed, rows, observability_table(setup), mc_time)
 
 
-# --- tables ------------------------------------------------------------------------------------
-
-
 def _noise_label(sr, sb):
     return f"{sr:g}^2".ljust(8) + f"{sb:g}^2".ljust(8)
 
@@ -544,11 +515,6 @@ def format_report(res: ValverdeResults) -> str:
     return "\n\n".join(parts) + "\n"
 
 
-# --- figures -----------------------------------------------------------------------------------
-
-NAMES = {"circular": "circular motion", "constant_turn": "constant turn (known rate)"}
-
-
 def _fig_mse(res: ValverdeResults, case: str, axis: int, num: int):
     """Fig. 3-6: MSE of x or y (2 standard errors) and the bound against the noise pair."""
     labels = [f"{r.sigma_r:g}/{r.sigma_b_deg:g}" for r in res.get("crlb", "circular")]
@@ -612,9 +578,6 @@ def save_figures(res: ValverdeResults, out: str | Path, series_row: int = 3) -> 
     ]
     figures.append(("fig2_path.png", partial(_fig_path, res.setup)))
     return write_figures(figures, out, dpi=110)
-
-
-# --- command line ------------------------------------------------------------------------------
 
 
 def _options(parser: argparse.ArgumentParser) -> None:
