@@ -6,15 +6,6 @@ bounds sqrt(J_k^-1(1,1)), sqrt(J_k^-1(3,3)) over k = 1..30, then track the targe
 planned paths with a 10,000-particle SIR filter (sec. 5.2) over seeded Monte Carlo runs and
 average the filter RMSEs the same way. Also compares the quadrant search with the 101 x 101
 grid on the 1-sensor single-step case (sec. 4.2, Fig. 2). See docs/hernandez.md.
-
-In a notebook::
-
-    from activetrack_experiments import hernandez
-    res = hernandez.reproduce(runs=4, particles=2000, jobs=2)
-    res.table()                     # one flat dict per case (pandas.DataFrame(res.table()))
-    print(hernandez.format_results(res))
-
-On the command line: ``activetrack reproduce hernandez --help``.
 """
 
 from __future__ import annotations
@@ -24,10 +15,12 @@ import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from activetrack import limits
 from activetrack.argtypes import int_in_range
 from activetrack.bounds.pcrlb import (
     covariance_bound,
@@ -38,47 +31,15 @@ from activetrack.bounds.pcrlb import (
 from activetrack.filters import Measurement, ParticleFilter
 from activetrack.geometry import covariance_ellipse
 from activetrack.kernels import expect_particle_work
-from activetrack.limits import (
-    MAX_GRID_SIZE,
-    MAX_PARTICLES,
-    MAX_PLANNER_BATCH,
-    MAX_SAMPLES,
-    MAX_SEARCH_EVALUATIONS,
-    MAX_SEED,
-)
 from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.montecarlo.dask import connected
-from activetrack.planning import (
-    PlannerPlatform,
-    TargetBelief,
-    plan,
-    platform_information,
-)
-from activetrack.plots import new_figure, write_figures
+from activetrack.planning import PlannerPlatform, TargetBelief, plan, platform_information
+from activetrack.plots import write_figures
 from activetrack.scenarios import Scenario, build_motion_model, load_scenario
 from activetrack.scenarios.build import plan_settings, planner_platforms
 from activetrack.scenarios.schema import PlannerConfig
 from activetrack_experiments.paths import find_scenarios_dir, scenario_path
-from activetrack_experiments.reproduction import Reproduction, RunsOption, map_groups
-
-__all__ = [
-    "PAPER_TABLE1",
-    "PAPER_TABLE2",
-    "REPRODUCTION",
-    "CaseResult",
-    "HernandezResults",
-    "PlannedCase",
-    "SearchComparison",
-    "check_options",
-    "format_progress",
-    "format_results",
-    "main",
-    "plan_case",
-    "prior_samples",
-    "reproduce",
-    "save_figures",
-    "track_case",
-]
+from activetrack_experiments.reproduction import Reproduction, RunsOption, figure_axes, map_groups
 
 # Hernandez Table 1: (sensors, horizon) -> (bound_x, bound_y, pf_rmse_x, pf_rmse_y), metres.
 PAPER_TABLE1 = {
@@ -106,10 +67,6 @@ FIGURE_SAMPLES = 1000  # prior samples drawn for Fig. 2(a)
 def scenario_name(sensors: int, horizon: int) -> str:
     """The scenario file stem of a case: ``hernandez_2sensor_two``."""
     return f"hernandez_{sensors}sensor_{HORIZON_NAMES[horizon]}"
-
-
-# ---------------------------------------------------------------------------------------------
-# Planning (sec. 3.2) and tracking along the planned paths (sec. 5.2)
 
 
 @dataclass
@@ -248,9 +205,7 @@ def track_case(
     scheduler: Scheduler | None = None,
 ) -> np.ndarray:
     """PF RMSE per epoch (K, 2) in x and y over ``runs`` seeded runs (run r: SeedSequence
-    ([seed, r]) split into truth/measurement and filter generators), on ``jobs`` processes
-    or the Dask cluster ``scheduler``; the result does not depend on either (nor on
-    ``progress``, called with the runs done)."""
+    ([seed, r]) split into truth/measurement and filter generators)."""
     tasks = [_RunTask(scenario, paths, r, particles, seed) for r in range(runs)]
     expect_particle_work(runs * scenario.steps * particles)  # kernels loaded before the fork
     return _rmse(parallel_map(_track_run, tasks, jobs, progress, scheduler))
@@ -272,10 +227,6 @@ def prior_samples(scenario: Scenario, count: int = FIGURE_SAMPLES) -> np.ndarray
     return np.concatenate([X0[None], propagate_samples(X0, F, Q, scenario.steps, rng)])
 
 
-# ---------------------------------------------------------------------------------------------
-# Results
-
-
 def _mean(values) -> float:
     return float(np.mean(values))
 
@@ -295,21 +246,11 @@ class CaseResult:
     def key(self) -> tuple[int, int]:
         return (self.plan.sensors, self.plan.horizon)
 
-    @property
-    def bound_x(self) -> float:
-        return float(self.plan.bounds[:, 0].mean())
-
-    @property
-    def bound_y(self) -> float:
-        return float(self.plan.bounds[:, 1].mean())
-
-    @property
-    def pf_rmse_x(self) -> float | None:
-        return None if self.rmse is None else float(self.rmse[:, 0].mean())
-
-    @property
-    def pf_rmse_y(self) -> float | None:
-        return None if self.rmse is None else float(self.rmse[:, 1].mean())
+    # Time averages over k = 1..K of the bounds and (runs > 0) the PF RMSEs, m.
+    bound_x = property(lambda self: float(self.plan.bounds[:, 0].mean()))
+    bound_y = property(lambda self: float(self.plan.bounds[:, 1].mean()))
+    pf_rmse_x = property(lambda self: None if self.rmse is None else float(self.rmse[:, 0].mean()))
+    pf_rmse_y = property(lambda self: None if self.rmse is None else float(self.rmse[:, 1].mean()))
 
     def summary(self) -> dict:
         """The case's scalar numbers (a row of ``HernandezResults.table()``)."""
@@ -318,18 +259,12 @@ class CaseResult:
             "sensors": self.plan.sensors,
             "horizon": self.plan.horizon,
             "search": self.plan.search,
-            "bound_x": self.bound_x,
-            "bound_y": self.bound_y,
-            "pf_rmse_x": self.pf_rmse_x,
-            "pf_rmse_y": self.pf_rmse_y,
+            **{key: getattr(self, key) for key in TABLE2_KEYS},
             "evaluations_per_decision": _mean(self.plan.evaluations),
             "decision_time_s": _mean(self.plan.decision_times),
             "sensor_iterations_per_decision": _mean(self.plan.iterations),
             "planning_time_s": self.planning_time_s,
-            "paper_bound_x": paper[0],
-            "paper_bound_y": paper[1],
-            "paper_pf_rmse_x": paper[2],
-            "paper_pf_rmse_y": paper[3],
+            **{f"paper_{key}": v for key, v in zip(TABLE2_KEYS, paper, strict=True)},
         }
 
     def to_json(self) -> dict:
@@ -410,13 +345,9 @@ class HernandezResults:
         out = {}
         for n in SENSOR_COUNTS:
             s, t = self.case(n, 1), self.case(n, 2)
-            if s is None or t is None:
-                continue
-            vals = []
-            for key in TABLE2_KEYS:
-                a, b = getattr(s, key), getattr(t, key)
-                vals.append(None if a is None or b is None else 100.0 * (a - b) / a)
-            out[n] = vals
+            if s is not None and t is not None:
+                pairs = [(getattr(s, key), getattr(t, key)) for key in TABLE2_KEYS]
+                out[n] = [None if a is None or b is None else 100 * (a - b) / a for a, b in pairs]
         return out
 
     def to_json(self) -> dict:
@@ -444,10 +375,6 @@ class HernandezResults:
             row.update(pf_runs=c.runs, pf_particles=c.particles, tracking_time_s=c.tracking_time_s)
             rows.append(row)
         return rows
-
-
-# ---------------------------------------------------------------------------------------------
-# The experiment
 
 
 def _sorted_choice(values: Iterable[int], allowed: tuple[int, ...], option: str) -> list[int]:
@@ -478,24 +405,24 @@ def check_options(
     # --search grid plans on the scenarios' grid (101 x 101): two steps nest two grids.
     if search == "grid" and 2 in horizon_list:
         per_decision = PlannerConfig().grid_size ** 4
-        if per_decision > MAX_SEARCH_EVALUATIONS:
+        if per_decision > limits.MAX_SEARCH_EVALUATIONS:
             raise ValueError(
                 f"--search grid with --horizons 2 costs {per_decision:.2e} cost evaluations per "
-                f"decision, at most {MAX_SEARCH_EVALUATIONS:.0e}: use --horizons 1"
+                f"decision, at most {limits.MAX_SEARCH_EVALUATIONS:.0e}: use --horizons 1"
             )
     # The grid comparison scores up to 2,048 grid points against every planner sample at once.
     samples = 1000 if mc_samples is None else mc_samples
     batch = min(grid_size**2, 2048) * samples
-    if comparison and 1 in counts and batch > MAX_PLANNER_BATCH:
+    if comparison and 1 in counts and batch > limits.MAX_PLANNER_BATCH:
         raise ValueError(
             f"--mc-samples {samples} with --grid-size {grid_size} scores {batch:.2e} "
-            f"sample-candidate pairs at once, at most {MAX_PLANNER_BATCH:.1e} (about 1 GB)"
+            f"sample-candidate pairs at once, at most {limits.MAX_PLANNER_BATCH:.1e} (about 1 GB)"
         )
     return counts, horizon_list
 
 
 def _plan_task(task: tuple[Scenario, dict]) -> CaseResult:
-    """Plan one case (a task of :func:`reproduce`'s first map): its plan and planning time."""
+    """One case's plan and planning time (a task of the plan map)."""
     scenario, plan_kw = task
     t0 = time.perf_counter()
     case = plan_case(scenario, **plan_kw)
@@ -528,10 +455,7 @@ def _plan_all(
     last on an otherwise idle pool; results in the tasks' order."""
     order = sorted(range(len(plan_tasks)), key=lambda i: _plan_order(plan_tasks[i]))
     done = parallel_map(_plan_task, [plan_tasks[i] for i in order], jobs, tasks.of_map(), scheduler)
-    results = list(done)
-    for i, res in zip(order, done, strict=True):
-        results[i] = res
-    return results
+    return [done[order.index(i)] for i in range(len(order))]
 
 
 def _plan_and_track(
@@ -546,12 +470,9 @@ def _plan_and_track(
     extra_plans: Sequence[tuple[Scenario, dict]] = (),
     **plan_kw,
 ) -> tuple[list[CaseResult], list[CaseResult]]:
-    """Every case planned (one map, a task per case, with ``extra_plans``: the search
-    comparison's plans, each ``(scenario, plan_case keywords)``), then every case's ``runs`` PF
-    runs along its paths (one map over all cases' runs, so the workers stay busy across cases).
-    The numbers are those of planning and tracking each case alone (each task carries its
-    seeds); a case's ``tracking_time_s`` is the sum of its runs' times in the workers. Returns
-    the cases and the extra plans."""
+    """Every case planned, with ``extra_plans`` (``(scenario, plan_case keywords)``), in one
+    map, then all cases' ``runs`` PF runs along their paths in another; each task carries its
+    seeds. A case's ``tracking_time_s`` sums its runs' times. Returns the cases and extra plans."""
     seeds = [sc.seed if seed is None else seed for sc in scenarios]
     plan_tasks = [(sc, {**plan_kw, "seed": sd}) for sc, sd in zip(scenarios, seeds, strict=True)]
     planned = _plan_all(plan_tasks + list(extra_plans), jobs, tasks, scheduler)
@@ -569,22 +490,6 @@ def _plan_and_track(
         res.runs, res.particles = runs, particles
         res.tracking_time_s = sum(t for _, t in part)
     return results, extra
-
-
-def _comparison_plans(
-    reference: Scenario,
-    has_quadrant: bool,
-    grid_size: int,
-    mc_samples: int | None,
-    seed: int | None,
-) -> list[tuple[Scenario, dict]]:
-    """The plan tasks of the quadrant vs grid comparison on the 1-sensor single-step case:
-    the grid, and the quadrant unless the cases plan it already."""
-    kw = {"mc_samples": mc_samples, "seed": reference.seed if seed is None else seed}
-    plans = [(reference, {**kw, "search": "grid", "grid_size": grid_size})]
-    if not has_quadrant:
-        plans.append((reference, {**kw, "search": "quadrant"}))
-    return plans
 
 
 def reproduce(
@@ -608,13 +513,10 @@ def reproduce(
 
     Every case is planned open loop (``mc_samples`` planner samples, scenario: 1,000; the
     scenarios' search unless ``search``), then ``runs`` PF runs of ``particles`` particles track
-    along the planned paths (0: the bounds only) on ``jobs`` processes or the Dask cluster
-    ``scheduler`` (``tcp://host:port``: the same numbers); ``seed`` (default: the
-    scenarios' seed) fixes both. ``comparison`` re-plans the 1-sensor single-step case on a
-    ``grid_size`` x ``grid_size`` grid (with 1 among ``sensors``). ``progress`` is called with
-    each case, in order, once all are tracked; ``task_progress(done, total)`` as tasks finish
-    (a case's planning, each of its PF runs, the comparison: the command line's progress bar);
-    neither changes the numbers. Scenario files come from ``scenarios_dir`` or the package data.
+    along the planned paths (0: the bounds only); ``seed`` (default: the scenarios') fixes both.
+    ``comparison`` re-plans the 1-sensor single-step case on a ``grid_size`` x ``grid_size``
+    grid (with 1 among ``sensors``). ``progress`` is called with each case, in order, once all
+    are tracked. Scenario files come from ``scenarios_dir`` or the package data.
     """
     if runs < 0 or particles < 1:
         raise ValueError(f"runs must be >= 0 and particles >= 1, got {runs} and {particles}")
@@ -636,7 +538,10 @@ def reproduce(
     has_quadrant = (1, 1) in files and (search or reference.planner.search) == "quadrant"
     extra = []
     if compare:
-        extra = _comparison_plans(reference, has_quadrant, grid_size, mc_samples, seed)
+        kw = {"mc_samples": mc_samples, "seed": reference.seed if seed is None else seed}
+        extra = [(reference, {**kw, "search": "grid", "grid_size": grid_size})]
+        if not has_quadrant:
+            extra.append((reference, {**kw, "search": "quadrant"}))
     tasks = TaskProgress(len(files) * (1 + runs) + len(extra), task_progress)
     run_kw = dict(runs=runs, particles=particles, seed=seed, jobs=jobs, mc_samples=mc_samples)
     scenarios = [load_scenario(files[key]) for key in sorted(files)]
@@ -655,10 +560,6 @@ def reproduce(
         res.comparison = SearchComparison(grid_size, quad.plan, extra_plans[0].plan)
         res.prior_samples = prior_samples(reference)
     return res
-
-
-# ---------------------------------------------------------------------------------------------
-# Printing
 
 
 def format_progress(case: CaseResult) -> str:
@@ -743,28 +644,14 @@ def format_results(res: HernandezResults) -> str:
     return "\n\n".join(parts)
 
 
-# ---------------------------------------------------------------------------------------------
-# Figures (matplotlib Figure + Agg canvas, no pyplot)
-
-
-def _new_figure(nrows: int, ncols: int, figsize: tuple[float, float]):
-    fig = new_figure(figsize=figsize)
-    return fig, fig.subplots(nrows, ncols)
-
-
-def _ellipse(ax, centre, P, scale=10.0, **kw):
-    """Outline of the 1-sigma ellipse of the position block of P, magnified ``scale`` times."""
-    pts = covariance_ellipse(centre, P[np.ix_([0, 2], [0, 2])], scale)
-    ax.plot(pts[:, 0], pts[:, 1], **kw)
-
-
 def _plot_paths(ax, case: PlannedCase, title: str) -> None:
     tm = case.target_mean
     ax.plot(tm[:, 0], tm[:, 2], "k--", lw=1, label="target (prior mean)")
     for i, pid in enumerate(case.platform_ids):
         ax.plot(case.paths[:, i, 0], case.paths[:, i, 2], "-o", ms=2, label=f"sensor {pid}")
-    for k in range(1, len(case.P) + 1, 3):
-        _ellipse(ax, tm[k, [0, 2]], case.P[k - 1], color="tab:red", lw=0.7)
+    for k in range(1, len(case.P) + 1, 3):  # 1-sigma ellipses of the position, 10x
+        pts = covariance_ellipse(tm[k, [0, 2]], case.P[k - 1][np.ix_([0, 2], [0, 2])], 10.0)
+        ax.plot(pts[:, 0], pts[:, 1], color="tab:red", lw=0.7)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(title, fontsize=9)
     ax.set(xlabel="x (m)", ylabel="y (m)")
@@ -773,7 +660,7 @@ def _plot_paths(ax, case: PlannedCase, title: str) -> None:
 
 def _figure2(res: HernandezResults):
     """Fig. 2: prior samples, quadrant and grid paths with 10x PCRLB ellipses, b_k."""
-    fig, axs = _new_figure(2, 2, (11, 9))
+    fig, axs = figure_axes((11, 9), 2, 2)
     X = res.prior_samples
     for k in range(0, X.shape[0], 2):
         axs[0, 0].plot(X[k, :, 0], X[k, :, 2], ",", color="tab:blue", alpha=0.3)
@@ -792,7 +679,7 @@ def _figure2(res: HernandezResults):
 
 def _figure3(res: HernandezResults):
     """Fig. 3: 2-sensor paths single vs two-step, y bound and y PF RMSE."""
-    fig, axs = _new_figure(2, 2, (11, 9))
+    fig, axs = figure_axes((11, 9), 2, 2)
     _plot_paths(axs[0, 0], res.case(2, 1).plan, "(a) 2 sensors, single-step")
     _plot_paths(axs[0, 1], res.case(2, 2).plan, "(b) 2 sensors, two-step")
     for R, lab in ((1, "single-step"), (2, "two-step")):
@@ -810,7 +697,7 @@ def _figure3(res: HernandezResults):
 
 def _figure_all(res: HernandezResults):
     """All cases: b_k and the max(x, y) PF RMSE against time."""
-    fig, axs = _new_figure(1, 2, (12, 4.5))
+    fig, axs = figure_axes((12, 4.5), 1, 2)
     for c in res.cases:
         lab = f"{c.plan.sensors} sensor(s), {HORIZON_NAMES[c.plan.horizon]}-step"
         (line,) = axs[0].plot(res.times, c.plan.bounds.max(axis=1), label=lab)
@@ -824,48 +711,35 @@ def _figure_all(res: HernandezResults):
     return fig
 
 
-_FIGURES = {
-    "fig2": ("fig2_1sensor_quadrant_vs_grid.png", _figure2),
-    "fig3": ("fig3_2sensors_single_vs_two.png", _figure3),
-    "all": ("bounds_and_rmse_all_cases.png", _figure_all),
-}
-
-
-def _render(task: tuple[str, HernandezResults, Path]) -> Path:
+def _render(task: tuple[str, Callable, HernandezResults, Path]) -> Path:
     """One figure of :func:`save_figures` (a task of its map)."""
-    name, res, out = task
-    file, draw = _FIGURES[name]
-    return write_figures([(file, lambda: draw(res))], out, dpi=110)[0]
+    file, draw, res, out = task
+    return write_figures([(file, partial(draw, res))], out, dpi=110)[0]
 
 
 def save_figures(res: HernandezResults, out: str | Path, jobs: int = 1) -> list[Path]:
     """Write the PNG figures into ``out``: Fig. 2 (with the comparison and the 1-sensor
-    single-step case), Fig. 3 (with both 2-sensor cases) and all cases; returns the files.
-    ``jobs``: render them on that many processes (about 0.4 s each)."""
-    names = []
-    if res.comparison is not None and res.case(1, 1) is not None:
-        names.append("fig2")
+    single-step case), Fig. 3 (with both 2-sensor cases) and all cases, on ``jobs``
+    processes (about 0.4 s each); returns the files."""
+    figures = [("bounds_and_rmse_all_cases.png", _figure_all)]
     if res.case(2, 1) is not None and res.case(2, 2) is not None:
-        names.append("fig3")
-    names.append("all")
-    return parallel_map(_render, [(name, res, Path(out)) for name in names], jobs)
-
-
-# ---------------------------------------------------------------------------------------------
-# Command line
+        figures.insert(0, ("fig3_2sensors_single_vs_two.png", _figure3))
+    if res.comparison is not None and res.case(1, 1) is not None:
+        figures.insert(0, ("fig2_1sensor_quadrant_vs_grid.png", _figure2))
+    return parallel_map(_render, [(*f, res, Path(out)) for f in figures], jobs)
 
 
 def _options(parser: argparse.ArgumentParser) -> None:
     add = parser.add_argument
     add(
         "--particles",
-        type=int_in_range(1, MAX_PARTICLES),
+        type=int_in_range(1, limits.MAX_PARTICLES),
         default=10000,
         help="PF particles (10,000)",
     )
     add(
         "--mc-samples",
-        type=int_in_range(1, MAX_SAMPLES),
+        type=int_in_range(1, limits.MAX_SAMPLES),
         help="planner Monte Carlo samples (scenario: 1000)",
     )
     add("--sensors", default="1,2,3", help="sensor counts, e.g. 1,2,3")
@@ -873,12 +747,12 @@ def _options(parser: argparse.ArgumentParser) -> None:
     add("--search", choices=SEARCHES, help="override the scenarios' search (quadrant)")
     add(
         "--grid-size",
-        type=int_in_range(2, MAX_GRID_SIZE),
+        type=int_in_range(2, limits.MAX_GRID_SIZE),
         default=101,
         help="grid of the comparison (101)",
     )
     add("--no-comparison", action="store_true", help="skip the quadrant vs 101x101 grid comparison")
-    add("--seed", type=int_in_range(0, MAX_SEED), help="seed (scenario seed)")
+    add("--seed", type=int_in_range(0, limits.MAX_SEED), help="seed (scenario seed)")
     add("--scenarios", help="directory with hernandez_*.yaml")
 
 
@@ -894,10 +768,6 @@ def _check_cli(args: argparse.Namespace) -> None:
     )
 
 
-def _print_progress(case: CaseResult) -> None:
-    print(format_progress(case), file=sys.stderr, flush=True)
-
-
 def _arguments(args: argparse.Namespace) -> dict:
     """The arguments of :func:`reproduce` the options set (besides the runs and workers)."""
     return dict(
@@ -910,7 +780,7 @@ def _arguments(args: argparse.Namespace) -> dict:
         search=args.search,
         grid_size=args.grid_size,
         mc_samples=args.mc_samples,
-        progress=_print_progress,
+        progress=lambda case: print(format_progress(case), file=sys.stderr, flush=True),
     )
 
 

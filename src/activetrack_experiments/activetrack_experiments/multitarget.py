@@ -18,19 +18,10 @@ difference GOSPA(planner) - GOSPA(baseline), run by run, has a 95 % Student-t in
 (:func:`activetrack.montecarlo.paired.paired_difference`); the report's last line is
 ``planner_gain_vs_best_baseline_pct=a:<x>,b:<x>,c:<x>``: the planner's GOSPA below the better
 baseline's, in percent, per scenario (a), (b), (c).
-
-In a notebook::
-
-    from activetrack_experiments import multitarget
-    res = multitarget.reproduce(runs=20, jobs=2)
-    res.table()
-
-On the command line: ``activetrack reproduce multitarget --help``.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -42,10 +33,11 @@ from activetrack.closed_loop.batch import BatchSummary, run_batch
 from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs
 from activetrack.montecarlo.dask import connected
 from activetrack.montecarlo.paired import PairedDifference, paired_difference
+from activetrack.plots import write_figures
 from activetrack.scenarios import load_scenario, with_changes
 from activetrack.scenarios.schema import Scenario
 from activetrack_experiments.paths import scenario_path
-from activetrack_experiments.reproduction import Reproduction, RunsOption
+from activetrack_experiments.reproduction import Reproduction, RunsOption, figure_axes
 
 __all__ = ["SCENARIOS", "STRATEGIES", "MultiTargetResult", "reproduce", "strategy_scenario"]
 
@@ -156,8 +148,7 @@ def reproduce(
     task_progress: Callable[[int, int], None] | None = None,
 ) -> MultiTargetResult:
     """Every strategy on every scenario, ``runs`` seeded runs each (run r of every strategy
-    draws the same truth and detections: the simulator's generator is the run's), on ``jobs``
-    worker processes or the Dask cluster ``scheduler`` (the numbers do not depend on either)."""
+    draws the same truth and detections: the simulator's generator is the run's)."""
     check_jobs(jobs, scheduler)
     result = MultiTargetResult(runs)
     tasks = TaskProgress(len(scenarios) * len(STRATEGIES), task_progress)
@@ -223,11 +214,9 @@ def format_report(res: MultiTargetResult) -> str:
 
 def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
     """GOSPA vs time per scenario, the three strategies."""
-    from activetrack.plots import new_figure, write_figures
 
     def figure(sc: ScenarioResult):
-        fig = new_figure(figsize=(7, 4))
-        ax = fig.add_subplot()
+        fig, ax = figure_axes((7, 4))
         for strategy in STRATEGIES:
             s = sc.summaries[strategy]
             t = s.dt * np.arange(1, s.steps + 1)
@@ -243,17 +232,13 @@ def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
     )
 
 
-def _options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
-    )
-
-
 REPRODUCTION = Reproduction(
     "multitarget",
     __doc__.splitlines()[0],
     RunsOption(1, 100, "Monte Carlo runs per row (100)"),
-    options=_options,
+    options=lambda ap: ap.add_argument(
+        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
+    ),
     arguments=lambda args: dict(scenarios=tuple(args.scenario or SCENARIOS)),
 )
 main = REPRODUCTION.main

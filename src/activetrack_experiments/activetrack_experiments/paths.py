@@ -29,5 +29,4 @@ def scenario_path(name: str, scenarios_dir: str | Path | None = None) -> Path:
     """The file of scenario ``name`` (``"hernandez_1sensor_single"``, with or without
     ``.yaml``) in :func:`find_scenarios_dir`."""
     stem = name[:-5] if name.endswith(".yaml") else name
-    path = find_scenarios_dir(scenarios_dir, f"{stem}.yaml") / f"{stem}.yaml"
-    return path
+    return find_scenarios_dir(scenarios_dir, f"{stem}.yaml") / f"{stem}.yaml"

@@ -1,27 +1,12 @@
 """Reproduce Ramdaras, Absil, van Genderen (ICCRTS 2010) sec. 5-6 (``activetrack reproduce
 ramdaras``).
 
-Runs the paper's cases through the closed-loop cores (Simulator, TrackerCore with the EKF,
-PlannerCore with MRE positioning and selection), seeded Monte Carlo:
-
-- Case 1: s1, s2, s3 co-located and stationary at (0, 0), (3, 9) or (10, 8) km (Fig. 7-9);
-- Case 2: stationary at (9, 4), (4, 8), (4, 2) km; Case 3: moving platforms, nine-sector
-  positioning with d_max = 5 (Fig. 10-12); plus Pd < 1 variants of Cases 2 and 3;
-
-each with MRE selection (eq. 23-27) and the baselines: trace of the updated covariance, random,
-fixed (each sensor) and no selection (all sensors measure). Reports per case the selection
-counts per sensor and the time-averaged det(P_pos) of the EKF's P_{k|k} with its spread over
-runs, the margins of MRE selection over the baselines, the selection counts per criterion
-(heading, range, Doppler, bearing; eq. 25-26) and, for Pd < 1, the MRE bound against the
-filter's covariance. See docs/ramdaras.md.
-
-In a notebook::
-
-    from activetrack_experiments import ramdaras
-    res = ramdaras.reproduce(runs=3, quick=True, jobs=2)
-    res.table()  # one flat row per case, strategy and criterion
-
-On the command line: ``activetrack reproduce ramdaras --help``.
+The paper's cases (``CASES``; Fig. 7-12 and Pd < 1 variants of Cases 2 and 3) run through the
+closed loop (EKF tracker, MRE positioning and selection, eq. 23-27) over seeded Monte Carlo
+runs, with MRE selection against the baselines (trace, random, fixed, all sensors): selection
+counts, time-averaged det(P_pos) of the EKF's P_{k|k}, margins of MRE over the baselines, the
+selection criteria (eq. 24-26) and, for Pd < 1, the MRE bound against the filter's covariance.
+See docs/ramdaras.md.
 """
 
 from __future__ import annotations
@@ -42,12 +27,18 @@ from activetrack.closed_loop.loop import run_once
 from activetrack.limits import MAX_RUNS
 from activetrack.montecarlo import Progress, Scheduler, TaskProgress, check_jobs
 from activetrack.planning.selection import expected_update
-from activetrack.plots import new_figure, write_figures
+from activetrack.plots import write_figures
 from activetrack.scenarios import build_motion_model, load_scenario, parse_scenario
 from activetrack.scenarios.build import build_sensor
 from activetrack.scenarios.schema import Scenario
 from activetrack_experiments.paths import scenario_path
-from activetrack_experiments.reproduction import Reproduction, RunsOption, map_groups, split
+from activetrack_experiments.reproduction import (
+    Reproduction,
+    RunsOption,
+    figure_axes,
+    map_groups,
+    split,
+)
 
 PAPER = "Ramdaras, Absil, van Genderen, ICCRTS 2010"
 # (key, scenario file, label). Case 1 (3, 9) is the Case 1 of Fig. 10-12.
@@ -75,7 +66,7 @@ DRAWS = 40000  # detection sequences of the exact bound check
 
 def load_case(case: str, scenarios_dir: str | Path | None = None) -> Scenario:
     """The scenario of case ``case`` (``CASE_KEYS``) from ``scenarios_dir`` (default: the
-    package's scenario files, :func:`activetrack_experiments.paths.scenario_path`)."""
+    package's)."""
     files = {key: name for key, name, _ in CASES}
     if case not in files:
         raise ValueError(f"case must be one of {tuple(files)}, got {case!r}")
@@ -111,10 +102,7 @@ def variant(
         d["planner"]["criterion"] = criterion
     if mode is not None:
         d["planner"]["mode"] = mode
-    if steps is not None:
-        d["steps"] = int(steps)
-    if seed is not None:
-        d["seed"] = int(seed)
+    d.update({k: int(v) for k, v in (("steps", steps), ("seed", seed)) if v is not None})
     d["name"] = f"{scenario.name}-{strategy}" + (f"-{criterion}" if criterion else "")
     return parse_scenario(d, d["name"])
 
@@ -171,8 +159,7 @@ def run_traced(scenario: Scenario, run: int | None = None) -> RunTrace:
 
 def _recursion_inputs(scenario: Scenario, trace: RunTrace, mask: np.ndarray):
     """F, Q, P_{0|0} and, for each epoch k = 1..K, the ``(sensor, platform pv at k)`` of the
-    sensors that ``mask[k - 1]`` (K, S) marks (``trace.measured`` or ``trace.detected``): what a
-    covariance recursion along a run uses."""
+    sensors ``mask[k - 1]`` marks (``trace.measured`` or ``trace.detected``, (K, S))."""
     model = build_motion_model(scenario.target.motion)
     F, Q = model.transition_matrix(scenario.dt), model.process_noise(scenario.dt)
     sensors = {s.id: (p.id, build_sensor(s)) for p in scenario.platforms for s in p.sensors}
@@ -222,9 +209,7 @@ def run_groups(
     scheduler: Scheduler | None = None,
 ) -> list[list[RunTrace]]:
     """For each ``(scenario, runs)``, its ``runs`` seeded runs (run r: SeedSequence([seed,
-    r])); all of them in one :func:`activetrack.montecarlo.parallel_map` over ``jobs``
-    processes or the Dask cluster ``scheduler`` (``progress``: called with the runs done).
-    The traces do not depend on either."""
+    r])), all in one :func:`activetrack.montecarlo.parallel_map`."""
     for _, runs in groups:
         if runs < 1:
             raise ValueError(f"runs must be >= 1, got {runs}")
@@ -235,8 +220,7 @@ def run_groups(
 def run_runs(
     scenario: Scenario, runs: int, jobs: int = 1, scheduler: Scheduler | None = None
 ) -> list[RunTrace]:
-    """``runs`` seeded runs (run r: SeedSequence([seed, r])), in ``jobs`` processes or on the
-    Dask cluster ``scheduler``."""
+    """``runs`` seeded runs (run r: SeedSequence([seed, r]))."""
     return run_groups([(scenario, runs)], jobs, scheduler=scheduler)[0]
 
 
@@ -351,45 +335,29 @@ def _case_spec(
 
 
 def run_case(
-    case: str,
-    strategy: str = "mre",
-    *,
-    runs: int = 1,
-    criterion: str | None = None,
-    mode: str | None = None,
-    steps: int | None = None,
-    seed: int | None = None,
-    jobs: int = 1,
-    scenarios_dir=None,
-    scheduler: Scheduler | None = None,
+    case: str, strategy: str = "mre", *, runs: int = 1, jobs: int = 1, scheduler=None, **change
 ) -> CaseResult:
-    """Load a case, apply the variant, run it ``runs`` times (:func:`run_runs`) and summarise."""
-    kw = dict(criterion=criterion, mode=mode, steps=steps, seed=seed, scenarios_dir=scenarios_dir)
-    spec = _case_spec(case, strategy, runs=runs, **kw)
+    """Load a case, apply the :func:`variant` (``change``: criterion, mode, steps, seed;
+    ``scenarios_dir``), run it ``runs`` times (:func:`run_runs`) and summarise."""
+    spec = _case_spec(case, strategy, runs=runs, **change)
     return spec.summarize(run_runs(spec.scenario, spec.runs, jobs, scheduler))
 
 
 def margins(results: list[CaseResult]) -> list[dict]:
     """MRE against each other strategy of the same case: relative reduction of det_pos."""
     by = {(r.case, r.strategy): r for r in results if r.criterion == "det_pos"}
-    out = []
-    for (case, strategy), r in by.items():
-        if strategy == "mre":
-            continue
-        mre = by.get((case, "mre"))
-        if mre is None:
-            continue
-        out.append(
-            {
-                "case": case,
-                "baseline": strategy,
-                "mre_mean_det_pos": mre.mean_det_pos,
-                "baseline_mean_det_pos": r.mean_det_pos,
-                "reduction": 1.0 - mre.mean_det_pos / r.mean_det_pos,
-                "mre_better": mre.mean_det_pos < r.mean_det_pos,
-            }
-        )
-    return out
+    return [
+        {
+            "case": case,
+            "baseline": strategy,
+            "mre_mean_det_pos": mre.mean_det_pos,
+            "baseline_mean_det_pos": r.mean_det_pos,
+            "reduction": 1.0 - mre.mean_det_pos / r.mean_det_pos,
+            "mre_better": mre.mean_det_pos < r.mean_det_pos,
+        }
+        for (case, strategy), r in by.items()
+        if strategy != "mre" and (mre := by.get((case, "mre"))) is not None
+    ]
 
 
 def detection_average(
@@ -414,12 +382,11 @@ def detection_average(
 class BoundCheck:
     """Pd < 1: the MRE (eq. 23) against the filter's covariance on one fixed schedule.
 
-    Open-loop planning makes the schedule (positions and selections) the same in every run,
-    independent of the detections, so the theory applies: for each truth,
-    E[P_{k|k}] <= P^MRE_{k|k} (Loewner order). Checked two ways: the closed-loop EKF's mean
-    P_{k|k} over the runs against the mean MRE along the runs' truths (Monte Carlo over runs,
-    heavy-tailed, so compared on the time average), and for run 0 the exact average over
-    ``draws`` detection sequences against its MRE, epoch by epoch.
+    Open-loop planning makes the schedule the same in every run, independent of the
+    detections, so for each truth E[P_{k|k}] <= P^MRE_{k|k} (Loewner order; see
+    :func:`mre_path_bound`). Checked on the EKF's mean P_{k|k} over the runs against the mean
+    MRE (heavy-tailed, so on the time average), and for run 0 on the exact average over
+    ``draws`` detection sequences, epoch by epoch.
     """
 
     case: str
@@ -456,8 +423,7 @@ class BoundCheck:
 
 
 def summarize_bound(case: str, scenario: Scenario, traces, draws: int = DRAWS) -> BoundCheck:
-    """Compare the filter of open-loop MRE runs (``traces``) with the MRE (see
-    :class:`BoundCheck`)."""
+    """:class:`BoundCheck` of the open-loop MRE runs ``traces``."""
     for t in traces[1:]:
         if not np.array_equal(t.measured, traces[0].measured):
             raise RuntimeError("open-loop schedule differs between runs")
@@ -488,20 +454,11 @@ def summarize_bound(case: str, scenario: Scenario, traces, draws: int = DRAWS) -
 
 
 def bound_check(
-    case: str,
-    runs: int,
-    *,
-    draws: int = DRAWS,
-    steps: int | None = None,
-    seed: int | None = None,
-    jobs: int = 1,
-    scenarios_dir=None,
-    scheduler: Scheduler | None = None,
+    case: str, runs: int, *, draws: int = DRAWS, jobs: int = 1, scheduler=None, **change
 ) -> BoundCheck:
-    """Run ``case`` with open-loop MRE planning (the schedule does not depend on the
-    detections) and compare the filter with the MRE."""
-    kw = dict(steps=steps, seed=seed, scenarios_dir=scenarios_dir)
-    spec = _case_spec(case, runs=runs, mode="open_loop", **kw)
+    """:class:`BoundCheck` of ``runs`` runs of ``case`` with open-loop MRE planning
+    (``change``: steps, seed; ``scenarios_dir``)."""
+    spec = _case_spec(case, runs=runs, mode="open_loop", **change)
     traces = run_runs(spec.scenario, spec.runs, jobs, scheduler)
     return summarize_bound(case, spec.scenario, traces, draws)
 
@@ -517,9 +474,6 @@ def detection_average_realized(scenario: Scenario, trace: RunTrace) -> np.ndarra
             P = mre_update(P, sensor.jacobian(trace.truth[k], s), sensor.R, 1.0)
         out.append(P)
     return np.array(out)
-
-
-# --- the reproduction ----------------------------------------------------------------------------
 
 
 @dataclass
@@ -549,9 +503,8 @@ class RamdarasResults:
         raise KeyError(f"no result for case {case!r}, strategy {strategy!r}")
 
     def table(self) -> list[dict]:
-        """One flat row per case and strategy (``section`` ``"cases"``) and per criterion of
-        the criteria study (``"criteria"``); see :meth:`CaseResult.row`. The margins
-        (``self.margins``) and the bound checks (``BoundCheck.to_json()``) are flat already."""
+        """One flat row (:meth:`CaseResult.row`) per case and strategy (``section`` "cases")
+        and per criterion of the criteria study ("criteria")."""
         return [
             {"section": section, **r.row()}
             for section, results in (("cases", self.cases), ("criteria", self.criteria))
@@ -572,15 +525,20 @@ class RamdarasResults:
         }
 
 
+def _case_keys(cases: str | Sequence[str] | None, option: str = "cases") -> tuple[str, ...]:
+    keys = CASE_KEYS if cases is None else (cases,) if isinstance(cases, str) else tuple(cases)
+    bad = [c for c in keys if c not in CASE_KEYS]
+    if bad or not keys:
+        raise ValueError(f"{option}: unknown {bad}; choose from {list(CASE_KEYS)}")
+    return keys
+
+
 def _check_args(
     runs, jobs, cases, strategies, scheduler=None
 ) -> tuple[tuple[str, ...], tuple[str, ...]]:
     require_int("runs", runs, 1, MAX_RUNS)
     check_jobs(jobs, scheduler)
-    keys = CASE_KEYS if cases is None else (cases,) if isinstance(cases, str) else tuple(cases)
-    bad = [c for c in keys if c not in CASE_KEYS]
-    if bad or not keys:
-        raise ValueError(f"cases: unknown {bad}; choose from {list(CASE_KEYS)}")
+    keys = _case_keys(cases)
     for s in strategies:
         if s not in STRATEGIES:
             raise ValueError(f"strategies: {s!r} is not one of {STRATEGIES}")
@@ -590,8 +548,8 @@ def _check_args(
 def _specs(
     keys, strategies, runs, bound_runs, *, scenarios_dir, **kw
 ) -> tuple[list[_Spec], list[_Spec], list[_Spec]]:
-    """The Monte Carlo groups of :func:`reproduce`: cases x strategies, the criteria study on
-    ``CRITERIA_CASE`` and the open-loop bound checks of the Pd < 1 cases."""
+    """The groups of :func:`reproduce`: cases x strategies, the criteria study and the
+    open-loop bound checks."""
     loaded = {case: load_case(case, scenarios_dir) for case in keys}
     cases = [
         _case_spec(case, s, runs=runs, scenario=loaded[case], **kw)
@@ -632,13 +590,10 @@ def reproduce(
     selection criteria on ``CRITERIA_CASE`` and, for the Pd < 1 cases, the bound check with
     ``bound_runs`` open-loop runs (default max(runs, 10)) and ``draws`` detection sequences.
 
-    ``runs`` Monte Carlo runs per case and strategy (default 20, 3 when ``quick``); ``seed``
-    replaces the scenario files' seed (run r draws from SeedSequence([seed, r])); ``steps``
-    shortens the runs (the paper: 100 epochs); ``jobs`` worker processes or the Dask cluster
-    ``scheduler`` (``tcp://host:port``), one :func:`activetrack.montecarlo.parallel_map` over
-    all runs (results do not depend on either);
-    ``scenarios_dir`` holds ramdaras_*.yaml (default: the package's scenario files).
-    ``task_progress(done, total)`` is called as runs finish (the command line's progress bar).
+    ``runs`` per case and strategy (default 20, 3 when ``quick``), all in one parallel map;
+    ``seed`` replaces the scenario files' (run r draws from SeedSequence([seed, r])); ``steps``
+    shortens the runs (the paper: 100 epochs); ``scenarios_dir`` holds ramdaras_*.yaml
+    (default: the package's).
     """
     start = time.perf_counter()
     runs = (3 if quick else 20) if runs is None else runs
@@ -649,9 +604,8 @@ def reproduce(
     kw = dict(steps=steps, seed=seed, scenarios_dir=scenarios_dir)
     case_specs, crit_specs, bound_specs = _specs(keys, strategies, runs, bound_runs, **kw)
     specs = case_specs + crit_specs + bound_specs
-    groups = [(s.scenario, s.runs) for s in specs]
-    tasks = TaskProgress(sum(runs for _, runs in groups), task_progress)
-    traced = run_groups(groups, jobs, tasks.of_map(), scheduler)
+    tasks = TaskProgress(sum(s.runs for s in specs), task_progress)
+    traced = run_groups([(s.scenario, s.runs) for s in specs], jobs, tasks.of_map(), scheduler)
     sizes = [len(case_specs), len(crit_specs), len(bound_specs)]
     case_traces, crit_traces, bound_traces = split(traced, sizes)
     results = [s.summarize(t) for s, t in zip(case_specs, case_traces, strict=True)]
@@ -670,9 +624,6 @@ def reproduce(
         margins=margins(results),
         wall_time_s=time.perf_counter() - start,
     )
-
-
-# --- output ------------------------------------------------------------------------------------
 
 
 def _counts(r: CaseResult) -> str:
@@ -778,16 +729,12 @@ def format_report(res: RamdarasResults) -> str:
     return "\n".join(lines)
 
 
-# --- figures -----------------------------------------------------------------------------------
-
-
 def _fig_tracks(mre: dict[str, CaseResult]):
     """Fig. 7/10: truth and sensor paths of run 0."""
     keys = [c for c in ("case1_3_9", "case2", "case3", "case3_pd") if c in mre]
     if not keys:
         return None
-    fig = new_figure(figsize=(4.5 * len(keys), 4.5))
-    axes = fig.subplots(1, len(keys), squeeze=False)
+    fig, axes = figure_axes((4.5 * len(keys), 4.5), 1, len(keys), squeeze=False)
     for ax, key in zip(axes[0], keys, strict=True):
         t = mre[key].traces[0]
         ax.plot(t.truth[:, 0] / 1e3, t.truth[:, 2] / 1e3, "k-", label="target (truth)")
@@ -806,9 +753,8 @@ def _fig_timelines(mre: dict[str, CaseResult]):
     keys = [c for c in CASE_KEYS if c in mre]
     if not keys:
         return None
-    fig = new_figure(figsize=(9, 1.3 * len(keys)))
-    axes = np.atleast_1d(fig.subplots(len(keys), 1, sharex=True))
-    for ax, key in zip(axes, keys, strict=True):
+    fig, axes = figure_axes((9, 1.3 * len(keys)), len(keys), 1, sharex=True, squeeze=False)
+    for ax, key in zip(axes[:, 0], keys, strict=True):
         t = mre[key].traces[0]
         k = np.arange(1, len(t.measured) + 1)
         for j in range(len(t.sensor_ids)):
@@ -820,7 +766,7 @@ def _fig_timelines(mre: dict[str, CaseResult]):
         ax.set_yticks(range(1, len(t.sensor_ids) + 1), t.sensor_ids)
         ax.set_ylim(0.5, len(t.sensor_ids) + 0.5)
         ax.set_ylabel(key, rotation=0, ha="right", fontsize="small")
-    axes[-1].set_xlabel("t (s); x = missed detection")
+    axes[-1, 0].set_xlabel("t (s); x = missed detection")
     return fig
 
 
@@ -829,8 +775,7 @@ def _fig_det_pos(mre: dict[str, CaseResult], keys: Sequence[str]):
     keys = [c for c in keys if c in mre]
     if not keys:
         return None
-    fig = new_figure(figsize=(7, 4))
-    ax = fig.subplots()
+    fig, ax = figure_axes((7, 4))
     for key in keys:
         r = mre[key]
         ax.semilogy(np.arange(1, r.det_t.shape[1] + 1), r.det_t.mean(axis=0), label=key)
@@ -843,8 +788,7 @@ def _fig_bound(checks: list[BoundCheck]):
     """Pd < 1: the MRE against the mean EKF covariance."""
     if not checks:
         return None
-    fig = new_figure(figsize=(7, 4))
-    ax = fig.subplots()
+    fig, ax = figure_axes((7, 4))
     for i, c in enumerate(checks):
         k = np.arange(1, len(c.mre_det_t) + 1)
         ax.semilogy(k, c.mre_det_t, "--", color=f"C{i}", label=f"{c.case}: MRE (eq. 23)")
@@ -856,9 +800,7 @@ def _fig_bound(checks: list[BoundCheck]):
 
 def save_figures(res: RamdarasResults, out: str | Path) -> list[Path]:
     """Fig. 7/10 (tracks and sensor paths), 8/11 (selection timelines), 9/12 (det_pos) and
-    the Pd < 1 bound check, as PNG files in ``out``; returns the files written."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    the Pd < 1 bound check as PNG files in ``out``; returns the files."""
     mre = res.mre()
     figures = (
         ("fig10_tracks_sensor_paths.png", lambda: _fig_tracks(mre)),
@@ -870,9 +812,6 @@ def save_figures(res: RamdarasResults, out: str | Path) -> list[Path]:
     return write_figures(figures, out, dpi=110, tight_layout=False, bbox_inches="tight")
 
 
-# --- command line ------------------------------------------------------------------------------
-
-
 def _options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="3 runs, fewer baselines")
     parser.add_argument("--cases", help="comma-separated case keys (default: all)")
@@ -881,11 +820,8 @@ def _options(parser: argparse.ArgumentParser) -> None:
 
 def _check_cli(args: argparse.Namespace) -> None:
     """Adds ``case_keys``, the cases of ``--cases``."""
-    keys = list(CASE_KEYS)
-    args.case_keys = keys if args.cases is None else [c.strip() for c in args.cases.split(",")]
-    bad = [c for c in args.case_keys if c not in keys]
-    if bad:
-        raise ValueError(f"--cases: unknown {bad}; choose from {keys}")
+    cases = None if args.cases is None else [c.strip() for c in args.cases.split(",")]
+    args.case_keys = list(_case_keys(cases, "--cases"))
 
 
 REPRODUCTION = Reproduction(

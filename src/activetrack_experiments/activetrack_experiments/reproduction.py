@@ -2,13 +2,10 @@
 Monte Carlo plumbing.
 
 A paper's module ``activetrack_experiments.NAME`` computes (``reproduce(runs=, jobs=,
-scheduler=, task_progress=, ...)`` returns results whose ``to_json()`` is the JSON document),
-formats (``format_report(res)``, the text it prints) and draws (``save_figures(res, out)``).
-Its command line is a :class:`Reproduction` of the module, with the options it adds and the
-arguments of ``reproduce`` they set; the driver adds the options every paper takes (``--runs``
-with the paper's range and default, ``--jobs``, ``--scheduler``, ``--json``, ``--out``,
-``--no-figures``), runs, prints the report, writes the figures with the document beside them
-(``OUT/results.json``) and the document to ``--json``::
+scheduler=, task_progress=, ...)``: ``jobs`` worker processes or the Dask cluster ``scheduler``,
+``task_progress(done, total)`` called as tasks finish; neither changes the numbers), formats
+(``format_report(res)``) and draws (``save_figures(res, out)``); ``res.to_json()`` is the JSON
+document. Its command line is a :class:`Reproduction`::
 
     REPRODUCTION = Reproduction(
         "fifth",  # activetrack_experiments.fifth: activetrack reproduce fifth
@@ -35,8 +32,9 @@ from typing import Any, TypeVar
 from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.limits import MAX_JOBS, MAX_RUNS
 from activetrack.montecarlo import Progress, Scheduler, available_jobs, parallel_map
+from activetrack.plots import new_figure
 
-__all__ = ["Reproduction", "RunsOption", "map_groups", "split"]
+__all__ = ["Reproduction", "RunsOption", "figure_axes", "map_groups", "split"]
 
 T = TypeVar("T")
 V = TypeVar("V")
@@ -57,22 +55,19 @@ class RunsOption:
 class Reproduction:
     """One paper's command line; :meth:`main` is its entry point.
 
-    ``name``: of the paper's module ``activetrack_experiments.NAME`` and of ``activetrack
-    reproduce NAME`` (figures in ``runs/reproduce-NAME`` by default); ``description``: the
-    first line of ``--help``; ``reproduce`` (default: the module's): called with ``runs``,
-    ``jobs``, ``scheduler``, ``task_progress`` and ``arguments(args)``; ``report(res)``
-    (default: the module's ``format_report``): the text printed; ``figures(res, args)``
-    (default: the module's ``save_figures(res, args.out)``) writes the figures into
-    ``args.out`` and returns the files; ``options(parser)`` adds the paper's own options;
-    ``check(args)`` completes and checks them (a ValueError is a usage error, exit code 2, whose
-    message names the option); ``document(res, figures, wall_time_s)``: the JSON document
-    (default ``res.to_json()``).
+    ``name``: of the module and of ``activetrack reproduce NAME`` (figures in
+    ``runs/reproduce-NAME`` by default). The driver adds ``--runs``, ``--jobs``, ``--scheduler``,
+    ``--json``, ``--out`` and ``--no-figures``; ``options(parser)`` adds the paper's own and
+    ``check(args)`` completes them (a ValueError naming the option is a usage error, exit code 2).
+    The module's ``reproduce`` is called with ``runs``, ``jobs``, ``scheduler``,
+    ``task_progress`` and ``arguments(args)``. Left None, ``report`` and ``figures`` are the
+    module's ``format_report`` and ``save_figures(res, args.out)``, and ``document(res,
+    figures, wall_time_s)`` is ``res.to_json()``.
     """
 
     name: str
     description: str
     runs: RunsOption
-    reproduce: Callable[..., Any] | None = None
     report: Callable[[Any], str] | None = None
     figures: Callable[[Any, argparse.Namespace], list[Path]] | None = None
     options: Callable[[argparse.ArgumentParser], Any] | None = None
@@ -81,7 +76,6 @@ class Reproduction:
     document: Callable[[Any, list[Path], float], dict] | None = None
 
     def _paper(self, attr: str, given: Callable | None = None) -> Callable:
-        """``given``, else the paper module's function ``attr``."""
         return given or getattr(import_module(f"activetrack_experiments.{self.name}"), attr)
 
     def parser(self) -> argparse.ArgumentParser:
@@ -128,13 +122,11 @@ class Reproduction:
         task_progress: Callable[[int, int], None] | None = None,
     ) -> int:
         """``activetrack reproduce NAME`` with ``argv`` (default: ``sys.argv[1:]``): run, print
-        the report, the figures written and the wall time, write the JSON document; 0.
-        ``task_progress(done, total)`` is called as the Monte Carlo tasks finish (the command
-        line's progress bar); it does not change the numbers."""
+        the report, the figures written and the wall time, write the JSON document; 0."""
         args = self.parse(sys.argv[1:] if argv is None else argv)
         start = time.perf_counter()
         kw = dict(jobs=args.jobs, scheduler=args.scheduler, task_progress=task_progress)
-        res = self._paper("reproduce", self.reproduce)(runs=args.runs, **kw, **self.arguments(args))
+        res = self._paper("reproduce")(runs=args.runs, **kw, **self.arguments(args))
         print(self._paper("format_report", self.report)(res))
         if args.no_figures:
             figures = []
@@ -153,6 +145,12 @@ class Reproduction:
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(text)
         return 0
+
+
+def figure_axes(figsize: tuple[float, float], *grid: int, **kw: Any):
+    """A new figure (:func:`activetrack.plots.new_figure`) and ``fig.subplots(*grid, **kw)``."""
+    fig = new_figure(figsize=figsize)
+    return fig, fig.subplots(*grid, **kw)
 
 
 def split(items: Sequence[T], sizes: Sequence[int]) -> list[list[T]]:

@@ -1,36 +1,12 @@
 """Reproduce Valverde (USBL range/bearing tracking) Tables I-V and Figs. 2-8.
 
-A vehicle circles at constant speed and turn rate in view of a stationary USBL-style
-range+bearing sensor (Valverde sec. III, eq. 10-14). Two EKFs (eq. 2-9) track it:
-
-- ``circular``: the circular-motion state model (psi, px, py, omega, v), eq. 24-25;
-- ``constant_turn``: the constant-turn model with known turn rate on pv, eq. 35-37.
-
-For each measurement-noise pair of Table III, each model is run over Monte Carlo runs in two
-cases, and the time-averaged square errors of px and py are compared with a bound:
-
-- ``crlb`` (Table IV): no process noise. The truth is the nominal circle; the filter's prior
-  mean is drawn from N(x0, S0) (eq. 44) and the bound is Taylor's CRLB along the nominal path
-  (eq. 50-51, ``bounds.taylor_crlb``, J_0 = S0^{-1}).
-- ``pcrb`` (Tables III and V): process noise. Each model's truth is sampled from that model
-  (x0 ~ N(x_bar, P0), then eq. 24 / eq. 34 with noise) and the bound is the PCRB of eq. 65
-  linearised along the nominal path, as in the paper. For the linear constant-turn dynamics the
-  Monte Carlo Tichavsky recursion (eq. 56-64) on the same truth trajectories is reported too.
-
-The motion and sensor models, bounds and observability rank are the core's. The Monte Carlo
-EKF runs all trajectories of a row at once (the core's :func:`activetrack.filters.ekf_over_runs`,
-the equations of ``filters.ExtendedKalmanFilter`` batched over runs); the rows are the tasks of
-one :func:`activetrack.montecarlo.parallel_map`. Tables I-II are the rank of the eq. 38
-observability matrix (``observability.observability_rank``). The scenario choices (Fig. 2 is
-lost) are in :class:`ValverdeSetup` and docs/valverde.md.
-
-In a notebook::
-
-    from activetrack_experiments import valverde
-    res = valverde.reproduce(runs=50, quick=True, jobs=2)
-    res.table()  # one flat row per case, model and noise pair
-
-On the command line: ``activetrack reproduce valverde --help``.
+Two EKFs (eq. 2-9; ``circular``: eq. 24-25; ``constant_turn``, known turn rate: eq. 35-37)
+track a vehicle circling a stationary range+bearing sensor (eq. 10-14) for every noise pair of
+Table III in two cases: ``crlb`` (no process noise; Taylor's CRLB along the nominal path, eq.
+50-51; Table IV) and ``pcrb`` (process noise; the eq. 65 PCRB along the nominal path and, for
+constant turn, the Monte Carlo Tichavsky PCRB, eq. 56-64; Tables III and V). Tables I-II are the
+rank of the eq. 38 observability matrix. docs/valverde.md explains the cases and the scenario
+choices (Fig. 2 is lost).
 """
 
 from __future__ import annotations
@@ -40,6 +16,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -56,10 +33,11 @@ from activetrack.models.motion import CircularMotion, ConstantTurn
 from activetrack.models.sensors import RangeBearingSensor
 from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.observability import observability_rank
-from activetrack.plots import new_figure, write_figures
-from activetrack_experiments.reproduction import Reproduction, RunsOption
+from activetrack.plots import write_figures
+from activetrack_experiments.reproduction import Reproduction, RunsOption, figure_axes
 
 MODELS = ("circular", "constant_turn")
+NAMES = {"circular": "circular motion", "constant_turn": "constant turn (known rate)"}
 CASES = ("crlb", "pcrb")
 # Index of (px, py) in each model's state.
 POSITION_INDEX = {"circular": (1, 2), "constant_turn": (0, 2)}
@@ -108,6 +86,12 @@ PAPER_TABLE_V = (
     (9.320e-1, 8.383e-1, 1.941e-1, 2.045e-1, 9.673e-1, 8.337e-1, 5.681e-1, 4.636e-1),
 )
 
+# Tables IV-V: each case's table number, process noise and the paper's values.
+BOUND_TABLES = {
+    "crlb": ("IV", "without process noise (eq. 50-51)", PAPER_TABLE_IV),
+    "pcrb": ("V", "with process noise (eq. 65, nominal path)", PAPER_TABLE_V),
+}
+
 # Tables I-II, eq. 38: the paper's test conditions and ranks (its condition labels are partly
 # lost; "omega > v" and "dt -> 0" are from the text). Ours: (label, v, omega, dt, paper ranks).
 RANK_CONDITIONS = (
@@ -122,16 +106,10 @@ RANK_CONDITIONS = (
 
 @dataclass(frozen=True)
 class ValverdeSetup:
-    """Scenario choices (the paper's Fig. 2 is lost; see docs/valverde.md).
-
-    A USBL at the origin; the vehicle circles the centre ``centre`` with radius ``radius`` at
-    speed ``speed`` counter-clockwise (omega = speed / radius = 0.05 rad/s, period 126 s),
-    starting at the bottom of the circle heading east, so the range varies from 10 to 50 m.
-    Process noise (pcrb case): sigma_omega [rad/s/sqrt(s)] and sigma_v [m/s/sqrt(s)] of eq. 25
-    for the circular model, acceleration PSD q = sigma_v^2 [m^2/s^3] for the constant-turn one.
-    Prior standard deviations: heading, position, turn rate, speed (the constant-turn prior is
-    the same prior mapped to pv by the kinematics Jacobian).
-    """
+    """Scenario choices (docs/valverde.md): the vehicle circles ``centre`` counter-clockwise
+    from the bottom, heading east. Process noise (pcrb case): sigma_omega [rad/s/sqrt(s)] and
+    sigma_v [m/s/sqrt(s)] of eq. 25, q = sigma_v^2 [m^2/s^3] for constant turn. Prior standard
+    deviations: heading, position, turn rate, speed."""
 
     sensor_xy: tuple[float, float] = (0.0, 0.0)
     centre: tuple[float, float] = (30.0, 0.0)
@@ -175,9 +153,8 @@ class ValverdeSetup:
 
     def model(self, model: str, process_noise: bool):
         if model == "circular":
-            if process_noise:
-                return CircularMotion(self.sigma_omega, self.sigma_v)
-            return CircularMotion(0.0, 0.0)
+            noise = (self.sigma_omega, self.sigma_v) if process_noise else (0.0, 0.0)
+            return CircularMotion(*noise)
         return ConstantTurn(self.omega, self.q if process_noise else 0.0)
 
     @staticmethod
@@ -242,9 +219,6 @@ class RankRow:
     paper_constant_turn: int | None
 
 
-# --- the Monte Carlo ---------------------------------------------------------------------------
-
-
 def _gaussian(mean, P, shape, rng):
     L = np.linalg.cholesky(P)
     return mean + rng.standard_normal((*shape, len(mean))) @ L.T
@@ -274,18 +248,12 @@ def bound_series(setup: ValverdeSetup, model_name: str, sensor, process_noise: b
     """Covariance bound ``(steps, n, n)`` along the nominal path: Taylor CRLB (eq. 50-51) or the
     nominal-path PCRB (eq. 65), both with J_0 = P0^{-1}."""
     model = setup.model(model_name, process_noise)
+    x0, P0 = setup.x0(model_name), setup.P0(model_name)
     # A candidate axis of size 1 keeps pcrlb_step on numpy's batched solves: its single-matrix
     # LAPACK dtrtrs path takes ~15 ms per call when OpenBLAS runs 2 threads on a busy machine.
     paths = np.broadcast_to(setup.sensor_pv, (setup.steps, 1, 4))
     J = taylor_crlb(
-        model,
-        sensor,
-        paths,
-        setup.x0(model_name),
-        setup.steps,
-        setup.dt,
-        P0=setup.P0(model_name),
-        process_noise=process_noise,
+        model, sensor, paths, x0, setup.steps, setup.dt, P0=P0, process_noise=process_noise
     )
     return covariance_bound(J[:, 0])
 
@@ -332,17 +300,10 @@ class RowTask:
 def _monte_carlo_pcrb(task: RowTask, model, sensor) -> np.ndarray:
     """Time-averaged Tichavsky PCRB of (px, py) over the row's true trajectories (eq. 56-64)."""
     setup, truth = task.setup, task.draws.truth
+    paths = np.broadcast_to(setup.sensor_pv, (setup.steps, 4))
+    x0, P0, runs = setup.x0(task.model), setup.P0(task.model), truth.shape[1]
     J = tichavsky_pcrlb(
-        model,
-        sensor,
-        np.broadcast_to(setup.sensor_pv, (setup.steps, 4)),
-        setup.x0(task.model),
-        setup.P0(task.model),
-        setup.steps,
-        setup.dt,
-        truth.shape[1],
-        None,
-        trajectories=truth,
+        model, sensor, paths, x0, P0, setup.steps, setup.dt, runs, None, trajectories=truth
     )
     ix = list(POSITION_INDEX[task.model])
     return covariance_bound(J)[:, ix, ix].mean(axis=0)
@@ -369,18 +330,9 @@ def run_row(task: RowTask) -> RowResult:
     bound_mc = None
     if process_noise and task.model == "constant_turn":
         bound_mc = _monte_carlo_pcrb(task, model, sensor)
+    row, diverged = (task.case, task.model, task.sigma_r, task.sigma_b_deg), int(runs - ok.sum())
     return RowResult(
-        task.case,
-        task.model,
-        task.sigma_r,
-        task.sigma_b_deg,
-        per_run.mean(axis=0),
-        se,
-        B.mean(axis=0),
-        err2.mean(axis=1),
-        B,
-        bound_mc,
-        int(runs - ok.sum()),
+        *row, per_run.mean(axis=0), se, B.mean(axis=0), err2.mean(axis=1), B, bound_mc, diverged
     )
 
 
@@ -401,9 +353,6 @@ def observability_table(setup: ValverdeSetup, n_steps: int = 10, rtol: float = 1
         ]
         rows.append(RankRow(label, *(r.rank for r in ranks), *paper))
     return rows
-
-
-# --- the reproduction --------------------------------------------------------------------------
 
 
 @dataclass
@@ -463,11 +412,8 @@ def reproduce(
 
     ``setup`` replaces :class:`ValverdeSetup` (its ``steps`` unless ``steps`` is given);
     ``seed``: (case, model) draws from SeedSequence([seed, case, model]), shared by its noise
-    rows; ``jobs`` worker processes or the Dask cluster ``scheduler`` (``tcp://host:port``),
-    one :func:`activetrack.montecarlo.parallel_map` over the rows (the results do not depend
-    on either); a run counts as diverged when a square error
-    exceeds ``divergence_m``^2. ``task_progress(done, total)`` is called as rows finish (the
-    command line's progress bar).
+    rows, which are the tasks of one parallel map; a run counts as diverged when a square error
+    exceeds ``divergence_m``^2.
     """
     if steps is None:
         steps = setup.steps if setup is not None else 126 if quick else 252
@@ -490,9 +436,6 @@ def reproduce(
     rows = parallel_map(run_row, tasks, jobs, progress, scheduler)
     mc_time = time.perf_counter() - start
     return ValverdeResults(setup, runs, seed, rows, observability_table(setup), mc_time)
-
-
-# --- tables ------------------------------------------------------------------------------------
 
 
 def _noise_label(sr, sb):
@@ -518,10 +461,13 @@ def format_table_iii(res: ValverdeResults) -> str:
     return "\n".join(lines)
 
 
-def _format_bound_table(res, case, title, bound_name, paper_table) -> str:
+def format_bound_table(res: ValverdeResults, case: str) -> str:
+    """Table IV (``case`` "crlb") or V ("pcrb"): MSE and bound of both models, and the paper's."""
+    number, noise, paper_table = BOUND_TABLES[case]
+    bound_name = case.upper()
     circ, ct = res.get(case, "circular"), res.get(case, "constant_turn")
     lines = [
-        title,
+        f"TABLE {number}. Square mean error [m^2] and {bound_name} {noise}",
         "Noise variance   |        Circular motion state model        |"
         "   Constant turn model with known turn rate  |",
         f"d[m^2]  b[deg^2] |  MSE px    MSE py   {bound_name:>4} px   {bound_name:>4} py  |"
@@ -536,26 +482,6 @@ def _format_bound_table(res, case, title, bound_name, paper_table) -> str:
         if b.bound_mc is not None:
             lines.append(f"{'  ct PCRB (MC)':16} | {'':39} | {'':19} {_fmt(b.bound_mc)}")
     return "\n".join(lines)
-
-
-def format_table_iv(res: ValverdeResults) -> str:
-    return _format_bound_table(
-        res,
-        "crlb",
-        "TABLE IV. Square mean error [m^2] and CRLB without process noise (eq. 50-51)",
-        "CRLB",
-        PAPER_TABLE_IV,
-    )
-
-
-def format_table_v(res: ValverdeResults) -> str:
-    return _format_bound_table(
-        res,
-        "pcrb",
-        "TABLE V. Square mean error [m^2] and PCRB with process noise (eq. 65, nominal path)",
-        "PCRB",
-        PAPER_TABLE_V,
-    )
 
 
 def format_rank_tables(rows: list[RankRow]) -> str:
@@ -584,23 +510,16 @@ def format_report(res: ValverdeResults) -> str:
         "RMS errors [m]; ours are mean square errors [m^2] (RMS in the JSON).",
         format_rank_tables(res.ranks),
         format_table_iii(res),
-        format_table_iv(res),
-        format_table_v(res),
+        *(format_bound_table(res, case) for case in CASES),
     ]
     return "\n\n".join(parts) + "\n"
-
-
-# --- figures -----------------------------------------------------------------------------------
-
-NAMES = {"circular": "circular motion", "constant_turn": "constant turn (known rate)"}
 
 
 def _fig_mse(res: ValverdeResults, case: str, axis: int, num: int):
     """Fig. 3-6: MSE of x or y (2 standard errors) and the bound against the noise pair."""
     labels = [f"{r.sigma_r:g}/{r.sigma_b_deg:g}" for r in res.get("crlb", "circular")]
     idx = np.arange(len(labels))
-    fig = new_figure(figsize=(7, 4))
-    ax = fig.subplots()
+    fig, ax = figure_axes((7, 4))
     for m, colour in zip(MODELS, ("C0", "C1"), strict=True):
         rows = res.get(case, m)
         mse = np.array([r.mse[axis] for r in rows])
@@ -620,8 +539,7 @@ def _fig_time(res: ValverdeResults, model: str, num: int, series_row: int):
     """Fig. 7-8: MSE and PCRB against time for one noise pair (with process noise)."""
     row = res.get("pcrb", model)[series_row]
     t = res.setup.dt * np.arange(1, res.setup.steps + 1)
-    fig = new_figure(figsize=(7, 4))
-    ax = fig.subplots()
+    fig, ax = figure_axes((7, 4))
     for axis, colour in ((0, "C0"), (1, "C3")):
         name = "xy"[axis]
         ax.plot(t, row.mse_t[:, axis], color=colour, alpha=0.4, lw=0.8, label=f"EKF {name} MSE")
@@ -637,8 +555,7 @@ def _fig_time(res: ValverdeResults, model: str, num: int, series_row: int):
 
 def _fig_path(setup: ValverdeSetup):
     """Fig. 2: the nominal path and the USBL."""
-    fig = new_figure(figsize=(5, 5))
-    ax = fig.subplots()
+    fig, ax = figure_axes((5, 5))
     model = setup.model("circular", False)
     path_xy = nominal_path(model, setup.x0("circular"), setup.steps, setup.dt)[:, 1:3]
     ax.plot(path_xy[:, 0], path_xy[:, 1], label="vehicle (nominal)")
@@ -651,24 +568,16 @@ def _fig_path(setup: ValverdeSetup):
 def save_figures(res: ValverdeResults, out: str | Path, series_row: int = 3) -> list[Path]:
     """Fig. 3-6 (MSE and bound vs noise), 7-8 (against time, noise pair ``series_row``) and
     2 (the path) as PNG files in ``out``; returns the files written."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     figures = [
-        (
-            f"fig{num}_mse_{'xy'[axis]}_{case}.png",
-            lambda c=case, a=axis, n=num: _fig_mse(res, c, a, n),
-        )
-        for case, axis, num in (("crlb", 0, 3), ("crlb", 1, 4), ("pcrb", 0, 5), ("pcrb", 1, 6))
+        (f"fig{n}_mse_{'xy'[axis]}_{case}.png", partial(_fig_mse, res, case, axis, n))
+        for case, axis, n in (("crlb", 0, 3), ("crlb", 1, 4), ("pcrb", 0, 5), ("pcrb", 1, 6))
     ]
     figures += [
-        (f"fig{num}_time_{m}.png", lambda m=m, n=num: _fig_time(res, m, n, series_row))
-        for m, num in zip(MODELS, (7, 8), strict=True)
+        (f"fig{n}_time_{m}.png", partial(_fig_time, res, m, n, series_row))
+        for m, n in zip(MODELS, (7, 8), strict=True)
     ]
-    figures.append(("fig2_path.png", lambda: _fig_path(res.setup)))
+    figures.append(("fig2_path.png", partial(_fig_path, res.setup)))
     return write_figures(figures, out, dpi=110)
-
-
-# --- command line ------------------------------------------------------------------------------
 
 
 def _options(parser: argparse.ArgumentParser) -> None:

@@ -1,27 +1,12 @@
 """Reproduce Vander Hook, Tokekar, Isler (003): Table I, Fig. 5 and the sec. V worked example.
 
-Table I: C = E[T_ALG] / E[T_LB] for sweeps of r0_hat, c_d, t_m and beta (prior sigma_0 = 60 m at
-(0, 0), true targets drawn from the prior, robot at 1 m/s starting at (r0_hat, 0), sigma_s =
-15 deg). T_ALG = N t_m + distance from the batched simulation, T_LB from Theorem 2 (eq. 6) at
-the true range. The upper bound is Theorem 1 (eq. 5) with N and the travel evaluated by
-``cautious_schedule`` (Lemma 4-5's argument summed exactly); the printed closed forms (Lemma 4,
-eq. 4) are shown too. The simulated ratio uses sigma_beta with a one-sided tail, which is what
-reproduces the paper's numbers; the printed two-sided formula is shown alongside
-(docs/vanderhook.md explains).
-
-Fig. 5: number of measurements and final error against beta, with the greedy (non-cautious)
-baseline, and the wrong-side (ambiguity failure) rates of cautious and greedy runs.
-
-Every batch of localisations (``vanderhook_sim.simulate_localisation``, seeded with
-``default_rng(seed)``) is one task of a single :func:`activetrack.montecarlo.parallel_map`.
-
-In a notebook::
-
-    from activetrack_experiments import vanderhook
-    res = vanderhook.reproduce(runs=400, quick=True, jobs=2)
-    res.table()  # Table I, one flat row per sweep value; res.table("failures") for Fig. 5
-
-On the command line: ``activetrack reproduce vanderhook --help``.
+Table I: C = E[T_ALG] / E[T_LB] for sweeps of r0_hat, c_d, t_m and beta, T_ALG = N t_m + distance
+from the batched simulation (``vanderhook_sim``), T_LB from Theorem 2 (eq. 6) at the true range;
+the upper bound is Theorem 1 (eq. 5) with N and the travel of ``cautious_schedule``, next to the
+printed closed forms (Lemma 4, eq. 4). The simulated ratio uses the one-sided sigma_beta, which
+reproduces the paper's numbers; the printed two-sided one is shown alongside (docs/vanderhook.md).
+Fig. 5: measurements and final error against beta, with the greedy baseline, and the wrong-side
+(ambiguity failure) rates. Every batch of localisations is one task of a single parallel map.
 """
 
 from __future__ import annotations
@@ -48,34 +33,13 @@ from activetrack.planning.cautious_bounds import (
     time_lower_bound,
     time_upper_bound,
 )
-from activetrack.plots import new_figure, write_figures
-from activetrack_experiments.reproduction import Reproduction, RunsOption, split
+from activetrack.plots import write_figures
+from activetrack_experiments.reproduction import Reproduction, RunsOption, figure_axes, split
 from activetrack_experiments.vanderhook_sim import (
     SIGMA_S_DEFAULT,
     LocalisationBatch,
     simulate_localisation,
 )
-
-__all__ = [
-    "PAPER_TABLE1",
-    "REPRODUCTION",
-    "ExampleRun",
-    "FailureRow",
-    "SimTask",
-    "Table1Row",
-    "VanderHookResults",
-    "WorkedExample",
-    "example_trajectory",
-    "format_failures",
-    "format_report",
-    "format_table1",
-    "main",
-    "reproduce",
-    "save_figures",
-    "simulate_all",
-    "table1",
-    "worked_example",
-]
 
 SIGMA0 = 60.0  # m, Table I prior
 R_MIN = 1.0  # m, floor under the cautious range (reached only when sigma_beta is infinite)
@@ -85,7 +49,7 @@ BETAS = (0.001, 0.01, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5)  # Fig. 5
 QUICK_BETAS = (0.01, 0.1, 0.5)
 TWO_SIDED_BETAS = (0.01, 0.1)  # the failure rows repeated with the printed sigma_beta
 # Sec. V worked example: sigma_0 (m), r_0 (m), t_m (s), c_d (one sigma to < 6 m).
-EXAMPLE = {"sigma0": 50.0, "r0": 60.0, "t_m": 60.0, "c_d": 6.0 / 50.0}
+EXAMPLE = {"sigma0": 50.0, "r0_hat": 60.0, "t_m": 60.0, "c_d": 6.0 / 50.0}
 
 # Table I of the paper: (sweep, value) -> (simulated ratio, theoretical upper bound).
 PAPER_TABLE1 = {
@@ -102,9 +66,6 @@ PAPER_TABLE1 = {
     ("beta", 0.2): (2.5699, 3.8353),
     ("beta", 0.5): (1.5946, 2.2264),
 }
-
-
-# --- the Monte Carlo ---------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -131,16 +92,12 @@ def simulate_all(
     progress: Progress | None = None,
     scheduler: Scheduler | None = None,
 ) -> list[LocalisationBatch]:
-    """The batches of ``tasks`` in task order, equal tasks run once, on ``jobs`` processes or
-    the Dask cluster ``scheduler`` (:func:`activetrack.montecarlo.parallel_map`; the results
-    do not depend on either); ``progress`` is called with the count of distinct tasks done."""
+    """The batches of ``tasks`` in task order, equal tasks run once (one parallel map;
+    ``progress`` counts the distinct tasks done)."""
     unique = list(dict.fromkeys(tasks))
     batches = parallel_map(simulate_task, unique, jobs, progress, scheduler)
     done = dict(zip(unique, batches, strict=True))
     return [done[t] for t in tasks]
-
-
-# --- Table I -----------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -171,8 +128,7 @@ def _table1_tasks(runs: int, seed: int) -> list[SimTask]:
     """Two batches per row (one-sided, two-sided tail), common random numbers."""
     tasks = []
     for sweep, value in PAPER_TABLE1:
-        p = _params(sweep, value)
-        kw = dict(sigma0=SIGMA0, r0_hat=p["r0_hat"], beta=p["beta"], c_d=p["c_d"], t_m=p["t_m"])
+        kw = dict(sigma0=SIGMA0, **_params(sweep, value))
         tasks += [
             SimTask.of(runs, seed, r_min=R_MIN, tail=t, **kw) for t in ("one_sided", "two_sided")
         ]
@@ -232,9 +188,6 @@ def table1(
     return _table1_rows(simulate_all(_table1_tasks(runs, seed), jobs, scheduler=scheduler))
 
 
-# --- the worked example ------------------------------------------------------------------------
-
-
 @dataclass(frozen=True)
 class WorkedExample:
     """Sec. V: sigma_0 = 50 m, r_0 = 60 m, t_m = 60 s, sigma_s = 15 deg, one-sigma to < 6 m."""
@@ -251,13 +204,11 @@ class WorkedExample:
 
 
 def _example_task(runs: int, seed: int, beta: float) -> SimTask:
-    e = EXAMPLE
-    kw = dict(sigma0=e["sigma0"], r0_hat=e["r0"], c_d=e["c_d"], t_m=e["t_m"])
-    return SimTask.of(runs, seed, beta=beta, r_min=R_MIN, **kw)
+    return SimTask.of(runs, seed, beta=beta, r_min=R_MIN, **EXAMPLE)
 
 
 def _worked_example(batch: LocalisationBatch, beta: float) -> WorkedExample:
-    sigma0, r0, t_m, c_d = EXAMPLE["sigma0"], EXAMPLE["r0"], EXAMPLE["t_m"], EXAMPLE["c_d"]
+    sigma0, r0, t_m, c_d = EXAMPLE["sigma0"], EXAMPLE["r0_hat"], EXAMPLE["t_m"], EXAMPLE["c_d"]
     n_z = lemma4_measurements(beta, SIGMA_S_DEFAULT, c_d)
     sched = cautious_schedule(sigma0**2 * np.eye(2), beta, SIGMA_S_DEFAULT, c_d)
     d01 = float(batch.first_leg[0])
@@ -281,9 +232,6 @@ def worked_example(runs: int = 500, seed: int = 0, beta: float = 0.1) -> WorkedE
     return _worked_example(simulate_task(_example_task(runs, seed, beta)), beta)
 
 
-# --- Fig. 5 and the ambiguity failures ---------------------------------------------------------
-
-
 @dataclass(frozen=True)
 class FailureRow:
     """Ambiguity failures of one strategy at the Table I base setting."""
@@ -300,21 +248,6 @@ class FailureRow:
     mean_time: float  # s
 
 
-def _failure_row(strategy, beta, batch, first) -> FailureRow:
-    return FailureRow(
-        strategy=strategy,
-        beta=beta,
-        final_wrong_side_rate=float(batch.final_wrong_side.mean()),
-        wrong_side_rate=float(batch.wrong_side.mean()),
-        first_wrong_side_rate=float(first),
-        events_per_run=float(batch.wrong_side_events.mean()),
-        n_measurements=float(batch.n_measurements.mean()),
-        median_error=float(np.median(batch.final_error)),
-        mean_error=float(batch.final_error.mean()),
-        mean_time=float(batch.time.mean()),
-    )
-
-
 def _failure_tasks(runs: int, betas, seed: int, tail: str) -> list[SimTask]:
     """Per beta and for the greedy baseline: the full run and its first measurement only
     (same true targets and noise stream per row)."""
@@ -329,10 +262,24 @@ def _failure_tasks(runs: int, betas, seed: int, tail: str) -> list[SimTask]:
 
 
 def _failure_rows(betas, batches: Sequence[LocalisationBatch]) -> list[FailureRow]:
+    """A row per beta and the greedy baseline from their (full run, first measurement) batches."""
     strategies = [("cautious", float(b)) for b in betas] + [("greedy", None)]
     return [
-        _failure_row(strategy, beta, batches[2 * i], batches[2 * i + 1].wrong_side.mean())
-        for i, (strategy, beta) in enumerate(strategies)
+        FailureRow(
+            strategy=strategy,
+            beta=beta,
+            final_wrong_side_rate=float(batch.final_wrong_side.mean()),
+            wrong_side_rate=float(batch.wrong_side.mean()),
+            first_wrong_side_rate=float(first.wrong_side.mean()),
+            events_per_run=float(batch.wrong_side_events.mean()),
+            n_measurements=float(batch.n_measurements.mean()),
+            median_error=float(np.median(batch.final_error)),
+            mean_error=float(batch.final_error.mean()),
+            mean_time=float(batch.time.mean()),
+        )
+        for (strategy, beta), batch, first in zip(
+            strategies, batches[::2], batches[1::2], strict=True
+        )
     ]
 
 
@@ -362,9 +309,6 @@ def example_trajectory(seed: int = 1, beta: float = 0.1) -> ExampleRun:
         sensors.append(robot)
         estimates.append(mean)
     return ExampleRun(truth, np.array(sensors), np.array(estimates))
-
-
-# --- the reproduction --------------------------------------------------------------------------
 
 
 @dataclass
@@ -416,11 +360,8 @@ def reproduce(
     """Vander Hook et al. (003): the worked example (min(runs, 1000) runs), Table I and the
     Fig. 5 failure rows (``betas``, default ``BETAS``, ``QUICK_BETAS`` when ``quick``; and
     ``TWO_SIDED_BETAS`` with the two-sided sigma_beta), ``runs`` localisations per batch
-    (default 4000, 400 when ``quick``), each batch from ``default_rng(seed)``. ``jobs`` worker
-    processes or the Dask cluster ``scheduler`` (``tcp://host:port``): one
-    :func:`activetrack.montecarlo.parallel_map` over all batches (the results do not depend on
-    either). Fig. 4's single run always uses seed 1. ``task_progress(done,
-    total)`` is called as batches finish (the command line's progress bar).
+    (default 4000, 400 when ``quick``), each batch from ``default_rng(seed)``, all batches in
+    one parallel map. Fig. 4's single run always uses seed 1.
     """
     runs = (400 if quick else 4000) if runs is None else runs
     require_int("runs", runs, 1, MAX_RUNS)
@@ -446,9 +387,6 @@ def reproduce(
         failures_two_sided=_failure_rows(TWO_SIDED_BETAS, fail_two),
         trajectory=example_trajectory(),
     )
-
-
-# --- output ------------------------------------------------------------------------------------
 
 
 def format_table1(rows: list[Table1Row]) -> str:
@@ -514,16 +452,12 @@ def format_report(res: VanderHookResults) -> str:
     return "\n".join(parts)
 
 
-# --- figures -----------------------------------------------------------------------------------
-
-
 def _fig_beta(failures: list[FailureRow]):
     """Fig. 5: measurements and final error against beta, the greedy baseline dashed."""
     cautious = [f for f in failures if f.strategy == "cautious"]
     greedy = next(f for f in failures if f.strategy == "greedy")
     betas = [f.beta for f in cautious]
-    fig = new_figure(figsize=(6, 6))
-    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    fig, (ax1, ax2) = figure_axes((6, 6), 2, 1, sharex=True)
     ax1.semilogx(betas, [f.n_measurements for f in cautious], "o-", label="cautious")
     ax1.axhline(greedy.n_measurements, color="r", ls="--", label="greedy (10 m standoff)")
     ax1.set_ylabel("measurements")
@@ -539,8 +473,7 @@ def _fig_beta(failures: list[FailureRow]):
 
 def _fig_table1(rows: list[Table1Row]):
     """Table I: our ratios, the paper's and our bound, per sweep."""
-    fig = new_figure(figsize=(6, 4))
-    ax = fig.subplots()
+    fig, ax = figure_axes((6, 4))
     sweeps = list(dict.fromkeys(r.sweep for r in rows))
     for i, sweep in enumerate(sweeps):
         sel = [r for r in rows if r.sweep == sweep]
@@ -558,8 +491,7 @@ def _fig_table1(rows: list[Table1Row]):
 
 def _fig_run(run: ExampleRun):
     """Fig. 4: sensing locations and estimates of one cautious run."""
-    fig = new_figure(figsize=(5, 5))
-    ax = fig.subplots()
+    fig, ax = figure_axes((5, 5))
     ax.plot(*np.vstack([[BASE["r0_hat"], 0.0], run.sensors]).T, "g.-", label="sensor locations")
     ax.plot(*run.estimates.T, "r.-", label="estimates")
     ax.plot(*run.truth, "k*", ms=12, label="true target")
@@ -570,17 +502,12 @@ def _fig_run(run: ExampleRun):
 
 def save_figures(res: VanderHookResults, out: str | Path) -> list[Path]:
     """``fig5_beta.png``, ``table1.png`` and ``fig4_run.png`` in ``out``; returns the files."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     figures = (
         ("fig5_beta.png", lambda: _fig_beta(res.failures)),
         ("table1.png", lambda: _fig_table1(res.table1)),
         ("fig4_run.png", lambda: _fig_run(res.trajectory)),
     )
     return write_figures(figures, out, dpi=120)
-
-
-# --- command line ------------------------------------------------------------------------------
 
 
 def _options(parser: argparse.ArgumentParser) -> None:

@@ -1,19 +1,14 @@
 """Batched Monte Carlo of the beta-cautious strategy and a greedy baseline (003 sec. V-A).
 
-Setup of Table I: prior N(x_hat_0 = (0, 0), sigma_0^2 I), the robot starts at (r0_hat, 0),
-true targets are drawn from the prior, the robot moves at 1 m/s and dwells t_m per
-measurement. All runs of a batch advance together, one measurement per loop iteration; a
-run stops when Algorithm 1's rule is met (its arrays are then frozen by masks).
+Table I's setup: prior N((0, 0), sigma_0^2 I), true targets drawn from it, the robot starts at
+(r0_hat, 0), moves at 1 m/s and dwells t_m per measurement. All runs of a batch advance
+together, one measurement per iteration; a run stops (masked) when Algorithm 1's rule is met.
+Both strategies measure perpendicular to the major axis from the closer side (Lemma 2,
+Algorithm 1 line 7), at the beta-cautious range of eq. 3 floored at r_min (``"cautious"``) or a
+fixed standoff ``greedy_range`` (``"greedy"``: faster, but often with the target behind).
 
-Strategies (both measure perpendicular to the major axis from the closer side, Lemma 2 and
-Algorithm 1 line 7; they differ only in the range):
-- ``"cautious"``: the beta-cautious range of eq. 3 (Algorithm 1 line 6), floored at r_min.
-- ``"greedy"``: a fixed standoff ``greedy_range`` (no caution; the limit beta -> 1 with a
-  floor). It shrinks the major axis faster but often has the target behind the sensor.
-
-A *wrong-side* event is a measurement where the true target and the estimate lie on
-opposite sides of the sensor along the measured line, i.e. the true bearing differs from the
-predicted one by more than pi/2, so the EKF's "more likely" bearing is the wrong one (eq. 2).
+A *wrong-side* measurement has the true bearing more than pi/2 from the predicted one, so the
+EKF's "more likely" bearing (eq. 2) is the wrong one.
 """
 
 from __future__ import annotations
