@@ -1,27 +1,31 @@
 """``activetrack reproduce multitarget`` on the three scenarios, six seeded runs per strategy.
 
 The multi-target issue's criterion (>= 20 % lower time-averaged GOSPA than both baselines over
-100 runs) is judged by the reproduction command (docs/multitarget.md has the 100-run figures: on
-the one loop (a) misses it, -1.2 % and 8.3 %). Here the same six seeded runs of each strategy
-must keep their figures (measured values in MEASURED), so that a change that moves them is
-seen; on (a) the planner beats both baselines on these six runs (18.8 % +- 5.7 % against
-holding course, 18.5 % +- 6.4 % against random beams), which the 100 runs do not confirm."""
+100 runs) is judged by the reproduction command (docs/multitarget.md). The strategies run on
+common random numbers (run r of each is the same world), so the report's paired differences
+carry no world noise. Here the same six seeded runs of each strategy must keep their figures
+(measured values in MEASURED), so that a change that moves them is seen."""
 
 from __future__ import annotations
 
+import re
+
+import numpy as np
 import pytest
 
+from activetrack.montecarlo.paired import paired_difference
 from activetrack_experiments import multitarget
 
 RUNS = 6
-# GOSPA [m] of planner, hold_course, random_assignment on runs 0-5 (measured; the one loop
-# draws each alive target's detection in a scan whether it is in view or not, so these runs
-# differ from those of the separate multi-target loop before it, which gave (a) 53.03, 118.38,
-# 122.71; (b) 69.70, 77.46, 227.80; (c) 72.04, 75.25, 79.34).
+# GOSPA [m] of planner, hold_course, random_assignment on runs 0-5 (measured on common random
+# numbers; on the one generator before them: (a) 57.67, 71.05, 70.75; (b) 136.71, 117.14,
+# 225.70; (c) 67.65, 87.11, 86.69). On (a) the planner loses a target for good in runs 3 and 4
+# (GOSPA 240.7 and 390.0 m: a prior's bearings-only track drifts off while the beams serve the
+# others), which the one generator's worlds happened not to show.
 MEASURED = {
-    "mt_bearings_crossing": (57.67, 71.05, 70.75),
-    "mt_radars_beams": (136.71, 117.14, 225.70),
-    "mt_appear_disappear": (67.65, 87.11, 86.69),
+    "mt_bearings_crossing": (149.18, 74.35, 114.28),
+    "mt_radars_beams": (111.04, 94.89, 165.87),
+    "mt_appear_disappear": (73.29, 78.09, 92.80),
 }
 
 
@@ -37,6 +41,11 @@ def test_each_strategy_keeps_its_figures(result, name):
     assert got == pytest.approx(MEASURED[name], rel=0.02)
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 25: on common random numbers the planner loses a target in 2 of the 6 runs "
+    "(the objective counts localisation of the tracks its beams serve, not missed targets)",
+)
 def test_the_planner_beats_both_baselines_on_scenario_a(result):
     sc = result.scenarios[0]
     assert sc.name == "mt_bearings_crossing"
@@ -61,3 +70,22 @@ def test_the_report_states_the_verdict(result):
     assert "(MISSES the 20% target)" in text
     rows = result.table()
     assert [r["strategy"] for r in rows] == list(multitarget.STRATEGIES) * 3
+    # the paired differences, run by run, with their 95 % intervals, as computed by hand
+    for sc in result.scenarios:
+        planner = np.array(sc.summaries["planner"].run_gospa)
+        for b in multitarget.BASELINES:
+            d = paired_difference(planner, sc.summaries[b].run_gospa)
+            assert d.mean == pytest.approx(np.mean(planner - sc.summaries[b].run_gospa))
+            row = next(r for r in rows if r["scenario"] == sc.name and r["strategy"] == b)
+            assert (row["paired_diff_m"], row["paired_low_m"], row["paired_high_m"]) == (
+                d.mean,
+                d.low,
+                d.high,
+            )
+            assert f"{d.mean:+9.1f} [{d.low:+8.1f}, {d.high:+8.1f}]" in text
+    last = text.splitlines()[-1]
+    m = re.fullmatch(r"planner_gain_vs_best_baseline_pct=a:(\S+),b:(\S+),c:(\S+)", last)
+    assert m is not None, last
+    for got, sc in zip(m.groups(), result.scenarios, strict=True):
+        best = min(sc.mean(b) for b in multitarget.BASELINES)
+        assert float(got) == pytest.approx(100 * (1 - sc.mean("planner") / best), abs=0.05)
