@@ -1,4 +1,4 @@
-"""Small distribution helpers shared by the gating and the bounds.
+"""Small distribution helpers shared by the gating, the bounds and the particle filters.
 
 scipy.special is imported on first use, not with the module: importing it adds process-wide
 warning filters, and importing the core changes no process-wide setting
@@ -7,7 +7,11 @@ warning filters, and importing the core changes no process-wide setting
 
 from __future__ import annotations
 
-__all__ = ["chi2_cdf", "t_quantile"]
+import numpy as np
+
+from activetrack.arraytypes import FloatArray
+
+__all__ = ["chi2_cdf", "log_sum_exp", "t_quantile"]
 
 
 def chi2_cdf(x: float, dof: float) -> float:
@@ -23,3 +27,13 @@ def t_quantile(q: float, dof: float) -> float:
     from scipy.special import stdtrit
 
     return float(stdtrit(dof, q))
+
+
+def log_sum_exp(a: FloatArray, axis: int = -1) -> FloatArray:
+    """``log sum exp(a)`` along ``axis``, shifted by the maximum (the largest term neither
+    overflows nor underflows); ``-inf`` where every entry is ``-inf``."""
+    top = np.max(a, axis=axis, keepdims=True)
+    shift = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        out = np.log(np.sum(np.exp(a - shift), axis=axis, keepdims=True)) + shift
+    return np.asarray(np.squeeze(out, axis=axis), dtype=float)

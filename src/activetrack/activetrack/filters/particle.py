@@ -43,6 +43,7 @@ from activetrack.filters.measurement import (
 from activetrack.filters.resampling import roughen, systematic_resample
 from activetrack.kernels import moment_kernels, particle_kernels
 from activetrack.models.base import MotionModel
+from activetrack.stats import log_sum_exp
 
 __all__ = ["FilterCollapseError", "ParticleFilter"]
 
@@ -109,6 +110,21 @@ def _drawn_particles(
     mean, cov = check_prior(x0, P0, n)
     N = DEFAULT_PARTICLES if n_particles is None else n_particles
     return mean + rng.standard_normal((N, n)) @ np.linalg.cholesky(cov).T
+
+
+def _given_likelihoods(
+    log_likelihoods: Sequence[FloatArray | None] | None, m: int, N: int
+) -> list[FloatArray | None]:
+    """``update_pda``'s precomputed log-likelihoods checked: m entries, each None or ``(N,)``."""
+    if log_likelihoods is None:
+        return [None] * m
+    out = list(log_likelihoods)
+    if len(out) != m:
+        raise ValueError(f"log_likelihoods must have one entry per detection ({m}), got {len(out)}")
+    for j, ell in enumerate(out):
+        if ell is not None and np.shape(ell) != (N,):
+            raise ValueError(f"log_likelihoods[{j}] must have shape ({N},), got {np.shape(ell)}")
+    return out
 
 
 def _initial_weights(weights: ArrayLike | None, N: int) -> FloatArray:
@@ -332,39 +348,50 @@ class ParticleFilter:
             ell, const, n_missed = self._log_likelihood(measurements)
         return self._weigh(measurements, ell, const, n_missed)
 
-    def update_pda(self, measurements: Sequence[Measurement], beta: ArrayLike) -> UpdateInfo:
+    def update_pda(
+        self,
+        measurements: Sequence[Measurement],
+        beta: ArrayLike,
+        log_likelihoods: Sequence[FloatArray | None] | None = None,
+    ) -> UpdateInfo:
         """One scan of uncertain origin with association probabilities ``beta`` ``(m + 1,)``
-        (``beta[0]``: none is the target's), the mixture over the hypotheses (JPDA particle
-        filter, Vermaak, Godsill & Perez, IEEE TAES 41(1), 2005, sec. IV)::
+        (``beta[0]``: none is the target's), the mixture over the hypotheses (the MC-JPDAF of
+        Vermaak, Godsill & Perez, IEEE TAES 41(1), 2005; :mod:`.jpda_particle`)::
 
             w_i  <-  w_i (beta_0 + sum_j beta_j p(z_j | x_i) / p(z_j | Z_{k-1})),
             p(z_j | Z_{k-1}) = sum_i w_i p(z_j | x_i),
 
-        then resampled as :meth:`update`; one sensor at one platform state."""
+        then resampled as :meth:`update`; one sensor at one platform state.
+        ``log_likelihoods``: each detection's ``log p(z_j | x_i)`` less the sensor's constant
+        ``(N,)`` for the current particles, as the sensor's ``log_likelihood`` gives it
+        (computed here when not given; None allowed where ``beta_j`` is 0)."""
         check_measurement_times(measurements, self._t)
         b = pda_weights(measurements, beta)
+        given = _given_likelihoods(log_likelihoods, len(measurements), self._X.shape[0])
         if b[0] >= 1.0:  # no detection can be the target's: nothing learnt
             return self._weigh(measurements, None, 0.0, 0)
-        terms = [np.full(self._X.shape[0], math.log(b[0])) if b[0] > 0.0 else None]
+        N = self._X.shape[0]
+        terms = [np.full(N, math.log(b[0]))] if b[0] > 0.0 else []
         pv = None
         logw_prior = self._logw if self._logw is not None else np.log(self._w)
         with np.errstate(divide="ignore", invalid="ignore"):
-            for bj, m in zip(b[1:], measurements, strict=True):
+            for j, (bj, m) in enumerate(zip(b[1:], measurements, strict=True)):
                 if bj <= 0.0:
                     continue
-                if pv is None:
-                    pv = self._X if self._pv_state else self.model.kinematics(self._X)
-                assert m.z is not None  # pda_weights: every measurement is a detection
-                ell, _ = m.sensor.log_likelihood(m.z, pv, m.sensor_state)
-                ell = np.where(np.isnan(ell), -math.inf, ell)
-                evidence = np.logaddexp.reduce(logw_prior + ell)  # log p(z_j | Z_{k-1}) - c
+                ell = given[j]
+                if ell is None:
+                    if pv is None:
+                        pv = self._X if self._pv_state else self.model.kinematics(self._X)
+                    assert m.z is not None  # pda_weights: every measurement is a detection
+                    ell = m.sensor.log_likelihood(m.z, pv, m.sensor_state)[0]
+                    ell = np.where(np.isnan(ell), -math.inf, ell)
+                evidence = float(log_sum_exp(logw_prior + ell))  # log p(z_j | Z_{k-1}) - c
                 if not math.isfinite(evidence):  # no particle explains z_j
                     continue
                 terms.append(math.log(bj) + ell - evidence)
-            present = [t for t in terms if t is not None]
-            if not present:
+            if not terms:
                 return self._weigh(measurements, None, 0.0, 0)
-            mixture = present[0] if len(present) == 1 else np.logaddexp.reduce(present, axis=0)
+            mixture = terms[0] if len(terms) == 1 else log_sum_exp(np.stack(terms), axis=0)
         return self._weigh(measurements, mixture, 0.0, 0)
 
     def _weigh(

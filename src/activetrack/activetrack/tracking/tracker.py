@@ -19,8 +19,12 @@ sensor order:
      gated detections (exact: the joint events factorise over clusters; a cluster whose events
      could exceed :data:`~activetrack.filters.jpda.DEFAULT_MAX_EVENTS` is split into one PDA per
      track, counted in ``split_clusters``); each track's filter takes its row of ``beta``
-     (``update_pda``). Zero clutter and ``Pd = 1`` go through the floor and cap of
-     :mod:`activetrack.filters.clutter_likelihood`. The same predicted measurements first give
+     (``update_pda``). Particle tracks (``particle_based`` filters) take the Monte Carlo JPDAF
+     (:mod:`activetrack.filters.jpda_particle`): their likelihood ratios are their particles'
+     estimates of the predicted likelihood, the same enumeration gives ``beta``, and each
+     gated pair's per-particle likelihoods go to the filter's weight update (computed once).
+     Zero clutter and ``Pd = 1`` go through the floor and cap of
+     :mod:`activetrack.filters.clutter_likelihood`. The same likelihood ratios first give
      each track's existence its LM-IPDA update, with Pd times the probability that the target
      lies in the scan's sector. Detections no track gated start tentative tracks at once where
      the sensor fixes a position from one (:meth:`Tracker._start_from_detection`). Then M-of-N
@@ -33,6 +37,7 @@ from its ``rng``: the filters' own draws (particles, resampling) and the planner
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
@@ -47,9 +52,11 @@ from activetrack.filters.jpda import (
     DEFAULT_MAX_EVENTS,
     gate_probability,
     jpda_association,
+    jpda_probabilities,
     likelihood_ratios,
     predict_measurements,
 )
+from activetrack.filters.jpda_particle import ParticleLikelihoods, particle_likelihoods
 from activetrack.filters.measurement import TIME_TOLERANCE, Measurement, TrackingFilter
 from activetrack.filters.resampling import systematic_resample
 from activetrack.models.base import MotionModel
@@ -245,9 +252,20 @@ class Tracker:
         base = c.sensor.base
         zhat, _, S = predict_measurements(means, covs, base, c.s, self.model)
         nu = np.asarray(base.residual(c.Z[None, :, :], zhat[:, None, :]), dtype=float)
-        ratios, mask = likelihood_ratios(
-            nu, S, 1.0, effective_clutter_density(c.sensor.clutter_density), self.gamma
-        )
+        lam = effective_clutter_density(c.sensor.clutter_density)
+        ratios, mask = likelihood_ratios(nu, S, 1.0, lam, self.gamma)
+        particles = None
+        if self.filter.particle_based:  # the MC-JPDAF: each track's particles give its ratios
+            posteriors = [track.filter for track in tracks]
+            particles = particle_likelihoods(
+                posteriors,  # type: ignore[arg-type]
+                c.Z,
+                base,
+                c.s,
+                self.model,
+                gated=mask,
+            )
+            ratios = particles.ratios(1.0, lam)
         for track in tracks:
             if track.track_id not in self._aged:
                 track.existence *= EXISTENCE_SURVIVAL
@@ -262,7 +280,7 @@ class Tracker:
         )
         for track, p in zip(tracks, psi, strict=True):
             track.existence = float(p)
-        self._jpda(tracks, means, covs, mask, c, t)
+        self._jpda(tracks, means, covs, particles, mask, c, t)
         return tracks, mask
 
     def _jpda(
@@ -270,11 +288,18 @@ class Tracker:
         tracks: list[Track],
         means: FloatArray,
         covs: FloatArray,
+        particles: ParticleLikelihoods | None,
         mask: BoolArray,
         c: _Checked,
         t: float,
     ) -> None:
-        """The JPDA marginals per cluster; each track's filter takes its row of them."""
+        """The JPDA marginals per cluster; each track's filter takes its row of them. Particle
+        tracks: from their ``particles``' likelihoods (the MC-JPDAF,
+        :mod:`activetrack.filters.jpda_particle`), Gaussian ones from their moments."""
+        pd = effective_pd(c.sensor.pd)
+        pg = gate_probability(self.gamma, int(c.sensor.base.dim_z))
+        lam = effective_clutter_density(c.sensor.clutter_density)
+        ratios = None if particles is None else particles.ratios(pd, lam)
         for rows, cols in _clusters(mask):
             events = float(np.prod(1.0 + mask[np.ix_(rows, cols)].sum(axis=1)))
             if events <= DEFAULT_MAX_EVENTS:
@@ -284,22 +309,32 @@ class Tracker:
                 self.split_clusters += 1
             for group in groups:
                 used = cols[mask[np.ix_(group, cols)].any(axis=0)]
-                a = jpda_association(
-                    means[group],
-                    covs[group],
-                    c.Z[used],
-                    c.sensor.base,
-                    c.s,
-                    self.model,
-                    clutter_density=effective_clutter_density(c.sensor.clutter_density),
-                    gamma=self.gamma,
-                    pd=effective_pd(c.sensor.pd),
-                )
                 detections = [
                     Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
                 ]
+                if particles is None or ratios is None:
+                    beta = jpda_association(
+                        means[group],
+                        covs[group],
+                        c.Z[used],
+                        c.sensor.base,
+                        c.s,
+                        self.model,
+                        clutter_density=lam,
+                        gamma=self.gamma,
+                        pd=pd,
+                    ).beta
+                    for k, row in enumerate(group):
+                        tracks[row].ess = tracks[row].filter.update_pda(detections, beta[k]).ess
+                    continue
+                beta = jpda_probabilities(ratios[np.ix_(group, used)], pd, pg)
                 for k, row in enumerate(group):
-                    info = tracks[row].filter.update_pda(detections, a.beta[k])
+                    update = tracks[row].filter.update_pda
+                    if _takes_likelihoods(update):  # reuse g(z_j | x_i), computed once a scan
+                        ell = [particles.ell[row][j] for j in used]
+                        info = update(detections, beta[k], log_likelihoods=ell)
+                    else:
+                        info = update(detections, beta[k])
                     tracks[row].ess = info.ess
 
     # --- track starts ------------------------------------------------------------------------
@@ -414,6 +449,23 @@ def _platform(i: int, scan: Scan) -> FloatArray:
     if s.shape != (4,) or not np.isfinite(s).all():
         raise ValueError(f"scans[{i}].sensor_pv: must be a finite pv of shape (4,), got {s!r}")
     return s
+
+
+def _takes_likelihoods(update: Callable[..., object]) -> bool:
+    """Whether a particle filter's ``update_pda`` takes precomputed ``log_likelihoods`` (the
+    built-in one does; a plugin's may not)."""
+    func = getattr(update, "__func__", update)
+    known = _TAKES_LIKELIHOODS.get(func)
+    if known is None:
+        try:
+            known = "log_likelihoods" in inspect.signature(update).parameters
+        except (TypeError, ValueError):  # a callable without a signature
+            known = False
+        _TAKES_LIKELIHOODS[func] = known
+    return known
+
+
+_TAKES_LIKELIHOODS: dict[object, bool] = {}
 
 
 def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
