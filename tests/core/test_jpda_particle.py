@@ -10,6 +10,8 @@ Figures asserted (seeded; measured values in the comments):
   to Monte Carlo tolerance for two well-separated tracks and for two tracks sharing both
   detections, and the updated particle mean and covariance equal the JPDA-EKF's (exact for a
   linear-Gaussian sensor) to a few thousandths of a standard deviation;
+- a particle filter whose ``update_pda`` computes its own likelihoods gives the tracks the
+  built-in one gets with the tracker's (1e-9);
 - closed loop on (a) (``mt_bearings_crossing``, the planner, 6 seeded runs on common random
   numbers): the particle tracker's GOSPA is no worse than the JPDA-EKF's.
 """
@@ -33,6 +35,7 @@ from activetrack.filters.jpda import (
 from activetrack.filters.jpda_particle import particle_likelihoods
 from activetrack.filters.measurement import Measurement
 from activetrack.filters.particle import ParticleFilter
+from activetrack.filters.registry import register_filter, unregister_filter
 from activetrack.models.motion import NearlyConstantVelocity
 from activetrack.models.sensors import BearingSensor
 from activetrack.montecarlo.paired import paired_difference
@@ -208,3 +211,44 @@ def test_particle_tracker_is_no_worse_than_the_jpda_ekf_on_scene_a():
     assert d.mean <= 5.0
     assert runs["pf"].mean_gospa < 80.0
     assert max(runs["pf"].run_gospa) < 150.0
+
+
+class _PlainUpdatePF(ParticleFilter):
+    """A particle filter whose ``update_pda`` takes no precomputed likelihoods (as a plugin's
+    may not): the tracker must compute nothing differently for it."""
+
+    def update_pda(self, measurements, beta):
+        return super().update_pda(measurements, beta)
+
+
+def test_reused_likelihoods_give_the_track_a_filter_computing_its_own_gets():
+    from test_tracker import make_scenario, range_bearing, run, simulate
+
+    def plain(model, x0, P0, config, rng, t0=0.0):
+        return _PlainUpdatePF(model, x0, P0, n_particles=config.particles, rng=rng, t0=t0)
+
+    targets = [
+        {"id": "a", "mean": [100.0, 8.0, 200.0, -5.0], "q": 0.5},
+        {"id": "b", "mean": [160.0, 6.0, 260.0, -7.0], "q": 0.5},
+    ]
+    register_filter("pf_plain_update", plain, particle_based=True)
+    try:
+        sc = make_scenario(
+            targets, [range_bearing(pd=0.9, clutter_density=3e-4)], steps=12, filter="pf"
+        )
+        sc = sc.model_copy(update={"tracker": sc.tracker.model_copy(update={"particles": 500})})
+        other = sc.model_copy(
+            update={"tracker": sc.tracker.model_copy(update={"filter": "pf_plain_update"})}
+        )
+        _, scans = simulate(sc, 12, np.random.default_rng(3))
+        _, reused = run(sc, scans, seed=7)
+        _, computed = run(other, scans, seed=7)
+    finally:
+        unregister_filter("pf_plain_update")
+    shared = 0
+    for a, b in zip(reused[1:], computed[1:], strict=True):
+        assert [t.track_id for t in a.tracks] == [t.track_id for t in b.tracks]
+        for s, t in zip(a.tracks, b.tracks, strict=True):
+            np.testing.assert_allclose(s.mean, t.mean, rtol=1e-9, atol=1e-9)
+        shared += a.detections > 0
+    assert shared >= 10  # the tracks were updated, not just predicted
