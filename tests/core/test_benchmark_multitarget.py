@@ -15,7 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from activetrack.closed_loop.components import target_dynamics
 from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet
+from activetrack_experiments import stonesoup_manager as ssm
 
 pytest.importorskip("stonesoup")
 
@@ -151,7 +153,7 @@ def _next_xy(platform_id: str) -> np.ndarray:
 
 def _bearing_from(platform_id: str, mean: np.ndarray) -> float:
     """The bearing from a platform's next position to a track's prediction F x."""
-    F = mt.LinearDynamics.of(SCENARIO_B).F
+    F = target_dynamics(SCENARIO_B).F
     x = F @ mean
     p = _next_xy(platform_id)
     return math.atan2(x[2] - p[1], x[0] - p[0])
@@ -163,15 +165,15 @@ def test_listed_dwell_actions_offer_and_reach_exactly_the_listed_bearings(kind):
     across the -pi/pi cut too) within the epoch: rpm = one turn per epoch."""
     from stonesoup.types.array import StateVector
 
-    radar = mt.listed_radars()[0 if kind == "range_bearing" else 1]
+    radar = ssm.listed_radars()[0 if kind == "range_bearing" else 1]
     noise = np.diag([1e-4, 100.0]) if kind == "range_bearing" else np.array([[1e-4]])
     listed = (3.0, -3.0, 0.5, -1.2)
     sensor = radar(
         position_mapping=(0, 2), ndim_state=4, position=StateVector([0.0, 0.0]), rpm=60.0,
         fov_angle=0.1, dwell_centre=StateVector([2.9]), noise_covar=noise, pointings=listed,
     )  # fmt: skip
-    sensor.timestamp = mt._EPOCH
-    then = mt._EPOCH + timedelta(seconds=1)
+    sensor.timestamp = ssm.EPOCH
+    then = ssm.EPOCH + timedelta(seconds=1)
     (generator,) = sensor.actions(then)
     actions = list(generator)
     assert len(actions) == len(listed)
@@ -192,13 +194,13 @@ def test_beam_pointings_keep_one_per_covered_set_within_range():
     ranges = np.array([1000.0, 2000.0, 1500.0, 50_000.0, 800.0, 900.0])
     X = np.zeros((6, 4))
     X[:, 0], X[:, 2] = ranges * np.cos(bearings), ranges * np.sin(bearings)
-    out = mt.beam_pointings(0.1, 20_000.0, pv, X)
+    out = ssm.beam_pointings(0.1, 20_000.0, pv, X)
     # Tracks 0 and 1 (0.03 rad apart) are covered together from either: one pointing; track 3
     # is out of range; 4 and 5 are 0.043 rad apart across the cut: one pointing.
     assert [p.track for p in out] == [0, 2, 4]
     assert [p.covered for p in out] == [(0, 1), (2,), (4, 5)]
     np.testing.assert_allclose([p.bearing for p in out], bearings[[0, 2, 4]], atol=1e-12)
-    assert mt.beam_pointings(0.01, 20_000.0, pv, X)[1].covered == (1,)
+    assert ssm.beam_pointings(0.01, 20_000.0, pv, X)[1].covered == (1,)
 
 
 def test_manager_points_every_beam_at_the_one_uncertain_track():
@@ -207,7 +209,7 @@ def test_manager_points_every_beam_at_the_one_uncertain_track():
     updates; each beam points from its platform's next position at 7's prediction F x."""
     a, b = np.array([6000.0, 0.0, 5000.0, 0.0]), np.array([2000.0, 0.0, 3000.0, 0.0])
     tracks = TrackSet(0, 0.0, "ekf", tracks=(_track(7, a, 1e6), _track(8, b, 1.0)))
-    manager = mt.StoneSoupBeamManager(SCENARIO_B)
+    manager = ssm.StoneSoupBeamManager(SCENARIO_B)
     d = manager.decide(0, tracks, PLATFORMS_B)
     assert [c.track_id for c in d.beams] == [7, 7, 7]
     for c, pid in zip(d.beams, ("p1", "p2", "p3"), strict=True):
@@ -226,9 +228,9 @@ def test_joint_brute_force_spreads_beams_that_alone_would_share_a_track():
     2^3 configurations serves both (measured: beams 2, 1, 2)."""
     a, b = np.array([6000.0, 0.0, 5000.0, 0.0]), np.array([2000.0, 0.0, 5000.0, 0.0])
     tracks = TrackSet(0, 0.0, "ekf", tracks=(_track(1, a, 4e6), _track(2, b, 1e6)))
-    alone = mt.StoneSoupBeamManager(SCENARIO_B, candidates=1).decide(0, tracks, PLATFORMS_B)
+    alone = ssm.StoneSoupBeamManager(SCENARIO_B, candidates=1).decide(0, tracks, PLATFORMS_B)
     assert [c.track_id for c in alone.beams] == [1, 1, 1]
-    joint = mt.StoneSoupBeamManager(SCENARIO_B).decide(0, tracks, PLATFORMS_B)
+    joint = ssm.StoneSoupBeamManager(SCENARIO_B).decide(0, tracks, PLATFORMS_B)
     assert [c.track_id for c in joint.beams] == [2, 1, 2]
 
 
@@ -240,12 +242,12 @@ def test_pruning_keeps_the_best_pointings_alone():
     tracks = TrackSet(0, 0.0, "ekf", tracks=tuple(
         _track(i + 1, m, v) for i, (m, v) in enumerate(zip(means, (1e4, 1e6, 1e2), strict=True))
     ))  # fmt: skip
-    manager = mt.StoneSoupBeamManager(SCENARIO_B, candidates=1)
+    manager = ssm.StoneSoupBeamManager(SCENARIO_B, candidates=1)
     d = manager.decide(0, tracks, PLATFORMS_B)
     assert [c.track_id for c in d.beams] == [2, 2, 2]
     assert manager.configurations == 3 * 3 + 1
     with pytest.raises(ValueError, match="candidates"):
-        mt.StoneSoupBeamManager(SCENARIO_B, candidates=0)
+        ssm.StoneSoupBeamManager(SCENARIO_B, candidates=0)
 
 
 def test_manager_sweeps_without_confirmed_tracks():
@@ -253,7 +255,7 @@ def test_manager_sweeps_without_confirmed_tracks():
     width (0.1 rad) per epoch, as our planner's sweep; tentative tracks do not count."""
     mean = np.array([5000.0, 0, 5000, 0])
     tentative = TrackEstimate(3, "tentative", mean, np.eye(4), mean, np.eye(4))
-    manager = mt.StoneSoupBeamManager(SCENARIO_B)
+    manager = ssm.StoneSoupBeamManager(SCENARIO_B)
     first = manager.decide(0, TrackSet(0, 0.0, "ekf", tracks=(tentative,)), PLATFORMS_B)
     second = manager.decide(1, TrackSet(1, 1.0, "ekf"), PLATFORMS_B)
     headings = [s.heading for s in PLATFORMS_B]  # pi, pi, pi / 2
@@ -269,7 +271,7 @@ def test_manager_sweeps_without_confirmed_tracks():
 def test_the_three_strategies_run_paired_on_a_short_scenario(capsys):
     """Scenario (b) cut to 3 epochs, one run: every strategy yields a GOSPA within
     (0, c sqrt(N + tracks)) and missed / false counts within range, one decision per epoch;
-    a run repeats bit for bit; the printout names every strategy and both ratios."""
+    a run repeats bit for bit; the printout names every strategy and both paired differences."""
     short = SCENARIO_B.model_copy(update={"steps": 3})
     c = mt.compare_managers(short, [0], jobs=1)
     assert list(c.gospa) == list(mt.MANAGERS)
@@ -280,23 +282,30 @@ def test_the_three_strategies_run_paired_on_a_short_scenario(capsys):
         assert c.decide_s[s] > 0.0
     mt.print_managers(short, c)
     out = capsys.readouterr().out
-    assert out.count(" m  (missed ") == 3 and out.count("/ GOSPA(stonesoup) = ") == 2
+    assert out.count(" m  (missed ") == 3 and out.count("- GOSPA(stonesoup) = ") == 2
     again = mt.run_manager((short, 0, "stonesoup", mt.DEFAULT_CANDIDATES))
     assert again.gospa == c.gospa["stonesoup"][0] and again.epochs == 3
     with pytest.raises(ValueError, match="strategy"):
         mt.run_manager((short, 0, "greedy", 4))
 
 
-def test_ratio_and_its_paired_standard_error():
+def test_paired_difference_and_its_interval():
+    """Part 2 compares strategies by paired differences run by run (common random numbers):
+    differences -10, -20, 0, -30 m: mean -15 m, sd 12.91 m, so the 95 % Student-t interval is
+    -15 +- t(0.975, 3) 12.91 / 2 = -15 +- 20.54 m: not resolved."""
     ga, gb = np.array([90.0, 100.0, 110.0, 120.0]), np.array([100.0, 120.0, 110.0, 150.0])
     c = mt.ManagerComparison(
         runs=[0, 1, 2, 3],
         gospa={"planner": ga, "hold_course": gb, "stonesoup": gb},
         decide_s=dict.fromkeys(mt.MANAGERS, 0.01),
     )
-    r, se = c.ratio("planner", "stonesoup")
-    assert r == pytest.approx(420.0 / 480.0)
-    assert se == pytest.approx(np.std(ga - r * gb, ddof=1) / (2.0 * gb.mean()))
-    assert c.ratio("hold_course", "stonesoup") == (1.0, 0.0)
+    d = c.paired("planner", "stonesoup")
+    assert d.mean == pytest.approx(-15.0) and d.runs == 4
+    half = 3.1824463052837078 * np.std(ga - gb, ddof=1) / 2.0
+    assert half == pytest.approx(20.54, abs=0.01)
+    assert (d.low, d.high) == pytest.approx((-15.0 - half, -15.0 + half))
+    assert not d.resolved
+    same = c.paired("hold_course", "stonesoup")
+    assert (same.mean, same.low, same.high) == (0.0, 0.0, 0.0)
     m, s = c.mean_se("planner")
     assert m == pytest.approx(105.0) and s == pytest.approx(np.std(ga, ddof=1) / 2.0)

@@ -1,4 +1,4 @@
-"""``activetrack reproduce multitarget`` on the three scenarios, six seeded runs per strategy.
+"""``activetrack reproduce multitarget`` on the five scenarios, six seeded runs per strategy.
 
 The multi-target issue's criterion (>= 20 % lower time-averaged GOSPA than both baselines over
 100 runs) is judged by the reproduction command (docs/multitarget.md). The strategies run on
@@ -26,12 +26,14 @@ MEASURED = {
     "mt_bearings_crossing": (149.18, 74.35, 114.28),
     "mt_radars_beams": (111.04, 94.89, 165.87),
     "mt_appear_disappear": (73.29, 78.09, 92.80),
+    "mt_search_track": (487.96, 453.21, 485.06),
+    "mt_mixed_platforms": (44.11, 46.76, 49.52),
 }
 
 
 @pytest.fixture(scope="module")
 def result():
-    return multitarget.reproduce(RUNS, jobs=2)
+    return multitarget.reproduce(RUNS, jobs=2, stonesoup=False)
 
 
 @pytest.mark.parametrize("name", sorted(MEASURED))
@@ -69,7 +71,8 @@ def test_the_report_states_the_verdict(result):
     assert "mt_bearings_crossing" in text and "hold_course" in text
     assert "(MISSES the 20% target)" in text
     rows = result.table()
-    assert [r["strategy"] for r in rows] == list(multitarget.STRATEGIES) * 3
+    assert [r["strategy"] for r in rows] == list(multitarget.STRATEGIES) * 5
+    assert result.manager_note == ""  # left out on purpose (stonesoup=False): no note
     # the paired differences, run by run, with their 95 % intervals, as computed by hand
     for sc in result.scenarios:
         planner = np.array(sc.summaries["planner"].run_gospa)
@@ -84,8 +87,50 @@ def test_the_report_states_the_verdict(result):
             )
             assert f"{d.mean:+9.1f} [{d.low:+8.1f}, {d.high:+8.1f}]" in text
     last = text.splitlines()[-1]
-    m = re.fullmatch(r"planner_gain_vs_best_baseline_pct=a:(\S+),b:(\S+),c:(\S+)", last)
+    m = re.fullmatch(
+        r"planner_gain_vs_best_baseline_pct=a:(\S+),b:(\S+),c:(\S+),d:(\S+),e:(\S+)", last
+    )
     assert m is not None, last
     for got, sc in zip(m.groups(), result.scenarios, strict=True):
         best = min(sc.mean(b) for b in multitarget.BASELINES)
         assert float(got) == pytest.approx(100 * (1 - sc.mean("planner") / best), abs=0.05)
+
+
+# GOSPA [m] of runs 0 and 1 of (d) per strategy, Stone Soup's manager among them (measured).
+MANAGER_RUNS_D = {
+    "planner": (467.89, 478.65),
+    "hold_course": (431.97, 519.34),
+    "random_assignment": (497.81, 465.08),
+    multitarget.MANAGER: (444.34, 517.99),
+}
+
+
+def test_stonesoup_manager_runs_paired_on_scenario_d():
+    """On (d) Stone Soup's manager is a fourth strategy on the same worlds: its runs keep their
+    figures, its paired difference is in the rows and the report."""
+    pytest.importorskip("stonesoup")
+    res = multitarget.reproduce(2, scenarios=("mt_search_track",), jobs=2, stonesoup=True)
+    (sc,) = res.scenarios
+    assert sc.strategies == (*multitarget.STRATEGIES, multitarget.MANAGER)
+    for strategy, measured in MANAGER_RUNS_D.items():
+        assert sc.summaries[strategy].run_gospa == pytest.approx(measured, abs=0.01), strategy
+    d = sc.paired(multitarget.MANAGER)
+    manager = np.array(sc.summaries[multitarget.MANAGER].run_gospa)
+    assert d.mean == pytest.approx(np.mean(np.array(sc.summaries["planner"].run_gospa) - manager))
+    text = multitarget.format_report(res)
+    assert f"- {multitarget.MANAGER}" in text and res.manager_note == ""
+    row = next(r for r in res.table() if r["strategy"] == multitarget.MANAGER)
+    assert row["paired_diff_m"] == d.mean
+    # the gain is against hold course and random beams only
+    assert text.splitlines()[-1] == (
+        f"planner_gain_vs_best_baseline_pct=d:{100 * sc.gain_vs_best_baseline():.1f}"
+    )
+
+
+def test_without_stonesoup_the_report_says_so_and_the_rest_runs(monkeypatch):
+    monkeypatch.setattr(multitarget.stonesoup_manager, "available", lambda: False)
+    res = multitarget.reproduce(1, scenarios=("mt_search_track",), jobs=1)
+    (sc,) = res.scenarios
+    assert sc.strategies == multitarget.STRATEGIES
+    assert "stonesoup is not installed" in res.manager_note
+    assert res.manager_note in multitarget.format_report(res).splitlines()

@@ -1,50 +1,78 @@
-"""Multi-target active tracking in clutter: the planner against its baselines (issue 14).
+"""Multi-target active tracking in clutter: the planner against its baselines (issues 14, 25).
 
-On each multi-target scenario (``mt_bearings_crossing``: two bearings-only platforms, three
-crossing targets; ``mt_radars_beams``: heterogeneous radars with beams, five targets;
-``mt_appear_disappear``: targets born and dying, tracks started from detections), ``runs``
-seeded closed-loop runs of three strategies on common random numbers (run r of every strategy
-is the same world: target motion, each sensor's detections, noise and clutter draw from their
-own streams, :mod:`activetrack.simulation.streams`):
+On each multi-target scenario, (a) ``mt_bearings_crossing``: two bearings-only platforms, three
+crossing targets; (b) ``mt_radars_beams``: heterogeneous radars with beams, five targets; (c)
+``mt_appear_disappear``: targets born and dying, tracks started from detections; (d)
+``mt_search_track``: one radar beam that must search for targets entering across the region's
+edges and track those it found; (e) ``mt_mixed_platforms``: bearings-only platforms and a radar,
+each with a beam, over crossing targets; ``runs`` seeded closed-loop runs of each strategy on
+common random numbers (run r of every strategy is the same world: target motion, each sensor's
+detections, noise and clutter draw from their own streams, :mod:`activetrack.simulation.streams`):
 
 - ``planner``: the scenario as written (manoeuvres against every track, MRE beam assignment);
 - ``hold_course``: the platforms hold course and speed (beams still assigned by MRE);
-- ``random_assignment``: the planner's manoeuvres, but beams pointed at uniformly drawn tracks.
+- ``random_assignment``: the planner's manoeuvres, but beams pointed at uniformly drawn tracks;
+- ``stonesoup_manager`` on (b) and (d) when Stone Soup is installed (``make bench``): Stone
+  Soup's ``BruteForceSensorManager`` with its ``UncertaintyRewardFunction`` points the beams,
+  the platforms hold course (:mod:`activetrack_experiments.stonesoup_manager`).
 
 The figure of merit is the time-averaged GOSPA (cut-off and order from the scenario's
 ``evaluation``), averaged over runs, with its Monte Carlo standard error; the improvement is
 ``1 - GOSPA(planner) / GOSPA(baseline)`` (the issue asks for >= 20 % against both). The paired
 difference GOSPA(planner) - GOSPA(baseline), run by run, has a 95 % Student-t interval
 (:func:`activetrack.montecarlo.paired.paired_difference`); the report's last line is
-``planner_gain_vs_best_baseline_pct=a:<x>,b:<x>,c:<x>``: the planner's GOSPA below the better
-baseline's, in percent, per scenario (a), (b), (c).
+``planner_gain_vs_best_baseline_pct=a:<x>,b:<x>,c:<x>,d:<x>,e:<x>``: the planner's GOSPA below
+the better of hold course and random beams, in percent, per scenario.
 """
 
 from __future__ import annotations
 
+import argparse
+import functools
 import math
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from activetrack.closed_loop.batch import BatchSummary, run_batch
-from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs
+from activetrack.closed_loop.batch import BatchSummary, run_batch, summarize
+from activetrack.closed_loop.components import component_rngs
+from activetrack.closed_loop.evaluation import RunEvaluation, evaluate_run
+from activetrack.closed_loop.loop import run_once
+from activetrack.closed_loop.record import RunRecord
+from activetrack.montecarlo import Scheduler, TaskProgress, check_jobs, parallel_map
 from activetrack.montecarlo.dask import connected
 from activetrack.montecarlo.paired import PairedDifference, paired_difference
 from activetrack.plots import write_figures
 from activetrack.scenarios import load_scenario, with_changes
 from activetrack.scenarios.schema import Scenario
+from activetrack_experiments import stonesoup_manager
 from activetrack_experiments.paths import scenario_path
 from activetrack_experiments.reproduction import Reproduction, RunsOption, figure_axes
 
-__all__ = ["SCENARIOS", "STRATEGIES", "MultiTargetResult", "reproduce", "strategy_scenario"]
+__all__ = [
+    "MANAGER",
+    "SCENARIOS",
+    "STRATEGIES",
+    "MultiTargetResult",
+    "reproduce",
+    "strategy_scenario",
+]
 
-SCENARIOS = ("mt_bearings_crossing", "mt_radars_beams", "mt_appear_disappear")
-LETTERS = dict(zip(SCENARIOS, "abc", strict=True))  # the issue's names of the scenarios
+SCENARIOS = (
+    "mt_bearings_crossing",
+    "mt_radars_beams",
+    "mt_appear_disappear",
+    "mt_search_track",
+    "mt_mixed_platforms",
+)
+LETTERS = dict(zip(SCENARIOS, "abcde", strict=True))  # the issue's names of the scenarios
 STRATEGIES = ("planner", "hold_course", "random_assignment")
 BASELINES = STRATEGIES[1:]
+MANAGER = "stonesoup_manager"  # Stone Soup's sensor manager, where it applies
+MANAGER_SCENARIOS = ("mt_radars_beams", "mt_search_track")
 REQUIRED_IMPROVEMENT = 0.20
 
 
@@ -66,6 +94,11 @@ class ScenarioResult:
     name: str
     summaries: dict[str, BatchSummary]
 
+    @property
+    def strategies(self) -> tuple[str, ...]:
+        """The strategies run here: :data:`STRATEGIES`, then :data:`MANAGER` if it was."""
+        return tuple(self.summaries)
+
     def mean(self, strategy: str) -> float:
         return self.summaries[strategy].mean_gospa
 
@@ -78,7 +111,8 @@ class ScenarioResult:
         return 1.0 - self.mean("planner") / self.mean(baseline)
 
     def paired(self, baseline: str) -> PairedDifference:
-        """GOSPA(planner) - GOSPA(baseline) run by run (negative: the planner is better)."""
+        """GOSPA(planner) - GOSPA(baseline) run by run (negative: the planner is better); any
+        strategy run here, :data:`MANAGER` too."""
         return paired_difference(
             self.summaries["planner"].run_gospa, self.summaries[baseline].run_gospa
         )
@@ -103,11 +137,13 @@ class ScenarioResult:
 class MultiTargetResult:
     runs: int
     scenarios: list[ScenarioResult] = field(default_factory=list)
+    # Why Stone Soup's manager did not run where it applies ("": it ran, or was not asked for).
+    manager_note: str = ""
 
     def table(self) -> list[dict[str, float | int | str]]:
         rows: list[dict[str, float | int | str]] = []
         for sc in self.scenarios:
-            for strategy in STRATEGIES:
+            for strategy in sc.strategies:
                 s = sc.summaries[strategy]
                 d = None if strategy == "planner" else sc.paired(strategy)
                 rows.append(
@@ -131,11 +167,42 @@ class MultiTargetResult:
     def to_json(self) -> dict:
         return {
             "runs": self.runs,
+            "manager_note": self.manager_note,
             "table": self.table(),
             "summaries": {
                 sc.name: {k: v.to_json() for k, v in sc.summaries.items()} for sc in self.scenarios
             },
         }
+
+
+def _run_manager(task: tuple[Scenario, int | None, int]) -> tuple[RunRecord, RunEvaluation]:
+    """One run ``(scenario, run, candidates)`` with Stone Soup's manager pointing the beams and
+    the platforms holding course, evaluated as :func:`run_batch` evaluates its runs."""
+    scenario, run, candidates = task
+    scenario = strategy_scenario(scenario, "hold_course")
+    factory = functools.partial(stonesoup_manager.StoneSoupBeamManager, candidates=candidates)
+    record = run_once(scenario, run, factory)
+    return record, evaluate_run(scenario, record, component_rngs(scenario.seed, run)[3])
+
+
+def run_manager_batch(
+    scenario: Scenario,
+    runs: int,
+    jobs: int = 1,
+    scheduler: Scheduler | None = None,
+    candidates: int = stonesoup_manager.DEFAULT_CANDIDATES,
+) -> BatchSummary:
+    """:func:`run_batch` of ``scenario`` with Stone Soup's manager as the planner: the same run
+    numbers (None for one run), so run r pairs with run r of every other strategy."""
+    start = time.perf_counter()
+    tasks = [(scenario, r if runs > 1 else None, candidates) for r in range(runs)]
+    results = parallel_map(_run_manager, tasks, jobs, None, scheduler)
+    return summarize(
+        scenario,
+        [record for record, _ in results],
+        [ev for _, ev in results],
+        time.perf_counter() - start,
+    )
 
 
 def reproduce(
@@ -146,12 +213,24 @@ def reproduce(
     scheduler: Scheduler | None = None,
     scenarios_dir: str | Path | None = None,
     task_progress: Callable[[int, int], None] | None = None,
+    stonesoup: bool | None = None,
 ) -> MultiTargetResult:
     """Every strategy on every scenario, ``runs`` seeded runs each (run r of every strategy
-    draws the same truth and detections: the simulator's generator is the run's)."""
+    draws the same truth and detections: common random numbers). Stone Soup's manager runs on
+    :data:`MANAGER_SCENARIOS` if ``stonesoup`` (None: if it is installed); asked for and not
+    installed, the result's ``manager_note`` says so and the rest runs."""
     check_jobs(jobs, scheduler)
     result = MultiTargetResult(runs)
-    tasks = TaskProgress(len(scenarios) * len(STRATEGIES), task_progress)
+    with_manager = (
+        [n for n in scenarios if n in MANAGER_SCENARIOS] if stonesoup is not False else []
+    )
+    if with_manager and not stonesoup_manager.available():
+        result.manager_note = (
+            "Stone Soup's manager not run: stonesoup is not installed (make bench, or pip "
+            "install -r requirements-bench.txt)"
+        )
+        with_manager = []
+    tasks = TaskProgress(len(scenarios) * len(STRATEGIES) + len(with_manager), task_progress)
     with connected(scheduler) as cluster:
         for name in scenarios:
             base = load_scenario(scenario_path(name, scenarios_dir))
@@ -164,6 +243,10 @@ def reproduce(
                     keep_records=False,
                     scheduler=cluster,
                 )
+                tasks.advance()
+            if name in with_manager:
+                summaries[MANAGER] = run_manager_batch(base, runs, jobs, cluster)
+                summaries[MANAGER].records, summaries[MANAGER].evaluations = [], []
                 tasks.advance()
             result.scenarios.append(ScenarioResult(name, summaries))
     return result
@@ -178,7 +261,7 @@ def format_report(res: MultiTargetResult) -> str:
         f"{'swaps':>6s} {'improvement':>12s}",
     ]
     for sc in res.scenarios:
-        for strategy in STRATEGIES:
+        for strategy in sc.strategies:
             s = sc.summaries[strategy]
             imp = "" if strategy == "planner" else f"{100 * sc.improvement(strategy):11.1f}%"
             lines.append(
@@ -190,13 +273,15 @@ def format_report(res: MultiTargetResult) -> str:
         "Paired differences GOSPA(planner) - GOSPA(baseline), run by run (m, 95 % interval):",
     ]
     for sc in res.scenarios:
-        for b in BASELINES:
+        for b in sc.strategies[1:]:
             d = sc.paired(b)
             verdict = "resolved" if d.resolved else "not resolved"
             lines.append(
                 f"{sc.name:24s} {'- ' + b:20s} {d.mean:+9.1f} [{d.low:+8.1f}, {d.high:+8.1f}]  "
                 f"{verdict}"
             )
+    if res.manager_note:
+        lines.append(res.manager_note)
     lines.append("")
     worst = min(sc.improvement(b) for sc in res.scenarios for b in BASELINES)
     verdict = "meets" if worst >= REQUIRED_IMPROVEMENT else "MISSES"
@@ -217,7 +302,7 @@ def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
 
     def figure(sc: ScenarioResult):
         fig, ax = figure_axes((7, 4))
-        for strategy in STRATEGIES:
+        for strategy in sc.strategies:
             s = sc.summaries[strategy]
             t = s.dt * np.arange(1, s.steps + 1)
             ax.plot(t, s.gospa_t, label=f"{strategy} ({s.mean_gospa:.0f} m)")
@@ -232,14 +317,25 @@ def save_figures(res: MultiTargetResult, out: Path) -> list[Path]:
     )
 
 
+def _options(ap: argparse.ArgumentParser) -> None:
+    ap.add_argument(
+        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
+    )
+    ap.add_argument(
+        "--no-stonesoup",
+        action="store_true",
+        help=f"leave out Stone Soup's manager ({', '.join(MANAGER_SCENARIOS)}; run when installed)",
+    )
+
+
 REPRODUCTION = Reproduction(
     "multitarget",
     __doc__.splitlines()[0],
     RunsOption(1, 100, "Monte Carlo runs per row (100)"),
-    options=lambda ap: ap.add_argument(
-        "--scenario", action="append", choices=SCENARIOS, help="only these (repeatable)"
+    options=_options,
+    arguments=lambda args: dict(
+        scenarios=tuple(args.scenario or SCENARIOS), stonesoup=False if args.no_stonesoup else None
     ),
-    arguments=lambda args: dict(scenarios=tuple(args.scenario or SCENARIOS)),
 )
 main = REPRODUCTION.main
 
