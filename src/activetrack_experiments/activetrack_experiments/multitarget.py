@@ -7,10 +7,11 @@ seeded closed-loop runs of three strategies on common random numbers (run r of e
 is the same world: target motion, each sensor's detections, noise and clutter draw from their
 own streams, :mod:`activetrack.simulation.streams`):
 
-- ``planner``: the scenario as written (manoeuvres and beams on the tracks' expected GOSPA,
-  ``planner.targets.objective: gospa``);
+- ``planner``: the scenario as written (manoeuvres against every track, beams by its
+  ``planner.targets`` objective and assignment);
 - ``hold_course``: the platforms hold course and speed, beams assigned by MRE on
-  ``planner.criterion`` (``objective: criterion``, the baseline as it was);
+  ``planner.criterion`` (``objective: criterion`` whatever the file sets: the baseline stays
+  the one it was);
 - ``random_assignment``: the planner's manoeuvres, but beams pointed at uniformly drawn tracks.
 
 The figure of merit is the time-averaged GOSPA (cut-off and order from the scenario's
