@@ -39,6 +39,7 @@ from activetrack.planning.across_targets import (
 from activetrack.planning.cautious import CautiousController, CautiousPlanner
 from activetrack.planning.criteria import PCRLB, POSITIONING, get_criterion
 from activetrack.planning.decision import Planner, PlannerStrategy
+from activetrack.planning.expected_gospa import GospaWeights
 from activetrack.planning.strategies import (
     CautiousLocalisation,
     FixedSelection,
@@ -292,7 +293,7 @@ def _cost_kind(cfg: PlannerConfig) -> str:
 def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiTargetPlanner:
     """Planning across targets for the scene: its platforms with their sensors in the scene
     and, where the planner steers them, their limits."""
-    cfg = scenario.planner
+    cfg, ev = scenario.planner, scenario.evaluation
     sensors = scene_sensors(scenario)
     platforms = [
         ScenePlatform(
@@ -313,5 +314,7 @@ def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiT
         max_iterations=cfg.max_sensor_iterations,
         aggregate=cfg.targets.aggregate,
         assignment=cfg.targets.assignment,
+        objective=cfg.targets.objective,
+        gospa=GospaWeights(ev.cutoff, ev.order, ev.alpha),
     )
     return MultiTargetPlanner(platforms, target_dynamics(scenario), settings, rng)

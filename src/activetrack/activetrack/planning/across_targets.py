@@ -25,6 +25,12 @@ planned k+1 positions (``planner.targets.assignment``): ``mre`` optimal assignme
 costs, ``random`` (balanced), ``nearest``; a beam points at its track's predicted position. No
 confirmed track: every beam sweeps one ``beam_width`` per epoch from its platform's heading.
 
+``planner.targets.objective: gospa`` replaces the criterion by the tracks' expected GOSPA
+(:mod:`activetrack.planning.expected_gospa`): manoeuvres scored by a rollout over
+``planner.horizon`` epochs (:mod:`activetrack.planning.gospa_rollout`, a search one leg
+deep), "every platform holds course" kept when it scores no worse than the plans found, and
+beams (``assignment: mre``) assigned on the tracks' expected GOSPA at k+1.
+
 Random draws, all from the planner's generator, in order: the tracks' Gaussian samples and
 process noise (pcrlb), the evolutionary search, the random assignment.
 """
@@ -60,6 +66,7 @@ from activetrack.data import (
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.planning.assignment import (
     assign_beams,
+    assign_beams_gospa,
     beam_coverage,
     coverage_after_misses,
     nearest_assignment,
@@ -67,12 +74,27 @@ from activetrack.planning.assignment import (
 )
 from activetrack.planning.criteria import POSITIONING, get_criterion
 from activetrack.planning.decision import DecisionContext, DecisionPart
+from activetrack.planning.expected_gospa import (
+    GospaWeights,
+    hit_probability,
+    hold_update,
+    position_spread,
+    track_split,
+)
+from activetrack.planning.gospa_rollout import (
+    GospaRollout,
+    Look,
+    in_view,
+    look_factors,
+    straight_on,
+)
 from activetrack.planning.horizons import SearchSettings
-from activetrack.planning.manoeuvre import PlannerPlatform, PlatformLimits
+from activetrack.planning.manoeuvre import PlannerPlatform, PlatformLimits, hold_course
 from activetrack.planning.multisensor import coordinate_platforms
 from activetrack.planning.objective import (
     TIE_BREAK,
     CovarianceTerm,
+    ExpectedGospaTerm,
     InformationTerm,
     Objective,
     TrackAggregate,
@@ -82,17 +104,6 @@ from activetrack.planning.selection import TargetPrediction, expected_update
 from activetrack.planning.strategies import LinearDynamics
 
 __all__ = ["AcrossTargetsSettings", "MultiTargetPlanner", "ScenePlatform"]
-
-
-def _in_view(sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray) -> np.ndarray:
-    """1.0 where target ``x`` ``(4,)`` is inside the fixed field of view from sensor pvs
-    ``(..., 4)`` (heading of their velocity), else 0.0 ``(...)``."""
-    if sensor.fov_width is None:
-        return np.ones(pv.shape[:-1])
-    heading = np.arctan2(pv[..., 3], pv[..., 1])
-    bearing = np.arctan2(x[2] - pv[..., 2], x[0] - pv[..., 0])
-    off = wrap_angle(bearing - heading - sensor.fov_centre)
-    return (np.abs(off) <= 0.5 * sensor.fov_width).astype(float)
 
 
 @dataclass(frozen=True)
@@ -112,11 +123,16 @@ class _Sensor:
         """Eq. 23's detection factor q I_r I_fov ``(...)`` for a target at x seen from pvs
         ``(..., 4)``; a beam times its coverage of ``P`` (None: on target) after ``missed``."""
         inside = np.asarray(self.model.in_range(x, pv), dtype=float)
-        d = self.q * inside * _in_view(self.model, x, pv)
+        d = self.q * inside * in_view(self.model, x, pv)
         if self.steerable and P is not None:
             c = beam_coverage(cast(float, self.model.beam_width), x, P, pv)
             d = d * coverage_after_misses(c, missed)
         return d
+
+    def hit(self, x: np.ndarray, pv: np.ndarray, P: np.ndarray, missed: float) -> float:
+        """The chance Pd I_r I_fov c that this sensor at ``pv`` detects a target N(x, P)."""
+        inside, c = look_factors(self.model, x, pv, P, missed)
+        return float(self.model.pd) * float(inside) * float(c)
 
 
 @dataclass
@@ -194,7 +210,7 @@ class _Epoch:
     def follow(self, i: int, path: np.ndarray) -> None:
         self.paths[i] = path
 
-    def stage(self, j: int | None) -> _PcrlbStage | _MreStage:
+    def stage(self, j: int | None) -> _PcrlbStage | _MreStage | GospaRollout:
         return self.planner._stage(self, j)
 
 
@@ -211,6 +227,14 @@ class AcrossTargetsSettings:
     max_iterations: int
     aggregate: str
     assignment: str
+    objective: str = "criterion"
+    gospa: GospaWeights | None = None
+
+    def __post_init__(self) -> None:
+        if self.objective not in ("criterion", "gospa"):
+            raise ValueError(f"objective must be 'criterion' or 'gospa', got {self.objective!r}")
+        if self.objective == "gospa" and self.gospa is None:
+            raise ValueError("gospa: the objective 'gospa' needs GOSPA's c, p and alpha")
 
 
 @dataclass(frozen=True)
@@ -256,6 +280,9 @@ class MultiTargetPlanner:
         steering = any(lim is not None for lim in self.limits)
         self.search = settings.search if steering else None
         self.horizon = settings.horizon if steering else 1
+        self.gospa = settings.gospa if settings.objective == "gospa" else None
+        if self.gospa is not None:  # a rollout of R legs behind a search one leg deep
+            self.lookahead, self.horizon = settings.horizon, 1
         self.settings = settings
         self.last_track: dict[str, int] = {}  # beam sensor id -> track id it served last
         self.last_bearing: dict[str, float] = {}
@@ -318,7 +345,7 @@ class MultiTargetPlanner:
     def _epoch(
         self, epoch: int, planners: list[PlannerPlatform], tracks: tuple[TrackEstimate, ...]
     ) -> _Epoch:
-        d, R = self.dynamics, self.horizon
+        d, R = self.dynamics, self.horizon if self.gospa is None else self.lookahead
         predictions = [TargetPrediction.from_posterior(t.mean, t.cov, d.F, d.Q) for t in tracks]
         ep = _Epoch(
             self,
@@ -336,7 +363,7 @@ class MultiTargetPlanner:
                 if X is None:
                     X = gaussian_samples(t.mean, t.cov, self.settings.mc_samples, self.rng)
                 ep.samples.append(propagate_samples(X, d.F, d.Q, R, self.rng))
-        else:
+        if self.cost_kind != "pcrlb" or self.gospa is not None:
             x = [np.stack([p.x for p in predictions])]  # x_{k+1+r|k} = F^r x_{k+1|k}
             for _ in range(1, R):
                 x.append(x[-1] @ d.F.T)
@@ -367,12 +394,31 @@ class MultiTargetPlanner:
             return np.stack([covariance_bound(t.cov) for t in ep.tracks])
         return np.stack([p.P for p in ep.predictions])
 
-    def _stage(self, ep: _Epoch, j: int | None) -> _PcrlbStage | _MreStage:
+    def _stage(self, ep: _Epoch, j: int | None) -> _PcrlbStage | _MreStage | GospaRollout:
         """The stage of platform ``j`` being optimised, every other platform on its path
         (``j`` None: all fixed, for the objective of the plans)."""
         own = [(s, ep.serves[i]) for i, s in enumerate(self.sensors) if s.platform == j]
         others = [(s, ep.serves[i]) for i, s in enumerate(self.sensors) if s.platform != j]
         d = self.dynamics
+        if self.gospa is not None:
+            L = self.lookahead
+            looks = tuple(
+                Look(s.model, serves, straight_on(ep.paths[s.platform][0], L, self.dt))
+                for s, serves in others
+            )
+            return GospaRollout(
+                self.cost_kind,
+                d.F,
+                d.Q,
+                cast(np.ndarray, ep.x),
+                ep.samples,
+                looks,
+                tuple((s.model, serves) for s, serves in own),
+                ep.missed,
+                self._existence(ep),
+                self.gospa,
+                self.dt,
+            )
         if self.cost_kind == "pcrlb":
             fixed = np.zeros((self.horizon, len(ep.tracks), 4, 4))
             for s, serves in others:
@@ -393,6 +439,8 @@ class MultiTargetPlanner:
 
     def _objective(self, ep: _Epoch, tie_break: float) -> Objective:
         """The tracks' aggregate criterion of J (pcrlb, eq. 15-16) or P (mre)."""
+        if self.gospa is not None:
+            return Objective((ExpectedGospaTerm(ep.weights),))
         tracks = TrackAggregate(self.settings.aggregate, ep.weights, tie_break)
         if self.cost_kind == "pcrlb":
             return Objective((InformationTerm(self.criterion, tracks),))
@@ -415,6 +463,8 @@ class MultiTargetPlanner:
         )
         ep.plans = {j: plan for j, plan in enumerate(result.plans) if plan is not None}
         ep.evaluations = result.evaluations
+        if self.gospa is not None:
+            return self._against_hold_course(ep, state0)
         # Every platform on its path: the states along the legs (no candidate of anyone).
         stage, state, states = ep.stage(None), state0, []
         dummy = np.zeros((1, 1, 4))
@@ -422,6 +472,30 @@ class MultiTargetPlanner:
             state = stage.advance(stage.prepare(state, r), r, dummy)
             states.append(state)
         return self._objective(ep, 0.0).along(states)
+
+    def _plans_objective(self, ep: _Epoch, state0: np.ndarray) -> float:
+        """The objective of every platform on its path in ``ep.paths`` (one evaluation)."""
+        stage = ep.stage(None)
+        return self._objective(ep, 0.0).along([stage.advance(state0, 0, np.zeros((1, 1, 4)))])
+
+    def _against_hold_course(self, ep: _Epoch, state0: np.ndarray) -> float:
+        """ "Every platform holds course" is a candidate too: kept unless the plans found
+        score better (the coordinator's passes start from it but may leave it for a plan that
+        is better only for the platform that searched). Returns the objective kept."""
+        found = self._plans_objective(ep, state0)
+        if not ep.plans:
+            return found
+        paths = dict(ep.paths)
+        for j in ep.plans:
+            p = ep.platforms[j]
+            hold = hold_course(p.heading_and_speed[1], cast(PlatformLimits, p.limits), 1)
+            ep.follow(j, p.path(self.dt, 1, hold))
+        held = self._plans_objective(ep, state0)
+        if held <= found:
+            ep.plans = {}
+            return held
+        ep.paths = paths
+        return found
 
     def _assign(self, ep: _Epoch, next_pv: np.ndarray) -> None:
         """Every beam to one confirmed track at the planned k+1 positions: ``ep.serves``."""
@@ -435,6 +509,8 @@ class MultiTargetPlanner:
         elif self.settings.assignment == "nearest":
             xy = np.array([[p.x[0], p.x[2]] for p in ep.predictions])
             picks = nearest_assignment(pvs[:, ::2], xy)
+        elif self.gospa is not None:
+            picks = self._assign_gospa(ep, next_pv, beams, pvs)
         else:
             picks = assign_beams(
                 self._fixed_updates(ep, next_pv),
@@ -455,6 +531,54 @@ class MultiTargetPlanner:
             )
         for i, t in zip(beams, picks, strict=True):
             ep.serves[i] = np.arange(T) == t
+
+    @staticmethod
+    def _existence(ep: _Epoch) -> np.ndarray:
+        """The tracks' probabilities of existence ``(T,)`` (the tracker's IPDA)."""
+        return np.array([t.existence for t in ep.tracks], dtype=float)
+
+    def _fixed_hits(self, ep: _Epoch, next_pv: np.ndarray) -> np.ndarray:
+        """Each track's chance of a hit at k+1 from the fixed (non-steerable) sensors ``(T,)``."""
+        fixed = [s for s in self.sensors if not s.steerable]
+        return np.array(
+            [
+                hit_probability([s.hit(p.x, next_pv[s.platform], p.P, ep.missed[t]) for s in fixed])
+                for t, p in enumerate(ep.predictions)
+            ],
+            dtype=float,
+        )
+
+    def _assign_gospa(
+        self, ep: _Epoch, next_pv: np.ndarray, beams: list[int], pvs: np.ndarray
+    ) -> np.ndarray:
+        """The beams' tracks minimising the tracks' expected GOSPA at k+1
+        (:func:`~activetrack.planning.assignment.assign_beams_gospa`)."""
+        preds = ep.predictions
+        pairs = [(self.sensors[i], pv) for i, pv in zip(beams, pvs, strict=True)]
+        return assign_beams_gospa(
+            self._fixed_updates(ep, next_pv),
+            [s.model for s, _ in pairs],
+            pvs,
+            np.array(
+                [
+                    [s.detection(p.x, pv, p.P, ep.missed[t]) for t, p in enumerate(preds)]
+                    for s, pv in pairs
+                ]
+            ),
+            np.array(
+                [
+                    [s.hit(p.x, pv, p.P, ep.missed[t]) for t, p in enumerate(preds)]
+                    for s, pv in pairs
+                ]
+            ),
+            (
+                self._fixed_hits(ep, next_pv),
+                np.array([float(position_spread(p.P)) for p in preds]),
+                self._existence(ep),
+            ),
+            cast(GospaWeights, self.gospa),
+            ep.weights,
+        )
 
     @staticmethod
     def _expected_update(
@@ -484,7 +608,9 @@ class MultiTargetPlanner:
         out = np.empty(len(ep.tracks))
         for t, (track, p) in enumerate(zip(ep.tracks, ep.predictions, strict=True)):
             serving = [s for i, s in enumerate(self.sensors) if ep.serves[i, t]]
-            if self.cost_kind == "pcrlb":
+            if self.gospa is not None:
+                out[t] = self._gospa_cost(ep, t, serving, next_pv)
+            elif self.cost_kind == "pcrlb":
                 J = predicted_information(covariance_bound(track.cov), p.F, p.Q)
                 for s in serving:
                     J = J + s.model.fisher_information(ep.samples[t][0], next_pv[s.platform])
@@ -493,6 +619,14 @@ class MultiTargetPlanner:
                 P = self._expected_update(p, serving, next_pv, ep.missed[t])
                 out[t] = float(self.criterion.of_covariance(p.F @ P @ p.F.T + p.Q, p.x))
         return out
+
+    def _gospa_cost(self, ep: _Epoch, t: int, serving: list[_Sensor], next_pv: np.ndarray) -> float:
+        """Track t's expected GOSPA^p at k+1 with the sensors ``serving`` it (eq. 23's update)."""
+        p, w = ep.predictions[t], cast(GospaWeights, self.gospa)
+        P = self._expected_update(p, serving, next_pv, ep.missed[t])
+        q = hit_probability([s.hit(p.x, next_pv[s.platform], p.P, ep.missed[t]) for s in serving])
+        h = hold_update(1.0, q, position_spread(p.P), w.c)
+        return float(track_split(self._existence(ep)[t], h, position_spread(P), w).sum())
 
     def _commands(self, ep_platforms: list[PlannerPlatform], epoch: int, plans: dict) -> list:
         """A command per controllable platform: its plan's first manoeuvre, else hold course."""
@@ -570,7 +704,11 @@ class MultiTargetPlanner:
             commands=tuple(self._commands(planners, epoch, plans)),
             beams=tuple(beams),
             report=PlanReportData(
-                epoch, self.cost_kind, self.criterion.name, horizon=self.horizon, **report
+                epoch,
+                self.cost_kind,
+                self.criterion.name,
+                horizon=self.horizon if self.gospa is None else self.lookahead,
+                **report,
             ),
             extra={
                 "track_costs": track_costs,

@@ -11,7 +11,9 @@ beam), one *round* gives each track at most one sensor, exactly:
 
 More sensors than tracks: rounds, each taking in the previous rounds' expected updates (greedy
 over rounds, not jointly optimal). Pair costs (:func:`mre_pair_costs`): the criterion of
-Ramdaras eq. 23 with the sensor's expected update, so ``C <= c0`` (round-off clipped).
+Ramdaras eq. 23 with the sensor's expected update, so ``C <= c0`` (round-off clipped); or
+(:func:`gospa_pair_costs`, :func:`assign_beams_gospa`) the track's expected GOSPA^p at the
+next epoch (:mod:`activetrack.planning.expected_gospa`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,13 @@ import numpy as np
 from activetrack.arraytypes import ArrayLike
 from activetrack.models.fov import sector_coverage
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
+from activetrack.planning.expected_gospa import (
+    GospaWeights,
+    hit_probability,
+    hold_update,
+    position_spread,
+    track_split,
+)
 from activetrack.planning.objective import aggregate_costs, check_aggregate
 from activetrack.planning.selection import TargetPrediction, expected_update
 
@@ -33,9 +42,11 @@ if TYPE_CHECKING:
 
 __all__ = [
     "assign_beams",
+    "assign_beams_gospa",
     "assignment_value",
     "beam_coverage",
     "coverage_after_misses",
+    "gospa_pair_costs",
     "mre_pair_costs",
     "nearest_assignment",
     "random_assignment",
@@ -199,6 +210,87 @@ def assign_beams(
                 p = preds[t]
                 P = expected_update(p.P, p.x, [sensors[i]], pvs[i], detection=d[i, t : t + 1])
                 preds[t] = p.with_covariance(P)
+        remaining = [i for i, t in zip(remaining, picks, strict=True) if t < 0]
+    return out
+
+
+def gospa_pair_costs(
+    predictions: Sequence[TargetPrediction],
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    detection: ArrayLike,
+    hits: ArrayLike,
+    base: tuple[ArrayLike, ArrayLike, ArrayLike],
+    weights: GospaWeights,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``C`` ``(S, T)`` and ``c0`` ``(T,)``: each track's expected GOSPA^p at the next epoch
+    (:func:`activetrack.planning.expected_gospa.track_split`, summed) with sensor s's expected
+    update (eq. 23, detection factor ``detection[s, t]``) and chance of a hit ``hits[s, t]``,
+    or with none. ``predictions`` carry P_{k+1|k} with the updates already counted; ``base``
+    = (their chance of a hit ``(T,)``, the spread of the predicted position before any update
+    ``(T,)``, the probability of existence ``(T,)``)."""
+    pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
+    d = np.asarray(detection, dtype=float)
+    q = np.asarray(hits, dtype=float)
+    q0, m_pred, existence = (np.asarray(a, dtype=float) for a in base)
+    S, T = len(sensors), len(predictions)
+    if pvs.shape[0] != S or d.shape != (S, T) or q.shape != (S, T):
+        raise ValueError(f"sensor_pvs must be ({S}, 4), detection and hits ({S}, {T})")
+    if not (q0.shape == m_pred.shape == existence.shape == (T,)):
+        raise ValueError(f"base: hit chances, spreads and existence must be ({T},)")
+
+    def cost(t: int, P: np.ndarray, hit: float) -> float:
+        h = hold_update(1.0, hit, m_pred[t], weights.c)
+        return float(track_split(existence[t], h, position_spread(P), weights).sum())
+
+    C, c0 = np.empty((S, T)), np.empty(T)
+    for t, p in enumerate(predictions):
+        c0[t] = cost(t, p.P, float(q0[t]))
+        for s, sensor in enumerate(sensors):
+            P_upd = expected_update(p.P, p.x, [sensor], pvs[s], detection=d[s, t : t + 1])
+            C[s, t] = cost(t, P_upd, float(hit_probability([q0[t], q[s, t]])))
+    return np.minimum(C, c0), c0
+
+
+def assign_beams_gospa(
+    predictions: Sequence[TargetPrediction],
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    detection: ArrayLike,
+    hits: ArrayLike,
+    base: tuple[ArrayLike, ArrayLike, ArrayLike],
+    weights: GospaWeights,
+    priorities: ArrayLike,
+) -> np.ndarray:
+    """The track index ``(S,)`` of each steerable sensor: the weighted-sum
+    :func:`round_assignment` (``priorities`` ``(T,)``) of the :func:`gospa_pair_costs`, in
+    rounds while sensors are left, each round taking in the previous rounds' updates and hits.
+    Optimal within a round: keeping every beam on its track is one of the assignments scored."""
+    pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
+    d = np.asarray(detection, dtype=float)
+    q = np.asarray(hits, dtype=float)
+    q0, m_pred, existence = (np.array(a, dtype=float) for a in base)
+    preds = list(predictions)
+    out = np.full(len(sensors), -1, dtype=int)
+    remaining = list(range(len(sensors)))
+    while remaining and preds:
+        C, c0 = gospa_pair_costs(
+            preds,
+            [sensors[i] for i in remaining],
+            pvs[remaining],
+            d[remaining],
+            q[remaining],
+            (q0, m_pred, existence),
+            weights,
+        )
+        picks = round_assignment(C, c0, priorities, "weighted_sum")
+        for i, t in zip(remaining, picks, strict=True):
+            if t >= 0:
+                out[i] = t
+                p = preds[t]
+                P = expected_update(p.P, p.x, [sensors[i]], pvs[i], detection=d[i, t : t + 1])
+                preds[t] = p.with_covariance(P)
+                q0[t] = hit_probability([q0[t], q[i, t]])
         remaining = [i for i, t in zip(remaining, picks, strict=True) if t < 0]
     return out
 

@@ -8,6 +8,8 @@ A term is anything with ``weight``, ``legs`` and ``cost(state, level) -> (...)``
 0-based), so a new one plugs in without touching the search or the coordinator. The built-in
 terms take a criterion of each track's state ``(..., T, 4, 4)`` and combine the tracks by
 :class:`TrackAggregate` (worst, or priority-weighted sum); one target is T = 1.
+:class:`ExpectedGospaTerm` weighs the tracks' expected GOSPA split of a rollout stage
+(:mod:`activetrack.planning.gospa_rollout`).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ __all__ = [
     "SUM",
     "TIE_BREAK",
     "CovarianceTerm",
+    "ExpectedGospaTerm",
     "InformationTerm",
     "Objective",
     "Term",
@@ -174,3 +177,18 @@ class CovarianceTerm:
         x = self.x[level]  # (T, 4)
         c = [self.criterion.of_covariance(state[..., t, :, :], x[t]) for t in range(len(x))]
         return self.tracks(np.stack(c, axis=-1))
+
+
+@dataclass(frozen=True)
+class ExpectedGospaTerm:
+    """sum_t w_t (l_t + m_t + f_t): the tracks' expected GOSPA^p split (localisation, missed,
+    false; :func:`activetrack.planning.expected_gospa.track_split`) of states ``(..., T, 3)``
+    summed over a rollout's legs, ``weights`` ``(T,)`` the tracks' priorities (1 unless the
+    scenario sets them: the terms' own weights are GOSPA's c, p and alpha)."""
+
+    weights: np.ndarray
+    legs: str = SUM
+    weight: float = 1.0
+
+    def cost(self, state: np.ndarray, level: int) -> np.ndarray:
+        return np.einsum("...tk,t->...", state, np.asarray(self.weights, dtype=float))

@@ -497,7 +497,13 @@ def _scene_problems(s: Scenario) -> Problems:
                 beams and one_target_planning,
                 "planner: steerable beams are pointed by planning across tracks; search "
                 "'cautious' and planner.selection plan for one target without beams",
-            )
+            ),
+            (
+                not beams and cfg.targets.objective != "criterion",
+                "planner.targets.objective: 'gospa' plans across tracks (several targets, "
+                "clutter, births and deaths, or steerable beams); one target known to be the "
+                "only one is planned on planner.criterion: use 'criterion'",
+            ),
         )
     why = "when detections are associated (several targets, births and deaths, or clutter)"
     for i, t in enumerate(s.targets):

@@ -370,11 +370,17 @@ class MultiTargetPlanConfig(Strict):
     started from detections weigh ``new_track_priority``). Only confirmed tracks count.
     ``assignment``: how sensors with a steerable beam (``beam_width``) are pointed, one track
     each per epoch: ``mre`` the optimal assignment of the per-pair MRE cost, ``random``
-    uniformly (the baseline), ``nearest`` the closest track.
+    uniformly (the baseline), ``nearest`` the closest track. ``objective``: ``criterion``
+    plans on ``planner.criterion`` of the confirmed tracks' bounds, combined by ``aggregate``;
+    ``gospa`` on the expected GOSPA of every confirmed track (localisation weighted by its
+    probability of existence, plus c^p / alpha per expected missed and false target, c, p and
+    alpha from ``evaluation``; :mod:`activetrack.planning.expected_gospa`) over ``horizon``
+    epochs by rollout, beams assigned on the same cost.
     """
 
     aggregate: Literal["worst", "weighted_sum"] = "worst"
     assignment: Literal["mre", "random", "nearest"] = "mre"
+    objective: Literal["criterion", "gospa"] = "criterion"
     new_track_priority: Annotated[float, Field(gt=0, le=1e6)] = 1.0
 
 

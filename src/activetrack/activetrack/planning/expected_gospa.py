@@ -1,0 +1,130 @@
+"""The expected GOSPA of a track one epoch ahead, split as the metric splits (the planner's
+``planner.targets.objective: gospa``).
+
+GOSPA (Rahmathullah, Garcia-Fernandez & Svensson, FUSION 2017, Definition 1, eq. 1; for
+alpha = 2 Proposition 1, eq. 2) adds, to the power p, ``min(d, c)^p`` per target-track pair and
+``c^p / alpha`` per missed target and per false track. Of one confirmed track with
+probability of existence ``r`` (IPDA, :mod:`activetrack.tracking.management`), at one epoch:
+
+- its target exists and the track holds it (probability ``r h``): localisation
+  ``E[min(d, c)^p]`` (:func:`expected_localisation`);
+- its target exists but the track has lost it (``r (1 - h)``): one missed target and one false
+  track, ``c^p / alpha`` each (for alpha = 2 the same as the capped pair, ``c^p``);
+- its target does not exist (``1 - r``): one false track, ``c^p / alpha``.
+
+``h``, the probability that the track still holds its target, starts at 1 and falls at each
+epoch by the chance of losing it (:func:`hold_update`): a track is lost at an epoch it passes
+without a detection (probability ``1 - q``, q the chance of a hit: Pd times the probability
+that the target is inside the sensors' ranges, fields of view and beams) while its predicted
+error exceeds the cut-off c (then no gate or beam brings it back: ``P(d > c)``). Only c, p and
+alpha weigh the terms against each other: nothing is tuned.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from activetrack.arraytypes import ArrayLike
+from activetrack.checks import require_in_range, require_positive
+
+__all__ = [
+    "GospaWeights",
+    "beyond_cutoff",
+    "expected_localisation",
+    "hit_probability",
+    "hold_update",
+    "position_spread",
+    "track_split",
+]
+
+
+@dataclass(frozen=True)
+class GospaWeights:
+    """GOSPA's cut-off ``c`` [m], order ``p`` >= 1 and ``alpha`` in (0, 2] (the scenario's
+    ``evaluation``): ``cardinality`` = c^p / alpha, the cost of one missed or false target."""
+
+    c: float
+    p: float
+    alpha: float
+
+    def __post_init__(self) -> None:
+        require_positive("c", self.c)
+        require_in_range("p", self.p, 1.0, math.inf, hi_inclusive=False)
+        require_in_range("alpha", self.alpha, 0.0, 2.0, lo_inclusive=False)
+
+    @property
+    def cardinality(self) -> float:
+        return float(self.c**self.p / self.alpha)
+
+
+def position_spread(P: ArrayLike) -> np.ndarray:
+    """m = tr of the xy block of pv covariances ``(..., 4, 4)`` ``(...)`` [m^2]: E[d^2] of the
+    position error."""
+    P = np.asarray(P, dtype=float)
+    return np.maximum(P[..., 0, 0] + P[..., 2, 2], 0.0)
+
+
+def beyond_cutoff(m: ArrayLike, c: float) -> np.ndarray:
+    """P(d > c) = exp(-c^2 / m) ``(...)`` for a position error d whose squared length has mean
+    ``m`` (exact for an isotropic 2-D Gaussian error: d^2 / (m / 2) is chi-square with 2
+    degrees of freedom, i.e. d^2 is exponential with mean m; m = 0: 0)."""
+    m = np.asarray(m, dtype=float)
+    with np.errstate(divide="ignore", over="ignore"):
+        return np.where(m > 0.0, np.exp(-(c * c) / np.where(m > 0.0, m, 1.0)), 0.0)
+
+
+def expected_localisation(m: ArrayLike, c: float, p: float) -> np.ndarray:
+    """E[min(d, c)^p] ``(...)`` for d^2 exponential with mean ``m`` (:func:`beyond_cutoff`).
+
+    With a = p/2 and u = c^2 / m: E[min(d^2, c^2)^a] = m^a gamma(a + 1, u) + c^p e^{-u}, where
+    gamma(a + 1, u) = Gamma(a + 1) P(a + 1, u) is the lower incomplete gamma function (split
+    the integral of x^a e^{-x/m} / m at c^2). p = 2: m (1 - e^{-u}). It rises like m^a for a
+    track well inside the cut-off and saturates at c^p, GOSPA's cost of a pair at or beyond it
+    (eq. 2: one missed and one false target)."""
+    from scipy.special import gamma, gammainc
+
+    m = np.asarray(m, dtype=float)
+    a = 0.5 * p
+    safe = np.where(m > 0.0, m, 1.0)
+    u = (c * c) / safe
+    if p == 2.0:  # m gamma(2, u) + c^2 e^{-u} = m (1 - e^{-u} (1 + u)) + m u e^{-u}
+        value = safe * -np.expm1(-u)
+    else:
+        value = safe**a * gamma(a + 1.0) * gammainc(a + 1.0, u) + c**p * np.exp(-u)
+    return np.where(m > 0.0, value, 0.0)
+
+
+def hit_probability(detections: ArrayLike) -> np.ndarray:
+    """q = 1 - prod_s (1 - q_s) ``(...)``: the chance of at least one detection of a target
+    from the sensors' chances ``(..., S)`` (independent sensors; S = 0: 0)."""
+    q = np.asarray(detections, dtype=float)
+    if q.shape[-1] == 0:
+        return np.zeros(q.shape[:-1])
+    return 1.0 - np.prod(1.0 - q, axis=-1)
+
+
+def hold_update(hold: ArrayLike, q: ArrayLike, m_pred: ArrayLike, c: float) -> np.ndarray:
+    """h' = h (1 - (1 - q) P(d > c)): the track keeps its target through an epoch unless it
+    passes it without a detection (1 - q) while its predicted error (spread ``m_pred``) lies
+    beyond the cut-off (module docstring)."""
+    h = np.asarray(hold, dtype=float)
+    return h * (1.0 - (1.0 - np.asarray(q, dtype=float)) * beyond_cutoff(m_pred, c))
+
+
+def track_split(
+    existence: ArrayLike, hold: ArrayLike, m: ArrayLike, weights: GospaWeights
+) -> np.ndarray:
+    """The expected localisation, missed and false terms of GOSPA^p ``(..., 3)`` of tracks of
+    probability of existence ``r``, holding their targets with probability ``h`` and spread
+    ``m`` after the epoch's update (module docstring): r h E[min(d, c)^p], r (1 - h) c^p /
+    alpha, (r (1 - h) + 1 - r) c^p / alpha."""
+    r = np.asarray(existence, dtype=float)
+    h = np.asarray(hold, dtype=float)
+    k = weights.cardinality
+    loc = r * h * expected_localisation(m, weights.c, weights.p)
+    lost = r * (1.0 - h)
+    loc, lost = np.broadcast_arrays(loc, lost)
+    return np.stack([loc, lost * k, (lost + (1.0 - r)) * k], axis=-1)
