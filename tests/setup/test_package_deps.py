@@ -92,6 +92,11 @@ PIP_ONLY = {
     "dask": "dask",  # its configuration (activetrack.montecarlo.dask)
     "llvmlite": "llvmlite",  # numba's LLVM binding (activetrack.kernels.pcg64's intrinsic)
 }
+# Bench-only modules (requirements-bench.txt), imported lazily and only when installed: no
+# package declares them. import name -> PyPI distribution.
+BENCH_ONLY = {
+    "stonesoup": "stonesoup",  # Stone Soup's sensor manager (activetrack_experiments)
+}
 # Declared but not imported, on purpose: (package, rosdep key or pip name) -> why.
 # Each node is an rclpy node (its class derives from rclpy's Node through activetrack_ros):
 # ROS tools and reviewers expect rclpy among a node package's dependencies.
@@ -223,7 +228,7 @@ def distribution(module: str) -> str | None:
 
 @pytest.mark.parametrize("package", PACKAGES)
 def test_every_import_is_known(package):
-    known = ROS | set(OWN) | set(KEYED) | set(PIP_ONLY)
+    known = ROS | set(OWN) | set(KEYED) | set(PIP_ONLY) | set(BENCH_ONLY)
     unknown = {m: f for m, f in package_imports(package).items() if m not in known}
     assert not unknown, f"{package}: add these modules to the tables of this test: {unknown}"
 
@@ -290,6 +295,13 @@ def test_test_tools_are_test_extras(package):
     names = {normalize(_requirement_name(r)) for r in runtime}
     assert not names & {"pytest", "hypothesis", "mypy", "mcap-ros2-support", "websockets"}
     assert "pytest" in {normalize(_requirement_name(r)) for r in extras.get("test", [])}
+
+
+def test_bench_only_modules_are_bench_requirements():
+    bench = (ROOT / "requirements-bench.txt").read_text().splitlines()
+    names = {normalize(_requirement_name(x)) for x in bench if x.split("#")[0].strip()}
+    assert {normalize(d) for d in BENCH_ONLY.values()} <= names
+    assert not {normalize(d) for d in BENCH_ONLY.values()} & _required_by_workspace()
 
 
 def test_the_tables_know_rosdep_keys_not_pip_names():
