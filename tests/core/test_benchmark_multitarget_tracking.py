@@ -4,8 +4,8 @@ Soup's JPDA with its own initiator and deleter (skipped without Stone Soup, benc
 
 Figures (seeds 3000-3001, 3 and 4 targets, 40 scans; measured values in PINNED):
 time-averaged GOSPA (c = 500 m, p = 2) of our tracker, pinned to 1 % (the runs are seeded;
-1 % leaves room for rounding across machines, not for a change of rule: terminating
-confirmed tracks at 0.1 instead of the default 0.02 moves the radar's run 3001 by 5 %)."""
+1 % leaves room for rounding across machines, not for a change of rule: terminating every
+confirmed track at 0.1 instead of the defaults moves the radar's run 3001 by 5 %)."""
 
 from __future__ import annotations
 

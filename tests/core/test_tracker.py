@@ -25,8 +25,10 @@ Figures asserted (seeded; the measured values are in the comments):
   detection against hand-computed values (1e-6); a detection inside a track's gate starts no
   track; confirmation waits for existence >= 0.9 (1-of-1 confirms at the second hit, not the
   first); a confirmed track goes when its existence falls below ``existence_terminate``
-  (0.1: at its 3rd miss, 0.043019; the default 0.02: at its 4th, 0.004472), from a prior or
-  not, and only looks whose sector held the track lower it; the
+  (0.1: at its 3rd miss, 0.043019; the default 0.02: at its 4th, 0.004472), one from a prior
+  below ``existence_terminate_prior`` (default 0.001: its 5th, 0.000448), and only looks
+  whose sector held the track lower it; a prior far off its target is terminated while a
+  track from the target's detections takes over; the
   field-of-view coverage that scales Pd is the planner's beam coverage for a centred beam.
 """
 
@@ -357,8 +359,8 @@ def test_a_dead_target_loses_its_track_after_delete_misses_looks():
     sc = make_scenario(
         [{"id": "a", "mean": [100.0, 5.0, 100.0, 5.0], "death": 10}],
         [range_bearing()],
-        # existence_terminate 0: only the M-of-N rule (at Pd 1 existence goes at once)
-        tracks={"delete_misses": 4, "existence_terminate": 0.0},
+        # existence_terminate_prior 0: only the M-of-N rule (at Pd 1 existence goes at once)
+        tracks={"delete_misses": 4, "existence_terminate_prior": 0.0},
     )
     _, scans = simulate(sc, 20, np.random.default_rng(8))
     tracker, sets = run(sc, scans)
@@ -414,7 +416,8 @@ def test_two_tracks_coalesced_on_one_target_lose_the_younger():
     both = [targets[0], {**targets[1], "birth": 0}]
     # With the defaults LM-IPDA's existence ends the duplicate first (below).
     tracker, sets = run(
-        make_scenario(both, [range_bearing(pd=0.9)], tracks={"existence_terminate": 0.0}), scans
+        make_scenario(both, [range_bearing(pd=0.9)], tracks={"existence_terminate_prior": 0.0}),
+        scans,
     )
     d2 = [math.nan]
     for ts in sets[1:]:
@@ -736,19 +739,20 @@ def test_confirmation_waits_for_existence_and_existence_deletes_a_confirmed_trac
 
 @pytest.mark.parametrize(
     ("terminate", "deleted_at"),
-    [(None, 4), (0.1, 3), (0.001, 5), (0.0001, 6)],  # None: the default, 0.02
+    [(None, 5), (0.1, 3), (0.02, 4), (0.0001, 6)],  # None: the default, 0.001
 )
 def test_tracks_from_priors_are_terminated_by_existence(terminate, deleted_at):
     # A prior's confirmed track missed at Pd 0.9 without clutter: existence 1 -> 0.833235,
-    # 0.312210, 0.043019, 0.004472 (< 0.02: the default goes at the 4th miss), 0.000448
-    # (< 0.001 at the 5th), 0.000044 (< 0.0001 at the 6th); delete_misses (8) never does.
+    # 0.312210, 0.043019, 0.004472 (< 0.02 at the 4th miss), 0.000448 (< 0.001: the default
+    # goes at the 5th), 0.000044 (< 0.0001 at the 6th); delete_misses (8) never does.
     tracks = {"delete_misses": 8} | (
-        {} if terminate is None else {"existence_terminate": terminate}
+        {} if terminate is None else {"existence_terminate_prior": terminate}
     )
     sc = make_scenario(
         [{"id": "a", "mean": [100.0, 0.0, 100.0, 0.0]}], [range_bearing(pd=0.9)], tracks=tracks
     )
-    assert sc.tracker.tracks.existence_terminate == (0.02 if terminate is None else terminate)
+    got = sc.tracker.tracks.existence_terminate_prior
+    assert got == (0.001 if terminate is None else terminate)
     tracker = build_tracker(sc, np.random.default_rng(0))
     empty = np.zeros((0, 2))
     expected = [0.833235, 0.312210, 0.043019, 0.004472, 0.000448, 0.000044]
@@ -764,7 +768,7 @@ def test_tracks_from_priors_are_terminated_by_existence(terminate, deleted_at):
 def test_a_prior_far_off_its_target_is_terminated_and_initiation_takes_the_target_over():
     # The prior sits 707 m (50 sigma) from the target: its track gates none of the target's
     # detections (Pd 0.9, no clutter), so it is missed at every look; the first detection
-    # starts track 2, confirmed at its second hit, and track 1 goes at its 4th miss.
+    # starts track 2, confirmed at its second hit, and track 1 goes at its 5th miss.
     truth = np.array([600.0, 0.0, 600.0, 0.0])
     sc = make_scenario(
         [{"id": "a", "mean": [100.0, 0.0, 100.0, 0.0]}],
@@ -774,12 +778,12 @@ def test_a_prior_far_off_its_target_is_terminated_and_initiation_takes_the_targe
     tracker = build_tracker(sc, np.random.default_rng(0))
     z = tracker.sensors["s1"].measure(truth, SENSOR_PV)[None]
     statuses = []
-    for k in range(1, 6):
+    for k in range(1, 7):
         ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, z)])
         statuses.append([(t.track_id, t.status) for t in ts.tracks])
     assert statuses[0] == [(1, CONFIRMED), (2, TENTATIVE)]
-    assert statuses[1] == statuses[2] == [(1, CONFIRMED), (2, CONFIRMED)]
-    assert statuses[3] == statuses[4] == [(2, CONFIRMED)]
+    assert statuses[1] == statuses[3] == [(1, CONFIRMED), (2, CONFIRMED)]
+    assert statuses[4] == statuses[5] == [(2, CONFIRMED)]
     assert tracker.book.deleted == {"existence": 1}
     assert np.linalg.norm(ts.tracks[0].mean[[0, 2]] - truth[[0, 2]]) < 20.0
 
@@ -807,6 +811,7 @@ def test_a_scan_whose_sector_misses_a_track_leaves_its_existence():
         ("existence_confirm", 1.0, "existence_confirm"),
         ("existence_delete", -0.1, "existence_delete"),
         ("existence_terminate", 1.0, "existence_terminate"),
+        ("existence_terminate_prior", -1e-3, "existence_terminate_prior"),
     ],
 )
 def test_existence_settings_are_range_checked(field, value, message):

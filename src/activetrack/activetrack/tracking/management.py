@@ -25,10 +25,12 @@ epoch (M-of-N: Blackman & Popoli, *Design and Analysis of Modern Tracking System
   of view: a scan whose sector missed the track lowers nothing); 1 for a track from a prior,
   ``EXISTENCE_INIT`` from a detection. Confirmation also needs ``existence >=
   existence_confirm``; a tentative track past ``confirm_n`` looks is deleted ("existence")
-  below ``existence_delete``, a confirmed track, from a prior or from detections, is
-  terminated below ``existence_terminate``, a threshold of its own (Musicki's
-  IPDA practice, confirm ~0.9-0.95 and terminate ~0.01-0.05: at Pd 0.9 a confirmed track goes
-  at its 4th consecutive miss, 1.0 -> 0.83 -> 0.31 -> 0.043 -> 0.0045, not at its 3rd). A
+  below ``existence_delete``; a confirmed track is terminated below ``existence_terminate``,
+  a threshold of its own (Musicki's IPDA practice, confirm ~0.9-0.95 and terminate
+  ~0.01-0.05: at Pd 0.9 a confirmed track goes at its 4th consecutive miss, 1.0 -> 0.83 ->
+  0.31 -> 0.043 -> 0.0045, not at its 3rd), and one from a prior below
+  ``existence_terminate_prior`` (lower, by default its 5th miss: its target may never be
+  picked up again, as bearings start no track and beams look only where tracks are). A
   prior's track that drifted off its target is thus deleted rather than kept as a false
   track, and a radar's detections of the target can start a new one. A detection that a sharper
   track explains counts as a hit for M-of-N but barely raises a wide track's existence (LM-IPDA
@@ -67,6 +69,7 @@ class TrackManagementConfig(Protocol):
     existence_confirm: float
     existence_delete: float
     existence_terminate: float
+    existence_terminate_prior: float
 
 
 __all__ = [
@@ -202,7 +205,8 @@ class Track:
             return "misses"
         if position_std(self.cov) > cfg.max_position_std:
             return "position_std"
-        if self.status == CONFIRMED and self.existence < cfg.existence_terminate:
+        terminate = cfg.existence_terminate_prior if self.origin else cfg.existence_terminate
+        if self.status == CONFIRMED and self.existence < terminate:
             return "existence"
         if (
             self.status == TENTATIVE
