@@ -36,6 +36,20 @@ Each scene with two kinds of priors on the same worlds: ``drawn``, mean x0 + e w
 N(0, P0), and ``3sigma``, e = 3 P0^(1/2) u with u uniform on the unit sphere (Mahalanobis
 distance exactly 3: a prior in the tail, about the worst 6 % of drawn ones in 4 dimensions).
 Truth and scans come from ``default_rng([seed, 0])``, the priors from ``[seed, 1]``.
+
+Measured (4 runs per scene, seeds 3000-3003; Stone Soup 1.9.1; a 2-core VM shared with other
+jobs, load average ~8), time-averaged GOSPA, ours - theirs with its 95 % interval:
+
+    radar_drawn      ours 172.1 m  Stone Soup 528.1 m  -356.1 [-462.8, -249.3] m
+    radar_3sigma     ours 191.9 m  Stone Soup 538.4 m  -346.4 [-441.0, -251.9] m
+    bearings_drawn   ours 267.0 m  Stone Soup 327.8 m   -60.8 [-173.8,  +52.1] m
+    bearings_3sigma  ours 276.7 m  Stone Soup 316.8 m   -40.1 [-167.6,  +87.4] m
+
+Stone Soup's radar GOSPA is dominated by confirmed clutter tracks (its initiator has no
+probability of existence); on the bearings runs 0-1 the two agree to 0.4 m (the same maths,
+no track deleted), its excess is in runs 2-3 (not examined: its 150 m covariance deleter,
+set on the radar, may end bearings tracks). Wall time here ~2 min for ours, ~7 min for
+Stone Soup's JPDA with its initiator over clutter.
 """
 
 from __future__ import annotations
