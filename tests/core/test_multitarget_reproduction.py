@@ -20,12 +20,14 @@ RUNS = 6
 # GOSPA [m] of planner, hold_course, random_assignment on runs 0-5 (measured on common random
 # numbers; on the one generator before them: (a) 57.67, 71.05, 70.75; (b) 136.71, 117.14,
 # 225.70; (c) 67.65, 87.11, 86.69). On (a) the planner loses a target for good in runs 3 and 4
-# (GOSPA 240.7 and 390.0 m: a prior's bearings-only track drifts off while the beams serve the
-# others), which the one generator's worlds happened not to show.
+# (GOSPA 203.3 and 309.7 m: a prior's bearings-only track drifts off while the beams serve
+# the others; before existence terminated tracks from priors, 240.7 and 390.0 m, the drifted
+# track also counting as a false one). Before that rule: (a) 149.18, 74.35, 114.28; (b)
+# 111.04, 94.89, 165.87; (c) 73.29, 78.09, 92.80.
 MEASURED = {
-    "mt_bearings_crossing": (149.18, 74.35, 114.28),
-    "mt_radars_beams": (111.04, 94.89, 165.87),
-    "mt_appear_disappear": (73.29, 78.09, 92.80),
+    "mt_bearings_crossing": (129.56, 74.35, 107.24),
+    "mt_radars_beams": (110.81, 87.53, 160.71),
+    "mt_appear_disappear": (73.96, 76.11, 97.42),
     "mt_search_track": (487.96, 453.21, 485.06),
     "mt_mixed_platforms": (44.11, 46.76, 49.52),
 }
@@ -46,7 +48,8 @@ def test_each_strategy_keeps_its_figures(result, name):
 @pytest.mark.xfail(
     strict=True,
     reason="issue 25: on common random numbers the planner loses a target in 2 of the 6 runs "
-    "(the objective counts localisation of the tracks its beams serve, not missed targets)",
+    "(the objective counts localisation of the tracks its beams serve, not missed targets; "
+    "terminating the lost track halves its cost but no beam looks for the target again)",
 )
 def test_the_planner_beats_both_baselines_on_scenario_a(result):
     sc = result.scenarios[0]
@@ -63,7 +66,12 @@ def test_random_beams_lose_targets_on_scenario_b(result):
     sc = result.scenarios[1]
     assert sc.improvement("random_assignment") > 0.3
     planner, rand = sc.summaries["planner"], sc.summaries["random_assignment"]
-    assert rand.breaks > planner.breaks
+    # Runs that lost a target for good (GOSPA above c / 2 = 250 m; measured: random 2 of 6,
+    # the planner 1). Breaks do not tell them apart (measured: planner 0.50, random 0.33 per
+    # run): since a confirmed track from a prior is terminated on existence, a lost target's
+    # track ends (a break) instead of staying on as a false track.
+    lost = {s: sum(g > 250.0 for g in x.run_gospa) for s, x in (("p", planner), ("r", rand))}
+    assert lost["r"] > lost["p"]
 
 
 def test_the_report_states_the_verdict(result):

@@ -24,14 +24,18 @@ Figures asserted (seeded; the measured values are in the comments):
 - probability of existence: the IPDA recursion and its LM-IPDA form for two tracks sharing a
   detection against hand-computed values (1e-6); a detection inside a track's gate starts no
   track; confirmation waits for existence >= 0.9 (1-of-1 confirms at the second hit, not the
-  first); a confirmed track started from detections goes when its existence falls below
-  0.1 (at its 3rd miss, 0.043019); tracks from priors are never deleted by existence; the
+  first); a confirmed track goes when its existence falls below ``existence_terminate``
+  (0.1: at its 3rd miss, 0.043019; the default 0.02: at its 4th, 0.004472), one from a prior
+  below ``existence_terminate_prior`` (default 0.001: its 5th, 0.000448), and only looks
+  whose sector held the track lower it; a prior far off its target is terminated while a
+  track from the target's detections takes over; the
   field-of-view coverage that scales Pd is the planner's beam coverage for a centred beam.
 """
 
 from __future__ import annotations
 
 import math
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -56,11 +60,10 @@ from activetrack.models.sensors import RangeBearingSensor
 from activetrack.planning.assignment import beam_coverage
 from activetrack.scenarios import load_scenario, with_tracker_overrides
 from activetrack.scenarios.build import build_motion_model, build_sensor
-from activetrack.scenarios.schema import Scenario
+from activetrack.scenarios.schema import Scenario, TrackManagementConfig
 from activetrack.tracking.management import (
     COALESCE_D2,
     COALESCE_LOOKS,
-    EXISTENCE_DELETE,
     EXISTENCE_INIT,
     EXISTENCE_SURVIVAL,
     Track,
@@ -282,8 +285,9 @@ def test_clutter_alone_confirms_no_track_and_tentative_tracks_die_within_n_looks
     assert tracker.book.deleted["unconfirmed"] == started - len(sets[-1].tracks)
     # At 30x the density clutter tracks do reach M hits in N looks (the rule above is not
     # vacuous: with M-of-N alone 27 confirmed after 10 epochs), but their probability of
-    # existence mostly stays below EXISTENCE_CONFIRM (measured: 46 tracks reached M hits, 3
-    # were confirmed, each for one epoch before existence deleted it).
+    # existence mostly stays below existence_confirm (measured: 46 tracks reached M hits, 3
+    # were confirmed, each for one epoch before existence terminated it at 0.1; at the
+    # default 0.02 two of them for two epochs).
     dense = make_scenario([far], [range_bearing(clutter_density=3e-3)], tracks={"max_tracks": 500})
     _, scans = simulate(dense, 10, np.random.default_rng(5))
     _, sets = run(dense, scans)
@@ -291,7 +295,9 @@ def test_clutter_alone_confirms_no_track_and_tentative_tracks_die_within_n_looks
     reached = {t.track_id for ts in sets for t in ts.tracks if t.hits >= m}
     confirmed = {t.track_id for ts in sets for t in ts.confirmed}
     assert len(reached) > 40 and len(confirmed) <= 3
-    assert max(len(ts.confirmed) for ts in sets) <= 1 and not sets[-1].confirmed
+    assert max(len(ts.confirmed) for ts in sets) <= 1
+    epochs = Counter(t.track_id for ts in sets for t in ts.confirmed)
+    assert max(epochs.values()) <= 2
 
 
 def test_max_tracks_caps_the_live_tracks_and_counts_the_rest():
@@ -353,7 +359,8 @@ def test_a_dead_target_loses_its_track_after_delete_misses_looks():
     sc = make_scenario(
         [{"id": "a", "mean": [100.0, 5.0, 100.0, 5.0], "death": 10}],
         [range_bearing()],
-        tracks={"delete_misses": 4},
+        # existence_terminate_prior 0: only the M-of-N rule (at Pd 1 existence goes at once)
+        tracks={"delete_misses": 4, "existence_terminate_prior": 0.0},
     )
     _, scans = simulate(sc, 20, np.random.default_rng(8))
     tracker, sets = run(sc, scans)
@@ -406,8 +413,12 @@ def test_two_tracks_coalesced_on_one_target_lose_the_younger():
     ]
     sc = make_scenario(targets, [range_bearing(pd=0.9)])
     _, scans = simulate(sc, 20, np.random.default_rng(10))
-    both = make_scenario([targets[0], {**targets[1], "birth": 0}], [range_bearing(pd=0.9)])
-    tracker, sets = run(both, scans)
+    both = [targets[0], {**targets[1], "birth": 0}]
+    # With the defaults LM-IPDA's existence ends the duplicate first (below).
+    tracker, sets = run(
+        make_scenario(both, [range_bearing(pd=0.9)], tracks={"existence_terminate_prior": 0.0}),
+        scans,
+    )
     d2 = [math.nan]
     for ts in sets[1:]:
         if len(ts.tracks) < 2:
@@ -424,6 +435,9 @@ def test_two_tracks_coalesced_on_one_target_lose_the_younger():
     assert gone - COALESCE_LOOKS < 1 or d2[gone - COALESCE_LOOKS] > COALESCE_D2
     assert gone <= 12
     assert all(len(ts.tracks) == 1 for ts in sets[gone:])
+    tracker, sets = run(make_scenario(both, [range_bearing(pd=0.9)]), scans)
+    assert tracker.book.deleted == {"existence": 1}
+    assert [t.track_id for t in sets[-1].tracks] == [1]
 
 
 # --- the filters' PDA updates ----------------------------------------------------------------
@@ -700,7 +714,7 @@ def test_confirmation_waits_for_existence_and_existence_deletes_a_confirmed_trac
     sc = make_scenario(
         [{"id": "new", "mean": [300.0, 0.0, 100.0, 0.0], "birth": 1}],
         [range_bearing(pd=0.9)],
-        tracks={"confirm_m": 1, "confirm_n": 1},
+        tracks={"confirm_m": 1, "confirm_n": 1, "existence_terminate": 0.1},
     )
     tracker = build_tracker(sc, np.random.default_rng(0))
     z = tracker.sensors["s1"].measure(np.array([300.0, 0.0, 100.0, 0.0]), SENSOR_PV)[None]
@@ -713,8 +727,8 @@ def test_confirmation_waits_for_existence_and_existence_deletes_a_confirmed_trac
 
     # Then misses (Pd 0.9, Pg = 1 - exp(-12.25 / 2), delta = 0.898032): each epoch psi *=
     # 0.98, then psi' = (1 - delta) psi / (1 - delta psi): 0.833235, 0.312210, 0.043019 <
-    # EXISTENCE_DELETE = 0.1, so the track goes at its 3rd miss, before delete_misses (4) would.
-    assert (EXISTENCE_SURVIVAL, EXISTENCE_DELETE) == (0.98, 0.1)
+    # existence_terminate = 0.1, so the track goes at its 3rd miss, before delete_misses (4).
+    assert EXISTENCE_SURVIVAL == 0.98
     empty = np.zeros((0, 2))
     for k, expected in ((3, 0.833235), (4, 0.312210)):
         ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty)])
@@ -724,22 +738,93 @@ def test_confirmation_waits_for_existence_and_existence_deletes_a_confirmed_trac
     assert ts.tracks == () and tracker.book.deleted == {"existence": 1}
 
 
-def test_tracks_from_priors_are_never_deleted_by_existence():
-    # A prior's track missed 5 times (Pd 0.9, no clutter): existence 4.5e-4, kept until
-    # delete_misses (6) says otherwise.
+@pytest.mark.parametrize(
+    ("terminate", "deleted_at"),
+    [(None, 5), (0.1, 3), (0.02, 4), (0.0001, 6)],  # None: the default, 0.001
+)
+def test_tracks_from_priors_are_terminated_by_existence(terminate, deleted_at):
+    # A prior's confirmed track missed at Pd 0.9 without clutter: existence 1 -> 0.833235,
+    # 0.312210, 0.043019, 0.004472 (< 0.02 at the 4th miss), 0.000448 (< 0.001: the default
+    # goes at the 5th), 0.000044 (< 0.0001 at the 6th); delete_misses (8) never does.
+    tracks = {"delete_misses": 8} | (
+        {} if terminate is None else {"existence_terminate_prior": terminate}
+    )
+    sc = make_scenario(
+        [{"id": "a", "mean": [100.0, 0.0, 100.0, 0.0]}], [range_bearing(pd=0.9)], tracks=tracks
+    )
+    got = sc.tracker.tracks.existence_terminate_prior
+    assert got == (0.001 if terminate is None else terminate)
+    tracker = build_tracker(sc, np.random.default_rng(0))
+    empty = np.zeros((0, 2))
+    expected = [0.833235, 0.312210, 0.043019, 0.004472, 0.000448, 0.000044]
+    for k in range(1, deleted_at):
+        ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty)])
+        assert [t.track_id for t in ts.tracks] == [1]
+        assert tracker.book.tracks[1].existence == pytest.approx(expected[k - 1], rel=1e-3)
+    k = deleted_at
+    ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty)])
+    assert ts.tracks == () and tracker.book.deleted == {"existence": 1}
+
+
+def test_a_prior_far_off_its_target_is_terminated_and_initiation_takes_the_target_over():
+    # The prior sits 707 m (50 sigma) from the target: its track gates none of the target's
+    # detections (Pd 0.9, no clutter), so it is missed at every look; the first detection
+    # starts track 2, confirmed at its second hit, and track 1 goes at its 5th miss.
+    truth = np.array([600.0, 0.0, 600.0, 0.0])
     sc = make_scenario(
         [{"id": "a", "mean": [100.0, 0.0, 100.0, 0.0]}],
         [range_bearing(pd=0.9)],
-        tracks={"delete_misses": 6},
+        tracks={"delete_misses": 8},  # existence, not the run of misses, deletes it
     )
     tracker = build_tracker(sc, np.random.default_rng(0))
+    z = tracker.sensors["s1"].measure(truth, SENSOR_PV)[None]
+    statuses = []
+    for k in range(1, 7):
+        ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, z)])
+        statuses.append([(t.track_id, t.status) for t in ts.tracks])
+    assert statuses[0] == [(1, CONFIRMED), (2, TENTATIVE)]
+    assert statuses[1] == statuses[3] == [(1, CONFIRMED), (2, CONFIRMED)]
+    assert statuses[4] == statuses[5] == [(2, CONFIRMED)]
+    assert tracker.book.deleted == {"existence": 1}
+    assert np.linalg.norm(ts.tracks[0].mean[[0, 2]] - truth[[0, 2]]) < 20.0
+
+
+def test_a_scan_whose_sector_misses_a_track_leaves_its_existence():
+    # The sensor looks away (a 0.2 rad sector pointing west; the track is north-east of it):
+    # ten empty scans change neither existence nor the look count; one empty scan that held
+    # the track lowers it (0.98, then the IPDA miss update: 0.833235).
+    sc = make_scenario([{"id": "a", "mean": [100.0, 0.0, 100.0, 0.0]}], [range_bearing(pd=0.9)])
+    tracker = build_tracker(sc, np.random.default_rng(0))
     empty = np.zeros((0, 2))
-    for k in range(1, 6):
-        ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty)])
-    assert [t.track_id for t in ts.tracks] == [1]
-    assert tracker.book.tracks[1].existence < 1e-3
-    ts = tracker.step(6, 6.0, [Scan("s1", 6, 6.0, SENSOR_PV, empty)])
-    assert ts.tracks == () and tracker.book.deleted == {"misses": 1}
+    away = FieldOfView(math.pi, 0.2)
+    for k in range(1, 11):
+        tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty, away)])
+    track = tracker.book.tracks[1]
+    assert (track.existence, track.looks) == (1.0, 0)
+    tracker.step(11, 11.0, [Scan("s1", 11, 11.0, SENSOR_PV, empty)])
+    assert track.looks == 1
+    assert track.existence == pytest.approx(0.833235, rel=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("existence_confirm", 1.0, "existence_confirm"),
+        ("existence_delete", -0.1, "existence_delete"),
+        ("existence_terminate", 1.0, "existence_terminate"),
+        ("existence_terminate_prior", -1e-3, "existence_terminate_prior"),
+    ],
+)
+def test_existence_settings_are_range_checked(field, value, message):
+    with pytest.raises(ValueError, match=message):
+        TrackManagementConfig(**{field: value})
+
+
+def test_existence_thresholds_must_lie_below_confirmation():
+    with pytest.raises(ValueError, match=r"existence_terminate: must be < existence_confirm"):
+        TrackManagementConfig(existence_confirm=0.5, existence_terminate=0.6)
+    with pytest.raises(ValueError, match=r"existence_delete: must be < existence_confirm"):
+        TrackManagementConfig(existence_delete=0.95)
 
 
 def test_field_of_view_coverage_is_the_beam_coverage():

@@ -303,7 +303,12 @@ class TargetConfig(Strict):
 class TrackManagementConfig(Strict):
     """JPDA gating and M-of-N track management (the rules: activetrack.tracking.management);
     tracks from detections start with velocity 0 and standard deviation ``init_speed_std``
-    (``initiate: false``: only the priors' tracks)."""
+    (``initiate: false``: only the priors' tracks). Probability of existence: a tentative
+    track is confirmed at M of N and ``existence_confirm``, deleted past N looks below
+    ``existence_delete``; a confirmed track is terminated below ``existence_terminate``
+    (Musicki's IPDA practice: confirm ~0.9-0.95, terminate ~0.01-0.05), one from a prior below
+    ``existence_terminate_prior`` (lower: its target may never be picked up again, a bearing
+    starts no track and a beam looks only where tracks are)."""
 
     gate_sigmas: Annotated[float, Field(gt=0, le=limits.MAX_GATE_SIGMAS)] = 3.5
     confirm_m: Annotated[int, Field(ge=1, le=100)] = 2
@@ -313,6 +318,10 @@ class TrackManagementConfig(Strict):
     max_position_std: Annotated[float, Field(gt=0, le=limits.MAX_RANGE)] = 1e5  # m
     max_tracks: Annotated[int, Field(ge=1, le=limits.MAX_TRACKS)] = 50
     initiate: StrictBool = True  # false: tracks only from the priors
+    existence_confirm: Annotated[float, Field(gt=0, lt=1)] = 0.9
+    existence_delete: Annotated[float, Field(ge=0, lt=1)] = 0.1  # tentative tracks
+    existence_terminate: Annotated[float, Field(ge=0, lt=1)] = 0.02  # confirmed tracks
+    existence_terminate_prior: Annotated[float, Field(ge=0, lt=1)] = 0.001  # from priors
 
     @model_validator(mode="after")
     def _m_of_n(self) -> TrackManagementConfig:
@@ -320,6 +329,12 @@ class TrackManagementConfig(Strict):
             raise ValueError(
                 f"confirm_m: must be <= confirm_n ({self.confirm_n}), got {self.confirm_m}"
             )
+        for name in ("existence_delete", "existence_terminate", "existence_terminate_prior"):
+            if getattr(self, name) >= self.existence_confirm:
+                raise ValueError(
+                    f"{name}: must be < existence_confirm ({self.existence_confirm}), "
+                    f"got {getattr(self, name)}"
+                )
         return self
 
 

@@ -21,11 +21,18 @@ epoch (M-of-N: Blackman & Popoli, *Design and Analysis of Modern Tracking System
 - **probability of existence** (IPDA: Musicki, Evans & Stankovic, IEEE TAC 39(6), 1994; among
   tracks that share detections LM-IPDA: Musicki & La Scala, IEEE TAES 44(3), 2008): predicted
   by ``EXISTENCE_SURVIVAL`` once per epoch at the track's first scan, updated by every scan that
-  held it (:func:`existence_update`); 1 for a track from a prior, ``EXISTENCE_INIT`` from a
-  detection. Confirmation also needs ``existence >= EXISTENCE_CONFIRM``; a track from
-  detections, once confirmed or past ``confirm_n`` looks, is deleted ("existence") below
-  ``EXISTENCE_DELETE``. Tracks from priors never are: their targets are known to exist, and a
-  deleted one may never come back (bearings only start no track). A detection that a sharper
+  held it (:func:`existence_update`, with Pd times the chance that the target is in the field
+  of view: a scan whose sector missed the track lowers nothing); 1 for a track from a prior,
+  ``EXISTENCE_INIT`` from a detection. Confirmation also needs ``existence >=
+  existence_confirm``; a tentative track past ``confirm_n`` looks is deleted ("existence")
+  below ``existence_delete``; a confirmed track is terminated below ``existence_terminate``,
+  a threshold of its own (Musicki's IPDA practice, confirm ~0.9-0.95 and terminate
+  ~0.01-0.05: at Pd 0.9 a confirmed track goes at its 4th consecutive miss, 1.0 -> 0.83 ->
+  0.31 -> 0.043 -> 0.0045, not at its 3rd), and one from a prior below
+  ``existence_terminate_prior`` (lower, by default its 5th miss: its target may never be
+  picked up again, as bearings start no track and beams look only where tracks are). A
+  prior's track that drifted off its target is thus deleted rather than kept as a false
+  track, and a radar's detections of the target can start a new one. A detection that a sharper
   track explains counts as a hit for M-of-N but barely raises a wide track's existence (LM-IPDA
   adds the other track's detection density to its clutter density), so wide duplicates and
   clutter tracks fed by stray detections die out.
@@ -59,13 +66,15 @@ class TrackManagementConfig(Protocol):
     max_position_std: float
     max_tracks: int
     initiate: bool
+    existence_confirm: float
+    existence_delete: float
+    existence_terminate: float
+    existence_terminate_prior: float
 
 
 __all__ = [
     "COALESCE_D2",
     "COALESCE_LOOKS",
-    "EXISTENCE_CONFIRM",
-    "EXISTENCE_DELETE",
     "EXISTENCE_INIT",
     "EXISTENCE_SURVIVAL",
     "Track",
@@ -79,8 +88,6 @@ COALESCE_D2 = 0.5  # squared Mahalanobis distance of the two positions (2 dof: ~
 COALESCE_LOOKS = 5  # consecutive joint looks
 EXISTENCE_INIT = 0.2  # a track started from one detection
 EXISTENCE_SURVIVAL = 0.98  # per epoch (IPDA's Markov chain one: p11)
-EXISTENCE_CONFIRM = 0.9  # a tentative track needs M of N and this
-EXISTENCE_DELETE = 0.1  # a track from detections below it is deleted (module docstring)
 _P_MAX = 1.0 - 1e-9  # cap of LM-IPDA's a priori probability that a detection is a track's
 _XY = np.ix_([0, 2], [0, 2])
 
@@ -185,7 +192,7 @@ class Track:
         if (
             self.status == TENTATIVE
             and sum(self.window) >= cfg.confirm_m
-            and self.existence >= EXISTENCE_CONFIRM
+            and self.existence >= cfg.existence_confirm
         ):
             self.status = CONFIRMED
 
@@ -198,10 +205,13 @@ class Track:
             return "misses"
         if position_std(self.cov) > cfg.max_position_std:
             return "position_std"
+        terminate = cfg.existence_terminate_prior if self.origin else cfg.existence_terminate
+        if self.status == CONFIRMED and self.existence < terminate:
+            return "existence"
         if (
-            not self.origin
-            and (self.status == CONFIRMED or self.looks > cfg.confirm_n)
-            and self.existence < EXISTENCE_DELETE
+            self.status == TENTATIVE
+            and self.looks > cfg.confirm_n
+            and self.existence < cfg.existence_delete
         ):
             return "existence"
         return None
