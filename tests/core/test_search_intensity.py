@@ -222,3 +222,27 @@ def test_random_beams_draw_among_tracks_and_search_pointings():
     ids = [_plan(planner, k, tracks, pv).beams[0].track_id for k in range(40)]
     # 1 track and 10-11 pointings: the track about 1 in 11
     assert 0 < ids.count(1) < 12 and ids.count(-1) > 28
+
+
+def test_a_tentative_track_is_a_pointing_unless_a_confirmed_one_holds_its_target():
+    sc = parse_scenario(_scene(SURVEILLANCE), "s")
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    pv = np.array(sc.platforms[0].initial_state)
+    m = np.array([0.0, 0.0, 5000.0, 0.0])
+    P = np.diag([25.0, 0.25, 25.0, 0.25])
+    confirmed = TrackEstimate(1, "confirmed", m, P, m, P, existence=1.0)
+    far = np.array([3000.0, 0.0, 5000.0, 0.0])  # 3 km off: a target of its own
+    near = np.array([300.0, 0.0, 5000.0, 0.0])  # within c = 500 m of the confirmed track
+    tracks = (
+        confirmed,
+        TrackEstimate(2, "tentative", far, P, far, P, existence=0.2),
+        TrackEstimate(3, "tentative", near, P, near, P, existence=0.2),
+    )
+    ahead = planner._ahead(pv)
+    (o,) = planner._search_options(tracks, [0], ahead[None])
+    assert o.track_ids.tolist().count(-1) == len(o.track_ids) - 1
+    assert o.track_ids[-1] == 2
+    # its value: r Pd I c_beam c^p / alpha (the beam on its prediction: c_beam ~ 1)
+    hit = planner.sensors[0].hit(far, ahead, P, 1.0)
+    assert hit == pytest.approx(0.9, rel=1e-3)
+    assert o.values[-1] == pytest.approx(0.2 * hit * 125000.0, rel=1e-3)

@@ -390,6 +390,14 @@ class MultiTargetPlanner:
         """A pv ``(4,)`` one epoch on at constant velocity (holding course)."""
         return np.array([pv[0] + self.dt * pv[1], pv[1], pv[2] + self.dt * pv[3], pv[3]])
 
+    @staticmethod
+    def _near_held(xy: np.ndarray, held: np.ndarray, k: GospaWeights | None) -> np.ndarray:
+        """Whether each position ``(T, 2)`` lies within c of one of ``held`` ``(H, 2)``."""
+        if held.shape[0] == 0 or k is None:
+            return np.zeros(xy.shape[0], dtype=bool)
+        d2 = ((xy[:, None, :] - held[None, :, :]) ** 2).sum(axis=-1)
+        return np.any(d2 <= k.c * k.c, axis=1)
+
     def _pending(self, i: int, bearing: float | None) -> None:
         """Sensor i looks at the next epoch (at ``bearing`` for a beam): it depletes then."""
         if self.undetected is not None:
@@ -405,13 +413,19 @@ class MultiTargetPlanner:
         (r Pd I c_beam c^p / alpha per epoch: confirming it needs looks at it)."""
         u = cast(UndetectedIntensity, self.undetected)
         F = self.dynamics.F
-        ahead = [(t, F @ t.mean[:4], F @ t.cov[:4, :4] @ F.T) for t in tracks]
+        Q = self.dynamics.Q
+        ahead = [(t, F @ t.mean[:4], F @ t.cov[:4, :4] @ F.T + Q) for t in tracks]
         xy = np.array([[x[0], x[2]] for _, x, _ in ahead]).reshape(-1, 2)
         k = self.settings.gospa
         free = u.uncovered(xy, k.c if k is not None else 0.0)
         cardinality = k.cardinality if k is not None else 1.0
         epochs = self.lookahead if self.gospa is not None else 1
-        tentative = [a for a in ahead if a[0].status != "confirmed"]
+        held = xy[[t.status == "confirmed" for t, _, _ in ahead]]
+        tentative = [  # one within c of a confirmed track is that track's target again
+            a
+            for a, near in zip(ahead, self._near_held(xy, held, k), strict=True)
+            if a[0].status != "confirmed" and not near
+        ]
         out = []
         for i, pv in zip(beams, pvs, strict=True):
             s = self.sensors[i]
