@@ -246,3 +246,26 @@ def test_a_tentative_track_is_a_pointing_unless_a_confirmed_one_holds_its_target
     hit = planner.sensors[0].hit(far, ahead, P, 1.0)
     assert hit == pytest.approx(0.9, rel=1e-3)
     assert o.values[-1] == pytest.approx(0.2 * hit * 125000.0, rel=1e-3)
+
+
+def test_the_search_reach_of_a_position_is_its_best_region_pointing():
+    sc = parse_scenario(_scene(SURVEILLANCE), "s")
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    u = planner.undetected
+    u.predict()
+    pv = np.array(sc.platforms[0].initial_state)
+
+    class _Paths:  # the one platform's next pv on its path
+        def __init__(self, pv: np.ndarray):
+            self.paths = {0: pv[None]}
+
+    model = planner.sensors[0].model
+    best = max(
+        float(footprint(model, u.xy, pv, float(b)) @ u.intensity)
+        for b in search_bearings(u.xy, pv, 0.2)
+    )
+    # Pd Lambda c^p / alpha for one epoch; birth 0.5 / s * 4 s = 2 targets over the region
+    assert planner._search_reach(_Paths(pv)) == pytest.approx(0.9 * best * 125000.0)
+    assert 0.1 < best < 0.5
+    inside = np.array([0.0, 20.0, 5000.0, 0.0])  # from inside the region a look sees less
+    assert planner._search_reach(_Paths(inside)) < 0.9 * best * 125000.0

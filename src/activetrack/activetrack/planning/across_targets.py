@@ -586,17 +586,29 @@ class MultiTargetPlanner:
         found = self._plans_objective(ep, state0)
         if not ep.plans:
             return found
+        found -= self._search_reach(ep)
         paths = dict(ep.paths)
         for j in ep.plans:
             p = ep.platforms[j]
             hold = hold_course(p.heading_and_speed[1], cast(PlatformLimits, p.limits), 1)
             ep.follow(j, p.path(self.dt, 1, hold))
-        held = self._plans_objective(ep, state0)
+        held = self._plans_objective(ep, state0) - self._search_reach(ep)
         if held <= found:
             ep.plans = {}
             return held
         ep.paths = paths
         return found
+
+    def _search_reach(self, ep: _Epoch) -> float:
+        """With a surveillance region: the GOSPA^p the beams' best search pointings save from
+        the platforms' next positions on ``ep.paths`` (a platform whose beam sees a smaller
+        bearing span of the region covers more of it per look); 0 without one."""
+        beams = [i for i, s in enumerate(self.sensors) if s.steerable]
+        if self.undetected is None or not beams:
+            return 0.0
+        pvs = np.stack([ep.paths[self.sensors[i].platform][0] for i in beams])
+        options = self._search_options(self.all_tracks, beams, pvs)
+        return float(sum(np.max(o.values[o.track_ids < 0]) for o in options))
 
     def _assign(self, ep: _Epoch, next_pv: np.ndarray) -> None:
         """Every beam to one confirmed track at the planned k+1 positions: ``ep.serves``."""
