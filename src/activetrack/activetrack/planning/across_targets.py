@@ -31,6 +31,13 @@ confirmed track: every beam sweeps one ``beam_width`` per epoch from its platfor
 deep), "every platform holds course" kept when it scores no worse than the plans found, and
 beams (``assignment: mre``) assigned on the tracks' expected GOSPA at k+1.
 
+``planner.targets.surveillance`` (with ``gospa``, or random beams): search versus track. The
+planner keeps the intensity of targets not yet detected over the region, which every look
+depletes (:mod:`activetrack.planning.search_intensity`); each beam's search pointings (and
+tentative tracks) are columns of its assignment next to the tracks, valued in the same GOSPA
+units, and "hold course" is weighed against the plans found with the search each allows. The
+intensity is state a restarted planner does not rebuild (it starts empty again).
+
 Random draws, all from the planner's generator, in order: the tracks' Gaussian samples and
 process noise (pcrlb), the evolutionary search, the random assignment.
 """
@@ -720,10 +727,8 @@ class MultiTargetPlanner:
         )
         if options is None:
             return picks
-        T = len(preds)  # a search pick: the offset within its own beam's pointings
-        return np.array(
-            [t if t < T else T + t - T - int(offsets[b]) for b, t in enumerate(picks)], dtype=int
-        )
+        T = len(preds)  # a search pick T + j of all columns: T + j' of its own beam's pointings
+        return np.array([t if t < T else t - int(offsets[b]) for b, t in enumerate(picks)])
 
     @staticmethod
     def _expected_update(
