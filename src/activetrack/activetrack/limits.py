@@ -58,6 +58,7 @@ MAX_GATE_SIGMAS = 10.0  # gate radius in innovation standard deviations (typical
 MAX_SAMPLES = 100_000  # planner_samples, mc_samples (papers: 1,000)
 MAX_HORIZON = 10  # epochs (papers: 1-2)
 MAX_GRID_SIZE = 1001  # points per side (Hernandez: 101)
+MAX_SURVEILLANCE_CELLS = 250_000  # cells of the planner's undetected-target grid
 MAX_QUADRANT_DIVISIONS = 50  # also the patience; the square's side is 2^-50 by then (paper: 6)
 MAX_SECTOR_LEVELS = 30  # the sector's side is 3^-30 by then (Ramdaras: 5)
 MAX_SENSOR_ITERATIONS = 100  # passes over the platforms (Hernandez: 10)

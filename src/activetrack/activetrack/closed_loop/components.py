@@ -40,6 +40,7 @@ from activetrack.planning.cautious import CautiousController, CautiousPlanner
 from activetrack.planning.criteria import PCRLB, POSITIONING, get_criterion
 from activetrack.planning.decision import Planner, PlannerStrategy
 from activetrack.planning.expected_gospa import GospaWeights
+from activetrack.planning.search_intensity import Surveillance
 from activetrack.planning.strategies import (
     CautiousLocalisation,
     FixedSelection,
@@ -62,7 +63,13 @@ from activetrack.scenarios.build import (
     search_settings,
     steered_limits,
 )
-from activetrack.scenarios.schema import PlannerConfig, Scenario, SelectionConfig, TargetConfig
+from activetrack.scenarios.schema import (
+    PlannerConfig,
+    Scenario,
+    SelectionConfig,
+    SurveillanceConfig,
+    TargetConfig,
+)
 from activetrack.scenarios.tracking import TrackingConfig, tracking_of
 from activetrack.simulation.simulator import SimPlatform, SimTarget, Simulator
 from activetrack.tracking.tracker import FilterSpec, Tracker, TrackPrior
@@ -290,6 +297,14 @@ def _cost_kind(cfg: PlannerConfig) -> str:
     return cfg.cost
 
 
+def surveillance_of(cfg: SurveillanceConfig | None) -> Surveillance | None:
+    """``planner.targets.surveillance`` as the planner reads it (None: no search)."""
+    if cfg is None:
+        return None
+    x0, x1, y0, y1 = cfg.region
+    return Surveillance((x0, x1, y0, y1), cfg.birth_rate, cfg.cell_size)
+
+
 def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiTargetPlanner:
     """Planning across targets for the scene: its platforms with their sensors in the scene
     and, where the planner steers them, their limits."""
@@ -316,5 +331,6 @@ def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiT
         assignment=cfg.targets.assignment,
         objective=cfg.targets.objective,
         gospa=GospaWeights(ev.cutoff, ev.order, ev.alpha),
+        surveillance=surveillance_of(cfg.targets.surveillance),
     )
     return MultiTargetPlanner(platforms, target_dynamics(scenario), settings, rng)

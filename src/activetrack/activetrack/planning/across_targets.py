@@ -31,6 +31,13 @@ confirmed track: every beam sweeps one ``beam_width`` per epoch from its platfor
 deep), "every platform holds course" kept when it scores no worse than the plans found, and
 beams (``assignment: mre``) assigned on the tracks' expected GOSPA at k+1.
 
+``planner.targets.surveillance`` (with ``gospa``, or random beams): search versus track. The
+planner keeps the intensity of targets not yet detected over the region, which every look
+depletes (:mod:`activetrack.planning.search_intensity`); each beam's search pointings (and
+tentative tracks) are columns of its assignment next to the tracks, valued in the same GOSPA
+units, and "hold course" is weighed against the plans found with the search each allows. The
+intensity is state a restarted planner does not rebuild (it starts empty again).
+
 Random draws, all from the planner's generator, in order: the tracks' Gaussian samples and
 process noise (pcrlb), the evolutionary search, the random assignment.
 """
@@ -99,6 +106,13 @@ from activetrack.planning.objective import (
     Objective,
     TrackAggregate,
     aggregate_costs,
+)
+from activetrack.planning.search_intensity import (
+    Surveillance,
+    UndetectedIntensity,
+    footprint,
+    search_bearings,
+    search_value,
 )
 from activetrack.planning.selection import TargetPrediction, expected_update
 from activetrack.planning.strategies import LinearDynamics
@@ -187,6 +201,16 @@ class _MreStage:
         return out
 
 
+@dataclass(frozen=True)
+class _Pointings:
+    """A beam's search pointings: ``bearings`` ``(J,)``, ``values`` ``(J,)`` [GOSPA^p], the
+    tentative track each looks at (-1: the region's intensity) ``track_ids`` ``(J,)``."""
+
+    bearings: np.ndarray
+    values: np.ndarray
+    track_ids: np.ndarray
+
+
 @dataclass
 class _Epoch:
     """One decision's working set (a :class:`PlatformStages` of the coordinator): CV
@@ -206,6 +230,8 @@ class _Epoch:
     paths: dict[int, np.ndarray] = field(default_factory=dict)
     plans: dict[int, np.ndarray] = field(default_factory=dict)  # controllable platforms' (R, 2)
     evaluations: int = 0
+    # beam sensor -> (bearing, tentative track id or -1) when it searches
+    search: dict[int, tuple[float, int]] = field(default_factory=dict)
 
     def follow(self, i: int, path: np.ndarray) -> None:
         self.paths[i] = path
@@ -229,6 +255,7 @@ class AcrossTargetsSettings:
     assignment: str
     objective: str = "criterion"
     gospa: GospaWeights | None = None
+    surveillance: Surveillance | None = None
 
     def __post_init__(self) -> None:
         if self.objective not in ("criterion", "gospa"):
@@ -290,6 +317,16 @@ class MultiTargetPlanner:
         # track id -> (hits, misses, prod (1 - pd I_r)).
         self.miss_factor: dict[int, tuple[float, int]] = {}
         self.looks: dict[int, tuple[int, int, float]] = {}
+        # Search versus track: the undetected-target intensity (with the gospa objective or
+        # random beams) and the looks commanded for the next epoch (sensor, beam bearing).
+        searching = settings.objective == "gospa" or settings.assignment == "random"
+        self.undetected = (
+            UndetectedIntensity(settings.surveillance, self.dt)
+            if settings.surveillance is not None and searching
+            else None
+        )
+        self.pending_looks: list[tuple[int, float | None]] = []
+        self.all_tracks: tuple[TrackEstimate, ...] = ()
 
     def decide(self, context: DecisionContext) -> DecisionPart:
         """:meth:`plan` as a :class:`~activetrack.planning.decision.PlannerStrategy` part."""
@@ -318,8 +355,11 @@ class MultiTargetPlanner:
             for i, pid in enumerate(self.platform_ids)
         ]
         self._note_looks(tracks)
+        self.all_tracks = tracks.tracks  # tentative ones too: their cells are not searched
+        if self.undetected is not None:
+            self._deplete(snaps)
         if not tracks.confirmed:
-            return self._sweep(epoch, planners, start)
+            return self._sweep(epoch, planners, start, tracks)
         ep = self._epoch(epoch, planners, tracks.confirmed)
         objective = self._manoeuvres(ep)
         next_pv = np.stack([ep.paths[j][0] for j in range(len(planners))])
@@ -341,6 +381,74 @@ class MultiTargetPlanner:
             if t is not None and t.hits <= hits and t.misses > misses:
                 factors[i] = (factors.get(i, (1.0, hits))[0] * fail, hits)
         self.miss_factor, self.looks = factors, {}
+
+    def _deplete(self, snaps: dict[str, PlatformSnapshot]) -> None:
+        """The undetected intensity at this epoch: last epoch's births, then the looks just
+        made (commanded last epoch) from where the platforms are now."""
+        u = cast(UndetectedIntensity, self.undetected)
+        u.predict()
+        for i, bearing in self.pending_looks:
+            s = self.sensors[i]
+            pv = snaps[self.platform_ids[s.platform]].pv
+            u.look(footprint(s.model, u.xy, pv, bearing), float(s.model.pd))
+        self.pending_looks = []
+
+    def _ahead(self, pv: np.ndarray) -> np.ndarray:
+        """A pv ``(4,)`` one epoch on at constant velocity (holding course)."""
+        return np.array([pv[0] + self.dt * pv[1], pv[1], pv[2] + self.dt * pv[3], pv[3]])
+
+    @staticmethod
+    def _near_held(xy: np.ndarray, held: np.ndarray, k: GospaWeights | None) -> np.ndarray:
+        """Whether each position ``(T, 2)`` lies within c of one of ``held`` ``(H, 2)``."""
+        if held.shape[0] == 0 or k is None:
+            return np.zeros(xy.shape[0], dtype=bool)
+        d2 = ((xy[:, None, :] - held[None, :, :]) ** 2).sum(axis=-1)
+        return np.any(d2 <= k.c * k.c, axis=1)
+
+    def _pending(self, i: int, bearing: float | None) -> None:
+        """Sensor i looks at the next epoch (at ``bearing`` for a beam): it depletes then."""
+        if self.undetected is not None:
+            self.pending_looks.append((i, bearing))
+
+    def _search_options(
+        self, tracks: Sequence[TrackEstimate], beams: list[int], pvs: np.ndarray
+    ) -> list[_Pointings]:
+        """Each beam's search pointings from its planned pv ``(B, 4)``, valued in GOSPA^p
+        for the look-ahead's epochs: one beam width apart over the cells no track covers
+        (within c of a track's prediction; :func:`search_value`), and one at each tentative
+        track, the target it may hold found with its existence r times the chance of a hit
+        (r Pd I c_beam c^p / alpha per epoch: confirming it needs looks at it)."""
+        u = cast(UndetectedIntensity, self.undetected)
+        F = self.dynamics.F
+        Q = self.dynamics.Q
+        ahead = [(t, F @ t.mean[:4], F @ t.cov[:4, :4] @ F.T + Q) for t in tracks]
+        xy = np.array([[x[0], x[2]] for _, x, _ in ahead]).reshape(-1, 2)
+        k = self.settings.gospa
+        free = u.uncovered(xy, k.c if k is not None else 0.0)
+        cardinality = k.cardinality if k is not None else 1.0
+        epochs = self.lookahead if self.gospa is not None else 1
+        held = xy[[t.status == "confirmed" for t, _, _ in ahead]]
+        tentative = [  # one within c of a confirmed track is that track's target again
+            a
+            for a, near in zip(ahead, self._near_held(xy, held, k), strict=True)
+            if a[0].status != "confirmed" and not near
+        ]
+        out = []
+        for i, pv in zip(beams, pvs, strict=True):
+            s = self.sensors[i]
+            bearings = search_bearings(u.xy, pv, cast(float, s.model.beam_width))
+            seen = np.stack([footprint(s.model, u.xy, pv, float(b)) for b in bearings]) & free
+            values = search_value(u.intensity, seen, float(s.model.pd), cardinality, epochs)
+            at = [math.atan2(x[2] - pv[2], x[0] - pv[0]) for _, x, _ in tentative]
+            found = [t.existence * s.hit(x, pv, P, 1.0) for t, x, P in tentative]
+            out.append(
+                _Pointings(
+                    np.concatenate([bearings, at]),
+                    np.concatenate([values, np.array(found) * cardinality * epochs]),
+                    np.array([-1] * len(bearings) + [t.track_id for t, _, _ in tentative]),
+                )
+            )
+        return out
 
     def _epoch(
         self, epoch: int, planners: list[PlannerPlatform], tracks: tuple[TrackEstimate, ...]
@@ -485,17 +593,29 @@ class MultiTargetPlanner:
         found = self._plans_objective(ep, state0)
         if not ep.plans:
             return found
+        found -= self._search_reach(ep)
         paths = dict(ep.paths)
         for j in ep.plans:
             p = ep.platforms[j]
             hold = hold_course(p.heading_and_speed[1], cast(PlatformLimits, p.limits), 1)
             ep.follow(j, p.path(self.dt, 1, hold))
-        held = self._plans_objective(ep, state0)
+        held = self._plans_objective(ep, state0) - self._search_reach(ep)
         if held <= found:
             ep.plans = {}
             return held
         ep.paths = paths
         return found
+
+    def _search_reach(self, ep: _Epoch) -> float:
+        """With a surveillance region: the GOSPA^p the beams' best search pointings save from
+        the platforms' next positions on ``ep.paths`` (a platform whose beam sees a smaller
+        bearing span of the region covers more of it per look); 0 without one."""
+        beams = [i for i, s in enumerate(self.sensors) if s.steerable]
+        if self.undetected is None or not beams:
+            return 0.0
+        pvs = np.stack([ep.paths[self.sensors[i].platform][0] for i in beams])
+        options = self._search_options(self.all_tracks, beams, pvs)
+        return float(sum(np.max(o.values[o.track_ids < 0]) for o in options))
 
     def _assign(self, ep: _Epoch, next_pv: np.ndarray) -> None:
         """Every beam to one confirmed track at the planned k+1 positions: ``ep.serves``."""
@@ -504,13 +624,21 @@ class MultiTargetPlanner:
             return
         T = len(ep.tracks)
         pvs = np.stack([next_pv[self.sensors[i].platform] for i in beams])
-        if self.settings.assignment == "random":
+        options = (
+            self._search_options(self.all_tracks, beams, pvs)
+            if self.undetected is not None
+            else None
+        )
+        if options is not None and self.settings.assignment == "random":
+            # the fair random baseline: uniform over the tracks and the beam's search pointings
+            picks = np.array([int(self.rng.integers(T + len(o.bearings))) for o in options])
+        elif self.settings.assignment == "random":
             picks = random_assignment(len(beams), T, self.rng)
         elif self.settings.assignment == "nearest":
             xy = np.array([[p.x[0], p.x[2]] for p in ep.predictions])
             picks = nearest_assignment(pvs[:, ::2], xy)
         elif self.gospa is not None:
-            picks = self._assign_gospa(ep, next_pv, beams, pvs)
+            picks = self._assign_gospa(ep, next_pv, beams, pvs, options)
         else:
             picks = assign_beams(
                 self._fixed_updates(ep, next_pv),
@@ -529,8 +657,11 @@ class MultiTargetPlanner:
                 ep.weights,
                 self.settings.aggregate,
             )
-        for i, t in zip(beams, picks, strict=True):
+        for b, (i, t) in enumerate(zip(beams, picks, strict=True)):
             ep.serves[i] = np.arange(T) == t
+            if t >= T:
+                o = cast(list, options)[b]
+                ep.search[i] = (float(o.bearings[t - T]), int(o.track_ids[t - T]))
 
     @staticmethod
     def _existence(ep: _Epoch) -> np.ndarray:
@@ -549,13 +680,27 @@ class MultiTargetPlanner:
         )
 
     def _assign_gospa(
-        self, ep: _Epoch, next_pv: np.ndarray, beams: list[int], pvs: np.ndarray
+        self,
+        ep: _Epoch,
+        next_pv: np.ndarray,
+        beams: list[int],
+        pvs: np.ndarray,
+        options: list[_Pointings] | None = None,
     ) -> np.ndarray:
         """The beams' tracks minimising the tracks' expected GOSPA at k+1
-        (:func:`~activetrack.planning.assignment.assign_beams_gospa`)."""
+        (:func:`~activetrack.planning.assignment.assign_beams_gospa`); with ``options`` (each
+        beam's search pointings and values) also the search columns: a pick T + j is the
+        beam's pointing j."""
         preds = ep.predictions
+        search, offsets = None, np.zeros(1, dtype=int)
+        if options is not None:  # beam b's pointings are columns offsets[b]..offsets[b+1]
+            sizes = [len(o.values) for o in options]
+            offsets = np.concatenate([[0], np.cumsum(sizes)])
+            search = np.full((len(beams), int(offsets[-1])), np.nan)
+            for b, o in enumerate(options):
+                search[b, offsets[b] : offsets[b + 1]] = o.values
         pairs = [(self.sensors[i], pv) for i, pv in zip(beams, pvs, strict=True)]
-        return assign_beams_gospa(
+        picks = assign_beams_gospa(
             self._fixed_updates(ep, next_pv),
             [s.model for s, _ in pairs],
             pvs,
@@ -578,7 +723,12 @@ class MultiTargetPlanner:
             ),
             cast(GospaWeights, self.gospa),
             ep.weights,
+            search,
         )
+        if options is None:
+            return picks
+        T = len(preds)  # a search pick T + j of all columns: T + j' of its own beam's pointings
+        return np.array([t if t < T else t - int(offsets[b]) for b, t in enumerate(picks)])
 
     @staticmethod
     def _expected_update(
@@ -647,6 +797,14 @@ class MultiTargetPlanner:
         beams = []
         for i, s in enumerate(self.sensors):
             if not s.steerable:
+                self._pending(i, None)
+                continue
+            if i in ep.search:
+                bearing, track_id = ep.search[i]
+                beams.append(BeamCommand(s.sensor_id, ep.epoch, bearing, track_id))
+                self.last_bearing[s.sensor_id] = bearing
+                self.last_track.pop(s.sensor_id, None)
+                self._pending(i, bearing)
                 continue
             t = int(np.flatnonzero(ep.serves[i])[0])
             x, pv = ep.predictions[t].x, next_pv[s.platform]
@@ -655,6 +813,7 @@ class MultiTargetPlanner:
             beams.append(BeamCommand(s.sensor_id, ep.epoch, bearing, track.track_id))
             self.last_track[s.sensor_id] = track.track_id
             self.last_bearing[s.sensor_id] = bearing
+            self._pending(i, bearing)
             fail = 1.0 - float(s.model.pd) * float(s.model.in_range(x, pv))
             _, _, before = self.looks.get(track.track_id, (0, 0, 1.0))
             self.looks[track.track_id] = (track.hits, track.misses, before * fail)
@@ -673,16 +832,36 @@ class MultiTargetPlanner:
             wall_time_s=wall,
         )
 
-    def _sweep(self, epoch: int, planners: list[PlannerPlatform], start: float) -> Decision:
-        """No confirmed track: hold course, every beam one beam width on from where it was."""
+    def _sweep(
+        self, epoch: int, planners: list[PlannerPlatform], start: float, tracks: TrackSet
+    ) -> Decision:
+        """No confirmed track: hold course, every beam one beam width on from where it was;
+        with a surveillance region every beam searches instead (its most valuable pointing
+        from where it will be, or a random one for random beams)."""
         beams = []
-        for s in self.sensors:
+        steer = [i for i, s in enumerate(self.sensors) if s.steerable]
+        options = None
+        if self.undetected is not None and steer:
+            ahead = np.stack([self._ahead(planners[self.sensors[i].platform].pv) for i in steer])
+            found = self._search_options(tracks.tracks, steer, ahead)
+            options = dict(zip(steer, found, strict=True))
+        for i, s in enumerate(self.sensors):
             if s.model.beam_width is None:
+                self._pending(i, None)
                 continue
             last = self.last_bearing.get(s.sensor_id)
             heading = planners[s.platform].heading_and_speed[0]
             bearing = heading if last is None else float(wrap_angle(last + s.model.beam_width))
-            beams.append(BeamCommand(s.sensor_id, epoch, bearing, -1))
+            track_id = -1
+            if options is not None:
+                o = options[i]
+                if self.settings.assignment == "random":
+                    j = int(self.rng.integers(len(o.bearings)))
+                else:
+                    j = int(np.argmax(o.values))
+                bearing, track_id = float(o.bearings[j]), int(o.track_ids[j])
+            self._pending(i, bearing)
+            beams.append(BeamCommand(s.sensor_id, epoch, bearing, track_id))
             self.last_bearing[s.sensor_id] = bearing
             self.last_track.pop(s.sensor_id, None)
         wall = time.perf_counter() - start

@@ -51,6 +51,7 @@ __all__ = [
     "nearest_assignment",
     "random_assignment",
     "round_assignment",
+    "search_columns",
 ]
 
 
@@ -261,11 +262,29 @@ def assign_beams_gospa(
     base: tuple[ArrayLike, ArrayLike, ArrayLike],
     weights: GospaWeights,
     priorities: ArrayLike,
+    search: ArrayLike | None = None,
 ) -> np.ndarray:
     """The track index ``(S,)`` of each steerable sensor: the weighted-sum
     :func:`round_assignment` (``priorities`` ``(T,)``) of the :func:`gospa_pair_costs`, in
     rounds while sensors are left, each round taking in the previous rounds' updates and hits.
-    Optimal within a round: keeping every beam on its track is one of the assignments scored."""
+    Optimal within a round: keeping every beam on its track is one of the assignments scored.
+
+    ``search`` ``(S, J)``: search pointings as J more columns, entry [s, j] the GOSPA^p that
+    sensor s saves by pointing at j (:func:`search_columns`; NaN: j is not one of s's), so
+    one assignment weighs serving tracks against searching; a pick ``T + j`` is pointing j.
+    Every sensor then has a column of its own and is assigned in the first round."""
+    if search is not None:
+        return _assign_with_search(
+            predictions,
+            sensors,
+            sensor_pvs,
+            detection,
+            hits,
+            base,
+            weights,
+            priorities,
+            np.asarray(search, dtype=float),
+        )
     pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
     d = np.asarray(detection, dtype=float)
     q = np.asarray(hits, dtype=float)
@@ -293,6 +312,49 @@ def assign_beams_gospa(
                 q0[t] = hit_probability([q0[t], q[i, t]])
         remaining = [i for i, t in zip(remaining, picks, strict=True) if t < 0]
     return out
+
+
+def search_columns(
+    C: np.ndarray, c0: np.ndarray, priorities: np.ndarray, search: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The round's ``C`` ``(S, T + J)``, ``c0`` and priorities ``(T + J,)`` with the search
+    pointings ``search`` ``(S, J)`` appended: ``C = -value`` against ``c0 = 0`` (priority 1:
+    the value is already GOSPA^p), a sensor's pair with another's pointing (NaN) a cost no
+    optimal assignment takes (every sensor has pointings of its own)."""
+    S = C.shape[0]
+    if search.ndim != 2 or search.shape[0] != S:
+        raise ValueError(f"search must be ({S}, J), got {search.shape}")
+    own = np.isfinite(search)
+    if not own.any(axis=1).all():
+        raise ValueError("search: every sensor needs at least one pointing of its own")
+    if np.any(search[own] < 0.0):
+        raise ValueError("search: a pointing's value must be >= 0")
+    gains = np.concatenate([(c0 - C).ravel(), search[own]])
+    big = 4.0 * (S + 1) * (float(np.max(np.abs(gains), initial=0.0)) + 1.0)
+    C_search = np.where(own, -np.where(own, search, 0.0), big)
+    return (
+        np.concatenate([C, C_search], axis=1),
+        np.concatenate([c0, np.zeros(search.shape[1])]),
+        np.concatenate([priorities, np.ones(search.shape[1])]),
+    )
+
+
+def _assign_with_search(
+    predictions: Sequence[TargetPrediction],
+    sensors: Sequence[SensorModel],
+    sensor_pvs: ArrayLike,
+    detection: ArrayLike,
+    hits: ArrayLike,
+    base: tuple[ArrayLike, ArrayLike, ArrayLike],
+    weights: GospaWeights,
+    priorities: ArrayLike,
+    search: np.ndarray,
+) -> np.ndarray:
+    """:func:`assign_beams_gospa` with search columns: one round over tracks and pointings."""
+    C, c0 = gospa_pair_costs(predictions, sensors, sensor_pvs, detection, hits, base, weights)
+    w = np.asarray(priorities, dtype=float)
+    C, c0, w = search_columns(C, c0, w, search)
+    return round_assignment(C, c0, w, "weighted_sum")
 
 
 def random_assignment(n_sensors: int, n_tracks: int, rng: np.random.Generator) -> np.ndarray:

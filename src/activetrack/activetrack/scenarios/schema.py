@@ -11,6 +11,7 @@ the registered kinds' configs (:mod:`.registry`).
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -377,6 +378,36 @@ class CautiousConfig(Strict):
     max_measurements: Measurements | None = None
 
 
+class SurveillanceConfig(Strict):
+    """Where targets not yet tracked may appear (search versus track): a rectangle ``region``
+    ``[x_min, x_max, y_min, y_max]`` [m], ``birth_rate`` new targets per second over it, and
+    the ``cell_size`` [m] of the planner's grid of their intensity
+    (:mod:`activetrack.planning.search_intensity`)."""
+
+    region: Annotated[
+        list[Annotated[float, Field(ge=-limits.MAX_RANGE, le=limits.MAX_RANGE)]],
+        Field(min_length=4, max_length=4),
+    ]
+    birth_rate: Annotated[float, Field(ge=0, le=1e3)]
+    cell_size: Annotated[float, Field(gt=0, le=limits.MAX_RANGE)] = 250.0
+
+    @model_validator(mode="after")
+    def _region(self) -> SurveillanceConfig:
+        x0, x1, y0, y1 = self.region
+        if not (x0 < x1 and y0 < y1):
+            raise ValueError(
+                f"region must be [x_min, x_max, y_min, y_max] with x_min < x_max and "
+                f"y_min < y_max, got {self.region}"
+            )
+        cells = math.ceil((x1 - x0) / self.cell_size) * math.ceil((y1 - y0) / self.cell_size)
+        if cells > limits.MAX_SURVEILLANCE_CELLS:
+            raise ValueError(
+                f"cell_size {self.cell_size} m gives {cells} cells over the region, more than "
+                f"{limits.MAX_SURVEILLANCE_CELLS}"
+            )
+        return self
+
+
 class MultiTargetPlanConfig(Strict):
     """Planning across tracks.
 
@@ -390,13 +421,17 @@ class MultiTargetPlanConfig(Strict):
     ``gospa`` on the expected GOSPA of every confirmed track (localisation weighted by its
     probability of existence, plus c^p / alpha per expected missed and false target, c, p and
     alpha from ``evaluation``; :mod:`activetrack.planning.expected_gospa`) over ``horizon``
-    epochs by rollout, beams assigned on the same cost.
+    epochs by rollout, beams assigned on the same cost. ``surveillance`` (with ``gospa``):
+    beams may also search the region for targets not yet tracked, valued in the same GOSPA
+    units (absent: beams serve tracks only); with ``assignment: random`` beams draw among the
+    tracks and the search pointings.
     """
 
     aggregate: Literal["worst", "weighted_sum"] = "worst"
     assignment: Literal["mre", "random", "nearest"] = "mre"
     objective: Literal["criterion", "gospa"] = "criterion"
     new_track_priority: Annotated[float, Field(gt=0, le=1e6)] = 1.0
+    surveillance: SurveillanceConfig | None = None
 
 
 class PlannerConfig(Strict):

@@ -1,0 +1,177 @@
+"""The intensity of targets not yet detected over a surveillance region, and the value of
+looking for them (``planner.targets.surveillance``: search versus track).
+
+The planner keeps, on a grid of cells over the region, the PHD of the targets no sensor has
+detected yet (the undetected-target intensity of Mahler's PHD filter, *Statistical
+Multisource-Multitarget Information Fusion*, 2007, sec. 16.3; its split into undetected and
+detected parts: Garcia-Fernandez, Williams, Granström & Svensson, "Poisson multi-Bernoulli
+mixture filter", IEEE TAES 2018, eq. 21 and 35):
+
+- prediction: each epoch adds the birth intensity, ``birth_rate * dt`` targets spread
+  uniformly over the region (``birth_rate * dt * A_cell / A`` per cell);
+- update: a look leaves a target undetected with probability 1 - Pd where it can see it, so
+  each look multiplies the intensity of the cells inside its footprint (beam, field of view
+  and range limits) by (1 - Pd) (the missed-detection update of the PHD, D (1 - Pd)).
+
+A search pointing's value in GOSPA units (Rahmathullah, Garcia-Fernandez & Svensson, FUSION
+2017, eq. 1: c^p / alpha per missed target): the expected number of new targets it detects,
+Pd times the intensity in its footprint (cells farther than c from every track: a target
+near a track is that track's, not counted twice), times c^p / alpha for each of the
+``epochs`` epochs they then stay found instead of missed. Nothing is tuned: c, p, alpha, Pd,
+the birth rate and the number of epochs (the planner's look-ahead) are the scenario's.
+Deterministic: no draw from any generator.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from activetrack import limits
+from activetrack.angles import wrap_angle
+from activetrack.arraytypes import ArrayLike
+from activetrack.checks import require_positive
+from activetrack.models.clutter import ClutteredSensor
+
+__all__ = [
+    "Surveillance",
+    "UndetectedIntensity",
+    "footprint",
+    "search_bearings",
+    "search_value",
+]
+
+
+@dataclass(frozen=True)
+class Surveillance:
+    """The region ``(x_min, x_max, y_min, y_max)`` [m] where new targets appear at
+    ``birth_rate`` [targets / s], on a grid of ``cell_size`` [m] square cells."""
+
+    region: tuple[float, float, float, float]
+    birth_rate: float
+    cell_size: float
+
+    def __post_init__(self) -> None:
+        x0, x1, y0, y1 = (float(v) for v in self.region)
+        if not (x0 < x1 and y0 < y1 and all(map(math.isfinite, (x0, x1, y0, y1)))):
+            raise ValueError(
+                f"surveillance.region must be finite [x_min, x_max, y_min, y_max] with "
+                f"x_min < x_max and y_min < y_max, got {list(self.region)}"
+            )
+        if not (math.isfinite(self.birth_rate) and self.birth_rate >= 0.0):
+            raise ValueError(f"surveillance.birth_rate must be >= 0, got {self.birth_rate}")
+        require_positive("surveillance.cell_size", self.cell_size)
+        if self.shape[0] * self.shape[1] > limits.MAX_SURVEILLANCE_CELLS:
+            raise ValueError(
+                f"surveillance.cell_size {self.cell_size} m gives {self.shape[0]} x "
+                f"{self.shape[1]} cells over the region, more than "
+                f"{limits.MAX_SURVEILLANCE_CELLS}"
+            )
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Cells along x and y (the region's sides over ``cell_size``, rounded up)."""
+        x0, x1, y0, y1 = self.region
+        return (
+            max(1, math.ceil((x1 - x0) / self.cell_size)),
+            max(1, math.ceil((y1 - y0) / self.cell_size)),
+        )
+
+
+class UndetectedIntensity:
+    """The undetected-target intensity ``(N,)`` [expected targets per cell] over the region's
+    cells, centres ``xy`` ``(N, 2)`` (module docstring); starts empty."""
+
+    def __init__(self, surveillance: Surveillance, dt: float):
+        require_positive("dt", dt)
+        self.surveillance = surveillance
+        nx, ny = surveillance.shape
+        x0, x1, y0, y1 = surveillance.region
+        xs = x0 + (np.arange(nx) + 0.5) * (x1 - x0) / nx
+        ys = y0 + (np.arange(ny) + 0.5) * (y1 - y0) / ny
+        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        self.xy = np.stack([X.ravel(), Y.ravel()], axis=-1)
+        self.birth = np.full(nx * ny, surveillance.birth_rate * dt / (nx * ny))
+        self.intensity = np.zeros(nx * ny)
+
+    def predict(self) -> None:
+        """One epoch's births: D <- D + birth_rate dt / N in every cell."""
+        self.intensity = self.intensity + self.birth
+
+    def look(self, inside: ArrayLike, pd: float) -> None:
+        """A look that detects with ``pd`` in the cells ``inside`` (bool ``(N,)``): D <- D (1 -
+        pd) there (the PHD's missed-detection update)."""
+        if not 0.0 <= pd <= 1.0:
+            raise ValueError(f"pd must lie in [0, 1], got {pd}")
+        inside = np.asarray(inside, dtype=bool)
+        self.intensity = np.where(inside, self.intensity * (1.0 - pd), self.intensity)
+
+    def uncovered(self, track_xy: ArrayLike, cutoff: float) -> np.ndarray:
+        """Cells farther than ``cutoff`` from every track position ``(T, 2)``: bool ``(N,)``."""
+        t = np.asarray(track_xy, dtype=float).reshape(-1, 2)
+        if t.shape[0] == 0:
+            return np.ones(len(self.intensity), dtype=bool)
+        d2 = ((self.xy[:, None, :] - t[None, :, :]) ** 2).sum(axis=-1)
+        return np.all(d2 > cutoff * cutoff, axis=1)
+
+
+def footprint(
+    sensor: ClutteredSensor, xy: ArrayLike, pv: ArrayLike, bearing: float | None
+) -> np.ndarray:
+    """The cells ``(N, 2)`` a look sees, bool ``(N,)``: inside the sensor's range limits and
+    fixed field of view from pv ``(4,)`` and, for a beam, within half its ``beam_width`` of
+    ``bearing`` (None: no beam)."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    pv = np.asarray(pv, dtype=float)
+    cells = np.zeros((xy.shape[0], 4))
+    cells[:, 0], cells[:, 2] = xy[:, 0], xy[:, 1]
+    inside = np.asarray(sensor.in_range(cells, pv), dtype=bool)
+    b = cell_bearings(xy, pv)
+    if sensor.fov_width is not None:
+        heading = math.atan2(pv[3], pv[1])
+        inside &= np.abs(wrap_angle(b - heading - sensor.fov_centre)) <= 0.5 * sensor.fov_width
+    if sensor.beam_width is not None:
+        if bearing is None:
+            raise ValueError("bearing: a beam's look needs the bearing it points at")
+        inside &= np.abs(wrap_angle(b - bearing)) <= 0.5 * sensor.beam_width
+    return inside
+
+
+def cell_bearings(xy: np.ndarray, pv: np.ndarray) -> np.ndarray:
+    """Bearings ``(N,)`` of cell centres ``(N, 2)`` from a sensor at pv ``(4,)``."""
+    return np.arctan2(xy[:, 1] - pv[2], xy[:, 0] - pv[0])
+
+
+def search_bearings(xy: ArrayLike, pv: ArrayLike, beam_width: float) -> np.ndarray:
+    """Bearings ``(J,)`` one ``beam_width`` apart that cover the cells ``(N, 2)`` as seen from
+    pv ``(4,)``: the cells' bearings fill the circle but for its largest gap between
+    neighbours; the arc left, of length a, takes ceil(a / w) pointings (at least one), centred
+    on it; a largest gap under one beam width: all around, ceil(2 pi / w)."""
+    require_positive("beam_width", beam_width)
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    b = np.sort(cell_bearings(xy, np.asarray(pv, dtype=float)))
+    gaps = np.diff(np.concatenate([b, [b[0] + 2.0 * math.pi]]))
+    g = int(np.argmax(gaps))
+    if gaps[g] < beam_width:
+        n = math.ceil(2.0 * math.pi / beam_width)
+        return np.asarray(wrap_angle(b[0] + beam_width * np.arange(n)), dtype=float)
+    start = b[(g + 1) % len(b)]  # the arc runs from after the gap round to b[g]
+    arc = 2.0 * math.pi - float(gaps[g])
+    n = max(1, math.ceil(arc / beam_width - 1e-9))
+    offsets = 0.5 * arc + beam_width * (np.arange(n) - 0.5 * (n - 1))
+    return np.asarray(wrap_angle(start + offsets), dtype=float)
+
+
+def search_value(
+    intensity: ArrayLike, footprint: ArrayLike, pd: float, cardinality: float, epochs: int
+) -> np.ndarray:
+    """The GOSPA^p a look saves ``(...)``: Pd Lambda c^p / alpha per epoch for ``epochs``
+    epochs, Lambda = sum of ``intensity`` ``(N,)`` over its ``footprint`` (bool ``(..., N)``:
+    the cells it sees, uncovered by tracks); ``cardinality`` = c^p / alpha (module
+    docstring)."""
+    if epochs < 1:
+        raise ValueError(f"epochs must be >= 1, got {epochs}")
+    lam = np.asarray(footprint, dtype=float) @ np.asarray(intensity, dtype=float)
+    return pd * lam * cardinality * epochs

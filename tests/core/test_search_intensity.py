@@ -1,0 +1,271 @@
+"""Search versus track: the undetected-target intensity over a surveillance region, the value
+of a search pointing in GOSPA units and its column in the beams' assignment
+(``planner.targets.surveillance``, ``activetrack.planning.search_intensity``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from activetrack.closed_loop.components import build_across_targets
+from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet, heading_speed
+from activetrack.models.clutter import ClutteredSensor
+from activetrack.models.sensors import RangeBearingSensor
+from activetrack.planning.assignment import round_assignment, search_columns
+from activetrack.planning.expected_gospa import GospaWeights
+from activetrack.planning.search_intensity import (
+    Surveillance,
+    UndetectedIntensity,
+    footprint,
+    search_bearings,
+    search_value,
+)
+from activetrack.scenarios import parse_scenario
+
+
+def _two_by_two() -> UndetectedIntensity:
+    # cells of 1 m: centres (0.5, 0.5), (0.5, 1.5), (1.5, 0.5), (1.5, 1.5) (x-major)
+    return UndetectedIntensity(Surveillance((0.0, 2.0, 0.0, 2.0), 0.4, 1.0), dt=2.0)
+
+
+def test_intensity_by_hand_on_a_two_by_two_grid():
+    u = _two_by_two()
+    np.testing.assert_allclose(u.xy, [[0.5, 0.5], [0.5, 1.5], [1.5, 0.5], [1.5, 1.5]])
+    np.testing.assert_array_equal(u.intensity, 0.0)
+    u.predict()  # 0.4 targets/s * 2 s over 4 cells
+    np.testing.assert_allclose(u.intensity, [0.2, 0.2, 0.2, 0.2])
+    u.look([True, False, False, True], pd=0.9)  # a look depletes its cells by 1 - Pd
+    np.testing.assert_allclose(u.intensity, [0.02, 0.2, 0.2, 0.02])
+    u.predict()
+    np.testing.assert_allclose(u.intensity, [0.22, 0.4, 0.4, 0.22])
+    u.look([True, True, False, False], pd=0.5)
+    np.testing.assert_allclose(u.intensity, [0.11, 0.2, 0.4, 0.22])
+    assert u.intensity.sum() == pytest.approx(0.93)
+    # a track at (0.5, 0.6) covers the cells within c = 0.5 of it: only the first
+    np.testing.assert_array_equal(u.uncovered([[0.5, 0.6]], 0.5), [False, True, True, True])
+    np.testing.assert_array_equal(u.uncovered(np.zeros((0, 2)), 0.5), [True] * 4)
+    with pytest.raises(ValueError, match="pd must lie in"):
+        u.look([True] * 4, pd=1.5)
+
+
+def test_search_value_by_hand():
+    # c = 500 m, p = 2, alpha = 2: c^p / alpha = 125000 m^2 per missed target
+    k = GospaWeights(500.0, 2.0, 2.0).cardinality
+    assert k == 125000.0
+    intensity = np.array([0.11, 0.2, 0.4, 0.22])
+    seen = np.array([[True, False, True, False], [False, False, False, True]])
+    # Pd Lambda c^p / alpha per epoch, over 3 epochs: 0.9 * 0.51 * 125000 * 3, 0.9 * 0.22 * ...
+    np.testing.assert_allclose(
+        search_value(intensity, seen, 0.9, k, 3), [172125.0, 74250.0], rtol=1e-12
+    )
+    with pytest.raises(ValueError, match="epochs must be >= 1"):
+        search_value(intensity, seen, 0.9, k, 0)
+
+
+def test_a_search_column_by_hand_and_against_a_track():
+    # one beam, one track whose service saves 1000 (c0 - C); two pointings of the beam
+    C, c0 = np.array([[4000.0]]), np.array([5000.0])
+    Cs, c0s, w = search_columns(C, c0, np.array([1.0]), np.array([[600.0, 900.0]]))
+    np.testing.assert_allclose(Cs, [[4000.0, -600.0, -900.0]])
+    np.testing.assert_allclose(c0s, [5000.0, 0.0, 0.0])
+    np.testing.assert_allclose(w, [1.0, 1.0, 1.0])
+    assert round_assignment(Cs, c0s, w, "weighted_sum").tolist() == [0]  # 1000 > 900
+    Cs, c0s, w = search_columns(C, c0, np.array([1.0]), np.array([[600.0, 1100.0]]))
+    assert round_assignment(Cs, c0s, w, "weighted_sum").tolist() == [2]  # 1100 > 1000
+    # two beams: another beam's pointing (NaN) is never taken even where it is worth more
+    search = np.array([[50.0, np.nan], [np.nan, 1e6]])
+    Cs, c0s, w = search_columns(np.array([[4000.0], [4500.0]]), c0, np.ones(1), search)
+    assert Cs[0, 2] > 1e6 and Cs[1, 1] > 1e6
+    assert round_assignment(Cs, c0s, w, "weighted_sum").tolist() == [0, 2]
+    with pytest.raises(ValueError, match="pointing of its own"):
+        search_columns(C, c0, np.ones(1), np.array([[np.nan]]))
+    with pytest.raises(ValueError, match=">= 0"):
+        search_columns(C, c0, np.ones(1), np.array([[-1.0]]))
+
+
+def test_footprint_and_search_bearings():
+    sensor = ClutteredSensor(
+        RangeBearingSensor(sigma_r=10.0, sigma_b=0.01, pd=0.9, r_min=1.0, r_max=2000.0),
+        beam_width=0.2,
+    )
+    xy = np.array([[1000.0, 0.0], [1000.0, 150.0], [0.0, 1000.0], [3000.0, 0.0]])
+    pv = np.array([0.0, 10.0, 0.0, 0.0])
+    # bearing 0: the first (0 rad), the second (0.149 rad > 0.1: no), the last out of range
+    assert footprint(sensor, xy, pv, 0.0).tolist() == [True, False, False, False]
+    assert footprint(sensor, xy, pv, math.pi / 2).tolist() == [False, False, True, False]
+    with pytest.raises(ValueError, match="bearing"):
+        footprint(sensor, xy, pv, None)
+    # cells spanning bearings 0..pi/2 as seen from the origin: ceil((pi/2) / 0.2) = 8
+    # pointings one beam width apart, centred on pi/4
+    b = search_bearings(xy[:3], pv, 0.2)
+    assert len(b) == 8
+    np.testing.assert_allclose(np.diff(b), 0.2)
+    assert b.mean() == pytest.approx(math.pi / 4)
+    # four cells a quarter turn apart around the sensor: the largest gap (pi / 2) is left
+    # out, 3 pi / 2 in ceil(7.5 pi) = 24 pointings
+    around = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+    assert len(search_bearings(around, pv, 0.2)) == 24
+    # the sensor among many cells (gaps under a beam width): all around, ceil(2 pi / 0.2)
+    a = np.linspace(0.0, 2.0 * math.pi, 100, endpoint=False)
+    ring = np.stack([np.cos(a), np.sin(a)], axis=-1)
+    assert len(search_bearings(ring, pv, 0.2)) == 32
+
+
+def _scene(surveillance: dict | None, assignment: str = "mre") -> dict:
+    targets = {"objective": "gospa", "aggregate": "weighted_sum", "assignment": assignment}
+    if surveillance is not None:
+        targets["surveillance"] = surveillance
+    return {
+        "name": "search_test",
+        "dt": 4.0,
+        "steps": 10,
+        "targets": [
+            {
+                "id": "t1",
+                "motion": {"model": "ncv", "q": 0.5},
+                "prior": {"mean": [0.0, 0.0, 5000.0, 0.0], "var": [100.0, 1.0, 100.0, 1.0]},
+            },
+            {
+                "id": "t2",
+                "motion": {"model": "ncv", "q": 0.5},
+                "prior": {"mean": [0.0, 0.0, 6000.0, 0.0], "var": [1e4, 1.0, 1e4, 1.0]},
+                "birth": 3,
+            },
+        ],
+        "platforms": [
+            {
+                "id": "p1",
+                "initial_state": [0.0, 20.0, -3000.0, 0.0],
+                "sensors": [
+                    {
+                        "id": "radar",
+                        "kind": "range_bearing",
+                        "sigma_r": 10.0,
+                        "sigma_b": 0.003,
+                        "pd": 0.9,
+                        "r_max": 16000.0,
+                        "beam_width": 0.2,
+                        "clutter_density": 0.0003,
+                    }
+                ],
+            }
+        ],
+        "tracker": {"filter": "ekf"},
+        "planner": {"horizon": 1, "targets": targets},
+        "evaluation": {"cutoff": 500.0, "order": 2, "alpha": 2},
+    }
+
+
+SURVEILLANCE = {"region": [-5000.0, 5000.0, 0.0, 10000.0], "birth_rate": 0.5}
+
+
+def test_the_surveillance_section_is_checked():
+    sc = parse_scenario(_scene(SURVEILLANCE), "s")
+    assert sc.planner.targets.surveillance.cell_size == 250.0
+    for bad, field in (
+        ({"region": [1.0, 0.0, 0.0, 1.0], "birth_rate": 0.1}, "x_min < x_max"),
+        ({"region": [0.0, 1.0, 0.0], "birth_rate": 0.1}, "region"),
+        ({"region": [0.0, 1.0, 0.0, 1.0], "birth_rate": -0.1}, "birth_rate"),
+        ({"region": [0.0, 1e6, 0.0, 1e6], "birth_rate": 0.1, "cell_size": 1.0}, "cells"),
+    ):
+        with pytest.raises(ValueError, match=field):
+            parse_scenario(_scene(bad), "s")
+    # absent: the planner keeps no intensity (every other scenario's numbers stay)
+    plain = build_across_targets(parse_scenario(_scene(None), "s"), np.random.default_rng(0))
+    assert plain.undetected is None
+
+
+def _plan(planner, epoch: int, tracks: tuple, pv: np.ndarray):
+    snap = [PlatformSnapshot("p1", epoch, 4.0 * epoch, pv, *heading_speed(pv))]
+    return planner.plan(epoch, TrackSet(epoch, 4.0 * epoch, "ekf", tracks=tracks), snap)
+
+
+def test_the_planner_searches_where_the_intensity_is_and_depletes_it():
+    sc = parse_scenario(_scene(SURVEILLANCE), "s")
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    pv = np.array(sc.platforms[0].initial_state)
+    # no track: the beam searches (track -1), its look depletes the cells it saw
+    d = _plan(planner, 0, (), pv)
+    assert d.beams[0].track_id == -1 and d.report.search == "sweep"
+    u = planner.undetected
+    birth = 0.5 * 4.0 / len(u.intensity)
+    np.testing.assert_allclose(u.intensity, birth)
+    pv1 = pv + np.array([4.0 * pv[1], 0.0, 0.0, 0.0])
+    seen = footprint(planner.sensors[0].model, u.xy, pv1, d.beams[0].bearing)
+    assert 0 < seen.sum() < len(seen)
+    _plan(planner, 1, (), pv1)
+    np.testing.assert_allclose(u.intensity[seen], 0.2 * birth)  # (birth + birth) (1 - Pd)
+    np.testing.assert_allclose(u.intensity[~seen], 2 * birth)
+    # a well-held track: its service saves little, the unsearched region is worth more
+    m = np.array([0.0, 0.0, 5000.0, 0.0])
+    P = np.diag([25.0, 0.25, 25.0, 0.25])
+    held = (TrackEstimate(1, "confirmed", m, P, m, P, existence=1.0),)
+    d = _plan(planner, 2, held, pv1)
+    assert d.beams[0].track_id == -1
+    # the same track highly uncertain: served
+    P = np.diag([4e4, 25.0, 4e4, 25.0])
+    lost = (TrackEstimate(1, "confirmed", m, P, m, P, existence=1.0),)
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    d = _plan(planner, 0, lost, pv)
+    assert d.beams[0].track_id == 1
+
+
+def test_random_beams_draw_among_tracks_and_search_pointings():
+    sc = parse_scenario(_scene(SURVEILLANCE, assignment="random"), "s")
+    planner = build_across_targets(sc, np.random.default_rng(3))
+    pv = np.array(sc.platforms[0].initial_state)
+    m = np.array([0.0, 0.0, 5000.0, 0.0])
+    P = np.diag([25.0, 0.25, 25.0, 0.25])
+    tracks = (TrackEstimate(1, "confirmed", m, P, m, P),)
+    ids = [_plan(planner, k, tracks, pv).beams[0].track_id for k in range(40)]
+    # 1 track and 10-11 pointings: the track about 1 in 11
+    assert 0 < ids.count(1) < 12 and ids.count(-1) > 28
+
+
+def test_a_tentative_track_is_a_pointing_unless_a_confirmed_one_holds_its_target():
+    sc = parse_scenario(_scene(SURVEILLANCE), "s")
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    pv = np.array(sc.platforms[0].initial_state)
+    m = np.array([0.0, 0.0, 5000.0, 0.0])
+    P = np.diag([25.0, 0.25, 25.0, 0.25])
+    confirmed = TrackEstimate(1, "confirmed", m, P, m, P, existence=1.0)
+    far = np.array([3000.0, 0.0, 5000.0, 0.0])  # 3 km off: a target of its own
+    near = np.array([300.0, 0.0, 5000.0, 0.0])  # within c = 500 m of the confirmed track
+    tracks = (
+        confirmed,
+        TrackEstimate(2, "tentative", far, P, far, P, existence=0.2),
+        TrackEstimate(3, "tentative", near, P, near, P, existence=0.2),
+    )
+    ahead = planner._ahead(pv)
+    (o,) = planner._search_options(tracks, [0], ahead[None])
+    assert o.track_ids.tolist().count(-1) == len(o.track_ids) - 1
+    assert o.track_ids[-1] == 2
+    # its value: r Pd I c_beam c^p / alpha (the beam on its prediction: c_beam ~ 1)
+    hit = planner.sensors[0].hit(far, ahead, P, 1.0)
+    assert hit == pytest.approx(0.9, rel=1e-3)
+    assert o.values[-1] == pytest.approx(0.2 * hit * 125000.0, rel=1e-3)
+
+
+def test_the_search_reach_of_a_position_is_its_best_region_pointing():
+    sc = parse_scenario(_scene(SURVEILLANCE), "s")
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    u = planner.undetected
+    u.predict()
+    pv = np.array(sc.platforms[0].initial_state)
+
+    class _Paths:  # the one platform's next pv on its path
+        def __init__(self, pv: np.ndarray):
+            self.paths = {0: pv[None]}
+
+    model = planner.sensors[0].model
+    best = max(
+        float(footprint(model, u.xy, pv, float(b)) @ u.intensity)
+        for b in search_bearings(u.xy, pv, 0.2)
+    )
+    # Pd Lambda c^p / alpha for one epoch; birth 0.5 / s * 4 s = 2 targets over the region
+    assert planner._search_reach(_Paths(pv)) == pytest.approx(0.9 * best * 125000.0)
+    assert 0.1 < best < 0.5
+    inside = np.array([0.0, 20.0, 5000.0, 0.0])  # from inside the region a look sees less
+    assert planner._search_reach(_Paths(inside)) < 0.9 * best * 125000.0
