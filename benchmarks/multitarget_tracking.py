@@ -102,7 +102,7 @@ BEARING_SITES = (("b1", 1000.0, 8000.0, 0.0), ("b2", 7000.0, 1000.0, math.pi / 2
 STONESOUP_DELETE_STD = 150.0  # m per axis
 STONESOUP_MIN_POINTS = 4  # updates that confirm a Stone Soup tentative track
 STONESOUP_TENTATIVE_MISSES = 2  # scans without an update that delete a tentative track
-_EPOCH = mt._EPOCH
+_EPOCH = mt.EPOCH
 
 
 @dataclass(frozen=True)
