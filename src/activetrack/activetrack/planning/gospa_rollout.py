@@ -87,13 +87,13 @@ class Look:
 
 @dataclass
 class GospaRollout:
-    """The stage (module docstring). ``kind`` "pcrlb" (state0: J at k ``(T, 4, 4)``, samples per
-    track ``(L, M, 4)``) or "mre" (state0: P_{k+1|k} ``(T, 4, 4)``); ``x`` ``(L, T, 4)`` the CV
-    predictions; ``looks`` the other platforms' sensors; ``own`` the optimised platform's
-    sensors and the tracks each serves; ``missed`` ``(T,)`` the miss factors, ``existence``
-    ``(T,)``."""
+    """The stage (module docstring). ``cost_kind`` "pcrlb" (state0: J at k ``(T, 4, 4)``,
+    samples per track ``(L, M, 4)``) or "mre" (state0: P_{k+1|k} ``(T, 4, 4)``); ``x``
+    ``(L, T, 4)`` the CV predictions; ``looks`` the other platforms' sensors; ``own`` the
+    optimised platform's sensors and the tracks each serves; ``missed`` ``(T,)`` the miss
+    factors, ``existence`` ``(T,)``."""
 
-    kind: str
+    cost_kind: str  # planner.cost
     F: np.ndarray
     Q: np.ndarray
     x: np.ndarray
@@ -122,7 +122,7 @@ class GospaRollout:
     def _track(self, t: int, state: np.ndarray, own_path: np.ndarray) -> np.ndarray:
         """Track t's split summed over the legs ``(..., 3)``; ``state`` its J at k (pcrlb) or
         P_{k+1|k} (mre), updated in turn (J after the leg's looks, P before them)."""
-        pcrlb = self.kind == "pcrlb"
+        pcrlb = self.cost_kind == "pcrlb"
         total: np.ndarray | float = 0.0
         hold: np.ndarray | float = 1.0
         S = np.asarray(state, dtype=float)
