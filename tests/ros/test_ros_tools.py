@@ -32,9 +32,10 @@ from sim_node.sim_node import PARAMS as SIM_PARAMS
 from tracker_node.tracker_node import FILTER
 from tracker_node.tracker_node import PARAMS as TRACKER_PARAMS
 
-SCENARIO = "tests/ros/data/short_two_sensors.yaml"  # 8 epochs of 5 s
+SCENARIO = "tests/ros/data/short_two_sensors.yaml"  # epochs of 5 s, 2 platforms
 NS = "rt27"
-RATE = 0.4  # sim seconds per wall second: the run lasts 100 s unless stopped
+RATE = 0.4  # sim seconds per wall second
+STEPS = 60  # the run lasts 750 s unless stopped: it outlives the module's tools on a busy machine
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 OURS = ("sim_node", "tracker_node", "planner_node", "activetrack_evaluator", "activetrack_recorder")
 
@@ -46,8 +47,11 @@ def live(tmp_path_factory):
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # the tools' own participants
     env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
     out = tmp_path_factory.mktemp("live")
+    scenario = yaml.safe_load(Path(SCENARIO).read_text()) | {"steps": STEPS}
+    (out / "scenario.yaml").write_text(yaml.safe_dump(scenario))
     proc = subprocess.Popen(
-        [str(Path(sys.executable).parent / "activetrack"), "run", SCENARIO, "--processes",
+        [str(Path(sys.executable).parent / "activetrack"), "run", str(out / "scenario.yaml"),
+         "--processes",
          "--namespace", NS, "--mode", "free", "--rate", str(RATE), "--no-plots",
          "--out", str(out / "run")],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -58,7 +62,9 @@ def live(tmp_path_factory):
         with ToolSession(namespace=NS) as s:  # the node processes take a few seconds to start
             ours = {f"/{NS}/{n}" for n in OURS}
             assert s.wait_for_graph(lambda: ours <= set(s.nodes()), timeout=60), s.nodes()
-        yield SimpleNamespace(proc=proc, bag=out / "run" / "bag", echoed={})
+        yield SimpleNamespace(
+            proc=proc, bag=out / "run" / "bag", scenario=str(out / "scenario.yaml"), echoed={}
+        )
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -145,7 +151,7 @@ def test_param_dump_is_a_params_file_of_what_the_node_holds(live, capsys, tmp_pa
     rc, out, _ = ros(capsys, "param", "dump", "tracker_node", "--namespace", NS)
     assert rc == 0
     dumped = yaml.safe_load(out)[f"/{NS}/tracker_node"]["ros__parameters"]
-    given = {"scenario": SCENARIO, "run": -1, "mode": "free"}
+    given = {"scenario": live.scenario, "run": -1, "mode": "free"}
     for spec in (*TRACKER_PARAMS, FILTER):
         assert dumped[spec.name] == given.get(spec.name, spec.default), spec.name
     assert dumped["use_sim_time"] is False
@@ -166,10 +172,16 @@ def test_param_dump_is_a_params_file_of_what_the_node_holds(live, capsys, tmp_pa
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = saved
 
 
-def test_echo_once_prints_the_first_platform_state_as_yaml(live, capsys):
+def echo_first_state(live, capsys) -> None:
+    """``echo --once`` of the platform states, kept for the comparison with the bag."""
     rc, out, _ = ros(capsys, "echo", "activetrack/platform_states", "--once", "--namespace", NS)
     assert rc == 0 and out.endswith("\n---\n")
     live.echoed["platform_states"] = yaml.safe_load(out.removesuffix("---\n"))
+
+
+def test_echo_once_prints_the_first_platform_state_as_yaml(live, capsys):
+    echo_first_state(live, capsys)
+    assert set(live.echoed["platform_states"]) >= {"header", "platform_id", "epoch"}
 
 
 def test_echo_count_and_field(live, capsys):
@@ -200,23 +212,32 @@ def test_hz_measures_the_free_runs_clock(live, capsys):
     assert int(last[1].split("window: ")[1]) > 50
 
 
-def test_tf_prints_the_tree_with_the_latest_transforms(live, capsys):
-    # two epochs at 0.4x (12.5 s each): one can pass while the tool joins the graph
+def tf_tree(live, capsys) -> list[str]:
+    """``tf`` over two epochs at 0.4x (12.5 s each: one can pass while the tool joins the
+    graph); platform p1's line is kept for the comparison with the bag."""
     rc, out, _ = ros(capsys, "tf", "--duration", "26", "--namespace", NS)
     assert rc == 0
     lines = out.splitlines()
+    live.echoed["tf_p1"] = next(line for line in lines if "platform/p1  (" in line)
+    return lines
+
+
+def test_tf_prints_the_tree_with_the_latest_transforms(live, capsys):
+    lines = tf_tree(live, capsys)
     assert lines[1] == "world"
     children = {line.split("  (")[0].lstrip("├└─│ ") for line in lines[2:]}
     assert children == {"platform/p1", "sensor/s1", "platform/p2", "sensor/s2",
                         "target/t1/truth", "target/t1/estimate"}  # fmt: skip
     assert "│   └── sensor/s1  (x 0.000 y 0.000 z 0.000 m, yaw 0.00 deg; static)" in lines
-    p1 = next(line for line in lines if "platform/p1  (" in line)
-    live.echoed["tf_p1"] = p1
 
 
-def test_the_tools_output_matches_the_runs_bag(live):
+def test_the_tools_output_matches_the_runs_bag(live, capsys):
     """Stop the run (Ctrl-C: its bag is closed), then compare what echo and tf printed with
-    the messages the run recorded."""
+    the messages the run recorded (run alone, this test asks the tools itself)."""
+    if "platform_states" not in live.echoed:
+        echo_first_state(live, capsys)
+    if "tf_p1" not in live.echoed:
+        tf_tree(live, capsys)
     live.proc.send_signal(signal.SIGINT)
     assert live.proc.wait(timeout=60) == 130
     with open_bag(live.bag) as bag:
