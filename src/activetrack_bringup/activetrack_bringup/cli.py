@@ -33,8 +33,8 @@ import os
 import sys
 from pathlib import Path
 
+from activetrack.strict_json import write_json
 from activetrack_bringup import cli_types, interrupts
-from activetrack_bringup.json_out import write_json
 from activetrack_bringup.ros_tools.cli import add_ros_parser
 from activetrack_bringup.track import add_track_parser
 

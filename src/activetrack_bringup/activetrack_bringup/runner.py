@@ -23,11 +23,11 @@ from activetrack.closed_loop.batch import BatchSummary, summarize
 from activetrack.closed_loop.components import component_rngs
 from activetrack.closed_loop.evaluation import evaluate_run
 from activetrack.scenarios import first_epochs, load_scenario
+from activetrack.strict_json import json_safe
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.inprocess import InProcessGraph
-from activetrack_bringup.json_out import json_safe
 from activetrack_bringup.ros_network import RosNetwork, ros_network
 from activetrack_bringup.run_folder import run_dir_for
 from activetrack_bringup.supervisor import NodeDied, Supervisor

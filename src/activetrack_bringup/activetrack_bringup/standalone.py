@@ -32,7 +32,7 @@ def activetrack_evaluator(**kwargs):
 def conclude(node) -> dict:
     """The summary of a complete run (the runner's code), logged and, if the ``summary``
     parameter names a path, written there as JSON; returns it."""
-    from activetrack_bringup.json_out import write_json
+    from activetrack.strict_json import write_json
     from activetrack_bringup.runner import run_summary  # the node classes: only here
 
     wall = time.monotonic() - node.started

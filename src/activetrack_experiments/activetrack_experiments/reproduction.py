@@ -20,7 +20,6 @@ document. Its command line is a :class:`Reproduction`::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -33,6 +32,7 @@ from activetrack.argtypes import add_scheduler_option, int_in_range
 from activetrack.limits import MAX_JOBS, MAX_RUNS
 from activetrack.montecarlo import Progress, Scheduler, available_jobs, parallel_map
 from activetrack.plots import new_figure
+from activetrack.strict_json import write_json
 
 __all__ = ["Reproduction", "RunsOption", "figure_axes", "map_groups", "split"]
 
@@ -139,11 +139,9 @@ class Reproduction:
         wall_time_s = time.perf_counter() - start
         print(f"wall time {wall_time_s:.1f} s")
         doc = res.to_json() if self.document is None else self.document(res, figures, wall_time_s)
-        text = json.dumps(doc, indent=2)
         paths = [] if args.no_figures else [args.out / "results.json"]
         for path in paths + ([args.json] if args.json is not None else []):
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text)
+            write_json(path, doc)  # NaN (a row without a figure) as null
         return 0
 
 

@@ -1,4 +1,5 @@
-"""Strict JSON for what the command line writes (``summary.json``, every ``--json`` file):
+"""Strict JSON for what the command line writes (``summary.json``, every ``--json`` file, the
+reproductions' ``results.json``):
 NaN and infinities (an absent target's error, a bound a nonlinear model has not) as null, so
 that any JSON reader takes the file and ``run`` and ``batch`` write the same values alike."""
 
