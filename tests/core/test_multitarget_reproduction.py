@@ -29,8 +29,7 @@ MEASURED = {
     # why); before, JPDA-EKF on planner.criterion: 129.56, 74.35, 107.24
     "mt_bearings_crossing": (59.31, 66.16, 98.95),
     # (b) and (d)'s planner since a beam's missed looks say less as the track's prediction
-    # widens (before: (b) 110.81, 87.53, 160.71; (d) 440.73); (a) kept its figures; (c), (e)
-    # and (d)'s random beams measured before it
+    # widens (before: (b) 110.81, 87.53, 160.71; (d) 440.73); the others kept their figures
     "mt_radars_beams": (114.58, 86.28, 159.36),
     "mt_appear_disappear": (73.96, 76.11, 97.42),
     # (d) plans on the expected GOSPA with its surveillance region (search versus track);
