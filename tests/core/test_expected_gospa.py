@@ -19,7 +19,7 @@ from activetrack.bounds.mre import mre_update
 from activetrack.closed_loop.components import build_across_targets
 from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet, heading_speed
 from activetrack.models.sensors import BearingSensor
-from activetrack.planning.assignment import assign_beams_gospa, gospa_pair_costs
+from activetrack.planning.assignment import MissedLooks, assign_beams_gospa, gospa_pair_costs
 from activetrack.planning.expected_gospa import (
     GospaWeights,
     beyond_cutoff,
@@ -149,7 +149,7 @@ def test_the_rollout_counts_every_leg_and_goes_straight_on():
     sensor = BearingSensor(sigma=0.01, pd=0.9, r_min=100.0)
     far = Look(sensor, np.array([False]), np.zeros((2, 4)))
     stage = GospaRollout(
-        "mre", F, Q, x, [], (far,), (), np.ones(1), np.array([0.8]), W, 5.0
+        "mre", F, Q, x, [], (far,), (), (MissedLooks(),), np.array([0.8]), W, 5.0
     )  # fmt: skip
     got = stage.advance(P1[None], 0, np.zeros((3, 4)))
     assert got.shape == (3, 1, 3)

@@ -26,10 +26,12 @@ from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet, heading_
 from activetrack.models.irf import information_reduction_factor
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
 from activetrack.planning.assignment import (
+    MissedLooks,
     assign_beams,
     assignment_value,
     beam_coverage,
     coverage_after_misses,
+    joint_coverage,
     mre_pair_costs,
     random_assignment,
     round_assignment,
@@ -251,6 +253,54 @@ def test_coverage_after_misses_is_bayes_rule_for_unsuccessful_looks():
     assert frac == pytest.approx(got[2], abs=tol)
     with pytest.raises(ValueError, match="miss_factor"):
         coverage_after_misses(0.5, 1.5)
+
+
+def test_joint_coverage_is_the_bivariate_normal_rectangle():
+    # P(|U| < t1, |V| < t2), corr rho, against scipy's bivariate normal cdf (4 corners).
+    from scipy.special import erfinv
+    from scipy.stats import multivariate_normal
+
+    for c1, c2, rho in [(0.6, 0.3, 0.5), (0.9, 0.95, 0.99), (0.2, 0.8, 0.1), (0.3, 0.3, 0.9)]:
+        t1, t2 = math.sqrt(2) * erfinv(c1), math.sqrt(2) * erfinv(c2)
+        mvn = multivariate_normal(mean=[0.0, 0.0], cov=[[1.0, rho], [rho, 1.0]])
+        want = mvn.cdf([t1, t2]) - mvn.cdf([-t1, t2]) - mvn.cdf([t1, -t2]) + mvn.cdf([-t1, -t2])
+        assert float(joint_coverage(c1, c2, rho)) == pytest.approx(want, abs=1e-7)
+    # rho 1: the same offsets (the smaller interval); rho 0: independent; edges.
+    got = joint_coverage([0.5, 0.5, 0.5, 0.0, 1.0], [0.3, 0.8, 0.8, 0.5, 0.4], [1, 1, 0, 0.5, 0.5])
+    assert got == pytest.approx([0.3, 0.5, 0.4, 0.0, 0.4], abs=1e-12)
+    with pytest.raises(ValueError, match="rho"):
+        joint_coverage(0.5, 0.5, 1.5)
+
+
+def test_misses_say_less_as_the_prediction_widens():
+    # One look missed (pd 0.8) a beam holding c1 = 0.6 of the prediction then; now the
+    # prediction is wider (offsets a random walk: corr rho = sigma_then / sigma_now) and the
+    # beam holds c2 = 0.35 of it. Same beam: Bayes' rule as before; rho 0: the look says
+    # nothing; in between, Monte Carlo over the walk (4 sigma).
+    from scipy.special import erfinv
+
+    pd, c1, c2 = 0.8, 0.6, 0.35
+    assert coverage_after_misses(c1, 0.2, c1, 1.0) == pytest.approx(coverage_after_misses(c1, 0.2))
+    assert coverage_after_misses(c2, 0.2, c1, 0.0) == pytest.approx(c2)
+    rho = 0.5
+    got = float(coverage_after_misses(c2, 1 - pd, c1, rho))
+    rng = np.random.default_rng(5)
+    n = 400_000
+    u = rng.standard_normal(n)
+    v = rho * u + math.sqrt(1 - rho**2) * rng.standard_normal(n)  # standardised offset now
+    t1, t2 = (math.sqrt(2) * float(erfinv(c)) for c in (c1, c2))
+    missed = ~((np.abs(u) < t1) & (rng.random(n) < pd))
+    frac = (np.abs(v[missed]) < t2).mean()
+    assert frac == pytest.approx(got, abs=4 * math.sqrt(got * (1 - got) / missed.sum()))
+    assert coverage_after_misses(c2, 0.2) < got < c2  # less sure than the same beam's rule
+    # MissedLooks: the correlation from the spreads, a prediction no wider: the same beam.
+    P = np.diag([400.0, 1.0, 500.0, 1.0])
+    looks = MissedLooks(0.2, c1, 225.0)  # spread then 225 m^2, now 900: rho 0.5
+    assert float(looks.after(c2, P)) == pytest.approx(got, rel=1e-12)
+    assert float(MissedLooks(0.2, c1, 900.0).after(c1, P)) == pytest.approx(0.2308, abs=1e-4)
+    assert float(MissedLooks().after(c2, P)) == c2
+    with pytest.raises(ValueError, match="factor"):
+        MissedLooks(1.5, 0.5, 1.0)
 
 
 def test_a_beam_leaves_a_track_where_it_found_nothing():

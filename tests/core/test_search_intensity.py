@@ -13,7 +13,7 @@ from activetrack.closed_loop.components import build_across_targets
 from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet, heading_speed
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.models.sensors import RangeBearingSensor
-from activetrack.planning.assignment import round_assignment, search_columns
+from activetrack.planning.assignment import NO_MISSES, round_assignment, search_columns
 from activetrack.planning.expected_gospa import GospaWeights
 from activetrack.planning.search_intensity import (
     Surveillance,
@@ -243,7 +243,7 @@ def test_a_tentative_track_is_a_pointing_unless_a_confirmed_one_holds_its_target
     assert o.track_ids.tolist().count(-1) == len(o.track_ids) - 1
     assert o.track_ids[-1] == 2
     # its value: r Pd I c_beam c^p / alpha (the beam on its prediction: c_beam ~ 1)
-    hit = planner.sensors[0].hit(far, ahead, P, 1.0)
+    hit = planner.sensors[0].hit(far, ahead, P, NO_MISSES)
     assert hit == pytest.approx(0.9, rel=1e-3)
     assert o.values[-1] == pytest.approx(0.2 * hit * 125000.0, rel=1e-3)
 

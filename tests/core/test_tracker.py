@@ -51,7 +51,7 @@ from activetrack.filters.clutter_likelihood import (
 )
 from activetrack.filters.ekf import ExtendedKalmanFilter
 from activetrack.filters.jpda import jpda_update
-from activetrack.filters.measurement import Measurement
+from activetrack.filters.measurement import Measurement, pda_weights
 from activetrack.filters.particle import ParticleFilter
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.models.fov import FieldOfView
@@ -494,6 +494,16 @@ def test_particle_pda_with_no_detection_the_targets_leaves_the_particles():
     np.testing.assert_array_equal(pf.particles, X)
     np.testing.assert_array_equal(pf.weights, w)
     assert not info.resampled and info.n_detections == 2
+
+
+def test_pda_weights_take_a_marginal_one_ulp_above_one():
+    # A marginal summed over joint events can come out 1 + 1 ulp (seen on a particle track
+    # whose only gated detection had likelihood ratio 1e-133): clipped, not refused.
+    Z = detections([np.array([10.0, 0.1])])
+    got = pda_weights(Z, [1.0 + 2.2e-16, 3.2e-133])
+    assert got.tolist() == [1.0, 3.2e-133]
+    with pytest.raises(ValueError, match="probabilities"):
+        pda_weights(Z, [1.1, -0.1])
 
 
 def test_particle_pda_weights_are_the_mixture_over_the_hypotheses():

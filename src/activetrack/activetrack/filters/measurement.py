@@ -151,12 +151,15 @@ class AssociatingFilter(TrackingFilter, Protocol):
 
 def pda_weights(measurements: Sequence[Measurement], beta: object) -> FloatArray:
     """``beta`` ``(m + 1,)`` of a PDA update checked against its ``m`` detections: finite,
-    in [0, 1], summing to 1; the detections all of one sensor at one platform state, each
+    in [0, 1] (round-off of 1e-12 clipped: a marginal summed over joint events can come out
+    1 + 1 ulp), summing to 1; the detections all of one sensor at one platform state, each
     with a ``z``."""
     b = np.asarray(beta, dtype=float)
     m = len(measurements)
-    if b.shape != (m + 1,) or not np.isfinite(b).all() or (b < 0.0).any() or (b > 1.0).any():
+    tol = 1e-12
+    if b.shape != (m + 1,) or not np.isfinite(b).all() or (b < -tol).any() or (b > 1 + tol).any():
         raise ValueError(f"beta must be ({m + 1},) probabilities in [0, 1], got {beta!r}")
+    b = np.clip(b, 0.0, 1.0)
     if abs(float(b.sum()) - 1.0) > 1e-9:
         raise ValueError(f"beta must sum to 1, got {float(b.sum())!r}")
     for i, meas in enumerate(measurements):

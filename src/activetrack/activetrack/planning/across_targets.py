@@ -13,8 +13,10 @@ a confirmed track, ``planner.cost``:
 - ``mre``: ``planner.criterion`` of Ramdaras eq. 23 with q as detection factor at the CV
   prediction F^{r+1} x. A beam, pointed before the epoch's measurements, holds the target with
   probability ``assignment.beam_coverage``, lowered for each unsuccessful look since the
-  track's last hit (``assignment.coverage_after_misses``: otherwise the beams keep looking at a
-  lost track's empty prediction).
+  track's last hit (``assignment.MissedLooks``: otherwise the beams keep looking at a lost
+  track's empty prediction), and raised again as the prediction widens past the spread it had
+  at those looks (the target may have come back into the part they emptied; otherwise a track
+  left after a few misses is never looked at again while it drifts).
 
 Tracks combine by ``planner.targets.aggregate`` (``worst`` plus ``TIE_BREAK`` times the sum
 during the search, or ``weighted_sum``). Manoeuvres: platforms in turn, the others on their
@@ -72,10 +74,11 @@ from activetrack.data import (
 )
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.planning.assignment import (
+    NO_MISSES,
+    MissedLooks,
     assign_beams,
     assign_beams_gospa,
     beam_coverage,
-    coverage_after_misses,
     nearest_assignment,
     random_assignment,
 )
@@ -132,7 +135,11 @@ class _Sensor:
         return self.model.beam_width is not None
 
     def detection(
-        self, x: np.ndarray, pv: np.ndarray, P: np.ndarray | None = None, missed: float = 1.0
+        self,
+        x: np.ndarray,
+        pv: np.ndarray,
+        P: np.ndarray | None = None,
+        missed: MissedLooks = NO_MISSES,
     ) -> np.ndarray:
         """Eq. 23's detection factor q I_r I_fov ``(...)`` for a target at x seen from pvs
         ``(..., 4)``; a beam times its coverage of ``P`` (None: on target) after ``missed``."""
@@ -140,10 +147,10 @@ class _Sensor:
         d = self.q * inside * in_view(self.model, x, pv)
         if self.steerable and P is not None:
             c = beam_coverage(cast(float, self.model.beam_width), x, P, pv)
-            d = d * coverage_after_misses(c, missed)
+            d = d * missed.after(c, P)
         return d
 
-    def hit(self, x: np.ndarray, pv: np.ndarray, P: np.ndarray, missed: float) -> float:
+    def hit(self, x: np.ndarray, pv: np.ndarray, P: np.ndarray, missed: MissedLooks) -> float:
         """The chance Pd I_r I_fov c that this sensor at ``pv`` detects a target N(x, P)."""
         inside, c = look_factors(self.model, x, pv, P, missed)
         return float(self.model.pd) * float(inside) * float(c)
@@ -184,7 +191,7 @@ class _MreStage:
     x: np.ndarray
     fixed: list[list[list[tuple[_Sensor, np.ndarray]]]]
     own: tuple[tuple[_Sensor, np.ndarray], ...]
-    missed: np.ndarray
+    missed: tuple[MissedLooks, ...]
 
     def prepare(self, P: np.ndarray, level: int) -> np.ndarray:
         return P if level == 0 else symmetrize(P)
@@ -214,7 +221,7 @@ class _Pointings:
 @dataclass
 class _Epoch:
     """One decision's working set (a :class:`PlatformStages` of the coordinator): CV
-    predictions ``x`` ``(R, T, 4)`` (mre) or samples (pcrlb), miss factors ``(T,)``, which
+    predictions ``x`` ``(R, T, 4)`` (mre) or samples (pcrlb), missed looks ``(T,)``, which
     tracks each sensor serves ``(S, T)``, the platforms' paths ``(R, 4)``."""
 
     planner: MultiTargetPlanner
@@ -223,7 +230,7 @@ class _Epoch:
     tracks: tuple[TrackEstimate, ...]
     predictions: list[TargetPrediction]
     weights: np.ndarray
-    missed: np.ndarray
+    missed: tuple[MissedLooks, ...]
     serves: np.ndarray
     x: np.ndarray | None = None
     samples: list[np.ndarray] = field(default_factory=list)
@@ -313,10 +320,11 @@ class MultiTargetPlanner:
         self.settings = settings
         self.last_track: dict[str, int] = {}  # beam sensor id -> track id it served last
         self.last_bearing: dict[str, float] = {}
-        # track id -> (M since its last hit, its hits then); the looks for the next epoch:
-        # track id -> (hits, misses, prod (1 - pd I_r)).
-        self.miss_factor: dict[int, tuple[float, int]] = {}
-        self.looks: dict[int, tuple[int, int, float]] = {}
+        # track id -> (M since its last hit, its hits then, the last look's coverage and the
+        # spread then); the looks for the next epoch: track id -> (hits, misses,
+        # prod (1 - pd I_r), coverage, spread).
+        self.miss_factor: dict[int, tuple[float, int, float, float]] = {}
+        self.looks: dict[int, tuple[int, int, float, float, float]] = {}
         # Search versus track: the undetected-target intensity (with the gospa objective or
         # random beams) and the looks commanded for the next epoch (sensor, beam bearing).
         searching = settings.objective == "gospa" or settings.assignment == "random"
@@ -369,18 +377,23 @@ class MultiTargetPlanner:
 
     def _note_looks(self, tracks: TrackSet) -> None:
         """Last epoch's beam looks: a track looked at without a hit takes the factor
-        prod (1 - pd I_r) of those beams; a track with a new hit starts afresh (M = 1)."""
+        prod (1 - pd I_r) of those beams and their coverage and spread (:class:`MissedLooks`);
+        a track with a new hit starts afresh (M = 1)."""
         now = {t.track_id: t for t in tracks.tracks}
         factors = {
-            i: (M, hits)
-            for i, (M, hits) in self.miss_factor.items()
-            if i in now and now[i].hits <= hits
+            i: miss for i, miss in self.miss_factor.items() if i in now and now[i].hits <= miss[1]
         }
-        for i, (hits, misses, fail) in self.looks.items():
+        for i, (hits, misses, fail, coverage, spread) in self.looks.items():
             t = now.get(i)
             if t is not None and t.hits <= hits and t.misses > misses:
-                factors[i] = (factors.get(i, (1.0, hits))[0] * fail, hits)
+                M = factors.get(i, (1.0, hits, 0.0, 0.0))[0]
+                factors[i] = (M * fail, hits, coverage, spread)
         self.miss_factor, self.looks = factors, {}
+
+    def _missed(self, track_id: int) -> MissedLooks:
+        """The unsuccessful looks at a track since its last hit."""
+        M, _, coverage, spread = self.miss_factor.get(track_id, (1.0, 0, 0.0, 0.0))
+        return MissedLooks(M, coverage, spread)
 
     def _deplete(self, snaps: dict[str, PlatformSnapshot]) -> None:
         """The undetected intensity at this epoch: last epoch's births, then the looks just
@@ -440,7 +453,7 @@ class MultiTargetPlanner:
             seen = np.stack([footprint(s.model, u.xy, pv, float(b)) for b in bearings]) & free
             values = search_value(u.intensity, seen, float(s.model.pd), cardinality, epochs)
             at = [math.atan2(x[2] - pv[2], x[0] - pv[0]) for _, x, _ in tentative]
-            found = [t.existence * s.hit(x, pv, P, 1.0) for t, x, P in tentative]
+            found = [t.existence * s.hit(x, pv, P, NO_MISSES) for t, x, P in tentative]
             out.append(
                 _Pointings(
                     np.concatenate([bearings, at]),
@@ -462,7 +475,7 @@ class MultiTargetPlanner:
             tracks,
             predictions,
             np.array([t.priority for t in tracks], dtype=float),
-            np.array([self.miss_factor.get(t.track_id, (1.0, 0))[0] for t in tracks]),
+            tuple(self._missed(t.track_id) for t in tracks),
             self._serving_now(planners, tracks, predictions),
         )
         if self.cost_kind == "pcrlb":
@@ -732,7 +745,7 @@ class MultiTargetPlanner:
 
     @staticmethod
     def _expected_update(
-        p: TargetPrediction, sensors: list[_Sensor], next_pv: np.ndarray, missed: float
+        p: TargetPrediction, sensors: list[_Sensor], next_pv: np.ndarray, missed: MissedLooks
     ) -> np.ndarray:
         """P_{k+1|k} with the expected updates (eq. 23's bracket) of ``sensors`` at their
         platforms' planned pvs, :meth:`_Sensor.detection` as the detection factors."""
@@ -750,7 +763,8 @@ class MultiTargetPlanner:
         if not fixed:
             return list(ep.predictions)
         return [
-            p.with_covariance(self._expected_update(p, fixed, next_pv, 1.0)) for p in ep.predictions
+            p.with_covariance(self._expected_update(p, fixed, next_pv, NO_MISSES))
+            for p in ep.predictions
         ]
 
     def _track_costs(self, ep: _Epoch, next_pv: np.ndarray) -> np.ndarray:
@@ -807,7 +821,7 @@ class MultiTargetPlanner:
                 self._pending(i, bearing)
                 continue
             t = int(np.flatnonzero(ep.serves[i])[0])
-            x, pv = ep.predictions[t].x, next_pv[s.platform]
+            (x, P), pv = (ep.predictions[t].x, ep.predictions[t].P), next_pv[s.platform]
             bearing = math.atan2(x[2] - pv[2], x[0] - pv[0])
             track = ep.tracks[t]
             beams.append(BeamCommand(s.sensor_id, ep.epoch, bearing, track.track_id))
@@ -815,8 +829,15 @@ class MultiTargetPlanner:
             self.last_bearing[s.sensor_id] = bearing
             self._pending(i, bearing)
             fail = 1.0 - float(s.model.pd) * float(s.model.in_range(x, pv))
-            _, _, before = self.looks.get(track.track_id, (0, 0, 1.0))
-            self.looks[track.track_id] = (track.hits, track.misses, before * fail)
+            before = self.looks.get(track.track_id, (0, 0, 1.0))[2]
+            coverage = float(beam_coverage(cast(float, s.model.beam_width), x, P, pv))
+            self.looks[track.track_id] = (
+                track.hits,
+                track.misses,
+                before * fail,
+                coverage,
+                float(position_spread(P)),
+            )
         ids = [t.track_id for t in ep.tracks]
         total = float(aggregate_costs(costs, ep.weights, self.settings.aggregate))
         return self._outcome(

@@ -20,11 +20,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike
+from activetrack.checks import require_in_range
 from activetrack.models.fov import sector_coverage
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
 from activetrack.planning.expected_gospa import (
@@ -41,12 +43,15 @@ if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
 
 __all__ = [
+    "NO_MISSES",
+    "MissedLooks",
     "assign_beams",
     "assign_beams_gospa",
     "assignment_value",
     "beam_coverage",
     "coverage_after_misses",
     "gospa_pair_costs",
+    "joint_coverage",
     "mre_pair_costs",
     "nearest_assignment",
     "random_assignment",
@@ -72,19 +77,99 @@ def beam_coverage(
     return sector_coverage(beam_width, 0.0, x, P, sensor_pv)
 
 
-def coverage_after_misses(coverage: ArrayLike, miss_factor: ArrayLike) -> np.ndarray:
-    """c' = c M / (c M + 1 - c), M = prod over the looks of (1 - pd_look): the probability that
-    the target lies in the beam after unsuccessful looks (Bayes' rule: Stone, *Theory of Optimal
-    Search*, 1975; the IPDA existence update has the same form). c and M in [0, 1] broadcast;
-    without it the beams keep looking at a lost track's empty prediction (the tracker does not
-    move a track away from where a beam saw nothing)."""
+def coverage_after_misses(
+    coverage: ArrayLike,
+    miss_factor: ArrayLike,
+    coverage_then: ArrayLike | None = None,
+    rho: ArrayLike = 1.0,
+) -> np.ndarray:
+    """c' = (c - (1 - M) J) / (1 - (1 - M) c_then), M = prod over the looks of (1 - pd_look):
+    the probability that the target lies in the beam after unsuccessful looks (Bayes' rule:
+    Stone, *Theory of Optimal Search*, 1975; the IPDA existence update has the same form), J
+    the chance that it was in the looks' beam (coverage ``coverage_then``, None: ``coverage``)
+    and is in this one, :func:`joint_coverage` with correlation ``rho``. The same beam (rho =
+    1, c_then = c): c' = c M / (c M + 1 - c); rho = 0: c (the looks say nothing about where
+    the target is now). All arguments broadcast, in [0, 1]; without it the beams keep looking
+    at a lost track's empty prediction (the tracker does not move a track away from where a
+    beam saw nothing)."""
     c = np.asarray(coverage, dtype=float)
     M = np.asarray(miss_factor, dtype=float)
     if not (np.all((c >= 0.0) & (c <= 1.0)) and np.all((M >= 0.0) & (M <= 1.0))):
         raise ValueError(f"coverage and miss_factor must lie in [0, 1], got {c}, {M}")
-    num = c * M
-    den = num + (1.0 - c)
-    return np.divide(num, den, out=np.zeros(np.broadcast(num, den).shape), where=den > 0.0)
+    if coverage_then is None:
+        num = c * M
+        den = num + (1.0 - c)
+    else:
+        c1 = np.asarray(coverage_then, dtype=float)
+        num = c - (1.0 - M) * joint_coverage(c1, c, rho)
+        den = 1.0 - (1.0 - M) * c1
+    out = np.divide(num, den, out=np.zeros(np.broadcast(num, den).shape), where=den > 0.0)
+    return np.clip(out, 0.0, 1.0)
+
+
+def joint_coverage(coverage_then: ArrayLike, coverage: ArrayLike, rho: ArrayLike) -> np.ndarray:
+    """P(|U| < t1, |V| < t2) ``(...)`` for standard normal U, V of correlation ``rho`` in
+    [0, 1], t1 and t2 the half-widths whose intervals hold ``coverage_then`` and ``coverage``
+    (c = erf(t / sqrt 2)): the chance that a target was inside a beam then and is inside a beam
+    now, each pointed at the track's prediction, its offsets from those a random walk (the
+    rectangle of the bivariate normal, Owen 1956: Phi_2(h, k; rho) = (Phi(h) + Phi(k)) / 2 -
+    T(h, a_h) - T(k, a_k) - beta, a_h = (k - rho h) / (h sqrt(1 - rho^2)), beta = 1/2 if
+    hk < 0). rho = 1: min(c_then, c)."""
+    from scipy.special import erfinv, ndtr, owens_t
+
+    arrays = (np.asarray(a, dtype=float) for a in (coverage_then, coverage, rho))
+    c1, c2, r = np.broadcast_arrays(*arrays)
+    if not (np.all((c1 >= 0) & (c1 <= 1)) and np.all((c2 >= 0) & (c2 <= 1))):
+        raise ValueError(f"coverage_then and coverage must lie in [0, 1], got {c1}, {c2}")
+    if not np.all((r >= 0.0) & (r <= 1.0)):
+        raise ValueError(f"rho must lie in [0, 1], got {r}")
+    edge = (c1 <= 0) | (c2 <= 0) | (c1 >= 1) | (c2 >= 1) | (r >= 1.0 - 1e-12)
+    t1 = math.sqrt(2.0) * erfinv(np.where(edge, 0.5, c1))
+    t2 = math.sqrt(2.0) * erfinv(np.where(edge, 0.5, c2))
+    s = np.sqrt(np.where(edge, 0.75, 1.0 - r * r))
+
+    def phi2(h: np.ndarray, k: np.ndarray) -> np.ndarray:
+        beta = np.where(h * k < 0.0, 0.5, 0.0)
+        a_h, a_k = (k - r * h) / (h * s), (h - r * k) / (k * s)
+        return 0.5 * (ndtr(h) + ndtr(k)) - owens_t(h, a_h) - owens_t(k, a_k) - beta
+
+    box = phi2(t1, t2) - phi2(-t1, t2) - phi2(t1, -t2) + phi2(-t1, -t2)
+    return np.where(edge, np.minimum(c1, c2), np.clip(box, 0.0, np.minimum(c1, c2)))
+
+
+@dataclass(frozen=True)
+class MissedLooks:
+    """The unsuccessful beam looks at a track since its last hit: ``factor`` M = prod over
+    them of (1 - pd I_r), and the last one's coverage of the track's prediction (before the
+    misses) ``coverage`` and the spread of that prediction ``spread`` [m^2]
+    (:func:`activetrack.planning.expected_gospa.position_spread`). M = 1: none."""
+
+    factor: float = 1.0
+    coverage: float = 0.0
+    spread: float = 0.0
+
+    def __post_init__(self) -> None:
+        require_in_range("factor", self.factor, 0.0, 1.0)
+        require_in_range("coverage", self.coverage, 0.0, 1.0)
+        require_in_range("spread", self.spread, 0.0, math.inf, hi_inclusive=False)
+
+    def after(self, coverage: ArrayLike, P: ArrayLike) -> np.ndarray:
+        """The chance ``(...)`` that a beam pointed at a prediction of covariance ``P``
+        ``(..., 4, 4)`` holds the target, given these misses, from its ``coverage`` ``(...)``
+        without them: :func:`coverage_after_misses` with the misses' beam then and the
+        correlation sqrt(spread then / spread now) of a random walk's offsets (as the
+        prediction widens, the target may have come back into the part those looks emptied;
+        a prediction no wider than at the looks: the same beam)."""
+        c = np.asarray(coverage, dtype=float)
+        if self.factor >= 1.0:
+            return c
+        m = position_spread(P)
+        rho = np.sqrt(np.clip(self.spread / np.where(m > 0.0, m, 1.0), 0.0, 1.0))
+        rho = np.where(m > self.spread, rho, 1.0)
+        return coverage_after_misses(c, self.factor, self.coverage, rho)
+
+
+NO_MISSES = MissedLooks()
 
 
 def _check_round(C: ArrayLike, c0: ArrayLike, weights: ArrayLike) -> tuple[np.ndarray, ...]:

@@ -11,7 +11,7 @@ each leg r and track t:
   & Bar-Shalom 2001) or the MRE's (Ramdaras eq. 23) before the leg's looks;
 - each sensor serving t detects it with chance Pd I_range I_fov c (c: the probability that a
   beam pointed at the prediction holds the target, after the unsuccessful looks since the last
-  hit, :func:`activetrack.planning.assignment.coverage_after_misses`; 1 without a beam), and its
+  hit, :meth:`activetrack.planning.assignment.MissedLooks.after`; 1 without a beam), and its
   information counts with the same c (its J_Z times c; in eq. 23's bracket the IRF times c);
 - the hold probability and the split of expected GOSPA^p follow
   :mod:`activetrack.planning.expected_gospa` with the spreads of P^- and of the update.
@@ -30,7 +30,7 @@ from activetrack.angles import wrap_angle
 from activetrack.bounds.mre import mre_update
 from activetrack.bounds.pcrlb import covariance_bound, predicted_information
 from activetrack.models.clutter import ClutteredSensor
-from activetrack.planning.assignment import beam_coverage, coverage_after_misses
+from activetrack.planning.assignment import MissedLooks, beam_coverage
 from activetrack.planning.expected_gospa import (
     GospaWeights,
     hit_probability,
@@ -54,7 +54,7 @@ def in_view(sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray) -> np.ndarra
 
 
 def look_factors(
-    sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray, P: np.ndarray, missed: float
+    sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray, P: np.ndarray, missed: MissedLooks
 ) -> tuple[np.ndarray, np.ndarray]:
     """(I_range I_fov, c) ``(...)`` of a look at a target predicted at x ``(4,)`` with P
     ``(..., 4, 4)`` from pvs ``(..., 4)``: c the beam's coverage after ``missed`` (1 without a
@@ -62,7 +62,7 @@ def look_factors(
     inside = np.asarray(sensor.in_range(x, pv), dtype=float) * in_view(sensor, x, pv)
     if sensor.beam_width is None:
         return inside, np.ones_like(inside)
-    c = coverage_after_misses(beam_coverage(sensor.beam_width, x, P, pv), missed)
+    c = missed.after(beam_coverage(sensor.beam_width, x, P, pv), P)
     return inside, c
 
 
@@ -90,8 +90,8 @@ class GospaRollout:
     """The stage (module docstring). ``cost_kind`` "pcrlb" (state0: J at k ``(T, 4, 4)``,
     samples per track ``(L, M, 4)``) or "mre" (state0: P_{k+1|k} ``(T, 4, 4)``); ``x``
     ``(L, T, 4)`` the CV predictions; ``looks`` the other platforms' sensors; ``own`` the
-    optimised platform's sensors and the tracks each serves; ``missed`` ``(T,)`` the miss
-    factors, ``existence`` ``(T,)``."""
+    optimised platform's sensors and the tracks each serves; ``missed`` ``(T,)`` the
+    unsuccessful looks since each track's last hit, ``existence`` ``(T,)``."""
 
     cost_kind: str  # planner.cost
     F: np.ndarray
@@ -100,7 +100,7 @@ class GospaRollout:
     samples: list[np.ndarray]
     looks: tuple[Look, ...]
     own: tuple[tuple[ClutteredSensor, np.ndarray], ...]
-    missed: np.ndarray
+    missed: tuple[MissedLooks, ...]
     existence: np.ndarray
     weights: GospaWeights
     dt: float
@@ -135,7 +135,7 @@ class GospaRollout:
             sensors += [(model, own_path[r]) for model, serves in self.own if serves[t]]
             hits = []
             for model, at in sensors:
-                inside, c = look_factors(model, x, at, P_minus, float(self.missed[t]))
+                inside, c = look_factors(model, x, at, P_minus, self.missed[t])
                 hits.append(float(model.pd) * inside * c)
                 if pcrlb:
                     S = S + c[..., None, None] * model.fisher_information(self.samples[t][r], at)
