@@ -854,7 +854,7 @@ class MultiTargetPlanner:
             held = np.flatnonzero(ep.serves[i])
             if i in ep.pointing:  # the beam's centre; its track the held one nearest to it
                 bearing = ep.pointing[i]
-                off = [abs(float(wrap_angle(self._bearing(ep, t, pv) - bearing))) for t in held]
+                off = [abs(wrap_angle(self._bearing(ep, int(u), pv) - bearing)) for u in held]
                 t = int(held[int(np.argmin(off))]) if len(held) else -1
             else:
                 t = int(held[0])

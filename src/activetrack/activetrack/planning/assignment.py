@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -40,6 +40,7 @@ from activetrack.planning.selection import TargetPrediction, expected_update
 
 if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
+    from activetrack.models.clutter import ClutteredSensor
 
 __all__ = [
     "assign_beams",
@@ -233,7 +234,7 @@ def beam_candidates(bearings: ArrayLike, width: float) -> np.ndarray:
 
 def footprint_pointing(
     predictions: Sequence[TargetPrediction],
-    sensors: Sequence[SensorModel],
+    sensors: Sequence[ClutteredSensor],
     sensor_pvs: ArrayLike,
     detection: ArrayLike,
     missed: ArrayLike,
@@ -278,7 +279,7 @@ def footprint_pointing(
         best: tuple[float, int, float, np.ndarray, list[TargetPrediction], np.ndarray] | None
         best = None
         for s in remaining:
-            width = float(sensors[s].beam_width)  # type: ignore[arg-type]
+            width = float(cast(float, sensors[s].beam_width))
             theta = np.arctan2(x[:, 2] - pvs[s, 2], x[:, 0] - pvs[s, 0])
             for b in beam_candidates(theta, width):
                 off = wrap_angle(b - theta)
