@@ -541,6 +541,11 @@ def test_pointing_footprint_centres_the_planners_beam_between_its_tracks():
             [platform("p1", [0.0, 0.0, 0.0, 0.0], [beam])],
             {"targets": {"objective": "gospa", "pointing": "footprint"}},
         )
+    with pytest.raises(ValueError, match="use aggregate 'weighted_sum'"):
+        scenario(
+            [platform("p1", [0.0, 0.0, 0.0, 0.0], [beam])],
+            {"targets": {"aggregate": "worst", "pointing": "footprint"}},
+        )
 
 
 def test_no_confirmed_track_sweeps_the_beams_and_holds_course():

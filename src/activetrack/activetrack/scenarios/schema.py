@@ -429,7 +429,7 @@ class MultiTargetPlanConfig(Strict):
     credits every track a beam holds (the tracker updates each track whose predicted position
     lies in the scan's sector) and centres each beam, greedily in turn, where it lowers the
     tracks' summed criterion most, on one track or between several (objective ``criterion``
-    only).
+    and aggregate ``weighted_sum`` only).
     """
 
     aggregate: Literal["worst", "weighted_sum"] = "worst"
