@@ -86,6 +86,19 @@ def test_jpda_handles_huge_ratios_and_caps_enumeration():
         jpda_probabilities(np.zeros((1, 2)), 1.0, 1.0)
 
 
+def test_jpda_probabilities_never_round_above_one():
+    # Ratios spread over 120 e-folds: a track's "no detection" marginal is a sum of normalised
+    # event weights that rounded to 1 + 2e-16 on some of these draws (the particle filter's PDA
+    # update then refused it: a closed-loop run of scenario (e) stopped there).
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        T, m = int(rng.integers(1, 4)), int(rng.integers(1, 4))
+        L = np.exp(rng.uniform(-60, 60, (T, m))) * (rng.random((T, m)) < 0.7)
+        beta = jpda_probabilities(L, rng.uniform(0.5, 0.99, T), 0.999)
+        assert np.all((beta >= 0.0) & (beta <= 1.0))
+        np.testing.assert_allclose(beta.sum(axis=1), 1.0, atol=1e-12)
+
+
 # --- gating -----------------------------------------------------------------------------------
 
 

@@ -20,17 +20,22 @@ import math
 import numpy as np
 import pytest
 
+from activetrack.angles import wrap_angle
 from activetrack.bounds.pcrlb import covariance_bound, predicted_information, propagate_samples
 from activetrack.closed_loop.components import build_across_targets, target_dynamics
 from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet, heading_speed
+from activetrack.models.clutter import ClutteredSensor
+from activetrack.models.fov import sector_coverage
 from activetrack.models.irf import information_reduction_factor
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
 from activetrack.planning.assignment import (
     MissedLooks,
     assign_beams,
     assignment_value,
+    beam_candidates,
     beam_coverage,
     coverage_after_misses,
+    footprint_pointing,
     joint_coverage,
     mre_pair_costs,
     random_assignment,
@@ -504,6 +509,93 @@ def test_a_beam_informs_only_its_track_and_points_at_it():
     x1 = dyn.F @ near.mean
     assert (b.track_id, b.epoch) == (1, 0)
     assert b.bearing == pytest.approx(math.atan2(x1[2] - pv1[2], x1[0] - pv1[0]), abs=1e-12)
+
+
+def test_beam_candidates_hold_every_group_that_fits_in_the_beam():
+    # 0 and 0.1 fit in a 0.35 rad beam (centre 0.05), 0.5 is 0.4 from 0.1: alone.
+    got = beam_candidates([0.5, 0.0, 0.1], 0.35)
+    assert got == pytest.approx([0.0, 0.05, 0.1, 0.5], abs=1e-12)
+    # Across +-pi: -3.1 is 0.1832 counter-clockwise of 3.0, the pair's centre 3.0916.
+    got = beam_candidates([3.0, -3.1], 0.35)
+    assert got == pytest.approx([-3.1, 3.0, 3.0 + 0.5 * (2 * math.pi - 6.1)], abs=1e-12)
+
+
+def _two_near_one_far():
+    """A bearing sensor at the origin; tracks 3 km off at bearings 0 and 0.1 and one at 1.2,
+    300 m across (0.1 rad: a 0.35 rad beam holds the target with probability 0.92)."""
+    F = np.array([[1.0, 5.0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 5.0], [0, 0, 0, 1.0]])
+    Q = np.diag([0.2, 0.05, 0.2, 0.05])
+    P = np.diag([300.0**2, 4.0, 300.0**2, 4.0])
+    preds = [
+        TargetPrediction(np.array([3000 * math.cos(b), 0, 3000 * math.sin(b), 0]), P, F, Q)
+        for b in (0.0, 0.1, 1.2)
+    ]
+    return preds, [ClutteredSensor(BearingSensor(0.01, pd=0.9), beam_width=0.35)], np.zeros((1, 4))
+
+
+def test_a_footprint_beam_is_centred_between_two_tracks_it_holds_both():
+    preds, sensors, pvs = _two_near_one_far()
+    d = np.full((1, 3), 0.9)
+    bearings, holds = footprint_pointing(preds, sensors, pvs, d, np.ones(3), "trace", np.ones(3))
+    assert holds.tolist() == [[True, True, False]]
+    assert bearings[0] == pytest.approx(0.05, abs=1e-12)
+    # Its gain is both tracks' updates, each with the chance the beam holds its target.
+    crit = get_criterion("trace")
+
+    def cost(p, factor=None):
+        P = p.P if factor is None else expected_update(p.P, p.x, sensors, pvs, detection=[factor])
+        return float(crit.of_covariance(p.F @ P @ p.F.T + p.Q, p.x))
+
+    c = [float(beam_coverage(0.35, p.x, p.P, pvs[0])) for p in preds]
+    off = [float(sector_coverage(0.35, 0.05, p.x, p.P, pvs[0])) for p in preds[:2]]
+    assert c[0] == pytest.approx(math.erf(0.175 / (0.1 * math.sqrt(2))), abs=1e-3)
+    # 0.05 off centre: (erf(0.125 / (sqrt 2 0.1)) + erf(0.225 / (sqrt 2 0.1))) / 2 = 0.882
+    assert off == pytest.approx([0.882, 0.882], abs=1e-3) and off[0] < c[0]
+    footprint = sum(cost(p) - cost(p, 0.9 * o) for p, o in zip(preds[:2], off, strict=True))
+    alone = max(cost(p) - cost(p, 0.9 * ci) for p, ci in zip(preds, c, strict=True))
+    assert footprint > 1.9 * alone  # what a beam credited with one track leaves out
+
+
+def test_footprints_that_hold_one_track_each_are_the_track_assignment():
+    rng = np.random.default_rng(11)
+    for _ in range(6):  # tracks farther apart in bearing than the beams are wide
+        preds, sensors, pvs, d = _random_geometry(rng, 1, 3)
+        theta = [math.atan2(p.x[2] - pvs[0, 2], p.x[0] - pvs[0, 0]) for p in preds]
+        gaps = np.abs(wrap_angle(np.subtract.outer(theta, theta)))[np.triu_indices(3, 1)]
+        width = 0.9 * float(gaps.min())
+        beam = [ClutteredSensor(sensors[0], beam_width=width)]
+        cover = np.array([[float(beam_coverage(width, p.x, p.P, pvs[0])) for p in preds]])
+        bearings, holds = footprint_pointing(preds, beam, pvs, d, np.ones(3), "trace", np.ones(3))
+        t = assign_beams(preds, beam, pvs, d * cover, "trace", np.ones(3), "weighted_sum")[0]
+        assert holds.sum() == 1 and holds[0, t]
+        assert bearings[0] == pytest.approx(theta[t], abs=1e-12)
+
+
+def test_pointing_footprint_centres_the_planners_beam_between_its_tracks():
+    beam = {"id": "s1", "kind": "bearing", "sigma": 0.01, "beam_width": 0.35}
+    planner = {
+        "criterion": "trace",
+        "targets": {"aggregate": "weighted_sum", "pointing": "footprint"},
+    }
+    sc = scenario([platform("p1", [0.0, 0.0, 0.0, 0.0], [beam])], planner)
+    cov = np.diag([300.0**2, 4.0, 300.0**2, 4.0])
+    tracks = [
+        track(i + 1, [3000 * math.cos(b), 0, 3000 * math.sin(b), 0], cov)
+        for i, b in enumerate((0.0, 0.1, 1.2))
+    ]
+    d = decide(sc, tracks)
+    (b,) = d.beams
+    assert b.bearing == pytest.approx(0.05, abs=1e-12) and b.track_id in (1, 2)
+    with pytest.raises(ValueError, match="pointing: 'footprint' centres beams"):
+        scenario(
+            [platform("p1", [0.0, 0.0, 0.0, 0.0], [beam])],
+            {"targets": {"objective": "gospa", "pointing": "footprint"}},
+        )
+    with pytest.raises(ValueError, match="use aggregate 'weighted_sum'"):
+        scenario(
+            [platform("p1", [0.0, 0.0, 0.0, 0.0], [beam])],
+            {"targets": {"aggregate": "worst", "pointing": "footprint"}},
+        )
 
 
 def test_no_confirmed_track_sweeps_the_beams_and_holds_course():

@@ -35,7 +35,9 @@ MEASURED = {
     # (d) plans on the expected GOSPA with its surveillance region (search versus track);
     # before, on planner.criterion with beams on tracks only: 487.96, 453.21, 485.06
     "mt_search_track": (435.10, 442.26, 581.38),
-    "mt_mixed_platforms": (44.11, 46.76, 49.52),
+    # (e) on particle tracks with beams pointed at footprints (its file says why); before,
+    # JPDA-EKF with one track per beam: 44.11, 46.76, 49.52
+    "mt_mixed_platforms": (37.26, 47.13, 58.25),
 }
 
 
@@ -74,6 +76,17 @@ def test_the_planner_is_ahead_of_both_baselines_on_scenario_a_and_loses_no_targe
     assert sc.name == "mt_bearings_crossing"
     for baseline in multitarget.BASELINES:
         assert sc.improvement(baseline) > 0.05, baseline
+    assert sc.split("planner")[1] == 0.0
+
+
+def test_the_planner_is_ahead_of_both_baselines_on_scenario_e_and_loses_no_target(result):
+    """(e)'s six runs: the planner's mean GOSPA at least 15 % below both baselines' and no
+    target missed at any epoch of any run (measured: 37.3 against 47.1 and 58.3 m; 20 runs:
+    25.3 % below the better baseline, both paired intervals excluding zero)."""
+    sc = result.scenarios[4]
+    assert sc.name == "mt_mixed_platforms"
+    for baseline in multitarget.BASELINES:
+        assert sc.improvement(baseline) > 0.15, baseline
     assert sc.split("planner")[1] == 0.0
 
 

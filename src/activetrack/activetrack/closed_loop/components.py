@@ -332,5 +332,6 @@ def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiT
         objective=cfg.targets.objective,
         gospa=GospaWeights(ev.cutoff, ev.order, ev.alpha),
         surveillance=surveillance_of(cfg.targets.surveillance),
+        pointing=cfg.targets.pointing,
     )
     return MultiTargetPlanner(platforms, target_dynamics(scenario), settings, rng)

@@ -236,7 +236,9 @@ def jpda_probabilities(
     beta = np.zeros((T, m + 1))
     for t in range(T):
         beta[t] = np.bincount(events[:, t], weights=w, minlength=m + 1)
-    return beta
+    # A sum of normalised weights can round one ulp above 1 (seen: 1 + 2e-16 next to 1e-25),
+    # which a PDA update rightly refuses as a probability.
+    return np.minimum(beta, 1.0)
 
 
 def pda_update(

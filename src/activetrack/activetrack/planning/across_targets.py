@@ -73,12 +73,14 @@ from activetrack.data import (
     TrackSet,
 )
 from activetrack.models.clutter import ClutteredSensor
+from activetrack.models.fov import sector_coverage
 from activetrack.planning.assignment import (
     NO_MISSES,
     MissedLooks,
     assign_beams,
     assign_beams_gospa,
     beam_coverage,
+    footprint_pointing,
     nearest_assignment,
     random_assignment,
 )
@@ -239,6 +241,8 @@ class _Epoch:
     evaluations: int = 0
     # beam sensor -> (bearing, tentative track id or -1) when it searches
     search: dict[int, tuple[float, int]] = field(default_factory=dict)
+    # beam sensor -> its bearing when pointed at the tracks it holds (pointing "footprint")
+    pointing: dict[int, float] = field(default_factory=dict)
 
     def follow(self, i: int, path: np.ndarray) -> None:
         self.paths[i] = path
@@ -263,10 +267,15 @@ class AcrossTargetsSettings:
     objective: str = "criterion"
     gospa: GospaWeights | None = None
     surveillance: Surveillance | None = None
+    pointing: str = "track"
 
     def __post_init__(self) -> None:
         if self.objective not in ("criterion", "gospa"):
             raise ValueError(f"objective must be 'criterion' or 'gospa', got {self.objective!r}")
+        if self.pointing not in ("track", "footprint"):
+            raise ValueError(f"pointing must be 'track' or 'footprint', got {self.pointing!r}")
+        if self.pointing == "footprint" and self.objective != "criterion":
+            raise ValueError("pointing: 'footprint' needs objective 'criterion'")
         if self.objective == "gospa" and self.gospa is None:
             raise ValueError("gospa: the objective 'gospa' needs GOSPA's c, p and alpha")
 
@@ -498,13 +507,21 @@ class MultiTargetPlanner:
         predictions: list[TargetPrediction],
     ) -> np.ndarray:
         """``(S, T)``: every track for a fixed sensor; for a beam its previous track if still
-        confirmed, else the nearest one to its platform now."""
+        confirmed, else the nearest one to its platform now; pointed at footprints, the tracks
+        its last bearing holds from its platform now, if any."""
         ids = [t.track_id for t in tracks]
         xy = np.array([[p.x[0], p.x[2]] for p in predictions])
         serves = np.ones((len(self.sensors), len(tracks)), dtype=bool)
         for i, s in enumerate(self.sensors):
             if s.steerable:
                 pv = planners[s.platform].pv
+                bearing = self.last_bearing.get(s.sensor_id)
+                if self.settings.pointing == "footprint" and bearing is not None:
+                    theta = np.arctan2(xy[:, 1] - pv[2], xy[:, 0] - pv[0])
+                    width = cast(float, s.model.beam_width)
+                    serves[i] = np.abs(wrap_angle(theta - bearing)) <= 0.5 * width
+                    if serves[i].any():
+                        continue
                 last = self.last_track.get(s.sensor_id)
                 t = ids.index(last) if last in ids else int(nearest_assignment(pv[::2], xy)[0])
                 serves[i] = np.arange(len(tracks)) == t
@@ -652,6 +669,9 @@ class MultiTargetPlanner:
             picks = nearest_assignment(pvs[:, ::2], xy)
         elif self.gospa is not None:
             picks = self._assign_gospa(ep, next_pv, beams, pvs, options)
+        elif self.settings.pointing == "footprint":
+            self._point_footprints(ep, next_pv, beams, pvs)
+            return
         else:
             picks = assign_beams(
                 self._fixed_updates(ep, next_pv),
@@ -675,6 +695,31 @@ class MultiTargetPlanner:
             if t >= T:
                 o = cast(list, options)[b]
                 ep.search[i] = (float(o.bearings[t - T]), int(o.track_ids[t - T]))
+
+    def _point_footprints(
+        self, ep: _Epoch, next_pv: np.ndarray, beams: list[int], pvs: np.ndarray
+    ) -> None:
+        """Beam bearings crediting every track a beam holds
+        (:func:`~activetrack.planning.assignment.footprint_pointing`): ``ep.pointing`` and, in
+        ``ep.serves``, the tracks inside each beam."""
+        preds = ep.predictions
+        bearings, holds = footprint_pointing(
+            self._fixed_updates(ep, next_pv),
+            [self.sensors[i].model for i in beams],
+            pvs,
+            np.array(
+                [
+                    [self.sensors[i].detection(p.x, pv) for p in preds]
+                    for i, pv in zip(beams, pvs, strict=True)
+                ]
+            ),
+            ep.missed,
+            self.criterion.name,
+            ep.weights,
+        )
+        for b, i in enumerate(beams):
+            ep.serves[i] = holds[b]
+            ep.pointing[i] = float(bearings[b])
 
     @staticmethod
     def _existence(ep: _Epoch) -> np.ndarray:
@@ -820,24 +865,38 @@ class MultiTargetPlanner:
                 self.last_track.pop(s.sensor_id, None)
                 self._pending(i, bearing)
                 continue
-            t = int(np.flatnonzero(ep.serves[i])[0])
-            (x, P), pv = (ep.predictions[t].x, ep.predictions[t].P), next_pv[s.platform]
-            bearing = math.atan2(x[2] - pv[2], x[0] - pv[0])
-            track = ep.tracks[t]
-            beams.append(BeamCommand(s.sensor_id, ep.epoch, bearing, track.track_id))
-            self.last_track[s.sensor_id] = track.track_id
+            pv = next_pv[s.platform]
+            held = np.flatnonzero(ep.serves[i])
+            if i in ep.pointing:  # the beam's centre; its track the held one nearest to it
+                bearing = ep.pointing[i]
+                off = [abs(wrap_angle(self._bearing(ep, int(u), pv) - bearing)) for u in held]
+                t = int(held[int(np.argmin(off))]) if len(held) else -1
+            else:
+                t = int(held[0])
+                bearing = self._bearing(ep, t, pv)
+            track_id = ep.tracks[t].track_id if t >= 0 else -1
+            beams.append(BeamCommand(s.sensor_id, ep.epoch, bearing, track_id))
+            if t >= 0:
+                self.last_track[s.sensor_id] = track_id
+            else:
+                self.last_track.pop(s.sensor_id, None)
             self.last_bearing[s.sensor_id] = bearing
             self._pending(i, bearing)
-            fail = 1.0 - float(s.model.pd) * float(s.model.in_range(x, pv))
-            before = self.looks.get(track.track_id, (0, 0, 1.0))[2]
-            coverage = float(beam_coverage(cast(float, s.model.beam_width), x, P, pv))
-            self.looks[track.track_id] = (
-                track.hits,
-                track.misses,
-                before * fail,
-                coverage,
-                float(position_spread(P)),
-            )
+            for u in held:  # every track the beam holds is looked at
+                (x, P), track = (ep.predictions[u].x, ep.predictions[u].P), ep.tracks[u]
+                fail = 1.0 - float(s.model.pd) * float(s.model.in_range(x, pv))
+                before = self.looks.get(track.track_id, (0, 0, 1.0))[2]
+                off = wrap_angle(bearing - self._bearing(ep, int(u), pv))
+                width = cast(float, s.model.beam_width)
+                coverage = float(sector_coverage(width, off, x, P, pv))  # off centre too
+                spread = float(position_spread(P))
+                self.looks[track.track_id] = (
+                    track.hits,
+                    track.misses,
+                    before * fail,
+                    coverage,
+                    spread,
+                )
         ids = [t.track_id for t in ep.tracks]
         total = float(aggregate_costs(costs, ep.weights, self.settings.aggregate))
         return self._outcome(
@@ -852,6 +911,12 @@ class MultiTargetPlanner:
             evaluations=ep.evaluations,
             wall_time_s=wall,
         )
+
+    @staticmethod
+    def _bearing(ep: _Epoch, t: int, pv: np.ndarray) -> float:
+        """The bearing of track t's prediction from ``pv`` [rad]."""
+        x = ep.predictions[t].x
+        return math.atan2(x[2] - pv[2], x[0] - pv[0])
 
     def _sweep(
         self, epoch: int, planners: list[PlannerPlatform], start: float, tracks: TrackSet

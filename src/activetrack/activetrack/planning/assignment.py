@@ -21,10 +21,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from activetrack.angles import wrap_angle
 from activetrack.arraytypes import ArrayLike
 from activetrack.checks import require_in_range
 from activetrack.models.fov import sector_coverage
@@ -41,6 +42,7 @@ from activetrack.planning.selection import TargetPrediction, expected_update
 
 if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
+    from activetrack.models.clutter import ClutteredSensor
 
 __all__ = [
     "NO_MISSES",
@@ -48,8 +50,10 @@ __all__ = [
     "assign_beams",
     "assign_beams_gospa",
     "assignment_value",
+    "beam_candidates",
     "beam_coverage",
     "coverage_after_misses",
+    "footprint_pointing",
     "gospa_pair_costs",
     "joint_coverage",
     "mre_pair_costs",
@@ -298,6 +302,90 @@ def assign_beams(
                 preds[t] = p.with_covariance(P)
         remaining = [i for i, t in zip(remaining, picks, strict=True) if t < 0]
     return out
+
+
+def beam_candidates(bearings: ArrayLike, width: float) -> np.ndarray:
+    """Beam centres ``(J,)`` [rad] worth trying for targets at ``bearings`` ``(T,)``: each
+    target's bearing (the beam on it alone) and, for each target, the middle of the group of
+    targets from it up to ``width`` counter-clockwise. A set of targets one beam can hold
+    spans at most ``width`` from its first member, so one of these centres holds it."""
+    b = np.asarray(bearings, dtype=float).reshape(-1)
+    if not (np.isfinite(b).all() and width > 0.0):
+        raise ValueError(f"bearings must be finite and width > 0, got {b}, {width}")
+    ahead = np.mod(b[None, :] - b[:, None], 2.0 * math.pi)  # [i, j]: j counter-clockwise of i
+    reach = np.max(np.where(ahead <= width, ahead, 0.0), axis=1)
+    return np.unique(np.round(wrap_angle(np.concatenate([b, b + 0.5 * reach])), 12))
+
+
+def footprint_pointing(
+    predictions: Sequence[TargetPrediction],
+    sensors: Sequence[ClutteredSensor],
+    sensor_pvs: ArrayLike,
+    detection: ArrayLike,
+    missed: ArrayLike,
+    criterion: str,
+    weights: ArrayLike,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Beam bearings ``(S,)`` [rad] for steerable ``sensors`` at pvs ``(S, 4)`` that credit
+    every track a beam holds, not only the one it is pointed at (the tracker updates every
+    track whose predicted position lies inside a scan's sector); and which tracks each beam
+    holds ``(S, T)``.
+
+    Track t's cost is ``criterion`` of eq. 23 (its prediction with the updates counted so far,
+    as :func:`mre_pair_costs`); a beam centred at bearing b updates every track with detection
+    factor ``detection[s, t]`` (q I_range I_fov) times the chance that the target lies in the
+    beam (:func:`~activetrack.models.fov.sector_coverage` off its centre, after the track's
+    unsuccessful looks ``missed`` ``(T,)``: :func:`coverage_after_misses`). Greedy in turn:
+    of every remaining sensor and centre (:func:`beam_candidates`) the largest summed
+    ``weights`` ``(T,)`` times the drop in cost goes first, with the updates it brings."""
+    crit = get_criterion(criterion, POSITIONING, SELECTION, what="criterion")
+    pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
+    d = np.asarray(detection, dtype=float)
+    M = np.asarray(missed, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    S, T = len(sensors), len(predictions)
+    if pvs.shape[0] != S or d.shape != (S, T) or M.shape != (T,) or w.shape != (T,):
+        raise ValueError(
+            f"sensor_pvs must be ({S}, 4), detection ({S}, {T}), missed and weights ({T},)"
+        )
+    if any(s.beam_width is None for s in sensors):
+        raise ValueError("sensors: every sensor pointed here needs a beam_width")
+    x = np.stack([p.x for p in predictions])
+    P0 = np.stack([p.P for p in predictions])  # where the targets may be: before any update
+    preds = list(predictions)
+
+    def cost(p: TargetPrediction) -> float:
+        return float(crit.of_covariance(p.F @ p.P @ p.F.T + p.Q, p.x))
+
+    costs = np.array([cost(p) for p in preds])
+    bearings, holds = np.full(S, np.nan), np.zeros((S, T), dtype=bool)
+    remaining = list(range(S))
+    while remaining:
+        best: tuple[float, int, float, np.ndarray, list[TargetPrediction], np.ndarray] | None
+        best = None
+        for s in remaining:
+            width = float(cast(float, sensors[s].beam_width))
+            theta = np.arctan2(x[:, 2] - pvs[s, 2], x[:, 0] - pvs[s, 0])
+            for b in beam_candidates(theta, width):
+                off = wrap_angle(b - theta)
+                inside = np.abs(off) <= 0.5 * width
+                c = coverage_after_misses(sector_coverage(width, off, x, P0, pvs[s]), M)
+                factor = d[s] * c
+                new, after = list(preds), costs.copy()
+                for t in np.flatnonzero(inside & (factor > 0.0)):
+                    p = preds[t]
+                    new[t] = p.with_covariance(
+                        expected_update(p.P, p.x, [sensors[s]], pvs[s], detection=factor[t : t + 1])
+                    )
+                    after[t] = cost(new[t])
+                gain = float(w @ (costs - after))
+                if best is None or gain > best[0]:
+                    best = (gain, s, float(b), inside, new, after)
+        assert best is not None
+        _, s, b, inside, preds, costs = best
+        bearings[s], holds[s] = b, inside
+        remaining.remove(s)
+    return bearings, holds
 
 
 def gospa_pair_costs(

@@ -491,6 +491,18 @@ def _scene_problems(s: Scenario) -> Problems:
     beams = any(c.beam_width is not None for p in s.platforms for c in p.sensors)
     cfg = s.planner
     one_target_planning = cfg.enabled and (cfg.search == "cautious" or cfg.selection.enabled)
+    out += _violated(
+        (
+            cfg.targets.pointing == "footprint" and cfg.targets.objective != "criterion",
+            "planner.targets.pointing: 'footprint' centres beams on planner.criterion; with "
+            "objective 'gospa' beams point at their tracks: use pointing 'track'",
+        ),
+        (
+            cfg.targets.pointing == "footprint" and cfg.targets.aggregate != "weighted_sum",
+            "planner.targets.pointing: 'footprint' centres beams on the tracks' weighted sum; "
+            "use aggregate 'weighted_sum' (or pointing 'track' for the worst track's)",
+        ),
+    )
     if s.known_association:
         return out + _violated(
             (

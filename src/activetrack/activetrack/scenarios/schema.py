@@ -424,12 +424,18 @@ class MultiTargetPlanConfig(Strict):
     epochs by rollout, beams assigned on the same cost. ``surveillance`` (with ``gospa``):
     beams may also search the region for targets not yet tracked, valued in the same GOSPA
     units (absent: beams serve tracks only); with ``assignment: random`` beams draw among the
-    tracks and the search pointings.
+    tracks and the search pointings. ``pointing`` (with ``assignment: mre``): ``track``
+    points each beam at the track assigned to it and credits that track alone; ``footprint``
+    credits every track a beam holds (the tracker updates each track whose predicted position
+    lies in the scan's sector) and centres each beam, greedily in turn, where it lowers the
+    tracks' summed criterion most, on one track or between several (objective ``criterion``
+    and aggregate ``weighted_sum`` only).
     """
 
     aggregate: Literal["worst", "weighted_sum"] = "worst"
     assignment: Literal["mre", "random", "nearest"] = "mre"
     objective: Literal["criterion", "gospa"] = "criterion"
+    pointing: Literal["track", "footprint"] = "track"
     new_track_priority: Annotated[float, Field(gt=0, le=1e6)] = 1.0
     surveillance: SurveillanceConfig | None = None
 
