@@ -20,6 +20,7 @@ from activetrack.planning.search_intensity import (
     Surveillance,
     UndetectedIntensity,
     footprint,
+    footprints,
     search_bearings,
     search_value,
 )
@@ -100,6 +101,12 @@ def test_footprint_and_search_bearings():
     assert footprint(sensor, xy, pv, math.pi / 2).tolist() == [False, False, True, False]
     with pytest.raises(ValueError, match="bearing"):
         footprint(sensor, xy, pv, None)
+    # several pointings at once: one row each
+    assert footprints(sensor, xy, pv, [0.0, math.pi / 2, math.pi]).tolist() == [
+        [True, False, False, False],
+        [False, False, True, False],
+        [False] * 4,
+    ]
     # cells spanning bearings 0..pi/2 as seen from the origin: ceil((pi/2) / 0.2) = 8
     # pointings one beam width apart, centred on pi/4
     b = search_bearings(xy[:3], pv, 0.2)

@@ -114,6 +114,7 @@ from activetrack.planning.search_intensity import (
     Surveillance,
     UndetectedIntensity,
     footprint,
+    footprints,
     search_bearings,
     search_value,
 )
@@ -440,7 +441,7 @@ class MultiTargetPlanner:
         for i, pv in zip(beams, pvs, strict=True):
             s = self.sensors[i]
             bearings = search_bearings(u.xy, pv, cast(float, s.model.beam_width))
-            seen = np.stack([footprint(s.model, u.xy, pv, float(b)) for b in bearings]) & free
+            seen = footprints(s.model, u.xy, pv, bearings) & free
             values = search_value(u.intensity, seen, float(s.model.pd), cardinality, epochs)
             at = [math.atan2(x[2] - pv[2], x[0] - pv[0]) for _, x, _ in tentative]
             found = [t.existence * s.hit(x, pv, P, 1.0) for t, x, P in tentative]
