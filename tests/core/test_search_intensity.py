@@ -15,14 +15,18 @@ from activetrack.models.clutter import ClutteredSensor
 from activetrack.models.sensors import RangeBearingSensor
 from activetrack.planning.assignment import NO_MISSES, round_assignment, search_columns
 from activetrack.planning.expected_gospa import GospaWeights
+from activetrack.planning.gospa_rollout import FirstLegSearch, GospaRollout, Look
 from activetrack.planning.search_intensity import (
     Surveillance,
     UndetectedIntensity,
     footprint,
+    footprints,
     search_bearings,
     search_value,
 )
 from activetrack.scenarios import parse_scenario
+
+W = GospaWeights(500.0, 2.0, 2.0)  # c^p / alpha = 125000
 
 
 def _two_by_two() -> UndetectedIntensity:
@@ -97,6 +101,12 @@ def test_footprint_and_search_bearings():
     assert footprint(sensor, xy, pv, math.pi / 2).tolist() == [False, False, True, False]
     with pytest.raises(ValueError, match="bearing"):
         footprint(sensor, xy, pv, None)
+    # several pointings at once: one row each
+    assert footprints(sensor, xy, pv, [0.0, math.pi / 2, math.pi]).tolist() == [
+        [True, False, False, False],
+        [False, False, True, False],
+        [False] * 4,
+    ]
     # cells spanning bearings 0..pi/2 as seen from the origin: ceil((pi/2) / 0.2) = 8
     # pointings one beam width apart, centred on pi/4
     b = search_bearings(xy[:3], pv, 0.2)
@@ -248,24 +258,76 @@ def test_a_tentative_track_is_a_pointing_unless_a_confirmed_one_holds_its_target
     assert o.values[-1] == pytest.approx(0.2 * hit * 125000.0, rel=1e-3)
 
 
-def test_the_search_reach_of_a_position_is_its_best_region_pointing():
+def test_a_beams_search_value_from_a_position_is_its_best_pointing():
     sc = parse_scenario(_scene(SURVEILLANCE), "s")
     planner = build_across_targets(sc, np.random.default_rng(0))
     u = planner.undetected
     u.predict()
     pv = np.array(sc.platforms[0].initial_state)
-
-    class _Paths:  # the one platform's next pv on its path
-        def __init__(self, pv: np.ndarray):
-            self.paths = {0: pv[None]}
-
     model = planner.sensors[0].model
     best = max(
         float(footprint(model, u.xy, pv, float(b)) @ u.intensity)
         for b in search_bearings(u.xy, pv, 0.2)
     )
     # Pd Lambda c^p / alpha for one epoch; birth 0.5 / s * 4 s = 2 targets over the region
-    assert planner._search_reach(_Paths(pv)) == pytest.approx(0.9 * best * 125000.0)
+    value = planner._search_value(0)
+    assert value(pv) == pytest.approx(0.9 * best * 125000.0)
     assert 0.1 < best < 0.5
     inside = np.array([0.0, 20.0, 5000.0, 0.0])  # from inside the region a look sees less
-    assert planner._search_reach(_Paths(inside)) < 0.9 * best * 125000.0
+    got = value(np.stack([[pv, inside], [inside, pv]]))  # candidates' axes kept
+    assert got.shape == (2, 2)
+    assert got[0, 0] == got[1, 1] == pytest.approx(0.9 * best * 125000.0)
+    assert got[0, 1] == got[1, 0] < 0.9 * best * 125000.0
+
+
+def _one_track_rollouts(value, shared: bool = False) -> dict[str, GospaRollout]:
+    """mre rollouts of one leg, track 0 at 2 km (spread 1e5 m^2): "search" with the optimised
+    platform's beam serving it and the search ``value``, "served" the same without search,
+    "unserved" no beam on it; ``shared``: another platform's look serves it too."""
+    F = np.eye(4)
+    F[0, 1] = F[2, 3] = 4.0
+    Q = np.diag([10.0, 1.0, 10.0, 1.0])
+    x = np.array([[[0.0, 0.0, 2000.0, 0.0]]])  # (L=1, T=1, 4)
+    beam = ClutteredSensor(RangeBearingSensor(sigma_r=10.0, sigma_b=0.003, pd=0.9), beam_width=0.2)
+    looks = (Look(beam, np.array([shared]), np.zeros((1, 4))),)
+    rest = (np.ones(1), np.ones(1), W, 4.0)
+
+    def rollout(serves: bool, search: FirstLegSearch | None = None) -> GospaRollout:
+        own = ((beam, np.array([serves])),)
+        return GospaRollout("mre", F, Q, x, [], looks, own, *rest, search=search)
+
+    return {
+        "search": rollout(True, FirstLegSearch((None, value), np.ones(1))),
+        "served": rollout(True),
+        "unserved": rollout(False),
+    }
+
+
+def test_the_rollout_searches_on_the_first_leg_where_that_beats_serving():
+    # Candidate 0 sees no intensity (v = 0), candidate 1 a search worth 1e6 (8 targets' worth
+    # of one epoch): 1 keeps the track's split without the beam's look and gains the region's
+    # row -v; 0 serves the track, its region row 0.
+    P1 = np.diag([5e4, 100.0, 5e4, 100.0])[None]
+    pvs = np.array([[0.0, 20.0, 0.0, 0.0], [0.0, 30.0, 0.0, 0.0]])
+
+    def value(pv):
+        return np.where(np.asarray(pv)[..., 1] > 25.0, 1e6, 0.0)
+
+    stages = _one_track_rollouts(value)
+    got = stages["search"].advance(P1, 0, pvs)
+    assert got.shape == (2, 2, 3)
+    served = stages["served"].advance(P1, 0, pvs)
+    unserved = stages["unserved"].advance(P1, 0, pvs)
+    gain = float(unserved[0, 0].sum() - served[0, 0].sum())
+    assert gain > 1e3  # the look is worth something
+    np.testing.assert_allclose(got[0, 0], served[0, 0], rtol=1e-12)
+    np.testing.assert_allclose(got[0, 1], [0.0, 0.0, 0.0])
+    np.testing.assert_allclose(got[1, 0], unserved[1, 0], rtol=1e-12)
+    np.testing.assert_allclose(got[1, 1], [0.0, -1e6, 0.0])
+    # a search worth less than the look keeps serving; one worth just more searches
+    for v, searches in ((0.99 * gain, False), (1.01 * gain, True)):
+        stage = _one_track_rollouts(lambda pv, v=v: np.full(np.shape(pv)[:-1], v))["search"]
+        assert stage.advance(P1, 0, pvs[:1])[0, 1, 1] == (-v if searches else 0.0)
+    # shared with another platform's look: the beam keeps serving (their choice is joint)
+    got = _one_track_rollouts(value, shared=True)["search"].advance(P1, 0, pvs)
+    np.testing.assert_allclose(got[:, 1], 0.0)

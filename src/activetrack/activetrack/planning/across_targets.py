@@ -37,8 +37,10 @@ beams (``assignment: mre``) assigned on the tracks' expected GOSPA at k+1.
 planner keeps the intensity of targets not yet detected over the region, which every look
 depletes (:mod:`activetrack.planning.search_intensity`); each beam's search pointings (and
 tentative tracks) are columns of its assignment next to the tracks, valued in the same GOSPA
-units, and "hold course" is weighed against the plans found with the search each allows. The
-intensity is state a restarted planner does not rebuild (it starts empty again).
+units, and the rollout scores every candidate manoeuvre, hold course too, with the search its
+beams may make from where it takes them (:class:`activetrack.planning.gospa_rollout.
+FirstLegSearch`). The intensity is state a restarted planner does not rebuild (it starts
+empty again).
 
 Random draws, all from the planner's generator, in order: the tracks' Gaussian samples and
 process noise (pcrlb), the evolutionary search, the random assignment.
@@ -48,7 +50,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -94,6 +96,7 @@ from activetrack.planning.expected_gospa import (
     track_split,
 )
 from activetrack.planning.gospa_rollout import (
+    FirstLegSearch,
     GospaRollout,
     Look,
     in_view,
@@ -116,6 +119,7 @@ from activetrack.planning.search_intensity import (
     Surveillance,
     UndetectedIntensity,
     footprint,
+    footprints,
     search_bearings,
     search_value,
 )
@@ -459,7 +463,7 @@ class MultiTargetPlanner:
         for i, pv in zip(beams, pvs, strict=True):
             s = self.sensors[i]
             bearings = search_bearings(u.xy, pv, cast(float, s.model.beam_width))
-            seen = np.stack([footprint(s.model, u.xy, pv, float(b)) for b in bearings]) & free
+            seen = footprints(s.model, u.xy, pv, bearings) & free
             values = search_value(u.intensity, seen, float(s.model.pd), cardinality, epochs)
             at = [math.atan2(x[2] - pv[2], x[0] - pv[0]) for _, x, _ in tentative]
             found = [t.existence * s.hit(x, pv, P, NO_MISSES) for t, x, P in tentative]
@@ -544,6 +548,14 @@ class MultiTargetPlanner:
                 Look(s.model, serves, straight_on(ep.paths[s.platform][0], L, self.dt))
                 for s, serves in others
             )
+            search = None
+            if self.undetected is not None:  # the looks first, then own (as the rollout)
+                order = [i for i, s in enumerate(self.sensors) if s.platform != j]
+                order += [i for i, s in enumerate(self.sensors) if s.platform == j]
+                values = tuple(
+                    self._search_value(i) if self.sensors[i].steerable else None for i in order
+                )
+                search = FirstLegSearch(values, ep.weights)
             return GospaRollout(
                 self.cost_kind,
                 d.F,
@@ -556,6 +568,7 @@ class MultiTargetPlanner:
                 self._existence(ep),
                 self.gospa,
                 self.dt,
+                search,
             )
         if self.cost_kind == "pcrlb":
             fixed = np.zeros((self.horizon, len(ep.tracks), 4, 4))
@@ -577,8 +590,9 @@ class MultiTargetPlanner:
 
     def _objective(self, ep: _Epoch, tie_break: float) -> Objective:
         """The tracks' aggregate criterion of J (pcrlb, eq. 15-16) or P (mre)."""
-        if self.gospa is not None:
-            return Objective((ExpectedGospaTerm(ep.weights),))
+        if self.gospa is not None:  # with a region, its row (priority 1: already GOSPA^p)
+            region = np.ones(1 if self.undetected is not None else 0)
+            return Objective((ExpectedGospaTerm(np.concatenate([ep.weights, region])),))
         tracks = TrackAggregate(self.settings.aggregate, ep.weights, tie_break)
         if self.cost_kind == "pcrlb":
             return Objective((InformationTerm(self.criterion, tracks),))
@@ -623,29 +637,30 @@ class MultiTargetPlanner:
         found = self._plans_objective(ep, state0)
         if not ep.plans:
             return found
-        found -= self._search_reach(ep)
         paths = dict(ep.paths)
         for j in ep.plans:
             p = ep.platforms[j]
             hold = hold_course(p.heading_and_speed[1], cast(PlatformLimits, p.limits), 1)
             ep.follow(j, p.path(self.dt, 1, hold))
-        held = self._plans_objective(ep, state0) - self._search_reach(ep)
+        held = self._plans_objective(ep, state0)
         if held <= found:
             ep.plans = {}
             return held
         ep.paths = paths
         return found
 
-    def _search_reach(self, ep: _Epoch) -> float:
-        """With a surveillance region: the GOSPA^p the beams' best search pointings save from
-        the platforms' next positions on ``ep.paths`` (a platform whose beam sees a smaller
-        bearing span of the region covers more of it per look); 0 without one."""
-        beams = [i for i, s in enumerate(self.sensors) if s.steerable]
-        if self.undetected is None or not beams:
-            return 0.0
-        pvs = np.stack([ep.paths[self.sensors[i].platform][0] for i in beams])
-        options = self._search_options(self.all_tracks, beams, pvs)
-        return float(sum(np.max(o.values[o.track_ids < 0]) for o in options))
+    def _search_value(self, i: int) -> Callable[[np.ndarray], np.ndarray]:
+        """pvs ``(..., 4)`` -> the GOSPA^p beam i's best search pointing saves from each
+        ``(...)`` (the most valuable of its :meth:`_search_options`: a platform whose beam
+        sees a smaller bearing span of the region covers more of it per look)."""
+
+        def value(pvs: np.ndarray) -> np.ndarray:
+            pvs = np.asarray(pvs, dtype=float)
+            flat = pvs.reshape(-1, 4)
+            options = self._search_options(self.all_tracks, [i] * len(flat), flat)
+            return np.array([np.max(o.values) for o in options]).reshape(pvs.shape[:-1])
+
+        return value
 
     def _assign(self, ep: _Epoch, next_pv: np.ndarray) -> None:
         """Every beam to one confirmed track at the planned k+1 positions: ``ep.serves``."""

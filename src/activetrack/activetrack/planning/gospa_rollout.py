@@ -18,11 +18,24 @@ each leg r and track t:
 
 The stage's "state" is that split summed over the legs, ``(..., T, 3)`` (localisation, missed,
 false), which :class:`activetrack.planning.objective.ExpectedGospaTerm` weighs.
+
+Search versus track (:class:`FirstLegSearch`, ``planner.targets.surveillance``): on the first
+leg each beam may search instead of looking at its track, as the beams' assignment at k+1 may
+choose (:mod:`activetrack.planning.search_intensity`). Its best search pointing from where the
+candidate puts it saves v (Pd times the undetected intensity it sees times c^p / alpha, for the
+look-ahead's epochs); the beam searches where that beats its track's service, w_t (split_t
+without the beam's first look - split_t) < v, and the state gains one row, the region's, whose
+missed term is -v (the missed targets found: a saving). So a manoeuvre is worth what it does
+to the tracks and to the search (e.g. from farther off the region spans fewer beam widths and a
+look covers more of it). A beam that shares its track with another sensor keeps serving it
+here (their choice would be joint).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -39,7 +52,7 @@ from activetrack.planning.expected_gospa import (
     track_split,
 )
 
-__all__ = ["GospaRollout", "Look", "in_view", "look_factors", "straight_on"]
+__all__ = ["FirstLegSearch", "GospaRollout", "Look", "in_view", "look_factors", "straight_on"]
 
 
 def in_view(sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray) -> np.ndarray:
@@ -85,13 +98,26 @@ class Look:
     path: np.ndarray
 
 
+@dataclass(frozen=True)
+class FirstLegSearch:
+    """Search versus track on the rollout's first leg (module docstring): ``values[i]`` of
+    sensor i (the ``looks`` first, then ``own``) maps its pvs ``(..., 4)`` to the GOSPA^p its
+    best search pointing saves ``(...)`` (None: it does not search); ``priorities`` ``(T,)``
+    the tracks' weights in the objective."""
+
+    values: tuple[Callable[[np.ndarray], np.ndarray] | None, ...]
+    priorities: np.ndarray
+
+
 @dataclass
 class GospaRollout:
     """The stage (module docstring). ``cost_kind`` "pcrlb" (state0: J at k ``(T, 4, 4)``,
     samples per track ``(L, M, 4)``) or "mre" (state0: P_{k+1|k} ``(T, 4, 4)``); ``x``
     ``(L, T, 4)`` the CV predictions; ``looks`` the other platforms' sensors; ``own`` the
     optimised platform's sensors and the tracks each serves; ``missed`` ``(T,)`` the
-    unsuccessful looks since each track's last hit, ``existence`` ``(T,)``."""
+    unsuccessful looks since each track's last hit, ``existence`` ``(T,)``; ``search`` the
+    beams' search on the first leg (None: none; with it the state has the region's row after
+    the tracks', ``(..., T + 1, 3)``)."""
 
     cost_kind: str  # planner.cost
     F: np.ndarray
@@ -104,6 +130,7 @@ class GospaRollout:
     existence: np.ndarray
     weights: GospaWeights
     dt: float
+    search: FirstLegSearch | None = None
 
     def prepare(self, state: np.ndarray, level: int) -> np.ndarray:
         if level != 0:
@@ -117,11 +144,49 @@ class GospaRollout:
         own_path = straight_on(pv, L, self.dt)
         shape = (*np.shape(pv)[:-1], 3)  # a track no candidate changes still gets their axes
         out = [np.broadcast_to(self._track(t, state0[t], own_path), shape) for t in range(T)]
-        return np.stack(out, axis=-2)
+        if self.search is None:
+            return np.stack(out, axis=-2)
+        return np.stack(self._search_first(state0, own_path, out, shape), axis=-2)
 
-    def _track(self, t: int, state: np.ndarray, own_path: np.ndarray) -> np.ndarray:
+    def _search_first(
+        self,
+        state0: np.ndarray,
+        own_path: np.ndarray,
+        out: list[np.ndarray],
+        shape: tuple[int, ...],
+    ) -> list[np.ndarray]:
+        """The tracks' splits ``out`` with each beam searching on the first leg where that
+        scores better, and the region's row ``(..., 3)`` appended (module docstring)."""
+        search = cast(FirstLegSearch, self.search)
+        serves = [k.serves for k in self.looks] + [serves for _, serves in self.own]
+        paths = [k.path for k in self.looks] + [own_path for _ in self.own]
+        found = np.zeros(shape[:-1])
+        for i, value in enumerate(search.values):
+            if value is None:
+                continue
+            v = np.asarray(value(paths[i][0]), dtype=float)
+            tracks = np.flatnonzero(serves[i])
+            if tracks.size == 0:  # serving no track, the beam searches
+                found = found + v
+                continue
+            t = int(tracks[0])
+            if tracks.size > 1 or sum(bool(s[t]) for s in serves) > 1:
+                continue  # shared with another sensor: keeps serving (module docstring)
+            alt = np.broadcast_to(self._track(t, state0[t], own_path, skip=i), shape)
+            w = float(search.priorities[t])
+            better = w * alt.sum(axis=-1) - v < w * out[t].sum(axis=-1)
+            out[t] = np.where(better[..., None], alt, out[t])
+            found = found + np.where(better, v, 0.0)
+        region = np.zeros(shape)
+        region[..., 1] = -found
+        return [*out, region]
+
+    def _track(
+        self, t: int, state: np.ndarray, own_path: np.ndarray, skip: int | None = None
+    ) -> np.ndarray:
         """Track t's split summed over the legs ``(..., 3)``; ``state`` its J at k (pcrlb) or
-        P_{k+1|k} (mre), updated in turn (J after the leg's looks, P before them)."""
+        P_{k+1|k} (mre), updated in turn (J after the leg's looks, P before them); sensor
+        ``skip`` (the looks first, then own) does not look at it on the first leg."""
         pcrlb = self.cost_kind == "pcrlb"
         total: np.ndarray | float = 0.0
         hold: np.ndarray | float = 1.0
@@ -131,8 +196,13 @@ class GospaRollout:
             if pcrlb:
                 S = predicted_information(S, self.F, self.Q)
             P_minus = covariance_bound(S) if pcrlb else S
-            sensors = [(k.model, k.path[r]) for k in self.looks if k.serves[t]]
-            sensors += [(model, own_path[r]) for model, serves in self.own if serves[t]]
+            looking = [(k.model, k.serves, k.path[r]) for k in self.looks]
+            looking += [(model, serves, own_path[r]) for model, serves in self.own]
+            sensors = [
+                (model, at)
+                for i, (model, serves, at) in enumerate(looking)
+                if serves[t] and not (r == 0 and i == skip)
+            ]
             hits = []
             for model, at in sensors:
                 inside, c = look_factors(model, x, at, P_minus, self.missed[t])

@@ -39,6 +39,7 @@ __all__ = [
     "Surveillance",
     "UndetectedIntensity",
     "footprint",
+    "footprints",
     "search_bearings",
     "search_value",
 ]
@@ -123,6 +124,18 @@ def footprint(
     """The cells ``(N, 2)`` a look sees, bool ``(N,)``: inside the sensor's range limits and
     fixed field of view from pv ``(4,)`` and, for a beam, within half its ``beam_width`` of
     ``bearing`` (None: no beam)."""
+    if sensor.beam_width is None:
+        return footprints(sensor, xy, pv, np.zeros(1))[0]
+    if bearing is None:
+        raise ValueError("bearing: a beam's look needs the bearing it points at")
+    return footprints(sensor, xy, pv, np.array([bearing], dtype=float))[0]
+
+
+def footprints(
+    sensor: ClutteredSensor, xy: ArrayLike, pv: ArrayLike, bearings: ArrayLike
+) -> np.ndarray:
+    """:func:`footprint` of a look at each of ``bearings`` ``(J,)``, bool ``(J, N)`` (the
+    range limits and field of view worked out once; without a beam every row is the same)."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     pv = np.asarray(pv, dtype=float)
     cells = np.zeros((xy.shape[0], 4))
@@ -132,11 +145,11 @@ def footprint(
     if sensor.fov_width is not None:
         heading = math.atan2(pv[3], pv[1])
         inside &= np.abs(wrap_angle(b - heading - sensor.fov_centre)) <= 0.5 * sensor.fov_width
-    if sensor.beam_width is not None:
-        if bearing is None:
-            raise ValueError("bearing: a beam's look needs the bearing it points at")
-        inside &= np.abs(wrap_angle(b - bearing)) <= 0.5 * sensor.beam_width
-    return inside
+    bearings = np.asarray(bearings, dtype=float).reshape(-1)
+    if sensor.beam_width is None:
+        return np.broadcast_to(inside, (len(bearings), len(inside))).copy()
+    off = np.abs(wrap_angle(b[None, :] - bearings[:, None]))
+    return inside[None, :] & (off <= 0.5 * sensor.beam_width)
 
 
 def cell_bearings(xy: np.ndarray, pv: np.ndarray) -> np.ndarray:
