@@ -225,7 +225,7 @@ def gospa_pair_costs(
     terminate: ArrayLike = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``C`` ``(S, T)`` and ``c0`` ``(T,)``: each track's expected GOSPA^p at the next epoch
-    (:func:`activetrack.planning.expected_gospa.track_split`, summed) with sensor s's expected
+    (:func:`activetrack.planning.expected_gospa.managed_split`, summed) with sensor s's expected
     update (eq. 23, detection factor ``detection[s, t]``) and chance of a hit ``hits[s, t]``,
     or with none. ``predictions`` carry P_{k+1|k} with the updates already counted; ``base``
     = (their chance of a hit ``(T,)``, the spread of the predicted position before any update
