@@ -6,6 +6,9 @@
   (1 - r) c^p / alpha of false track, localisation weighted by r h;
 - the beam assignment on expected GOSPA serves the track at risk of being lost (wide, beyond
   the cut-off without a look), where the MRE assignment of b_k serves the sharper one;
+- the tracker's termination rule: an epoch without a detection takes r to r (1 - q) / (1 - r
+  q); where that ends the track, its false-track term goes (by hand), so the beam looks at a
+  track whose target may have died when the look ends it;
 - the rollout scores R legs (straight on after the first) and hold course is kept on a tie;
 - the setting is checked (name, GOSPA's fields) and refused for one known target.
 """
@@ -26,6 +29,8 @@ from activetrack.planning.expected_gospa import (
     expected_localisation,
     hit_probability,
     hold_update,
+    managed_split,
+    miss_existence,
     position_spread,
     track_split,
 )
@@ -136,6 +141,45 @@ def test_the_beam_goes_where_a_track_is_at_risk():
         np.ones(2),
     )  # fmt: skip
     assert picks.tolist() == [1]
+
+
+def test_a_miss_lowers_existence_and_may_end_the_track():
+    assert miss_existence(0.5, 0.8) == pytest.approx(0.1 / 0.6, rel=1e-12)
+    assert miss_existence(1.0, 1.0) == 0.0 and miss_existence(1.0, 0.5) == 1.0
+    # r = 0.46 (a confirmed track after one epoch without a detection by both radars), q =
+    # 0.98: r' = 0.46 * 0.02 / (1 - 0.4508) = 0.016752, below 0.02: the track ends.
+    assert miss_existence(0.46, 0.98) == pytest.approx(0.0092 / 0.5492, rel=1e-12)
+    ended = managed_split(0.46, 0.98, 1e4, 100.0, W, 0.02)
+    # held r q m (1 - e^-2500), missed r (1 - q) c^2 / 2, no false track
+    assert ended == pytest.approx([0.46 * 0.98 * 100.0, 0.46 * 0.02 * 125000.0, 0.0], rel=1e-9)
+    # below the threshold it is kept: track_split with the hold after the epoch
+    kept = managed_split(0.46, 0.98, 1e4, 100.0, W, 0.01)
+    h = hold_update(1.0, 0.98, 1e4, 500.0)
+    assert kept == pytest.approx(track_split(0.46, h, 100.0, W), rel=1e-12)
+    assert kept[2] == pytest.approx(0.54 * 125000.0, rel=1e-6)
+
+
+def test_the_beam_ends_a_track_whose_target_may_have_died():
+    # Two tracks, one beam, a fixed sensor that detects either with 0.8. Track 0 is held (r =
+    # 1, 400 m^2 spread), track 1 has gone an epoch without a detection (r = 0.46). Without the
+    # termination rule (threshold 0) no look changes track 1's false-track term (1 - r) c^p /
+    # alpha and the beam serves track 0; with the tracker's 0.02 a look without a detection
+    # ends track 1 (0.46 x 0.02 / 0.5492 = 0.0168; the fixed sensor alone: 0.146), which saves
+    # that term, and the beam goes to it.
+    sensor = BearingSensor(sigma=0.01, pd=0.9, r_min=100.0)
+    preds = [
+        _prediction([3000.0, 0.0, 500.0, 0.0], [200.0, 1.0, 200.0, 1.0]),
+        _prediction([3000.0, 0.0, -500.0, 0.0], [200.0, 1.0, 200.0, 1.0]),
+    ]
+    pv = np.zeros((1, 4))
+    base = ([0.8, 0.8], [position_spread(p.P) for p in preds], [1.0, 0.46])
+    args = (preds, [sensor], pv, [[0.9, 0.9]], [[0.9, 0.9]], base, W, np.ones(2))
+    assert assign_beams_gospa(*args).tolist() == [0]
+    assert assign_beams_gospa(*args, terminate=0.02).tolist() == [1]
+    C, c0 = gospa_pair_costs(*args[:7], terminate=0.02)
+    # the gain: the false track's term less the missed target's r (1 - q) c^p / alpha (the
+    # localisation terms differ by tens of m^2)
+    assert c0[1] - C[0, 1] == pytest.approx(0.54 * 125000.0 - 0.46 * 0.02 * 125000.0, abs=100.0)
 
 
 def test_the_rollout_counts_every_leg_and_goes_straight_on():

@@ -333,5 +333,7 @@ def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiT
         gospa=GospaWeights(ev.cutoff, ev.order, ev.alpha),
         surveillance=surveillance_of(cfg.targets.surveillance),
         pointing=cfg.targets.pointing,
+        existence_terminate=scenario.tracker.tracks.existence_terminate,
+        existence_terminate_prior=scenario.tracker.tracks.existence_terminate_prior,
     )
     return MultiTargetPlanner(platforms, target_dynamics(scenario), settings, rng)

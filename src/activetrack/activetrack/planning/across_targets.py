@@ -91,9 +91,8 @@ from activetrack.planning.decision import DecisionContext, DecisionPart
 from activetrack.planning.expected_gospa import (
     GospaWeights,
     hit_probability,
-    hold_update,
+    managed_split,
     position_spread,
-    track_split,
 )
 from activetrack.planning.gospa_rollout import (
     FirstLegSearch,
@@ -272,6 +271,10 @@ class AcrossTargetsSettings:
     gospa: GospaWeights | None = None
     surveillance: Surveillance | None = None
     pointing: str = "track"
+    # the tracker's thresholds of existence that end a confirmed track, from a detection /
+    # from a prior (``tracker.tracks``; 0: never): the gospa objective counts the ending
+    existence_terminate: float = 0.0
+    existence_terminate_prior: float = 0.0
 
     def __post_init__(self) -> None:
         if self.objective not in ("criterion", "gospa"):
@@ -736,6 +739,14 @@ class MultiTargetPlanner:
             ep.serves[i] = holds[b]
             ep.pointing[i] = float(bearings[b])
 
+    def _terminate(self, ep: _Epoch) -> np.ndarray:
+        """The tracker's threshold of existence that ends each track ``(T,)`` (its own for a
+        track from a prior)."""
+        s = self.settings
+        return np.array(
+            [s.existence_terminate_prior if t.origin else s.existence_terminate for t in ep.tracks]
+        )
+
     @staticmethod
     def _existence(ep: _Epoch) -> np.ndarray:
         """The tracks' probabilities of existence ``(T,)`` (the tracker's IPDA)."""
@@ -797,6 +808,7 @@ class MultiTargetPlanner:
             cast(GospaWeights, self.gospa),
             ep.weights,
             search,
+            self._terminate(ep),
         )
         if options is None:
             return picks
@@ -849,8 +861,8 @@ class MultiTargetPlanner:
         p, w = ep.predictions[t], cast(GospaWeights, self.gospa)
         P = self._expected_update(p, serving, next_pv, ep.missed[t])
         q = hit_probability([s.hit(p.x, next_pv[s.platform], p.P, ep.missed[t]) for s in serving])
-        h = hold_update(1.0, q, position_spread(p.P), w.c)
-        return float(track_split(self._existence(ep)[t], h, position_spread(P), w).sum())
+        r, tau = self._existence(ep)[t], self._terminate(ep)[t]
+        return float(managed_split(r, q, position_spread(p.P), position_spread(P), w, tau).sum())
 
     def _commands(self, ep_platforms: list[PlannerPlatform], epoch: int, plans: dict) -> list:
         """A command per controllable platform: its plan's first manoeuvre, else hold course."""

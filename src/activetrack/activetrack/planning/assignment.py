@@ -33,9 +33,8 @@ from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
 from activetrack.planning.expected_gospa import (
     GospaWeights,
     hit_probability,
-    hold_update,
+    managed_split,
     position_spread,
-    track_split,
 )
 from activetrack.planning.objective import aggregate_costs, check_aggregate
 from activetrack.planning.selection import TargetPrediction, expected_update
@@ -396,17 +395,21 @@ def gospa_pair_costs(
     hits: ArrayLike,
     base: tuple[ArrayLike, ArrayLike, ArrayLike],
     weights: GospaWeights,
+    terminate: ArrayLike = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``C`` ``(S, T)`` and ``c0`` ``(T,)``: each track's expected GOSPA^p at the next epoch
-    (:func:`activetrack.planning.expected_gospa.track_split`, summed) with sensor s's expected
+    (:func:`activetrack.planning.expected_gospa.managed_split`, summed) with sensor s's expected
     update (eq. 23, detection factor ``detection[s, t]``) and chance of a hit ``hits[s, t]``,
     or with none. ``predictions`` carry P_{k+1|k} with the updates already counted; ``base``
     = (their chance of a hit ``(T,)``, the spread of the predicted position before any update
-    ``(T,)``, the probability of existence ``(T,)``)."""
+    ``(T,)``, the probability of existence ``(T,)``); ``terminate`` ``(T,)`` or one: the
+    tracker's threshold of existence below which it ends each track
+    (:func:`~activetrack.planning.expected_gospa.managed_split`; 0: never)."""
     pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
     d = np.asarray(detection, dtype=float)
     q = np.asarray(hits, dtype=float)
     q0, m_pred, existence = (np.asarray(a, dtype=float) for a in base)
+    tau = np.broadcast_to(np.asarray(terminate, dtype=float), existence.shape)
     S, T = len(sensors), len(predictions)
     if pvs.shape[0] != S or d.shape != (S, T) or q.shape != (S, T):
         raise ValueError(f"sensor_pvs must be ({S}, 4), detection and hits ({S}, {T})")
@@ -414,8 +417,8 @@ def gospa_pair_costs(
         raise ValueError(f"base: hit chances, spreads and existence must be ({T},)")
 
     def cost(t: int, P: np.ndarray, hit: float) -> float:
-        h = hold_update(1.0, hit, m_pred[t], weights.c)
-        return float(track_split(existence[t], h, position_spread(P), weights).sum())
+        split = managed_split(existence[t], hit, m_pred[t], position_spread(P), weights, tau[t])
+        return float(split.sum())
 
     C, c0 = np.empty((S, T)), np.empty(T)
     for t, p in enumerate(predictions):
@@ -436,6 +439,7 @@ def assign_beams_gospa(
     weights: GospaWeights,
     priorities: ArrayLike,
     search: ArrayLike | None = None,
+    terminate: ArrayLike = 0.0,
 ) -> np.ndarray:
     """The track index ``(S,)`` of each steerable sensor: the weighted-sum
     :func:`round_assignment` (``priorities`` ``(T,)``) of the :func:`gospa_pair_costs`, in
@@ -445,7 +449,8 @@ def assign_beams_gospa(
     ``search`` ``(S, J)``: search pointings as J more columns, entry [s, j] the GOSPA^p that
     sensor s saves by pointing at j (:func:`search_columns`; NaN: j is not one of s's), so
     one assignment weighs serving tracks against searching; a pick ``T + j`` is pointing j.
-    Every sensor then has a column of its own and is assigned in the first round."""
+    Every sensor then has a column of its own and is assigned in the first round.
+    ``terminate``: the tracker's thresholds of existence (:func:`gospa_pair_costs`)."""
     if search is not None:
         return _assign_with_search(
             predictions,
@@ -457,6 +462,7 @@ def assign_beams_gospa(
             weights,
             priorities,
             np.asarray(search, dtype=float),
+            terminate,
         )
     pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
     d = np.asarray(detection, dtype=float)
@@ -474,6 +480,7 @@ def assign_beams_gospa(
             q[remaining],
             (q0, m_pred, existence),
             weights,
+            terminate,
         )
         picks = round_assignment(C, c0, priorities, "weighted_sum")
         for i, t in zip(remaining, picks, strict=True):
@@ -522,9 +529,12 @@ def _assign_with_search(
     weights: GospaWeights,
     priorities: ArrayLike,
     search: np.ndarray,
+    terminate: ArrayLike,
 ) -> np.ndarray:
     """:func:`assign_beams_gospa` with search columns: one round over tracks and pointings."""
-    C, c0 = gospa_pair_costs(predictions, sensors, sensor_pvs, detection, hits, base, weights)
+    C, c0 = gospa_pair_costs(
+        predictions, sensors, sensor_pvs, detection, hits, base, weights, terminate
+    )
     w = np.asarray(priorities, dtype=float)
     C, c0, w = search_columns(C, c0, w, search)
     return round_assignment(C, c0, w, "weighted_sum")

@@ -18,6 +18,16 @@ without a detection (probability ``1 - q``, q the chance of a hit: Pd times the 
 that the target is inside the sensors' ranges, fields of view and beams) while its predicted
 error exceeds the cut-off c (then no gate or beam brings it back: ``P(d > c)``). Only c, p and
 alpha weigh the terms against each other: nothing is tuned.
+
+The tracker terminates a confirmed track whose probability of existence falls below its
+threshold ``tau`` (``tracker.tracks.existence_terminate``). An epoch without a detection takes
+r to ``r (1 - q) / (1 - r q)`` (IPDA's update with no detection in the gate, the looks'
+misses multiplied: Musicki, Evans & Stankovic 1994); where that is below tau the track ends
+then (:func:`managed_split`): a target that exists is missed (``r (1 - q)``), and a track whose
+target has died is no longer a false one. So a look at a track whose target may have died is
+worth the false track it ends. Not modelled: the tracker's survival factor per epoch (0.98,
+which lowers r a little more) and clutter in the gate (which lowers it less); the rule of
+``delete_misses`` consecutive misses (the planner does not see the run of misses).
 """
 
 from __future__ import annotations
@@ -36,6 +46,8 @@ __all__ = [
     "expected_localisation",
     "hit_probability",
     "hold_update",
+    "managed_split",
+    "miss_existence",
     "position_spread",
     "track_split",
 ]
@@ -128,3 +140,38 @@ def track_split(
     lost = r * (1.0 - h)
     loc, lost = np.broadcast_arrays(loc, lost)
     return np.stack([loc, lost * k, (lost + (1.0 - r)) * k], axis=-1)
+
+
+def miss_existence(existence: ArrayLike, q: ArrayLike) -> np.ndarray:
+    """r' = r (1 - q) / (1 - r q) ``(...)``: the probability of existence after an epoch whose
+    looks (chance ``q`` of a detection if the target exists) brought none (IPDA with no
+    gated detection; r = 1 and q = 1: 0)."""
+    r = np.asarray(existence, dtype=float)
+    q = np.asarray(q, dtype=float)
+    num, den = r * (1.0 - q), 1.0 - r * q
+    return np.divide(num, den, out=np.zeros(np.broadcast(num, den).shape), where=den > 0.0)
+
+
+def managed_split(
+    existence: ArrayLike,
+    q: ArrayLike,
+    m_pred: ArrayLike,
+    m: ArrayLike,
+    weights: GospaWeights,
+    terminate: ArrayLike = 0.0,
+) -> np.ndarray:
+    """The expected split ``(..., 3)`` of a confirmed track at the next epoch with the
+    tracker's termination rule (module docstring): :func:`track_split` with the hold after
+    :func:`hold_update` where the track survives an epoch without a detection; where such an
+    epoch ends it (:func:`miss_existence` below ``terminate``) r q E[min(d, c)^p] (held),
+    r (1 - q) c^p / alpha (missed) and no false track. ``q`` the chance of a detection,
+    ``m_pred`` and ``m`` the spreads before and after the epoch's update."""
+    r = np.asarray(existence, dtype=float)
+    q = np.asarray(q, dtype=float)
+    kept = track_split(r, hold_update(1.0, q, m_pred, weights.c), m, weights)
+    ends = miss_existence(r, q) < np.asarray(terminate, dtype=float)
+    if not np.any(ends):
+        return kept
+    loc = r * q * expected_localisation(m, weights.c, weights.p)
+    ended = np.stack(np.broadcast_arrays(loc, r * (1.0 - q) * weights.cardinality, 0.0 * r), -1)
+    return np.where(ends[..., None], ended, kept)
