@@ -29,6 +29,7 @@ from activetrack.models.fov import sector_coverage
 from activetrack.models.irf import information_reduction_factor
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
 from activetrack.planning.assignment import (
+    NO_MISSES,
     MissedLooks,
     assign_beams,
     assignment_value,
@@ -536,7 +537,9 @@ def _two_near_one_far():
 def test_a_footprint_beam_is_centred_between_two_tracks_it_holds_both():
     preds, sensors, pvs = _two_near_one_far()
     d = np.full((1, 3), 0.9)
-    bearings, holds = footprint_pointing(preds, sensors, pvs, d, np.ones(3), "trace", np.ones(3))
+    bearings, holds = footprint_pointing(
+        preds, sensors, pvs, d, [NO_MISSES] * 3, "trace", np.ones(3)
+    )
     assert holds.tolist() == [[True, True, False]]
     assert bearings[0] == pytest.approx(0.05, abs=1e-12)
     # Its gain is both tracks' updates, each with the chance the beam holds its target.
@@ -565,7 +568,9 @@ def test_footprints_that_hold_one_track_each_are_the_track_assignment():
         width = 0.9 * float(gaps.min())
         beam = [ClutteredSensor(sensors[0], beam_width=width)]
         cover = np.array([[float(beam_coverage(width, p.x, p.P, pvs[0])) for p in preds]])
-        bearings, holds = footprint_pointing(preds, beam, pvs, d, np.ones(3), "trace", np.ones(3))
+        bearings, holds = footprint_pointing(
+            preds, beam, pvs, d, [NO_MISSES] * 3, "trace", np.ones(3)
+        )
         t = assign_beams(preds, beam, pvs, d * cover, "trace", np.ones(3), "weighted_sum")[0]
         assert holds.sum() == 1 and holds[0, t]
         assert bearings[0] == pytest.approx(theta[t], abs=1e-12)

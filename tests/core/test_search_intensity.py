@@ -290,7 +290,7 @@ def _one_track_rollouts(value, shared: bool = False) -> dict[str, GospaRollout]:
     x = np.array([[[0.0, 0.0, 2000.0, 0.0]]])  # (L=1, T=1, 4)
     beam = ClutteredSensor(RangeBearingSensor(sigma_r=10.0, sigma_b=0.003, pd=0.9), beam_width=0.2)
     looks = (Look(beam, np.array([shared]), np.zeros((1, 4))),)
-    rest = (np.ones(1), np.ones(1), W, 4.0)
+    rest = ((NO_MISSES,), np.ones(1), W, 4.0)
 
     def rollout(serves: bool, search: FirstLegSearch | None = None) -> GospaRollout:
         own = ((beam, np.array([serves])),)

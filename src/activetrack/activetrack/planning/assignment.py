@@ -321,7 +321,7 @@ def footprint_pointing(
     sensors: Sequence[ClutteredSensor],
     sensor_pvs: ArrayLike,
     detection: ArrayLike,
-    missed: ArrayLike,
+    missed: Sequence[MissedLooks],
     criterion: str,
     weights: ArrayLike,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -334,16 +334,15 @@ def footprint_pointing(
     as :func:`mre_pair_costs`); a beam centred at bearing b updates every track with detection
     factor ``detection[s, t]`` (q I_range I_fov) times the chance that the target lies in the
     beam (:func:`~activetrack.models.fov.sector_coverage` off its centre, after the track's
-    unsuccessful looks ``missed`` ``(T,)``: :func:`coverage_after_misses`). Greedy in turn:
+    unsuccessful looks ``missed`` ``(T,)``: :meth:`MissedLooks.after`). Greedy in turn:
     of every remaining sensor and centre (:func:`beam_candidates`) the largest summed
     ``weights`` ``(T,)`` times the drop in cost goes first, with the updates it brings."""
     crit = get_criterion(criterion, POSITIONING, SELECTION, what="criterion")
     pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
     d = np.asarray(detection, dtype=float)
-    M = np.asarray(missed, dtype=float)
     w = np.asarray(weights, dtype=float)
     S, T = len(sensors), len(predictions)
-    if pvs.shape[0] != S or d.shape != (S, T) or M.shape != (T,) or w.shape != (T,):
+    if pvs.shape[0] != S or d.shape != (S, T) or len(missed) != T or w.shape != (T,):
         raise ValueError(
             f"sensor_pvs must be ({S}, 4), detection ({S}, {T}), missed and weights ({T},)"
         )
@@ -368,7 +367,8 @@ def footprint_pointing(
             for b in beam_candidates(theta, width):
                 off = wrap_angle(b - theta)
                 inside = np.abs(off) <= 0.5 * width
-                c = coverage_after_misses(sector_coverage(width, off, x, P0, pvs[s]), M)
+                seen = sector_coverage(width, off, x, P0, pvs[s])
+                c = np.array([m.after(seen[t], P0[t]) for t, m in enumerate(missed)])
                 factor = d[s] * c
                 new, after = list(preds), costs.copy()
                 for t in np.flatnonzero(inside & (factor > 0.0)):
