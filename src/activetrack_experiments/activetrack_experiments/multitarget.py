@@ -21,7 +21,9 @@ detections, noise and clutter draw from their own streams, :mod:`activetrack.sim
 
 The figure of merit is the time-averaged GOSPA (cut-off and order from the scenario's
 ``evaluation``), averaged over runs, with its Monte Carlo standard error; the improvement is
-``1 - GOSPA(planner) / GOSPA(baseline)`` (the issue asks for >= 20 % against both). The paired
+``1 - GOSPA(planner) / GOSPA(baseline)`` (the issue asks, per scene, :data:`MARGINS` below
+the better baseline with both paired intervals below zero; the report says which scenes meet
+it). The paired
 difference GOSPA(planner) - GOSPA(baseline), run by run, has a 95 % Student-t interval
 (:func:`activetrack.montecarlo.paired.paired_difference`); the report's last line is
 ``planner_gain_vs_best_baseline_pct=a:<x>,b:<x>,c:<x>,d:<x>,e:<x>``: the planner's GOSPA below
@@ -57,6 +59,7 @@ from activetrack_experiments.reproduction import Reproduction, RunsOption, figur
 
 __all__ = [
     "MANAGER",
+    "MARGINS",
     "SCENARIOS",
     "STRATEGIES",
     "MultiTargetResult",
@@ -76,7 +79,15 @@ STRATEGIES = ("planner", "hold_course", "random_assignment")
 BASELINES = STRATEGIES[1:]
 MANAGER = "stonesoup_manager"  # Stone Soup's sensor manager, where it applies
 MANAGER_SCENARIOS = ("mt_radars_beams", "mt_search_track")
-REQUIRED_IMPROVEMENT = 0.20
+# The issue's margin per scene: the planner's GOSPA this far below the better baseline, and
+# below each baseline with the paired interval excluding zero.
+MARGINS = {
+    "mt_bearings_crossing": 0.20,
+    "mt_radars_beams": 0.05,
+    "mt_appear_disappear": 0.05,
+    "mt_search_track": 0.20,
+    "mt_mixed_platforms": 0.20,
+}
 
 
 def strategy_scenario(scenario: Scenario, strategy: str) -> Scenario:
@@ -135,6 +146,13 @@ class ScenarioResult:
     def gain_vs_best_baseline(self) -> float:
         """1 - GOSPA(planner) / GOSPA(the better baseline)."""
         return min(self.improvement(b) for b in BASELINES)
+
+    def meets_margin(self) -> bool:
+        """The issue's test of this scene: a gain of at least :data:`MARGINS` over the better
+        baseline and, against each baseline, a paired 95 % interval wholly below zero."""
+        return self.gain_vs_best_baseline() >= MARGINS[self.name] and all(
+            self.paired(b).high < 0.0 for b in BASELINES
+        )
 
     def improvement_stderr(self, baseline: str) -> float:
         """Standard error of :meth:`improvement` over runs (the runs are paired: same seeds)."""
@@ -306,11 +324,14 @@ def format_report(res: MultiTargetResult) -> str:
     if res.manager_note:
         lines.append(res.manager_note)
     lines.append("")
-    worst = min(sc.improvement(b) for sc in res.scenarios for b in BASELINES)
-    verdict = "meets" if worst >= REQUIRED_IMPROVEMENT else "MISSES"
+    verdicts = [
+        f"{LETTERS.get(sc.name, sc.name)} {100 * MARGINS[sc.name]:.0f}%: "
+        + ("met" if sc.meets_margin() else "MISSED")
+        for sc in res.scenarios
+        if sc.name in MARGINS
+    ]
     lines.append(
-        f"smallest improvement of the planner over a baseline: {100 * worst:.1f}% "
-        f"({verdict} the {100 * REQUIRED_IMPROVEMENT:.0f}% target)"
+        "margin below the better baseline, both paired intervals below zero: " + ", ".join(verdicts)
     )
     gains = ",".join(
         f"{LETTERS.get(sc.name, sc.name)}:{100 * sc.gain_vs_best_baseline():.1f}"
