@@ -55,6 +55,8 @@ def live(tmp_path_factory):
          "--namespace", NS, "--mode", "free", "--rate", str(RATE), "--no-plots",
          "--out", str(out / "run")],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        # Ctrl-C as at a terminal, even when the suite runs as a background job (SIGINT ignored)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
     line = proc.stdout.readline()
     try:

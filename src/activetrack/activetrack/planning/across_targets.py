@@ -913,9 +913,9 @@ class MultiTargetPlanner:
                 (x, P), track = (ep.predictions[u].x, ep.predictions[u].P), ep.tracks[u]
                 fail = 1.0 - float(s.model.pd) * float(s.model.in_range(x, pv))
                 before = self.looks.get(track.track_id, (0, 0, 1.0))[2]
-                off = wrap_angle(bearing - self._bearing(ep, int(u), pv))
+                offset = wrap_angle(bearing - self._bearing(ep, int(u), pv))
                 width = cast(float, s.model.beam_width)
-                coverage = float(sector_coverage(width, off, x, P, pv))  # off centre too
+                coverage = float(sector_coverage(width, offset, x, P, pv))  # off centre too
                 spread = float(position_spread(P))
                 self.looks[track.track_id] = (
                     track.hits,
