@@ -451,19 +451,13 @@ def assign_beams_gospa(
     one assignment weighs serving tracks against searching; a pick ``T + j`` is pointing j.
     Every sensor then has a column of its own and is assigned in the first round.
     ``terminate``: the tracker's thresholds of existence (:func:`gospa_pair_costs`)."""
-    if search is not None:
-        return _assign_with_search(
-            predictions,
-            sensors,
-            sensor_pvs,
-            detection,
-            hits,
-            base,
-            weights,
-            priorities,
-            np.asarray(search, dtype=float),
-            terminate,
+    if search is not None:  # one round over tracks and pointings
+        C, c0 = gospa_pair_costs(
+            predictions, sensors, sensor_pvs, detection, hits, base, weights, terminate
         )
+        w = np.asarray(priorities, dtype=float)
+        C, c0, w = search_columns(C, c0, w, np.asarray(search, dtype=float))
+        return round_assignment(C, c0, w, "weighted_sum")
     pvs = np.asarray(sensor_pvs, dtype=float).reshape(-1, 4)
     d = np.asarray(detection, dtype=float)
     q = np.asarray(hits, dtype=float)
@@ -517,27 +511,6 @@ def search_columns(
         np.concatenate([c0, np.zeros(search.shape[1])]),
         np.concatenate([priorities, np.ones(search.shape[1])]),
     )
-
-
-def _assign_with_search(
-    predictions: Sequence[TargetPrediction],
-    sensors: Sequence[SensorModel],
-    sensor_pvs: ArrayLike,
-    detection: ArrayLike,
-    hits: ArrayLike,
-    base: tuple[ArrayLike, ArrayLike, ArrayLike],
-    weights: GospaWeights,
-    priorities: ArrayLike,
-    search: np.ndarray,
-    terminate: ArrayLike,
-) -> np.ndarray:
-    """:func:`assign_beams_gospa` with search columns: one round over tracks and pointings."""
-    C, c0 = gospa_pair_costs(
-        predictions, sensors, sensor_pvs, detection, hits, base, weights, terminate
-    )
-    w = np.asarray(priorities, dtype=float)
-    C, c0, w = search_columns(C, c0, w, search)
-    return round_assignment(C, c0, w, "weighted_sum")
 
 
 def random_assignment(n_sensors: int, n_tracks: int, rng: np.random.Generator) -> np.ndarray:
