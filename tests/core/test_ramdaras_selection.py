@@ -78,6 +78,22 @@ def test_costs_are_eq23_written_out():
         assert costs[j] == pytest.approx(want[0, 0] * want[2, 2] - want[0, 2] ** 2, rel=1e-10)
 
 
+def test_one_look_is_the_expected_update_bit_for_bit():
+    """``TargetPrediction.after_look`` (a planner's inner loop, nothing checked twice) gives
+    the very covariance :func:`expected_update` gives, in range or not, and refuses a factor
+    outside [0, 1]."""
+    for sensor, pv, factor in zip(paper_sensors(), GEOM_C, (0.3, 0.8, 1.0), strict=True):
+        got = PREDICTION.after_look(sensor, pv, factor)
+        want = expected_update(P_PRED, X_PRED, [sensor], pv, detection=[factor])
+        np.testing.assert_array_equal(got.P, want)
+        np.testing.assert_array_equal(got.P, PREDICTION.with_covariance(want).P)
+        assert got.x is PREDICTION.x and got.F is PREDICTION.F and got.P is not PREDICTION.P
+    far = BearingSensor(SIGMA_B, r_max=100.0)  # the target is out of range: no update
+    np.testing.assert_array_equal(PREDICTION.after_look(far, GEOM_A[0], 1.0).P, P_PRED)
+    with pytest.raises(ValueError, match="pd must lie in"):
+        PREDICTION.after_look(paper_sensors()[0], GEOM_A[0], 1.5)
+
+
 def test_co_located_s2_dominates_s1_and_the_choice_alternates_with_s3():
     sensors = paper_sensors()
     # s2 = s1 plus a range: strictly better under eq. 24 wherever they share a position.

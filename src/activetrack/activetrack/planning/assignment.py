@@ -37,7 +37,7 @@ from activetrack.planning.expected_gospa import (
     position_spread,
 )
 from activetrack.planning.objective import aggregate_costs, check_aggregate
-from activetrack.planning.selection import TargetPrediction, expected_update
+from activetrack.planning.selection import TargetPrediction
 
 if TYPE_CHECKING:
     from activetrack.models.base import SensorModel
@@ -267,7 +267,7 @@ def mre_pair_costs(
     for t, p in enumerate(predictions):
         c0[t] = float(crit.of_covariance(p.F @ p.P @ p.F.T + p.Q, p.x))
         for s, sensor in enumerate(sensors):
-            P_upd = expected_update(p.P, p.x, [sensor], pvs[s], detection=d[s, t : t + 1])
+            P_upd = p.after_look(sensor, pvs[s], float(d[s, t])).P
             C[s, t] = float(crit.of_covariance(p.F @ P_upd @ p.F.T + p.Q, p.x))
     return np.minimum(C, c0), c0
 
@@ -296,9 +296,7 @@ def assign_beams(
         for i, t in zip(remaining, picks, strict=True):
             if t >= 0:
                 out[i] = t
-                p = preds[t]
-                P = expected_update(p.P, p.x, [sensors[i]], pvs[i], detection=d[i, t : t + 1])
-                preds[t] = p.with_covariance(P)
+                preds[t] = preds[t].after_look(sensors[i], pvs[i], float(d[i, t]))
         remaining = [i for i, t in zip(remaining, picks, strict=True) if t < 0]
     return out
 
@@ -373,9 +371,7 @@ def footprint_pointing(
                 new, after = list(preds), costs.copy()
                 for t in np.flatnonzero(inside & (factor > 0.0)):
                     p = preds[t]
-                    new[t] = p.with_covariance(
-                        expected_update(p.P, p.x, [sensors[s]], pvs[s], detection=factor[t : t + 1])
-                    )
+                    new[t] = p.after_look(sensors[s], pvs[s], float(factor[t]))
                     after[t] = cost(new[t])
                 gain = float(w @ (costs - after))
                 if best is None or gain > best[0]:
@@ -424,7 +420,7 @@ def gospa_pair_costs(
     for t, p in enumerate(predictions):
         c0[t] = cost(t, p.P, float(q0[t]))
         for s, sensor in enumerate(sensors):
-            P_upd = expected_update(p.P, p.x, [sensor], pvs[s], detection=d[s, t : t + 1])
+            P_upd = p.after_look(sensor, pvs[s], float(d[s, t])).P
             C[s, t] = cost(t, P_upd, float(hit_probability([q0[t], q[s, t]])))
     return np.minimum(C, c0), c0
 
@@ -480,9 +476,7 @@ def assign_beams_gospa(
         for i, t in zip(remaining, picks, strict=True):
             if t >= 0:
                 out[i] = t
-                p = preds[t]
-                P = expected_update(p.P, p.x, [sensors[i]], pvs[i], detection=d[i, t : t + 1])
-                preds[t] = p.with_covariance(P)
+                preds[t] = preds[t].after_look(sensors[i], pvs[i], float(d[i, t]))
                 q0[t] = hit_probability([q0[t], q[i, t]])
         remaining = [i for i, t in zip(remaining, picks, strict=True) if t < 0]
     return out

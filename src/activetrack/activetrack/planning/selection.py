@@ -14,6 +14,7 @@ covariances ``(4, 4)``; candidates batched ``(..., 4)``.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
@@ -99,6 +100,17 @@ class TargetPrediction:
         """The same epoch with another P_{k+1|k} (e.g. with the sensors picked so far)."""
         return replace(self, P=P)
 
+    def after_look(
+        self, sensor: SensorModel, sensor_pv: np.ndarray, detection: float
+    ) -> TargetPrediction:
+        """The same epoch after one possible look of ``sensor`` at ``sensor_pv`` ``(4,)`` with
+        detection factor ``detection`` in [0, 1]: :func:`expected_update` of this prediction,
+        which is valid already and whose update (Joseph form, a convex mix) is SPD by
+        construction, so nothing is checked twice (a planner's inner loop)."""
+        out = copy.copy(self)
+        object.__setattr__(out, "P", _look(self.P, self.x, sensor, sensor_pv, detection))
+        return out
+
 
 def expected_update(
     P_pred: ArrayLike,
@@ -117,9 +129,16 @@ def expected_update(
     pvs = require_finite("sensor_pvs", _sensor_rows(sensors, sensor_pvs))
     factors = _detection_factors(sensors, detection, use_pd)
     for sensor, s, factor in zip(sensors, pvs, factors, strict=True):
-        pd = factor * float(sensor.in_range(x, s))
-        P = mre_update(P, sensor.jacobian(x, s), sensor.R, pd)
+        P = _look(P, x, sensor, s, factor)
     return P
+
+
+def _look(
+    P: np.ndarray, x: np.ndarray, sensor: SensorModel, sensor_pv: np.ndarray, factor: float
+) -> np.ndarray:
+    """One sensor's term of :func:`expected_update`; no update outside [r_min, r_max]."""
+    pd = factor * float(sensor.in_range(x, sensor_pv))
+    return mre_update(P, sensor.jacobian(x, sensor_pv), sensor.R, pd)
 
 
 def _detection_factors(
