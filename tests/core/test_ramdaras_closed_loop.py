@@ -33,13 +33,14 @@ MRE_CASE1_3_9_RUN0 = (
 @pytest.fixture(scope="module")
 def reproduced():
     """The pd = 1 cases, one run each (with the criteria study on case2), and the Pd < 1
-    cases, four runs each (with their bound checks over four open-loop runs)."""
+    cases, four runs each (with their bound checks over four open-loop runs); on this process
+    (the suite's workers already use the cores)."""
     strategies = ("mre", *BASELINES)
     full = [c for c in CASES if c not in PD_CASES]
     return (
-        ramdaras.reproduce(runs=1, cases=full, strategies=strategies, jobs=2),
+        ramdaras.reproduce(runs=1, cases=full, strategies=strategies, jobs=1),
         ramdaras.reproduce(
-            runs=4, cases=PD_CASES, strategies=strategies, bound_runs=4, draws=20000, jobs=2
+            runs=4, cases=PD_CASES, strategies=strategies, bound_runs=4, draws=20000, jobs=1
         ),
     )
 
@@ -120,7 +121,7 @@ def test_pd_one_mre_equals_the_riccati_recursion():
 
 
 def test_criteria_change_the_selection_in_closed_loop():
-    res = ramdaras.reproduce(runs=2, cases=["case2"], strategies=["mre"], jobs=2)
+    res = ramdaras.reproduce(runs=2, cases=["case2"], strategies=["mre"], jobs=1)
     counts = {r.criterion: {s: n / 2 for s, n in r.selection_counts.items()} for r in res.criteria}
     assert list(counts) == list(ramdaras.CRITERIA)
     assert counts["det_pos"] == {s: n / 2 for s, n in res.get("case2").selection_counts.items()}

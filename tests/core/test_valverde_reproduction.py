@@ -26,7 +26,7 @@ SCENARIOS = ("valverde_circular", "valverde_constant_turn")
 
 @pytest.fixture(scope="module")
 def results():
-    return vv.reproduce(runs=RUNS, seed=3, steps=SETUP.steps, noise_pairs=PAIRS, jobs=2)
+    return vv.reproduce(runs=RUNS, seed=3, steps=SETUP.steps, noise_pairs=PAIRS, jobs=1)
 
 
 def test_reproduce_rows_and_pinned_numbers(results):

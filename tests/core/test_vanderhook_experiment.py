@@ -14,7 +14,7 @@ from activetrack_experiments.vanderhook_sim import simulate_localisation
 
 @pytest.fixture(scope="module")
 def rows():
-    return vanderhook.table1(runs=1500, seed=0, jobs=2)
+    return vanderhook.table1(runs=1500, seed=0, jobs=1)
 
 
 @pytest.fixture(scope="module")
