@@ -507,8 +507,14 @@ def test_the_innovation_gate_q_is_todays_at_S_equal_R_and_falls_as_the_gate_wide
     assert (q[0], q[-1]) == pytest.approx((0.845, 0.539), abs=1e-3)
     with pytest.raises(ValueError, match="clutter_gate must be one of"):
         ClutteredSensor(base, 5.0, 3.5, clutter_gate="gate")
+    sensor = {"id": "s1", "kind": "bearing", "sigma": 0.002, "pd": 0.9, "clutter_density": 5.0}
     with pytest.raises(ValueError, match="clutter_gate"):
-        scenario([platform("p1", pv, [])], {"targets": {"clutter_gate": "gate"}})
+        scenario([platform("p1", pv, [sensor])], {"targets": {"clutter_gate": "gate"}})
+    with pytest.raises(ValueError, match="clutter_gate: 'innovation' sets the information"):
+        scenario(
+            [platform("p1", pv, [sensor])],
+            {"cost": "pcrlb", "targets": {"clutter_gate": "innovation"}},
+        )
 
 
 def test_closing_in_on_a_cluttered_bearing_sensor_costs_with_the_innovation_gate():
