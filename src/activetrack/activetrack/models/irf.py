@@ -44,10 +44,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from functools import lru_cache
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_in_range, require_int, require_nonnegative
@@ -69,12 +68,13 @@ _MAX_DIM = 3
 _GL_NODES = 8
 
 # The tabulated q of :func:`information_reduction_factors`: whitened densities in this range
-# (per unit of the whitened space) are interpolated, cubic in log(lambda) between nodes
+# (per unit of the whitened space) are interpolated, a cubic spline in log(lambda) on nodes
 # _TABLE_PER_DECADE per decade, to within IRF_TABLE_TOLERANCE of the exact integral (tested at
 # the midpoints); densities outside it (and 0) take the exact integral.
 IRF_TABLE_RANGE = (1e-6, 1e2)
 IRF_TABLE_TOLERANCE = 1e-6
 _TABLE_PER_DECADE = 16
+_TABLE_PAD = 4
 
 
 def information_reduction_factor(
@@ -124,13 +124,30 @@ def information_reduction_factors(
 
 @lru_cache(maxsize=64)
 def _irf_table(pd: float, g: float, n: int) -> Callable[[FloatArray], FloatArray]:
-    """The cubic spline of exact ``q`` over ``log(lambda)`` on :data:`IRF_TABLE_RANGE`."""
+    """The natural cubic spline of exact ``q`` over ``log(lambda)`` on :data:`IRF_TABLE_RANGE`,
+    its nodes run on _TABLE_PAD steps past both ends (a natural end's error decays by ~3.7
+    per node inwards)."""
     lo, hi = IRF_TABLE_RANGE
-    decades = math.log10(hi / lo)
-    log_lam = np.linspace(math.log(lo), math.log(hi), round(decades * _TABLE_PER_DECADE) + 1)
+    nodes = round(math.log10(hi / lo) * _TABLE_PER_DECADE)
+    h = math.log(hi / lo) / nodes
+    u = math.log(lo) + h * np.arange(-_TABLE_PAD, nodes + _TABLE_PAD + 1)
     exact = _irf_core.__wrapped__  # the table's nodes would only crowd the cache
-    q = np.array([exact(pd, float(math.exp(u)), g, n) for u in log_lam])
-    return cast(Callable[[FloatArray], FloatArray], CubicSpline(log_lam, q))
+    q = np.array([exact(pd, float(math.exp(v)), g, n) for v in u])
+    # Second derivatives M at the nodes: M_{i-1} + 4 M_i + M_{i+1} = 6 (q_{i-1} - 2 q_i +
+    # q_{i+1}) / h^2 inside, M = 0 at both ends.
+    m = len(u) - 2
+    A = 4.0 * np.eye(m) + np.eye(m, k=1) + np.eye(m, k=-1)
+    M = np.zeros(len(u))
+    M[1:-1] = np.linalg.solve(A, 6.0 * np.diff(q, 2) / (h * h))
+
+    def spline(x: FloatArray) -> FloatArray:
+        i = np.clip(((x - u[0]) // h).astype(int), 0, len(u) - 2)
+        t = (x - u[i]) / h
+        s = 1.0 - t
+        curve = (s**3 - s) * M[i] + (t**3 - t) * M[i + 1]
+        return np.asarray(s * q[i] + t * q[i + 1] + h * h / 6.0 * curve, dtype=float)
+
+    return spline
 
 
 def irf_cache_info() -> Any:
