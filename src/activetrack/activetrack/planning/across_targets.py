@@ -11,10 +11,12 @@ a confirmed track, ``planner.cost``:
   eq. 3, footnote 2), J_Z by Monte Carlo (eq. 8) over the track's particles or ``mc_samples``
   Gaussian draws pushed through the dynamics (eq. 2);
 - ``mre``: ``planner.criterion`` of Ramdaras eq. 23 with q as detection factor at the CV
-  prediction F^{r+1} x. A beam, pointed before the epoch's measurements, holds the target with
-  probability ``assignment.beam_coverage``, lowered for each unsuccessful look since the
-  track's last hit (``assignment.MissedLooks``: otherwise the beams keep looking at a lost
-  track's empty prediction), and raised again as the prediction widens past the spread it had
+  prediction F^{r+1} x (``planner.targets.clutter_gate: innovation``: q of the tracker's gate
+  on S = H P H^T + R, P the covariance the look updates, at the candidate's position). A
+  beam, pointed before the epoch's measurements, holds the target with probability
+  ``assignment.beam_coverage``, lowered for each unsuccessful look since the track's last hit
+  (``assignment.MissedLooks``: otherwise the beams keep looking at a lost track's empty
+  prediction), and raised again as the prediction widens past the spread it had
   at those looks (the target may have come back into the part they emptied; otherwise a track
   left after a few misses is never looked at again while it drifts).
 
