@@ -3,7 +3,8 @@
 Checks: no clutter gives the closed form ``q = Pd F_{chi2, n+2}(g^2)`` (1 for Pd = 1 and a wide
 gate), q falls as clutter grows, q in [0, 1], the high-clutter asymptote, the cache, input checks,
 and a Monte Carlo estimate of the definition (expected squared score of the mixture likelihood,
-differentiated numerically) against the quadrature.
+differentiated numerically) against the quadrature; the tabulated form for arrays of densities
+against the exact integral between its nodes.
 """
 
 import itertools
@@ -15,7 +16,10 @@ from scipy.special import gammainc
 from scipy.stats import poisson
 
 from activetrack.models.irf import (
+    IRF_TABLE_RANGE,
+    IRF_TABLE_TOLERANCE,
     information_reduction_factor,
+    information_reduction_factors,
     irf_cache_clear,
     irf_cache_info,
 )
@@ -106,6 +110,33 @@ def test_cache_hits_and_identical_values() -> None:
 def test_input_checks(args: tuple, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         information_reduction_factor(*args)
+
+
+@pytest.mark.parametrize(("pd", "gate", "dim"), [(0.9, 3.5, 1), (0.85, 3.5, 2), (1.0, 2.0, 3)])
+def test_table_is_the_exact_integral_between_its_nodes(pd: float, gate: float, dim: int) -> None:
+    # Midway between the nodes (16 per decade) is where a cubic interpolant errs most; the
+    # ends and everything outside the range (0 too) are the exact integral itself.
+    lo, hi = IRF_TABLE_RANGE
+    decades = math.log10(hi / lo)
+    step = math.log(10.0) / 16
+    mid = math.log(lo) + step * (np.arange(round(decades * 16)) + 0.5)
+    lam = np.exp(mid[::5])
+    got = information_reduction_factors(pd, lam, gate, dim)
+    exact = np.array([information_reduction_factor(pd, float(v), gate, dim) for v in lam])
+    assert got.shape == lam.shape
+    assert np.max(np.abs(got - exact)) < IRF_TABLE_TOLERANCE
+    assert np.max(np.abs(got - exact)) > 0.0  # interpolated, not the exact form
+    outside = np.array([[0.0, 1e-9], [lo, 3e2]])
+    want = [[information_reduction_factor(pd, float(v), gate, dim) for v in row] for row in outside]
+    got_outside = information_reduction_factors(pd, outside, gate, dim)
+    assert got_outside[0, 0] == want[0][0] and got_outside[0, 1] == want[0][1]
+    assert got_outside[1, 1] == want[1][1]
+    assert got_outside[1, 0] == pytest.approx(want[1][0], abs=1e-12)  # the table's first node
+    assert float(information_reduction_factors(pd, 0.05, gate, dim)) == pytest.approx(
+        information_reduction_factor(pd, 0.05, gate, dim), abs=IRF_TABLE_TOLERANCE
+    )
+    with pytest.raises(ValueError, match="clutter_density must be finite and >= 0"):
+        information_reduction_factors(pd, [0.1, -1.0], gate, dim)
 
 
 def _monte_carlo_fisher(

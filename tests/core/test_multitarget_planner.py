@@ -21,12 +21,13 @@ import numpy as np
 import pytest
 
 from activetrack.angles import wrap_angle
+from activetrack.bounds.mre import mre_update
 from activetrack.bounds.pcrlb import covariance_bound, predicted_information, propagate_samples
 from activetrack.closed_loop.components import build_across_targets, target_dynamics
 from activetrack.data import PlatformSnapshot, TrackEstimate, TrackSet, heading_speed
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.models.fov import sector_coverage
-from activetrack.models.irf import information_reduction_factor
+from activetrack.models.irf import IRF_TABLE_TOLERANCE, information_reduction_factor
 from activetrack.models.sensors import BearingSensor, RangeBearingSensor, RangeRateBearingSensor
 from activetrack.planning.assignment import (
     NO_MISSES,
@@ -481,6 +482,70 @@ def test_clutter_scales_the_bearing_information_by_the_irf():
         assert got[criterion] > plain  # clutter costs accuracy
     # b_k 31.31 m (31.25 m clutter-free: the bearing informs the cross-range axis only).
     assert got["b_k"] == pytest.approx(31.31, abs=0.01)
+
+
+def test_the_innovation_gate_q_is_todays_at_S_equal_R_and_falls_as_the_gate_widens():
+    # Bearing sensor sigma 0.002 rad, pd 0.9, 5 false alarms per rad: today's q is that of the
+    # density whitened by R (5 * 0.002 = 0.01); the innovation gate's that of 5 sqrt(S).
+    base = BearingSensor(0.002, pd=0.9)
+    x, pv = np.array([3000.0, 0, 2000, 0]), np.array([1000.0, 0, 2000, 0])
+    today = ClutteredSensor(base, 5.0, 3.5)
+    gated = dataclasses.replace(today, clutter_gate="innovation")
+    assert today.information_factor == information_reduction_factor(0.9, 0.01, 3.5, 1)
+    P0 = np.zeros((4, 4))
+    assert gated.planned_information_factor(x, pv, P0) == pytest.approx(
+        today.information_factor, abs=IRF_TABLE_TOLERANCE
+    )
+    Ps = np.stack([np.diag([v, 1, v, 1]) for v in (0.0, 25.0, 100.0, 400.0, 2500.0)])
+    q = gated.planned_information_factor(x, pv, Ps)  # batched over P: (5,)
+    for P in Ps:  # the measurement gate: one q, whatever P
+        assert today.planned_information_factor(x, pv, P) == today.information_factor
+    S = Ps[:, 2, 2] / 2000.0**2 + 0.002**2  # the bearing's innovation variance, x 2 km ahead
+    want = [information_reduction_factor(0.9, 5.0 * math.sqrt(v), 3.5, 1) for v in S]
+    assert q == pytest.approx(want, abs=IRF_TABLE_TOLERANCE)
+    assert all(b < a for a, b in itertools.pairwise(q))
+    assert (q[0], q[-1]) == pytest.approx((0.845, 0.539), abs=1e-3)
+    with pytest.raises(ValueError, match="clutter_gate must be one of"):
+        ClutteredSensor(base, 5.0, 3.5, clutter_gate="gate")
+    sensor = {"id": "s1", "kind": "bearing", "sigma": 0.002, "pd": 0.9, "clutter_density": 5.0}
+    with pytest.raises(ValueError, match="clutter_gate"):
+        scenario([platform("p1", pv, [sensor])], {"targets": {"clutter_gate": "gate"}})
+    with pytest.raises(ValueError, match="clutter_gate: 'innovation' sets the information"):
+        scenario(
+            [platform("p1", pv, [sensor])],
+            {"cost": "pcrlb", "targets": {"clutter_gate": "innovation"}},
+        )
+
+
+def test_closing_in_on_a_cluttered_bearing_sensor_costs_with_the_innovation_gate():
+    # A track 50 m wide seen in angle from 0.5-4 km: the nearer the sensor, the wider the
+    # gate in angle and the more of the sensor's 5 false alarms per rad it holds. With one q
+    # (measurement) the nearest position scores best; with the gate's it scores worst.
+    mean, cov = np.array([3000.0, 0, 2000, 0]), np.diag([2500.0, 4, 2500, 4])
+    sensor = {"id": "s1", "kind": "bearing", "sigma": 0.002, "pd": 0.9, "clutter_density": 5.0}
+    ranges = (500.0, 1000.0, 2000.0, 4000.0)
+    costs = {}
+    for gate in ("measurement", "innovation"):
+        planner = {"cost": "mre", "criterion": "trace", "targets": {"clutter_gate": gate}}
+        costs[gate] = []
+        for r in ranges:
+            pv = np.array([3000.0 - r, 0.0, 2000.0, 0.0])
+            sc = scenario([platform("p1", pv, [sensor])], planner)
+            costs[gate].append(decide(sc, [track(1, mean, cov)]).extra["track_costs"][1])
+            if gate == "innovation":  # eq. 23 with q of S = H P H^T + R, by hand
+                dyn = target_dynamics(sc)
+                P = dyn.F @ cov @ dyn.F.T + dyn.Q
+                x = dyn.F @ mean
+                model = BearingSensor(0.002, pd=0.9)
+                H = model.jacobian(x, pv)
+                S = float((H @ P @ H.T)[0, 0]) + 0.002**2
+                q = information_reduction_factor(0.9, 5.0 * math.sqrt(S), 3.5, 1)
+                P1 = dyn.F @ mre_update(P, H, model.R, q) @ dyn.F.T + dyn.Q
+                assert costs[gate][-1] == pytest.approx(np.trace(P1), rel=1e-5)
+    assert all(b > a for a, b in itertools.pairwise(costs["measurement"]))
+    assert all(b < a for a, b in itertools.pairwise(costs["innovation"]))
+    assert costs["measurement"][0] == pytest.approx(3444.2, abs=0.1)
+    assert costs["innovation"][0] == pytest.approx(5196.4, abs=0.1)
 
 
 def test_a_beam_informs_only_its_track_and_points_at_it():

@@ -333,6 +333,7 @@ def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiT
         gospa=GospaWeights(ev.cutoff, ev.order, ev.alpha),
         surveillance=surveillance_of(cfg.targets.surveillance),
         pointing=cfg.targets.pointing,
+        clutter_gate=cfg.targets.clutter_gate,
         existence_terminate=scenario.tracker.tracks.existence_terminate,
         existence_terminate_prior=scenario.tracker.tracks.existence_terminate_prior,
     )

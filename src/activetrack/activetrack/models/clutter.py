@@ -9,7 +9,15 @@
   for a range-bearing sensor);
 - Fisher information: ``H^T R^-1 H`` times the information reduction factor
   ``q(Pd, lambda sqrt(det R), g, dim_z)`` (:mod:`activetrack.models.irf`) in place of the pd
-  of Hernandez eq. 8, zero outside the field of view (no clutter, wide gate: q = pd).
+  of Hernandez eq. 8, zero outside the field of view (no clutter, wide gate: q = pd);
+- for a planner's expected update of a track N(x, P) (:meth:`planned_information_factor`),
+  with ``clutter_gate`` ``innovation``, the q of the tracker's actual gate: the same integral
+  in the space whitened by the innovation covariance ``S = H P H^T + R``, whose false alarms
+  have the density ``lambda sqrt(det S)`` (the modified Riccati equation of the PDA, Kershaw &
+  Evans, "Optimal waveform selection for tracking systems", IEEE T-IT 40(5), 1994: its
+  reduction depends on lambda V_gate, V_gate ~ sqrt(det S)). A track whose prediction is wide
+  against R (a close target seen in angle, an uncertain track) gates more clutter and learns
+  less from a scan; ``measurement`` (the default) keeps the one q of R.
 
 Every other member is the wrapped sensor's.
 """
@@ -25,9 +33,10 @@ import numpy as np
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.models.base import InformationKernel, SensorModel
 from activetrack.models.fov import FieldOfView
-from activetrack.models.irf import information_reduction_factor
+from activetrack.models.irf import information_reduction_factor, information_reduction_factors
 
 __all__ = [
+    "CLUTTER_GATES",
     "ClutteredSensor",
     "fov_volume",
     "has_clutter_model",
@@ -35,6 +44,9 @@ __all__ = [
 ]
 
 _TWO_PI = 2.0 * math.pi
+
+# Where a planner's expected update takes the clutter density of the IRF from (module docstring).
+CLUTTER_GATES = ("measurement", "innovation")
 
 # A target 1 km ahead of a sensor at the origin: where the capabilities below are probed.
 _PROBE_TARGET = np.array([1000.0, 0.0, 0.0, 0.0])
@@ -65,7 +77,8 @@ def fov_volume(sensor: SensorModel, width: float, r_min: float, r_max: float) ->
 class ClutteredSensor:
     """``base`` in clutter of ``clutter_density`` (per unit of z) within a field of view;
     ``gate_sigmas`` the association gate (the IRF's g). ``gated`` False: every detection is the
-    one target's (known association), and the information factor is ``pd`` itself."""
+    one target's (known association), and the information factor is ``pd`` itself.
+    ``clutter_gate``: the gate of :meth:`planned_information_factor` (:data:`CLUTTER_GATES`)."""
 
     base: SensorModel
     clutter_density: float = 0.0
@@ -74,6 +87,13 @@ class ClutteredSensor:
     fov_width: float | None = None
     beam_width: float | None = None
     gated: bool = True
+    clutter_gate: str = "measurement"
+
+    def __post_init__(self) -> None:
+        if self.clutter_gate not in CLUTTER_GATES:
+            raise ValueError(
+                f"clutter_gate must be one of {CLUTTER_GATES}, got {self.clutter_gate!r}"
+            )
 
     def __getattr__(self, name: str) -> Any:
         # Everything not defined here (kind, R, measure, residual, ...) is the base sensor's.
@@ -94,6 +114,23 @@ class ClutteredSensor:
         R = np.atleast_2d(np.asarray(self.base.R, dtype=float))
         whitened = self.clutter_density * math.sqrt(float(np.linalg.det(R)))
         return information_reduction_factor(
+            float(self.base.pd), whitened, self.gate_sigmas, int(self.base.dim_z)
+        )
+
+    def planned_information_factor(
+        self, x: ArrayLike, sensor_pv: ArrayLike, P: ArrayLike
+    ) -> float | FloatArray:
+        """The IRF ``q`` of a planned look at a track N(``x`` ``(4,)``, ``P`` ``(..., 4, 4)``)
+        from ``sensor_pv`` ``(..., 4)``: :attr:`information_factor` (``clutter_gate``
+        ``measurement``, no clutter, or no gate), else ``q(Pd, lambda sqrt(det S), g,
+        dim_z)`` with ``S = H P H^T + R``, H the Jacobian at x ``(...)``."""
+        if self.clutter_gate == "measurement" or not self.gated or self.clutter_density <= 0.0:
+            return self.information_factor
+        H = np.asarray(self.base.jacobian(x, sensor_pv), dtype=float)
+        R = np.atleast_2d(np.asarray(self.base.R, dtype=float))
+        S = H @ np.asarray(P, dtype=float) @ np.swapaxes(H, -1, -2) + R
+        whitened = self.clutter_density * np.sqrt(np.linalg.det(S))
+        return information_reduction_factors(
             float(self.base.pd), whitened, self.gate_sigmas, int(self.base.dim_z)
         )
 

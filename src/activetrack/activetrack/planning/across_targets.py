@@ -11,10 +11,12 @@ a confirmed track, ``planner.cost``:
   eq. 3, footnote 2), J_Z by Monte Carlo (eq. 8) over the track's particles or ``mc_samples``
   Gaussian draws pushed through the dynamics (eq. 2);
 - ``mre``: ``planner.criterion`` of Ramdaras eq. 23 with q as detection factor at the CV
-  prediction F^{r+1} x. A beam, pointed before the epoch's measurements, holds the target with
-  probability ``assignment.beam_coverage``, lowered for each unsuccessful look since the
-  track's last hit (``assignment.MissedLooks``: otherwise the beams keep looking at a lost
-  track's empty prediction), and raised again as the prediction widens past the spread it had
+  prediction F^{r+1} x (``planner.targets.clutter_gate: innovation``: q of the tracker's gate
+  on S = H P H^T + R, P the covariance the look updates, at the candidate's position). A
+  beam, pointed before the epoch's measurements, holds the target with probability
+  ``assignment.beam_coverage``, lowered for each unsuccessful look since the track's last hit
+  (``assignment.MissedLooks``: otherwise the beams keep looking at a lost track's empty
+  prediction), and raised again as the prediction widens past the spread it had
   at those looks (the target may have come back into the part they emptied; otherwise a track
   left after a few misses is never looked at again while it drifts).
 
@@ -51,7 +53,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, cast
 
 import numpy as np
@@ -74,7 +76,7 @@ from activetrack.data import (
     TrackEstimate,
     TrackSet,
 )
-from activetrack.models.clutter import ClutteredSensor
+from activetrack.models.clutter import CLUTTER_GATES, ClutteredSensor
 from activetrack.models.fov import sector_coverage
 from activetrack.planning.assignment import (
     NO_MISSES,
@@ -145,11 +147,15 @@ class _Sensor:
         pv: np.ndarray,
         P: np.ndarray | None = None,
         missed: MissedLooks = NO_MISSES,
+        gate: np.ndarray | None = None,
     ) -> np.ndarray:
         """Eq. 23's detection factor q I_r I_fov ``(...)`` for a target at x seen from pvs
-        ``(..., 4)``; a beam times its coverage of ``P`` (None: on target) after ``missed``."""
+        ``(..., 4)``; a beam times its coverage of ``P`` (None: on target) after ``missed``.
+        q of the gate on ``gate`` (default ``P``; the sensor's ``clutter_gate``), else of R."""
         inside = np.asarray(self.model.in_range(x, pv), dtype=float)
-        d = self.q * inside * in_view(self.model, x, pv)
+        G = P if gate is None else gate
+        q = self.q if G is None else self.model.planned_information_factor(x, pv, G)
+        d = q * inside * in_view(self.model, x, pv)
         if self.steerable and P is not None:
             c = beam_coverage(cast(float, self.model.beam_width), x, P, pv)
             d = d * missed.after(c, P)
@@ -207,7 +213,7 @@ class _MreStage:
             P0 = Pt = P[..., t, :, :]
             own = [(sensor, pv) for sensor, serves in self.own if serves[t]]
             for sensor, at in [*self.fixed[level][t], *own]:  # the other platforms' sensors first
-                d = sensor.detection(x, at, P0, self.missed[t])
+                d = sensor.detection(x, at, P0, self.missed[t], gate=Pt)  # gated as updated
                 Pt = mre_update(Pt, sensor.model.jacobian(x, at), sensor.model.R, d)
             out[..., t, :, :] = self.F @ Pt @ self.F.T + self.Q
         return out
@@ -275,10 +281,17 @@ class AcrossTargetsSettings:
     # from a prior (``tracker.tracks``; 0: never): the gospa objective counts the ending
     existence_terminate: float = 0.0
     existence_terminate_prior: float = 0.0
+    # the IRF of a planned look: of R, or of the tracker's gate on S = H P H^T + R
+    # (:meth:`activetrack.models.clutter.ClutteredSensor.planned_information_factor`)
+    clutter_gate: str = "measurement"
 
     def __post_init__(self) -> None:
         if self.objective not in ("criterion", "gospa"):
             raise ValueError(f"objective must be 'criterion' or 'gospa', got {self.objective!r}")
+        if self.clutter_gate not in CLUTTER_GATES:
+            raise ValueError(
+                f"clutter_gate must be one of {CLUTTER_GATES}, got {self.clutter_gate!r}"
+            )
         if self.pointing not in ("track", "footprint"):
             raise ValueError(f"pointing must be 'track' or 'footprint', got {self.pointing!r}")
         if self.pointing == "footprint" and self.objective != "criterion":
@@ -314,9 +327,10 @@ class MultiTargetPlanner:
         self.dt = dynamics.dt
         self.platform_ids = tuple(p.platform_id for p in platforms)
         self.sensors = tuple(
-            _Sensor(sid, i, model, model.information_factor)
+            _Sensor(sid, i, gated, gated.information_factor)
             for i, p in enumerate(platforms)
             for sid, model in p.sensors
+            for gated in [replace(model, clutter_gate=settings.clutter_gate)]
         )
         self.controllable = tuple(p.controllable for p in platforms)
         self.limits = tuple(p.limits for p in platforms)
@@ -727,7 +741,7 @@ class MultiTargetPlanner:
             pvs,
             np.array(
                 [
-                    [self.sensors[i].detection(p.x, pv) for p in preds]
+                    [self.sensors[i].detection(p.x, pv, gate=p.P) for p in preds]
                     for i, pv in zip(beams, pvs, strict=True)
                 ]
             ),

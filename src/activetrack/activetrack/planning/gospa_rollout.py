@@ -210,7 +210,7 @@ class GospaRollout:
                 if pcrlb:
                     S = S + c[..., None, None] * model.fisher_information(self.samples[t][r], at)
                 else:
-                    d = model.information_factor * inside * c
+                    d = model.planned_information_factor(x, at, S) * inside * c
                     S = mre_update(S, model.jacobian(x, at), model.R, d)
             q = hit_probability(np.stack(np.broadcast_arrays(*hits), axis=-1)) if hits else 0.0
             P_plus = covariance_bound(S) if pcrlb else S

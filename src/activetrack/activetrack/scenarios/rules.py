@@ -502,6 +502,12 @@ def _scene_problems(s: Scenario) -> Problems:
             "planner.targets.pointing: 'footprint' centres beams on the tracks' weighted sum; "
             "use aggregate 'weighted_sum' (or pointing 'track' for the worst track's)",
         ),
+        (
+            cfg.targets.clutter_gate == "innovation" and cfg.cost != "mre",
+            "planner.targets.clutter_gate: 'innovation' sets the information reduction of the "
+            "MRE's expected update (cost 'mre'); the PCRLB's J_Z keeps q of R: use cost 'mre' "
+            "or clutter_gate 'measurement'",
+        ),
     )
     if s.known_association:
         return out + _violated(

@@ -429,13 +429,18 @@ class MultiTargetPlanConfig(Strict):
     credits every track a beam holds (the tracker updates each track whose predicted position
     lies in the scan's sector) and centres each beam, greedily in turn, where it lowers the
     tracks' summed criterion most, on one track or between several (objective ``criterion``
-    and aggregate ``weighted_sum`` only).
+    and aggregate ``weighted_sum`` only). ``clutter_gate``: the information reduction factor
+    of clutter in a planned look (:mod:`activetrack.models.clutter`): ``measurement`` one q
+    per sensor, of the density whitened by R; ``innovation`` q of the tracker's gate on the
+    track's innovation covariance S = H P H^T + R at the planned geometry (a wider gate holds
+    more false alarms; Kershaw & Evans 1994).
     """
 
     aggregate: Literal["worst", "weighted_sum"] = "worst"
     assignment: Literal["mre", "random", "nearest"] = "mre"
     objective: Literal["criterion", "gospa"] = "criterion"
     pointing: Literal["track", "footprint"] = "track"
+    clutter_gate: Literal["measurement", "innovation"] = "measurement"
     new_track_priority: Annotated[float, Field(gt=0, le=1e6)] = 1.0
     surveillance: SurveillanceConfig | None = None
 
