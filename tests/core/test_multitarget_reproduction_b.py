@@ -35,12 +35,13 @@ def test_random_beams_lose_targets_on_scenario_b(result):
     """Five targets, three beams: pointing them at random loses tracks (breaks) that the MRE
     assignment keeps."""
     (sc,) = result.scenarios
-    assert sc.improvement("random_assignment") > 0.25  # measured 0.28
+    assert sc.improvement("random_assignment") > 0.25  # measured 0.52
     planner, rand = sc.summaries["planner"], sc.summaries["random_assignment"]
-    # Runs that lost a target for good (GOSPA above c / 2 = 250 m; measured: random 2 of 6,
-    # the planner 1). Breaks do not tell them apart (measured: planner 0.50, random 0.33 per
-    # run): since a confirmed track from a prior is terminated on existence, a lost target's
-    # track ends (a break) instead of staying on as a false track.
+    # Runs that lost a target for good (GOSPA above c / 2 = 250 m; measured: random 1 of 6,
+    # the planner 0). Breaks need not tell them apart (measured: planner 0, random 0.33 per
+    # run; before the gate's q planner 0.50, random 0.33): since a confirmed track from a prior
+    # is terminated on existence, a lost target's track ends (a break) instead of staying on
+    # as a false track.
     lost = {s: sum(g > 250.0 for g in x.run_gospa) for s, x in (("p", planner), ("r", rand))}
     assert lost["r"] > lost["p"]
 
