@@ -44,7 +44,7 @@ def test_each_strategy_keeps_its_figures(result):
 @pytest.mark.xfail(
     strict=True,
     reason="issue 25: on six runs the planner is ahead of both baselines on (a) (59.3 against "
-    "66.2 and 99.0 m) but not by two standard errors; 20 runs resolve it against hold course "
+    "66.2 and 99.0 m) but not by two standard errors; 100 runs resolve it against both "
     "(docs/multitarget.md)",
 )
 def test_the_planner_beats_both_baselines_on_scenario_a(result):
