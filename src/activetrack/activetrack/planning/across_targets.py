@@ -908,13 +908,14 @@ class MultiTargetPlanner:
                 continue
             pv = next_pv[s.platform]
             held = np.flatnonzero(ep.serves[i])
+            at = {int(u): self._bearing(ep, int(u), pv) for u in held}  # each held track's
             if i in ep.pointing:  # the beam's centre; its track the held one nearest to it
                 bearing = ep.pointing[i]
-                off = [abs(wrap_angle(self._bearing(ep, int(u), pv) - bearing)) for u in held]
+                off = [abs(wrap_angle(at[int(u)] - bearing)) for u in held]
                 t = int(held[int(np.argmin(off))]) if len(held) else -1
             else:
                 t = int(held[0])
-                bearing = self._bearing(ep, t, pv)
+                bearing = at[t]
             track_id = ep.tracks[t].track_id if t >= 0 else -1
             beams.append(BeamCommand(s.sensor_id, ep.epoch, bearing, track_id))
             if t >= 0:
@@ -927,7 +928,7 @@ class MultiTargetPlanner:
                 (x, P), track = (ep.predictions[u].x, ep.predictions[u].P), ep.tracks[u]
                 fail = 1.0 - float(s.model.pd) * float(s.model.in_range(x, pv))
                 before = self.looks.get(track.track_id, (0, 0, 1.0))[2]
-                offset = wrap_angle(bearing - self._bearing(ep, int(u), pv))
+                offset = wrap_angle(bearing - at[int(u)])
                 width = cast(float, s.model.beam_width)
                 coverage = float(sector_coverage(width, offset, x, P, pv))  # off centre too
                 spread = float(position_spread(P))
