@@ -27,6 +27,7 @@ import numpy as np
 
 from activetrack.angles import wrap_angle
 from activetrack.arraytypes import ArrayLike
+from activetrack.bounds.mre import mre_update
 from activetrack.checks import require_in_range
 from activetrack.models.fov import sector_coverage
 from activetrack.planning.criteria import POSITIONING, SELECTION, get_criterion
@@ -264,11 +265,26 @@ def mre_pair_costs(
     if pvs.shape[0] != S or d.shape != (S, T):
         raise ValueError(f"sensor_pvs must be ({S}, 4) and detection ({S}, {T})")
     C, c0 = np.empty((S, T)), np.empty(T)
-    for t, p in enumerate(predictions):
-        c0[t] = float(crit.of_covariance(p.F @ p.P @ p.F.T + p.Q, p.x))
-        for s, sensor in enumerate(sensors):
-            P_upd = p.after_look(sensor, pvs[s], float(d[s, t])).P
-            C[s, t] = float(crit.of_covariance(p.F @ P_upd @ p.F.T + p.Q, p.x))
+    if T == 0:
+        return C, c0
+    # Every track at once, sensor by sensor: the operations of TargetPrediction.after_look
+    # on each track's rows (the same numbers as pair by pair).
+    x = np.stack([p.x for p in predictions])
+    P = np.stack([p.P for p in predictions])
+    F = np.stack([p.F for p in predictions])
+    Q = np.stack([p.Q for p in predictions])
+    Ft = np.swapaxes(F, -1, -2)
+
+    def cost(P_next: np.ndarray) -> np.ndarray:
+        if not crit.needs_state:
+            return np.asarray(crit.of_covariance(P_next, None), dtype=float)
+        return np.array([float(crit.of_covariance(P_next[t], x[t])) for t in range(T)])
+
+    c0[:] = cost(F @ P @ Ft + Q)
+    for s, sensor in enumerate(sensors):
+        pd = d[s] * np.asarray(sensor.in_range(x, pvs[s]), dtype=float)
+        P_upd = mre_update(P, sensor.jacobian(x, pvs[s]), sensor.R, pd)
+        C[s] = cost(F @ P_upd @ Ft + Q)
     return np.minimum(C, c0), c0
 
 

@@ -57,11 +57,12 @@ __all__ = ["FirstLegSearch", "GospaRollout", "Look", "in_view", "look_factors", 
 
 def in_view(sensor: ClutteredSensor, x: np.ndarray, pv: np.ndarray) -> np.ndarray:
     """1.0 where target ``x`` ``(4,)`` is inside the fixed field of view from sensor pvs
-    ``(..., 4)`` (heading of their velocity), else 0.0 ``(...)``."""
+    ``(..., 4)`` (heading of their velocity), else 0.0 ``(...)``; or targets ``(..., 4)`` from
+    one pv ``(4,)``."""
     if sensor.fov_width is None:
-        return np.ones(pv.shape[:-1])
+        return np.ones(np.broadcast_shapes(np.shape(x), pv.shape)[:-1])
     heading = np.arctan2(pv[..., 3], pv[..., 1])
-    bearing = np.arctan2(x[2] - pv[..., 2], x[0] - pv[..., 0])
+    bearing = np.arctan2(x[..., 2] - pv[..., 2], x[..., 0] - pv[..., 0])
     off = wrap_angle(bearing - heading - sensor.fov_centre)
     return (np.abs(off) <= 0.5 * sensor.fov_width).astype(float)
 

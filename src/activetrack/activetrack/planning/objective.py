@@ -174,6 +174,8 @@ class CovarianceTerm:
     weight: float = 1.0
 
     def cost(self, state: np.ndarray, level: int) -> np.ndarray:
+        if not self.criterion.needs_state:  # x unused: one call over every track's matrices
+            return self.tracks(self.criterion.of_covariance(state, None))
         x = self.x[level]  # (T, 4)
         c = [self.criterion.of_covariance(state[..., t, :, :], x[t]) for t in range(len(x))]
         return self.tracks(np.stack(c, axis=-1))

@@ -96,6 +96,35 @@ class TargetPrediction:
         P_pred = F @ np.asarray(P, dtype=float) @ F.T + Q
         return cls(F @ np.asarray(x, dtype=float), 0.5 * (P_pred + P_pred.T), F, Q)
 
+    @classmethod
+    def from_posteriors(
+        cls, xs: Sequence[ArrayLike], Ps: Sequence[ArrayLike], F: np.ndarray, Q: np.ndarray
+    ) -> list[TargetPrediction]:
+        """:meth:`from_posterior` of T posteriors ``(4,)``, ``(4, 4)`` under one dynamics, the
+        covariances predicted and checked as one stack ``(T, 4, 4)`` (the same numbers)."""
+        F, Q = require_finite("F", F), require_finite("Q", Q)
+        if F.shape != (4, 4) or Q.shape != (4, 4):
+            raise ValueError(f"F and Q must be (4, 4) (pv), got {F.shape}, {Q.shape}")
+        if len(xs) != len(Ps):
+            raise ValueError(f"xs and Ps must be as many, got {len(xs)} and {len(Ps)}")
+        if not len(xs):
+            return []
+        P = np.stack([np.asarray(P, dtype=float) for P in Ps])
+        if P.shape[1:] != (4, 4):
+            raise ValueError(f"P_pred must be (4, 4) and x_pred (4,) (pv), got {P.shape[1:]}")
+        P_pred = F @ P @ F.T + Q
+        P_pred = require_spd("P_pred", 0.5 * (P_pred + np.swapaxes(P_pred, -1, -2)))
+        out = []
+        for x, P_t in zip(xs, P_pred, strict=True):
+            x_pred = require_finite("x_pred", F @ np.asarray(x, dtype=float))
+            if x_pred.shape != (4,):
+                raise ValueError(f"P_pred must be (4, 4) and x_pred (4,) (pv), got {x_pred.shape}")
+            p = cls.__new__(cls)
+            for name, value in (("x", x_pred), ("P", P_t), ("F", F), ("Q", Q)):
+                object.__setattr__(p, name, value)
+            out.append(p)
+        return out
+
     def with_covariance(self, P: np.ndarray) -> TargetPrediction:
         """The same epoch with another P_{k+1|k} (e.g. with the sensors picked so far)."""
         return replace(self, P=P)
