@@ -24,7 +24,11 @@ Tracks combine by ``planner.targets.aggregate`` (``worst`` plus ``TIE_BREAK`` ti
 during the search, or ``weighted_sum``). Manoeuvres: platforms in turn, the others on their
 current plans (Hernandez sec. 4.1, ``multisensor.coordinate_platforms``), each searching its R
 legs; pcrlb sums over the legs (eq. 15-16), mre takes leg R. During the search a beam serves
-its previous track if still confirmed, else the nearest. Beams, after the manoeuvres, from the
+its previous track if still confirmed, else the nearest. Under ``weighted_sum`` and a
+deterministic search, platforms whose sensors serve no common track are searched
+independently (the sum over tracks separates; ``coordinate_platforms`` says why the plans are
+the same), and a platform's search computes the tracks its sensors do not serve once, not per
+candidate (mre: their first leg once per decision). Beams, after the manoeuvres, from the
 planned k+1 positions (``planner.targets.assignment``): ``mre`` optimal assignment of eq. 23
 costs, ``random`` (balanced), ``nearest``; a beam points at its track's predicted position. No
 confirmed track: every beam sweeps one ``beam_width`` per epoch from its platform's heading.
@@ -161,6 +165,24 @@ class _Sensor:
             d = d * missed.after(c, P)
         return d
 
+    def detections(
+        self, xs: np.ndarray, pv: np.ndarray, Ps: np.ndarray, missed: Sequence[MissedLooks]
+    ) -> np.ndarray:
+        """:meth:`detection` of T tracks at once, ``xs`` ``(T, 4)``, ``Ps`` ``(T, 4, 4)`` (also
+        the gate), from one pv ``(4,)``: ``(T,)``, the same numbers as track by track (the
+        same operations on each track's rows)."""
+        inside = np.asarray(self.model.in_range(xs, pv), dtype=float)
+        q = self.model.planned_information_factor(xs, pv, Ps)
+        d = q * inside * in_view(self.model, xs, pv)
+        if not self.steerable:
+            return np.asarray(d, dtype=float)
+        c = beam_coverage(cast(float, self.model.beam_width), xs, Ps, pv)
+        after = np.array(c, dtype=float)  # c itself for a track without misses
+        for t, m in enumerate(missed):
+            if m.factor < 1.0:
+                after[t] = m.after(c[t], Ps[t])
+        return np.asarray(d * after, dtype=float)
+
     def hit(self, x: np.ndarray, pv: np.ndarray, P: np.ndarray, missed: MissedLooks) -> float:
         """The chance Pd I_r I_fov c that this sensor at ``pv`` detects a target N(x, P)."""
         inside, c = look_factors(self.model, x, pv, P, missed)
@@ -195,7 +217,11 @@ class _PcrlbStage:
 class _MreStage:
     """Ramdaras eq. 23 for every track (a :class:`HorizonStage`): P_{k+1+r|k+r} ``(..., T, 4,
     4)``; ``x`` ``(R, T, 4)`` CV predictions; ``fixed[r][t]`` the other platforms' sensors
-    serving track t with their pvs at leg r; ``own`` as in :class:`_PcrlbStage`."""
+    serving track t with their pvs at leg r; ``own`` as in :class:`_PcrlbStage`.
+
+    A track no sensor of ``own`` serves (not in :attr:`moved`) has the same state under every
+    candidate: its leg is computed once per level, from the first candidate's copy of its
+    state (the same matrices, so the same numbers as per candidate), and copied."""
 
     F: np.ndarray
     Q: np.ndarray
@@ -203,20 +229,56 @@ class _MreStage:
     fixed: list[list[list[tuple[_Sensor, np.ndarray]]]]
     own: tuple[tuple[_Sensor, np.ndarray], ...]
     missed: tuple[MissedLooks, ...]
+    # a held track's first leg by the looks at it (other platforms' sensors and their pvs),
+    # shared by the stages of one decision: they start from the same state
+    first_legs: dict[tuple, np.ndarray] = field(default_factory=dict)
+    held: dict[int, np.ndarray] = field(default_factory=dict)  # level -> (H, 4, 4)
+
+    def __post_init__(self) -> None:
+        T = self.x.shape[1]
+        self.serving = [[sensor for sensor, serves in self.own if serves[t]] for t in range(T)]
+        self.moved = np.array([bool(s) for s in self.serving], dtype=bool)
+        self.held_tracks = np.flatnonzero(~self.moved)
 
     def prepare(self, P: np.ndarray, level: int) -> np.ndarray:
         return P if level == 0 else symmetrize(P)
 
     def advance(self, P: np.ndarray, level: int, pv: np.ndarray) -> np.ndarray:
         out = np.empty((*pv.shape[:-1], self.x.shape[1], 4, 4))
-        for t, x in enumerate(self.x[level]):
-            P0 = Pt = P[..., t, :, :]
-            own = [(sensor, pv) for sensor, serves in self.own if serves[t]]
-            for sensor, at in [*self.fixed[level][t], *own]:  # the other platforms' sensors first
-                d = sensor.detection(x, at, P0, self.missed[t], gate=Pt)  # gated as updated
-                Pt = mre_update(Pt, sensor.model.jacobian(x, at), sensor.model.R, d)
-            out[..., t, :, :] = self.F @ Pt @ self.F.T + self.Q
+        for t in np.flatnonzero(self.moved):
+            out[..., t, :, :] = self._leg(P[..., t, :, :], level, int(t), pv)
+        if len(self.held_tracks):
+            if level not in self.held:
+                first = P[(0,) * (P.ndim - 3)]  # (T, 4, 4): every candidate's copy alike
+                held = self.F @ first[self.held_tracks] @ self.F.T + self.Q  # no look
+                for h, t in enumerate(self.held_tracks):
+                    if self.fixed[level][t]:
+                        held[h] = self._held_leg(first[t], level, int(t))
+                self.held[level] = held
+            out[..., self.held_tracks, :, :] = self.held[level]
         return out
+
+    def _held_leg(self, P0: np.ndarray, level: int, t: int) -> np.ndarray:
+        """:meth:`_leg` of a track ``own`` does not serve; at level 0 (from the decision's
+        state0) once per decision for the same looks."""
+        if level != 0:
+            return self._leg(P0, level, t, None)
+        key = (t, *((s.sensor_id, at.tobytes()) for s, at in self.fixed[0][t]))
+        if key not in self.first_legs:
+            self.first_legs[key] = self._leg(P0, level, t, None)
+        return self.first_legs[key]
+
+    def _leg(self, P0: np.ndarray, level: int, t: int, pv: np.ndarray | None) -> np.ndarray:
+        """Track t's P_{k+2+level|k+1+level} from P_{k+1+level|k+level} ``P0`` ``(..., 4,
+        4)``: the other platforms' sensors' expected updates, then own's at ``pv``."""
+        x, Pt = self.x[level][t], P0
+        looks = list(self.fixed[level][t])  # the other platforms' sensors first
+        if pv is not None:
+            looks += [(sensor, pv) for sensor in self.serving[t]]
+        for sensor, at in looks:
+            d = sensor.detection(x, at, P0, self.missed[t], gate=Pt)  # gated as updated
+            Pt = mre_update(Pt, sensor.model.jacobian(x, at), sensor.model.R, d)
+        return self.F @ Pt @ self.F.T + self.Q
 
 
 @dataclass(frozen=True)
@@ -248,6 +310,7 @@ class _Epoch:
     paths: dict[int, np.ndarray] = field(default_factory=dict)
     plans: dict[int, np.ndarray] = field(default_factory=dict)  # controllable platforms' (R, 2)
     evaluations: int = 0
+    first_legs: dict[tuple, np.ndarray] = field(default_factory=dict)  # see _MreStage
     # beam sensor -> (bearing, tentative track id or -1) when it searches
     search: dict[int, tuple[float, int]] = field(default_factory=dict)
     # beam sensor -> its bearing when pointed at the tracks it holds (pointing "footprint")
@@ -497,7 +560,9 @@ class MultiTargetPlanner:
         self, epoch: int, planners: list[PlannerPlatform], tracks: tuple[TrackEstimate, ...]
     ) -> _Epoch:
         d, R = self.dynamics, self.horizon if self.gospa is None else self.lookahead
-        predictions = [TargetPrediction.from_posterior(t.mean, t.cov, d.F, d.Q) for t in tracks]
+        predictions = TargetPrediction.from_posteriors(
+            [t.mean for t in tracks], [t.cov for t in tracks], d.F, d.Q
+        )
         ep = _Epoch(
             self,
             epoch,
@@ -603,7 +668,9 @@ class MultiTargetPlanner:
             for r in range(self.horizon):
                 for t in np.flatnonzero(serves):
                     updates[r][t].append((s, ep.paths[s.platform][r]))
-        return _MreStage(d.F, d.Q, cast(np.ndarray, ep.x), updates, tuple(own), ep.missed)
+        return _MreStage(
+            d.F, d.Q, cast(np.ndarray, ep.x), updates, tuple(own), ep.missed, ep.first_legs
+        )
 
     def _objective(self, ep: _Epoch, tie_break: float) -> Objective:
         """The tracks' aggregate criterion of J (pcrlb, eq. 15-16) or P (mre)."""
@@ -629,6 +696,7 @@ class MultiTargetPlanner:
             self.horizon,
             self.settings.max_iterations,
             self.rng,
+            self._supports(ep),
         )
         ep.plans = {j: plan for j, plan in enumerate(result.plans) if plan is not None}
         ep.evaluations = result.evaluations
@@ -641,6 +709,21 @@ class MultiTargetPlanner:
             state = stage.advance(stage.prepare(state, r), r, dummy)
             states.append(state)
         return self._objective(ep, 0.0).along(states)
+
+    def _supports(self, ep: _Epoch) -> list[np.ndarray | None] | None:
+        """Per platform the tracks ``(T,)`` its candidates change, the ones its sensors serve
+        during the search; None (every platform interacts with every other) under the gospa
+        rollout, the worst track (not a sum over tracks) or a search drawing random numbers
+        (searching a platform again draws again)."""
+        if (
+            self.gospa is not None
+            or self.settings.aggregate != "weighted_sum"
+            or self.search is None
+            or self.search.search == "evolution"
+        ):
+            return None
+        platform = np.array([s.platform for s in self.sensors], dtype=int)
+        return [ep.serves[platform == j].any(axis=0) for j in range(len(ep.platforms))]
 
     def _plans_objective(self, ep: _Epoch, state0: np.ndarray) -> float:
         """The objective of every platform on its path in ``ep.paths`` (one evaluation)."""
@@ -709,15 +792,7 @@ class MultiTargetPlanner:
                 self._fixed_updates(ep, next_pv),
                 [self.sensors[i].model for i in beams],
                 pvs,
-                np.array(
-                    [
-                        [
-                            self.sensors[i].detection(p.x, pv, p.P, ep.missed[t])
-                            for t, p in enumerate(ep.predictions)
-                        ]
-                        for i, pv in zip(beams, pvs, strict=True)
-                    ]
-                ),
+                self._detections(ep, beams, pvs),
                 self.criterion.name,
                 ep.weights,
                 self.settings.aggregate,
@@ -727,6 +802,18 @@ class MultiTargetPlanner:
             if t >= T:
                 o = cast(list, options)[b]
                 ep.search[i] = (float(o.bearings[t - T]), int(o.track_ids[t - T]))
+
+    def _detections(self, ep: _Epoch, beams: list[int], pvs: np.ndarray) -> np.ndarray:
+        """Each beam's detection factor of each track at k+1 from its pv ``(B, 4)``: ``(B,
+        T)`` (:meth:`_Sensor.detections`)."""
+        xs = np.stack([p.x for p in ep.predictions])
+        Ps = np.stack([p.P for p in ep.predictions])
+        return np.stack(
+            [
+                self.sensors[i].detections(xs, pv, Ps, ep.missed)
+                for i, pv in zip(beams, pvs, strict=True)
+            ]
+        )
 
     def _point_footprints(
         self, ep: _Epoch, next_pv: np.ndarray, beams: list[int], pvs: np.ndarray
@@ -856,7 +943,18 @@ class MultiTargetPlanner:
     def _track_costs(self, ep: _Epoch, next_pv: np.ndarray) -> np.ndarray:
         """Each track's cost at k+1 with the chosen manoeuvres and beams ``(T,)``."""
         out = np.empty(len(ep.tracks))
+        done = np.zeros(len(ep.tracks), dtype=bool)
+        if self.gospa is None and self.cost_kind != "pcrlb" and not self.criterion.needs_state:
+            # The tracks no sensor serves at once: P_{k+1|k} itself, the same numbers.
+            done = np.asarray(~ep.serves.any(axis=0), dtype=bool)
+            if done.any():
+                preds = [p for p, free in zip(ep.predictions, done, strict=True) if free]
+                P, F, Q = (np.stack([getattr(p, a) for p in preds]) for a in ("P", "F", "Q"))
+                P_next = F @ P @ np.swapaxes(F, -1, -2) + Q
+                out[done] = self.criterion.of_covariance(P_next, None)
         for t, (track, p) in enumerate(zip(ep.tracks, ep.predictions, strict=True)):
+            if done[t]:
+                continue
             serving = [s for i, s in enumerate(self.sensors) if ep.serves[i, t]]
             if self.gospa is not None:
                 out[t] = self._gospa_cost(ep, t, serving, next_pv)
