@@ -21,8 +21,9 @@ and priors come from ``default_rng(seed)``.
 Timed per epoch (all radars' scans), after one untimed epoch of warm-up on a small scene:
 
 - **ours**: :class:`activetrack.tracking.tracker.Tracker` ``step`` with the EKF and the
-  schema's default ``tracker.tracks`` except ``max_tracks`` (``4 n + 200``, never reached
-  here): association, initiation from the clutter, M-of-N, existence, deletion, coalescence;
+  schema's default ``tracker.tracks`` except ``max_tracks`` (``4 n + 200`` up to
+  ``limits.MAX_TRACKS``; detections it leaves unstarted are printed beside the time):
+  association, initiation from the clutter, M-of-N, existence, deletion, coalescence;
 - **Stone Soup**: the prior tracks only (no initiation, no deletion: its association and
   update alone, so a lower bound of its tracker), per radar scan the tracks whose predicted
   position the radar sees, ``associate`` then ``PDAUpdater.update``, with ``JPDA`` (it lists
@@ -47,6 +48,7 @@ from datetime import datetime, timedelta
 
 import numpy as np
 
+from activetrack import limits
 from activetrack.data import Scan
 from activetrack.filters.ekf import ExtendedKalmanFilter
 from activetrack.filters.jpda import gate_probability
@@ -153,7 +155,7 @@ def build(n_targets: int, layout: str, clutter: float, seed: int = 0, steps: int
 def ours(scene: ScaleScene) -> Callable[[int], None]:
     """Our tracker's step (module docstring); the epoch's ``Scan`` objects built beforehand."""
     model = NearlyConstantVelocity(Q)
-    cfg = TrackManagementConfig(max_tracks=4 * scene.n_targets + 200)
+    cfg = TrackManagementConfig(max_tracks=max_tracks(scene.n_targets))
 
     def make(x0: np.ndarray, P0: np.ndarray, t0: float) -> ExtendedKalmanFilter:
         return ExtendedKalmanFilter(model, x0, P0, t0)
@@ -181,7 +183,15 @@ def ours(scene: ScaleScene) -> Callable[[int], None]:
     def step(k: int) -> None:
         tracker.step(k, k * DT, scans[k - 1])
 
+    step.tracker = tracker  # type: ignore[attr-defined]  # its counters, read after timing
     return step
+
+
+def max_tracks(n_targets: int) -> int:
+    """Our tracker's ``max_tracks``: ``4 n + 200`` (room for every target and the clutter's
+    tentative tracks), at most the schema's :data:`activetrack.limits.MAX_TRACKS`; detections
+    not started because of it are printed in the table."""
+    return min(4 * n_targets + 200, limits.MAX_TRACKS)
 
 
 def _stonesoup_associator(kind: str, hypothesiser):
@@ -275,6 +285,7 @@ class PointTime:
     over: bool = False
     error: str = ""
     stopped_at: int = 0  # not started: over budget (or failed: ``error``) at this smaller n
+    note: str = ""  # what the run reported (detections left unstarted)
 
     def cell(self, budget: float) -> str:
         if self.stopped_at and self.error:
@@ -288,7 +299,7 @@ class PointTime:
         text = f"{np.median(self.times) * 1e3:.1f} ms"
         if self.over:
             text += f" ({len(self.times)} epochs, then over budget (POINT_BUDGET_S={budget:g} s))"
-        return text
+        return text + (f" [{self.note}]" if self.note else "")
 
 
 def time_epochs(step: Callable[[int], None], n_epochs: int, budget: float) -> PointTime:
@@ -359,7 +370,16 @@ def scale_table(
                     except ImportError as e:
                         cells[name] = PointTime([], error=f"not installed ({e.name})")
                         continue
+                    except ValueError as e:  # a limit of ours (named in the message)
+                        cells[name] = PointTime([], error=f"{type(e).__name__}: {str(e)[:120]}")
+                        stopped[name] = (n, cells[name].error)
+                        continue
                     cells[name] = time_epochs(step, epochs, budget)
+                    tracker = getattr(step, "tracker", None)
+                    if tracker is not None and tracker.not_started:
+                        cells[
+                            name
+                        ].note = f"{tracker.not_started} detections not started (max_tracks)"
                     if cells[name].over or cells[name].error:
                         stopped[name] = (n, cells[name].error)
                 row = ScaleRow(
