@@ -1,13 +1,45 @@
-"""Multi-target tracking side by side with Stone Soup on identical detections (issue 14, item 8).
+"""Multi-target tracking side by side with Stone Soup on identical detections (issues 14 and 28).
 
-Run with ``.venv/bin/python benchmarks/multitarget.py [--quick] [--runs N] [--manager-runs N]
-[--candidates N] [--jobs J]`` after ``make bench`` (Stone Soup is a bench-only dependency,
-``requirements-bench.txt``). The last line is
-``jpda_speedup_vs_stonesoup=<x> gospa_diff_vs_stonesoup_manager_m=<d>[<low>,<high>]``: x from
-part 1; d from part 2, GOSPA(activetrack planner) - GOSPA(Stone Soup manager) run by run on
-common random numbers, with its 95 % Student-t interval (negative: ours lower).
+Run with ``.venv/bin/python benchmarks/multitarget.py [--quick] [--runs N] [--jpda-runs N]
+[--sizes N ...] [--clutter C ...] [--budget S] [--epochs K] [--managers [--manager-runs N]
+[--candidates N] [--jobs J]]`` after ``make bench`` (Stone Soup and pyehm are bench-only
+dependencies, ``requirements-bench.txt``). The last line is ::
 
-Part 1, the association filter: activetrack's JPDA-EKF (``filters.jpda.jpda_update`` after a
+    tracker_step_speedup_vs_stonesoup=<x> n300_step_ms=<y> n1000_step_ms=<z>
+    crowded10_gospa_equals_exact=<true|false>
+
+- x: the full tracker step against Stone Soup's full tracker on the 3-target scene, the median
+  over runs of the per-run paired ratio (their total step time / ours in the same run; the two
+  take turns run by run in alternating order);
+- y, z: our median step (ms) at 300 and 1,000 spread-out targets in the scale table (lowest
+  clutter; ``over_budget`` when no epoch finished within the table's budget);
+- the crowded flag: on 10 targets crossing at one point (no initiation, part 1's radar and
+  clutter), our tracker's time-averaged GOSPA equals that of Stone Soup's exact JPDA (its
+  efficient hypothesis management, ``JPDAWithEHM2``) within 0.01 m.
+
+``--quick`` (about a minute): part 1 on 2 runs of 20 scans, the bare line on 2 runs, the scale
+table on spread scenes of 3, 10, 30, 300 and 1,000 targets at 10 false alarms per scan with a
+4 s budget per point, and the crowded check.
+
+Part 1, the full tracker step: :class:`activetrack.tracking.tracker.Tracker` ``step`` (what
+``batch`` and the tracker node run: gating, JPDA, existence, initiation, M-of-N, deletion,
+coalescence) against Stone Soup's tracker as ``benchmarks/multitarget_tracking.py`` builds it
+(``JPDA`` + ``MultiMeasurementInitiator`` + its deleters; reused by import), on the same
+detections of 3 crossing targets (that file's ``radar`` scene, priors drawn), each tracker built
+and its detections converted before the timing. Each run's time is the sum of its scans' step
+times; GOSPA and the tracks each reports are printed beside (Stone Soup's confirms some clutter
+tracks).
+
+Part 1, secondary line: the bare association filter (below), ``filters.jpda.jpda_update``
+against Stone Soup's bare ``JPDA`` on fixed tracks, also as the median of per-run paired ratios.
+
+The scale table (``benchmarks/multitarget_scale.py``): our step and Stone Soup's JPDA and EHM
+(pyehm) from 3 to 1,000 targets, spread and crowded, 10 to 1,000 false alarms per scan and
+radar, under a named per-point budget (a point over it says so).
+
+Part 2 (``--managers``, about 30 minutes at 8 runs) compares the sensor managers (below).
+
+The bare association filter: activetrack's JPDA-EKF (``filters.jpda.jpda_update`` after a
 batched NCV prediction) against Stone Soup's ``JPDA`` with ``PDAHypothesiser``,
 ``ExtendedKalmanPredictor`` and ``PDAUpdater`` (its EKF updater with the PDA combined-innovation
 update). Both filter the same fixed set of tracks, started from the same priors, with no track
@@ -42,8 +74,9 @@ Timing: ``time.perf_counter`` around each scan's predict + association + update 
 are computed once per run, as our EKF caches them); building the detections and reading the
 estimates are not timed. One warm-up run each, then the two take turns run by run.
 
-Measured (30 runs, 2-core VM shared with other jobs, load average 2.6; Python 3.11.7, numpy
-2.4.6, Stone Soup 1.9.1): time-averaged GOSPA 134.6883 m for both; ours - Stone Soup
+Measured before issue 28 (30 runs, 2-core VM shared with other jobs, load average 2.6; Python
+3.11.7, numpy 2.4.6, Stone Soup 1.9.1), as a ratio of total times over all runs, not the paired
+median printed now: time-averaged GOSPA 134.6883 m for both; ours - Stone Soup
 +7.6e-8 +- 1.0e-7 m, the largest per-run difference 1.5e-6 m and the largest track position
 difference at any scan 1.0e-5 m (Stone Soup's finite-difference Jacobian). Update loop: ours
 958 us median per scan, Stone Soup 22.5 ms; 33.9x in total time (p10 15.2x, p90 47.5x run by
