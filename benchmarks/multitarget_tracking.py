@@ -12,15 +12,15 @@ confirmed ones; Stone Soup's initiator hands over only the tracks it confirmed).
 - **ours**: :class:`activetrack.tracking.tracker.Tracker` with the EKF and the schema's
   default ``tracker.tracks`` (gate, M-of-N, existence, initiation from detections on);
 - **theirs**: Stone Soup's ``JPDA`` (``PDAHypothesiser``, ``ExtendedKalmanPredictor``,
-  ``PDAUpdater``, as part 1 of ``benchmarks/multitarget.py``, its gate at the scene's
-  ``gate_sigmas``), a ``MultiMeasurementInitiator`` (GNN on the Mahalanobis distance, ``min
-  points`` updates to confirm, velocity prior std ``init_speed_std`` as ours; its tentative
-  tracks go after ``STONESOUP_TENTATIVE_MISSES`` scans without an update,
+  ``PDAUpdater``, as the bare association filter of ``benchmarks/multitarget.py``, its gate
+  at the scene's ``gate_sigmas``), a ``MultiMeasurementInitiator`` (GNN on the Mahalanobis
+  distance, ``min points`` updates to confirm, velocity prior std ``init_speed_std`` as ours; its
+  tentative tracks go after ``STONESOUP_TENTATIVE_MISSES`` scans without an update,
   ``UpdateTimeStepsDeleter``) and a ``CovarianceBasedDeleter`` on the confirmed tracks'
   position variances (threshold ``STONESOUP_DELETE_STD``^2 per axis).
 
-Scenes (targets, motion, radar, clutter and crossing of ``benchmarks/multitarget.py``'s part 1,
-3, 4, 5, 3, ... targets by run, 40 scans of 5 s):
+Scenes (targets, motion, radar, clutter and crossing of the bare filter's scene of
+``benchmarks/multitarget.py``, 3, 4, 5, 3, ... targets by run, 40 scans of 5 s):
 
 - ``radar``: the one range-bearing radar at (14, 8) km looking west;
 - ``bearings``: two bearing sensors, at (1, 8) km looking east and at (7, 1) km looking north
