@@ -21,8 +21,9 @@ and priors come from ``default_rng(seed)``.
 Timed per epoch (all radars' scans), after one untimed epoch of warm-up on a small scene:
 
 - **ours**: :class:`activetrack.tracking.tracker.Tracker` ``step`` with the EKF and the
-  schema's default ``tracker.tracks`` except ``max_tracks`` (``4 n + 200`` up to
-  ``limits.MAX_TRACKS``; detections it leaves unstarted are printed beside the time):
+  schema's default ``tracker.tracks`` except ``max_tracks`` (:func:`max_tracks`: room for the
+  clutter's tentative tracks, up to ``limits.MAX_TRACKS``; detections it leaves unstarted are
+  printed beside the time):
   association, initiation from the clutter, M-of-N, existence, deletion, coalescence;
 - **Stone Soup**: the prior tracks only (no initiation, no deletion: its association and
   update alone, so a lower bound of its tracker), per radar scan the tracks whose predicted
@@ -155,7 +156,7 @@ def build(n_targets: int, layout: str, clutter: float, seed: int = 0, steps: int
 def ours(scene: ScaleScene) -> Callable[[int], None]:
     """Our tracker's step (module docstring); the epoch's ``Scan`` objects built beforehand."""
     model = NearlyConstantVelocity(Q)
-    cfg = TrackManagementConfig(max_tracks=max_tracks(scene.n_targets))
+    cfg = TrackManagementConfig(max_tracks=max_tracks(scene))
 
     def make(x0: np.ndarray, P0: np.ndarray, t0: float) -> ExtendedKalmanFilter:
         return ExtendedKalmanFilter(model, x0, P0, t0)
@@ -187,11 +188,13 @@ def ours(scene: ScaleScene) -> Callable[[int], None]:
     return step
 
 
-def max_tracks(n_targets: int) -> int:
-    """Our tracker's ``max_tracks``: ``4 n + 200`` (room for every target and the clutter's
-    tentative tracks), at most the schema's :data:`activetrack.limits.MAX_TRACKS`; detections
-    not started because of it are printed in the table."""
-    return min(4 * n_targets + 200, limits.MAX_TRACKS)
+def max_tracks(scene: ScaleScene) -> int:
+    """Our tracker's ``max_tracks``: room for every target and every tentative track the
+    clutter starts (each lives about 3 epochs: ``n + ceil(4 clutter) radars + 100``), at most
+    the schema's :data:`activetrack.limits.MAX_TRACKS`; detections left unstarted because of
+    it are printed in the table."""
+    room = scene.n_targets + math.ceil(4 * scene.clutter) * len(scene.radars) + 100
+    return min(room, limits.MAX_TRACKS)
 
 
 def _stonesoup_associator(kind: str, hypothesiser):
