@@ -338,7 +338,9 @@ def test_paired_speedup_is_the_median_of_per_run_ratios():
 
 def test_tracker_comparison_times_the_trackers_without_changing_them():
     """Two runs of 4 scans: the timed steppers report what ``run_ours`` / ``run_stonesoup``
-    report (the same GOSPA bit for bit), one time per scan each."""
+    report, one time per scan each: ours bit for bit, Stone Soup's to 1e-6 m (it iterates
+    sets of tracks and detections, whose order follows object addresses: its sums differ at
+    round-off from one run to the next, measured 2e-8 m)."""
     c = mt.compare_trackers([3000, 3001], n_scans=4, warm_up=False)
     mtt = mt.tracking_module()
     assert c.times_ours.shape == c.times_theirs.shape == (2, 4)
@@ -346,7 +348,8 @@ def test_tracker_comparison_times_the_trackers_without_changing_them():
     for i, seed in enumerate((3000, 3001)):
         world = mt.replace_scans(mtt.simulate("radar", "drawn", seed, mt.TRACKER_TARGETS), 4)
         assert c.gospa_ours[i] == mtt.mean_gospa(world, mtt.run_ours("radar", world))
-        assert c.gospa_theirs[i] == mtt.mean_gospa(world, mtt.run_stonesoup("radar", world))
+        theirs = mtt.mean_gospa(world, mtt.run_stonesoup("radar", world))
+        assert c.gospa_theirs[i] == pytest.approx(theirs, rel=0, abs=1e-6)
     assert np.all(c.tracks_ours >= 1.0)
 
 
