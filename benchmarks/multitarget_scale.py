@@ -8,8 +8,8 @@ sigma_b 0.02 rad, Pd 0.9, ``clutter`` false alarms per scan and radar on average
 uniform in (range, bearing) over the radar's annulus), one scan per radar every 5 s.
 
 - ``spread``: about :data:`TARGETS_PER_CELL` targets per cell, uniform over the square
-  (``cells = ceil(sqrt(n / 8))``: 1 radar for 3 targets, 4 for 30, 16 for 100, 36 for 300,
-  121 for 1,000);
+  (``cells = ceil(sqrt(n / 8))``: 1 radar for 3 targets, 4 for 30, 16 for 100, 49 for 300,
+  144 for 1,000);
 - ``crowded``: clumps of up to :data:`CLUMP` targets (``cells = ceil(sqrt(n / 10))``), target
   k in cell ``k mod cells^2``, each clump starting inside a :data:`CLUMP_BOX` m square
   :data:`CLUMP_OFFSET` m east of its radar: gates overlap (cross-range noise 80 m, prior
