@@ -1,13 +1,48 @@
-"""Multi-target tracking side by side with Stone Soup on identical detections (issue 14, item 8).
+"""Multi-target tracking side by side with Stone Soup on identical detections (issues 14 and 28).
 
-Run with ``.venv/bin/python benchmarks/multitarget.py [--quick] [--runs N] [--manager-runs N]
-[--candidates N] [--jobs J]`` after ``make bench`` (Stone Soup is a bench-only dependency,
-``requirements-bench.txt``). The last line is
-``jpda_speedup_vs_stonesoup=<x> gospa_diff_vs_stonesoup_manager_m=<d>[<low>,<high>]``: x from
-part 1; d from part 2, GOSPA(activetrack planner) - GOSPA(Stone Soup manager) run by run on
-common random numbers, with its 95 % Student-t interval (negative: ours lower).
+Run with ``.venv/bin/python benchmarks/multitarget.py [--quick] [--runs N] [--jpda-runs N]
+[--sizes N ...] [--clutter C ...] [--budget S] [--epochs K] [--managers [--manager-runs N]
+[--candidates N] [--jobs J]]`` after ``make bench`` (Stone Soup and pyehm are bench-only
+dependencies, ``requirements-bench.txt``). The last line is ::
 
-Part 1, the association filter: activetrack's JPDA-EKF (``filters.jpda.jpda_update`` after a
+    tracker_step_speedup_vs_stonesoup=<x> n300_step_ms=<y> n1000_step_ms=<z>
+    crowded10_gospa_equals_exact=<true|false>
+
+- x: the full tracker step against Stone Soup's full tracker on the 3-target scene, the median
+  over runs of the per-run paired ratio (their total step time / ours in the same run; the two
+  take turns run by run in alternating order);
+- y, z: our median step (ms) at 300 and 1,000 spread-out targets in the scale table (lowest
+  clutter; ``over_budget`` when no epoch finished within the table's budget);
+- the crowded flag: on 10 targets crossing at one point (the bare filter's radar and
+  clutter), our tracker's time-averaged GOSPA equals that of Stone Soup's exact JPDA (its
+  efficient hypothesis management, ``JPDAWithEHM2``) within 0.01 m, association alone: no
+  initiation and no track deleted (the exact JPDA deletes none; coalescence, which would end
+  tracks as they cross, held off). The GOSPA with our track management as configured is
+  printed beside it with the deletions by reason.
+
+``--quick`` (about a minute): part 1 on 2 runs of 20 scans, the bare line on 2 runs, the scale
+table on spread scenes of 3, 10, 30, 300 and 1,000 targets at 10 false alarms per scan with a
+4 s budget per point, and the crowded check.
+
+Part 1, the full tracker step: :class:`activetrack.tracking.tracker.Tracker` ``step`` (what
+``batch`` and the tracker node run: gating, JPDA, existence, initiation, M-of-N, deletion,
+coalescence) against Stone Soup's tracker as ``benchmarks/multitarget_tracking.py`` builds it
+(``JPDA`` + ``MultiMeasurementInitiator`` + its deleters; reused by import), on the same
+detections of 3 crossing targets (that file's ``radar`` scene, priors drawn), each tracker built
+and its detections converted before the timing. Each run's time is the sum of its scans' step
+times; GOSPA and the tracks each reports are printed beside (Stone Soup's confirms some clutter
+tracks).
+
+Part 1, secondary line: the bare association filter (below), ``filters.jpda.jpda_update``
+against Stone Soup's bare ``JPDA`` on fixed tracks, also as the median of per-run paired ratios.
+
+The scale table (``benchmarks/multitarget_scale.py``): our step and Stone Soup's JPDA and EHM
+(pyehm) from 3 to 1,000 targets, spread and crowded, 10 to 1,000 false alarms per scan and
+radar, under a named per-point budget (a point over it says so).
+
+Part 2 (``--managers``, about 30 minutes at 8 runs) compares the sensor managers (below).
+
+The bare association filter: activetrack's JPDA-EKF (``filters.jpda.jpda_update`` after a
 batched NCV prediction) against Stone Soup's ``JPDA`` with ``PDAHypothesiser``,
 ``ExtendedKalmanPredictor`` and ``PDAUpdater`` (its EKF updater with the PDA combined-innovation
 update). Both filter the same fixed set of tracks, started from the same priors, with no track
@@ -42,8 +77,9 @@ Timing: ``time.perf_counter`` around each scan's predict + association + update 
 are computed once per run, as our EKF caches them); building the detections and reading the
 estimates are not timed. One warm-up run each, then the two take turns run by run.
 
-Measured (30 runs, 2-core VM shared with other jobs, load average 2.6; Python 3.11.7, numpy
-2.4.6, Stone Soup 1.9.1): time-averaged GOSPA 134.6883 m for both; ours - Stone Soup
+Measured before issue 28 (30 runs, 2-core VM shared with other jobs, load average 2.6; Python
+3.11.7, numpy 2.4.6, Stone Soup 1.9.1), as a ratio of total times over all runs, not the paired
+median printed now: time-averaged GOSPA 134.6883 m for both; ours - Stone Soup
 +7.6e-8 +- 1.0e-7 m, the largest per-run difference 1.5e-6 m and the largest track position
 difference at any scan 1.0e-5 m (Stone Soup's finite-difference Jacobian). Update loop: ours
 958 us median per scan, Stone Soup 22.5 ms; 33.9x in total time (p10 15.2x, p90 47.5x run by
@@ -121,22 +157,30 @@ costs c^2 / 2); the merged tracker confirms almost none on this scenario.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
+import importlib.util
 import math
+import os
 import platform
 import sys
 import time
-from dataclasses import dataclass, field
+from collections import Counter
+from dataclasses import dataclass, field, replace
 from datetime import timedelta
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 
+from activetrack import limits
 from activetrack.allocator import tune_allocator
 from activetrack.argtypes import int_in_range
 from activetrack.closed_loop.components import component_rngs
 from activetrack.closed_loop.evaluation import evaluate_run
 from activetrack.closed_loop.loop import run_once
+from activetrack.data import Scan
+from activetrack.filters.ekf import ExtendedKalmanFilter
 from activetrack.filters.jpda import gate_probability, jpda_update
 from activetrack.metrics import gospa
 from activetrack.models import NearlyConstantVelocity, RangeBearingSensor
@@ -144,7 +188,9 @@ from activetrack.models.clutter import ClutteredSensor
 from activetrack.montecarlo import parallel_map
 from activetrack.montecarlo.paired import PairedDifference, paired_difference
 from activetrack.scenarios import load_scenario
-from activetrack.scenarios.schema import Scenario
+from activetrack.scenarios.schema import Scenario, TrackManagementConfig
+from activetrack.tracking import management as track_management
+from activetrack.tracking.tracker import FilterSpec, Tracker, TrackPrior
 from activetrack_experiments.multitarget import strategy_scenario
 from activetrack_experiments.stonesoup_manager import (
     DEFAULT_CANDIDATES,
@@ -390,6 +436,11 @@ class JPDAComparison:
         lo, hi = np.percentile(r, [10, 90])
         return float(lo), float(hi)
 
+    @property
+    def paired_speedup(self) -> float:
+        """The median over the runs of the per-run time ratio (theirs / ours, same run)."""
+        return float(np.median(self.times_theirs.sum(axis=1) / self.times_ours.sum(axis=1)))
+
 
 def compare_jpda(sc: JPDAScenario, seeds: list[int], warm_up: bool = True) -> JPDAComparison:
     """Part 1: both JPDA filters on the same runs (3, 4, 5, 3, ... targets), taking turns."""
@@ -419,7 +470,7 @@ def compare_jpda(sc: JPDAScenario, seeds: list[int], warm_up: bool = True) -> JP
 
 def print_jpda(sc: JPDAScenario, c: JPDAComparison) -> None:
     print(
-        f"# part 1: JPDA-EKF on identical detections, {len(c.seeds)} runs "
+        f"# JPDA-EKF on identical detections, {len(c.seeds)} runs "
         f"(seeds {c.seeds[0]}..{c.seeds[-1]}, targets {sorted(set(c.n_targets))}), "
         f"{sc.n_steps} scans of T={sc.T} s, Pd={sc.pd}, clutter {sc.clutter_density} /(m rad), "
         f"gate gamma={sc.gamma:g}, GOSPA c={sc.cutoff:g} m p={sc.order:g} alpha=2"
@@ -445,10 +496,268 @@ def print_jpda(sc: JPDAScenario, c: JPDAComparison) -> None:
         f"({np.median(tt) * 1e6:.0f} us)"
     )
     print(
-        f"speed ratio {c.speedup:.1f}x [p10 {lo:.1f}, p90 {hi:.1f} run by run; median per scan "
-        f"{np.median(tt) / np.median(to):.1f}x]  (target >= 10x: "
-        f"{'met' if c.speedup >= 10 else 'MISSED'})"
+        f"bare jpda_update vs Stone Soup's bare JPDA: paired ratio (theirs / ours, run by run) "
+        f"median {c.paired_speedup:.1f}x [p10 {lo:.1f}, p90 {hi:.1f}]; total times "
+        f"{c.speedup:.1f}x; median scans {np.median(tt) / np.median(to):.1f}x"
     )
+
+
+# --- part 1: the full tracker step against Stone Soup's full tracker ------------------------
+
+TRACKER_TARGETS = 3  # targets of part 1's tracker scene (the issue's 3-target scene)
+TRACKER_SCENE = "radar"  # benchmarks/multitarget_tracking.py's one radar
+
+
+def tracking_module():
+    """``benchmarks/multitarget_tracking.py`` (its scene and both full trackers), loaded once."""
+    name = "bench_multitarget_tracking"
+    if name not in sys.modules:
+        path = Path(__file__).resolve().parent / "multitarget_tracking.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # dataclasses look their module up
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+def timed_run(stepper, n_scans: int) -> tuple[list[np.ndarray], np.ndarray]:
+    """A tracker's reported positions at scans 1..``n_scans`` and the wall time of each scan's
+    ``step`` (s); reading the positions is not timed."""
+    out, dt = [], np.empty(n_scans)
+    clock = time.perf_counter
+    for k in range(1, n_scans + 1):
+        t0 = clock()
+        stepper.step(k)
+        dt[k - 1] = clock() - t0
+        out.append(stepper.positions())
+    return out, dt
+
+
+@dataclass
+class TrackerComparison:
+    """The full trackers on the same worlds: per-run time-averaged GOSPA (m), mean tracks
+    reported per scan and per-scan wall times (s) ``(runs, K)`` of each."""
+
+    seeds: list[int]
+    gospa_ours: np.ndarray
+    gospa_theirs: np.ndarray
+    tracks_ours: np.ndarray
+    tracks_theirs: np.ndarray
+    times_ours: np.ndarray
+    times_theirs: np.ndarray
+
+    @property
+    def ratios(self) -> np.ndarray:
+        """Per run: their total step time / ours (the same run, the two taking turns)."""
+        return self.times_theirs.sum(axis=1) / self.times_ours.sum(axis=1)
+
+    @property
+    def paired_speedup(self) -> float:
+        """The headline: the median over the runs of :attr:`ratios`."""
+        return float(np.median(self.ratios))
+
+    def spread(self) -> tuple[float, float]:
+        """10th and 90th percentiles of :attr:`ratios`."""
+        lo, hi = np.percentile(self.ratios, [10, 90])
+        return float(lo), float(hi)
+
+
+def compare_trackers(
+    seeds: list[int], n_scans: int | None = None, warm_up: bool = True
+) -> TrackerComparison:
+    """Part 1: our ``Tracker.step`` and Stone Soup's tracker (JPDA, initiator, deleters) on the
+    same detections of :data:`TRACKER_TARGETS` crossing targets, scans 1..``n_scans`` (all),
+    taking turns run by run in alternating order; each tracker is built, and its detections
+    converted, before the timing starts."""
+    mtt = tracking_module()
+    worlds = [mtt.simulate(TRACKER_SCENE, "drawn", s, TRACKER_TARGETS) for s in seeds]
+    K = len(worlds[0].scans) if n_scans is None else n_scans
+    makers = [mtt.ours, mtt.stonesoup]
+    if warm_up:
+        for make in makers:
+            timed_run(make(TRACKER_SCENE, worlds[0]), min(K, 5))
+    got: dict = {make: [] for make in makers}
+    for i, world in enumerate(worlds):
+        for make in makers if i % 2 == 0 else makers[::-1]:
+            got[make].append(timed_run(make(TRACKER_SCENE, world), K))
+
+    def figures(make):
+        runs = got[make]
+        g = [
+            mtt.mean_gospa(replace_scans(w, K), pos)
+            for w, (pos, _) in zip(worlds, runs, strict=True)
+        ]
+        n = [np.mean([len(p) for p in pos]) for pos, _ in runs]
+        return np.array(g), np.array(n), np.array([dt for _, dt in runs])
+
+    (g_o, n_o, t_o), (g_t, n_t, t_t) = figures(mtt.ours), figures(mtt.stonesoup)
+    return TrackerComparison(list(seeds), g_o, g_t, n_o, n_t, t_o, t_t)
+
+
+def replace_scans(world, n_scans: int):
+    """``world`` cut to its first ``n_scans`` scans (its GOSPA over those)."""
+    return replace(world, scans=world.scans[:n_scans])
+
+
+def print_trackers(c: TrackerComparison, n_scans: int) -> None:
+    print(
+        f"# part 1: the full tracker step (Tracker.step: association, track management, "
+        f"initiation, what `batch` runs) against Stone Soup's tracker (JPDA + "
+        f"MultiMeasurementInitiator + deleters, benchmarks/multitarget_tracking.py), "
+        f"{len(c.seeds)} runs (seeds {c.seeds[0]}..{c.seeds[-1]}), {TRACKER_TARGETS} crossing "
+        f"targets, one radar, {n_scans} scans, same detections, alternating order"
+    )
+    print(f"{'run':>4} {'seed':>6} {'ours ms/scan':>12} {'SS ms/scan':>11} {'ratio':>7} "
+          f"{'GOSPA ours':>11} {'SS':>8} {'tracks ours':>11} {'SS':>6}")  # fmt: skip
+    for i, s in enumerate(c.seeds):
+        print(
+            f"{i:4d} {s:6d} {c.times_ours[i].mean() * 1e3:12.2f} "
+            f"{c.times_theirs[i].mean() * 1e3:11.2f} {c.ratios[i]:6.1f}x "
+            f"{c.gospa_ours[i]:11.1f} {c.gospa_theirs[i]:8.1f} {c.tracks_ours[i]:11.1f} "
+            f"{c.tracks_theirs[i]:6.1f}"
+        )
+    lo, hi = c.spread()
+    print(
+        f"tracker step: ours {np.median(c.times_ours) * 1e3:.2f} ms median per scan, Stone Soup "
+        f"{np.median(c.times_theirs) * 1e3:.2f} ms; paired ratio (theirs / ours, run by run) "
+        f"median {c.paired_speedup:.1f}x [p10 {lo:.1f}, p90 {hi:.1f}]  (target >= 15x: "
+        f"{'met' if c.paired_speedup >= 15 else 'MISSED'})"
+    )
+    sc = JPDAScenario()
+    print(
+        f"time-averaged GOSPA (c={sc.cutoff:g} m, p={sc.order:g}): ours "
+        f"{c.gospa_ours.mean():.1f} m, Stone Soup {c.gospa_theirs.mean():.1f} m; tracks "
+        f"reported per scan: ours {c.tracks_ours.mean():.1f}, Stone Soup "
+        f"{c.tracks_theirs.mean():.1f} ({TRACKER_TARGETS} targets)"
+    )
+
+
+# --- crowded: our tracker's association against Stone Soup's exact JPDA ----------------------
+
+CROWDED_TARGETS = 10  # all crossing at one point halfway (the issue's crowded 10-target scene)
+CROWDED_SEEDS = (2000,)
+CROWDED_TOLERANCE_M = 0.01  # time-averaged GOSPA agreement that counts as equal
+
+
+def _positions_gospa(sc: JPDAScenario, run: Run, positions: list[np.ndarray]) -> float:
+    """Time-averaged GOSPA of reported positions ``(n_k, 2)`` at scans 1..K."""
+    d = [
+        gospa(run.truth[k + 1][:, [0, 2]], Y, sc.cutoff, sc.order).distance
+        for k, Y in enumerate(positions)
+    ]
+    return float(np.mean(d))
+
+
+def crowded_ours(
+    sc: JPDAScenario, run: Run, management: bool = False
+) -> tuple[list[np.ndarray], Counter[str]]:
+    """Our tracker on the bare-filter scene's scans, no initiation (tracks from the priors
+    only), gate ``sc.gate_sigmas``: its confirmed tracks' positions per scan and its counters
+    (deletions by reason). ``management=False`` isolates the association: no track is deleted
+    (no miss count, existence or position-std limit, and coalescence held off by
+    ``COALESCE_LOOKS`` beyond the run), as the exact JPDA it is compared with deletes none."""
+    if management:
+        cfg = TrackManagementConfig(gate_sigmas=sc.gate_sigmas, initiate=False)
+        hold = contextlib.nullcontext()
+    else:
+        cfg = TrackManagementConfig(
+            gate_sigmas=sc.gate_sigmas, initiate=False, delete_misses=1000,
+            max_position_std=limits.MAX_RANGE, existence_terminate=0.0,
+            existence_terminate_prior=0.0,
+        )  # fmt: skip
+        hold = mock.patch.object(track_management, "COALESCE_LOOKS", sc.n_steps + 1)
+    model, sensor = NearlyConstantVelocity(sc.q), make_sensor(sc)
+
+    def make(x0: np.ndarray, P0: np.ndarray, t0: float) -> ExtendedKalmanFilter:
+        return ExtendedKalmanFilter(model, x0, P0, t0)
+
+    tracker = Tracker(
+        model, "ncv", FilterSpec("ekf", False, make), {"radar": sensor},
+        [TrackPrior(f"t{i}", m, run.prior_cov) for i, m in enumerate(run.prior_means)],
+        known_association=False, management=cfg, planner_samples=1, new_track_priority=1.0,
+        rng=np.random.default_rng(run.seed),
+    )  # fmt: skip
+    fov = sensor.field_of_view(run.sensor_pv)
+    out = []
+    with hold:
+        for k, Z in enumerate(run.scans, start=1):
+            ts = tracker.step(k, k * sc.T, [Scan("radar", k, k * sc.T, run.sensor_pv, Z, fov)])
+            out.append(np.array([tr.mean[[0, 2]] for tr in ts.confirmed]).reshape(-1, 2))
+    return out, tracker.counters
+
+
+def crowded_exact(sc: JPDAScenario, run: Run) -> list[np.ndarray]:
+    """Stone Soup's exact JPDA (efficient hypothesis management, ``JPDAWithEHM2`` of its pyehm
+    plugin; the same marginals as ``JPDA``'s full enumeration) with its EKF: positions per
+    scan."""
+    from stonesoup.plugins.pyehm import JPDAWithEHM2
+    from stonesoup.types.state import GaussianState
+    from stonesoup.types.track import Track
+
+    mm = _stonesoup_measurement_model(sc, run.sensor_pv)
+    associator, updater = _stonesoup_jpda(sc, mm)
+    associator = JPDAWithEHM2(hypothesiser=associator.hypothesiser)
+    dets = stonesoup_detections(sc, run, mm)
+    tracks = [
+        Track([GaussianState(m.reshape(4, 1), run.prior_cov, timestamp=EPOCH)])
+        for m in run.prior_means
+    ]
+    out = []
+    for k in range(sc.n_steps):
+        hypotheses = associator.associate(
+            tracks, dets[k], EPOCH + timedelta(seconds=sc.T * (k + 1))
+        )
+        for track in tracks:
+            track.append(updater.update(hypotheses[track]))
+        out.append(np.array([np.asarray(t.state_vector, dtype=float)[[0, 2], 0] for t in tracks]))
+    return out
+
+
+@dataclass
+class CrowdedCheck:
+    """Per seed: time-averaged GOSPA (m) of our tracker's association (no track deleted), of
+    Stone Soup's exact JPDA, and of our tracker with its track management as configured, with
+    that run's deletions by reason."""
+
+    seeds: list[int]
+    ours: np.ndarray
+    exact: np.ndarray
+    managed: np.ndarray
+    deletions: list[dict[str, int]]
+
+    @property
+    def equal(self) -> bool:
+        return bool(np.all(np.abs(self.ours - self.exact) <= CROWDED_TOLERANCE_M))
+
+
+def check_crowded(sc: JPDAScenario, seeds=CROWDED_SEEDS, n: int = CROWDED_TARGETS) -> CrowdedCheck:
+    """Our tracker against Stone Soup's exact JPDA on ``n`` targets crossing at one point."""
+    runs = [simulate(sc, s, n) for s in seeds]
+    ours = [_positions_gospa(sc, r, crowded_ours(sc, r)[0]) for r in runs]
+    exact = [_positions_gospa(sc, r, crowded_exact(sc, r)) for r in runs]
+    managed, deletions = [], []
+    for r in runs:
+        positions, counters = crowded_ours(sc, r, management=True)
+        managed.append(_positions_gospa(sc, r, positions))
+        deletions.append({k: v for k, v in counters.items() if k.startswith("deleted") and v})
+    return CrowdedCheck(list(seeds), np.array(ours), np.array(exact), np.array(managed), deletions)
+
+
+def print_crowded(c: CrowdedCheck, n: int = CROWDED_TARGETS) -> None:
+    print(
+        f"# crowded: {n} targets crossing at one point, the bare filter's radar and clutter, no "
+        f"initiation: our tracker's association (no track deleted) against Stone Soup's exact "
+        f"JPDA (EHM), time-averaged GOSPA"
+    )
+    for i, s in enumerate(c.seeds):
+        a, b = c.ours[i], c.exact[i]
+        same = abs(a - b) <= CROWDED_TOLERANCE_M
+        print(
+            f"seed {s}: ours {a:.4f} m, exact {b:.4f} m, difference {a - b:+.2e} m (equal "
+            f"within {CROWDED_TOLERANCE_M} m: {same}); with our track management as configured "
+            f"{c.managed[i]:.4f} m, deletions {c.deletions[i] or 'none'}"
+        )
 
 
 # --- part 2: the sensor manager on scenario (b) ----------------------------------------------
@@ -568,10 +877,46 @@ def print_managers(scenario: Scenario, c: ManagerComparison) -> None:
         )
 
 
+def _scale_module():
+    """``benchmarks/multitarget_scale.py`` (the scale table's scenes and timing)."""
+    name = "bench_multitarget_scale"
+    if name not in sys.modules:
+        path = Path(__file__).resolve().parent / "multitarget_scale.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+def _step_ms(rows, n: int) -> str:
+    """Our median step (ms) at ``n`` spread targets and the lowest clutter, as the last line
+    prints it (``over_budget`` / ``not_run``)."""
+    for row in rows:
+        if row.n_targets == n and row.layout == "spread":
+            cell = row.cells["ours"]
+            return f"{np.median(cell.times) * 1e3:.1f}" if cell.times else "over_budget"
+    return "not_run"
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--quick", action="store_true", help="4 + 2 runs, a smoke check")
-    p.add_argument("--runs", type=int, default=30, help="Monte Carlo runs of part 1")
+    p.add_argument("--quick", action="store_true", help="a smoke run of every part, ~1-2 min")
+    p.add_argument("--runs", type=int_in_range(2, 1000), default=10,
+                   help="paired runs of part 1 (the full trackers)")  # fmt: skip
+    p.add_argument("--jpda-runs", type=int_in_range(2, 1000), default=10,
+                   help="paired runs of part 1's bare jpda_update line")  # fmt: skip
+    p.add_argument("--sizes", type=int, nargs="+", default=[3, 10, 30, 100, 300, 1000],
+                   help="targets of the scale table")  # fmt: skip
+    p.add_argument("--clutter", type=float, nargs="+", default=[10.0, 100.0, 1000.0],
+                   help="false alarms per scan and radar of the scale table")  # fmt: skip
+    p.add_argument("--budget", type=float, default=None,
+                   help="POINT_BUDGET_S: wall time per implementation and point (s)")  # fmt: skip
+    p.add_argument("--epochs", type=int_in_range(1, 100), default=5,
+                   help="timed epochs per scale point")  # fmt: skip
+    p.add_argument("--managers", action="store_true",
+                   help="also part 2, the sensor managers (~30 min at 8 runs)")  # fmt: skip
     p.add_argument(
         "--manager-runs", type=int_in_range(2, 1000), default=DEFAULT_MANAGER_RUNS,
         help="paired runs of part 2",
@@ -593,24 +938,48 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     print(
         f"# multitarget benchmark  python {platform.python_version()}  numpy {np.__version__}"
-        f"  stonesoup {stonesoup.__version__}"
+        f"  stonesoup {stonesoup.__version__}  load average {os.getloadavg()[0]:.1f}"
     )
     sc = JPDAScenario()
-    n_runs = 4 if args.quick else args.runs
+    scale = _scale_module()
     t_start = time.perf_counter()
-    jpda = compare_jpda(sc, [2000 + i for i in range(n_runs)])
+    if args.quick:
+        runs, jpda_runs, n_scans, epochs = 2, 2, 20, 3
+        budget = scale.QUICK_BUDGET_S if args.budget is None else args.budget
+        sizes, clutters, layouts = [3, 10, 30, 300, 1000], [10.0], ["spread"]
+    else:
+        runs, jpda_runs, n_scans, epochs = args.runs, args.jpda_runs, None, args.epochs
+        budget = scale.POINT_BUDGET_S if args.budget is None else args.budget
+        sizes, clutters, layouts = args.sizes, args.clutter, list(scale.LAYOUTS)
+    trackers = compare_trackers([3000 + i for i in range(runs)], n_scans)
+    print_trackers(trackers, n_scans or sc.n_steps)
+    jpda = compare_jpda(sc, [2000 + i for i in range(jpda_runs)])
+    print("# part 1, secondary: the bare association filter, no track management")
     print_jpda(sc, jpda)
-    t_part2 = time.perf_counter()
-    scenario_b = load_scenario(SCENARIO_B)
-    n_manager = 2 if args.quick else args.manager_runs
-    managers = compare_managers(scenario_b, list(range(n_manager)), args.candidates, args.jobs)
-    print_managers(scenario_b, managers)
-    d = managers.paired("planner", "stonesoup")
-    now = time.perf_counter()
-    print(f"# benchmark wall time {now - t_start:.1f} s (part 2: {now - t_part2:.1f} s)")
+    print(f"load average {os.getloadavg()[0]:.1f}")
+    scale.print_header(list(scale.IMPLEMENTATIONS), epochs, budget)
+    rows = scale.scale_table(
+        sizes, layouts, sorted(clutters), list(scale.IMPLEMENTATIONS), budget, epochs,
+        printer=scale.print_row,
+    )  # fmt: skip
+    print(f"load average {os.getloadavg()[0]:.1f}")
+    crowded = check_crowded(sc)
+    print_crowded(crowded)
+    if args.managers:
+        t_part2 = time.perf_counter()
+        scenario_b = load_scenario(SCENARIO_B)
+        managers = compare_managers(
+            scenario_b, list(range(args.manager_runs)), args.candidates, args.jobs
+        )
+        print_managers(scenario_b, managers)
+        d = managers.paired("planner", "stonesoup")
+        print(f"# part 2 wall time {time.perf_counter() - t_part2:.1f} s")
+        print(f"gospa_diff_vs_stonesoup_manager_m={d.mean:+.1f}[{d.low:+.1f},{d.high:+.1f}]")
+    print(f"# benchmark wall time {time.perf_counter() - t_start:.1f} s")
     print(
-        f"jpda_speedup_vs_stonesoup={jpda.speedup:.2f} "
-        f"gospa_diff_vs_stonesoup_manager_m={d.mean:+.1f}[{d.low:+.1f},{d.high:+.1f}]"
+        f"tracker_step_speedup_vs_stonesoup={trackers.paired_speedup:.2f} "
+        f"n300_step_ms={_step_ms(rows, 300)} n1000_step_ms={_step_ms(rows, 1000)} "
+        f"crowded10_gospa_equals_exact={str(crowded.equal).lower()}"
     )
     return 0
 

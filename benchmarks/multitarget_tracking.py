@@ -12,15 +12,15 @@ confirmed ones; Stone Soup's initiator hands over only the tracks it confirmed).
 - **ours**: :class:`activetrack.tracking.tracker.Tracker` with the EKF and the schema's
   default ``tracker.tracks`` (gate, M-of-N, existence, initiation from detections on);
 - **theirs**: Stone Soup's ``JPDA`` (``PDAHypothesiser``, ``ExtendedKalmanPredictor``,
-  ``PDAUpdater``, as part 1 of ``benchmarks/multitarget.py``, its gate at the scene's
-  ``gate_sigmas``), a ``MultiMeasurementInitiator`` (GNN on the Mahalanobis distance, ``min
-  points`` updates to confirm, velocity prior std ``init_speed_std`` as ours; its tentative
-  tracks go after ``STONESOUP_TENTATIVE_MISSES`` scans without an update,
+  ``PDAUpdater``, as the bare association filter of ``benchmarks/multitarget.py``, its gate
+  at the scene's ``gate_sigmas``), a ``MultiMeasurementInitiator`` (GNN on the Mahalanobis
+  distance, ``min points`` updates to confirm, velocity prior std ``init_speed_std`` as ours; its
+  tentative tracks go after ``STONESOUP_TENTATIVE_MISSES`` scans without an update,
   ``UpdateTimeStepsDeleter``) and a ``CovarianceBasedDeleter`` on the confirmed tracks'
   position variances (threshold ``STONESOUP_DELETE_STD``^2 per axis).
 
-Scenes (targets, motion, radar, clutter and crossing of ``benchmarks/multitarget.py``'s part 1,
-3, 4, 5, 3, ... targets by run, 40 scans of 5 s):
+Scenes (targets, motion, radar, clutter and crossing of the bare filter's scene of
+``benchmarks/multitarget.py``, 3, 4, 5, 3, ... targets by run, 40 scans of 5 s):
 
 - ``radar``: the one range-bearing radar at (14, 8) km looking west;
 - ``bearings``: two bearing sensors, at (1, 8) km looking east and at (7, 1) km looking north
@@ -59,13 +59,14 @@ import importlib.util
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
 
-from activetrack.data import Scan
+from activetrack.data import Scan, TrackSet
 from activetrack.filters.ekf import ExtendedKalmanFilter
 from activetrack.metrics import gospa
 from activetrack.models import NearlyConstantVelocity
@@ -177,9 +178,28 @@ def simulate(scene: str, priors: str, seed: int, n_targets: int) -> World:
     return World(seed, np.array(truth), truth[0] + u * std, np.diag(std**2), scans)
 
 
-def run_ours(scene: str, world: World) -> list[np.ndarray]:
-    """Our tracker with the EKF and the default ``tracker.tracks``: the confirmed tracks'
-    positions ``(n_k, 2)`` at scans 1..K."""
+@dataclass
+class Stepper:
+    """A tracker set up on one world: ``step(k)`` runs scan k (1..K), everything the tracker
+    does with it (``benchmarks/multitarget.py`` times this call); ``positions()`` the
+    positions ``(n, 2)`` of the tracks it reports after the last step (not timed)."""
+
+    step: Callable[[int], None]
+    positions: Callable[[], np.ndarray]
+
+
+def run(stepper: Stepper, n_scans: int) -> list[np.ndarray]:
+    """The stepper's reported positions at scans 1..``n_scans``."""
+    out = []
+    for k in range(1, n_scans + 1):
+        stepper.step(k)
+        out.append(stepper.positions())
+    return out
+
+
+def ours(scene: str, world: World) -> Stepper:
+    """Our tracker with the EKF and the default ``tracker.tracks`` (its confirmed tracks
+    reported); the scans are built beforehand."""
     cfg = TrackManagementConfig()
     model = NearlyConstantVelocity(SC.q)
     scene_sites = sites(scene, cfg.gate_sigmas)
@@ -199,15 +219,27 @@ def run_ours(scene: str, world: World) -> list[np.ndarray]:
         new_track_priority=1.0,
         rng=np.random.default_rng(world.seed),
     )
-    out = []
-    for k, row in enumerate(world.scans, start=1):
-        t = k * SC.T
-        scans = [
-            Scan(s.sensor_id, k, t, s.pv, Z, s.fov) for s, Z in zip(scene_sites, row, strict=True)
+    scans = [
+        [
+            Scan(s.sensor_id, k, k * SC.T, s.pv, Z, s.fov)
+            for s, Z in zip(scene_sites, row, strict=True)
         ]
-        ts = tracker.step(k, t, scans)
-        out.append(np.array([tr.mean[[0, 2]] for tr in ts.confirmed]).reshape(-1, 2))
-    return out
+        for k, row in enumerate(world.scans, start=1)
+    ]
+    last: list[TrackSet] = []
+
+    def step(k: int) -> None:
+        last[:] = [tracker.step(k, k * SC.T, scans[k - 1])]
+
+    def positions() -> np.ndarray:
+        return np.array([tr.mean[[0, 2]] for tr in last[0].confirmed]).reshape(-1, 2)
+
+    return Stepper(step, positions)
+
+
+def run_ours(scene: str, world: World) -> list[np.ndarray]:
+    """Our tracker (:func:`ours`): the confirmed tracks' positions ``(n_k, 2)`` at scans 1..K."""
+    return run(ours(scene, world), len(world.scans))
 
 
 def _stonesoup_model(site: SensorSite):
@@ -279,9 +311,9 @@ def _stonesoup_initiator(model, deleter):
     )
 
 
-def run_stonesoup(scene: str, world: World) -> list[np.ndarray]:
-    """Stone Soup's JPDA with its initiator and deleter (module docstring): the positions of
-    its tracks ``(n_k, 2)`` at scans 1..K."""
+def stonesoup(scene: str, world: World) -> Stepper:
+    """Stone Soup's JPDA with its initiator and deleter (module docstring), all its tracks
+    reported; its detections are built beforehand."""
     from stonesoup.deleter.error import CovarianceBasedDeleter
     from stonesoup.deleter.time import UpdateTimeStepsDeleter
     from stonesoup.types.state import GaussianState
@@ -302,27 +334,38 @@ def run_stonesoup(scene: str, world: World) -> list[np.ndarray]:
         Track([GaussianState(m.reshape(4, 1), world.prior_cov, timestamp=_EPOCH)])
         for m in world.prior_means
     }
-    out = []
-    for k, row in enumerate(world.scans, start=1):
-        when = _EPOCH + timedelta(seconds=SC.T * k)
-        for site, model, (associator, updater), Z in zip(
-            scene_sites, models, jpdas, row, strict=True
-        ):
-            detections = _stonesoup_detections(site, model, Z, when)
-            hypotheses = associator.associate(tracks, detections, when)
+    whens = [_EPOCH + timedelta(seconds=SC.T * k) for k in range(1, len(world.scans) + 1)]
+    detections = [
+        [_stonesoup_detections(site, model, Z, when)
+         for site, model, Z in zip(scene_sites, models, row, strict=True)]
+        for row, when in zip(world.scans, whens, strict=True)
+    ]  # fmt: skip
+
+    def step(k: int) -> None:
+        nonlocal tracks
+        when = whens[k - 1]
+        for (associator, updater), dets in zip(jpdas, detections[k - 1], strict=True):
+            hypotheses = associator.associate(tracks, dets, when)
             used = set()
             for track in tracks:
                 track.append(updater.update(hypotheses[track]))
                 used |= {h.measurement for h in hypotheses[track] if h}
             tracks -= deleter.delete_tracks(tracks)
             if initiator is not None:
-                tracks |= initiator.initiate(detections - used, when)
-        out.append(
-            np.array([np.asarray(t.state_vector, dtype=float)[[0, 2], 0] for t in tracks]).reshape(
-                -1, 2
-            )
-        )
-    return out
+                tracks |= initiator.initiate(dets - used, when)
+
+    def positions() -> np.ndarray:
+        return np.array(
+            [np.asarray(t.state_vector, dtype=float)[[0, 2], 0] for t in tracks]
+        ).reshape(-1, 2)
+
+    return Stepper(step, positions)
+
+
+def run_stonesoup(scene: str, world: World) -> list[np.ndarray]:
+    """Stone Soup's tracker (:func:`stonesoup`): the positions of its tracks ``(n_k, 2)`` at
+    scans 1..K."""
+    return run(stonesoup(scene, world), len(world.scans))
 
 
 def mean_gospa(world: World, positions: list[np.ndarray]) -> float:
