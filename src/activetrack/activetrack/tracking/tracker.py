@@ -12,14 +12,15 @@ sensor order:
      filter takes the epoch's scans as its measurements, a scan without a detection as
      "looked, saw nothing" (``filter.step``; Hernandez sec. 2.3, the papers' tracking);
    - **JPDA** (several targets, births or clutter): each scan in turn updates the tracks whose
-     predicted position is inside its field of view: the chi-square gate ``gamma =
-     gate_sigmas^2`` on each track's predicted measurement (its filter's moments, linearised at
-     the mean), the likelihood ratios and the JPDA marginals ``beta`` (Bar-Shalom, Daum & Huang
-     2009; :func:`activetrack.filters.jpda.jpda_association`) per cluster of tracks that share
-     gated detections (exact: the joint events factorise over clusters; a cluster whose events
-     could exceed :data:`~activetrack.filters.jpda.DEFAULT_MAX_EVENTS` is split into one PDA per
-     track, counted in ``split_clusters``); each track's filter takes its row of ``beta``
-     (``update_pda``). Particle tracks (``particle_based`` filters) take the Monte Carlo JPDAF
+     predicted position is inside its field of view (found through a k-d tree of the predicted
+     positions, :class:`.spatial.FovIndex`, then tested exactly): the chi-square gate ``gamma
+     = gate_sigmas^2`` on each track's predicted measurement (its filter's moments, linearised
+     at the mean), the likelihood ratios and the JPDA marginals ``beta`` (Bar-Shalom, Daum &
+     Huang 2009; :func:`activetrack.filters.jpda.jpda_probabilities`) per cluster of tracks
+     that share gated detections (exact: the joint events factorise over clusters; each
+     cluster whole, never split); each track's filter takes its row of ``beta``
+     (``update_pda``). The predicted measurements and gate are computed once per scan.
+     Particle tracks (``particle_based`` filters) take the Monte Carlo JPDAF
      (:mod:`activetrack.filters.jpda_particle`): their likelihood ratios are their particles'
      estimates of the predicted likelihood, the same enumeration gives ``beta``, and each
      gated pair's per-particle likelihoods go to the filter's weight update (computed once).
@@ -49,9 +50,7 @@ from activetrack.arraytypes import BoolArray, FloatArray
 from activetrack.data import CONFIRMED, TENTATIVE, Scan, TrackSet
 from activetrack.filters.clutter_likelihood import effective_clutter_density, effective_pd
 from activetrack.filters.jpda import (
-    DEFAULT_MAX_EVENTS,
     gate_probability,
-    jpda_association,
     jpda_probabilities,
     likelihood_ratios,
     predict_measurements,
@@ -69,6 +68,7 @@ from activetrack.tracking.management import (
     TrackManager,
     existence_update,
 )
+from activetrack.tracking.spatial import FovIndex
 
 __all__ = ["FilterSpec", "TrackPrior", "Tracker"]
 
@@ -144,7 +144,6 @@ class Tracker:
         self.epoch = 0
         self.time = 0.0
         self.updates = 0
-        self.split_clusters = 0  # clusters updated as independent PDAs (events beyond the cap)
         self._counts = (0, 0)  # detections, unassociated of the last step
         self._aged: set[int] = set()  # tracks whose existence was predicted this epoch
         for prior in priors:
@@ -190,10 +189,9 @@ class Tracker:
     @property
     def counters(self) -> Counter[str]:
         """What the tracker did that changes its result: deletions by reason, detections not
-        started, clusters split (``split_clusters``)."""
+        started (``max_tracks`` reached)."""
         out = Counter({f"deleted.{k}": v for k, v in self.book.deleted.items()})
         out["not_started"] = self.book.not_started
-        out["split_clusters"] = self.split_clusters
         return out
 
     # --- known association: the papers' single target -----------------------------------------
@@ -219,13 +217,16 @@ class Tracker:
 
     # --- JPDA ----------------------------------------------------------------------------------
     def _step_jpda(self, epoch: int, t: float, checked: list[_Checked]) -> tuple[int, int]:
-        for track in self.book.live():
+        live = self.book.live()
+        for track in live:
             track.filter.predict(t)
         self._aged.clear()
+        # The predicted positions, indexed once: each scan tests only the tracks within reach.
+        index = FovIndex(live, np.array([track.mean[[0, 2]] for track in live]))
         looked: dict[int, bool] = {}  # track id -> hit, for the tracks looked at
         detections = unassociated = 0
         for c in checked:
-            tracks, mask = self._update(c, t)
+            tracks, mask = self._update(c, t, index)
             for track, row in zip(tracks, mask, strict=True):
                 looked[track.track_id] = looked.get(track.track_id, False) or bool(row.any())
                 track.missed_detections += not row.any()
@@ -236,15 +237,18 @@ class Tracker:
                 started = self._start_from_detection(z, c, epoch, t)
                 if started is not None:  # None: no fix, or full (each detection counted)
                     looked[started.track_id] = True
+                    index.add(started)
         self.book.end_epoch(looked)
         return detections, unassociated
 
-    def _update(self, c: _Checked, t: float) -> tuple[list[Track], BoolArray]:
-        """Update the tracks inside the scan's field of view; them and their gate ``(T, m)``."""
-        live = self.book.live()
-        pv = np.array([track.mean for track in live]).reshape(-1, 4)
+    def _update(self, c: _Checked, t: float, index: FovIndex) -> tuple[list[Track], BoolArray]:
+        """Update the tracks inside the scan's field of view; them and their gate ``(T, m)``.
+        The predicted measurements, gate and likelihood ratios are computed once here, for the
+        existence update and the JPDA alike."""
+        candidates: list[Track] = index.candidates(c.scan.fov, c.s)  # type: ignore[assignment]
+        pv = np.array([track.mean for track in candidates]).reshape(-1, 4)
         inside = c.scan.fov.contains(pv, c.s)
-        tracks = [track for track, ok in zip(live, inside, strict=True) if ok]
+        tracks = [track for track, ok in zip(candidates, inside, strict=True) if ok]
         if not tracks:
             return [], np.zeros((0, c.Z.shape[0]), dtype=bool)
         means = np.array([track.state for track in tracks])
@@ -253,6 +257,7 @@ class Tracker:
         zhat, _, S = predict_measurements(means, covs, base, c.s, self.model)
         nu = np.asarray(base.residual(c.Z[None, :, :], zhat[:, None, :]), dtype=float)
         lam = effective_clutter_density(c.sensor.clutter_density)
+        pd = effective_pd(c.sensor.pd)
         ratios, mask = likelihood_ratios(nu, S, 1.0, lam, self.gamma)
         particles = None
         if self.filter.particle_based:  # the MC-JPDAF: each track's particles give its ratios
@@ -275,67 +280,55 @@ class Tracker:
         psi = existence_update(
             np.array([track.existence for track in tracks]),
             ratios,
-            effective_pd(c.sensor.pd) * c.scan.fov.coverage(pv_means, pv_covs, c.s),
+            pd * c.scan.fov.coverage(pv_means, pv_covs, c.s),
             gate_probability(self.gamma, int(base.dim_z)),
         )
         for track, p in zip(tracks, psi, strict=True):
             track.existence = float(p)
-        self._jpda(tracks, means, covs, particles, mask, c, t)
+        self._jpda(tracks, nu, S, particles, mask, c, t)
+        for track in tracks:
+            index.moved(track, track.mean[[0, 2]])
         return tracks, mask
 
     def _jpda(
         self,
         tracks: list[Track],
-        means: FloatArray,
-        covs: FloatArray,
+        nu: FloatArray,
+        S: FloatArray,
         particles: ParticleLikelihoods | None,
         mask: BoolArray,
         c: _Checked,
         t: float,
     ) -> None:
-        """The JPDA marginals per cluster; each track's filter takes its row of them. Particle
-        tracks: from their ``particles``' likelihoods (the MC-JPDAF,
-        :mod:`activetrack.filters.jpda_particle`), Gaussian ones from their moments."""
+        """The JPDA marginals per cluster (exact, the whole cluster at once); each track's
+        filter takes its row of them. Particle tracks: from their ``particles``' likelihoods
+        (the MC-JPDAF, :mod:`activetrack.filters.jpda_particle`), Gaussian ones from the scan's
+        residuals ``nu`` ``(T, m, d)`` and ``S`` ``(T, d, d)``. A cluster's ratios are taken
+        from its own pairs: LAPACK's solve for ``S^-1 nu`` rounds a column differently with
+        other columns beside it (1 ulp), and these are the numbers of the per-cluster
+        association the tracker has always run, to the bit."""
         pd = effective_pd(c.sensor.pd)
         pg = gate_probability(self.gamma, int(c.sensor.base.dim_z))
         lam = effective_clutter_density(c.sensor.clutter_density)
-        ratios = None if particles is None else particles.ratios(pd, lam)
-        for rows, cols in _clusters(mask):
-            events = float(np.prod(1.0 + mask[np.ix_(rows, cols)].sum(axis=1)))
-            if events <= DEFAULT_MAX_EVENTS:
-                groups = [rows]
+        scan_ratios = None if particles is None else particles.ratios(pd, lam)
+        for rows, used in _clusters(mask):
+            if scan_ratios is None:
+                ratios, _ = likelihood_ratios(nu[np.ix_(rows, used)], S[rows], pd, lam, self.gamma)
             else:
-                groups = [rows[[k]] for k in range(rows.size)]
-                self.split_clusters += 1
-            for group in groups:
-                used = cols[mask[np.ix_(group, cols)].any(axis=0)]
-                detections = [
-                    Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
-                ]
-                if particles is None or ratios is None:
-                    beta = jpda_association(
-                        means[group],
-                        covs[group],
-                        c.Z[used],
-                        c.sensor.base,
-                        c.s,
-                        self.model,
-                        clutter_density=lam,
-                        gamma=self.gamma,
-                        pd=pd,
-                    ).beta
-                    for k, row in enumerate(group):
-                        tracks[row].ess = tracks[row].filter.update_pda(detections, beta[k]).ess
-                    continue
-                beta = jpda_probabilities(ratios[np.ix_(group, used)], pd, pg)
-                for k, row in enumerate(group):
-                    update = tracks[row].filter.update_pda
-                    if _takes_likelihoods(update):  # reuse g(z_j | x_i), computed once a scan
-                        ell = [particles.ell[row][j] for j in used]
-                        info = update(detections, beta[k], log_likelihoods=ell)
-                    else:
-                        info = update(detections, beta[k])
-                    tracks[row].ess = info.ess
+                ratios = scan_ratios[np.ix_(rows, used)]
+            beta = jpda_probabilities(ratios, pd, pg)
+            detections = [
+                Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
+            ]
+            for k, row in enumerate(rows):
+                update = tracks[row].filter.update_pda
+                if particles is not None and _takes_likelihoods(update):
+                    # reuse g(z_j | x_i), computed once a scan
+                    ell = [particles.ell[row][j] for j in used]
+                    info = update(detections, beta[k], log_likelihoods=ell)
+                else:
+                    info = update(detections, beta[k])  # type: ignore[call-arg]
+                tracks[row].ess = info.ess
 
     # --- track starts ------------------------------------------------------------------------
     def _start(
