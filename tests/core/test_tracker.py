@@ -34,8 +34,10 @@ Figures asserted (seeded; the measured values are in the comments):
 
 from __future__ import annotations
 
+import logging
 import math
 from collections import Counter
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -300,15 +302,35 @@ def test_clutter_alone_confirms_no_track_and_tentative_tracks_die_within_n_looks
     assert max(epochs.values()) <= 2
 
 
-def test_max_tracks_caps_the_live_tracks_and_counts_the_rest():
+def test_max_tracks_caps_the_live_tracks_and_counts_the_rest(caplog):
     far = {"id": "late", "mean": [0.0, 0.0, 0.0, 0.0], "birth": 39}
     sc = make_scenario([far], [range_bearing(clutter_density=1e-4)], tracks={"max_tracks": 5})
     _, scans = simulate(sc, 10, np.random.default_rng(6))
-    tracker, sets = run(sc, scans)
+    with caplog.at_level(logging.WARNING, logger="activetrack.tracking.tracker"):
+        tracker, sets = run(sc, scans)
     assert max(len(ts.tracks) for ts in sets) == 5
     started = tracker.book.next_id - 1
-    assert tracker.not_started > 0
+    assert tracker.not_started > 1
     assert started + tracker.not_started == sum(ts.unassociated for ts in sets)
+    assert tracker.counters["not_started"] == tracker.not_started
+    # the limit speaks once per run, naming itself; every detection not started is counted
+    warned = [r.getMessage() for r in caplog.records if "max_tracks" in r.getMessage()]
+    assert len(warned) == 1 and "max_tracks=5 reached" in warned[0]
+
+
+def test_a_scan_beyond_the_detection_limit_is_refused_by_name(monkeypatch):
+    from activetrack import limits
+
+    sc = make_scenario([{"id": "a", "mean": [0.0, 0.0, 0.0, 0.0]}], [range_bearing()])
+    _, scans = simulate(sc, 1, np.random.default_rng(6))
+    monkeypatch.setattr(limits, "MAX_SCAN_DETECTIONS", 3)
+    scan = scans[0][0]
+    big = replace(scan, Z=np.tile([[500.0, 0.1]], (4, 1)))
+    tracker = run(sc, [])[0]
+    with pytest.raises(ValueError, match=r"scans\[0\]\.Z: at most 3 detections per scan"):
+        tracker.step(1, big.time, [big])
+    assert tracker.epoch == 0 and tracker.updates == 0
+    tracker.step(1, big.time, [replace(scan, Z=big.Z[:3])])  # at the limit: taken
 
 
 def test_a_target_born_at_epoch_5_is_confirmed_at_its_m_th_look():

@@ -39,6 +39,7 @@ from its ``rng``: the filters' own draws (particles, resampling) and the planner
 from __future__ import annotations
 
 import inspect
+import logging
 import math
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
@@ -46,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from activetrack import limits
 from activetrack.arraytypes import BoolArray, FloatArray
 from activetrack.data import CONFIRMED, TENTATIVE, Scan, TrackSet
 from activetrack.filters.clutter_likelihood import effective_clutter_density, effective_pd
@@ -71,6 +73,8 @@ from activetrack.tracking.management import (
 from activetrack.tracking.spatial import FovIndex
 
 __all__ = ["FilterSpec", "TrackPrior", "Tracker"]
+
+_log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -369,6 +373,13 @@ class Tracker:
         if fix is None:
             return None
         if self.book.full:
+            if not self.book.not_started:  # once per run; every one is counted
+                _log.warning(
+                    "tracker.tracks.max_tracks=%d reached at epoch %d: detections that would "
+                    "start a track are not started from now on (counted in not_started)",
+                    self.book.cfg.max_tracks,
+                    epoch,
+                )
             self.book.not_started += 1
             return None
         xy, P_xy = fix
@@ -432,6 +443,11 @@ def _detections(i: int, scan: Scan, sensor: ClutteredSensor) -> FloatArray:
         return np.zeros((0, d))
     if Z.ndim != 2 or Z.shape[1] != d:
         raise ValueError(f"scans[{i}].Z: must have shape (m, {d}), got {Z.shape}")
+    if Z.shape[0] > limits.MAX_SCAN_DETECTIONS:
+        raise ValueError(
+            f"scans[{i}].Z: at most {limits.MAX_SCAN_DETECTIONS} detections per scan "
+            f"(limits.MAX_SCAN_DETECTIONS), got {Z.shape[0]}"
+        )
     if not np.isfinite(Z).all():
         raise ValueError(f"scans[{i}].Z: must be finite (no NaN or inf)")
     return Z
