@@ -14,6 +14,7 @@ from activetrack.filters import (
     UpdateInfo,
     make_filter,
 )
+from activetrack.filters.jpda import pda_residuals
 from activetrack.models.base import GaussianSensor
 from activetrack.models.motion import (
     CircularMotion,
@@ -388,3 +389,28 @@ def test_bad_inputs_raise_value_error_naming_the_argument():
     # Nothing above changed the filter.
     assert ekf.time == 10.0
     np.testing.assert_array_equal(ekf.mean, X0)
+
+
+def test_pda_update_with_the_callers_linearization_equals_its_own():
+    """The tracker hands the EKF its scan's Jacobian and residuals: the same update, to the bit
+    (they are the numbers pda_residuals computes)."""
+    model = NearlyConstantVelocity(0.01)
+    sensor = RangeBearingSensor(50.0, 0.02, 0.9, 100.0, 1e5)
+    s = np.array([14000.0, 0.0, 8000.0, 0.0])
+    x0, P0 = np.array([7000.0, 5.0, 8100.0, -3.0]), np.diag([1e4, 9.0, 1e4, 9.0])
+    Z = np.array([[7010.0, math.pi - 0.012], [6900.0, math.pi - 0.02], [7050.0, -math.pi + 0.01]])
+    beta = np.array([0.1, 0.5, 0.3, 0.1])
+    own, given = ExtendedKalmanFilter(model, x0, P0), ExtendedKalmanFilter(model, x0, P0)
+    for f in (own, given):
+        f.predict(5.0)
+    meas = [Measurement(sensor, s, z, 5.0, "radar") for z in Z]
+    predicted = own.mean
+    own.update_pda(meas, beta)
+    H, nu = pda_residuals(given.mean, given.cov, Z, sensor, s, model)
+    given.update_pda(meas, beta, linearization=(H, nu))
+    assert np.array_equal(own.mean, given.mean) and np.array_equal(own.cov, given.cov)
+    assert np.linalg.norm(own.mean - predicted) > 1.0  # it did update
+    other = ExtendedKalmanFilter(model, x0, P0)
+    other.predict(5.0)
+    other.update_pda(meas, beta, linearization=(H, nu + [10.0, 0.0]))  # and it uses them
+    assert abs(other.mean[0] - own.mean[0]) > 1.0

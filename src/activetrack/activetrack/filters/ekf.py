@@ -210,16 +210,29 @@ class ExtendedKalmanFilter:
         self.last_info = info
         return info
 
-    def update_pda(self, measurements: Sequence[Measurement], beta: ArrayLike) -> UpdateInfo:
+    def update_pda(
+        self,
+        measurements: Sequence[Measurement],
+        beta: ArrayLike,
+        *,
+        linearization: tuple[FloatArray, FloatArray] | None = None,
+    ) -> UpdateInfo:
         """The PDAF update (Bar-Shalom, Daum & Huang 2009 eq. 23-27) with one scan's detections
         (one sensor and platform state) and their association probabilities ``beta`` ``(m +
-        1,)`` (``beta[0]``: none is the target's; 1 leaves the prediction)."""
+        1,)`` (``beta[0]``: none is the target's; 1 leaves the prediction). ``linearization``:
+        ``(H, nu)``, the Jacobian ``(d, n)`` at the current mean and the detections' wrapped
+        residuals ``(m, d)`` where the caller has them (the tracker, once per scan: the same
+        numbers :func:`~activetrack.filters.jpda.pda_residuals` gives); computed here
+        otherwise."""
         check_measurement_times(measurements, self._t)
         b = pda_weights(measurements, beta)
         if b[0] < 1.0:
             sensor, s = measurements[0].sensor, measurements[0].sensor_state
-            Z = np.stack([np.asarray(m.z, dtype=float) for m in measurements])
-            H, nu = pda_residuals(self._x, self._P, Z, sensor, s, self.model)
+            if linearization is None:
+                Z = np.stack([np.asarray(m.z, dtype=float) for m in measurements])
+                H, nu = pda_residuals(self._x, self._P, Z, sensor, s, self.model)
+            else:
+                H, nu = linearization
             self._x, self._P = pda_update(self._x, self._P, H, sensor.R, nu, b)
         info = UpdateInfo(
             time=self._t,

@@ -258,7 +258,7 @@ class Tracker:
         means = np.array([track.state for track in tracks])
         covs = np.array([track.state_cov for track in tracks])
         base = c.sensor.base
-        zhat, _, S = predict_measurements(means, covs, base, c.s, self.model)
+        zhat, H, S = predict_measurements(means, covs, base, c.s, self.model)
         nu = np.asarray(base.residual(c.Z[None, :, :], zhat[:, None, :]), dtype=float)
         lam = effective_clutter_density(c.sensor.clutter_density)
         pd = effective_pd(c.sensor.pd)
@@ -289,7 +289,7 @@ class Tracker:
         )
         for track, p in zip(tracks, psi, strict=True):
             track.existence = float(p)
-        self._jpda(tracks, nu, S, particles, mask, c, t)
+        self._jpda(tracks, H, nu, S, particles, mask, c, t)
         for track in tracks:
             index.moved(track, track.mean[[0, 2]])
         return tracks, mask
@@ -297,6 +297,7 @@ class Tracker:
     def _jpda(
         self,
         tracks: list[Track],
+        H: FloatArray,
         nu: FloatArray,
         S: FloatArray,
         particles: ParticleLikelihoods | None,
@@ -307,10 +308,11 @@ class Tracker:
         """The JPDA marginals per cluster (exact, the whole cluster at once); each track's
         filter takes its row of them. Particle tracks: from their ``particles``' likelihoods
         (the MC-JPDAF, :mod:`activetrack.filters.jpda_particle`), Gaussian ones from the scan's
-        residuals ``nu`` ``(T, m, d)`` and ``S`` ``(T, d, d)``. A cluster's ratios are taken
-        from its own pairs: LAPACK's solve for ``S^-1 nu`` rounds a column differently with
-        other columns beside it (1 ulp), and these are the numbers of the per-cluster
-        association the tracker has always run, to the bit."""
+        Jacobians ``H`` ``(T, d, n)``, residuals ``nu`` ``(T, m, d)`` and ``S`` ``(T, d, d)``
+        (a filter whose ``update_pda`` takes ``linearization`` is given its ``H`` and ``nu``).
+        A cluster's ratios are taken from its own pairs: LAPACK's solve for ``S^-1 nu`` rounds
+        a column differently with other columns beside it (1 ulp), and these are the numbers
+        of the per-cluster association the tracker has always run, to the bit."""
         pd = effective_pd(c.sensor.pd)
         pg = gate_probability(self.gamma, int(c.sensor.base.dim_z))
         lam = effective_clutter_density(c.sensor.clutter_density)
@@ -326,10 +328,12 @@ class Tracker:
             ]
             for k, row in enumerate(rows):
                 update = tracks[row].filter.update_pda
-                if particles is not None and _takes_likelihoods(update):
+                if particles is not None and _takes(update, "log_likelihoods"):
                     # reuse g(z_j | x_i), computed once a scan
                     ell = [particles.ell[row][j] for j in used]
                     info = update(detections, beta[k], log_likelihoods=ell)
+                elif particles is None and _takes(update, "linearization"):
+                    info = update(detections, beta[k], linearization=(H[row], nu[row, used]))
                 else:
                     info = update(detections, beta[k])  # type: ignore[call-arg]
                 tracks[row].ess = info.ess
@@ -460,21 +464,22 @@ def _platform(i: int, scan: Scan) -> FloatArray:
     return s
 
 
-def _takes_likelihoods(update: Callable[..., object]) -> bool:
-    """Whether a particle filter's ``update_pda`` takes precomputed ``log_likelihoods`` (the
-    built-in one does; a plugin's may not)."""
+def _takes(update: Callable[..., object], keyword: str) -> bool:
+    """Whether a filter's ``update_pda`` takes ``keyword``: precomputed ``log_likelihoods``
+    (the built-in particle filter) or ``linearization`` (the built-in EKF); a plugin's may
+    take neither."""
     func = getattr(update, "__func__", update)
-    known = _TAKES_LIKELIHOODS.get(func)
+    known = _TAKES.get((func, keyword))
     if known is None:
         try:
-            known = "log_likelihoods" in inspect.signature(update).parameters
+            known = keyword in inspect.signature(update).parameters
         except (TypeError, ValueError):  # a callable without a signature
             known = False
-        _TAKES_LIKELIHOODS[func] = known
+        _TAKES[func, keyword] = known
     return known
 
 
-_TAKES_LIKELIHOODS: dict[object, bool] = {}
+_TAKES: dict[tuple[object, str], bool] = {}
 
 
 def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
