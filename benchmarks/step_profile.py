@@ -39,6 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--targets", type=int, nargs="+", default=[3, 30, 100, 300, 1000])
     p.add_argument("--steps", type=int, default=10)
     p.add_argument("--profile", action="store_true")
+    p.add_argument("--sort", default="cumulative", help="cProfile order (cumulative, tottime)")
+    p.add_argument("--top", type=int, default=25, help="functions printed")
     args = p.parse_args(argv)
     print(f"# load average {os.getloadavg()[0]:.1f}")
     for n in args.targets:
@@ -54,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
             f"live={len(tracker.book.tracks)} counters={dict(tracker.counters)}"
         )
         if args.profile:
-            pstats.Stats(prof).sort_stats("cumulative").print_stats(25)
+            pstats.Stats(prof).sort_stats(args.sort).print_stats(args.top)
     return 0
 
 

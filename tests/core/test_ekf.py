@@ -412,5 +412,48 @@ def test_pda_update_with_the_callers_linearization_equals_its_own():
     assert np.linalg.norm(own.mean - predicted) > 1.0  # it did update
     other = ExtendedKalmanFilter(model, x0, P0)
     other.predict(5.0)
-    other.update_pda(meas, beta, linearization=(H, nu + [10.0, 0.0]))  # and it uses them
+    other.update_pda(meas, beta, linearization=(H, nu + np.array([10.0, 0.0])))  # and it uses them
     assert abs(other.mean[0] - own.mean[0]) > 1.0
+
+
+@pytest.mark.parametrize("m", [1, 2, 5])
+def test_stacked_pda_update_of_many_filters_equals_each_ones_own(m):
+    """update_pda_many (the tracker's stacked EKF update of a scan) gives every filter the
+    numbers its own update_pda gives, to the bit; a row with beta_0 = 1 keeps its prediction."""
+    rng = np.random.default_rng(m)
+    model = NearlyConstantVelocity(0.01)
+    sensor = RangeBearingSensor(50.0, 0.02, 0.9, 100.0, 1e5)
+    s = np.array([14000.0, 0.0, 8000.0, 0.0])
+    G = 40
+    X0 = np.column_stack(
+        [
+            rng.uniform(2e3, 9e3, G),
+            rng.normal(0, 5, G),
+            rng.uniform(2e3, 9e3, G),
+            rng.normal(0, 5, G),
+        ]
+    )
+    A = rng.standard_normal((G, 4, 4)) * [[30.0], [2.0], [30.0], [2.0]]
+    P0 = A @ np.swapaxes(A, 1, 2) + np.eye(4)
+    own = [ExtendedKalmanFilter(model, X0[g], P0[g]) for g in range(G)]
+    many = [ExtendedKalmanFilter(model, X0[g], P0[g]) for g in range(G)]
+    for f in own + many:
+        f.predict(5.0)
+    Z = sensor.measure(X0[:, None, :] + rng.normal(0, 60, (G, m, 4)), s)
+    B = rng.dirichlet(np.ones(m + 1), G)
+    B[3] = np.eye(m + 1)[0]  # no detection is its target's
+    H = np.empty((G, 2, 4))
+    nu = np.empty((G, m, 2))
+    for g in range(G):
+        meas = [Measurement(sensor, s, z, 5.0, "radar") for z in Z[g]]
+        H[g], nu[g] = pda_residuals(many[g].mean, many[g].cov, Z[g], sensor, s, model)
+        own[g].update_pda(meas, B[g])
+    ExtendedKalmanFilter.update_pda_many(many, H, nu, B, sensor.R, "radar")
+    for a, b in zip(own, many, strict=True):
+        assert np.array_equal(a.mean, b.mean) and np.array_equal(a.cov, b.cov)
+    predicted = ExtendedKalmanFilter(model, X0[3], P0[3])
+    predicted.predict(5.0)
+    assert np.array_equal(many[3].mean, predicted.mean)
+    assert many[0].last_info.n_detections == m and many[0].last_info.sensor_ids == ("radar",) * m
+    with pytest.raises(ValueError, match="beta"):
+        ExtendedKalmanFilter.update_pda_many(many, H, nu, B * 1.1, sensor.R)

@@ -317,16 +317,25 @@ class Tracker:
         pg = gate_probability(self.gamma, int(c.sensor.base.dim_z))
         lam = effective_clutter_density(c.sensor.clutter_density)
         scan_ratios = None if particles is None else particles.ratios(pd, lam)
+        # EKF-like tracks (a class with update_pda_many) by class and detections: one stacked
+        # update per group after the clusters (each track's update is its own)
+        batches: dict[tuple[type, int], list[tuple[int, np.ndarray, FloatArray]]] = {}
         for rows, used in _clusters(mask):
             if scan_ratios is None:
                 ratios, _ = likelihood_ratios(nu[np.ix_(rows, used)], S[rows], pd, lam, self.gamma)
             else:
                 ratios = scan_ratios[np.ix_(rows, used)]
             beta = jpda_probabilities(ratios, pd, pg)
-            detections = [
-                Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
-            ]
+            detections: list[Measurement] | None = None
             for k, row in enumerate(rows):
+                kind = type(tracks[row].filter)
+                if particles is None and hasattr(kind, "update_pda_many"):
+                    batches.setdefault((kind, used.size), []).append((row, used, beta[k]))
+                    continue
+                if detections is None:
+                    detections = [
+                        Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
+                    ]
                 update = tracks[row].filter.update_pda
                 if particles is not None and _takes(update, "log_likelihoods"):
                     # reuse g(z_j | x_i), computed once a scan
@@ -337,6 +346,20 @@ class Tracker:
                 else:
                     info = update(detections, beta[k])  # type: ignore[call-arg]
                 tracks[row].ess = info.ess
+        R = c.sensor.base.R
+        for (kind, _), group in batches.items():
+            rows = np.array([row for row, _, _ in group])
+            cols = np.array([used for _, used, _ in group])
+            kind.update_pda_many(  # type: ignore[attr-defined]
+                [tracks[row].filter for row in rows],
+                H[rows],
+                nu[rows[:, None], cols],
+                np.array([b for _, _, b in group]),
+                R,
+                c.scan.sensor_id,
+            )
+            for row in rows:
+                tracks[row].ess = math.nan
 
     # --- track starts ------------------------------------------------------------------------
     def _start(
