@@ -457,3 +457,37 @@ def test_stacked_pda_update_of_many_filters_equals_each_ones_own(m):
     assert many[0].last_info.n_detections == m and many[0].last_info.sensor_ids == ("radar",) * m
     with pytest.raises(ValueError, match="beta"):
         ExtendedKalmanFilter.update_pda_many(many, H, nu, B * 1.1, sensor.R)
+
+
+@pytest.mark.parametrize(
+    "model",
+    [
+        NearlyConstantVelocity(0.01),
+        NearlyConstantVelocityDiscrete(0.5, 0.5),
+        CircularMotion(1e-3, 0.05),
+    ],
+    ids=["ncv", "ncv-discrete", "circular (nonlinear: one by one)"],
+)
+def test_predict_many_equals_each_filters_own_predict(model):
+    """The tracker predicts all its EKF tracks at once: the numbers of each one's predict, to
+    the bit, for filters at two different times (two stacked groups) and one already there."""
+    rng = np.random.default_rng(4)
+    n, G = model.dim, 30
+    X0 = (
+        rng.normal(0.0, 1.0, (G, n)) * np.r_[1e3, 5.0, 1e3, 5.0, 0.01][:n]
+        + np.r_[5e3, 0.0, 5e3, 0.0, 0.05][:n]
+    )
+    A = rng.standard_normal((G, n, n))
+    P0 = A @ np.swapaxes(A, 1, 2) + np.eye(n)
+    t0 = np.where(np.arange(G) % 3 == 0, 5.0, 0.0)
+    t0[1] = 10.0
+    own = [ExtendedKalmanFilter(model, X0[g], P0[g], t0[g]) for g in range(G)]
+    many = [ExtendedKalmanFilter(model, X0[g], P0[g], t0[g]) for g in range(G)]
+    for f in own:
+        f.predict(10.0)
+    ExtendedKalmanFilter.predict_many(many, 10.0)
+    for a, b in zip(own, many, strict=True):
+        assert a.time == b.time == 10.0
+        assert np.array_equal(a.mean, b.mean) and np.array_equal(a.cov, b.cov)
+    assert not np.array_equal(many[2].mean, X0[2])  # it moved
+    assert np.array_equal(many[1].mean, X0[1])  # already at t

@@ -180,6 +180,37 @@ class ExtendedKalmanFilter:
             self._x = Fx if x_new is None else x_new
         self._t = t
 
+    @classmethod
+    def predict_many(cls, filters: Sequence[ExtendedKalmanFilter], t: float) -> None:
+        """:meth:`predict` of many filters to ``t``: those of one linear model and one time
+        step stacked (numpy runs each stacked product as that filter's own: the same numbers
+        to the bit, tested), the others (nonlinear models; the compiled kernels' mode) one by
+        one."""
+        if ekf_kernels() is not None:
+            for f in filters:
+                f.predict(t)
+            return
+        groups: dict[tuple[int, float], list[ExtendedKalmanFilter]] = {}
+        for f in filters:
+            t_f = check_predict_time(t, f._t)
+            dt = t_f - f._t
+            if dt > 0.0 and f.model.is_linear:
+                groups.setdefault((id(f.model), dt), []).append(f)
+            else:
+                f.predict(t)
+        for (_, dt), group in groups.items():
+            model = group[0].model
+            F = as_linear(model).transition_matrix(dt)
+            Q = model.process_noise(dt)
+            X = np.array([f._x for f in group])
+            P = np.array([f._P for f in group])
+            Fx = (F @ X[:, :, None])[:, :, 0]
+            P = F @ P @ F.T + Q
+            P = 0.5 * (P + np.swapaxes(P, 1, 2))
+            for k, f in enumerate(group):
+                f._x, f._P, f._t = Fx[k], P[k], float(t)  # dt > 0: t is after f's time
+                f._linear_cache = (dt, F, Q)
+
     def update(self, measurements: Sequence[Measurement]) -> UpdateInfo:
         """Fuse the measurements taken at the current time, one after another.
 

@@ -222,8 +222,14 @@ class Tracker:
     # --- JPDA ----------------------------------------------------------------------------------
     def _step_jpda(self, epoch: int, t: float, checked: list[_Checked]) -> tuple[int, int]:
         live = self.book.live()
-        for track in live:
-            track.filter.predict(t)
+        filters = [track.filter for track in live]
+        kinds = {type(f) for f in filters}
+        many = getattr(next(iter(kinds)), "predict_many", None) if len(kinds) == 1 else None
+        if many is not None:  # the EKF: all tracks at once
+            many(filters, t)
+        else:
+            for f in filters:
+                f.predict(t)
         self._aged.clear()
         # The predicted positions, indexed once: each scan tests only the tracks within reach.
         index = FovIndex(live, np.array([track.mean[[0, 2]] for track in live]))
