@@ -919,3 +919,36 @@ def test_initiation_from_detections_can_be_switched_off():
     assert max(t.track_id for ts in on for t in ts.tracks) > 3  # clutter starts tentatives
     assert all({t.track_id for t in ts.tracks} <= {1, 2, 3} for ts in off)
     assert tracker.book.not_started == 0 and tracker.book.next_id == 4
+
+
+def test_clusters_are_the_connected_components_of_the_gate_by_first_track():
+    from activetrack.tracking.tracker import _clusters
+
+    def reference(mask):  # breadth-first search over tracks sharing a gated detection
+        T = mask.shape[0]
+        seen, out = set(), []
+        for start in range(T):
+            if start in seen or not mask[start].any():
+                continue
+            group, todo = {start}, [start]
+            while todo:
+                t = todo.pop()
+                for u in np.flatnonzero(mask[:, mask[t]].any(axis=1)):
+                    if u not in group:
+                        group.add(int(u))
+                        todo.append(int(u))
+            seen |= group
+            rows = np.array(sorted(group))
+            out.append((rows, np.flatnonzero(mask[rows].any(axis=0))))
+        return out
+
+    rng = np.random.default_rng(11)
+    sizes = []
+    for _ in range(300):
+        mask = rng.random(rng.integers(0, 25, 2)) < rng.uniform(0.0, 0.15)
+        got, want = _clusters(mask), reference(mask)
+        assert len(got) == len(want)
+        for (r1, c1), (r2, c2) in zip(got, want, strict=True):
+            assert np.array_equal(r1, r2) and np.array_equal(c1, c2)
+        sizes += [len(r) for r, _ in got]
+    assert max(sizes) >= 5 and sizes.count(1) > 50  # chains and singletons both seen

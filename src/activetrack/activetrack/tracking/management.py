@@ -197,14 +197,14 @@ class Track:
         ):
             self.status = CONFIRMED
 
-    def deletion_reason(self, cfg: TrackManagementConfig) -> str | None:
+    def deletion_reason(self, cfg: TrackManagementConfig, std: float | None = None) -> str | None:
         """Why the track must go ("unconfirmed", "misses", "position_std", "existence"), or
-        None."""
+        None; ``std`` its :func:`position_std` where the caller has it."""
         if self.status == TENTATIVE and self.hits + cfg.confirm_n - self.looks < cfg.confirm_m:
             return "unconfirmed"
         if self.status == CONFIRMED and self.run_of_misses >= cfg.delete_misses:
             return "misses"
-        if position_std(self.cov) > cfg.max_position_std:
+        if (position_std(self.cov) if std is None else std) > cfg.max_position_std:
             return "position_std"
         terminate = cfg.existence_terminate_prior if self.origin else cfg.existence_terminate
         if self.status == CONFIRMED and self.existence < terminate:
@@ -277,8 +277,12 @@ class TrackManager:
         for track_id, hit in looked.items():
             if track_id in self.tracks:
                 self.tracks[track_id].record_look(hit, self.cfg)
-        for track in self.live():
-            reason = track.deletion_reason(self.cfg)
+        live = self.live()
+        # every track's position_std at once (the same LAPACK call per matrix)
+        covs = np.array([track.cov for track in live]).reshape(-1, 4, 4)
+        stds = np.sqrt(np.maximum(np.linalg.eigvalsh(covs[:, [0, 2]][:, :, [0, 2]])[:, -1], 0.0))
+        for track, std in zip(live, stds, strict=True):
+            reason = track.deletion_reason(self.cfg, float(std))
             if reason is not None:
                 self._delete(track.track_id, reason)
         for track_id in self._coalesced(looked):

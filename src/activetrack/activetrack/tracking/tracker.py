@@ -46,6 +46,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from activetrack import limits
 from activetrack.arraytypes import BoolArray, FloatArray
@@ -512,17 +514,17 @@ _TAKES: dict[tuple[object, str], bool] = {}
 
 
 def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Tracks linked through shared gated detections: ``(rows, cols)`` per cluster (tracks
-    without a gated detection are in none). The JPDA's joint events factorise over them."""
-    label = np.arange(mask.shape[0])
-    for j in range(mask.shape[1]):
-        rows = np.flatnonzero(mask[:, j])
-        if rows.size > 1:
-            joined = np.isin(label, label[rows])
-            label[joined] = label[rows].min()
-    gated = mask.any(axis=1)
-    out = []
-    for lab in np.unique(label[gated]):
-        rows = np.flatnonzero((label == lab) & gated)
-        out.append((rows, np.flatnonzero(mask[rows].any(axis=0))))
-    return out
+    """Tracks linked through shared gated detections: ``(rows, cols)`` per cluster, by their
+    first row (tracks without a gated detection are in none). The JPDA's joint events
+    factorise over them. The connected components of the track-detection graph (scipy)."""
+    T, m = mask.shape
+    tr, det = np.nonzero(mask)
+    if tr.size == 0:
+        return []
+    graph = coo_matrix((np.ones(tr.size, dtype=np.int8), (tr, T + det)), shape=(T + m, T + m))
+    # components are labelled in order of their smallest node, and the tracks come first
+    _, label = connected_components(graph, directed=False)
+    rows = np.flatnonzero(mask.any(axis=1))
+    rows = rows[np.argsort(label[rows], kind="stable")]
+    cuts = np.flatnonzero(np.diff(label[rows])) + 1
+    return [(group, np.flatnonzero(mask[group].any(axis=0))) for group in np.split(rows, cuts)]
