@@ -46,8 +46,6 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from activetrack import limits
 from activetrack.arraytypes import BoolArray, FloatArray
@@ -516,15 +514,27 @@ _TAKES: dict[tuple[object, str], bool] = {}
 def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
     """Tracks linked through shared gated detections: ``(rows, cols)`` per cluster, by their
     first row (tracks without a gated detection are in none). The JPDA's joint events
-    factorise over them. The connected components of the track-detection graph (scipy)."""
-    T, m = mask.shape
-    tr, det = np.nonzero(mask)
-    if tr.size == 0:
-        return []
-    graph = coo_matrix((np.ones(tr.size, dtype=np.int8), (tr, T + det)), shape=(T + m, T + m))
-    # components are labelled in order of their smallest node, and the tracks come first
-    _, label = connected_components(graph, directed=False)
-    rows = np.flatnonzero(mask.any(axis=1))
-    rows = rows[np.argsort(label[rows], kind="stable")]
-    cuts = np.flatnonzero(np.diff(label[rows])) + 1
-    return [(group, np.flatnonzero(mask[group].any(axis=0))) for group in np.split(rows, cuts)]
+    factorise over them. Union-find over the gated pairs (few: a gate holds a handful)."""
+    tracks, dets = np.nonzero(mask)
+    parent = list(range(mask.shape[0]))
+
+    def root(t: int) -> int:
+        while parent[t] != t:
+            parent[t] = parent[parent[t]]
+            t = parent[t]
+        return t
+
+    first: dict[int, int] = {}  # detection -> a track gating it
+    for t, j in zip(tracks.tolist(), dets.tolist(), strict=True):
+        other = first.setdefault(j, t)
+        if other != t:
+            a, b = root(other), root(t)
+            parent[max(a, b)] = min(a, b)
+    groups: dict[int, list[int]] = {}  # by root, in order of the first (smallest) row
+    for t in np.flatnonzero(mask.any(axis=1)).tolist():
+        groups.setdefault(root(t), []).append(t)
+    out = []
+    for rows in groups.values():
+        r = np.array(rows)
+        out.append((r, np.flatnonzero(mask[r].any(axis=0))))
+    return out
