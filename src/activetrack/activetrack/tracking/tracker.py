@@ -256,12 +256,14 @@ class Tracker:
         The predicted measurements, gate and likelihood ratios are computed once here, for the
         existence update and the JPDA alike."""
         candidates: list[Track] = index.candidates(c.scan.fov, c.s)  # type: ignore[assignment]
-        pv = np.array([track.mean for track in candidates]).reshape(-1, 4)
-        inside = c.scan.fov.contains(pv, c.s)
+        pv_state = self.model.state_is_pv  # pv = the state: read each filter's moments once
+        states = [track.state for track in candidates] if pv_state else []
+        pv = np.array(states if pv_state else [track.mean for track in candidates])
+        inside = c.scan.fov.contains(pv.reshape(-1, 4), c.s)
         tracks = [track for track, ok in zip(candidates, inside, strict=True) if ok]
         if not tracks:
             return [], np.zeros((0, c.Z.shape[0]), dtype=bool)
-        means = np.array([track.state for track in tracks])
+        means = pv[inside] if pv_state else np.array([track.state for track in tracks])
         covs = np.array([track.state_cov for track in tracks])
         base = c.sensor.base
         zhat, H, S = predict_measurements(means, covs, base, c.s, self.model)
@@ -286,7 +288,7 @@ class Tracker:
                 track.existence *= EXISTENCE_SURVIVAL
                 self._aged.add(track.track_id)
         pv_means = pv[inside]
-        pv_covs = np.array([track.cov for track in tracks])
+        pv_covs = covs if pv_state else np.array([track.cov for track in tracks])
         psi = existence_update(
             np.array([track.existence for track in tracks]),
             ratios,
@@ -296,8 +298,8 @@ class Tracker:
         for track, p in zip(tracks, psi, strict=True):
             track.existence = float(p)
         self._jpda(tracks, H, nu, S, particles, mask, c, t)
-        for track in tracks:
-            index.moved(track, track.mean[[0, 2]])
+        for row in np.flatnonzero(mask.any(axis=1)):  # the tracks the scan updated
+            index.moved(tracks[row], tracks[row].mean[[0, 2]])
         return tracks, mask
 
     def _jpda(
