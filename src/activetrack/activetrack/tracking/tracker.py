@@ -318,9 +318,7 @@ class Tracker:
         (the MC-JPDAF, :mod:`activetrack.filters.jpda_particle`), Gaussian ones from the scan's
         Jacobians ``H`` ``(T, d, n)``, residuals ``nu`` ``(T, m, d)`` and ``S`` ``(T, d, d)``
         (a filter whose ``update_pda`` takes ``linearization`` is given its ``H`` and ``nu``).
-        A cluster's ratios are taken from its own pairs: LAPACK's solve for ``S^-1 nu`` rounds
-        a column differently with other columns beside it (1 ulp), and these are the numbers
-        of the per-cluster association the tracker has always run, to the bit."""
+        A cluster's ratios are taken from its own pairs (:func:`_cluster_ratios`)."""
         pd = effective_pd(c.sensor.pd)
         pg = gate_probability(self.gamma, int(c.sensor.base.dim_z))
         lam = effective_clutter_density(c.sensor.clutter_density)
@@ -328,11 +326,10 @@ class Tracker:
         # EKF-like tracks (a class with update_pda_many) by class and detections: one stacked
         # update per group after the clusters (each track's update is its own)
         batches: dict[tuple[type, int], list[tuple[int, np.ndarray, FloatArray]]] = {}
-        for rows, used in _clusters(mask):
-            if scan_ratios is None:
-                ratios, _ = likelihood_ratios(nu[np.ix_(rows, used)], S[rows], pd, lam, self.gamma)
-            else:
-                ratios = scan_ratios[np.ix_(rows, used)]
+        clusters = _clusters(mask)
+        own = _cluster_ratios(clusters, nu, S, pd, lam, self.gamma) if particles is None else []
+        for i, (rows, used) in enumerate(clusters):
+            ratios = own[i] if scan_ratios is None else scan_ratios[np.ix_(rows, used)]
             beta = jpda_probabilities(ratios, pd, pg)
             detections: list[Measurement] | None = None
             for k, row in enumerate(rows):
@@ -511,6 +508,38 @@ def _takes(update: Callable[..., object], keyword: str) -> bool:
 
 
 _TAKES: dict[tuple[object, str], bool] = {}
+
+
+def _cluster_ratios(
+    clusters: list[tuple[np.ndarray, np.ndarray]],
+    nu: FloatArray,
+    S: FloatArray,
+    pd: float,
+    clutter_density: float,
+    gamma: float,
+) -> list[FloatArray]:
+    """Each cluster's likelihood ratios ``(rows, used)`` from its own pairs, as
+    :func:`~activetrack.filters.jpda.likelihood_ratios` of the cluster gives them: LAPACK's
+    solve for ``S^-1 nu`` rounds a column differently with other columns beside it (1 ulp), and
+    these are the numbers of the per-cluster association the tracker has always run, to the
+    bit. The clusters with the same number of detections go in one stacked call (a track's
+    solve then has the same columns as in its cluster's own call)."""
+    by_size: dict[int, list[int]] = {}
+    for i, (_, used) in enumerate(clusters):
+        by_size.setdefault(used.size, []).append(i)
+    out: list[FloatArray] = [np.empty(0)] * len(clusters)
+    for m, members in by_size.items():
+        rows = np.concatenate([clusters[i][0] for i in members])
+        cols = np.concatenate(
+            [np.broadcast_to(clusters[i][1], (clusters[i][0].size, m)) for i in members]
+        )
+        ratios, _ = likelihood_ratios(nu[rows[:, None], cols], S[rows], pd, clutter_density, gamma)
+        start = 0
+        for i in members:
+            size = clusters[i][0].size
+            out[i] = ratios[start : start + size]
+            start += size
+    return out
 
 
 def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
