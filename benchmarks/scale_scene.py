@@ -71,7 +71,9 @@ class ScaleScene:
         return Tracker(
             model,
             "ncv",
-            FilterSpec("ekf", False, make),
+            FilterSpec(
+                "ekf", False, make, lambda X0, P0, t0: ExtendedKalmanFilter.many(model, X0, P0, t0)
+            ),
             self.sensors,
             self.priors,
             known_association=False,

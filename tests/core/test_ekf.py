@@ -491,3 +491,27 @@ def test_predict_many_equals_each_filters_own_predict(model):
         assert np.array_equal(a.mean, b.mean) and np.array_equal(a.cov, b.cov)
     assert not np.array_equal(many[2].mean, X0[2])  # it moved
     assert np.array_equal(many[1].mean, X0[1])  # already at t
+
+
+def test_many_builds_the_filters_one_by_one_would_and_checks_the_stack():
+    model = NearlyConstantVelocity(0.01)
+    rng = np.random.default_rng(5)
+    X0 = rng.normal(0.0, 1e3, (6, 4))
+    A = rng.standard_normal((6, 4, 4))
+    P0 = A @ np.swapaxes(A, 1, 2) + np.eye(4)
+    P0[2, 0, 1] += 1e-13  # a round-off asymmetry, symmetrised the same way
+    built = ExtendedKalmanFilter.many(model, X0, P0, 5.0)
+    for g, f in enumerate(built):
+        one = ExtendedKalmanFilter(model, X0[g], P0[g], 5.0)
+        assert f.time == one.time == 5.0
+        assert np.array_equal(f.mean, one.mean) and np.array_equal(f.cov, one.cov)
+    built[0].predict(10.0)  # independent filters
+    assert built[1].time == 5.0
+    bad = P0.copy()
+    bad[4] = -np.eye(4)
+    with pytest.raises(ValueError, match="P0"):
+        ExtendedKalmanFilter.many(model, X0, bad, 5.0)
+    with pytest.raises(ValueError, match="x0"):
+        ExtendedKalmanFilter.many(model, X0[:, :3], P0, 5.0)
+    with pytest.raises(ValueError, match="t0"):
+        ExtendedKalmanFilter.many(model, X0, P0, math.nan)

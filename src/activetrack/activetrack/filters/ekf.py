@@ -32,6 +32,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
+from activetrack.checks import require_finite, require_spd
 from activetrack.filters.jpda import pda_residuals, pda_update
 from activetrack.filters.measurement import (
     Measurement,
@@ -112,6 +113,13 @@ def _pda_update_stacked(
     return X_new, 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
 
 
+def _check_t0(t0: float) -> float:
+    t = float(t0)
+    if not math.isfinite(t):
+        raise ValueError(f"t0 must be finite, got {t0!r}")
+    return t
+
+
 class ExtendedKalmanFilter:
     """EKF over ``model`` (any :mod:`activetrack.models.motion` model).
 
@@ -123,14 +131,38 @@ class ExtendedKalmanFilter:
     def __init__(self, model: MotionModel, x0: ArrayLike, P0: ArrayLike, t0: float = 0.0):
         n = int(model.dim)
         x, P = check_prior(x0, P0, n)
-        t0 = float(t0)
-        if not math.isfinite(t0):
-            raise ValueError(f"t0 must be finite, got {t0!r}")
+        self._setup(model, x.copy(), P.copy(), _check_t0(t0), np.eye(n))
+
+    @classmethod
+    def many(
+        cls, model: MotionModel, X0: ArrayLike, P0: ArrayLike, t0: float = 0.0
+    ) -> list[ExtendedKalmanFilter]:
+        """``k`` filters at once, from means ``X0`` ``(k, n)`` and covariances ``P0`` ``(k, n,
+        n)``: the filters ``ExtendedKalmanFilter(model, X0[i], P0[i], t0)`` would be (the same
+        checks, on the stack)."""
+        n = int(model.dim)
+        X = require_finite("x0", X0)
+        if X.ndim != 2 or X.shape[1] != n:
+            raise ValueError(f"x0 must have shape (k, {n}) for this model, got {X.shape}")
+        P = require_spd("P0", P0)
+        if P.shape != (X.shape[0], n, n):
+            raise ValueError(f"P0 must have shape ({X.shape[0]}, {n}, {n}), got {P.shape}")
+        t = _check_t0(t0)
+        out = []
+        for x, cov in zip(X, P, strict=True):
+            f = cls.__new__(cls)
+            f._setup(model, x.copy(), cov.copy(), t, np.eye(n))
+            out.append(f)
+        return out
+
+    def _setup(
+        self, model: MotionModel, x: FloatArray, P: FloatArray, t0: float, I: FloatArray
+    ) -> None:
         self.model = model
-        self._x = x.copy()
-        self._P = P.copy()
+        self._x = x
+        self._P = P
         self._t = t0
-        self._I = np.eye(n)
+        self._I = I
         # The pv-state models need no kinematics map (pv = x, d pv / dx = I).
         self._pv_state = bool(model.state_is_pv)
         self._linear_cache: tuple[float, FloatArray, FloatArray] | None = None

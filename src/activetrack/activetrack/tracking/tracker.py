@@ -28,7 +28,7 @@ sensor order:
      :mod:`activetrack.filters.clutter_likelihood`. The same likelihood ratios first give
      each track's existence its LM-IPDA update, with Pd times the probability that the target
      lies in the scan's sector. Detections no track gated start tentative tracks at once where
-     the sensor fixes a position from one (:meth:`Tracker._start_from_detection`). Then M-of-N
+     the sensor fixes a position from one (:meth:`Tracker._start_from_detections`). Then M-of-N
      confirmation, existence, deletion and coalescence (:mod:`.management`).
 
 Tracks from the priors of the targets present at epoch 0 start confirmed, ids 1, 2, ... in
@@ -87,6 +87,9 @@ class FilterSpec:
     kind: str
     particle_based: bool
     make: Callable[[FloatArray, FloatArray, float], TrackingFilter]
+    # optional: k new filters at once from (k, n) means and (k, n, n) covariances (the filters
+    # make would give, in order; drawing nothing from the generator)
+    make_many: Callable[[FloatArray, FloatArray, float], Sequence[TrackingFilter]] | None = None
 
 
 @dataclass(frozen=True)
@@ -243,11 +246,9 @@ class Tracker:
             free = ~mask.any(axis=0)
             detections += c.Z.shape[0]
             unassociated += int(free.sum())
-            for z in c.Z[free]:
-                started = self._start_from_detection(z, c, epoch, t)
-                if started is not None:  # None: no fix, or full (each detection counted)
-                    looked[started.track_id] = True
-                    index.add(started)
+            for started in self._start_from_detections(c.Z[free], c, epoch, t):
+                looked[started.track_id] = True
+                index.add(started)
         self.book.end_epoch(looked)
         return detections, unassociated
 
@@ -379,6 +380,12 @@ class Tracker:
     ) -> Track:
         """A new track with the next id: a filter started from N(mean, cov) at time ``t``."""
         new = self.filter.make(np.asarray(mean, dtype=float), np.asarray(cov, dtype=float), t)
+        return self._track(new, born, status, origin, priority)
+
+    def _track(
+        self, new: TrackingFilter, born: int, status: str, origin: str, priority: float
+    ) -> Track:
+        """A new track of the filter ``new`` with the next id."""
         track = Track(
             self.book.new_id(),
             status,
@@ -392,19 +399,19 @@ class Tracker:
         self.book.add(track)
         return track
 
-    def _start_from_detection(
-        self, z: FloatArray, c: _Checked, epoch: int, t: float
-    ) -> Track | None:
-        """A tentative track at the position the detection fixes (the sensor's
-        ``inverse_position``: a range-bearing radar does, a bearing sensor does not), velocity 0,
-        covariance ``J R J^T`` and ``init_speed_std^2``; None where the sensor fixes none or the
-        tracker holds ``max_tracks`` (counted in ``not_started``) or does not initiate."""
-        if not self.book.cfg.initiate:
-            return None
-        fix = c.sensor.base.inverse_position(z, c.s)
-        if fix is None:
-            return None
-        if self.book.full:
+    def _start_from_detections(
+        self, Z: FloatArray, c: _Checked, epoch: int, t: float
+    ) -> list[Track]:
+        """Tentative tracks at the positions the detections ``Z`` ``(k, dim_z)`` fix (the
+        sensor's ``inverse_position``: a range-bearing radar does, a bearing sensor does not),
+        velocity 0, covariance ``J R J^T`` and ``init_speed_std^2``, in order, while the tracker
+        holds fewer than ``max_tracks`` (each detection beyond counted in ``not_started``,
+        with one warning per run); none if the tracker does not initiate."""
+        if not self.book.cfg.initiate or Z.shape[0] == 0:
+            return []
+        fixes = [f for f in (c.sensor.base.inverse_position(z, c.s) for z in Z) if f is not None]
+        room = max(self.book.cfg.max_tracks - len(self.book.tracks), 0)
+        if len(fixes) > room:
             if not self.book.not_started:  # once per run; every one is counted
                 _log.warning(
                     "tracker.tracks.max_tracks=%d reached at epoch %d: detections that would "
@@ -412,15 +419,27 @@ class Tracker:
                     self.book.cfg.max_tracks,
                     epoch,
                 )
-            self.book.not_started += 1
-            return None
-        xy, P_xy = fix
-        mean = np.array([xy[0], 0.0, xy[1], 0.0])
-        cov = np.diag(np.full(4, self.book.cfg.init_speed_std**2))
-        cov[np.ix_([0, 2], [0, 2])] = P_xy
-        track = self._start(mean, cov, epoch, TENTATIVE, "", self.new_track_priority, t)
-        track.existence = EXISTENCE_INIT
-        return track
+            self.book.not_started += len(fixes) - room
+            fixes = fixes[:room]
+        if not fixes:
+            return []
+        means = np.zeros((len(fixes), 4))
+        velocity = np.diag(np.full(4, self.book.cfg.init_speed_std**2))
+        covs = np.array([velocity] * len(fixes))
+        for k, (xy, P_xy) in enumerate(fixes):
+            means[k, [0, 2]] = xy
+            covs[k][np.ix_([0, 2], [0, 2])] = P_xy
+        make_many = self.filter.make_many
+        if make_many is None:
+            filters = [self.filter.make(means[k], covs[k], t) for k in range(len(fixes))]
+        else:
+            filters = list(make_many(means, covs, t))
+        out = []
+        for new in filters:
+            track = self._track(new, epoch, TENTATIVE, "", self.new_track_priority)
+            track.existence = EXISTENCE_INIT
+            out.append(track)
+        return out
 
     def _draw_samples(self) -> None:
         """The planner's equally weighted samples of every particle track: a systematic
