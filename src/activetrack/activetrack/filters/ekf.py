@@ -356,8 +356,8 @@ class ExtendedKalmanFilter:
         B = np.clip(B, 0.0, 1.0)
         if (np.abs(B.sum(axis=1) - 1.0) > 1e-9).any():
             raise ValueError("beta: each row must sum to 1")
-        go = np.flatnonzero(B[:, 0] < 1.0)
-        if go.size:
+        go = np.flatnonzero(B[:, 0] < 1.0).tolist()
+        if go:
             X = np.array([filters[g]._x for g in go])
             P = np.array([filters[g]._P for g in go])
             R = np.asarray(R, dtype=float)

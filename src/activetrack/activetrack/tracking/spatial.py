@@ -84,7 +84,7 @@ def close_pairs(xy: FloatArray, reach2: FloatArray) -> list[tuple[int, int]]:
     # |dp|^2 <= r2_i + r2_j <= 2 max(r2_i, r2_j): query each point with sqrt(r2_i + max r2)
     radius = np.sqrt(r2 + float(r2.max())) * (1.0 + _WIDEN) + _SLACK_M
     tree = cKDTree(xy)
-    out = []
+    out: list[tuple[int, int]] = []
     for i, rows in enumerate(tree.query_ball_point(xy, radius)):
         out.extend((i, j) if i < j else (j, i) for j in rows if j != i)
     return sorted(set(out))

@@ -350,13 +350,13 @@ class Tracker:
                 elif particles is None and _takes(update, "linearization"):
                     info = update(detections, beta[k], linearization=(H[row], nu[row, used]))
                 else:
-                    info = update(detections, beta[k])  # type: ignore[call-arg]
+                    info = update(detections, beta[k])
                 tracks[row].ess = info.ess
         R = c.sensor.base.R
         for (kind, _), group in batches.items():
             rows = np.array([row for row, _, _ in group])
             cols = np.array([used for _, used, _ in group])
-            kind.update_pda_many(  # type: ignore[attr-defined]
+            kind.update_pda_many(
                 [tracks[row].filter for row in rows],
                 H[rows],
                 nu[rows[:, None], cols],
