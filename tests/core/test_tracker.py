@@ -72,6 +72,7 @@ from activetrack.tracking.management import (
     existence_update,
     weaker,
 )
+from activetrack.tracking.tracker import FilterSpec, Tracker, TrackPrior
 
 SENSOR_PV = np.array([0.0, 0.0, -3000.0, 0.0])
 
@@ -952,3 +953,46 @@ def test_clusters_are_the_connected_components_of_the_gate_by_first_track():
             assert np.array_equal(r1, r2) and np.array_equal(c1, c2)
         sizes += [len(r) for r, _ in got]
     assert max(sizes) >= 5 and sizes.count(1) > 50  # chains and singletons both seen
+
+
+def test_an_ekf_subclass_that_overrides_one_step_keeps_it_and_the_numbers_stay():
+    """The tracker predicts, starts and updates EKF tracks in stacked calls; a subclass that
+    overrides predict or update_pda alone is called one track at a time (its own method), and
+    as it changes nothing here the tracks are those of the stacked path, to the bit."""
+    calls = Counter()
+
+    class Own(ExtendedKalmanFilter):
+        def predict(self, t):
+            calls["predict"] += 1
+            super().predict(t)
+
+        def update_pda(self, measurements, beta, **kw):
+            calls["update_pda"] += 1
+            return super().update_pda(measurements, beta, **kw)
+
+    targets = [{"id": "a", "mean": [0.0, 0.0, 0.0, 0.0]}, {"id": "b", "mean": [60.0, 0.0, 0, 0]}]
+    sc = make_scenario(targets, [range_bearing(clutter_density=3e-4)])
+    _, scans = simulate(sc, 8, np.random.default_rng(12))
+    stacked, sets = run(sc, scans)
+    model = stacked.model
+    own = Tracker(
+        model,
+        "ncv",
+        FilterSpec("ekf", False, lambda x0, P0, t0: Own(model, x0, P0, t0)),
+        stacked.sensors,
+        [
+            TrackPrior(t["id"], np.array(t["mean"]), np.diag([100.0, 4.0, 100.0, 4.0]))
+            for t in targets
+        ],
+        known_association=False,
+        management=sc.tracker.tracks,
+        planner_samples=1,
+        new_track_priority=1.0,
+        rng=np.random.default_rng(0),
+    )
+    for k, epoch_scans in enumerate(scans, start=1):
+        ts = own.step(k, k * sc.dt, epoch_scans)
+        assert [t.track_id for t in ts.tracks] == [t.track_id for t in sets[k].tracks]
+        for a, b in zip(ts.tracks, sets[k].tracks, strict=True):
+            assert np.array_equal(a.mean, b.mean) and np.array_equal(a.cov, b.cov)
+    assert calls["predict"] >= 16 and calls["update_pda"] >= 8

@@ -38,6 +38,7 @@ from its ``rng``: the filters' own draws (particles, resampling) and the planner
 
 from __future__ import annotations
 
+import functools
 import inspect
 import logging
 import math
@@ -227,9 +228,9 @@ class Tracker:
         live = self.book.live()
         filters = [track.filter for track in live]
         kinds = {type(f) for f in filters}
-        many = getattr(next(iter(kinds)), "predict_many", None) if len(kinds) == 1 else None
-        if many is not None:  # the EKF: all tracks at once
-            many(filters, t)
+        kind = next(iter(kinds)) if len(kinds) == 1 else None
+        if kind is not None and _has_many(kind, "predict"):  # the EKF: all tracks at once
+            kind.predict_many(filters, t)  # type: ignore[attr-defined]
         else:
             for f in filters:
                 f.predict(t)
@@ -335,7 +336,7 @@ class Tracker:
             detections: list[Measurement] | None = None
             for k, row in enumerate(rows):
                 kind = type(tracks[row].filter)
-                if particles is None and hasattr(kind, "update_pda_many"):
+                if particles is None and _has_many(kind, "update_pda"):
                     batches.setdefault((kind, used.size), []).append((row, used, beta[k]))
                     continue
                 if detections is None:
@@ -414,8 +415,9 @@ class Tracker:
         if len(fixes) > room:
             if not self.book.not_started:  # once per run; every one is counted
                 _log.warning(
-                    "tracker.tracks.max_tracks=%d reached at epoch %d: detections that would "
-                    "start a track are not started from now on (counted in not_started)",
+                    "tracker.tracks.max_tracks=%d reached at epoch %d: a detection that would "
+                    "start a track beyond it starts none (each counted in not_started; this "
+                    "warning once per run)",
                     self.book.cfg.max_tracks,
                     epoch,
                 )
@@ -509,6 +511,18 @@ def _platform(i: int, scan: Scan) -> FloatArray:
     if s.shape != (4,) or not np.isfinite(s).all():
         raise ValueError(f"scans[{i}].sensor_pv: must be a finite pv of shape (4,), got {s!r}")
     return s
+
+
+@functools.cache
+def _has_many(kind: type, method: str) -> bool:
+    """Whether filter class ``kind`` has ``<method>_many``, the batch form of ``method``, from
+    the same class as its ``method`` (a subclass that overrides ``method`` alone keeps it)."""
+
+    def owner(name: str) -> type | None:
+        return next((c for c in kind.__mro__ if name in c.__dict__), None)
+
+    many = owner(method + "_many")
+    return many is not None and many is owner(method)
 
 
 def _takes(update: Callable[..., object], keyword: str) -> bool:
