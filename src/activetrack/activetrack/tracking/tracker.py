@@ -38,7 +38,6 @@ from its ``rng``: the filters' own draws (particles, resampling) and the planner
 
 from __future__ import annotations
 
-import functools
 import inspect
 import logging
 import math
@@ -513,16 +512,21 @@ def _platform(i: int, scan: Scan) -> FloatArray:
     return s
 
 
-@functools.cache
 def _has_many(kind: type, method: str) -> bool:
     """Whether filter class ``kind`` has ``<method>_many``, the batch form of ``method``, from
     the same class as its ``method`` (a subclass that overrides ``method`` alone keeps it)."""
+    known = _HAS_MANY.get((kind, method))
+    if known is None:
 
-    def owner(name: str) -> type | None:
-        return next((c for c in kind.__mro__ if name in c.__dict__), None)
+        def owner(name: str) -> type | None:
+            return next((c for c in kind.__mro__ if name in c.__dict__), None)
 
-    many = owner(method + "_many")
-    return many is not None and many is owner(method)
+        many = owner(method + "_many")
+        known = _HAS_MANY[kind, method] = many is not None and many is owner(method)
+    return known
+
+
+_HAS_MANY: dict[tuple[type, str], bool] = {}
 
 
 def _takes(update: Callable[..., object], keyword: str) -> bool:
