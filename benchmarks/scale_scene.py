@@ -2,7 +2,7 @@
 
 ``build(n_targets, seed)`` gives a :class:`ScaleScene`: ``n_targets`` NCV targets spread over a
 square of ``cells x cells`` radar cells (about ``TARGETS_PER_CELL`` targets per cell, ``cells =
-ceil(sqrt(n / TARGETS_PER_CELL))``: 1 radar for 3 targets, 4 for 30, 16 for 100, 36 for 300,
+round(sqrt(n / TARGETS_PER_CELL))``: 1 radar for 3 targets, 4 for 30, 16 for 100, 36 for 300,
 121 for 1,000), one stationary all-around range-bearing radar at each cell's centre reaching
 ``REACH`` cell sides (so neighbouring radars overlap a little), Pd 0.9 and about
 ``CLUTTER_PER_SCAN`` false alarms per scan and radar. Every target has a prior (a track from
@@ -91,7 +91,7 @@ def build(
     if n_targets < 1 or steps < 1:
         raise ValueError(f"n_targets and steps must be >= 1, got {n_targets}, {steps}")
     rng = np.random.default_rng(seed)
-    cells = max(1, math.ceil(math.sqrt(n_targets / TARGETS_PER_CELL)))
+    cells = max(1, round(math.sqrt(n_targets / TARGETS_PER_CELL)))
     side = cells * CELL
     r_max = REACH * CELL
     fov = FieldOfView(0.0, 2.0 * math.pi, R_MIN, r_max)
