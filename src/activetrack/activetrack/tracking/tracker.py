@@ -254,8 +254,8 @@ class Tracker:
 
     def _update(self, c: _Checked, t: float, index: FovIndex) -> tuple[list[Track], BoolArray]:
         """Update the tracks inside the scan's field of view; them and their gate ``(T, m)``.
-        The predicted measurements, gate and likelihood ratios are computed once here, for the
-        existence update and the JPDA alike."""
+        The predicted measurements, Jacobians, residuals and gate are computed once here, for
+        the existence update, the JPDA and the EKF updates alike."""
         candidates: list[Track] = index.candidates(c.scan.fov, c.s)  # type: ignore[assignment]
         pv_state = self.model.state_is_pv  # pv = the state: read each filter's moments once
         states = [track.state for track in candidates] if pv_state else []
