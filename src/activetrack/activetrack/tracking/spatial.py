@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from activetrack.arraytypes import FloatArray
 from activetrack.models.fov import FieldOfView
@@ -24,6 +24,14 @@ _SLACK_M = 1e-6
 _MIN_TREE = 32  # below this many points a brute-force test is cheaper than building a tree
 
 
+def _kd_tree(points: FloatArray) -> Any:
+    """scipy's k-d tree of ``points`` ``(k, 2)``, imported here: importing scipy.spatial adds
+    process-wide warning filters."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(points)
+
+
 class FovIndex:
     """The live tracks of one epoch by their position after the prediction, for the scans of
     the epoch: ``candidates`` are the tracks that may be inside a field of view (a superset,
@@ -34,7 +42,7 @@ class FovIndex:
     def __init__(self, items: Sequence[object], positions: FloatArray):
         self.items = list(items)
         self.xy = np.asarray(positions, dtype=float).reshape(-1, 2)
-        self._tree = cKDTree(self.xy) if len(self.items) >= _MIN_TREE else None
+        self._tree = _kd_tree(self.xy) if len(self.items) >= _MIN_TREE else None
         self._row = {id(item): k for k, item in enumerate(self.items)}
         self._added: list[object] = []
         self._moved = 0.0  # largest distance of a track from its indexed position
@@ -83,7 +91,7 @@ def close_pairs(xy: FloatArray, reach2: FloatArray) -> list[tuple[int, int]]:
         return [(i, j) for i in range(T) for j in range(i + 1, T)]
     # |dp|^2 <= r2_i + r2_j <= 2 max(r2_i, r2_j): query each point with sqrt(r2_i + max r2)
     radius = np.sqrt(r2 + float(r2.max())) * (1.0 + _WIDEN) + _SLACK_M
-    tree = cKDTree(xy)
+    tree = _kd_tree(xy)
     out: list[tuple[int, int]] = []
     for i, rows in enumerate(tree.query_ball_point(xy, radius)):
         out.extend((i, j) if i < j else (j, i) for j in rows if j != i)
