@@ -996,3 +996,22 @@ def test_an_ekf_subclass_that_overrides_one_step_keeps_it_and_the_numbers_stay()
         for a, b in zip(ts.tracks, sets[k].tracks, strict=True):
             assert np.array_equal(a.mean, b.mean) and np.array_equal(a.cov, b.cov)
     assert calls["predict"] >= 16 and calls["update_pda"] >= 8
+
+
+def test_the_ekf_registers_its_batch_constructor_and_the_pf_none():
+    from activetrack.filters.registry import filter_kind, register_filter
+
+    targets = [{"id": "a", "mean": [0.0, 0.0, 0.0, 0.0]}, {"id": "b", "mean": [60.0, 0.0, 0, 0]}]
+    ekf = build_tracker(make_scenario(targets, [range_bearing()]), np.random.default_rng(0))
+    pf = build_tracker(
+        make_scenario(targets, [range_bearing()], filter="pf"), np.random.default_rng(0)
+    )
+    assert ekf.filter.make_many is not None and pf.filter.make_many is None
+    assert filter_kind("ekf").factory_many is not None
+    X0 = np.array([[100.0, 1.0, 200.0, -1.0], [300.0, 0.0, -50.0, 2.0]])
+    P0 = np.array([np.diag([100.0, 4.0, 100.0, 4.0])] * 2)
+    for f, x in zip(ekf.filter.make_many(X0, P0, 3.0), X0, strict=True):
+        assert isinstance(f, ExtendedKalmanFilter) and f.time == 3.0
+        assert np.array_equal(f.mean, x)
+    with pytest.raises(ValueError, match="factory_many must be callable"):
+        register_filter("batchy", lambda *a, **k: None, factory_many=3)

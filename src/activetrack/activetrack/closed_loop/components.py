@@ -26,11 +26,10 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from activetrack.filters.ekf import ExtendedKalmanFilter
 from activetrack.filters.measurement import TrackingFilter
 from activetrack.filters.registry import filter_kind, make_filter
 from activetrack.kernels import expect_particle_work
-from activetrack.models.base import MotionModel, as_linear
+from activetrack.models.base import as_linear
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.planning.across_targets import (
     AcrossTargetsSettings,
@@ -169,6 +168,12 @@ def build_tracker(
     def make(x0: np.ndarray, P0: np.ndarray, t0: float) -> TrackingFilter:
         return make_filter(cfg.filter, model, x0, P0, cfg, rng, t0)
 
+    many = kind.factory_many  # the filter's batch form, if it registered one
+
+    def make_many(X0: np.ndarray, P0: np.ndarray, t0: float) -> Sequence[TrackingFilter]:
+        assert many is not None
+        return many(model, X0, P0, cfg, rng, t0=t0)
+
     priors = [
         TrackPrior(
             t.id,
@@ -181,7 +186,7 @@ def build_tracker(
     return Tracker(
         model,
         motion_cfg.model,
-        FilterSpec(cfg.filter, kind.particle_based, make, _make_many(cfg.filter, model)),
+        FilterSpec(cfg.filter, kind.particle_based, make, None if many is None else make_many),
         {sid: sensor for sid, (_, sensor) in scene_sensors(config).items()},
         priors,
         known_association=config.known_association,
@@ -190,20 +195,6 @@ def build_tracker(
         new_track_priority=config.new_track_priority,
         rng=rng,
     )
-
-
-def _make_many(
-    name: str, model: MotionModel
-) -> Callable[[np.ndarray, np.ndarray, float], Sequence[TrackingFilter]] | None:
-    """The built-in EKF's batch constructor (the filters ``make_filter`` gives, built at once:
-    the tracker starts a scan's tracks together); None for any other filter."""
-    if name != "ekf":
-        return None
-
-    def make_many(X0: np.ndarray, P0: np.ndarray, t0: float) -> Sequence[TrackingFilter]:
-        return ExtendedKalmanFilter.many(model, X0, P0, t0)
-
-    return make_many
 
 
 # --- the planner -------------------------------------------------------------------------------

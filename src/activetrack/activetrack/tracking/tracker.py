@@ -226,10 +226,10 @@ class Tracker:
     def _step_jpda(self, epoch: int, t: float, checked: list[_Checked]) -> tuple[int, int]:
         live = self.book.live()
         filters = [track.filter for track in live]
-        kinds = {type(f) for f in filters}
-        kind = next(iter(kinds)) if len(kinds) == 1 else None
-        if kind is not None and _has_many(kind, "predict"):  # the EKF: all tracks at once
-            kind.predict_many(filters, t)  # type: ignore[attr-defined]
+        classes = {type(f) for f in filters}
+        cls = classes.pop() if len(classes) == 1 else None
+        if cls and _has_many(cls, "predict"):  # the EKF: all tracks at once
+            cls.predict_many(filters, t)  # type: ignore[attr-defined]
         else:
             for f in filters:
                 f.predict(t)
@@ -334,9 +334,9 @@ class Tracker:
             beta = jpda_probabilities(ratios, pd, pg)
             detections: list[Measurement] | None = None
             for k, row in enumerate(rows):
-                kind = type(tracks[row].filter)
-                if particles is None and _has_many(kind, "update_pda"):
-                    batches.setdefault((kind, used.size), []).append((row, used, beta[k]))
+                cls = type(tracks[row].filter)
+                if particles is None and _has_many(cls, "update_pda"):
+                    batches.setdefault((cls, used.size), []).append((row, used, beta[k]))
                     continue
                 if detections is None:
                     detections = [
@@ -353,10 +353,10 @@ class Tracker:
                     info = update(detections, beta[k])
                 tracks[row].ess = info.ess
         R = c.sensor.base.R
-        for (kind, _), group in batches.items():
+        for (cls, _), group in batches.items():
             rows = np.array([row for row, _, _ in group])
             cols = np.array([used for _, used, _ in group])
-            kind.update_pda_many(
+            cls.update_pda_many(
                 [tracks[row].filter for row in rows],
                 H[rows],
                 nu[rows[:, None], cols],
@@ -512,17 +512,17 @@ def _platform(i: int, scan: Scan) -> FloatArray:
     return s
 
 
-def _has_many(kind: type, method: str) -> bool:
-    """Whether filter class ``kind`` has ``<method>_many``, the batch form of ``method``, from
+def _has_many(cls: type, method: str) -> bool:
+    """Whether filter class ``cls`` has ``<method>_many``, the batch form of ``method``, from
     the same class as its ``method`` (a subclass that overrides ``method`` alone keeps it)."""
-    known = _HAS_MANY.get((kind, method))
+    known = _HAS_MANY.get((cls, method))
     if known is None:
 
         def owner(name: str) -> type | None:
-            return next((c for c in kind.__mro__ if name in c.__dict__), None)
+            return next((c for c in cls.__mro__ if name in c.__dict__), None)
 
         many = owner(method + "_many")
-        known = _HAS_MANY[kind, method] = many is not None and many is owner(method)
+        known = _HAS_MANY[cls, method] = many is not None and many is owner(method)
     return known
 
 
