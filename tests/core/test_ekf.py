@@ -14,6 +14,7 @@ from activetrack.filters import (
     UpdateInfo,
     make_filter,
 )
+from activetrack.filters.jpda import pda_residuals
 from activetrack.models.base import GaussianSensor
 from activetrack.models.motion import (
     CircularMotion,
@@ -388,3 +389,129 @@ def test_bad_inputs_raise_value_error_naming_the_argument():
     # Nothing above changed the filter.
     assert ekf.time == 10.0
     np.testing.assert_array_equal(ekf.mean, X0)
+
+
+def test_pda_update_with_the_callers_linearization_equals_its_own():
+    """The tracker hands the EKF its scan's Jacobian and residuals: the same update, to the bit
+    (they are the numbers pda_residuals computes)."""
+    model = NearlyConstantVelocity(0.01)
+    sensor = RangeBearingSensor(50.0, 0.02, 0.9, 100.0, 1e5)
+    s = np.array([14000.0, 0.0, 8000.0, 0.0])
+    x0, P0 = np.array([7000.0, 5.0, 8100.0, -3.0]), np.diag([1e4, 9.0, 1e4, 9.0])
+    Z = np.array([[7010.0, math.pi - 0.012], [6900.0, math.pi - 0.02], [7050.0, -math.pi + 0.01]])
+    beta = np.array([0.1, 0.5, 0.3, 0.1])
+    own, given = ExtendedKalmanFilter(model, x0, P0), ExtendedKalmanFilter(model, x0, P0)
+    for f in (own, given):
+        f.predict(5.0)
+    meas = [Measurement(sensor, s, z, 5.0, "radar") for z in Z]
+    predicted = own.mean
+    own.update_pda(meas, beta)
+    H, nu = pda_residuals(given.mean, given.cov, Z, sensor, s, model)
+    given.update_pda(meas, beta, linearization=(H, nu))
+    assert np.array_equal(own.mean, given.mean) and np.array_equal(own.cov, given.cov)
+    assert np.linalg.norm(own.mean - predicted) > 1.0  # it did update
+    other = ExtendedKalmanFilter(model, x0, P0)
+    other.predict(5.0)
+    other.update_pda(meas, beta, linearization=(H, nu + np.array([10.0, 0.0])))  # and it uses them
+    assert abs(other.mean[0] - own.mean[0]) > 1.0
+
+
+@pytest.mark.parametrize("m", [1, 2, 5])
+def test_stacked_pda_update_of_many_filters_equals_each_ones_own(m):
+    """update_pda_many (the tracker's stacked EKF update of a scan) gives every filter the
+    numbers its own update_pda gives, to the bit; a row with beta_0 = 1 keeps its prediction."""
+    rng = np.random.default_rng(m)
+    model = NearlyConstantVelocity(0.01)
+    sensor = RangeBearingSensor(50.0, 0.02, 0.9, 100.0, 1e5)
+    s = np.array([14000.0, 0.0, 8000.0, 0.0])
+    G = 40
+    X0 = np.column_stack(
+        [
+            rng.uniform(2e3, 9e3, G),
+            rng.normal(0, 5, G),
+            rng.uniform(2e3, 9e3, G),
+            rng.normal(0, 5, G),
+        ]
+    )
+    A = rng.standard_normal((G, 4, 4)) * [[30.0], [2.0], [30.0], [2.0]]
+    P0 = A @ np.swapaxes(A, 1, 2) + np.eye(4)
+    own = [ExtendedKalmanFilter(model, X0[g], P0[g]) for g in range(G)]
+    many = [ExtendedKalmanFilter(model, X0[g], P0[g]) for g in range(G)]
+    for f in own + many:
+        f.predict(5.0)
+    Z = sensor.measure(X0[:, None, :] + rng.normal(0, 60, (G, m, 4)), s)
+    B = rng.dirichlet(np.ones(m + 1), G)
+    B[3] = np.eye(m + 1)[0]  # no detection is its target's
+    H = np.empty((G, 2, 4))
+    nu = np.empty((G, m, 2))
+    for g in range(G):
+        meas = [Measurement(sensor, s, z, 5.0, "radar") for z in Z[g]]
+        H[g], nu[g] = pda_residuals(many[g].mean, many[g].cov, Z[g], sensor, s, model)
+        own[g].update_pda(meas, B[g])
+    ExtendedKalmanFilter.update_pda_many(many, H, nu, B, sensor.R, "radar")
+    for a, b in zip(own, many, strict=True):
+        assert np.array_equal(a.mean, b.mean) and np.array_equal(a.cov, b.cov)
+    predicted = ExtendedKalmanFilter(model, X0[3], P0[3])
+    predicted.predict(5.0)
+    assert np.array_equal(many[3].mean, predicted.mean)
+    assert many[0].last_info.n_detections == m and many[0].last_info.sensor_ids == ("radar",) * m
+    with pytest.raises(ValueError, match="beta"):
+        ExtendedKalmanFilter.update_pda_many(many, H, nu, B * 1.1, sensor.R)
+
+
+@pytest.mark.parametrize(
+    "model",
+    [
+        NearlyConstantVelocity(0.01),
+        NearlyConstantVelocityDiscrete(0.5, 0.5),
+        CircularMotion(1e-3, 0.05),
+    ],
+    ids=["ncv", "ncv-discrete", "circular (nonlinear: one by one)"],
+)
+def test_predict_many_equals_each_filters_own_predict(model):
+    """The tracker predicts all its EKF tracks at once: the numbers of each one's predict, to
+    the bit, for filters at two different times (two stacked groups) and one already there."""
+    rng = np.random.default_rng(4)
+    n, G = model.dim, 30
+    X0 = (
+        rng.normal(0.0, 1.0, (G, n)) * np.r_[1e3, 5.0, 1e3, 5.0, 0.01][:n]
+        + np.r_[5e3, 0.0, 5e3, 0.0, 0.05][:n]
+    )
+    A = rng.standard_normal((G, n, n))
+    P0 = A @ np.swapaxes(A, 1, 2) + np.eye(n)
+    t0 = np.where(np.arange(G) % 3 == 0, 5.0, 0.0)
+    t0[1] = 10.0
+    own = [ExtendedKalmanFilter(model, X0[g], P0[g], t0[g]) for g in range(G)]
+    many = [ExtendedKalmanFilter(model, X0[g], P0[g], t0[g]) for g in range(G)]
+    for f in own:
+        f.predict(10.0)
+    ExtendedKalmanFilter.predict_many(many, 10.0)
+    for a, b in zip(own, many, strict=True):
+        assert a.time == b.time == 10.0
+        assert np.array_equal(a.mean, b.mean) and np.array_equal(a.cov, b.cov)
+    assert not np.array_equal(many[2].mean, X0[2])  # it moved
+    assert np.array_equal(many[1].mean, X0[1])  # already at t
+
+
+def test_many_builds_the_filters_one_by_one_would_and_checks_the_stack():
+    model = NearlyConstantVelocity(0.01)
+    rng = np.random.default_rng(5)
+    X0 = rng.normal(0.0, 1e3, (6, 4))
+    A = rng.standard_normal((6, 4, 4))
+    P0 = A @ np.swapaxes(A, 1, 2) + np.eye(4)
+    P0[2, 0, 1] += 1e-13  # a round-off asymmetry, symmetrised the same way
+    built = ExtendedKalmanFilter.many(model, X0, P0, 5.0)
+    for g, f in enumerate(built):
+        one = ExtendedKalmanFilter(model, X0[g], P0[g], 5.0)
+        assert f.time == one.time == 5.0
+        assert np.array_equal(f.mean, one.mean) and np.array_equal(f.cov, one.cov)
+    built[0].predict(10.0)  # independent filters
+    assert built[1].time == 5.0
+    bad = P0.copy()
+    bad[4] = -np.eye(4)
+    with pytest.raises(ValueError, match="P0"):
+        ExtendedKalmanFilter.many(model, X0, bad, 5.0)
+    with pytest.raises(ValueError, match="x0"):
+        ExtendedKalmanFilter.many(model, X0[:, :3], P0, 5.0)
+    with pytest.raises(ValueError, match="t0"):
+        ExtendedKalmanFilter.many(model, X0, P0, math.nan)

@@ -34,8 +34,10 @@ Figures asserted (seeded; the measured values are in the comments):
 
 from __future__ import annotations
 
+import logging
 import math
 from collections import Counter
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -70,6 +72,7 @@ from activetrack.tracking.management import (
     existence_update,
     weaker,
 )
+from activetrack.tracking.tracker import FilterSpec, Tracker, TrackPrior
 
 SENSOR_PV = np.array([0.0, 0.0, -3000.0, 0.0])
 
@@ -300,15 +303,35 @@ def test_clutter_alone_confirms_no_track_and_tentative_tracks_die_within_n_looks
     assert max(epochs.values()) <= 2
 
 
-def test_max_tracks_caps_the_live_tracks_and_counts_the_rest():
+def test_max_tracks_caps_the_live_tracks_and_counts_the_rest(caplog):
     far = {"id": "late", "mean": [0.0, 0.0, 0.0, 0.0], "birth": 39}
     sc = make_scenario([far], [range_bearing(clutter_density=1e-4)], tracks={"max_tracks": 5})
     _, scans = simulate(sc, 10, np.random.default_rng(6))
-    tracker, sets = run(sc, scans)
+    with caplog.at_level(logging.WARNING, logger="activetrack.tracking.tracker"):
+        tracker, sets = run(sc, scans)
     assert max(len(ts.tracks) for ts in sets) == 5
     started = tracker.book.next_id - 1
-    assert tracker.not_started > 0
+    assert tracker.not_started > 1
     assert started + tracker.not_started == sum(ts.unassociated for ts in sets)
+    assert tracker.counters["not_started"] == tracker.not_started
+    # the limit speaks once per run, naming itself; every detection not started is counted
+    warned = [r.getMessage() for r in caplog.records if "max_tracks" in r.getMessage()]
+    assert len(warned) == 1 and "max_tracks=5 reached" in warned[0]
+
+
+def test_a_scan_beyond_the_detection_limit_is_refused_by_name(monkeypatch):
+    from activetrack import limits
+
+    sc = make_scenario([{"id": "a", "mean": [0.0, 0.0, 0.0, 0.0]}], [range_bearing()])
+    _, scans = simulate(sc, 1, np.random.default_rng(6))
+    monkeypatch.setattr(limits, "MAX_SCAN_DETECTIONS", 3)
+    scan = scans[0][0]
+    big = replace(scan, Z=np.tile([[500.0, 0.1]], (4, 1)))
+    tracker = run(sc, [])[0]
+    with pytest.raises(ValueError, match=r"scans\[0\]\.Z: at most 3 detections per scan"):
+        tracker.step(1, big.time, [big])
+    assert tracker.epoch == 0 and tracker.updates == 0
+    tracker.step(1, big.time, [replace(scan, Z=big.Z[:3])])  # at the limit: taken
 
 
 def test_a_target_born_at_epoch_5_is_confirmed_at_its_m_th_look():
@@ -897,3 +920,98 @@ def test_initiation_from_detections_can_be_switched_off():
     assert max(t.track_id for ts in on for t in ts.tracks) > 3  # clutter starts tentatives
     assert all({t.track_id for t in ts.tracks} <= {1, 2, 3} for ts in off)
     assert tracker.book.not_started == 0 and tracker.book.next_id == 4
+
+
+def test_clusters_are_the_connected_components_of_the_gate_by_first_track():
+    from activetrack.tracking.tracker import _clusters
+
+    def reference(mask):  # breadth-first search over tracks sharing a gated detection
+        T = mask.shape[0]
+        seen, out = set(), []
+        for start in range(T):
+            if start in seen or not mask[start].any():
+                continue
+            group, todo = {start}, [start]
+            while todo:
+                t = todo.pop()
+                for u in np.flatnonzero(mask[:, mask[t]].any(axis=1)):
+                    if u not in group:
+                        group.add(int(u))
+                        todo.append(int(u))
+            seen |= group
+            rows = np.array(sorted(group))
+            out.append((rows, np.flatnonzero(mask[rows].any(axis=0))))
+        return out
+
+    rng = np.random.default_rng(11)
+    sizes = []
+    for _ in range(300):
+        mask = rng.random(rng.integers(0, 25, 2)) < rng.uniform(0.0, 0.15)
+        got, want = _clusters(mask), reference(mask)
+        assert len(got) == len(want)
+        for (r1, c1), (r2, c2) in zip(got, want, strict=True):
+            assert np.array_equal(r1, r2) and np.array_equal(c1, c2)
+        sizes += [len(r) for r, _ in got]
+    assert max(sizes) >= 5 and sizes.count(1) > 50  # chains and singletons both seen
+
+
+def test_an_ekf_subclass_that_overrides_one_step_keeps_it_and_the_numbers_stay():
+    """The tracker predicts, starts and updates EKF tracks in stacked calls; a subclass that
+    overrides predict or update_pda alone is called one track at a time (its own method), and
+    as it changes nothing here the tracks are those of the stacked path, to the bit."""
+    calls = Counter()
+
+    class Own(ExtendedKalmanFilter):
+        def predict(self, t):
+            calls["predict"] += 1
+            super().predict(t)
+
+        def update_pda(self, measurements, beta, **kw):
+            calls["update_pda"] += 1
+            return super().update_pda(measurements, beta, **kw)
+
+    targets = [{"id": "a", "mean": [0.0, 0.0, 0.0, 0.0]}, {"id": "b", "mean": [60.0, 0.0, 0, 0]}]
+    sc = make_scenario(targets, [range_bearing(clutter_density=3e-4)])
+    _, scans = simulate(sc, 8, np.random.default_rng(12))
+    stacked, sets = run(sc, scans)
+    model = stacked.model
+    own = Tracker(
+        model,
+        "ncv",
+        FilterSpec("ekf", False, lambda x0, P0, t0: Own(model, x0, P0, t0)),
+        stacked.sensors,
+        [
+            TrackPrior(t["id"], np.array(t["mean"]), np.diag([100.0, 4.0, 100.0, 4.0]))
+            for t in targets
+        ],
+        known_association=False,
+        management=sc.tracker.tracks,
+        planner_samples=1,
+        new_track_priority=1.0,
+        rng=np.random.default_rng(0),
+    )
+    for k, epoch_scans in enumerate(scans, start=1):
+        ts = own.step(k, k * sc.dt, epoch_scans)
+        assert [t.track_id for t in ts.tracks] == [t.track_id for t in sets[k].tracks]
+        for a, b in zip(ts.tracks, sets[k].tracks, strict=True):
+            assert np.array_equal(a.mean, b.mean) and np.array_equal(a.cov, b.cov)
+    assert calls["predict"] >= 16 and calls["update_pda"] >= 8
+
+
+def test_the_ekf_registers_its_batch_constructor_and_the_pf_none():
+    from activetrack.filters.registry import filter_kind, register_filter
+
+    targets = [{"id": "a", "mean": [0.0, 0.0, 0.0, 0.0]}, {"id": "b", "mean": [60.0, 0.0, 0, 0]}]
+    ekf = build_tracker(make_scenario(targets, [range_bearing()]), np.random.default_rng(0))
+    pf = build_tracker(
+        make_scenario(targets, [range_bearing()], filter="pf"), np.random.default_rng(0)
+    )
+    assert ekf.filter.make_many is not None and pf.filter.make_many is None
+    assert filter_kind("ekf").factory_many is not None
+    X0 = np.array([[100.0, 1.0, 200.0, -1.0], [300.0, 0.0, -50.0, 2.0]])
+    P0 = np.array([np.diag([100.0, 4.0, 100.0, 4.0])] * 2)
+    for f, x in zip(ekf.filter.make_many(X0, P0, 3.0), X0, strict=True):
+        assert isinstance(f, ExtendedKalmanFilter) and f.time == 3.0
+        assert np.array_equal(f.mean, x)
+    with pytest.raises(ValueError, match="factory_many must be callable"):
+        register_filter("batchy", lambda *a, **k: None, factory_many=3)

@@ -38,7 +38,10 @@ MAX_PRIOR_VARIANCE = 1e18  # largest entry of the prior covariance (MAX_POSITION
 MAX_PLATFORMS = 100  # papers: <= 3
 MAX_SENSORS = 100  # in total over all platforms (papers: <= 3)
 MAX_STATE_DIM = 5  # entries of a prior mean (the circular model has 5)
-MAX_TARGETS = 100  # targets of a multi-target scenario
+# Targets of a multi-target scenario (benchmarks/step_profile.py on 2 shared cores: 1,000
+# targets spread over 121 radars, 20 false alarms per scan and radar, ~5,900 live tracks: 1.7 s
+# per epoch in the tracker).
+MAX_TARGETS = 1_000
 # Mean false alarms per scan over a sensor's whole field of view: the clutter density times the
 # field's volume in measurement units (typical radar/sonar: 1-50).
 MAX_CLUTTER_PER_SCAN = 10_000.0
@@ -51,7 +54,15 @@ MAX_PARTICLES = 1_000_000  # papers: 10,000
 # resampling soon leaves too few distinct ones for that (about 1 in 5 runs with 50).
 MIN_PARTICLES_FOR_PLANNING = 100
 MAX_ROUGHENING = 100.0  # Gordon's K (typical: 0.2)
-MAX_TRACKS = 1_000  # live tracks of the multi-target tracker (tentative ones included)
+# Live tracks of the multi-target tracker (tentative ones included): ``tracker.tracks.max_tracks``
+# may go this high. The step's cost grows with the tracks in each scan's view, not with all
+# pairs: ~0.3 ms per live track and epoch measured up to 5,900 tracks (above), so a few seconds
+# per epoch at the limit, and a few kB of memory per track.
+MAX_TRACKS = 10_000
+# Detections in one scan: Poisson clutter of mean <= MAX_CLUTTER_PER_SCAN stays below twice its
+# mean (by ~100 standard deviations at the limit), plus one per target. The tracker refuses a
+# scan with more (its gate holds tracks x detections pairs).
+MAX_SCAN_DETECTIONS = int(2 * MAX_CLUTTER_PER_SCAN) + MAX_TARGETS
 MAX_GATE_SIGMAS = 10.0  # gate radius in innovation standard deviations (typical: 3-4)
 
 # --- planner -----------------------------------------------------------------------------------

@@ -168,6 +168,12 @@ def build_tracker(
     def make(x0: np.ndarray, P0: np.ndarray, t0: float) -> TrackingFilter:
         return make_filter(cfg.filter, model, x0, P0, cfg, rng, t0)
 
+    many = kind.factory_many  # the filter's batch form, if it registered one
+
+    def make_many(X0: np.ndarray, P0: np.ndarray, t0: float) -> Sequence[TrackingFilter]:
+        assert many is not None
+        return many(model, X0, P0, cfg, rng, t0=t0)
+
     priors = [
         TrackPrior(
             t.id,
@@ -180,7 +186,7 @@ def build_tracker(
     return Tracker(
         model,
         motion_cfg.model,
-        FilterSpec(cfg.filter, kind.particle_based, make),
+        FilterSpec(cfg.filter, kind.particle_based, make, None if many is None else make_many),
         {sid: sensor for sid, (_, sensor) in scene_sensors(config).items()},
         priors,
         known_association=config.known_association,

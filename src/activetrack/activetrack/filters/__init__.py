@@ -88,10 +88,22 @@ def _ekf(
     return ExtendedKalmanFilter(model, x0, P0, t0=t0)
 
 
+def _ekf_many(
+    model: MotionModel,
+    X0: FloatArray,
+    P0: FloatArray,
+    config: Any,
+    rng: np.random.Generator,
+    t0: float = 0.0,
+) -> list[ExtendedKalmanFilter]:
+    return ExtendedKalmanFilter.many(model, X0, P0, t0)
+
+
 _register_built_in(
     "ekf",
     _ekf,
     description="extended Kalman filter (ExtendedKalmanFilter)",
+    factory_many=_ekf_many,
 )
 _register_built_in(
     "pf",

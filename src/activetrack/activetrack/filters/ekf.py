@@ -32,6 +32,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
+from activetrack.checks import require_finite, require_spd
 from activetrack.filters.jpda import pda_residuals, pda_update
 from activetrack.filters.measurement import (
     Measurement,
@@ -90,6 +91,35 @@ def _joseph_update(
     return x, 0.5 * (P + P.T), nis, log_det_S
 
 
+def _pda_update_stacked(
+    X: FloatArray, P: FloatArray, H: FloatArray, R: FloatArray, nu: FloatArray, B: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`activetrack.filters.jpda.pda_update` of ``G`` tracks at once: means ``(G, n)``,
+    covariances ``(G, n, n)``, Jacobians ``(G, d, n)``, ``R`` ``(d, d)``, residuals ``(G, m,
+    d)``, probabilities ``(G, m + 1)``. The same products in the same order, stacked (numpy
+    runs each stacked product as that track's own: equal to the bit, tested)."""
+    HT = np.swapaxes(H, 1, 2)
+    PHT = P @ HT
+    S = H @ PHT + R
+    K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHT, 1, 2)), 1, 2)  # P H^T S^-1
+    b0, bj = B[:, 0], B[:, 1:]
+    nu_c = (bj[:, None, :] @ nu)[:, 0, :]  # combined innovations (G, d)
+    spread = (np.swapaxes(nu, 1, 2) * bj[:, None, :]) @ nu - nu_c[:, :, None] * nu_c[:, None, :]
+    KT = np.swapaxes(K, 1, 2)
+    I_KH = np.eye(X.shape[1]) - K @ H
+    P_c = I_KH @ P @ np.swapaxes(I_KH, 1, 2) + K @ R @ KT
+    P_new = b0[:, None, None] * P + (1.0 - b0)[:, None, None] * P_c + K @ spread @ KT
+    X_new = X + (K @ nu_c[:, :, None])[:, :, 0]
+    return X_new, 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
+
+
+def _check_t0(t0: float) -> float:
+    t = float(t0)
+    if not math.isfinite(t):
+        raise ValueError(f"t0 must be finite, got {t0!r}")
+    return t
+
+
 class ExtendedKalmanFilter:
     """EKF over ``model`` (any :mod:`activetrack.models.motion` model).
 
@@ -101,14 +131,38 @@ class ExtendedKalmanFilter:
     def __init__(self, model: MotionModel, x0: ArrayLike, P0: ArrayLike, t0: float = 0.0):
         n = int(model.dim)
         x, P = check_prior(x0, P0, n)
-        t0 = float(t0)
-        if not math.isfinite(t0):
-            raise ValueError(f"t0 must be finite, got {t0!r}")
+        self._setup(model, x.copy(), P.copy(), _check_t0(t0), np.eye(n))
+
+    @classmethod
+    def many(
+        cls, model: MotionModel, X0: ArrayLike, P0: ArrayLike, t0: float = 0.0
+    ) -> list[ExtendedKalmanFilter]:
+        """``k`` filters at once, from means ``X0`` ``(k, n)`` and covariances ``P0`` ``(k, n,
+        n)``: the filters ``ExtendedKalmanFilter(model, X0[i], P0[i], t0)`` would be (the same
+        checks, on the stack)."""
+        n = int(model.dim)
+        X = require_finite("x0", X0)
+        if X.ndim != 2 or X.shape[1] != n:
+            raise ValueError(f"x0 must have shape (k, {n}) for this model, got {X.shape}")
+        P = require_spd("P0", P0)
+        if P.shape != (X.shape[0], n, n):
+            raise ValueError(f"P0 must have shape ({X.shape[0]}, {n}, {n}), got {P.shape}")
+        t = _check_t0(t0)
+        out = []
+        for x, cov in zip(X, P, strict=True):
+            f = cls.__new__(cls)
+            f._setup(model, x.copy(), cov.copy(), t, np.eye(n))
+            out.append(f)
+        return out
+
+    def _setup(
+        self, model: MotionModel, x: FloatArray, P: FloatArray, t0: float, I: FloatArray
+    ) -> None:
         self.model = model
-        self._x = x.copy()
-        self._P = P.copy()
+        self._x = x
+        self._P = P
         self._t = t0
-        self._I = np.eye(n)
+        self._I = I
         # The pv-state models need no kinematics map (pv = x, d pv / dx = I).
         self._pv_state = bool(model.state_is_pv)
         self._linear_cache: tuple[float, FloatArray, FloatArray] | None = None
@@ -157,6 +211,37 @@ class ExtendedKalmanFilter:
                 self._P = 0.5 * (P + P.T)
             self._x = Fx if x_new is None else x_new
         self._t = t
+
+    @classmethod
+    def predict_many(cls, filters: Sequence[ExtendedKalmanFilter], t: float) -> None:
+        """:meth:`predict` of many filters to ``t``: those of one linear model and one time
+        step stacked (numpy runs each stacked product as that filter's own: the same numbers
+        to the bit, tested), the others (nonlinear models; the compiled kernels' mode) one by
+        one."""
+        if ekf_kernels() is not None:
+            for f in filters:
+                f.predict(t)
+            return
+        groups: dict[tuple[int, float], list[ExtendedKalmanFilter]] = {}
+        for f in filters:
+            t_f = check_predict_time(t, f._t)
+            dt = t_f - f._t
+            if dt > 0.0 and f.model.is_linear:
+                groups.setdefault((id(f.model), dt), []).append(f)
+            else:
+                f.predict(t)
+        for (_, dt), group in groups.items():
+            model = group[0].model
+            F = as_linear(model).transition_matrix(dt)
+            Q = model.process_noise(dt)
+            X = np.array([f._x for f in group])
+            P = np.array([f._P for f in group])
+            Fx = (F @ X[:, :, None])[:, :, 0]
+            P = F @ P @ F.T + Q
+            P = 0.5 * (P + np.swapaxes(P, 1, 2))
+            for k, f in enumerate(group):
+                f._x, f._P, f._t = Fx[k], P[k], float(t)  # dt > 0: t is after f's time
+                f._linear_cache = (dt, F, Q)
 
     def update(self, measurements: Sequence[Measurement]) -> UpdateInfo:
         """Fuse the measurements taken at the current time, one after another.
@@ -210,16 +295,29 @@ class ExtendedKalmanFilter:
         self.last_info = info
         return info
 
-    def update_pda(self, measurements: Sequence[Measurement], beta: ArrayLike) -> UpdateInfo:
+    def update_pda(
+        self,
+        measurements: Sequence[Measurement],
+        beta: ArrayLike,
+        *,
+        linearization: tuple[FloatArray, FloatArray] | None = None,
+    ) -> UpdateInfo:
         """The PDAF update (Bar-Shalom, Daum & Huang 2009 eq. 23-27) with one scan's detections
         (one sensor and platform state) and their association probabilities ``beta`` ``(m +
-        1,)`` (``beta[0]``: none is the target's; 1 leaves the prediction)."""
+        1,)`` (``beta[0]``: none is the target's; 1 leaves the prediction). ``linearization``:
+        ``(H, nu)``, the Jacobian ``(d, n)`` at the current mean and the detections' wrapped
+        residuals ``(m, d)`` where the caller has them (the tracker, once per scan: the same
+        numbers :func:`~activetrack.filters.jpda.pda_residuals` gives); computed here
+        otherwise."""
         check_measurement_times(measurements, self._t)
         b = pda_weights(measurements, beta)
         if b[0] < 1.0:
             sensor, s = measurements[0].sensor, measurements[0].sensor_state
-            Z = np.stack([np.asarray(m.z, dtype=float) for m in measurements])
-            H, nu = pda_residuals(self._x, self._P, Z, sensor, s, self.model)
+            if linearization is None:
+                Z = np.stack([np.asarray(m.z, dtype=float) for m in measurements])
+                H, nu = pda_residuals(self._x, self._P, Z, sensor, s, self.model)
+            else:
+                H, nu = linearization
             self._x, self._P = pda_update(self._x, self._P, H, sensor.R, nu, b)
         info = UpdateInfo(
             time=self._t,
@@ -228,6 +326,47 @@ class ExtendedKalmanFilter:
         )
         self.last_info = info
         return info
+
+    @classmethod
+    def update_pda_many(
+        cls,
+        filters: Sequence[ExtendedKalmanFilter],
+        H: FloatArray,
+        nu: FloatArray,
+        beta: FloatArray,
+        R: ArrayLike,
+        sensor_id: str = "",
+    ) -> None:
+        """:meth:`update_pda` of ``G`` filters at once, each with ``m`` detections of one scan
+        and its ``linearization``: Jacobians ``H`` ``(G, d, n)`` at the current means, wrapped
+        residuals ``nu`` ``(G, m, d)``, probabilities ``beta`` ``(G, m + 1)`` and the sensor's
+        ``R`` ``(d, d)``. The filters must be at the scan's time (the tracker predicted them).
+        The same algebra stacked (:func:`_pda_update_stacked`): the same numbers to the bit."""
+        B = np.asarray(beta, dtype=float)
+        G = len(filters)
+        m = B.shape[1] - 1 if B.ndim == 2 else -1
+        if B.shape != (G, m + 1) or np.shape(nu) != (G, m, np.shape(H)[1]):
+            raise ValueError(
+                f"beta (G, m + 1) and nu (G, m, d) expected for {G} filters, got "
+                f"{B.shape}, {np.shape(nu)}"
+            )
+        tol = 1e-12  # as pda_weights: round-off of a marginal clipped, the sum checked
+        if not np.isfinite(B).all() or (B < -tol).any() or (B > 1 + tol).any():
+            raise ValueError("beta must be probabilities in [0, 1]")
+        B = np.clip(B, 0.0, 1.0)
+        if (np.abs(B.sum(axis=1) - 1.0) > 1e-9).any():
+            raise ValueError("beta: each row must sum to 1")
+        go = np.flatnonzero(B[:, 0] < 1.0).tolist()
+        if go:
+            X = np.array([filters[g]._x for g in go])
+            P = np.array([filters[g]._P for g in go])
+            R = np.asarray(R, dtype=float)
+            X, P = _pda_update_stacked(X, P, np.asarray(H)[go], R, np.asarray(nu)[go], B[go])
+            for k, g in enumerate(go):
+                filters[g]._x, filters[g]._P = X[k], P[k]
+        ids = (sensor_id,) * m
+        for f in filters:
+            f.last_info = UpdateInfo(time=f._t, n_detections=m, sensor_ids=ids)
 
     def step(self, t: float, measurements: Sequence[Measurement]) -> UpdateInfo:
         """``predict(t)`` then ``update(measurements)``."""

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import inspect
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -75,6 +75,10 @@ class FilterKind:
     factory: FilterFactory
     particle_based: bool = False
     description: str = ""
+    # optional: k filters at once, factory_many(model, X0 (k, n), P0 (k, n, n), config, rng,
+    # t0=...) -> the k filters factory would build, in order (the tracker starts a scan's
+    # tracks together with it)
+    factory_many: Callable[..., Sequence[TrackingFilter]] | None = None
 
 
 _FILTERS: dict[str, FilterKind] = {}
@@ -93,6 +97,7 @@ def register_filter(
     particle_based: bool = False,
     description: str = "",
     replace: bool = False,
+    factory_many: Callable[..., Sequence[TrackingFilter]] | None = None,
 ) -> FilterKind:
     """Make the filter ``name`` available to scenario files (module docstring). ValueError for a
     bad or built-in name, a factory that is not callable, or a name registered before (unless
@@ -104,7 +109,9 @@ def register_filter(
         )
     if not callable(factory):
         raise ValueError(f"filter {name!r}: factory must be callable, got {factory!r}")
-    entry = FilterKind(name, factory, bool(particle_based), str(description))
+    if factory_many is not None and not callable(factory_many):
+        raise ValueError(f"filter {name!r}: factory_many must be callable, got {factory_many!r}")
+    entry = FilterKind(name, factory, bool(particle_based), str(description), factory_many)
     old = _FILTERS.get(name)
     if old is not None and old == entry:
         return old

@@ -52,6 +52,7 @@ from activetrack.checks import symmetrize
 from activetrack.data import CONFIRMED, TENTATIVE, TrackEstimate
 from activetrack.filters.measurement import TrackingFilter
 from activetrack.models.base import MotionModel
+from activetrack.tracking.spatial import close_pairs, largest_xy_eigenvalue
 
 
 class TrackManagementConfig(Protocol):
@@ -196,14 +197,14 @@ class Track:
         ):
             self.status = CONFIRMED
 
-    def deletion_reason(self, cfg: TrackManagementConfig) -> str | None:
+    def deletion_reason(self, cfg: TrackManagementConfig, std: float | None = None) -> str | None:
         """Why the track must go ("unconfirmed", "misses", "position_std", "existence"), or
-        None."""
+        None; ``std`` its :func:`position_std` where the caller has it."""
         if self.status == TENTATIVE and self.hits + cfg.confirm_n - self.looks < cfg.confirm_m:
             return "unconfirmed"
         if self.status == CONFIRMED and self.run_of_misses >= cfg.delete_misses:
             return "misses"
-        if position_std(self.cov) > cfg.max_position_std:
+        if (position_std(self.cov) if std is None else std) > cfg.max_position_std:
             return "position_std"
         terminate = cfg.existence_terminate_prior if self.origin else cfg.existence_terminate
         if self.status == CONFIRMED and self.existence < terminate:
@@ -251,7 +252,9 @@ class TrackManager:
         self.next_id = 1
         self.deleted: Counter[str] = Counter()
         self.not_started = 0
-        self._close: dict[tuple[int, int], int] = {}  # confirmed pair -> joint close looks
+        # confirmed pair (lower id first) -> joint close looks, only the pairs counting (> 0)
+        self._close: dict[tuple[int, int], int] = {}
+        self._partners: dict[int, set[int]] = {}  # track id -> the ids it shares a pair with
 
     def live(self) -> list[Track]:
         """Every live track, by id."""
@@ -274,8 +277,12 @@ class TrackManager:
         for track_id, hit in looked.items():
             if track_id in self.tracks:
                 self.tracks[track_id].record_look(hit, self.cfg)
-        for track in self.live():
-            reason = track.deletion_reason(self.cfg)
+        live = self.live()
+        # every track's position_std at once (the same LAPACK call per matrix)
+        covs = np.array([track.cov for track in live]).reshape(-1, 4, 4)
+        stds = np.sqrt(np.maximum(np.linalg.eigvalsh(covs[:, [0, 2]][:, :, [0, 2]])[:, -1], 0.0))
+        for track, std in zip(live, stds, strict=True):
+            reason = track.deletion_reason(self.cfg, float(std))
             if reason is not None:
                 self._delete(track.track_id, reason)
         for track_id in self._coalesced(looked):
@@ -284,23 +291,48 @@ class TrackManager:
     def _delete(self, track_id: int, reason: str) -> None:
         if self.tracks.pop(track_id, None) is not None:
             self.deleted[reason] += 1
-        self._close = {pair: n for pair, n in self._close.items() if track_id not in pair}
+        for other in self._partners.pop(track_id, ()):
+            self._close.pop((min(track_id, other), max(track_id, other)), None)
+            self._partners[other].discard(track_id)
+
+    def _count(self, pair: tuple[int, int], count: int) -> None:
+        if count:
+            self._close[pair] = count
+            self._partners.setdefault(pair[0], set()).add(pair[1])
+            self._partners.setdefault(pair[1], set()).add(pair[0])
+        elif self._close.pop(pair, None) is not None:
+            self._partners[pair[0]].discard(pair[1])
+            self._partners[pair[1]].discard(pair[0])
 
     def _coalesced(self, looked: dict[int, bool]) -> list[int]:
         """Update the closeness count of every pair of confirmed tracks both looked at this
         epoch; the less supported track of each pair that reached ``COALESCE_LOOKS``
-        (:func:`weaker`)."""
+        (:func:`weaker`). Only the pairs a k-d tree finds within reach are tested
+        (:func:`~activetrack.tracking.spatial.close_pairs`, a superset of the close ones); every
+        other pair is not close, and its count goes to 0."""
         seen = [t for t in self.live() if t.confirmed and t.track_id in looked]
+        if len(seen) < 2:  # no pair both seen: every count stays
+            return []
+        means = [t.mean for t in seen]
+        covs = [t.cov for t in seen]
+        xy = np.array([m[[0, 2]] for m in means])
+        reach2 = COALESCE_D2 * largest_xy_eigenvalue(np.array(covs))
+        row = {t.track_id: k for k, t in enumerate(seen)}
         out: set[int] = set()
-        for i, a in enumerate(seen):
-            for b in seen[i + 1 :]:
-                pair = (a.track_id, b.track_id)
-                dp = (a.mean - b.mean)[[0, 2]]
-                d2 = float(dp @ np.linalg.solve(a.cov[_XY] + b.cov[_XY], dp))
-                count = self._close.get(pair, 0) + 1 if d2 <= COALESCE_D2 else 0
-                self._close[pair] = count
-                if count >= COALESCE_LOOKS:
-                    out.add(weaker(a, b).track_id)
+        tested: set[tuple[int, int]] = set()
+        for i, j in close_pairs(xy, reach2):
+            a, b = seen[i], seen[j]
+            pair = (a.track_id, b.track_id)
+            tested.add(pair)
+            dp = (means[i] - means[j])[[0, 2]]
+            d2 = float(dp @ np.linalg.solve(covs[i][_XY] + covs[j][_XY], dp))
+            count = self._close.get(pair, 0) + 1 if d2 <= COALESCE_D2 else 0
+            self._count(pair, count)
+            if count >= COALESCE_LOOKS:
+                out.add(weaker(a, b).track_id)
+        for pair in [p for p in self._close if p not in tested]:
+            if pair[0] in row and pair[1] in row:  # both seen, out of reach: not close
+                self._count(pair, 0)
         return sorted(out)
 
 

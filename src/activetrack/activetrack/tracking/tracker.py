@@ -12,14 +12,15 @@ sensor order:
      filter takes the epoch's scans as its measurements, a scan without a detection as
      "looked, saw nothing" (``filter.step``; Hernandez sec. 2.3, the papers' tracking);
    - **JPDA** (several targets, births or clutter): each scan in turn updates the tracks whose
-     predicted position is inside its field of view: the chi-square gate ``gamma =
-     gate_sigmas^2`` on each track's predicted measurement (its filter's moments, linearised at
-     the mean), the likelihood ratios and the JPDA marginals ``beta`` (Bar-Shalom, Daum & Huang
-     2009; :func:`activetrack.filters.jpda.jpda_association`) per cluster of tracks that share
-     gated detections (exact: the joint events factorise over clusters; a cluster whose events
-     could exceed :data:`~activetrack.filters.jpda.DEFAULT_MAX_EVENTS` is split into one PDA per
-     track, counted in ``split_clusters``); each track's filter takes its row of ``beta``
-     (``update_pda``). Particle tracks (``particle_based`` filters) take the Monte Carlo JPDAF
+     predicted position is inside its field of view (found through a k-d tree of the predicted
+     positions, :class:`.spatial.FovIndex`, then tested exactly): the chi-square gate ``gamma
+     = gate_sigmas^2`` on each track's predicted measurement (its filter's moments, linearised
+     at the mean), the likelihood ratios and the JPDA marginals ``beta`` (Bar-Shalom, Daum &
+     Huang 2009; :func:`activetrack.filters.jpda.jpda_probabilities`) per cluster of tracks
+     that share gated detections (exact: the joint events factorise over clusters; each
+     cluster whole, never split); each track's filter takes its row of ``beta``
+     (``update_pda``). The predicted measurements and gate are computed once per scan.
+     Particle tracks (``particle_based`` filters) take the Monte Carlo JPDAF
      (:mod:`activetrack.filters.jpda_particle`): their likelihood ratios are their particles'
      estimates of the predicted likelihood, the same enumeration gives ``beta``, and each
      gated pair's per-particle likelihoods go to the filter's weight update (computed once).
@@ -27,7 +28,7 @@ sensor order:
      :mod:`activetrack.filters.clutter_likelihood`. The same likelihood ratios first give
      each track's existence its LM-IPDA update, with Pd times the probability that the target
      lies in the scan's sector. Detections no track gated start tentative tracks at once where
-     the sensor fixes a position from one (:meth:`Tracker._start_from_detection`). Then M-of-N
+     the sensor fixes a position from one (:meth:`Tracker._start_from_detections`). Then M-of-N
      confirmation, existence, deletion and coalescence (:mod:`.management`).
 
 Tracks from the priors of the targets present at epoch 0 start confirmed, ids 1, 2, ... in
@@ -38,6 +39,7 @@ from its ``rng``: the filters' own draws (particles, resampling) and the planner
 from __future__ import annotations
 
 import inspect
+import logging
 import math
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
@@ -45,13 +47,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from activetrack import limits
 from activetrack.arraytypes import BoolArray, FloatArray
 from activetrack.data import CONFIRMED, TENTATIVE, Scan, TrackSet
 from activetrack.filters.clutter_likelihood import effective_clutter_density, effective_pd
 from activetrack.filters.jpda import (
-    DEFAULT_MAX_EVENTS,
     gate_probability,
-    jpda_association,
     jpda_probabilities,
     likelihood_ratios,
     predict_measurements,
@@ -69,8 +70,11 @@ from activetrack.tracking.management import (
     TrackManager,
     existence_update,
 )
+from activetrack.tracking.spatial import FovIndex
 
 __all__ = ["FilterSpec", "TrackPrior", "Tracker"]
+
+_log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -83,6 +87,9 @@ class FilterSpec:
     kind: str
     particle_based: bool
     make: Callable[[FloatArray, FloatArray, float], TrackingFilter]
+    # optional: k new filters at once from (k, n) means and (k, n, n) covariances (the filters
+    # make would give, in order; drawing nothing from the generator)
+    make_many: Callable[[FloatArray, FloatArray, float], Sequence[TrackingFilter]] | None = None
 
 
 @dataclass(frozen=True)
@@ -144,7 +151,6 @@ class Tracker:
         self.epoch = 0
         self.time = 0.0
         self.updates = 0
-        self.split_clusters = 0  # clusters updated as independent PDAs (events beyond the cap)
         self._counts = (0, 0)  # detections, unassociated of the last step
         self._aged: set[int] = set()  # tracks whose existence was predicted this epoch
         for prior in priors:
@@ -190,10 +196,9 @@ class Tracker:
     @property
     def counters(self) -> Counter[str]:
         """What the tracker did that changes its result: deletions by reason, detections not
-        started, clusters split (``split_clusters``)."""
+        started (``max_tracks`` reached)."""
         out = Counter({f"deleted.{k}": v for k, v in self.book.deleted.items()})
         out["not_started"] = self.book.not_started
-        out["split_clusters"] = self.split_clusters
         return out
 
     # --- known association: the papers' single target -----------------------------------------
@@ -219,40 +224,53 @@ class Tracker:
 
     # --- JPDA ----------------------------------------------------------------------------------
     def _step_jpda(self, epoch: int, t: float, checked: list[_Checked]) -> tuple[int, int]:
-        for track in self.book.live():
-            track.filter.predict(t)
+        live = self.book.live()
+        filters = [track.filter for track in live]
+        classes = {type(f) for f in filters}
+        cls = classes.pop() if len(classes) == 1 else None
+        if cls and _has_many(cls, "predict"):  # the EKF: all tracks at once
+            cls.predict_many(filters, t)  # type: ignore[attr-defined]
+        else:
+            for f in filters:
+                f.predict(t)
         self._aged.clear()
+        # The predicted positions, indexed once: each scan tests only the tracks within reach.
+        index = FovIndex(live, np.array([track.mean[[0, 2]] for track in live]))
         looked: dict[int, bool] = {}  # track id -> hit, for the tracks looked at
         detections = unassociated = 0
         for c in checked:
-            tracks, mask = self._update(c, t)
+            tracks, mask = self._update(c, t, index)
             for track, row in zip(tracks, mask, strict=True):
                 looked[track.track_id] = looked.get(track.track_id, False) or bool(row.any())
                 track.missed_detections += not row.any()
             free = ~mask.any(axis=0)
             detections += c.Z.shape[0]
             unassociated += int(free.sum())
-            for z in c.Z[free]:
-                started = self._start_from_detection(z, c, epoch, t)
-                if started is not None:  # None: no fix, or full (each detection counted)
-                    looked[started.track_id] = True
+            for started in self._start_from_detections(c.Z[free], c, epoch, t):
+                looked[started.track_id] = True
+                index.add(started)
         self.book.end_epoch(looked)
         return detections, unassociated
 
-    def _update(self, c: _Checked, t: float) -> tuple[list[Track], BoolArray]:
-        """Update the tracks inside the scan's field of view; them and their gate ``(T, m)``."""
-        live = self.book.live()
-        pv = np.array([track.mean for track in live]).reshape(-1, 4)
-        inside = c.scan.fov.contains(pv, c.s)
-        tracks = [track for track, ok in zip(live, inside, strict=True) if ok]
+    def _update(self, c: _Checked, t: float, index: FovIndex) -> tuple[list[Track], BoolArray]:
+        """Update the tracks inside the scan's field of view; them and their gate ``(T, m)``.
+        The predicted measurements, Jacobians, residuals and gate are computed once here, for
+        the existence update, the JPDA and the EKF updates alike."""
+        candidates: list[Track] = index.candidates(c.scan.fov, c.s)  # type: ignore[assignment]
+        pv_state = self.model.state_is_pv  # pv = the state: read each filter's moments once
+        states = [track.state for track in candidates] if pv_state else []
+        pv = np.array(states if pv_state else [track.mean for track in candidates])
+        inside = c.scan.fov.contains(pv.reshape(-1, 4), c.s)
+        tracks = [track for track, ok in zip(candidates, inside, strict=True) if ok]
         if not tracks:
             return [], np.zeros((0, c.Z.shape[0]), dtype=bool)
-        means = np.array([track.state for track in tracks])
+        means = pv[inside] if pv_state else np.array([track.state for track in tracks])
         covs = np.array([track.state_cov for track in tracks])
         base = c.sensor.base
-        zhat, _, S = predict_measurements(means, covs, base, c.s, self.model)
+        zhat, H, S = predict_measurements(means, covs, base, c.s, self.model)
         nu = np.asarray(base.residual(c.Z[None, :, :], zhat[:, None, :]), dtype=float)
         lam = effective_clutter_density(c.sensor.clutter_density)
+        pd = effective_pd(c.sensor.pd)
         ratios, mask = likelihood_ratios(nu, S, 1.0, lam, self.gamma)
         particles = None
         if self.filter.particle_based:  # the MC-JPDAF: each track's particles give its ratios
@@ -271,71 +289,83 @@ class Tracker:
                 track.existence *= EXISTENCE_SURVIVAL
                 self._aged.add(track.track_id)
         pv_means = pv[inside]
-        pv_covs = np.array([track.cov for track in tracks])
+        pv_covs = covs if pv_state else np.array([track.cov for track in tracks])
         psi = existence_update(
             np.array([track.existence for track in tracks]),
             ratios,
-            effective_pd(c.sensor.pd) * c.scan.fov.coverage(pv_means, pv_covs, c.s),
+            pd * c.scan.fov.coverage(pv_means, pv_covs, c.s),
             gate_probability(self.gamma, int(base.dim_z)),
         )
         for track, p in zip(tracks, psi, strict=True):
             track.existence = float(p)
-        self._jpda(tracks, means, covs, particles, mask, c, t)
+        self._jpda(tracks, H, nu, S, particles, mask, c, t)
+        for row in np.flatnonzero(mask.any(axis=1)):  # the tracks the scan updated
+            index.moved(tracks[row], tracks[row].mean[[0, 2]])
         return tracks, mask
 
     def _jpda(
         self,
         tracks: list[Track],
-        means: FloatArray,
-        covs: FloatArray,
+        H: FloatArray,
+        nu: FloatArray,
+        S: FloatArray,
         particles: ParticleLikelihoods | None,
         mask: BoolArray,
         c: _Checked,
         t: float,
     ) -> None:
-        """The JPDA marginals per cluster; each track's filter takes its row of them. Particle
-        tracks: from their ``particles``' likelihoods (the MC-JPDAF,
-        :mod:`activetrack.filters.jpda_particle`), Gaussian ones from their moments."""
+        """The JPDA marginals per cluster (exact, the whole cluster at once); each track's
+        filter takes its row of them. Particle tracks: from their ``particles``' likelihoods
+        (the MC-JPDAF, :mod:`activetrack.filters.jpda_particle`), Gaussian ones from the scan's
+        Jacobians ``H`` ``(T, d, n)``, residuals ``nu`` ``(T, m, d)`` and ``S`` ``(T, d, d)``
+        (a filter whose ``update_pda`` takes ``linearization`` is given its ``H`` and ``nu``).
+        A cluster's ratios are taken from its own pairs (:func:`_cluster_ratios`)."""
         pd = effective_pd(c.sensor.pd)
         pg = gate_probability(self.gamma, int(c.sensor.base.dim_z))
         lam = effective_clutter_density(c.sensor.clutter_density)
-        ratios = None if particles is None else particles.ratios(pd, lam)
-        for rows, cols in _clusters(mask):
-            events = float(np.prod(1.0 + mask[np.ix_(rows, cols)].sum(axis=1)))
-            if events <= DEFAULT_MAX_EVENTS:
-                groups = [rows]
-            else:
-                groups = [rows[[k]] for k in range(rows.size)]
-                self.split_clusters += 1
-            for group in groups:
-                used = cols[mask[np.ix_(group, cols)].any(axis=0)]
-                detections = [
-                    Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
-                ]
-                if particles is None or ratios is None:
-                    beta = jpda_association(
-                        means[group],
-                        covs[group],
-                        c.Z[used],
-                        c.sensor.base,
-                        c.s,
-                        self.model,
-                        clutter_density=lam,
-                        gamma=self.gamma,
-                        pd=pd,
-                    ).beta
-                    for k, row in enumerate(group):
-                        tracks[row].ess = tracks[row].filter.update_pda(detections, beta[k]).ess
+        scan_ratios = None if particles is None else particles.ratios(pd, lam)
+        # EKF-like tracks (a class with update_pda_many) by class and detections: one stacked
+        # update per group after the clusters (each track's update is its own)
+        batches: dict[tuple[type, int], list[tuple[int, np.ndarray, FloatArray]]] = {}
+        clusters = _clusters(mask)
+        own = _cluster_ratios(clusters, nu, S, pd, lam, self.gamma) if particles is None else []
+        for i, (rows, used) in enumerate(clusters):
+            ratios = own[i] if scan_ratios is None else scan_ratios[np.ix_(rows, used)]
+            beta = jpda_probabilities(ratios, pd, pg)
+            detections: list[Measurement] | None = None
+            for k, row in enumerate(rows):
+                cls = type(tracks[row].filter)
+                if particles is None and _has_many(cls, "update_pda"):
+                    batches.setdefault((cls, used.size), []).append((row, used, beta[k]))
                     continue
-                beta = jpda_probabilities(ratios[np.ix_(group, used)], pd, pg)
-                for k, row in enumerate(group):
-                    update = tracks[row].filter.update_pda
-                    if _takes_likelihoods(update):  # reuse g(z_j | x_i), computed once a scan
-                        ell = [particles.ell[row][j] for j in used]
-                        info = update(detections, beta[k], log_likelihoods=ell)
-                    else:
-                        info = update(detections, beta[k])
-                    tracks[row].ess = info.ess
+                if detections is None:
+                    detections = [
+                        Measurement(c.sensor.base, c.s, z, t, c.scan.sensor_id) for z in c.Z[used]
+                    ]
+                update = tracks[row].filter.update_pda
+                if particles is not None and _takes(update, "log_likelihoods"):
+                    # reuse g(z_j | x_i), computed once a scan
+                    ell = [particles.ell[row][j] for j in used]
+                    info = update(detections, beta[k], log_likelihoods=ell)
+                elif particles is None and _takes(update, "linearization"):
+                    info = update(detections, beta[k], linearization=(H[row], nu[row, used]))
+                else:
+                    info = update(detections, beta[k])
+                tracks[row].ess = info.ess
+        R = c.sensor.base.R
+        for (cls, _), group in batches.items():
+            rows = np.array([row for row, _, _ in group])
+            cols = np.array([used for _, used, _ in group])
+            cls.update_pda_many(
+                [tracks[row].filter for row in rows],
+                H[rows],
+                nu[rows[:, None], cols],
+                np.array([b for _, _, b in group]),
+                R,
+                c.scan.sensor_id,
+            )
+            for row in rows:
+                tracks[row].ess = math.nan
 
     # --- track starts ------------------------------------------------------------------------
     def _start(
@@ -350,6 +380,12 @@ class Tracker:
     ) -> Track:
         """A new track with the next id: a filter started from N(mean, cov) at time ``t``."""
         new = self.filter.make(np.asarray(mean, dtype=float), np.asarray(cov, dtype=float), t)
+        return self._track(new, born, status, origin, priority)
+
+    def _track(
+        self, new: TrackingFilter, born: int, status: str, origin: str, priority: float
+    ) -> Track:
+        """A new track of the filter ``new`` with the next id."""
         track = Track(
             self.book.new_id(),
             status,
@@ -363,28 +399,48 @@ class Tracker:
         self.book.add(track)
         return track
 
-    def _start_from_detection(
-        self, z: FloatArray, c: _Checked, epoch: int, t: float
-    ) -> Track | None:
-        """A tentative track at the position the detection fixes (the sensor's
-        ``inverse_position``: a range-bearing radar does, a bearing sensor does not), velocity 0,
-        covariance ``J R J^T`` and ``init_speed_std^2``; None where the sensor fixes none or the
-        tracker holds ``max_tracks`` (counted in ``not_started``) or does not initiate."""
-        if not self.book.cfg.initiate:
-            return None
-        fix = c.sensor.base.inverse_position(z, c.s)
-        if fix is None:
-            return None
-        if self.book.full:
-            self.book.not_started += 1
-            return None
-        xy, P_xy = fix
-        mean = np.array([xy[0], 0.0, xy[1], 0.0])
-        cov = np.diag(np.full(4, self.book.cfg.init_speed_std**2))
-        cov[np.ix_([0, 2], [0, 2])] = P_xy
-        track = self._start(mean, cov, epoch, TENTATIVE, "", self.new_track_priority, t)
-        track.existence = EXISTENCE_INIT
-        return track
+    def _start_from_detections(
+        self, Z: FloatArray, c: _Checked, epoch: int, t: float
+    ) -> list[Track]:
+        """Tentative tracks at the positions the detections ``Z`` ``(k, dim_z)`` fix (the
+        sensor's ``inverse_position``: a range-bearing radar does, a bearing sensor does not),
+        velocity 0, covariance ``J R J^T`` and ``init_speed_std^2``, in order, while the tracker
+        holds fewer than ``max_tracks`` (each detection beyond counted in ``not_started``,
+        with one warning per run); none if the tracker does not initiate."""
+        if not self.book.cfg.initiate or Z.shape[0] == 0:
+            return []
+        fixes = [f for f in (c.sensor.base.inverse_position(z, c.s) for z in Z) if f is not None]
+        room = max(self.book.cfg.max_tracks - len(self.book.tracks), 0)
+        if len(fixes) > room:
+            if not self.book.not_started:  # once per run; every one is counted
+                _log.warning(
+                    "tracker.tracks.max_tracks=%d reached at epoch %d: a detection that would "
+                    "start a track beyond it starts none (each counted in not_started; this "
+                    "warning once per run)",
+                    self.book.cfg.max_tracks,
+                    epoch,
+                )
+            self.book.not_started += len(fixes) - room
+            fixes = fixes[:room]
+        if not fixes:
+            return []
+        means = np.zeros((len(fixes), 4))
+        velocity = np.diag(np.full(4, self.book.cfg.init_speed_std**2))
+        covs = np.array([velocity] * len(fixes))
+        for k, (xy, P_xy) in enumerate(fixes):
+            means[k, [0, 2]] = xy
+            covs[k][np.ix_([0, 2], [0, 2])] = P_xy
+        make_many = self.filter.make_many
+        if make_many is None:
+            filters = [self.filter.make(means[k], covs[k], t) for k in range(len(fixes))]
+        else:
+            filters = list(make_many(means, covs, t))
+        out = []
+        for new in filters:
+            track = self._track(new, epoch, TENTATIVE, "", self.new_track_priority)
+            track.existence = EXISTENCE_INIT
+            out.append(track)
+        return out
 
     def _draw_samples(self) -> None:
         """The planner's equally weighted samples of every particle track: a systematic
@@ -439,6 +495,11 @@ def _detections(i: int, scan: Scan, sensor: ClutteredSensor) -> FloatArray:
         return np.zeros((0, d))
     if Z.ndim != 2 or Z.shape[1] != d:
         raise ValueError(f"scans[{i}].Z: must have shape (m, {d}), got {Z.shape}")
+    if Z.shape[0] > limits.MAX_SCAN_DETECTIONS:
+        raise ValueError(
+            f"scans[{i}].Z: at most {limits.MAX_SCAN_DETECTIONS} detections per scan "
+            f"(limits.MAX_SCAN_DETECTIONS), got {Z.shape[0]}"
+        )
     if not np.isfinite(Z).all():
         raise ValueError(f"scans[{i}].Z: must be finite (no NaN or inf)")
     return Z
@@ -451,35 +512,97 @@ def _platform(i: int, scan: Scan) -> FloatArray:
     return s
 
 
-def _takes_likelihoods(update: Callable[..., object]) -> bool:
-    """Whether a particle filter's ``update_pda`` takes precomputed ``log_likelihoods`` (the
-    built-in one does; a plugin's may not)."""
-    func = getattr(update, "__func__", update)
-    known = _TAKES_LIKELIHOODS.get(func)
+def _has_many(cls: type, method: str) -> bool:
+    """Whether filter class ``cls`` has ``<method>_many``, the batch form of ``method``, from
+    the same class as its ``method`` (a subclass that overrides ``method`` alone keeps it)."""
+    known = _HAS_MANY.get((cls, method))
     if known is None:
-        try:
-            known = "log_likelihoods" in inspect.signature(update).parameters
-        except (TypeError, ValueError):  # a callable without a signature
-            known = False
-        _TAKES_LIKELIHOODS[func] = known
+
+        def owner(name: str) -> type | None:
+            return next((c for c in cls.__mro__ if name in c.__dict__), None)
+
+        many = owner(method + "_many")
+        known = _HAS_MANY[cls, method] = many is not None and many is owner(method)
     return known
 
 
-_TAKES_LIKELIHOODS: dict[object, bool] = {}
+_HAS_MANY: dict[tuple[type, str], bool] = {}
+
+
+def _takes(update: Callable[..., object], keyword: str) -> bool:
+    """Whether a filter's ``update_pda`` takes ``keyword``: precomputed ``log_likelihoods``
+    (the built-in particle filter) or ``linearization`` (the built-in EKF); a plugin's may
+    take neither."""
+    func = getattr(update, "__func__", update)
+    known = _TAKES.get((func, keyword))
+    if known is None:
+        try:
+            known = keyword in inspect.signature(update).parameters
+        except (TypeError, ValueError):  # a callable without a signature
+            known = False
+        _TAKES[func, keyword] = known
+    return known
+
+
+_TAKES: dict[tuple[object, str], bool] = {}
+
+
+def _cluster_ratios(
+    clusters: list[tuple[np.ndarray, np.ndarray]],
+    nu: FloatArray,
+    S: FloatArray,
+    pd: float,
+    clutter_density: float,
+    gamma: float,
+) -> list[FloatArray]:
+    """Each cluster's likelihood ratios ``(rows, used)`` from its own pairs, as
+    :func:`~activetrack.filters.jpda.likelihood_ratios` of the cluster gives them: LAPACK's
+    solve for ``S^-1 nu`` rounds a column differently with other columns beside it (1 ulp), and
+    these are the numbers of the per-cluster association the tracker has always run, to the
+    bit. The clusters with the same number of detections go in one stacked call (a track's
+    solve then has the same columns as in its cluster's own call)."""
+    by_size: dict[int, list[int]] = {}
+    for i, (_, used) in enumerate(clusters):
+        by_size.setdefault(used.size, []).append(i)
+    out: list[FloatArray] = [np.empty(0)] * len(clusters)
+    for m, members in by_size.items():
+        rows = np.concatenate([clusters[i][0] for i in members])
+        cols = np.concatenate(
+            [np.broadcast_to(clusters[i][1], (clusters[i][0].size, m)) for i in members]
+        )
+        ratios, _ = likelihood_ratios(nu[rows[:, None], cols], S[rows], pd, clutter_density, gamma)
+        start = 0
+        for i in members:
+            size = clusters[i][0].size
+            out[i] = ratios[start : start + size]
+            start += size
+    return out
 
 
 def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Tracks linked through shared gated detections: ``(rows, cols)`` per cluster (tracks
-    without a gated detection are in none). The JPDA's joint events factorise over them."""
-    label = np.arange(mask.shape[0])
-    for j in range(mask.shape[1]):
-        rows = np.flatnonzero(mask[:, j])
-        if rows.size > 1:
-            joined = np.isin(label, label[rows])
-            label[joined] = label[rows].min()
-    gated = mask.any(axis=1)
+    """Tracks linked through shared gated detections: ``(rows, cols)`` per cluster, by their
+    first row (tracks without a gated detection are in none). The JPDA's joint events
+    factorise over them. Union-find over the gated pairs (few: a gate holds a handful)."""
+    tracks, dets = np.nonzero(mask)
+    parent = list(range(mask.shape[0]))
+
+    def root(t: int) -> int:
+        while parent[t] != t:
+            parent[t] = parent[parent[t]]
+            t = parent[t]
+        return t
+
+    first: dict[int, int] = {}  # detection -> a track gating it
+    for t, j in zip(tracks.tolist(), dets.tolist(), strict=True):
+        other = first.setdefault(j, t)
+        if other != t:
+            a, b = root(other), root(t)
+            parent[max(a, b)] = min(a, b)
+    groups: dict[int, list[int]] = {}  # by root, in order of the first (smallest) row
+    for t in np.flatnonzero(mask.any(axis=1)).tolist():
+        groups.setdefault(root(t), []).append(t)
     out = []
-    for lab in np.unique(label[gated]):
-        rows = np.flatnonzero((label == lab) & gated)
-        out.append((rows, np.flatnonzero(mask[rows].any(axis=0))))
+    for rows in groups.values():
+        r = np.array(rows)
+        out.append((r, np.flatnonzero(mask[r].any(axis=0))))
     return out

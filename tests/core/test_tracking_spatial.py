@@ -1,0 +1,71 @@
+"""The tracker's spatial indexes give supersets of what the exact tests accept, so the
+tracker's decisions are the all-pairs ones (activetrack.tracking.spatial)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from activetrack.models.fov import FieldOfView
+from activetrack.tracking.management import COALESCE_D2
+from activetrack.tracking.spatial import FovIndex, close_pairs, largest_xy_eigenvalue
+
+
+def _covs(rng, n):
+    """Random SPD pv covariances ``(n, 4, 4)`` with xy blocks from 1 to 1e4 m^2, anisotropic."""
+    A = rng.standard_normal((n, 4, 4)) * rng.uniform(1.0, 100.0, (n, 1, 1))
+    return A @ np.swapaxes(A, 1, 2) + np.eye(4)
+
+
+def test_largest_xy_eigenvalue_equals_eigvalsh():
+    covs = _covs(np.random.default_rng(1), 50)
+    exact = np.linalg.eigvalsh(covs[:, [0, 2]][:, :, [0, 2]])[:, -1]
+    np.testing.assert_allclose(largest_xy_eigenvalue(covs), exact, rtol=1e-12)
+
+
+def test_close_pairs_holds_every_pair_the_mahalanobis_test_accepts():
+    rng = np.random.default_rng(2)
+    n = 300  # above the brute-force size: the k-d tree answers
+    xy = rng.uniform(0.0, 3000.0, (n, 2))  # crowded: many pairs within reach
+    covs = _covs(rng, n)
+    P = covs[:, [0, 2]][:, :, [0, 2]]
+    found = set(close_pairs(xy, COALESCE_D2 * largest_xy_eigenvalue(covs)))
+    close = set()
+    for i in range(n):
+        dp = xy[i] - xy[i + 1 :]
+        d2 = np.einsum("kd,kd->k", dp, np.linalg.solve(P[i] + P[i + 1 :], dp[..., None])[..., 0])
+        close |= {(i, i + 1 + k) for k in np.flatnonzero(d2 <= COALESCE_D2)}
+    assert len(close) > 50
+    assert close <= found
+    assert len(found) < n * (n - 1) // 4  # and it is not all the pairs
+    assert all(i < j for i, j in found)
+
+
+def test_fov_index_candidates_hold_every_track_in_view_after_moves_and_starts():
+    rng = np.random.default_rng(3)
+    n = 500
+    pv = np.column_stack(
+        [rng.uniform(0, 50_000, n), np.zeros(n), rng.uniform(0, 50_000, n), np.zeros(n)]
+    )
+    items = [f"t{k}" for k in range(n)]
+    index = FovIndex(items, pv[:, [0, 2]])
+    fov = FieldOfView(0.3, math.pi / 2, 100.0, 7_000.0)
+    sensors = rng.uniform(0, 50_000, (20, 2))
+    for s_xy in sensors:
+        s = np.array([s_xy[0], 0.0, s_xy[1], 0.0])
+        got = index.candidates(fov, s)
+        inside = {items[k] for k in np.flatnonzero(fov.contains(pv, s))}
+        assert inside <= set(got) and len(got) < n // 4
+        assert got == sorted(got, key=lambda name: int(name[1:]))  # in the given order
+    # a track moved 900 m by an update is still found; a new track is always a candidate
+    k = int(np.argmin(np.hypot(pv[:, 0] - 25_000.0, pv[:, 2] - 25_000.0)))
+    s = np.array([pv[k, 0] + 7_000.0 + 850.0, 0.0, pv[k, 2], 0.0])
+    all_around = FieldOfView(0.0, 2.0 * math.pi, 0.0, 7_000.0)
+    assert items[k] not in index.candidates(all_around, s)
+    index.moved(items[k], pv[k, [0, 2]] + [900.0, 0.0])
+    assert items[k] in index.candidates(all_around, s)
+    index.add("new")
+    assert index.candidates(all_around, np.array([-1e6, 0.0, -1e6, 0.0]))[-1] == "new"
+    # an unbounded range: every track
+    assert len(index.candidates(FieldOfView(), s)) == n + 1
