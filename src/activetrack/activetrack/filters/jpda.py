@@ -22,9 +22,11 @@ at most one track; with Poisson clutter its posterior probability is (BDH 2009, 
     P(theta | Z) = (1/c) prod_{t assigned j} l[t, j] prod_{t unassigned} (1 - Pd_t Pg_t)
 
 and the marginals ``beta[t, j] = sum_{theta: t -> j} P(theta | Z)`` (``j = 0``: no measurement)
-are found here by exact enumeration of the feasible events (only gated pairs; capped by
-``max_events``).  With one track this is the PDAF: ``beta_j = l_j / (1 - Pd Pg + sum_i l_i)``,
-``beta_0 = (1 - Pd Pg) / (1 - Pd Pg + sum_i l_i)``.
+are found here exactly, per cluster of the gate, on a hypothesis net whose size follows the
+measurements shared between tracks rather than the number of events (efficient hypothesis
+management, :mod:`activetrack.filters.jpda_net`; memory bound ``max_edges``); enumeration of
+the events is kept as the reference.  With one track this is the PDAF:
+``beta_j = l_j / (1 - Pd Pg + sum_i l_i)``, ``beta_0 = (1 - Pd Pg) / (1 - Pd Pg + sum_i l_i)``.
 
 Update of each track with its betas (the PDAF update, BDH 2009 eq. 23-27)::
 
@@ -47,18 +49,21 @@ import numpy as np
 import numpy.typing as npt
 
 from activetrack.arraytypes import ArrayLike, BoolArray, FloatArray
-from activetrack.checks import require_positive
+from activetrack.checks import require_int, require_positive
+from activetrack.filters.jpda_net import DEFAULT_MAX_EDGES, gate_clusters, net_marginals
 from activetrack.models.base import MotionModel, SensorModel
 from activetrack.models.sensors import state_jacobian
 from activetrack.stats import chi2_cdf
 
 __all__ = [
+    "DEFAULT_MAX_EDGES",
     "DEFAULT_MAX_EVENTS",
     "JPDAResult",
     "gate",
     "gate_probability",
     "jpda_association",
     "jpda_probabilities",
+    "jpda_probabilities_enumerated",
     "jpda_update",
     "likelihood_ratios",
     "mahalanobis2",
@@ -200,30 +205,64 @@ def _feasible_events(gated: BoolArray, max_events: int) -> IntArray:
     return events
 
 
+def _log_weights(likelihood_ratios: ArrayLike, pd: ArrayLike, pg: ArrayLike) -> FloatArray:
+    """``log w`` ``(T, m + 1)``: ``log(1 - Pd_t Pg_t)`` then ``log l[t, j]``, -inf for zero."""
+    L = np.asarray(likelihood_ratios, dtype=float)
+    if L.ndim != 2 or not (np.isfinite(L).all() and (L >= 0.0).all()):
+        raise ValueError(f"likelihood_ratios must be finite, >= 0, of shape (T, m); got {L.shape}")
+    T = L.shape[0]
+    miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
+    with np.errstate(divide="ignore"):
+        return np.asarray(np.log(np.column_stack((miss, L))), dtype=float)
+
+
 def jpda_probabilities(
+    likelihood_ratios: ArrayLike,
+    pd: ArrayLike,
+    pg: ArrayLike,
+    *,
+    max_edges: int = DEFAULT_MAX_EDGES,
+) -> FloatArray:
+    """JPDA marginal association probabilities ``beta`` ``(T, m + 1)``; column 0 is "no
+    measurement", column ``j`` measurement ``j - 1``.
+
+    ``l`` ``(T, m)`` zero outside the gate; pd, pg scalars or ``(T,)``.  Exact: the tracks are
+    split into clusters (connected components of the gate, independent of each other) and each
+    cluster's marginals are summed over all its feasible events on a hypothesis net
+    (:mod:`activetrack.filters.jpda_net`), in log space (no overflow).  ValueError when one
+    cluster's net would exceed ``max_edges`` edges (memory) or when no event is possible
+    (``Pd Pg = 1`` and no gated measurement).  :func:`jpda_probabilities_enumerated` is the
+    same by enumeration.
+    """
+    log_w = _log_weights(likelihood_ratios, pd, pg)
+    T, m1 = log_w.shape
+    max_edges = require_int("max_edges", max_edges, 1, 2**62)
+    beta = np.zeros((T, m1))
+    for tracks, measurements in gate_clusters(np.isfinite(log_w[:, 1:])):
+        columns = np.concatenate(([0], measurements + 1))
+        beta[np.ix_(tracks, columns)] = net_marginals(
+            log_w[np.ix_(tracks, columns)], max_edges=max_edges
+        )
+    # A sum of normalised weights can round one ulp above 1 (seen: 1 + 2e-16 next to 1e-25),
+    # which a PDA update rightly refuses as a probability.
+    return np.minimum(beta, 1.0)
+
+
+def jpda_probabilities_enumerated(
     likelihood_ratios: ArrayLike,
     pd: ArrayLike,
     pg: ArrayLike,
     *,
     max_events: int = DEFAULT_MAX_EVENTS,
 ) -> FloatArray:
-    """JPDA marginal association probabilities ``beta`` ``(T, m + 1)``; column 0 is "no
-    measurement", column ``j`` measurement ``j - 1``.
-
-    ``l`` ``(T, m)`` zero outside the gate (not enumerated); pd, pg scalars or ``(T,)``. Exact
-    enumeration of the feasible events in log space (no overflow). ValueError beyond
-    ``max_events`` or when no event is possible (``Pd Pg = 1`` and no gated measurement).
-    """
-    L = np.asarray(likelihood_ratios, dtype=float)
-    if L.ndim != 2 or not (np.isfinite(L).all() and (L >= 0.0).all()):
-        raise ValueError(f"likelihood_ratios must be finite, >= 0, of shape (T, m); got {L.shape}")
-    T, m = L.shape
+    """:func:`jpda_probabilities` by exact enumeration of all feasible joint events at once (no
+    clustering), in log space: the reference the hypothesis net is tested against.  Its cost
+    is the number of events; ValueError beyond ``max_events``."""
+    log_l = _log_weights(likelihood_ratios, pd, pg)
+    T, m1 = log_l.shape
     if T == 0:
-        return np.zeros((0, m + 1))
-    miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
-    with np.errstate(divide="ignore"):
-        log_l = np.log(np.column_stack((miss, L)))  # (T, m + 1), -inf for impossible
-    events = _feasible_events(L > 0.0, max_events)
+        return np.zeros((0, m1))
+    events = _feasible_events(np.isfinite(log_l[:, 1:]), max_events)
     log_w = log_l[np.arange(T)[None, :], events].sum(axis=1)  # (E,)
     top = float(np.max(log_w))
     if not math.isfinite(top):
@@ -233,11 +272,9 @@ def jpda_probabilities(
         )
     w = np.exp(log_w - top)
     w /= w.sum()
-    beta = np.zeros((T, m + 1))
+    beta = np.zeros((T, m1))
     for t in range(T):
-        beta[t] = np.bincount(events[:, t], weights=w, minlength=m + 1)
-    # A sum of normalised weights can round one ulp above 1 (seen: 1 + 2e-16 next to 1e-25),
-    # which a PDA update rightly refuses as a probability.
+        beta[t] = np.bincount(events[:, t], weights=w, minlength=m1)
     return np.minimum(beta, 1.0)
 
 
@@ -292,13 +329,14 @@ def jpda_association(
     clutter_density: float,
     gamma: float,
     pd: ArrayLike | None = None,
-    max_events: int = DEFAULT_MAX_EVENTS,
+    max_edges: int = DEFAULT_MAX_EDGES,
 ) -> JPDAResult:
     """Gate, likelihood ratios and marginals ``beta`` of ``T`` predicted tracks (``means``
     ``(T, n)``, ``covs`` ``(T, n, n)``) with one scan ``z`` ``(m, d)`` of ``sensor`` at pv
     ``sensor_state``, the tracks left as predicted (each filter's ``update_pda`` takes its
     row); ``clutter_density`` per unit of z, chi-square gate ``gamma``, ``pd`` per track
-    (default ``sensor.pd``)."""
+    (default ``sensor.pd``); exact marginals per cluster of the gate (:func:`jpda_probabilities`,
+    ``max_edges`` its memory bound)."""
     X = np.asarray(means, dtype=float)
     P = np.asarray(covs, dtype=float)
     zhat, _, S = predict_measurements(X, P, sensor, sensor_state, model)
@@ -307,7 +345,7 @@ def jpda_association(
     nu = _residuals(Z, zhat, sensor.residual)
     pd_t = _per_track("pd", sensor.pd if pd is None else pd, T)
     l, mask = likelihood_ratios(nu, S, pd_t, clutter_density, gamma)
-    beta = jpda_probabilities(l, pd_t, gate_probability(gamma, d), max_events=max_events)
+    beta = jpda_probabilities(l, pd_t, gate_probability(gamma, d), max_edges=max_edges)
     return JPDAResult(X, P, beta, mask, l)
 
 
