@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from activetrack.filters import jpda, jpda_net
 from activetrack.filters.jpda import (
     _feasible_events,
     gate_probability,
@@ -24,6 +25,17 @@ from activetrack.models.motion import NearlyConstantVelocity
 from activetrack.models.sensors import RangeBearingSensor
 
 ORIGIN = np.zeros(4)
+
+
+@pytest.fixture(params=["net", "net-by-columns", "default"])
+def engine(request, monkeypatch):
+    """Every cluster on the net ("net"; "net-by-columns": its free options found a column at
+    a time, as for a big net), or small clusters enumerated as by default."""
+    if request.param != "default":
+        monkeypatch.setattr(jpda, "ENUMERATION_EVENTS", 0)
+    if request.param == "net-by-columns":
+        monkeypatch.setattr(jpda_net, "_BROADCAST_CELLS", 0)
+    return request.param
 
 
 def assert_marginals(beta, L):
@@ -67,7 +79,7 @@ def subset_dp_betas(L, miss):
 # --- equal to enumeration --------------------------------------------------------------------
 
 
-def test_net_equals_enumeration_on_random_gates():
+def test_net_equals_enumeration_on_random_gates(engine):
     rng = np.random.default_rng(11)
     for _ in range(400):
         T = int(rng.integers(1, 7))
@@ -86,7 +98,7 @@ def test_net_equals_enumeration_on_random_gates():
         assert_marginals(beta, L)
 
 
-def test_net_equals_enumeration_over_a_wide_dynamic_range():
+def test_net_equals_enumeration_over_a_wide_dynamic_range(engine):
     # Ratios over 400 e-folds: the net's forward and backward sums are in log space.
     rng = np.random.default_rng(12)
     for _ in range(100):
@@ -99,7 +111,7 @@ def test_net_equals_enumeration_over_a_wide_dynamic_range():
         assert_marginals(beta, L)
 
 
-def test_one_track_is_the_pdaf_closed_form():
+def test_one_track_is_the_pdaf_closed_form(engine):
     L = np.array([[0.5, 0.0, 2.0, 1e-3]])
     pd, pg = 0.9, gate_probability(9.0, 2)
     q = 1.0 - pd * pg
@@ -189,8 +201,22 @@ def test_clusters_are_the_connected_components_of_the_gate():
         ],
         dtype=bool,
     )
-    clusters = sorted((list(t), list(m)) for t, m in gate_clusters(gated))
+    clusters = [(list(t), list(m)) for t, m in gate_clusters(gated)]
     assert clusters == [([0, 1, 4], [0, 1]), ([2], []), ([3], [3])]
+
+
+def test_clusters_by_union_find_and_by_sparse_graph_agree(monkeypatch):
+    rng = np.random.default_rng(16)
+    gated = rng.random((400, 600)) < 0.003
+    small = gate_clusters(gated)
+    monkeypatch.setattr(jpda_net, "_UNION_FIND_PAIRS", 0)
+    large = gate_clusters(gated)
+    assert len(small) == len(large) > 50
+    for (t1, m1), (t2, m2) in zip(small, large, strict=True):
+        np.testing.assert_array_equal(t1, t2)
+        np.testing.assert_array_equal(m1, m2)
+    for tracks, meas in small:  # a partition, closed under the gate
+        assert not gated[np.ix_(tracks, np.setdiff1d(np.arange(600), meas))].any()
 
 
 def chain_betas(L, miss):
@@ -246,7 +272,7 @@ def test_chain_order_keeps_the_cut_small_and_the_net_linear():
     assert sorted(order) == list(range(T))
 
 
-def test_the_memory_limit_is_named_and_no_event_is_an_error():
+def test_the_memory_limit_is_named_and_no_event_is_an_error(engine):
     with pytest.raises(ValueError, match="max_edges=50 "):
         jpda_probabilities(np.ones((6, 8)), 0.9, 0.99, max_edges=50)
     with pytest.raises(ValueError, match="max_edges"):
@@ -288,7 +314,9 @@ def spread_scene(rng, n_targets, n_clutter):
 
 
 @pytest.mark.parametrize(("n_targets", "n_clutter", "largest"), [(30, 20, 1), (30, 1000, 2)])
-def test_jpda_update_clusters_spread_targets_and_heavy_clutter(n_targets, n_clutter, largest):
+def test_jpda_update_clusters_spread_targets_and_heavy_clutter(
+    n_targets, n_clutter, largest, engine
+):
     rng = np.random.default_rng(15)
     sensor, model, means, covs, Z, lam = spread_scene(rng, n_targets, n_clutter)
     res = jpda_update(means, covs, Z, sensor, ORIGIN, model, clutter_density=lam, gamma=16.0)

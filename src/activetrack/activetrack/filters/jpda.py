@@ -58,6 +58,7 @@ from activetrack.stats import chi2_cdf
 __all__ = [
     "DEFAULT_MAX_EDGES",
     "DEFAULT_MAX_EVENTS",
+    "ENUMERATION_EVENTS",
     "JPDAResult",
     "gate",
     "gate_probability",
@@ -73,6 +74,13 @@ __all__ = [
 ]
 
 DEFAULT_MAX_EVENTS = 200_000
+# jpda_probabilities enumerates a cluster of at most this many events (product bound) rather
+# than build its net: the same exact sums, with less overhead on the many small clusters.
+ENUMERATION_EVENTS = 4096
+_NO_EVENT = (
+    "jpda_probabilities: no feasible joint event has positive probability "
+    "(a track with Pd * Pg = 1 has no measurement in its gate)"
+)
 
 IntArray = npt.NDArray[np.intp]
 Residual = Callable[[ArrayLike, ArrayLike], FloatArray]
@@ -228,21 +236,31 @@ def jpda_probabilities(
 
     ``l`` ``(T, m)`` zero outside the gate; pd, pg scalars or ``(T,)``.  Exact: the tracks are
     split into clusters (connected components of the gate, independent of each other) and each
-    cluster's marginals are summed over all its feasible events on a hypothesis net
-    (:mod:`activetrack.filters.jpda_net`), in log space (no overflow).  ValueError when one
-    cluster's net would exceed ``max_edges`` edges (memory) or when no event is possible
-    (``Pd Pg = 1`` and no gated measurement).  :func:`jpda_probabilities_enumerated` is the
-    same by enumeration.
+    cluster's marginals are summed over all its feasible events, on a hypothesis net
+    (:mod:`activetrack.filters.jpda_net`) or, for a cluster of at most
+    :data:`ENUMERATION_EVENTS` events by the product bound, by enumerating them (the same sums,
+    cheaper there); in log space (no overflow).  ValueError when one cluster's net would exceed
+    ``max_edges`` edges (memory) or when no event is possible (``Pd Pg = 1`` and no gated
+    measurement).  :func:`jpda_probabilities_enumerated` enumerates every cluster.
     """
     log_w = _log_weights(likelihood_ratios, pd, pg)
     T, m1 = log_w.shape
     max_edges = require_int("max_edges", max_edges, 1, 2**62)
+    gated = np.isfinite(log_w[:, 1:])
     beta = np.zeros((T, m1))
-    for tracks, measurements in gate_clusters(np.isfinite(log_w[:, 1:])):
+    for tracks, measurements in gate_clusters(gated):
         columns = np.concatenate(([0], measurements + 1))
-        beta[np.ix_(tracks, columns)] = net_marginals(
-            log_w[np.ix_(tracks, columns)], max_edges=max_edges
-        )
+        cluster = log_w[np.ix_(tracks, columns)]
+        if tracks.size == 1:  # the PDAF: the weights of the track's options, normalised
+            options = np.flatnonzero(np.isfinite(cluster[0]))
+            if options.size == 0:
+                raise ValueError(_NO_EVENT)
+            w = np.exp(cluster[0, options] - np.max(cluster[0, options]))
+            beta[tracks[0], columns[options]] = w / w.sum()
+        elif np.prod(1.0 + gated[np.ix_(tracks, measurements)].sum(axis=1)) <= ENUMERATION_EVENTS:
+            beta[np.ix_(tracks, columns)] = _enumerated_marginals(cluster, ENUMERATION_EVENTS)
+        else:
+            beta[np.ix_(tracks, columns)] = net_marginals(cluster, max_edges=max_edges)
     # A sum of normalised weights can round one ulp above 1 (seen: 1 + 2e-16 next to 1e-25),
     # which a PDA update rightly refuses as a probability.
     return np.minimum(beta, 1.0)
@@ -258,24 +276,27 @@ def jpda_probabilities_enumerated(
     """:func:`jpda_probabilities` by exact enumeration of all feasible joint events at once (no
     clustering), in log space: the reference the hypothesis net is tested against.  Its cost
     is the number of events; ValueError beyond ``max_events``."""
-    log_l = _log_weights(likelihood_ratios, pd, pg)
+    log_w = _log_weights(likelihood_ratios, pd, pg)
+    if log_w.shape[0] == 0:
+        return np.zeros(log_w.shape)
+    return np.minimum(_enumerated_marginals(log_w, max_events), 1.0)
+
+
+def _enumerated_marginals(log_l: FloatArray, max_events: int) -> FloatArray:
+    """Marginals ``(T, m + 1)`` from log weights ``(T, m + 1)`` (-inf: impossible) by summing
+    every feasible event's weight (BDH 2009 eq. 40-41)."""
     T, m1 = log_l.shape
-    if T == 0:
-        return np.zeros((0, m1))
     events = _feasible_events(np.isfinite(log_l[:, 1:]), max_events)
     log_w = log_l[np.arange(T)[None, :], events].sum(axis=1)  # (E,)
     top = float(np.max(log_w))
     if not math.isfinite(top):
-        raise ValueError(
-            "jpda_probabilities: no feasible joint event has positive probability "
-            "(a track with Pd * Pg = 1 has no measurement in its gate)"
-        )
+        raise ValueError(_NO_EVENT)
     w = np.exp(log_w - top)
     w /= w.sum()
     beta = np.zeros((T, m1))
     for t in range(T):
         beta[t] = np.bincount(events[:, t], weights=w, minlength=m1)
-    return np.minimum(beta, 1.0)
+    return beta
 
 
 def pda_update(

@@ -45,6 +45,8 @@ from activetrack.arraytypes import BoolArray, FloatArray
 __all__ = ["DEFAULT_MAX_EDGES", "gate_clusters", "net_marginals", "track_order"]
 
 DEFAULT_MAX_EDGES = 20_000_000
+_BROADCAST_CELLS = 1 << 20  # _free: above this many (node, option, word) cells, by columns
+_UNION_FIND_PAIRS = 2_000  # gate_clusters: above this many gated pairs, scipy's components
 
 IntArray = npt.NDArray[np.intp]
 
@@ -57,18 +59,36 @@ _NO_EVENT = (
 def gate_clusters(gated: BoolArray) -> list[tuple[IntArray, IntArray]]:
     """Connected components of the gate ``(T, m)``: ``(tracks, measurements)`` index arrays, one
     pair per cluster of tracks linked through shared gated measurements (a track with nothing
-    in its gate is a cluster of its own with no measurements).  Clusters are independent: the
-    JPDA marginals of a track depend only on its cluster."""
+    in its gate is a cluster of its own with no measurements), in order of their first track.
+    Clusters are independent: the JPDA marginals of a track depend only on its cluster."""
     T, m = gated.shape
     rows, cols = np.nonzero(gated)
-    graph = csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, T + cols)), shape=(T + m, T + m))
-    _, label = connected_components(graph, directed=False)
-    track_label = label[:T]
+    if rows.size > _UNION_FIND_PAIRS:
+        graph = csr_matrix(
+            (np.ones(rows.size, dtype=np.int8), (rows, T + cols)), shape=(T + m, T + m)
+        )
+        label = connected_components(graph, directed=False)[1][:T]
+    else:  # a few gated pairs: union-find costs less than building a sparse graph
+        parent = list(range(T))
+
+        def root(i: int) -> int:
+            while parent[i] != i:
+                parent[i] = parent[parent[i]]
+                i = parent[i]
+            return i
+
+        first: dict[int, int] = {}  # measurement -> a track gating it
+        for t, j in zip(rows.tolist(), cols.tolist(), strict=True):
+            other = first.setdefault(j, t)
+            a, b = root(t), root(other)
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+        label = np.array([root(t) for t in range(T)], dtype=np.intp)
     clusters = []
-    for c in np.unique(track_label):
-        tracks = np.flatnonzero(track_label == c)
-        measurements = np.flatnonzero(label[T:] == c)
-        clusters.append((tracks, measurements))
+    measurement_label = np.full(m, -1, dtype=np.intp)
+    measurement_label[cols] = label[rows]
+    for c in np.unique(label):
+        clusters.append((np.flatnonzero(label == c), np.flatnonzero(measurement_label == c)))
     return clusters
 
 
@@ -103,8 +123,7 @@ def _logsumexp_by(values: FloatArray, groups: IntArray, n: int) -> FloatArray:
     top = np.full(n, -np.inf)
     np.maximum.at(top, groups, values)
     safe = np.where(np.isfinite(top), top, 0.0)
-    total = np.zeros(n)
-    np.add.at(total, groups, np.exp(values - safe[groups]))
+    total = np.bincount(groups, weights=np.exp(values - safe[groups]), minlength=n)
     with np.errstate(divide="ignore"):
         return np.asarray(np.log(total) + safe, dtype=float)
 
@@ -112,6 +131,18 @@ def _logsumexp_by(values: FloatArray, groups: IntArray, n: int) -> FloatArray:
 def _layer_sizes(layers: list[tuple[IntArray, IntArray, IntArray, int]]) -> list[int]:
     """Number of nodes of layers 1..T: each layer's sources are the previous layer's nodes."""
     return [n_src for *_, n_src in layers[1:]] + [1]
+
+
+def _free(keys: npt.NDArray[np.uint64], bits: npt.NDArray[np.uint64]) -> BoolArray:
+    """``(N, k)``: node ``i``'s used set ``keys[i]`` ``(words,)`` leaves option ``bits[o]``
+    free (no bit in common; always for "no measurement", all bits zero)."""
+    N, k = keys.shape[0], bits.shape[0]
+    if N * k * keys.shape[1] <= _BROADCAST_CELLS:
+        return np.asarray(~(keys[:, None, :] & bits[None, :, :]).any(axis=2), dtype=bool)
+    free = np.empty((N, k), dtype=bool)  # a column at a time: no (N, k, words) temporary
+    for o in range(k):
+        free[:, o] = ~(keys & bits[o]).any(axis=1)
+    return free
 
 
 def _set_bits(words: int, measurements: IntArray) -> npt.NDArray[np.uint64]:
@@ -155,28 +186,17 @@ def net_marginals(log_w: FloatArray, *, max_edges: int = DEFAULT_MAX_EDGES) -> F
     for k in range(T - 2, -1, -1):
         later = _set_bits(words, np.flatnonzero(allowed[order[k + 1], 1:]))
         accessible[k] = accessible[k + 1] | later
+    bits = np.zeros((m1, words), dtype=np.uint64)  # option j's measurement; none for j = 0
+    for j in range(1, m1):
+        bits[j, (j - 1) // 64] = np.uint64(1) << np.uint64((j - 1) % 64)
     keys = np.zeros((1, words), dtype=np.uint64)
     layers: list[tuple[IntArray, IntArray, IntArray, int]] = []  # (src, option, dst, n_src)
     total_edges = 0
     for k, t in enumerate(order):
         options = np.flatnonzero(allowed[t])
-        src_parts, opt_parts, key_parts = [], [], []
         n_src = keys.shape[0]
-        for j in options:
-            if j == 0:
-                src = np.arange(n_src)
-                new = keys & accessible[k]
-            else:
-                word, bit = (j - 1) // 64, np.uint64(1) << np.uint64((j - 1) % 64)
-                src = np.flatnonzero((keys[:, word] & bit) == 0)
-                new = keys[src]
-                new[:, word] |= bit
-                new &= accessible[k]
-            src_parts.append(src)
-            opt_parts.append(np.full(src.size, j, dtype=np.intp))
-            key_parts.append(new)
-        n_edges = sum(s.size for s in src_parts)
-        total_edges += n_edges
+        src, which = np.nonzero(_free(keys, bits[options]))  # node-option pairs allowed
+        total_edges += src.size
         if total_edges > max_edges:
             raise ValueError(
                 f"JPDA hypothesis net needs more than max_edges={max_edges} edges "
@@ -184,10 +204,10 @@ def net_marginals(log_w: FloatArray, *, max_edges: int = DEFAULT_MAX_EDGES) -> F
                 f"pairs, {n_src} nodes at track {k + 1} of {T}): tighten the gate or raise "
                 "max_edges"
             )
-        if n_edges == 0:
+        if src.size == 0:
             raise ValueError(_NO_EVENT)
-        keys, dst = _node_ids(np.concatenate(key_parts))
-        layers.append((np.concatenate(src_parts), np.concatenate(opt_parts), dst, n_src))
+        keys, dst = _node_ids((keys[src] | bits[options[which]]) & accessible[k])
+        layers.append((src, options[which], dst, n_src))
     # keys: the last layer, one node (the empty set: nothing is accessible after the last track)
     forward: list[FloatArray] = [np.zeros(1)]  # log forward weights, layer by layer
     for (src, opt, dst, _), t, n_dst in zip(layers, order, _layer_sizes(layers), strict=True):
