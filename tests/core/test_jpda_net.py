@@ -119,6 +119,20 @@ def test_one_track_is_the_pdaf_closed_form(engine):
     np.testing.assert_allclose(jpda_probabilities(L, pd, pg)[0], expected, rtol=0, atol=1e-15)
 
 
+def test_tracks_sharing_nothing_each_get_the_pdaf_closed_form():
+    rng = np.random.default_rng(17)
+    T, k = 12, 40
+    L = np.zeros((T, T * k))
+    for t in range(T):  # disjoint gates of 0..39 measurements
+        n = int(rng.integers(0, k))
+        L[t, t * k : t * k + n] = rng.exponential(1.0, n)
+    pd = rng.uniform(0.5, 0.99, T)
+    beta = jpda_probabilities(L, pd, 0.99)
+    q = 1.0 - 0.99 * pd
+    expected = np.column_stack((q, L)) / (q + L.sum(axis=1))[:, None]
+    np.testing.assert_allclose(beta, expected, rtol=1e-14, atol=0)
+
+
 def test_all_gated_dense_equal_ratios_matches_the_counting_formula():
     # T tracks, m measurements, every pair gated with ratio l, miss weight q:
     # c(T, m) = sum_k C(T, k) m!/(m - k)! l^k q^(T - k) (events with k assignments), and by

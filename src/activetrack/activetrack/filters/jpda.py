@@ -248,16 +248,15 @@ def jpda_probabilities(
     max_edges = require_int("max_edges", max_edges, 1, 2**62)
     gated = np.isfinite(log_w[:, 1:])
     beta = np.zeros((T, m1))
-    for tracks, measurements in gate_clusters(gated):
+    clusters = gate_clusters(gated)
+    alone = np.array([tracks[0] for tracks, _ in clusters if tracks.size == 1], dtype=np.intp)
+    beta[alone] = _pdaf_marginals(log_w[alone])
+    for tracks, measurements in clusters:
+        if tracks.size == 1:
+            continue
         columns = np.concatenate(([0], measurements + 1))
         cluster = log_w[np.ix_(tracks, columns)]
-        if tracks.size == 1:  # the PDAF: the weights of the track's options, normalised
-            options = np.flatnonzero(np.isfinite(cluster[0]))
-            if options.size == 0:
-                raise ValueError(_NO_EVENT)
-            w = np.exp(cluster[0, options] - np.max(cluster[0, options]))
-            beta[tracks[0], columns[options]] = w / w.sum()
-        elif np.prod(1.0 + gated[np.ix_(tracks, measurements)].sum(axis=1)) <= ENUMERATION_EVENTS:
+        if np.prod(1.0 + gated[np.ix_(tracks, measurements)].sum(axis=1)) <= ENUMERATION_EVENTS:
             beta[np.ix_(tracks, columns)] = _enumerated_marginals(cluster, ENUMERATION_EVENTS)
         else:
             beta[np.ix_(tracks, columns)] = net_marginals(cluster, max_edges=max_edges)
@@ -280,6 +279,30 @@ def jpda_probabilities_enumerated(
     if log_w.shape[0] == 0:
         return np.zeros(log_w.shape)
     return np.minimum(_enumerated_marginals(log_w, max_events), 1.0)
+
+
+def _pdaf_marginals(log_w: FloatArray) -> FloatArray:
+    """Marginals ``(r, m + 1)`` of ``r`` tracks that share no measurement, from their log weights
+    ``(r, m + 1)``: each row's weights normalised (the PDAF), over its possible options only,
+    row by row in one pass (each row's sum as its enumeration sums it)."""
+    beta = np.zeros(log_w.shape)
+    rows, cols = np.nonzero(np.isfinite(log_w))
+    if rows.size == 0:
+        if log_w.shape[0]:
+            raise ValueError(_NO_EVENT)
+        return beta
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    if starts.size != log_w.shape[0]:
+        raise ValueError(_NO_EVENT)
+    v = log_w[rows, cols]
+    w = np.exp(v - np.maximum.reduceat(v, starts)[rows])
+    counts = np.diff(np.r_[starts, rows.size])
+    total = np.empty(starts.size)
+    for k in np.unique(counts):  # rows of k options as a (rows, k) block: sums as ndarray.sum
+        same = np.flatnonzero(counts == k)
+        total[same] = w[starts[same][:, None] + np.arange(k)].sum(axis=1)
+    beta[rows, cols] = w / total[rows]
+    return beta
 
 
 def _enumerated_marginals(log_l: FloatArray, max_events: int) -> FloatArray:

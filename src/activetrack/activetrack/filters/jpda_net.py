@@ -147,11 +147,15 @@ def _free(keys: npt.NDArray[np.uint64], bits: npt.NDArray[np.uint64]) -> BoolArr
     return free
 
 
-def _set_bits(words: int, measurements: IntArray) -> npt.NDArray[np.uint64]:
-    mask = np.zeros(words, dtype=np.uint64)
-    for j in measurements:
-        mask[j // 64] |= np.uint64(1) << np.uint64(j % 64)
-    return mask
+def _bit_masks(sets: BoolArray) -> npt.NDArray[np.uint64]:
+    """Rows of ``sets`` ``(n, m)`` as bit masks ``(n, max(1, ceil(m / 64)))``: bit ``j % 64`` of
+    word ``j // 64`` is column ``j``."""
+    n, m = sets.shape
+    words = max(1, (m + 63) // 64)
+    padded = np.zeros((n, 64 * words), dtype=bool)
+    padded[:, :m] = sets
+    packed = np.packbits(padded, axis=1, bitorder="little")  # (n, 8 words) bytes
+    return np.ascontiguousarray(packed).view("<u8").astype(np.uint64, copy=False)
 
 
 def _node_ids(keys: npt.NDArray[np.uint64]) -> tuple[npt.NDArray[np.uint64], IntArray]:
@@ -182,15 +186,14 @@ def net_marginals(log_w: FloatArray, *, max_edges: int = DEFAULT_MAX_EDGES) -> F
         w = np.exp(log_w[0] - np.max(log_w[0]))
         return np.asarray(w / w.sum(), dtype=float)[None]
     order = track_order(allowed[:, 1:])
-    words = max(1, (m + 63) // 64)
+    # Sets of measurements as bit masks, ``words`` uint64 each: row t of gate_bits is track
+    # t's gate, bits[j] option j's measurement (none for j = 0).
+    gate_bits = _bit_masks(allowed[:, 1:])
+    words = gate_bits.shape[1]
+    bits = np.vstack((np.zeros((1, words), dtype=np.uint64), _bit_masks(np.eye(m, dtype=bool))))
     # accessible[k]: measurements gated by the tracks placed after the k-th (k = 0..T-1).
     accessible = np.zeros((T, words), dtype=np.uint64)
-    for k in range(T - 2, -1, -1):
-        later = _set_bits(words, np.flatnonzero(allowed[order[k + 1], 1:]))
-        accessible[k] = accessible[k + 1] | later
-    bits = np.zeros((m1, words), dtype=np.uint64)  # option j's measurement; none for j = 0
-    for j in range(1, m1):
-        bits[j, (j - 1) // 64] = np.uint64(1) << np.uint64((j - 1) % 64)
+    accessible[:-1] = np.bitwise_or.accumulate(gate_bits[order[:0:-1]], axis=0)[::-1]
     keys = np.zeros((1, words), dtype=np.uint64)
     layers: list[tuple[IntArray, IntArray, IntArray, int]] = []  # (src, option, dst, n_src)
     total_edges = 0
