@@ -219,7 +219,7 @@ def test_clusters_are_the_connected_components_of_the_gate():
     assert clusters == [([0, 1, 4], [0, 1]), ([2], []), ([3], [3])]
 
 
-def test_clusters_by_union_find_and_by_sparse_graph_agree(monkeypatch):
+def test_clusters_by_union_find_and_by_label_propagation_agree(monkeypatch):
     rng = np.random.default_rng(16)
     gated = rng.random((400, 600)) < 0.003
     small = gate_clusters(gated)

@@ -381,16 +381,37 @@ def jpda_association(
     row); ``clutter_density`` per unit of z, chi-square gate ``gamma``, ``pd`` per track
     (default ``sensor.pd``); exact marginals per cluster of the gate (:func:`jpda_probabilities`,
     ``max_edges`` its memory bound)."""
+    return _associate(
+        means, covs, z, sensor, sensor_state, model,
+        clutter_density=clutter_density, gamma=gamma, pd=pd, max_edges=max_edges,
+    )[0]  # fmt: skip
+
+
+def _associate(
+    means: ArrayLike,
+    covs: ArrayLike,
+    z: ArrayLike,
+    sensor: SensorModel,
+    sensor_state: ArrayLike,
+    model: MotionModel,
+    *,
+    clutter_density: float,
+    gamma: float,
+    pd: ArrayLike | None = None,
+    max_edges: int = DEFAULT_MAX_EDGES,
+) -> tuple[JPDAResult, FloatArray, FloatArray]:
+    """:func:`jpda_association` and the Jacobians ``H`` ``(T, d, n)`` and wrapped residuals
+    ``nu`` ``(T, m, d)`` it computed, for the update."""
     X = np.asarray(means, dtype=float)
     P = np.asarray(covs, dtype=float)
-    zhat, _, S = predict_measurements(X, P, sensor, sensor_state, model)
+    zhat, H, S = predict_measurements(X, P, sensor, sensor_state, model)
     T, d = zhat.shape
     Z = _as_measurements(z, d)
     nu = _residuals(Z, zhat, sensor.residual)
     pd_t = _per_track("pd", sensor.pd if pd is None else pd, T)
     l, mask = likelihood_ratios(nu, S, pd_t, clutter_density, gamma)
     beta = jpda_probabilities(l, pd_t, gate_probability(gamma, d), max_edges=max_edges)
-    return JPDAResult(X, P, beta, mask, l)
+    return JPDAResult(X, P, beta, mask, l), H, nu
 
 
 def pda_residuals(
@@ -426,12 +447,11 @@ def jpda_update(
     """JPDA-EKF update of ``T`` predicted tracks: :func:`jpda_association` (its arguments),
     then the PDAF update of each track. One track is the PDAF; a track with no gated
     measurement keeps its prediction."""
-    a = jpda_association(means, covs, z, sensor, sensor_state, model, **association)
+    a, H, nu = _associate(means, covs, z, sensor, sensor_state, model, **association)
     R = np.asarray(sensor.R, dtype=float)
     new_X = a.means.copy()
     new_P = a.covs.copy()
     for t in range(a.means.shape[0]):
-        if a.beta[t, 0] < 1.0:
-            H, nu = pda_residuals(a.means[t], a.covs[t], z, sensor, sensor_state, model)
-            new_X[t], new_P[t] = pda_update(a.means[t], a.covs[t], H, R, nu, a.beta[t])
+        if a.beta[t, 0] < 1.0:  # the association's own H and residuals, not recomputed
+            new_X[t], new_P[t] = pda_update(a.means[t], a.covs[t], H[t], R, nu[t], a.beta[t])
     return JPDAResult(new_X, new_P, a.beta, a.gated, a.likelihood_ratios)

@@ -37,8 +37,6 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
 
 from activetrack.arraytypes import BoolArray, FloatArray
 
@@ -48,7 +46,7 @@ __all__ = ["DEFAULT_MAX_EDGES", "gate_clusters", "net_marginals", "track_order"]
 # 1.8 s): the default bounds one cluster's net near 250 MB.
 DEFAULT_MAX_EDGES = 5_000_000
 _BROADCAST_CELLS = 1 << 20  # _free: above this many (node, option, word) cells, by columns
-_UNION_FIND_PAIRS = 2_000  # gate_clusters: above this many gated pairs, scipy's components
+_UNION_FIND_PAIRS = 500  # gate_clusters: above this many gated pairs, vectorised propagation
 
 IntArray = npt.NDArray[np.intp]
 
@@ -64,13 +62,30 @@ def gate_clusters(gated: BoolArray) -> list[tuple[IntArray, IntArray]]:
     in its gate is a cluster of its own with no measurements), in order of their first track.
     Clusters are independent: the JPDA marginals of a track depend only on its cluster."""
     T, m = gated.shape
+    if T == 0:
+        return []
     rows, cols = np.nonzero(gated)
-    if rows.size > _UNION_FIND_PAIRS:
-        graph = csr_matrix(
-            (np.ones(rows.size, dtype=np.int8), (rows, T + cols)), shape=(T + m, T + m)
-        )
-        label = connected_components(graph, directed=False)[1][:T]
-    else:  # a few gated pairs: union-find costs less than building a sparse graph
+    label = _component_labels(T, m, rows, cols)  # each track's component's first track
+    by_track = np.argsort(label, kind="stable")
+    cuts = np.flatnonzero(np.diff(label[by_track])) + 1
+    first = by_track[np.r_[0, cuts]]
+    measurement_label = np.full(m, -1, dtype=np.intp)
+    measurement_label[cols] = label[rows]
+    used = np.flatnonzero(measurement_label >= 0)
+    by_measurement = used[np.argsort(measurement_label[used], kind="stable")]
+    sorted_label = measurement_label[by_measurement]
+    lo = np.searchsorted(sorted_label, first, side="left")
+    hi = np.searchsorted(sorted_label, first, side="right")
+    return [
+        (tracks, by_measurement[a:b])
+        for tracks, a, b in zip(np.split(by_track, cuts), lo, hi, strict=True)
+    ]
+
+
+def _component_labels(T: int, m: int, rows: IntArray, cols: IntArray) -> IntArray:
+    """``(T,)``: for each track the smallest track index of its component, from the gated
+    pairs ``(rows[i], cols[i])``."""
+    if rows.size <= _UNION_FIND_PAIRS:  # few pairs: union-find in Python costs least
         parent = list(range(T))
 
         def root(i: int) -> int:
@@ -81,17 +96,25 @@ def gate_clusters(gated: BoolArray) -> list[tuple[IntArray, IntArray]]:
 
         first: dict[int, int] = {}  # measurement -> a track gating it
         for t, j in zip(rows.tolist(), cols.tolist(), strict=True):
-            other = first.setdefault(j, t)
-            a, b = root(t), root(other)
+            a, b = root(t), root(first.setdefault(j, t))
             if a != b:
                 parent[max(a, b)] = min(a, b)
-        label = np.array([root(t) for t in range(T)], dtype=np.intp)
-    clusters = []
-    measurement_label = np.full(m, -1, dtype=np.intp)
-    measurement_label[cols] = label[rows]
-    for c in np.unique(label):
-        clusters.append((np.flatnonzero(label == c), np.flatnonzero(measurement_label == c)))
-    return clusters
+        return np.array([root(t) for t in range(T)], dtype=np.intp)
+    # Many pairs: minimum-label propagation with hooking and pointer jumping, vectorised.
+    # label[t] <= t is always a track of t's component; at the fixed point every track of a
+    # component holds the same label, so the smallest index.
+    label = np.arange(T, dtype=np.intp)
+    while True:
+        via = np.full(m, T, dtype=np.intp)
+        np.minimum.at(via, cols, label[rows])  # smallest label among each measurement's tracks
+        new = label.copy()
+        np.minimum.at(new, rows, via[cols])
+        np.minimum.at(new, label, new)  # hook: a track's old label takes its new one too
+        while not np.array_equal(jumped := new[new], new):
+            new = jumped
+        if np.array_equal(new, label):
+            return label
+        label = new
 
 
 def track_order(gated: BoolArray) -> IntArray:
