@@ -213,11 +213,16 @@ def _feasible_events(gated: BoolArray, max_events: int) -> IntArray:
     return events
 
 
-def _log_weights(likelihood_ratios: ArrayLike, pd: ArrayLike, pg: ArrayLike) -> FloatArray:
-    """``log w`` ``(T, m + 1)``: ``log(1 - Pd_t Pg_t)`` then ``log l[t, j]``, -inf for zero."""
+def _ratios(likelihood_ratios: ArrayLike) -> FloatArray:
     L = np.asarray(likelihood_ratios, dtype=float)
     if L.ndim != 2 or not (np.isfinite(L).all() and (L >= 0.0).all()):
         raise ValueError(f"likelihood_ratios must be finite, >= 0, of shape (T, m); got {L.shape}")
+    return L
+
+
+def _log_weights(likelihood_ratios: ArrayLike, pd: ArrayLike, pg: ArrayLike) -> FloatArray:
+    """``log w`` ``(T, m + 1)``: ``log(1 - Pd_t Pg_t)`` then ``log l[t, j]``, -inf for zero."""
+    L = _ratios(likelihood_ratios)
     T = L.shape[0]
     miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
     with np.errstate(divide="ignore"):
@@ -243,20 +248,22 @@ def jpda_probabilities(
     ``max_edges`` edges (memory) or when no event is possible (``Pd Pg = 1`` and no gated
     measurement).  :func:`jpda_probabilities_enumerated` enumerates every cluster.
     """
-    log_w = _log_weights(likelihood_ratios, pd, pg)
-    T, m1 = log_w.shape
+    L = _ratios(likelihood_ratios)  # only the gated pairs are read after the checks
+    T, m = L.shape
+    miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
     max_edges = require_int("max_edges", max_edges, 1, 2**62)
-    gated = np.isfinite(log_w[:, 1:])
-    beta = np.zeros((T, m1))
-    clusters = gate_clusters(gated)
-    alone = np.array([tracks[0] for tracks, _ in clusters if tracks.size == 1], dtype=np.intp)
-    beta[alone] = _pdaf_marginals(log_w[alone])
+    beta = np.zeros((T, m + 1))
+    clusters = gate_clusters(L > 0.0)
+    alone = [(tracks[0], measurements) for tracks, measurements in clusters if tracks.size == 1]
+    _pdaf_marginals(beta, alone, L, miss)
     for tracks, measurements in clusters:
         if tracks.size == 1:
             continue
         columns = np.concatenate(([0], measurements + 1))
-        cluster = log_w[np.ix_(tracks, columns)]
-        if np.prod(1.0 + gated[np.ix_(tracks, measurements)].sum(axis=1)) <= ENUMERATION_EVENTS:
+        ratios = L[np.ix_(tracks, measurements)]
+        with np.errstate(divide="ignore"):
+            cluster = np.log(np.column_stack((miss[tracks], ratios)))
+        if np.prod(1.0 + (ratios > 0.0).sum(axis=1)) <= ENUMERATION_EVENTS:
             beta[np.ix_(tracks, columns)] = _enumerated_marginals(cluster, ENUMERATION_EVENTS)
         else:
             beta[np.ix_(tracks, columns)] = net_marginals(cluster, max_edges=max_edges)
@@ -281,28 +288,39 @@ def jpda_probabilities_enumerated(
     return np.minimum(_enumerated_marginals(log_w, max_events), 1.0)
 
 
-def _pdaf_marginals(log_w: FloatArray) -> FloatArray:
-    """Marginals ``(r, m + 1)`` of ``r`` tracks that share no measurement, from their log weights
-    ``(r, m + 1)``: each row's weights normalised (the PDAF), over its possible options only,
-    row by row in one pass (each row's sum as its enumeration sums it)."""
-    beta = np.zeros(log_w.shape)
-    rows, cols = np.nonzero(np.isfinite(log_w))
-    if rows.size == 0:
-        if log_w.shape[0]:
-            raise ValueError(_NO_EVENT)
-        return beta
-    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-    if starts.size != log_w.shape[0]:
+def _pdaf_marginals(
+    beta: FloatArray, alone: list[tuple[Any, IntArray]], L: FloatArray, miss: FloatArray
+) -> None:
+    """Into ``beta``, the marginals of the tracks that share no measurement, ``alone`` (each
+    track with its gated measurements): each row's weights ``1 - Pd Pg`` and ``l[t, j]``
+    normalised (the PDAF), over its possible options only, all rows in one pass (each row's
+    sum as its enumeration sums it)."""
+    if not alone:
+        return
+    tracks = np.array([t for t, _ in alone], dtype=np.intp)
+    gated = [measurements for _, measurements in alone]
+    rows = np.repeat(tracks, [g.size for g in gated])
+    cols = np.concatenate(gated).astype(np.intp)
+    can_miss = tracks[miss[tracks] > 0.0]
+    with np.errstate(divide="ignore"):
+        log_miss = np.log(miss[can_miss])
+    # Entries (track, column, log weight), sorted by track then column: "none" first.
+    r = np.concatenate((can_miss, rows))
+    c = np.concatenate((np.zeros(can_miss.size, dtype=np.intp), cols + 1))
+    v = np.concatenate((log_miss, np.log(L[rows, cols])))
+    order = np.lexsort((c, r))
+    r, c, v = r[order], c[order], v[order]
+    starts = np.flatnonzero(np.r_[True, r[1:] != r[:-1]]) if r.size else r
+    if starts.size != tracks.size:
         raise ValueError(_NO_EVENT)
-    v = log_w[rows, cols]
-    w = np.exp(v - np.maximum.reduceat(v, starts)[rows])
-    counts = np.diff(np.r_[starts, rows.size])
+    which = np.cumsum(np.r_[True, r[1:] != r[:-1]]) - 1  # each entry's row among the tracks
+    w = np.exp(v - np.maximum.reduceat(v, starts)[which])
+    counts = np.diff(np.r_[starts, r.size])
     total = np.empty(starts.size)
     for k in np.unique(counts):  # rows of k options as a (rows, k) block: sums as ndarray.sum
         same = np.flatnonzero(counts == k)
         total[same] = w[starts[same][:, None] + np.arange(k)].sum(axis=1)
-    beta[rows, cols] = w / total[rows]
-    return beta
+    beta[r, c] = w / total[which]
 
 
 def _enumerated_marginals(log_l: FloatArray, max_events: int) -> FloatArray:
