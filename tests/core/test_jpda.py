@@ -15,6 +15,7 @@ from activetrack.filters.jpda import (
     gate,
     gate_probability,
     jpda_probabilities,
+    jpda_probabilities_enumerated,
     jpda_update,
     pda_update,
     predict_measurements,
@@ -81,7 +82,9 @@ def test_jpda_handles_huge_ratios_and_caps_enumeration():
     assert np.isfinite(beta).all()
     np.testing.assert_allclose(beta.sum(axis=1), 1.0)
     with pytest.raises(ValueError, match="max_events"):
-        jpda_probabilities(np.ones((6, 8)), 0.9, 0.99, max_events=1000)
+        jpda_probabilities_enumerated(np.ones((6, 8)), 0.9, 0.99, max_events=1000)
+    with pytest.raises(ValueError, match="max_edges=1000"):
+        jpda_probabilities(np.ones((6, 8)), 0.9, 0.99, max_edges=1000)
     with pytest.raises(ValueError, match="no feasible joint event"):
         jpda_probabilities(np.zeros((1, 2)), 1.0, 1.0)
 

@@ -22,9 +22,11 @@ at most one track; with Poisson clutter its posterior probability is (BDH 2009, 
     P(theta | Z) = (1/c) prod_{t assigned j} l[t, j] prod_{t unassigned} (1 - Pd_t Pg_t)
 
 and the marginals ``beta[t, j] = sum_{theta: t -> j} P(theta | Z)`` (``j = 0``: no measurement)
-are found here by exact enumeration of the feasible events (only gated pairs; capped by
-``max_events``).  With one track this is the PDAF: ``beta_j = l_j / (1 - Pd Pg + sum_i l_i)``,
-``beta_0 = (1 - Pd Pg) / (1 - Pd Pg + sum_i l_i)``.
+are found here exactly, per cluster of the gate, on a hypothesis net whose size follows the
+measurements shared between tracks rather than the number of events (efficient hypothesis
+management, :mod:`activetrack.filters.jpda_net`; memory bound ``max_edges``); enumeration of
+the events is kept as the reference.  With one track this is the PDAF:
+``beta_j = l_j / (1 - Pd Pg + sum_i l_i)``, ``beta_0 = (1 - Pd Pg) / (1 - Pd Pg + sum_i l_i)``.
 
 Update of each track with its betas (the PDAF update, BDH 2009 eq. 23-27)::
 
@@ -47,18 +49,22 @@ import numpy as np
 import numpy.typing as npt
 
 from activetrack.arraytypes import ArrayLike, BoolArray, FloatArray
-from activetrack.checks import require_positive
+from activetrack.checks import require_int, require_positive
+from activetrack.filters.jpda_net import DEFAULT_MAX_EDGES, gate_clusters, net_marginals
 from activetrack.models.base import MotionModel, SensorModel
 from activetrack.models.sensors import state_jacobian
 from activetrack.stats import chi2_cdf
 
 __all__ = [
+    "DEFAULT_MAX_EDGES",
     "DEFAULT_MAX_EVENTS",
+    "ENUMERATION_EVENTS",
     "JPDAResult",
     "gate",
     "gate_probability",
     "jpda_association",
     "jpda_probabilities",
+    "jpda_probabilities_enumerated",
     "jpda_update",
     "likelihood_ratios",
     "mahalanobis2",
@@ -68,6 +74,13 @@ __all__ = [
 ]
 
 DEFAULT_MAX_EVENTS = 200_000
+# jpda_probabilities enumerates a cluster of at most this many events (product bound) rather
+# than build its net: the same exact sums, with less overhead on the many small clusters.
+ENUMERATION_EVENTS = 4096
+_NO_EVENT = (
+    "jpda_probabilities: no feasible joint event has positive probability "
+    "(a track with Pd * Pg = 1 has no measurement in its gate)"
+)
 
 IntArray = npt.NDArray[np.intp]
 Residual = Callable[[ArrayLike, ArrayLike], FloatArray]
@@ -200,45 +213,131 @@ def _feasible_events(gated: BoolArray, max_events: int) -> IntArray:
     return events
 
 
+def _ratios(likelihood_ratios: ArrayLike) -> FloatArray:
+    L = np.asarray(likelihood_ratios, dtype=float)
+    if L.ndim != 2 or not (np.isfinite(L).all() and (L >= 0.0).all()):
+        raise ValueError(f"likelihood_ratios must be finite, >= 0, of shape (T, m); got {L.shape}")
+    return L
+
+
+def _log_weights(likelihood_ratios: ArrayLike, pd: ArrayLike, pg: ArrayLike) -> FloatArray:
+    """``log w`` ``(T, m + 1)``: ``log(1 - Pd_t Pg_t)`` then ``log l[t, j]``, -inf for zero."""
+    L = _ratios(likelihood_ratios)
+    T = L.shape[0]
+    miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
+    with np.errstate(divide="ignore"):
+        return np.asarray(np.log(np.column_stack((miss, L))), dtype=float)
+
+
 def jpda_probabilities(
+    likelihood_ratios: ArrayLike,
+    pd: ArrayLike,
+    pg: ArrayLike,
+    *,
+    max_edges: int = DEFAULT_MAX_EDGES,
+) -> FloatArray:
+    """JPDA marginal association probabilities ``beta`` ``(T, m + 1)``; column 0 is "no
+    measurement", column ``j`` measurement ``j - 1``.
+
+    ``l`` ``(T, m)`` zero outside the gate; pd, pg scalars or ``(T,)``.  Exact: the tracks are
+    split into clusters (connected components of the gate, independent of each other) and each
+    cluster's marginals are summed over all its feasible events, on a hypothesis net
+    (:mod:`activetrack.filters.jpda_net`) or, for a cluster of at most
+    :data:`ENUMERATION_EVENTS` events by the product bound, by enumerating them (the same sums,
+    cheaper there); in log space (no overflow).  ValueError when one cluster's net would exceed
+    ``max_edges`` edges (memory) or when no event is possible (``Pd Pg = 1`` and no gated
+    measurement).  :func:`jpda_probabilities_enumerated` enumerates every cluster.
+    """
+    L = _ratios(likelihood_ratios)  # only the gated pairs are read after the checks
+    T, m = L.shape
+    miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
+    max_edges = require_int("max_edges", max_edges, 1, 2**62)
+    beta = np.zeros((T, m + 1))
+    clusters = gate_clusters(L > 0.0)
+    alone = [(tracks[0], measurements) for tracks, measurements in clusters if tracks.size == 1]
+    _pdaf_marginals(beta, alone, L, miss)
+    for tracks, measurements in clusters:
+        if tracks.size == 1:
+            continue
+        columns = np.concatenate(([0], measurements + 1))
+        ratios = L[np.ix_(tracks, measurements)]
+        with np.errstate(divide="ignore"):
+            cluster = np.log(np.column_stack((miss[tracks], ratios)))
+        if np.prod(1.0 + (ratios > 0.0).sum(axis=1)) <= ENUMERATION_EVENTS:
+            beta[np.ix_(tracks, columns)] = _enumerated_marginals(cluster, ENUMERATION_EVENTS)
+        else:
+            beta[np.ix_(tracks, columns)] = net_marginals(cluster, max_edges=max_edges)
+    # A sum of normalised weights can round one ulp above 1 (seen: 1 + 2e-16 next to 1e-25),
+    # which a PDA update rightly refuses as a probability.
+    return np.minimum(beta, 1.0)
+
+
+def jpda_probabilities_enumerated(
     likelihood_ratios: ArrayLike,
     pd: ArrayLike,
     pg: ArrayLike,
     *,
     max_events: int = DEFAULT_MAX_EVENTS,
 ) -> FloatArray:
-    """JPDA marginal association probabilities ``beta`` ``(T, m + 1)``; column 0 is "no
-    measurement", column ``j`` measurement ``j - 1``.
+    """:func:`jpda_probabilities` by exact enumeration of all feasible joint events at once (no
+    clustering), in log space: the reference the hypothesis net is tested against.  Its cost
+    is the number of events; ValueError beyond ``max_events``."""
+    log_w = _log_weights(likelihood_ratios, pd, pg)
+    if log_w.shape[0] == 0:
+        return np.zeros(log_w.shape)
+    return np.minimum(_enumerated_marginals(log_w, max_events), 1.0)
 
-    ``l`` ``(T, m)`` zero outside the gate (not enumerated); pd, pg scalars or ``(T,)``. Exact
-    enumeration of the feasible events in log space (no overflow). ValueError beyond
-    ``max_events`` or when no event is possible (``Pd Pg = 1`` and no gated measurement).
-    """
-    L = np.asarray(likelihood_ratios, dtype=float)
-    if L.ndim != 2 or not (np.isfinite(L).all() and (L >= 0.0).all()):
-        raise ValueError(f"likelihood_ratios must be finite, >= 0, of shape (T, m); got {L.shape}")
-    T, m = L.shape
-    if T == 0:
-        return np.zeros((0, m + 1))
-    miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
+
+def _pdaf_marginals(
+    beta: FloatArray, alone: list[tuple[Any, IntArray]], L: FloatArray, miss: FloatArray
+) -> None:
+    """Into ``beta``, the marginals of the tracks that share no measurement, ``alone`` (each
+    track with its gated measurements): each row's weights ``1 - Pd Pg`` and ``l[t, j]``
+    normalised (the PDAF), over its possible options only, all rows in one pass (each row's
+    sum as its enumeration sums it)."""
+    if not alone:
+        return
+    tracks = np.array([t for t, _ in alone], dtype=np.intp)
+    gated = [measurements for _, measurements in alone]
+    rows = np.repeat(tracks, [g.size for g in gated])
+    cols = np.concatenate(gated).astype(np.intp)
+    can_miss = tracks[miss[tracks] > 0.0]
     with np.errstate(divide="ignore"):
-        log_l = np.log(np.column_stack((miss, L)))  # (T, m + 1), -inf for impossible
-    events = _feasible_events(L > 0.0, max_events)
+        log_miss = np.log(miss[can_miss])
+    # Entries (track, column, log weight), sorted by track then column: "none" first.
+    r = np.concatenate((can_miss, rows))
+    c = np.concatenate((np.zeros(can_miss.size, dtype=np.intp), cols + 1))
+    v = np.concatenate((log_miss, np.log(L[rows, cols])))
+    order = np.lexsort((c, r))
+    r, c, v = r[order], c[order], v[order]
+    starts = np.flatnonzero(np.r_[True, r[1:] != r[:-1]]) if r.size else r
+    if starts.size != tracks.size:
+        raise ValueError(_NO_EVENT)
+    which = np.cumsum(np.r_[True, r[1:] != r[:-1]]) - 1  # each entry's row among the tracks
+    w = np.exp(v - np.maximum.reduceat(v, starts)[which])
+    counts = np.diff(np.r_[starts, r.size])
+    total = np.empty(starts.size)
+    for k in np.unique(counts):  # rows of k options as a (rows, k) block: sums as ndarray.sum
+        same = np.flatnonzero(counts == k)
+        total[same] = w[starts[same][:, None] + np.arange(k)].sum(axis=1)
+    beta[r, c] = w / total[which]
+
+
+def _enumerated_marginals(log_l: FloatArray, max_events: int) -> FloatArray:
+    """Marginals ``(T, m + 1)`` from log weights ``(T, m + 1)`` (-inf: impossible) by summing
+    every feasible event's weight (BDH 2009 eq. 40-41)."""
+    T, m1 = log_l.shape
+    events = _feasible_events(np.isfinite(log_l[:, 1:]), max_events)
     log_w = log_l[np.arange(T)[None, :], events].sum(axis=1)  # (E,)
     top = float(np.max(log_w))
     if not math.isfinite(top):
-        raise ValueError(
-            "jpda_probabilities: no feasible joint event has positive probability "
-            "(a track with Pd * Pg = 1 has no measurement in its gate)"
-        )
+        raise ValueError(_NO_EVENT)
     w = np.exp(log_w - top)
     w /= w.sum()
-    beta = np.zeros((T, m + 1))
+    beta = np.zeros((T, m1))
     for t in range(T):
-        beta[t] = np.bincount(events[:, t], weights=w, minlength=m + 1)
-    # A sum of normalised weights can round one ulp above 1 (seen: 1 + 2e-16 next to 1e-25),
-    # which a PDA update rightly refuses as a probability.
-    return np.minimum(beta, 1.0)
+        beta[t] = np.bincount(events[:, t], weights=w, minlength=m1)
+    return beta
 
 
 def pda_update(
@@ -292,23 +391,45 @@ def jpda_association(
     clutter_density: float,
     gamma: float,
     pd: ArrayLike | None = None,
-    max_events: int = DEFAULT_MAX_EVENTS,
+    max_edges: int = DEFAULT_MAX_EDGES,
 ) -> JPDAResult:
     """Gate, likelihood ratios and marginals ``beta`` of ``T`` predicted tracks (``means``
     ``(T, n)``, ``covs`` ``(T, n, n)``) with one scan ``z`` ``(m, d)`` of ``sensor`` at pv
     ``sensor_state``, the tracks left as predicted (each filter's ``update_pda`` takes its
     row); ``clutter_density`` per unit of z, chi-square gate ``gamma``, ``pd`` per track
-    (default ``sensor.pd``)."""
+    (default ``sensor.pd``); exact marginals per cluster of the gate (:func:`jpda_probabilities`,
+    ``max_edges`` its memory bound)."""
+    return _associate(
+        means, covs, z, sensor, sensor_state, model,
+        clutter_density=clutter_density, gamma=gamma, pd=pd, max_edges=max_edges,
+    )[0]  # fmt: skip
+
+
+def _associate(
+    means: ArrayLike,
+    covs: ArrayLike,
+    z: ArrayLike,
+    sensor: SensorModel,
+    sensor_state: ArrayLike,
+    model: MotionModel,
+    *,
+    clutter_density: float,
+    gamma: float,
+    pd: ArrayLike | None = None,
+    max_edges: int = DEFAULT_MAX_EDGES,
+) -> tuple[JPDAResult, FloatArray, FloatArray]:
+    """:func:`jpda_association` and the Jacobians ``H`` ``(T, d, n)`` and wrapped residuals
+    ``nu`` ``(T, m, d)`` it computed, for the update."""
     X = np.asarray(means, dtype=float)
     P = np.asarray(covs, dtype=float)
-    zhat, _, S = predict_measurements(X, P, sensor, sensor_state, model)
+    zhat, H, S = predict_measurements(X, P, sensor, sensor_state, model)
     T, d = zhat.shape
     Z = _as_measurements(z, d)
     nu = _residuals(Z, zhat, sensor.residual)
     pd_t = _per_track("pd", sensor.pd if pd is None else pd, T)
     l, mask = likelihood_ratios(nu, S, pd_t, clutter_density, gamma)
-    beta = jpda_probabilities(l, pd_t, gate_probability(gamma, d), max_events=max_events)
-    return JPDAResult(X, P, beta, mask, l)
+    beta = jpda_probabilities(l, pd_t, gate_probability(gamma, d), max_edges=max_edges)
+    return JPDAResult(X, P, beta, mask, l), H, nu
 
 
 def pda_residuals(
@@ -344,12 +465,11 @@ def jpda_update(
     """JPDA-EKF update of ``T`` predicted tracks: :func:`jpda_association` (its arguments),
     then the PDAF update of each track. One track is the PDAF; a track with no gated
     measurement keeps its prediction."""
-    a = jpda_association(means, covs, z, sensor, sensor_state, model, **association)
+    a, H, nu = _associate(means, covs, z, sensor, sensor_state, model, **association)
     R = np.asarray(sensor.R, dtype=float)
     new_X = a.means.copy()
     new_P = a.covs.copy()
     for t in range(a.means.shape[0]):
-        if a.beta[t, 0] < 1.0:
-            H, nu = pda_residuals(a.means[t], a.covs[t], z, sensor, sensor_state, model)
-            new_X[t], new_P[t] = pda_update(a.means[t], a.covs[t], H, R, nu, a.beta[t])
+        if a.beta[t, 0] < 1.0:  # the association's own H and residuals, not recomputed
+            new_X[t], new_P[t] = pda_update(a.means[t], a.covs[t], H[t], R, nu[t], a.beta[t])
     return JPDAResult(new_X, new_P, a.beta, a.gated, a.likelihood_ratios)
