@@ -62,9 +62,7 @@ MAX_SPEED = limits.MAX_SPEED  # m/s, velocities, range rates
 MAX_STATE_VALUE = 1e12  # any track or truth state entry (estimates may overshoot positions)
 STAMP_TOLERANCE = 1e-6  # s between a stamp and its epoch time k T
 FRAME_ID = topics.FIXED_FRAME  # the default; each node takes its frame_id parameter
-# Detections one scan may carry: Poisson clutter of mean <= MAX_CLUTTER_PER_SCAN stays below
-# twice its mean (by ~100 standard deviations at the limit), plus one per target.
-MAX_SCAN_DETECTIONS = int(2 * limits.MAX_CLUTTER_PER_SCAN) + limits.MAX_TARGETS
+MAX_SCAN_DETECTIONS = limits.MAX_SCAN_DETECTIONS  # detections one scan may carry
 # |value| bounds of a detection's components by their names (bearings are wrapped to [-pi,
 # pi)); a component of another name (a plugin sensor's) is only bounded by MAX_STATE_VALUE.
 _COMPONENT_LIMITS = {"bearing": math.pi + 1e-9, "range": limits.MAX_RANGE, "range_rate": MAX_SPEED}

@@ -12,7 +12,7 @@ replaced by its particle estimate. Track ``t`` carries particles ``x_t^i`` with 
     l[t, j]  = Pd_t p_t(z_j) / lambda       inside the gate, 0 outside
 
 The joint events, their probabilities and the marginals ``beta[t, j]`` are the EKF JPDA's
-(:func:`activetrack.filters.jpda.jpda_probabilities`, one enumeration for both filters). Each
+(:func:`activetrack.filters.jpda.jpda_probabilities`, exact, the same for both filters). Each
 track's posterior is then the mixture over its association hypotheses, in weights::
 
     w_t^i  <-  w_t^i [beta_t0 + sum_j beta_tj g(z_j | x_t^i) / p_t(z_j)]
