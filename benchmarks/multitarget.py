@@ -508,17 +508,22 @@ TRACKER_TARGETS = 3  # targets of part 1's tracker scene (the issue's 3-target s
 TRACKER_SCENE = "radar"  # benchmarks/multitarget_tracking.py's one radar
 
 
-def tracking_module():
-    """``benchmarks/multitarget_tracking.py`` (its scene and both full trackers), loaded once."""
-    name = "bench_multitarget_tracking"
+def _sibling(stem: str):
+    """``benchmarks/<stem>.py`` loaded once, as module ``bench_<stem>``."""
+    name = f"bench_{stem}"
     if name not in sys.modules:
-        path = Path(__file__).resolve().parent / "multitarget_tracking.py"
+        path = Path(__file__).resolve().parent / f"{stem}.py"
         spec = importlib.util.spec_from_file_location(name, path)
         assert spec is not None and spec.loader is not None
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module  # dataclasses look their module up
         spec.loader.exec_module(module)
     return sys.modules[name]
+
+
+def tracking_module():
+    """``benchmarks/multitarget_tracking.py`` (its scene and both full trackers), loaded once."""
+    return _sibling("multitarget_tracking")
 
 
 def timed_run(stepper, n_scans: int) -> tuple[list[np.ndarray], np.ndarray]:
@@ -879,15 +884,7 @@ def print_managers(scenario: Scenario, c: ManagerComparison) -> None:
 
 def _scale_module():
     """``benchmarks/multitarget_scale.py`` (the scale table's scenes and timing)."""
-    name = "bench_multitarget_scale"
-    if name not in sys.modules:
-        path = Path(__file__).resolve().parent / "multitarget_scale.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
+    return _sibling("multitarget_scale")
 
 
 def _step_ms(rows, n: int) -> str:

@@ -57,6 +57,7 @@ from activetrack.filters.jpda import (
     likelihood_ratios,
     predict_measurements,
 )
+from activetrack.filters.jpda_net import gate_clusters
 from activetrack.filters.jpda_particle import ParticleLikelihoods, particle_likelihoods
 from activetrack.filters.measurement import TIME_TOLERANCE, Measurement, TrackingFilter
 from activetrack.filters.resampling import systematic_resample
@@ -582,27 +583,5 @@ def _cluster_ratios(
 def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
     """Tracks linked through shared gated detections: ``(rows, cols)`` per cluster, by their
     first row (tracks without a gated detection are in none). The JPDA's joint events
-    factorise over them. Union-find over the gated pairs (few: a gate holds a handful)."""
-    tracks, dets = np.nonzero(mask)
-    parent = list(range(mask.shape[0]))
-
-    def root(t: int) -> int:
-        while parent[t] != t:
-            parent[t] = parent[parent[t]]
-            t = parent[t]
-        return t
-
-    first: dict[int, int] = {}  # detection -> a track gating it
-    for t, j in zip(tracks.tolist(), dets.tolist(), strict=True):
-        other = first.setdefault(j, t)
-        if other != t:
-            a, b = root(other), root(t)
-            parent[max(a, b)] = min(a, b)
-    groups: dict[int, list[int]] = {}  # by root, in order of the first (smallest) row
-    for t in np.flatnonzero(mask.any(axis=1)).tolist():
-        groups.setdefault(root(t), []).append(t)
-    out = []
-    for rows in groups.values():
-        r = np.array(rows)
-        out.append((r, np.flatnonzero(mask[r].any(axis=0))))
-    return out
+    factorise over them (:func:`~activetrack.filters.jpda_net.gate_clusters`)."""
+    return [(rows, cols) for rows, cols in gate_clusters(mask) if cols.size]
