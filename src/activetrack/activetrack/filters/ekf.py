@@ -40,6 +40,7 @@ from activetrack.filters.measurement import (
     check_measurement_times,
     check_predict_time,
     check_prior,
+    pda_probabilities,
     pda_weights,
 )
 from activetrack.kernels import ekf_kernels
@@ -350,12 +351,7 @@ class ExtendedKalmanFilter:
                 f"beta (G, m + 1) and nu (G, m, d) expected for {G} filters, got "
                 f"{B.shape}, {np.shape(nu)}"
             )
-        tol = 1e-12  # as pda_weights: round-off of a marginal clipped, the sum checked
-        if not np.isfinite(B).all() or (B < -tol).any() or (B > 1 + tol).any():
-            raise ValueError("beta must be probabilities in [0, 1]")
-        B = np.clip(B, 0.0, 1.0)
-        if (np.abs(B.sum(axis=1) - 1.0) > 1e-9).any():
-            raise ValueError("beta: each row must sum to 1")
+        B = pda_probabilities(B, (G, m + 1))
         go = np.flatnonzero(B[:, 0] < 1.0).tolist()
         if go:
             X = np.array([filters[g]._x for g in go])

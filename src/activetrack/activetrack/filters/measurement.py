@@ -24,6 +24,7 @@ __all__ = [
     "check_measurement_times",
     "check_predict_time",
     "check_prior",
+    "pda_probabilities",
     "pda_weights",
 ]
 
@@ -149,19 +150,28 @@ class AssociatingFilter(TrackingFilter, Protocol):
         ...
 
 
+def pda_probabilities(beta: object, shape: tuple[int, ...]) -> FloatArray:
+    """``beta`` of PDA updates checked: of ``shape`` (``(m + 1,)`` for one track, ``(G, m + 1)``
+    for G), finite, in [0, 1] (round-off of 1e-12 clipped: a marginal summed over joint events
+    can come out 1 + 1 ulp), each track's row summing to 1."""
+    b = np.asarray(beta, dtype=float)
+    tol = 1e-12
+    if b.shape != shape or not np.isfinite(b).all() or (b < -tol).any() or (b > 1 + tol).any():
+        raise ValueError(f"beta must be {shape} probabilities in [0, 1], got {beta!r}")
+    b = np.clip(b, 0.0, 1.0)
+    total = b.sum(axis=-1)
+    if (np.abs(total - 1.0) > 1e-9).any():
+        raise ValueError(f"beta must sum to 1, got {float(total) if b.ndim == 1 else total!r}")
+    return b
+
+
 def pda_weights(measurements: Sequence[Measurement], beta: object) -> FloatArray:
     """``beta`` ``(m + 1,)`` of a PDA update checked against its ``m`` detections: finite,
     in [0, 1] (round-off of 1e-12 clipped: a marginal summed over joint events can come out
     1 + 1 ulp), summing to 1; the detections all of one sensor at one platform state, each
     with a ``z``."""
-    b = np.asarray(beta, dtype=float)
     m = len(measurements)
-    tol = 1e-12
-    if b.shape != (m + 1,) or not np.isfinite(b).all() or (b < -tol).any() or (b > 1 + tol).any():
-        raise ValueError(f"beta must be ({m + 1},) probabilities in [0, 1], got {beta!r}")
-    b = np.clip(b, 0.0, 1.0)
-    if abs(float(b.sum()) - 1.0) > 1e-9:
-        raise ValueError(f"beta must sum to 1, got {float(b.sum())!r}")
+    b = pda_probabilities(beta, (m + 1,))
     for i, meas in enumerate(measurements):
         if not isinstance(meas, Measurement) or meas.z is None:
             raise ValueError(f"measurements[{i}]: a PDA update takes detections (z given)")
