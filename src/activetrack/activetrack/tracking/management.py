@@ -93,9 +93,11 @@ _P_MAX = 1.0 - 1e-9  # cap of LM-IPDA's a priori probability that a detection is
 _XY = np.ix_([0, 2], [0, 2])
 
 
-def position_std(cov: FloatArray) -> float:
-    """sqrt of the largest eigenvalue of the xy block of a pv covariance ``(4, 4)`` [m]."""
-    return math.sqrt(max(float(np.linalg.eigvalsh(cov[_XY])[-1]), 0.0))
+def position_std(cov: FloatArray) -> FloatArray:
+    """sqrt of the largest eigenvalue of the xy block of pv covariances ``(..., 4, 4)`` [m],
+    ``(...)`` (one LAPACK call per matrix, stacked or not)."""
+    C = np.asarray(cov, dtype=float)
+    return np.sqrt(np.maximum(np.linalg.eigvalsh(C[..., [0, 2], :][..., [0, 2]])[..., -1], 0.0))
 
 
 def existence_update(
@@ -197,14 +199,14 @@ class Track:
         ):
             self.status = CONFIRMED
 
-    def deletion_reason(self, cfg: TrackManagementConfig, std: float | None = None) -> str | None:
+    def deletion_reason(self, cfg: TrackManagementConfig, std: float) -> str | None:
         """Why the track must go ("unconfirmed", "misses", "position_std", "existence"), or
-        None; ``std`` its :func:`position_std` where the caller has it."""
+        None; ``std`` its :func:`position_std`."""
         if self.status == TENTATIVE and self.hits + cfg.confirm_n - self.looks < cfg.confirm_m:
             return "unconfirmed"
         if self.status == CONFIRMED and self.run_of_misses >= cfg.delete_misses:
             return "misses"
-        if (position_std(self.cov) if std is None else std) > cfg.max_position_std:
+        if std > cfg.max_position_std:
             return "position_std"
         terminate = cfg.existence_terminate_prior if self.origin else cfg.existence_terminate
         if self.status == CONFIRMED and self.existence < terminate:
@@ -278,9 +280,7 @@ class TrackManager:
             if track_id in self.tracks:
                 self.tracks[track_id].record_look(hit, self.cfg)
         live = self.live()
-        # every track's position_std at once (the same LAPACK call per matrix)
-        covs = np.array([track.cov for track in live]).reshape(-1, 4, 4)
-        stds = np.sqrt(np.maximum(np.linalg.eigvalsh(covs[:, [0, 2]][:, :, [0, 2]])[:, -1], 0.0))
+        stds = position_std(np.array([track.cov for track in live]).reshape(-1, 4, 4))
         for track, std in zip(live, stds, strict=True):
             reason = track.deletion_reason(self.cfg, float(std))
             if reason is not None:
