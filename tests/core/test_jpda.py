@@ -102,6 +102,30 @@ def test_jpda_probabilities_never_round_above_one():
         np.testing.assert_allclose(beta.sum(axis=1), 1.0, atol=1e-12)
 
 
+def test_one_call_over_a_scan_gives_each_cluster_its_own_call_to_the_bit():
+    """The tracker asks once per scan: each cluster's rows of the scan's marginals are those of
+    a call on the cluster alone, to the bit (tracks alone, enumerated and net clusters)."""
+    from activetrack.filters.jpda_net import gate_clusters
+
+    rng = np.random.default_rng(5)
+    kinds = set()
+    for _ in range(60):
+        T, m = int(rng.integers(1, 40)), int(rng.integers(0, 30))
+        p = rng.uniform(0.0, 0.12)
+        L = np.exp(rng.uniform(-20, 20, (T, m))) * (rng.random((T, m)) < p)
+        if rng.random() < 0.3 and T >= 8 and m >= 8:  # a dense block: the net
+            L[:8, :8] = np.exp(rng.uniform(-5, 5, (8, 8)))
+        pd, pg = float(rng.uniform(0.5, 0.99)), 0.99
+        whole = jpda_probabilities(L, pd, pg)
+        for rows, cols in gate_clusters(L > 0.0):
+            own = jpda_probabilities(L[np.ix_(rows, cols)], pd, pg)
+            got = whole[rows[:, None], np.concatenate(([0], cols + 1))]
+            assert np.array_equal(got, own)
+            events = np.prod(1 + (L[rows] > 0.0).sum(axis=1))
+            kinds.add("alone" if rows.size == 1 else "net" if events > 4096 else "enumerated")
+    assert kinds == {"alone", "net", "enumerated"}
+
+
 # --- gating -----------------------------------------------------------------------------------
 
 

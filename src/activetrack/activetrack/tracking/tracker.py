@@ -329,10 +329,16 @@ class Tracker:
         # update per group after the clusters (each track's update is its own)
         batches: dict[tuple[type, int], list[tuple[int, np.ndarray, FloatArray]]] = {}
         clusters = _clusters(mask)
-        own = _cluster_ratios(clusters, nu, S, pd, lam, self.gamma) if particles is None else []
-        for i, (rows, used) in enumerate(clusters):
-            ratios = own[i] if scan_ratios is None else scan_ratios[np.ix_(rows, used)]
-            beta = jpda_probabilities(ratios, pd, pg)
+        if scan_ratios is None:  # each cluster's ratios from its own pairs, in one scan matrix
+            scan_ratios = np.zeros(mask.shape)
+            own = _cluster_ratios(clusters, nu, S, pd, lam, self.gamma)
+            for (rows, used), ratios in zip(clusters, own, strict=True):
+                scan_ratios[np.ix_(rows, used)] = ratios
+        # One call for the scan: it splits the gate into the same clusters and gives each
+        # cluster's marginals as a call on that cluster alone would (tested to the bit).
+        scan_beta = jpda_probabilities(scan_ratios, pd, pg)
+        for rows, used in clusters:
+            beta = scan_beta[rows[:, None], np.concatenate(([0], used + 1))]
             detections: list[Measurement] | None = None
             for k, row in enumerate(rows):
                 cls = type(tracks[row].filter)
