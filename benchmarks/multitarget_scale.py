@@ -164,7 +164,10 @@ def ours(scene: ScaleScene) -> Callable[[int], None]:
     tracker = Tracker(
         model,
         "ncv",
-        FilterSpec("ekf", False, make),
+        # with its batch constructor, as the registry gives it to ``batch`` and the node
+        FilterSpec(
+            "ekf", False, make, lambda X0, P0, t0: ExtendedKalmanFilter.many(model, X0, P0, t0)
+        ),
         {sid: sensor for sid, sensor, _, _ in scene.radars},
         [TrackPrior(f"t{i}", m, scene.prior_cov) for i, m in enumerate(scene.prior_means)],
         known_association=False,
