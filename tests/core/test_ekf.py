@@ -507,6 +507,13 @@ def test_many_builds_the_filters_one_by_one_would_and_checks_the_stack():
         assert np.array_equal(f.mean, one.mean) and np.array_equal(f.cov, one.cov)
     built[0].predict(10.0)  # independent filters
     assert built[1].time == 5.0
+    # the stacked reads are the filters' own moments, copies
+    means, covs = ExtendedKalmanFilter.means_many(built), ExtendedKalmanFilter.covs_many(built)
+    assert means.shape == (6, 4) and covs.shape == (6, 4, 4)
+    for g, f in enumerate(built):
+        assert np.array_equal(means[g], f.mean) and np.array_equal(covs[g], f.cov)
+    means[0] += 1.0
+    assert not np.array_equal(means[0], built[0].mean)
     bad = P0.copy()
     bad[4] = -np.eye(4)
     with pytest.raises(ValueError, match="P0"):

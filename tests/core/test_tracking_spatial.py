@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from activetrack.models.fov import FieldOfView
 from activetrack.tracking.management import COALESCE_D2
@@ -67,5 +68,14 @@ def test_fov_index_candidates_hold_every_track_in_view_after_moves_and_starts():
     assert items[k] in index.candidates(all_around, s)
     index.add("new")
     assert index.candidates(all_around, np.array([-1e6, 0.0, -1e6, 0.0]))[-1] == "new"
+    # many moves at once (an unknown item ignored) widen the radius as the moves one by one
+    one, many = FovIndex(items, pv[:, [0, 2]]), FovIndex(items, pv[:, [0, 2]])
+    moved = [items[3], items[7], "new", items[11]]
+    xy = rng.normal(0.0, 500.0, (4, 2)) + pv[[3, 7, 0, 11]][:, [0, 2]]
+    for item, p in zip(moved, xy, strict=True):
+        one.moved(item, p)
+    many.moved_many(moved, xy)
+    assert many._moved == pytest.approx(one._moved, rel=1e-15) and many._moved > 0.0
+    many.moved_many([], np.zeros((0, 2)))
     # an unbounded range: every track
     assert len(index.candidates(FieldOfView(), s)) == n + 1

@@ -184,6 +184,16 @@ class ExtendedKalmanFilter:
         """Current error covariance, shape ``(n, n)`` (a copy)."""
         return self._P.copy()
 
+    @staticmethod
+    def means_many(filters: Sequence[ExtendedKalmanFilter]) -> FloatArray:
+        """The :attr:`mean` of many filters stacked, ``(k, n)`` (a copy)."""
+        return np.array([f._x for f in filters], dtype=float)
+
+    @staticmethod
+    def covs_many(filters: Sequence[ExtendedKalmanFilter]) -> FloatArray:
+        """The :attr:`cov` of many filters stacked, ``(k, n, n)`` (a copy)."""
+        return np.array([f._P for f in filters], dtype=float)
+
     def predict(self, t: float) -> None:
         """Propagate the estimate to time ``t`` (>= ``time``); Valverde eq. 2-4."""
         t = check_predict_time(t, self._t)

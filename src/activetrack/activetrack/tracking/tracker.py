@@ -154,6 +154,7 @@ class Tracker:
         self.updates = 0
         self._counts = (0, 0)  # detections, unassociated of the last step
         self._aged: set[int] = set()  # tracks whose existence was predicted this epoch
+        self._stacked: type | None = None  # the live filters' class if it reads stacked moments
         for prior in priors:
             self._start(prior.mean, prior.cov, 0, CONFIRMED, prior.target_id, prior.priority)
         self._draw_samples()
@@ -235,8 +236,10 @@ class Tracker:
             for f in filters:
                 f.predict(t)
         self._aged.clear()
+        # The filters' class when it reads many filters' moments at once (the EKF), else None
+        self._stacked = cls if cls and _has_many(cls, "mean") and _has_many(cls, "cov") else None
         # The predicted positions, indexed once: each scan tests only the tracks within reach.
-        index = FovIndex(live, np.array([track.mean[[0, 2]] for track in live]))
+        index = FovIndex(live, self._pv_means(live).reshape(-1, 4)[:, [0, 2]])
         looked: dict[int, bool] = {}  # track id -> hit, for the tracks looked at
         detections = unassociated = 0
         for c in checked:
@@ -250,6 +253,8 @@ class Tracker:
             for started in self._start_from_detections(c.Z[free], c, epoch, t):
                 looked[started.track_id] = True
                 index.add(started)
+                if type(started.filter) is not self._stacked:  # a new class: read one by one
+                    self._stacked = None
         self.book.end_epoch(looked)
         return detections, unassociated
 
@@ -259,14 +264,16 @@ class Tracker:
         the existence update, the JPDA and the EKF updates alike."""
         candidates: list[Track] = index.candidates(c.scan.fov, c.s)  # type: ignore[assignment]
         pv_state = self.model.state_is_pv  # pv = the state: read each filter's moments once
-        states = [track.state for track in candidates] if pv_state else []
-        pv = np.array(states if pv_state else [track.mean for track in candidates])
-        inside = c.scan.fov.contains(pv.reshape(-1, 4), c.s)
+        pv = self._pv_means(candidates).reshape(-1, 4)
+        inside = c.scan.fov.contains(pv, c.s)
         tracks = [track for track, ok in zip(candidates, inside, strict=True) if ok]
         if not tracks:
             return [], np.zeros((0, c.Z.shape[0]), dtype=bool)
         means = pv[inside] if pv_state else np.array([track.state for track in tracks])
-        covs = np.array([track.state_cov for track in tracks])
+        if self._stacked is not None:
+            covs = self._stacked.covs_many([track.filter for track in tracks])  # type: ignore[attr-defined]
+        else:
+            covs = np.array([track.state_cov for track in tracks])
         base = c.sensor.base
         zhat, H, S = predict_measurements(means, covs, base, c.s, self.model)
         nu = np.asarray(base.residual(c.Z[None, :, :], zhat[:, None, :]), dtype=float)
@@ -300,9 +307,16 @@ class Tracker:
         for track, p in zip(tracks, psi, strict=True):
             track.existence = float(p)
         self._jpda(tracks, H, nu, S, particles, mask, c, t)
-        for row in np.flatnonzero(mask.any(axis=1)):  # the tracks the scan updated
-            index.moved(tracks[row], tracks[row].mean[[0, 2]])
+        updated = [tracks[row] for row in np.flatnonzero(mask.any(axis=1))]
+        index.moved_many(updated, self._pv_means(updated).reshape(-1, 4)[:, [0, 2]])
         return tracks, mask
+
+    def _pv_means(self, tracks: Sequence[Track]) -> FloatArray:
+        """The tracks' pv means ``(T, 4)``: their filters' means stacked in one call where the
+        state is pv and the filters read stacked (``means_many``), else each track's."""
+        if self.model.state_is_pv and self._stacked is not None:
+            return self._stacked.means_many([t.filter for t in tracks])  # type: ignore[attr-defined]
+        return np.array([track.mean for track in tracks], dtype=float)
 
     def _jpda(
         self,
