@@ -998,6 +998,52 @@ def test_an_ekf_subclass_that_overrides_one_step_keeps_it_and_the_numbers_stay()
     assert calls["predict"] >= 16 and calls["update_pda"] >= 8
 
 
+def test_ekf_tracks_are_read_and_updated_stacked_and_a_subclass_of_its_own_moments_is_not():
+    """The EKF's moments are read stacked (means_many, covs_many) and every track updates in one
+    call per cluster size; a subclass that overrides ``mean`` alone is read one track at a
+    time, and as its moments are the same, the tracks are those of the stacked path."""
+    from activetrack.tracking import tracker as tracker_module
+
+    reads = Counter()
+
+    class OwnMean(ExtendedKalmanFilter):
+        @property
+        def mean(self):
+            reads["mean"] += 1
+            return super().mean
+
+    assert tracker_module._has_many(ExtendedKalmanFilter, "mean", "means_many")
+    assert not tracker_module._has_many(OwnMean, "mean", "means_many")
+    targets = [{"id": "a", "mean": [0.0, 0.0, 0.0, 0.0]}, {"id": "b", "mean": [60.0, 0.0, 0, 0]}]
+    sc = make_scenario(targets, [range_bearing(clutter_density=3e-4)])
+    _, scans = simulate(sc, 8, np.random.default_rng(12))
+    stacked, sets = run(sc, scans)
+    assert stacked._stacked is ExtendedKalmanFilter
+    model = stacked.model
+    own = Tracker(
+        model,
+        "ncv",
+        FilterSpec("ekf", False, lambda x0, P0, t0: OwnMean(model, x0, P0, t0)),
+        stacked.sensors,
+        [
+            TrackPrior(t["id"], np.array(t["mean"]), np.diag([100.0, 4.0, 100.0, 4.0]))
+            for t in targets
+        ],
+        known_association=False,
+        management=sc.tracker.tracks,
+        planner_samples=1,
+        new_track_priority=1.0,
+        rng=np.random.default_rng(0),
+    )
+    for k, epoch_scans in enumerate(scans, start=1):
+        ts = own.step(k, k * sc.dt, epoch_scans)
+        assert own._stacked is None
+        assert [t.track_id for t in ts.tracks] == [t.track_id for t in sets[k].tracks]
+        for a, b in zip(ts.tracks, sets[k].tracks, strict=True):
+            assert np.array_equal(a.mean, b.mean) and np.array_equal(a.cov, b.cov)
+    assert reads["mean"] >= 16
+
+
 def test_the_ekf_registers_its_batch_constructor_and_the_pf_none():
     from activetrack.filters.registry import filter_kind, register_filter
 

@@ -237,7 +237,7 @@ class Tracker:
                 f.predict(t)
         self._aged.clear()
         # The filters' class when it reads many filters' moments at once (the EKF), else None
-        self._stacked = cls if cls and _has_many(cls, "mean") and _has_many(cls, "cov") else None
+        self._stacked = cls if cls and _has_many(cls, "mean", "means_many") else None
         # The predicted positions, indexed once: each scan tests only the tracks within reach.
         index = FovIndex(live, self._pv_means(live).reshape(-1, 4)[:, [0, 2]])
         looked: dict[int, bool] = {}  # track id -> hit, for the tracks looked at
@@ -338,19 +338,35 @@ class Tracker:
         pd = effective_pd(c.sensor.pd)
         pg = gate_probability(self.gamma, int(c.sensor.base.dim_z))
         lam = effective_clutter_density(c.sensor.clutter_density)
-        scan_ratios = None if particles is None else particles.ratios(pd, lam)
-        # EKF-like tracks (a class with update_pda_many) by class and detections: one stacked
-        # update per group after the clusters (each track's update is its own)
-        batches: dict[tuple[type, int], list[tuple[int, np.ndarray, FloatArray]]] = {}
         clusters = _clusters(mask)
-        if scan_ratios is None:  # each cluster's ratios from its own pairs, in one scan matrix
-            scan_ratios = np.zeros(mask.shape)
-            own = _cluster_ratios(clusters, nu, S, pd, lam, self.gamma)
-            for (rows, used), ratios in zip(clusters, own, strict=True):
-                scan_ratios[np.ix_(rows, used)] = ratios
+        by_size = _by_size(clusters)
+        if particles is None:  # each cluster's ratios from its own pairs, in one scan matrix
+            scan_ratios = _cluster_ratios(by_size, nu, S, pd, lam, self.gamma, mask.shape)
+        else:
+            scan_ratios = particles.ratios(pd, lam)
         # One call for the scan: it splits the gate into the same clusters and gives each
         # cluster's marginals as a call on that cluster alone would (tested to the bit).
         scan_beta = jpda_probabilities(scan_ratios, pd, pg)
+        R = c.sensor.base.R
+        stacked = self._stacked
+        if particles is None and stacked is not None and _has_many(stacked, "update_pda"):
+            # every track's filter updates stacked: one call per cluster size, no loop per track
+            for rows, cols in by_size.values():
+                beta = scan_beta[rows[:, None], np.column_stack((np.zeros_like(rows), cols + 1))]
+                stacked.update_pda_many(  # type: ignore[attr-defined]
+                    [tracks[row].filter for row in rows],
+                    H[rows],
+                    nu[rows[:, None], cols],
+                    beta,
+                    R,
+                    c.scan.sensor_id,
+                )
+                for row in rows.tolist():
+                    tracks[row].ess = math.nan
+            return
+        # EKF-like tracks (a class with update_pda_many) by class and detections: one stacked
+        # update per group after the clusters (each track's update is its own)
+        batches: dict[tuple[type, int], list[tuple[int, np.ndarray, FloatArray]]] = {}
         for rows, used in clusters:
             beta = scan_beta[rows[:, None], np.concatenate(([0], used + 1))]
             detections: list[Measurement] | None = None
@@ -373,7 +389,6 @@ class Tracker:
                 else:
                     info = update(detections, beta[k])
                 tracks[row].ess = info.ess
-        R = c.sensor.base.R
         for (cls, _), group in batches.items():
             rows = np.array([row for row, _, _ in group])
             cols = np.array([used for _, used, _ in group])
@@ -533,17 +548,23 @@ def _platform(i: int, scan: Scan) -> FloatArray:
     return s
 
 
-def _has_many(cls: type, method: str) -> bool:
-    """Whether filter class ``cls`` has ``<method>_many``, the batch form of ``method``, from
-    the same class as its ``method`` (a subclass that overrides ``method`` alone keeps it)."""
-    known = _HAS_MANY.get((cls, method))
+def _has_many(cls: type, method: str, batch: str = "") -> bool:
+    """Whether filter class ``cls`` has ``batch`` (default ``<method>_many``), the batch form
+    of ``method``, from the same class as its ``method`` (a subclass that overrides ``method``
+    alone keeps it). ``mean`` (its batch ``means_many``) stands for the moments, ``mean``
+    and ``cov``: both must come from that class."""
+    batch = batch or method + "_many"
+    known = _HAS_MANY.get((cls, batch))
     if known is None:
 
         def owner(name: str) -> type | None:
             return next((c for c in cls.__mro__ if name in c.__dict__), None)
 
-        many = owner(method + "_many")
-        known = _HAS_MANY[cls, method] = many is not None and many is owner(method)
+        many = owner(batch)
+        known = many is not None and many is owner(method)
+        if method == "mean":
+            known = known and owner("covs_many") is many is owner("cov")
+        _HAS_MANY[cls, batch] = known
     return known
 
 
@@ -568,35 +589,43 @@ def _takes(update: Callable[..., object], keyword: str) -> bool:
 _TAKES: dict[tuple[object, str], bool] = {}
 
 
-def _cluster_ratios(
+def _by_size(
     clusters: list[tuple[np.ndarray, np.ndarray]],
+) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """The clusters by their number of detections ``m``: each group's tracks ``(R,)`` and each
+    track's cluster detections ``(R, m)``, the clusters in order."""
+    members: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for rows, used in clusters:
+        members.setdefault(used.size, []).append((rows, used))
+    return {
+        m: (
+            np.concatenate([rows for rows, _ in group]),
+            np.concatenate([np.broadcast_to(used, (rows.size, m)) for rows, used in group]),
+        )
+        for m, group in members.items()
+    }
+
+
+def _cluster_ratios(
+    by_size: dict[int, tuple[np.ndarray, np.ndarray]],
     nu: FloatArray,
     S: FloatArray,
     pd: float,
     clutter_density: float,
     gamma: float,
-) -> list[FloatArray]:
-    """Each cluster's likelihood ratios ``(rows, used)`` from its own pairs, as
-    :func:`~activetrack.filters.jpda.likelihood_ratios` of the cluster gives them: LAPACK's
-    solve for ``S^-1 nu`` rounds a column differently with other columns beside it (1 ulp), and
-    these are the numbers of the per-cluster association the tracker has always run, to the
-    bit. The clusters with the same number of detections go in one stacked call (a track's
-    solve then has the same columns as in its cluster's own call)."""
-    by_size: dict[int, list[int]] = {}
-    for i, (_, used) in enumerate(clusters):
-        by_size.setdefault(used.size, []).append(i)
-    out: list[FloatArray] = [np.empty(0)] * len(clusters)
-    for m, members in by_size.items():
-        rows = np.concatenate([clusters[i][0] for i in members])
-        cols = np.concatenate(
-            [np.broadcast_to(clusters[i][1], (clusters[i][0].size, m)) for i in members]
-        )
+    shape: tuple[int, int],
+) -> FloatArray:
+    """The scan's likelihood ratios ``shape`` ``(T, m)``, each cluster's (:func:`_by_size`)
+    from its own pairs as :func:`~activetrack.filters.jpda.likelihood_ratios` of the cluster
+    gives them, 0 elsewhere: LAPACK's solve for ``S^-1 nu`` rounds a column differently with
+    other columns beside it (1 ulp), and these are the numbers of the per-cluster association
+    the tracker has always run, to the bit. The clusters with the same number of detections go
+    in one stacked call (a track's solve then has the same columns as in its cluster's own
+    call)."""
+    out = np.zeros(shape)
+    for rows, cols in by_size.values():
         ratios, _ = likelihood_ratios(nu[rows[:, None], cols], S[rows], pd, clutter_density, gamma)
-        start = 0
-        for i in members:
-            size = clusters[i][0].size
-            out[i] = ratios[start : start + size]
-            start += size
+        out[rows[:, None], cols] = ratios
     return out
 
 
