@@ -1019,6 +1019,12 @@ def test_ekf_tracks_are_read_and_updated_stacked_and_a_subclass_of_its_own_momen
     _, scans = simulate(sc, 8, np.random.default_rng(12))
     stacked, sets = run(sc, scans)
     assert stacked._stacked is ExtendedKalmanFilter
+    # the snapshot's moments, read stacked, are the filters' own, each estimate's arrays its own
+    snap = stacked.snapshot()
+    for e, track in zip(snap.tracks, stacked.book.live(), strict=True):
+        assert np.array_equal(e.mean, track.filter.mean) and np.array_equal(e.state, e.mean)
+        assert np.array_equal(e.cov, track.filter.cov) and np.array_equal(e.state_cov, e.cov)
+        assert not np.shares_memory(e.mean, e.state) and not np.shares_memory(e.cov, e.state_cov)
     model = stacked.model
     own = Tracker(
         model,

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -219,16 +220,22 @@ class Track:
             return "existence"
         return None
 
-    def estimate(self, epoch: int) -> TrackEstimate:
-        """The track as the tracker reports it."""
+    def estimate(
+        self,
+        epoch: int,
+        moments: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None,
+    ) -> TrackEstimate:
+        """The track as the tracker reports it; ``moments``: its ``(mean, cov, state,
+        state_cov)`` where the caller read them (each its own array), else read here."""
         particles = getattr(self.filter, "weights", None) if self.particle_based else None
+        mean, cov, state, state_cov = moments or (self.mean, self.cov, self.state, self.state_cov)
         return TrackEstimate(
             track_id=self.track_id,
             status=self.status,
-            mean=self.mean,
-            cov=self.cov,
-            state=self.state,
-            state_cov=self.state_cov,
+            mean=mean,
+            cov=cov,
+            state=state,
+            state_cov=state_cov,
             origin=self.origin,
             priority=self.priority,
             age=epoch - self.born,
@@ -274,13 +281,20 @@ class TrackManager:
     def full(self) -> bool:
         return len(self.tracks) >= self.cfg.max_tracks
 
-    def end_epoch(self, looked: dict[int, bool]) -> None:
-        """Apply one epoch's looks (track id -> hit) and every deletion rule."""
+    def end_epoch(
+        self,
+        looked: dict[int, bool],
+        pv_covs: Callable[[list[Track]], FloatArray] | None = None,
+    ) -> None:
+        """Apply one epoch's looks (track id -> hit) and every deletion rule; ``pv_covs``
+        gives tracks' pv covariances ``(T, 4, 4)`` at once where the caller can (else each
+        track's ``cov``)."""
         for track_id, hit in looked.items():
             if track_id in self.tracks:
                 self.tracks[track_id].record_look(hit, self.cfg)
         live = self.live()
-        stds = position_std(np.array([track.cov for track in live]).reshape(-1, 4, 4))
+        covs = pv_covs(live) if pv_covs else np.array([track.cov for track in live])
+        stds = position_std(np.asarray(covs, dtype=float).reshape(-1, 4, 4))
         for track, std in zip(live, stds, strict=True):
             reason = track.deletion_reason(self.cfg, float(std))
             if reason is not None:

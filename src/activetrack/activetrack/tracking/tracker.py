@@ -178,7 +178,15 @@ class Tracker:
     def snapshot(self) -> TrackSet:
         """Every live track after the last step, by id. Pure: it draws nothing, so looking at
         the tracks (a notebook, a second caller) never changes a later result."""
-        estimates = tuple(track.estimate(self.epoch) for track in self.book.live())
+        live = self.book.live()
+        if self._stacked is not None and self.model.state_is_pv:  # the moments read stacked
+            X, P = self._pv_means(live), self._pv_covs(live)
+            moments = zip(X, P, X.copy(), P.copy(), strict=True)
+            estimates = tuple(
+                track.estimate(self.epoch, m) for track, m in zip(live, moments, strict=True)
+            )
+        else:
+            estimates = tuple(track.estimate(self.epoch) for track in live)
         return TrackSet(
             self.epoch,
             self.time,
@@ -255,7 +263,7 @@ class Tracker:
                 index.add(started)
                 if type(started.filter) is not self._stacked:  # a new class: read one by one
                     self._stacked = None
-        self.book.end_epoch(looked)
+        self.book.end_epoch(looked, self._pv_covs)
         return detections, unassociated
 
     def _update(self, c: _Checked, t: float, index: FovIndex) -> tuple[list[Track], BoolArray]:
@@ -317,6 +325,12 @@ class Tracker:
         if self.model.state_is_pv and self._stacked is not None:
             return self._stacked.means_many([t.filter for t in tracks])  # type: ignore[attr-defined]
         return np.array([track.mean for track in tracks], dtype=float)
+
+    def _pv_covs(self, tracks: Sequence[Track]) -> FloatArray:
+        """The tracks' pv covariances ``(T, 4, 4)``, stacked as :meth:`_pv_means`."""
+        if self.model.state_is_pv and self._stacked is not None:
+            return self._stacked.covs_many([t.filter for t in tracks])  # type: ignore[attr-defined]
+        return np.array([track.cov for track in tracks], dtype=float).reshape(-1, 4, 4)
 
     def _jpda(
         self,
