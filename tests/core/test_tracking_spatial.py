@@ -68,9 +68,20 @@ def test_fov_index_candidates_hold_every_track_in_view_after_moves_and_starts():
     assert items[k] in index.candidates(all_around, s)
     index.add("new")
     assert index.candidates(all_around, np.array([-1e6, 0.0, -1e6, 0.0]))[-1] == "new"
+    # a track added at its position is a candidate of the scans within reach of it only, and
+    # its moves widen the radius as an indexed track's do
+    far = np.array([-1e6, 0.0, -1e6, 0.0])
+    index.add("placed", np.array([-1e6 + 7_890.0, -1e6]))  # radius now 7,000 + 900 m
+    assert index.candidates(all_around, far)[-2:] == ["new", "placed"]
+    assert "placed" not in index.candidates(all_around, np.array([-1e6 - 60.0, 0.0, -1e6, 0.0]))
+    index.moved("placed", np.array([-1e6 + 7_890.0 + 1_000.0, -1e6]))  # radius 8,000 m
+    assert "placed" in index.candidates(all_around, np.array([-1e6 - 60.0, 0.0, -1e6, 0.0]))
+    assert "placed" not in index.candidates(all_around, s)
     # many moves at once (an unknown item ignored) widen the radius as the moves one by one
     one, many = FovIndex(items, pv[:, [0, 2]]), FovIndex(items, pv[:, [0, 2]])
-    moved = [items[3], items[7], "new", items[11]]
+    one.add("placed", pv[0, [0, 2]])
+    many.add("placed", pv[0, [0, 2]])
+    moved = [items[3], items[7], "placed", items[11]]
     xy = rng.normal(0.0, 500.0, (4, 2)) + pv[[3, 7, 0, 11]][:, [0, 2]]
     for item, p in zip(moved, xy, strict=True):
         one.moved(item, p)
@@ -78,4 +89,4 @@ def test_fov_index_candidates_hold_every_track_in_view_after_moves_and_starts():
     assert many._moved == pytest.approx(one._moved, rel=1e-15) and many._moved > 0.0
     many.moved_many([], np.zeros((0, 2)))
     # an unbounded range: every track
-    assert len(index.candidates(FieldOfView(), s)) == n + 1
+    assert len(index.candidates(FieldOfView(), s)) == n + 2

@@ -36,8 +36,9 @@ class FovIndex:
     """The live tracks of one epoch by their position after the prediction, for the scans of
     the epoch: ``candidates`` are the tracks that may be inside a field of view (a superset,
     in the order given: the caller tests them exactly). Tracks keep moving as the scans update
-    them (``moved``) and new ones start (``add``); the query radius grows by the largest
-    displacement so far, and new tracks are always candidates."""
+    them (``moved``) and new ones start (``add``, at their position: tested by distance, as
+    few as a scan starts; one added without a position is a candidate of every scan); the
+    query radius grows by the largest displacement so far."""
 
     def __init__(self, items: Sequence[object], positions: FloatArray):
         self.items = list(items)
@@ -45,38 +46,59 @@ class FovIndex:
         self._tree = _kd_tree(self.xy) if len(self.items) >= _MIN_TREE else None
         self._row = {id(item): k for k, item in enumerate(self.items)}
         self._added: list[object] = []
+        self._added_xy: list[tuple[float, float]] = []  # NaN: no position given
+        self._added_row: dict[int, int] = {}
         self._moved = 0.0  # largest distance of a track from its indexed position
 
-    def add(self, item: object) -> None:
-        """A track started after the index was built (always a candidate)."""
+    def add(self, item: object, xy: FloatArray | None = None) -> None:
+        """A track started after the index was built, at ``xy`` ``(2,)`` (None: a candidate
+        of every scan)."""
+        self._added_row[id(item)] = len(self._added)
         self._added.append(item)
+        self._added_xy.append((math.nan, math.nan) if xy is None else (float(xy[0]), float(xy[1])))
+
+    def _origin(self, item: object) -> tuple[float, float] | None:
+        """Where the index holds ``item`` (None: not held, or added without a position)."""
+        row = self._row.get(id(item))
+        if row is not None:
+            return float(self.xy[row, 0]), float(self.xy[row, 1])
+        row = self._added_row.get(id(item))
+        return None if row is None else self._added_xy[row]
 
     def moved(self, item: object, xy: FloatArray) -> None:
         """The track's position is now ``xy`` ``(2,)``."""
-        row = self._row.get(id(item))
-        if row is not None:
-            d = math.hypot(float(xy[0] - self.xy[row, 0]), float(xy[1] - self.xy[row, 1]))
-            self._moved = max(self._moved, d)
+        origin = self._origin(item)
+        if origin is not None:
+            d = math.hypot(float(xy[0]) - origin[0], float(xy[1]) - origin[1])
+            if not math.isnan(d):
+                self._moved = max(self._moved, d)
 
     def moved_many(self, items: Sequence[object], xy: FloatArray) -> None:
         """:meth:`moved` of each of ``items``, now at ``xy`` ``(k, 2)``, in one pass (numpy's
         hypot: within an ulp of math.hypot, inside the radius's widening)."""
-        rows = [self._row.get(id(item), -1) for item in items]
-        known = np.array([r >= 0 for r in rows], dtype=bool)
+        origins = [self._origin(item) for item in items]
+        known = np.array([o is not None for o in origins], dtype=bool)
         if known.any():
             P = np.asarray(xy, dtype=float).reshape(-1, 2)[known]
-            d = P - self.xy[np.array(rows)[known]]
-            self._moved = max(self._moved, float(np.hypot(d[:, 0], d[:, 1]).max()))
+            d = P - np.array([o for o in origins if o is not None])
+            dist = np.hypot(d[:, 0], d[:, 1])
+            if not np.isnan(dist).all():
+                self._moved = max(self._moved, float(np.nanmax(dist)))
 
     def candidates(self, fov: FieldOfView, sensor_pv: FloatArray) -> list[object]:
         """The tracks within ``fov.r_max`` of the sensor (all of them for an unbounded range),
-        indexed ones in their order, then the added ones."""
+        indexed ones in their order, then the added ones in theirs."""
         if self._tree is None or not math.isfinite(fov.r_max):
             return self.items + self._added
         radius = (fov.r_max + self._moved) * (1.0 + _WIDEN) + _SLACK_M
         rows = self._tree.query_ball_point([sensor_pv[0], sensor_pv[2]], radius)
         rows.sort()
-        return [self.items[k] for k in rows] + self._added
+        added = self._added
+        if added:
+            A = np.array(self._added_xy)
+            far = np.hypot(A[:, 0] - sensor_pv[0], A[:, 1] - sensor_pv[2]) > radius  # NaN: not
+            added = [item for item, out in zip(added, far.tolist(), strict=True) if not out]
+        return [self.items[k] for k in rows] + added
 
 
 def largest_xy_eigenvalue(covs: FloatArray) -> FloatArray:

@@ -258,11 +258,13 @@ class Tracker:
             free = ~mask.any(axis=0)
             detections += c.Z.shape[0]
             unassociated += int(free.sum())
-            for started in self._start_from_detections(c.Z[free], c, epoch, t):
-                looked[started.track_id] = True
-                index.add(started)
-                if type(started.filter) is not self._stacked:  # a new class: read one by one
+            started = self._start_from_detections(c.Z[free], c, epoch, t)
+            for track in started:
+                looked[track.track_id] = True
+                if type(track.filter) is not self._stacked:  # a new class: read one by one
                     self._stacked = None
+            for track, xy in zip(started, self._pv_means(started).reshape(-1, 4), strict=True):
+                index.add(track, xy[[0, 2]])
         self.book.end_epoch(looked, self._pv_covs)
         return detections, unassociated
 
