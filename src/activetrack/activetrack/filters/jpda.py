@@ -310,12 +310,13 @@ def _pdaf_marginals(
     v = np.concatenate((log_miss, np.log(L[rows, cols])))
     order = np.lexsort((c, r))
     r, c, v = r[order], c[order], v[order]
-    starts = np.flatnonzero(np.r_[True, r[1:] != r[:-1]]) if r.size else r
+    first = np.concatenate(([True], r[1:] != r[:-1]))  # each row's first entry
+    starts = np.flatnonzero(first) if r.size else r
     if starts.size != tracks.size:
         raise ValueError(_NO_EVENT)
-    which = np.cumsum(np.r_[True, r[1:] != r[:-1]]) - 1  # each entry's row among the tracks
+    which = np.cumsum(first) - 1  # each entry's row among the tracks
     w = np.exp(v - np.maximum.reduceat(v, starts)[which])
-    counts = np.diff(np.r_[starts, r.size])
+    counts = np.diff(np.append(starts, r.size))
     total = np.empty(starts.size)
     for k in np.unique(counts):  # rows of k options as a (rows, k) block: sums as ndarray.sum
         same = np.flatnonzero(counts == k)

@@ -613,13 +613,12 @@ def _by_size(
     members: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
     for rows, used in clusters:
         members.setdefault(used.size, []).append((rows, used))
-    return {
-        m: (
-            np.concatenate([rows for rows, _ in group]),
-            np.concatenate([np.broadcast_to(used, (rows.size, m)) for rows, used in group]),
-        )
-        for m, group in members.items()
-    }
+    out = {}
+    for m, group in members.items():
+        rows = np.concatenate([rows for rows, _ in group])
+        sizes = [rows.size for rows, _ in group]
+        out[m] = (rows, np.repeat(np.array([used for _, used in group]).reshape(-1, m), sizes, 0))
+    return out
 
 
 def _cluster_ratios(
