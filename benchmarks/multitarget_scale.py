@@ -31,6 +31,12 @@ Timed per epoch (all radars' scans), after one untimed epoch of warm-up on a sma
   every joint event, ``itertools.product``) or the efficient hypothesis management of Maskell
   et al. through Stone Soup's pyehm plugin (``JPDAWithEHM``, ``JPDAWithEHM2``), exact both.
 
+Run alone (``.venv/bin/python benchmarks/multitarget_scale.py [--sizes 300 1000] [--clutter
+10] [--layouts spread] [--implementations ours] [--epochs 5] [--budget 30]``) it prints those
+rows of the table and ``n<N>_step_ms=<ms>`` for our step: by default the two figures of
+``multitarget.py``'s last line (``n300_step_ms``, ``n1000_step_ms``: spread, clutter 10), timed
+the same way, in a few minutes without Stone Soup.
+
 Budget: each implementation gets :data:`POINT_BUDGET_S` s of wall time per point (``--quick``:
 :data:`QUICK_BUDGET_S`), enforced by ``SIGALRM`` inside the epoch. A point that runs out prints
 ``over budget (POINT_BUDGET_S=<s> s)`` with the epochs it finished; the same implementation is
@@ -40,7 +46,9 @@ budget at n=<n> (POINT_BUDGET_S=<s> s)``. Nothing is skipped without a line sayi
 
 from __future__ import annotations
 
+import argparse
 import math
+import os
 import signal
 import time
 from collections.abc import Callable
@@ -414,3 +422,39 @@ def print_row(row: ScaleRow, budget: float) -> None:
         f"{row.detections:7.0f}  {cells}",
         flush=True,
     )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The chosen points of the table (module docstring), then our step's median per size."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--sizes", type=int, nargs="+", default=[300, 1000])
+    p.add_argument("--clutter", type=float, nargs="+", default=[10.0])
+    p.add_argument("--layouts", nargs="+", choices=LAYOUTS, default=["spread"])
+    p.add_argument("--implementations", nargs="+", choices=IMPLEMENTATIONS, default=["ours"])
+    p.add_argument("--epochs", type=int, default=5, help="timed epochs per point")
+    p.add_argument("--budget", type=float, default=POINT_BUDGET_S, help="POINT_BUDGET_S (s)")
+    args = p.parse_args(argv)
+    print(f"# load average {os.getloadavg()[0]:.1f}")
+    print_header(args.implementations, args.epochs, args.budget)
+    rows = scale_table(
+        args.sizes, args.layouts, sorted(args.clutter), args.implementations, args.budget,
+        args.epochs, printer=print_row,
+    )  # fmt: skip
+    print(f"# load average {os.getloadavg()[0]:.1f}")
+    if "ours" in args.implementations:  # as multitarget.py's last line: spread, lowest clutter
+        figures = []
+        for n in args.sizes:
+            row = next((r for r in rows if r.n_targets == n and r.layout == "spread"), None)
+            times = row.cells["ours"].times if row else []
+            figures.append(
+                f"n{n}_step_ms={np.median(times) * 1e3:.1f}" if times else f"n{n}_step_ms=none"
+            )
+        print(" ".join(figures))
+    return 0
+
+
+if __name__ == "__main__":
+    from activetrack.allocator import tune_allocator
+
+    tune_allocator()  # as multitarget.py and the command line do
+    raise SystemExit(main())
