@@ -252,9 +252,9 @@ class Tracker:
         detections = unassociated = 0
         for c in checked:
             tracks, mask = self._update(c, t, index)
-            for track, row in zip(tracks, mask, strict=True):
-                looked[track.track_id] = looked.get(track.track_id, False) or bool(row.any())
-                track.missed_detections += not row.any()
+            for track, hit in zip(tracks, mask.any(axis=1).tolist(), strict=True):
+                looked[track.track_id] = looked.get(track.track_id, False) or hit
+                track.missed_detections += not hit
             free = ~mask.any(axis=0)
             detections += c.Z.shape[0]
             unassociated += int(free.sum())
@@ -479,9 +479,11 @@ class Tracker:
         means = np.zeros((len(fixes), 4))
         velocity = np.diag(np.full(4, self.book.cfg.init_speed_std**2))
         covs = np.array([velocity] * len(fixes))
-        for k, (xy, P_xy) in enumerate(fixes):
-            means[k, [0, 2]] = xy
-            covs[k][np.ix_([0, 2], [0, 2])] = P_xy
+        xy = np.array([f[0] for f in fixes], dtype=float).reshape(-1, 2)
+        P_xy = np.array([f[1] for f in fixes], dtype=float).reshape(-1, 2, 2)
+        means[:, 0], means[:, 2] = xy[:, 0], xy[:, 1]
+        covs[:, 0, 0], covs[:, 0, 2] = P_xy[:, 0, 0], P_xy[:, 0, 1]
+        covs[:, 2, 0], covs[:, 2, 2] = P_xy[:, 1, 0], P_xy[:, 1, 1]
         make_many = self.filter.make_many
         if make_many is None:
             filters = [self.filter.make(means[k], covs[k], t) for k in range(len(fixes))]
