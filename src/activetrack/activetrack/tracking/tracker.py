@@ -252,7 +252,8 @@ class Tracker:
         detections = unassociated = 0
         for c in checked:
             tracks, mask = self._update(c, t, index)
-            for track, hit in zip(tracks, mask.any(axis=1).tolist(), strict=True):
+            hits: list[bool] = np.asarray(mask.any(axis=1)).tolist()
+            for track, hit in zip(tracks, hits, strict=True):
                 looked[track.track_id] = looked.get(track.track_id, False) or hit
                 track.missed_detections += not hit
             free = ~mask.any(axis=0)
@@ -366,19 +367,7 @@ class Tracker:
         R = c.sensor.base.R
         stacked = self._stacked
         if particles is None and stacked is not None and _has_many(stacked, "update_pda"):
-            # every track's filter updates stacked: one call per cluster size, no loop per track
-            for rows, cols in by_size.values():
-                beta = scan_beta[rows[:, None], np.column_stack((np.zeros_like(rows), cols + 1))]
-                stacked.update_pda_many(  # type: ignore[attr-defined]
-                    [tracks[row].filter for row in rows],
-                    H[rows],
-                    nu[rows[:, None], cols],
-                    beta,
-                    R,
-                    c.scan.sensor_id,
-                )
-                for row in rows.tolist():
-                    tracks[row].ess = math.nan
+            _update_stacked(stacked, tracks, H, nu, scan_beta, by_size, R, c.scan.sensor_id)
             return
         # EKF-like tracks (a class with update_pda_many) by class and detections: one stacked
         # update per group after the clusters (each track's update is its own)
@@ -605,6 +594,29 @@ def _takes(update: Callable[..., object], keyword: str) -> bool:
 
 
 _TAKES: dict[tuple[object, str], bool] = {}
+
+
+def _update_stacked(
+    cls: type,
+    tracks: list[Track],
+    H: FloatArray,
+    nu: FloatArray,
+    scan_beta: FloatArray,
+    by_size: dict[int, tuple[np.ndarray, np.ndarray]],
+    R: FloatArray,
+    sensor_id: str,
+) -> None:
+    """Every cluster's tracks, all of filter class ``cls``, updated with their rows of the
+    scan's marginals ``(T, m + 1)``: one ``update_pda_many`` per cluster size (:func:`_by_size`),
+    no loop per track."""
+    for rows, cols in by_size.values():
+        beta = scan_beta[rows[:, None], np.column_stack((np.zeros_like(rows), cols + 1))]
+        cls.update_pda_many(  # type: ignore[attr-defined]
+            [tracks[row].filter for row in rows], H[rows], nu[rows[:, None], cols], beta, R,
+            sensor_id,
+        )  # fmt: skip
+        for row in rows.tolist():
+            tracks[row].ess = math.nan
 
 
 def _by_size(
