@@ -23,7 +23,9 @@ same particles up to floating-point round-off, in practice the same bits
 No ``fastmath``: without it LLVM neither reorders nor fuses the floating-point operations, which
 keeps them those of the reference. ``error_model="numpy"``: a division by zero gives inf or NaN
 as in numpy (a particle on the sensor) instead of raising. Every kernel is cached on disk
-(``cache=True``).
+(``cache=True``). numba keys that cache on this file alone: the sampling kernels inline
+``pcg64.layer``, so a change there reaches them only once this file changes too, or once
+``kernels/__pycache__`` is cleared.
 """
 
 from __future__ import annotations

@@ -147,9 +147,11 @@ def layer(r):  # pragma: no cover - compiled
     idx = r & np.uint64(0xFF)
     r >>= np.uint64(8)
     rabs = (r >> np.uint64(1)) & np.uint64(0x000FFFFFFFFFFFFF)
-    x = np.float64(np.int64(rabs)) * _WI[idx]  # rabs < 2^52: exact as a signed integer
-    if r & np.uint64(1):
-        x = -x
+    # rabs < 2^52: exact as a signed integer. The sign bit as a factor +-1 (exact, -x when
+    # set) rather than a branch: a random sign mispredicts half the time, which cost a third
+    # of the sampling kernel's time.
+    sign = 1.0 - 2.0 * np.float64(np.int64(r & np.uint64(1)))
+    x = np.float64(np.int64(rabs)) * _WI[idx] * sign
     return idx, rabs, x
 
 
