@@ -12,10 +12,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from parity import assert_same_run
+from rclpy.parameter import Parameter
 
 from activetrack_bringup.runner import epoch_timeouts, run_graph
 from activetrack_ros import graph as topics
 from activetrack_ros.inject import ENV, parse
+from activetrack_ros.node_base import Rejected
+from tracker_node import tracker_node
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
 EPOCH = 3  # the epoch whose message is delayed or lost
@@ -166,3 +169,44 @@ def test_a_lost_message_costs_one_epoch_at_most(reader, topic, clean, tmp_path, 
         _same_until(_record(run), _record(clean), EPOCH)
     # One timeout at most, not one an epoch.
     assert time.monotonic() - start < clean.wall_time_s + EPOCH_TIMEOUT + 15
+
+
+def test_a_tracker_behind_the_sim_catches_up_from_its_buffer(clean, tmp_path, monkeypatch):
+    """The sim gives up on the tracker before the tracker gives up on epoch 3's lost scan
+    (tracks_timeout 1 s < epoch_timeout 4 s): epoch 4 arrives while the tracker still waits;
+    it is buffered, not refused, and once complete it closes epoch 3 with what came. Only
+    epoch 3 held course; epoch 4 on proceeds without a timeout."""
+    monkeypatch.setenv(ENV, f"tracker:{topics.SCANS}#{NTH[topics.SCANS]}=drop")
+    run = run_graph(
+        SCENARIO,
+        run_dir=tmp_path,
+        record=False,
+        plots=False,
+        sim_params={"command_timeout": COMMAND_TIMEOUT, "tracks_timeout": 1.0},
+        tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
+        timeout=120,
+    )
+    assert run.complete and run.status == "complete"
+    assert run.timeouts == {
+        EPOCH: {
+            "sim": {"no_track_array": 1, "held_course": 2},
+            "tracker": {"closed_incomplete": 1, "missing_scans": 1},
+        }
+    }
+    tracker = run.diagnostics["tracker"]
+    assert tracker.get("rejected.future_epoch", 0) == 0 and tracker["updates"] == 8
+    _same_until(_record(run), _record(clean), EPOCH)
+    assert run.wall_time_s < clean.wall_time_s + EPOCH_TIMEOUT  # the epoch timeout never ran
+
+
+def test_the_tracker_buffer_is_bounded(graph, monkeypatch):
+    """Messages of at most BUFFER_EPOCHS epochs ahead are kept (here 2, for the 8 epochs of
+    the short run); a later one is refused, counted as future_epoch."""
+    monkeypatch.setattr(tracker_node, "BUFFER_EPOCHS", 2)
+    params = [Parameter("scenario", value=SCENARIO)]
+    tracker = graph.add(tracker_node.TrackerNode(context=graph.context, parameter_overrides=params))
+    assert tracker.mode == "lockstep"
+    tracker.open_epoch(2, "scan")
+    with pytest.raises(Rejected, match="future_epoch"):
+        tracker.open_epoch(3, "scan")
+    assert list(tracker.epochs) == [2]
