@@ -210,3 +210,24 @@ def test_the_tracker_buffer_is_bounded(graph, monkeypatch):
     with pytest.raises(Rejected, match="future_epoch"):
         tracker.open_epoch(3, "scan")
     assert list(tracker.epochs) == [2]
+
+
+@pytest.mark.slow
+def test_node_processes_wait_for_a_late_scan_too(clean, tmp_path, monkeypatch, localhost_discovery):
+    """With one process per node (each reads the hook from the environment): a scan 2.5 s
+    late, past the command timeout, changes nothing; no timeout fires."""
+    monkeypatch.setenv(ENV, f"publish:{topics.SCANS}#{NTH[topics.SCANS]}=delay:{DEFAULT_DELAY}")
+    run = run_graph(
+        SCENARIO,
+        processes=True,
+        run_dir=tmp_path,
+        record=False,
+        plots=False,
+        sim_params={"command_timeout": COMMAND_TIMEOUT},
+        tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
+        timeout=120,
+    )
+    assert run.complete and run.status == "complete"
+    assert run.diagnostics["sim"].get(f"injected.delay.{topics.SCANS}") == 1
+    assert run.timeouts == {}
+    assert_same_run(_record(run), _record(clean))
