@@ -160,7 +160,7 @@ INVALID = [
     )),
     ("inconsistent", dict(platform_id="robot")),
     ("out_of_order", dict(epoch=0, header=header(0.0))),
-    ("future_epoch", dict(epoch=5, header=header(10.0))),
+    ("future_epoch", dict(epoch=11, header=header(22.0))),  # beyond the run's 10 steps
     ("bad_stamp", dict(header=header(3.0))),
     ("non_finite", dict(sensor_position=Point(x=math.nan))),
     ("bad_covariance", dict(covariance=[4.0, 0.0])),

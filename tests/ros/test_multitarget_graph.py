@@ -168,11 +168,11 @@ def test_bad_scans_are_rejected_counted_and_the_tracker_keeps_running(graph, tmp
     bad = [
         scan(detections=[math.nan] * scan().dim),  # NaN
         scan(sensor_id="sonar9"),  # unknown sensor
-        scan(epoch=3),  # wrong (future) epoch, stamp consistent below
+        scan(epoch=scenario.steps + 1),  # beyond the run (a nearer one waits in the buffer)
         scan(dim=3, detections=[1.0, 2.0, 3.0]),  # wrong shape
         scan(fov_width=1.0),  # not the sensor's field of view
     ]
-    bad[2].header.stamp.sec = int(3 * scenario.dt)
+    bad[2].header.stamp.sec = int((scenario.steps + 1) * scenario.dt)
     for msg in bad:
         pubs[topics.SCANS].publish(msg)
     graph.spin_until(lambda: tracker.counters.total("rejected.") >= len(bad), timeout=10)

@@ -30,6 +30,7 @@ CHANGEABLE = {
     "sim_node": {
         "rate",
         "command_timeout",
+        "tracks_timeout",
         "exit_when_done",
         "wait_for_subscribers",
         "wait_for_topic",

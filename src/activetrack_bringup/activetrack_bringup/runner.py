@@ -91,6 +91,9 @@ class GraphRun:
     foreign: dict = field(default_factory=dict)  # node -> foreign messages dropped
     restarts: dict = field(default_factory=dict)
     network: RosNetwork | None = None  # the DDS domain and discovery range of the run
+    # What a lockstep timeout decided, per epoch: epoch -> node -> what -> how many (e.g.
+    # {3: {"sim": {"held_course": 1}, "tracker": {"closed_incomplete": 1, "missing_scans": 1}}})
+    timeouts: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         d = self.summary.to_json() if self.summary is not None else {}
@@ -106,6 +109,7 @@ class GraphRun:
             diagnostics=self.diagnostics,
             foreign_messages_dropped=self.foreign,
             restarts=self.restarts,
+            timeouts={str(k): v for k, v in self.timeouts.items()},
             ros=self.network.to_json() if self.network is not None else None,
         )
         return json_safe(d)
@@ -467,6 +471,7 @@ class _GraphRunner:
             foreign={n: _total(c, "foreign.") for n, c in diagnostics.items()},
             restarts=self.supervisor.restarts if self.supervisor is not None else {},
             network=self.network,
+            timeouts=epoch_timeouts(diagnostics),
         )
         _judge(result)
         if self.opts.plots and result.status == "complete" and summary is not None:
@@ -495,6 +500,17 @@ def _plots(scenario, summary: BatchSummary, run_dir: Path) -> list:
         plot_errors(summary, run_dir / "rmse_vs_bound.png"),
         plot_gospa({"run": summary.evaluations}, run_dir / "gospa.png"),
     ]
+
+
+def epoch_timeouts(diagnostics: dict) -> dict:
+    """The nodes' ``timeout.<k>.<what>`` counters by epoch: what each timeout decided."""
+    out: dict = {}
+    for node, counts in diagnostics.items():
+        for key, n in counts.items():
+            parts = key.split(".")
+            if len(parts) == 3 and parts[0] == "timeout" and parts[1].isdigit():
+                out.setdefault(int(parts[1]), {}).setdefault(node, {})[parts[2]] = n
+    return dict(sorted(out.items()))
 
 
 def _total(counts: dict, prefix: str) -> int:

@@ -23,7 +23,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
 
 from activetrack.closed_loop.counters import NodeCounters
-from activetrack_ros import graph, params
+from activetrack_ros import graph, inject, params
 from activetrack_ros.trust import GraphKey, is_signed_type
 
 
@@ -69,10 +69,15 @@ class GraphPublisher:
         self.key = key if is_signed_type(msg_type) else None
         self.is_diagnostics = msg_type is DiagnosticArray
         self.graph_key = key
+        faults = getattr(node, "faults", [])
+        self.inject = inject.injector(node, inject.PUBLISH, topic, faults) if faults else None
 
     def publish(self, msg) -> None:
         if self.key is not None:
-            self.publisher.publish(self.key.sign(serialize_message(msg)))
+            data = self.key.sign(serialize_message(msg))
+            if self.inject is not None:  # a test's delay or drop (activetrack_ros.inject)
+                return self.inject(lambda: self.publisher.publish(data))
+            self.publisher.publish(data)
             return
         if self.is_diagnostics and self.graph_key is not None:
             self.graph_key.sign_diagnostics(msg)
@@ -97,6 +102,7 @@ class GraphNode(Node):
         self.frame_id = graph.FIXED_FRAME
         self.mode: str | None = None  # lockstep | free (None: a node without a mode parameter)
         self.history_depth: int | None = None  # per-epoch writers' depth (size_history)
+        self.faults = inject.from_environment()  # a test's delays and drops; normally none
 
     def declare_params(
         self, specs: tuple[params.ParamSpec, ...], apply=None, *, last: bool = True
@@ -164,6 +170,7 @@ class GraphNode(Node):
         key = self.graph_key
         signed = key is not None and is_signed_type(msg_type)
         diagnostics = key is not None and msg_type is DiagnosticArray
+        hook = inject.injector(self, self.role, topic, self.faults) if self.faults else None
 
         def on_raw(data: bytes) -> None:
             self.counters.received(name)
@@ -178,6 +185,8 @@ class GraphNode(Node):
                 ok = msg is not None and key.verify_diagnostics(msg)
             if not ok:
                 return self._foreign(name, topic)
+            if hook is not None:  # a test's delay or drop (activetrack_ros.inject)
+                return hook(lambda: on_trusted(data, msg))
             on_trusted(data, msg)
 
         events = SubscriptionEventCallbacks(

@@ -6,9 +6,11 @@ Publishes /clock, every alive target's truth (evaluators only), platform states 
 platform's limits, counted), BeamCommand and SensorSelection. ``lockstep`` mode: epoch k+1 is
 simulated once every command, beam and (with selection on) the selection of epoch k have
 arrived (with none to await, the track array of epoch k), so a run is deterministic for a
-seed; one missing after ``command_timeout`` wall seconds means hold course, keep the beam and
-the selection (warned and counted). ``free`` mode: sim time runs at ``rate`` x wall time and
-answers apply at once.
+seed. While the tracker has not answered epoch k (its track array) the epoch's messages are
+still in the graph and the sim waits (up to ``tracks_timeout``); from the track array on, an
+answer missing after ``command_timeout`` wall seconds means hold course, keep the beam and
+the selection (warned, counted, recorded as ``timeout.<k>.*``; docs/robustness.md,
+"Lockstep"). ``free`` mode: sim time runs at ``rate`` x wall time and answers apply at once.
 """
 
 import math
@@ -61,7 +63,13 @@ PARAMS = (
     ParamSpec(
         "command_timeout", 5.0,
         "lockstep: wall seconds to wait for a platform's command (or a beam, or the selection) "
-        "before it holds course (changeable while running)",
+        "after the epoch's track array before it holds course (changeable while running)",
+        read_only=False, low=1e-3, high=3600.0,
+    ),
+    ParamSpec(
+        "tracks_timeout", 30.0,
+        "lockstep: wall seconds to wait for the tracker's track array of an epoch (it closes an "
+        "incomplete epoch after its epoch_timeout) before holding course (changeable)",
         read_only=False, low=1e-3, high=3600.0,
     ),
     ParamSpec(
@@ -85,12 +93,14 @@ class SimNode(GraphNode):
         self.use_scenario(load_scenario(p["scenario"]))
         self.rate = p["rate"]
         self.timeout = p["command_timeout"]
+        self.tracks_timeout = p["tracks_timeout"]
         self.exit_when_done = p["exit_when_done"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[0]
         self.sim = build_simulator(self.scenario, rng)
         self.sensors = scene_sensors(self.scenario)
         changes.update(
             command_timeout=self.setter("timeout"),
+            tracks_timeout=self.setter("tracks_timeout"),
             exit_when_done=self.setter("exit_when_done"),
             rate=self._set_rate
             if self.mode == "free"
@@ -120,7 +130,10 @@ class SimNode(GraphNode):
         self.expects_selection = planner.enabled and planner.selection.enabled
         self.last_track_epoch = -1
         self.done = False
-        self.epoch_started = time.monotonic()
+        # Lockstep: the tracker has answered the current epoch (its track array, or an answer
+        # of the epoch, which the planner gives only on it); the wait for answers starts then.
+        self.answered = False
+        self.epoch_started = time.monotonic()  # or, once answered, when the tracker answered
         self.clock_origin = (time.monotonic(), 0.0)  # free mode: (wall, sim) at the last rate
         self.publish_static_frames()
         self.hold = FirstEpochHold(self, p, self._first_epoch, changes)
@@ -130,7 +143,7 @@ class SimNode(GraphNode):
         """Epoch 0, now (at start-up, or when a held first epoch is released)."""
         self.clock_origin = (time.monotonic(), self.sim.time)
         self.publish_epoch([])
-        self.epoch_started = time.monotonic()
+        self._epoch_begins()
 
     def _set_rate(self, rate: float) -> None:
         """Sim time stays continuous: the new rate counts from now."""
@@ -157,6 +170,7 @@ class SimNode(GraphNode):
         if key in answers:
             raise Rejected("duplicate", f"second {what} at epoch {epoch}")
         answers[key] = answer
+        self._tracker_answered()
         self.step_if_ready()
 
     def on_command(self, msg: ManoeuvreCommand) -> None:
@@ -181,6 +195,7 @@ class SimNode(GraphNode):
             raise Rejected("duplicate", f"second selection at epoch {msg.epoch}")
         self.selection = ids
         self.selection_epoch = msg.epoch
+        self._tracker_answered()
         self.step_if_ready()
 
     def on_tracks(self, msg: TrackArray) -> None:
@@ -189,7 +204,19 @@ class SimNode(GraphNode):
         if msg.epoch > self.sim.epoch:
             raise Rejected("future_epoch", f"track array of epoch {msg.epoch} > {self.sim.epoch}")
         self.last_track_epoch = max(self.last_track_epoch, msg.epoch)
+        if msg.epoch == self.sim.epoch:
+            self._tracker_answered()
         self.step_if_ready()
+
+    def _epoch_begins(self) -> None:
+        self.epoch_started = time.monotonic()
+        self.answered = self.last_track_epoch >= self.sim.epoch
+
+    def _tracker_answered(self) -> None:
+        """The epoch's messages have left the graph's tracker: the command timeout starts."""
+        if not self.answered:
+            self.answered = True
+            self.epoch_started = time.monotonic()
 
     def apply(self, cmd: Command) -> None:
         result = self.sim.apply_command(cmd)
@@ -228,7 +255,7 @@ class SimNode(GraphNode):
                 self.step()
             return
         if not self.ready():
-            if time.monotonic() - self.epoch_started < self.timeout:
+            if not self.waited_out():
                 return
             self.hold_missing()
         # The batch loop's order (activetrack.closed_loop.loop): commands, beams, selection.
@@ -239,8 +266,21 @@ class SimNode(GraphNode):
                 self.sim.apply_beam(self.beams[sid])
         self.step()
 
+    def waited_out(self) -> bool:
+        """Lockstep, epoch incomplete: has the wait for its answers run out? Until the tracker
+        answers, the epoch's messages are still in the graph (a late scan the tracker waits
+        for): the sim waits up to tracks_timeout, or command_timeout if no tracker is on the
+        graph (the sim alone); then command_timeout from the tracker's answer."""
+        waited = time.monotonic() - self.epoch_started
+        if self.answered:
+            return waited >= self.timeout
+        if waited >= self.tracks_timeout:
+            return True
+        return waited >= self.timeout and self.count_publishers(topics.TRACKS) == 0
+
     def hold_missing(self) -> None:
-        """Past the timeout: hold course, keep the beams and the selection (warned, counted)."""
+        """Past the timeout: hold course, keep the beams and the selection (warned, counted,
+        recorded for the epoch as ``timeout.<k>.*``)."""
         k = self.sim.epoch
         missing = [p for p in self.sim.controllable_ids if p not in self.pending]
         for pid in missing:
@@ -248,9 +288,19 @@ class SimNode(GraphNode):
         beams = [s for s in self.sim.steerable_ids if s not in self.beams]
         selection = self.expects_selection and self.selection_epoch != k
         self.counters.count("command_timeouts", max(1, len(missing) + len(beams) + selection))
+        for what, n in (
+            ("no_track_array", not self.answered),
+            ("held_course", len(missing)),
+            ("kept_beam", len(beams)),
+            ("kept_selection", selection),
+        ):
+            if n:
+                self.counters.count(f"timeout.{k}.{what}", int(n))
+        waited = self.timeout if self.answered else self.tracks_timeout
         self.get_logger().warning(
-            f"epoch {k}: no command for {missing}, no beam for {beams}"
-            f"{', no selection' if selection else ''} after {self.timeout} s; holding course"
+            f"epoch {k}: {'' if self.answered else 'no track array, '}no command for "
+            f"{missing}, no beam for {beams}{', no selection' if selection else ''} after "
+            f"{waited} s; holding course"
         )
 
     def step(self) -> None:
@@ -259,7 +309,7 @@ class SimNode(GraphNode):
         self.pending.clear()
         self.beams.clear()
         self.publish_epoch(self.sim.advance())
-        self.epoch_started = time.monotonic()
+        self._epoch_begins()
 
     def publish_epoch(self, scans) -> None:
         t = self.sim.time

@@ -7,8 +7,11 @@ mode those ``activetrack play`` publishes from a bag ``activetrack track`` wrote
 Epoch k is announced by its platform states (each saying how many scans the sim published);
 the tracker updates once it holds them all and every scan, each where its platform's state
 says, and publishes every live track (with the planner's posterior samples for a particle
-filter). An epoch incomplete for ``epoch_timeout`` seconds is closed with what arrived
-(warned, counted), so nothing can stall the tracker; lockstep accepts epoch last + 1 only.
+filter). Epochs are processed in order; messages of up to BUFFER_EPOCHS epochs ahead of the
+last update are kept until their turn (a message of a later epoch is refused, counted). An
+epoch incomplete for ``epoch_timeout`` seconds, or when a later epoch is complete (the sim went
+on without it), is closed with what arrived (warned, counted, and recorded per epoch as
+``timeout.<k>.*``), so nothing can stall the tracker (docs/robustness.md, "Lockstep").
 For standard tools: each confirmed track's pose with covariance, tf frame, 2-sigma ellipse
 and id label, and a subsampled particle cloud.
 """
@@ -37,7 +40,9 @@ from activetrack_ros.spin import spin_node
 from msgs_defs.msg import PlatformState, TrackArray
 from msgs_defs.msg import Scan as ScanMsg
 
-FREE_WINDOW = 64  # free mode: epochs ahead of the last update that may be collected at once
+# Epochs ahead of the last update whose messages are kept (either mode): in lockstep a tracker
+# behind the sim (an epoch waiting for a late message) catches up from them.
+BUFFER_EPOCHS = 64
 POSITION_TOLERANCE = 1e-6  # m between a scan's sensor position and its platform state
 CONFIRMED_RGBA = (0.9, 0.1, 0.1, 1.0)
 _XY = np.ix_([0, 2], [0, 2])
@@ -149,9 +154,10 @@ class TrackerNode(GraphNode):
     def open_epoch(self, k: int, what: str) -> OpenEpoch:
         if k <= self.last_epoch:
             raise Rejected("out_of_order", f"{what} for epoch {k} <= last update {self.last_epoch}")
-        ahead = 1 if self.mode == "lockstep" else FREE_WINDOW
-        if k > self.last_epoch + ahead:
-            raise Rejected("future_epoch", f"{what} for epoch {k} > {self.last_epoch} + {ahead}")
+        if k > self.last_epoch + BUFFER_EPOCHS:
+            raise Rejected(
+                "future_epoch", f"{what} for epoch {k} > {self.last_epoch} + {BUFFER_EPOCHS}"
+            )
         if k not in self.epochs:
             self.epochs[k] = OpenEpoch(time.monotonic())
         return self.epochs[k]
@@ -161,8 +167,9 @@ class TrackerNode(GraphNode):
         return epoch.states.keys() == self.platform_ids and len(epoch.scans) >= epoch.announced
 
     def close_ready(self) -> None:
-        """Process complete epochs in order; in free mode a complete later epoch also closes
-        the incomplete ones before it (their missing messages are late or lost)."""
+        """Process complete epochs in order; a complete later epoch also closes the incomplete
+        ones before it (their missing messages are late or lost: in lockstep the sim published
+        the later epoch only once it gave up waiting for this tracker)."""
         while self.epochs:
             complete = [k for k in sorted(self.epochs) if self.complete(self.epochs[k])]
             if not complete:
@@ -184,6 +191,7 @@ class TrackerNode(GraphNode):
         epoch = self.epochs.pop(k)
         if not complete:
             self.counters.count("incomplete_epochs")
+            self.record_gap(k, epoch)
             self.log_limited(
                 "warning",
                 "incomplete",
@@ -209,6 +217,16 @@ class TrackerNode(GraphNode):
         if not used:
             self.counters.count("epochs_without_scans")
         self.publish_tracks(tracks)
+
+    def record_gap(self, k: int, epoch: OpenEpoch) -> None:
+        """What epoch k was closed without, for the run's summary (``timeout.<k>.*``)."""
+        self.counters.count(f"timeout.{k}.closed_incomplete")
+        states = len(self.platform_ids - epoch.states.keys())
+        if states:
+            self.counters.count(f"timeout.{k}.missing_states", states)
+        scans = epoch.announced - len(epoch.scans)
+        if scans > 0:  # (the count is known only from the states that came)
+            self.counters.count(f"timeout.{k}.missing_scans", scans)
 
     def publish_tracks(self, tracks: TrackSet) -> None:
         """The track array (latched) and its views."""

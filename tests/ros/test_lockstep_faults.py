@@ -1,0 +1,233 @@
+"""Lockstep that recovers (docs/robustness.md, "Lockstep"): one of the graph's own messages
+delayed or lost (activetrack_ros.inject, not a writer from outside) costs at most the input of
+its epoch, and every later epoch proceeds without a timeout.
+
+The short scenario's messages per epoch: a truth array, two platform states, two scans (from
+epoch 1), a track array, two commands and a plan report (to epoch 7); the n-th message of a
+topic below is epoch 3's (its first platform's, where there are two)."""
+
+import time
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from parity import assert_same_run
+from rclpy.parameter import Parameter
+
+from activetrack_bringup.runner import epoch_timeouts, run_graph
+from activetrack_ros import graph as topics
+from activetrack_ros.inject import ENV, parse
+from activetrack_ros.node_base import Rejected
+from tracker_node import tracker_node
+
+SCENARIO = "tests/ros/data/short_two_sensors.yaml"
+EPOCH = 3  # the epoch whose message is delayed or lost
+NTH = {
+    topics.GROUND_TRUTH: 4,  # epochs 0, 1, 2, 3
+    topics.PLATFORM_STATES: 7,  # p1 and p2 of 0, 1, 2, then p1 of 3
+    topics.SCANS: 5,  # s1 and s2 of 1, 2, then s1 of 3
+    topics.TRACKS: 4,
+    topics.MANOEUVRE_COMMANDS: 7,
+    topics.PLAN_REPORT: 4,
+}
+# Small timeouts, so that a case whose timeout must fire costs seconds; long enough that in a
+# clean epoch on a loaded machine none fires (a decision here takes well under 0.5 s).
+COMMAND_TIMEOUT = 2.0
+EPOCH_TIMEOUT = 4.0
+# Past the command timeout, within the epoch timeout: the sim must know that the epoch is
+# still in the graph. A command late past the command timeout is lost: 2 s past it, so that
+# a stalled executor cannot swap the two.
+DELAY = {topics.MANOEUVRE_COMMANDS: 4.0}
+DEFAULT_DELAY = 2.5
+pytestmark = pytest.mark.ros
+
+
+def _run(tmp_path, monkeypatch, faults: str = ""):
+    monkeypatch.setenv(ENV, faults)
+    return run_graph(
+        SCENARIO,
+        run_dir=tmp_path,
+        record=False,
+        plots=False,
+        sim_params={"command_timeout": COMMAND_TIMEOUT},
+        tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
+        timeout=120,
+    )
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory):
+    with pytest.MonkeyPatch.context() as mp:
+        run = _run(tmp_path_factory.mktemp("clean"), mp)
+    assert run.timeouts == {}
+    return run
+
+
+def _record(run):
+    return run.summary.records[0]
+
+
+def _same_until(a, b, k: int) -> None:
+    """The runs agree on everything the graph did before epoch k's lost input."""
+    assert np.array_equal(a.truth[: k + 1], b.truth[: k + 1])
+    assert np.array_equal(a.platform_paths[: k + 1], b.platform_paths[: k + 1])
+    assert [t.epoch for t in a.tracks] == [t.epoch for t in b.tracks]
+
+
+def _injected(run, at: str, what: str, topic: str) -> int:
+    return run.diagnostics[at].get(f"injected.{what}.{topic}", 0)
+
+
+def test_the_hook_parses_and_refuses_malformed_items():
+    faults = parse("publish:activetrack/scans#5=delay:2.5, tracker:activetrack/tracks#3=drop")
+    assert [(f.at, f.topic, f.n, f.delay) for f in faults] == [
+        ("publish", "activetrack/scans", 5, 2.5),
+        ("tracker", "activetrack/tracks", 3, None),
+    ]
+    for bad in ("publish:activetrack/scans#0=drop", "scans#1=drop", "p:t#1=delay:1e9", "p:t#1=x"):
+        with pytest.raises(ValueError, match="ACTIVETRACK_INJECT"):
+            parse(bad)
+
+
+def test_the_summary_gathers_the_timeouts_by_epoch():
+    diagnostics = {
+        "sim": {"timeout.3.held_course": 2, "command_timeouts": 2, "timeout.x.y": 1},
+        "tracker": {"timeout.3.missing_scans": 1, "timeout.12.closed_incomplete": 1},
+    }
+    assert epoch_timeouts(diagnostics) == {
+        3: {"sim": {"held_course": 2}, "tracker": {"missing_scans": 1}},
+        12: {"tracker": {"closed_incomplete": 1}},
+    }
+
+
+@pytest.mark.parametrize("topic", list(NTH))
+def test_a_late_message_costs_nothing_but_time(topic, clean, tmp_path, monkeypatch):
+    """Every reader gets epoch 3's message 2.5 s late, past the sim's command timeout: the
+    sim waits while the epoch is still in the graph (the tracker has not answered it) and the
+    run is the clean one, without a timeout; only a command itself late past the command
+    timeout is lost (hold course at epoch 3) and the epochs after it proceed as usual."""
+    start = time.monotonic()
+    delay = DELAY.get(topic, DEFAULT_DELAY)
+    run = _run(tmp_path, monkeypatch, f"publish:{topic}#{NTH[topic]}=delay:{delay}")
+    assert run.complete and run.status == "complete"
+    writer = {topics.TRACKS: "tracker", topics.MANOEUVRE_COMMANDS: "planner"}
+    writer |= {topics.PLAN_REPORT: "planner"}
+    assert _injected(run, writer.get(topic, "sim"), "delay", topic) == 1
+    if topic == topics.MANOEUVRE_COMMANDS:
+        assert run.timeouts == {EPOCH: {"sim": {"held_course": 1}}}
+        _same_until(_record(run), _record(clean), EPOCH)
+        # (it comes 2 s after the hold, when the run has often finished: refused as stale)
+        assert run.diagnostics["sim"].get("rejected.future_epoch", 0) == 0
+    else:
+        assert run.timeouts == {}
+        assert_same_run(_given_up_report(run, clean, topic), _record(clean))
+    assert time.monotonic() - start < clean.wall_time_s + delay + 15
+
+
+def _given_up_report(run, clean, topic: str):
+    """The run's record; without the plan report of EPOCH (only the evaluator reads it, and
+    it gives up a report report_grace after the sim finished, often before a late one comes),
+    its record takes the clean run's report there."""
+    record = _record(run)
+    decision = record.decisions[EPOCH]
+    if topic != topics.PLAN_REPORT or decision.report is not None:
+        return record
+    assert run.diagnostics["evaluator"].get("received.PlanReport", 0) == 7  # all but EPOCH's
+    report = _record(clean).decisions[EPOCH].report
+    decisions = list(record.decisions)
+    decisions[EPOCH] = replace(decision, report=report)
+    return replace(record, decisions=decisions)
+
+
+# One reader loses one message (its writer's history keeps it): what the epoch loses.
+LOST = {
+    # the tracker closes epoch 3 without the scan after its epoch timeout
+    ("tracker", topics.SCANS): {"tracker": {"closed_incomplete": 1, "missing_scans": 1}},
+    # ... or without the state (the scan is used where it says it was: the same update)
+    ("tracker", topics.PLATFORM_STATES): {"tracker": {"closed_incomplete": 1, "missing_states": 1}},
+    # the planner cannot decide epoch 3: both platforms hold course
+    ("planner", topics.PLATFORM_STATES): {"sim": {"held_course": 2}},
+    ("planner", topics.TRACKS): {"sim": {"held_course": 2}},
+    # the commands say the tracker answered: nothing lost
+    ("sim", topics.TRACKS): None,
+    ("sim", topics.MANOEUVRE_COMMANDS): {"sim": {"held_course": 1}},
+}
+SAME_RESULT = {("tracker", topics.PLATFORM_STATES), ("sim", topics.TRACKS)}
+
+
+@pytest.mark.parametrize(("reader", "topic"), list(LOST), ids=lambda v: v.rsplit("/", 1)[-1])
+def test_a_lost_message_costs_one_epoch_at_most(reader, topic, clean, tmp_path, monkeypatch):
+    start = time.monotonic()
+    run = _run(tmp_path, monkeypatch, f"{reader}:{topic}#{NTH[topic]}=drop")
+    assert run.complete and run.status == "complete"
+    assert _injected(run, reader, "drop", topic) == 1
+    want = LOST[reader, topic]
+    assert run.timeouts == ({} if want is None else {EPOCH: want})
+    if (reader, topic) in SAME_RESULT:
+        assert_same_run(_record(run), _record(clean))
+    else:
+        _same_until(_record(run), _record(clean), EPOCH)
+    # One timeout at most, not one an epoch.
+    assert time.monotonic() - start < clean.wall_time_s + EPOCH_TIMEOUT + 15
+
+
+def test_a_tracker_behind_the_sim_catches_up_from_its_buffer(clean, tmp_path, monkeypatch):
+    """The sim gives up on the tracker before the tracker gives up on epoch 3's lost scan
+    (tracks_timeout 1 s < epoch_timeout 4 s): epoch 4 arrives while the tracker still waits;
+    it is buffered, not refused, and once complete it closes epoch 3 with what came. Only
+    epoch 3 held course; epoch 4 on proceeds without a timeout."""
+    monkeypatch.setenv(ENV, f"tracker:{topics.SCANS}#{NTH[topics.SCANS]}=drop")
+    run = run_graph(
+        SCENARIO,
+        run_dir=tmp_path,
+        record=False,
+        plots=False,
+        sim_params={"command_timeout": COMMAND_TIMEOUT, "tracks_timeout": 1.0},
+        tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
+        timeout=120,
+    )
+    assert run.complete and run.status == "complete"
+    assert run.timeouts == {
+        EPOCH: {
+            "sim": {"no_track_array": 1, "held_course": 2},
+            "tracker": {"closed_incomplete": 1, "missing_scans": 1},
+        }
+    }
+    tracker = run.diagnostics["tracker"]
+    assert tracker.get("rejected.future_epoch", 0) == 0 and tracker["updates"] == 8
+    _same_until(_record(run), _record(clean), EPOCH)
+    assert run.wall_time_s < clean.wall_time_s + EPOCH_TIMEOUT  # the epoch timeout never ran
+
+
+def test_the_tracker_buffer_is_bounded(graph, monkeypatch):
+    """Messages of at most BUFFER_EPOCHS epochs ahead are kept (here 2, for the 8 epochs of
+    the short run); a later one is refused, counted as future_epoch."""
+    monkeypatch.setattr(tracker_node, "BUFFER_EPOCHS", 2)
+    params = [Parameter("scenario", value=SCENARIO)]
+    tracker = graph.add(tracker_node.TrackerNode(context=graph.context, parameter_overrides=params))
+    assert tracker.mode == "lockstep"
+    tracker.open_epoch(2, "scan")
+    with pytest.raises(Rejected, match="future_epoch"):
+        tracker.open_epoch(3, "scan")
+    assert list(tracker.epochs) == [2]
+
+
+@pytest.mark.slow
+def test_node_processes_wait_for_a_late_scan_too(clean, tmp_path, monkeypatch, localhost_discovery):
+    """With one process per node (each reads the hook from the environment): a scan 2.5 s
+    late, past the command timeout, changes nothing; no timeout fires."""
+    monkeypatch.setenv(ENV, f"publish:{topics.SCANS}#{NTH[topics.SCANS]}=delay:{DEFAULT_DELAY}")
+    run = run_graph(
+        SCENARIO,
+        processes=True,
+        run_dir=tmp_path,
+        record=False,
+        plots=False,
+        sim_params={"command_timeout": COMMAND_TIMEOUT},
+        tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
+        timeout=120,
+    )
+    assert run.complete and run.status == "complete"
+    assert run.diagnostics["sim"].get(f"injected.delay.{topics.SCANS}") == 1
+    assert run.timeouts == {}
+    assert_same_run(_record(run), _record(clean))
