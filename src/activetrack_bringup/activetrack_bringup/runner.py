@@ -421,7 +421,8 @@ class _GraphRunner:
         else:  # let the last messages be recorded and counted: the counters are final
             # (0.1 s without a new message: a burst sent as the last epoch closes, e.g. by a
             # writer outside the graph, is still in flight after a 20 ms lull on a busy host;
-            # node processes publish counters that changed REPUBLISH_S after their last epoch)
+            # node processes publish counters that changed REPUBLISH_S after their last epoch,
+            # and a message may reach a busy node process a moment after the evaluator here)
             if self.supervisor is None:
                 self.graph.spin_until_quiet(self.progress, quiet=0.1)
             else:
