@@ -8,7 +8,8 @@ scenario with a foreign node streaming that category at ``--stream-rate`` messag
 from epoch 2 until the run's evaluator is complete, compared with a clean run of the same seed.
 Then a flood: another process publishes random messages at ``--flood-rate`` per second on every
 topic the graph reads, for ``--flood-seconds`` or until the run is complete, during a run of the
-Hernandez 3-sensor two-step scenario. ``--processes``: the nodes in their own processes (the
+Hernandez 3-sensor two-step scenario that starts once the flood has. ``--processes``: the
+nodes in their own processes (the
 foreign node and the evaluator in this one). Columns: messages sent, survived (complete, no
 exception in any callback), result unchanged (bit for bit), timeouts (commands the sim waited
 out, epochs the tracker closed incomplete), counted (foreign or DDS-lost, per reader),
@@ -133,6 +134,11 @@ def flood_row(rate: float, seconds: float, tmp: Path, opts: dict) -> dict:
     )
     report: list[str] = []
 
+    def start_under_flood(graph):
+        """The run starts once the flood has (in one process: before the sim's first epoch)."""
+        while (line := proc.stdout.readline()) and line.strip() != "flooding":
+            pass
+
     def stop_when_complete(graph):
         """Stop the flood once the run is complete and take its count (the flooder waits for
         delivery of its tail): the readers count the rest while the run drains."""
@@ -140,7 +146,13 @@ def flood_row(rate: float, seconds: float, tmp: Path, opts: dict) -> dict:
             report.append(proc.communicate(input="stop\n", timeout=120)[0])
 
     try:
-        run = run_graph(LONG, run_dir=tmp / "flood", during_spin=stop_when_complete, **opts)
+        run = run_graph(
+            LONG,
+            run_dir=tmp / "flood",
+            before_spin=start_under_flood,
+            during_spin=stop_when_complete,
+            **opts,
+        )
         survived = errors(run) == 0
     except RunIncomplete as exc:
         run, survived = exc.result, False

@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 import math
 import random
+import sys
 import threading
 import time
 from collections import Counter
@@ -505,9 +506,13 @@ def flood(
     }
     deadline = time.monotonic() + wait
     while any(pubs[tp].get_subscription_count() < n for tp, n in readers.items()):
+        if stop is not None and stop.is_set():
+            break
         if time.monotonic() > deadline:
             raise TimeoutError(f"readers not matched within {wait} s: {readers}")
         time.sleep(0.01)
+    print(f"flooder: readers matched after {wait - (deadline - time.monotonic()):.1f} s",
+          file=sys.stderr, flush=True)  # fmt: skip
     time.sleep(settle)
     rng = random.Random(seed)
     # A pool of random messages per topic, serialised once: the flood is then as fast as DDS.
@@ -515,6 +520,7 @@ def flood(
         tp: [serialize_message(random_message(t, rng)) for _ in range(64)]
         for tp, t in types.items()
     }
+    print("flooding", flush=True)  # for a caller that starts its run under the flood
     sent: Counter[str] = Counter()
     order = list(pubs)
     start = time.monotonic()
@@ -550,8 +556,6 @@ def main(argv=None) -> int:
     readers = {k: int(v) for k, v in (item.split("=") for item in args.readers)}
     stop = threading.Event()
     if args.stop_on_input:
-        import sys
-
         threading.Thread(target=lambda: (sys.stdin.readline(), stop.set()), daemon=True).start()
     sent = flood(args.rate, args.duration, readers, args.seed, stop=stop)
     print(json.dumps(dict(sent)), flush=True)
