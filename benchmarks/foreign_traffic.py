@@ -82,6 +82,19 @@ def evaluator_of(graph) -> EvaluatorNode:
     return next(n for n in graph.nodes if isinstance(n, EvaluatorNode))
 
 
+def misses(run, sent: Counter, signed: Counter) -> list[str]:
+    """Where uncounted messages are: reader and type short of foreign, reader out of balance."""
+    out = []
+    for name, readers in READERS.items():
+        for node in readers:
+            c = run.diagnostics.get(node, {})
+            seen = c.get(f"foreign.{name}", 0) + c.get(f"dropped.{name}", 0)
+            if seen < sent[name] - signed[name]:
+                out.append(f"{node} counted {seen} of {sent[name] - signed[name]} {name}")
+    out += [f"{n}: {unaccounted(c)} in no counter" for n, c in run.diagnostics.items()]
+    return [m for m in out if not m.endswith(": 0 in no counter")]
+
+
 def outcome(run, survived: bool, clean, sent: Counter, signed: Counter) -> dict:
     foreign = sum((sent[t] - signed[t]) * len(r) for t, r in READERS.items())
     missing = uncounted(run.diagnostics, sent, signed) + in_no_counter(run)
@@ -92,6 +105,7 @@ def outcome(run, survived: bool, clean, sent: Counter, signed: Counter) -> dict:
         timeouts=timeouts(run),
         counted=foreign - uncounted(run.diagnostics, sent, signed),
         uncounted=missing,
+        misses=misses(run, sent, signed),
     )
 
 
@@ -214,6 +228,9 @@ def main() -> int:
             f"{'yes' if r['unchanged'] else 'NO':>9}  {r['timeouts']:>8}  {r['counted']:>8}  "
             f"{r['uncounted']:>9}"
         )
+    for r in rows:
+        for m in r["misses"]:
+            print(f"  {r['name']}: {m}")
     for r in rows:
         if "wall" in r:
             print(f"flood run wall time {r['wall'][1]:.1f} s (clean {r['wall'][0]:.1f} s)")

@@ -296,10 +296,15 @@ class _GraphRunner:
         self.start = time.monotonic()
 
     def progress(self) -> int:
-        """Messages taken so far (for waiting until the graph is quiet)."""
+        """Messages taken so far (for waiting until the graph is quiet), node processes'
+        included as their counters last reported them."""
         nodes = (self.evaluator, *self.nodes.values())
         counted = sum(n.counters.total("received.") for n in nodes)
-        return counted + (self.recorder.count if self.recorder is not None else 0)
+        reported = sum(
+            v for c in self.evaluator.diagnostics.values() for k, v in c.items()
+            if k.startswith("received.")
+        )  # fmt: skip
+        return counted + reported + (self.recorder.count if self.recorder is not None else 0)
 
     def run(self, bag_path: Path | None) -> None:
         """Start, spin to the end (or a failure, a signal), stop; the outcome in status."""
@@ -426,7 +431,7 @@ class _GraphRunner:
             if self.supervisor is None:
                 self.graph.spin_until_quiet(self.progress, quiet=0.1)
             else:
-                quiet = 2 * REPUBLISH_S + 0.1
+                quiet = 4 * REPUBLISH_S
                 self.graph.spin_until_quiet(self.progress, quiet=quiet, timeout=10 * quiet)
 
     def _stop(self) -> None:
