@@ -37,7 +37,7 @@ def test_a_clean_run_accounts_for_every_message_in_every_reader(tmp_path):
     assert set(run.diagnostics) == {"sim", "tracker", "planner", "evaluator", "recorder"}
     for node, counts in run.diagnostics.items():
         assert unaccounted(counts) == 0, (node, counts)
-        assert not [k for k in counts if k.startswith(("foreign.", "rejected.", "errors."))]
+        assert not [k for k in counts if k.startswith(("foreign.", "rejected.", "errors."))], node
         assert sum(v for k, v in counts.items() if k.startswith("accepted.")) > 0, node
     recorder = run.diagnostics["recorder"]
     assert recorder["accepted.Clock"] == recorder["received.Clock"] > 0
@@ -108,3 +108,35 @@ def test_diagnostics_of_other_drivers_are_ignored_once_per_message(graph):
     evaluator.guarded(evaluator.on_diagnostics, many)
     assert time.monotonic() - start < 1.0
     assert evaluator.counters.counts == {"ignored.other_diagnostics": 1}
+
+
+def test_the_recorder_writes_only_the_graphs_diagnostics_and_counts_the_rest(tmp_path):
+    """With the key: a driver's /diagnostics array is counted foreign and not written, the
+    graph's own (tag inside) is written; each message lands in one counter."""
+    from diagnostic_msgs.msg import KeyValue
+
+    from activetrack_bringup.bag import BagRecorder
+    from activetrack_bringup.inprocess import InProcessGraph
+
+    key = GraphKey(bytes(range(32)))
+    ours = DiagnosticArray(
+        header=header(5.0),
+        status=[
+            DiagnosticStatus(name="activetrack/sim_node", values=[KeyValue(key="a", value="1")])
+        ],
+    )
+    theirs = DiagnosticArray(status=[DiagnosticStatus(name="motor", message="hot")])
+    kept = {topics.DIAGNOSTICS: topics.GRAPH_TOPICS[topics.DIAGNOSTICS]}
+    with InProcessGraph() as g:
+        rec = g.add(BagRecorder(tmp_path / "b", kept, graph_key=key, context=g.context))
+        on_raw = rec._diagnostics_verifier(key, topics.DIAGNOSTICS)
+        on_raw(serialize_message(key.sign_diagnostics(ours)))
+        on_raw(serialize_message(theirs))
+        on_raw(b"\x00\x01\x00\x00garbage")
+        rec.close()
+    assert dict(rec.counters.counts) == {
+        "accepted.DiagnosticArray": 1, "foreign.DiagnosticArray": 2
+    }  # fmt: skip
+    assert rec.foreign == 2 and rec.count == 1
+    with open_bag(tmp_path / "b") as bag:
+        assert sum(t.count for t in bag.topics.values()) == 1

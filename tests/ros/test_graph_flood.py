@@ -54,10 +54,16 @@ def test_a_flood_from_another_process_is_counted_and_changes_nothing(tmp_path, l
         stdout=subprocess.PIPE,
         text=True,
     )
+
+    def start_under_flood(graph):  # a flood still going as the run ends is not all counted
+        while (line := flooder.stdout.readline()) and line.strip() != "flooding":
+            pass
+
     try:
         result = run_graph(
-            SCENARIO, run_dir=tmp_path / "flooded", record=False, plots=False, sim_params=patient
-        )
+            SCENARIO, run_dir=tmp_path / "flooded", record=False, plots=False,
+            sim_params=patient, before_spin=start_under_flood,
+        )  # fmt: skip
         sent = json.loads(flooder.communicate(timeout=60)[0].strip().splitlines()[-1])
     finally:
         flooder.kill()

@@ -194,11 +194,12 @@ class BagRecorder(Node):
     Log time is the latest ``clock`` received (``ros2 bag record --use-sim-time``; 0 before).
     With ``graph_key`` (activetrack_ros.trust), signed-type messages and ``/diagnostics`` that
     do not verify are counted as ``foreign.<Type>``, not recorded; ``clock`` cannot be signed,
-    so a clock value is taken (and recorded) only while it never goes back and stays within
+    so a clock value is taken as log time only while it never goes back and stays within
     ``clock_lead`` s of the newest verified stamp: another writer's clock can shift log times by
-    less than an epoch, never reorder the run (``rejected.clock_refused`` counts the values
-    not taken). Every message ends in one counter, as in a graph node: ``received.<Type>`` =
-    ``accepted.<Type>`` (recorded) + ``foreign.<Type>`` + ``rejected.*`` (``counters``). The
+    less than an epoch, never reorder the run (``clock_refused`` counts the values not taken;
+    they are recorded, as every clock: in free mode the sim's clock may lead the graph's
+    messages). Every message ends in one counter, as in a graph node: ``received.<Type>`` =
+    ``accepted.<Type>`` (recorded) + ``foreign.<Type>`` (``counters``). The
     arguments are the defaults of read-only parameters (:func:`recorder_params`) a standalone
     recorder takes from --ros-args.
     """
@@ -263,7 +264,7 @@ class BagRecorder(Node):
 
     @property
     def clock_refused(self) -> int:
-        return self.counters.counts["rejected.clock_refused"]
+        return self.counters.counts["clock_refused"]
 
     def _subscribe(self, cls, topic: str, callback) -> None:
         """A raw subscription counting every sample, and the samples DDS reports lost."""
@@ -285,9 +286,8 @@ class BagRecorder(Node):
             self._now_ns = max(t, 0)
         elif t is not None and self._now_ns <= t <= self._signed_ns + self._lead_ns:
             self._now_ns = t
-        else:  # with the key: not taken, not recorded (a writer outside the graph, likely)
-            self.counters.rejected("clock_refused")
-            return
+        else:  # with the key: not taken as log time (in free mode the sim's clock may lead)
+            self.counters.count("clock_refused")
         if topics.CLOCK in self._channel:
             self._write(topics.CLOCK, data)
             self.counters.count("accepted.Clock")

@@ -108,9 +108,6 @@ class GraphNode(Node):
         self.frame_id = graph.FIXED_FRAME
         self.mode: str | None = None  # lockstep | free (None: a node without a mode parameter)
         self.history_depth: int | None = None  # per-epoch writers' depth (size_history)
-        # Outcomes (rejected, ignored, errors) counted so far: a message whose callback adds
-        # none was accepted.
-        self._outcomes = 0
         self.byte_limits: dict[str, int] = {}  # type name -> most bytes (sizes, size_history)
         self._republish = None  # the timer of publish_diagnostics, from its first call
         self._last_diagnostics: tuple | None = None
@@ -167,10 +164,12 @@ class GraphNode(Node):
                 return self.reject(
                     "wrong_frame", f"{name} on {topic} in frame {frame!r}, not {self.frame_id!r}"
                 )
-            outcomes = self._outcomes
+            outcomes = self.counters.outcomes
             self.guarded(callback, msg)
             stamp = getattr(getattr(msg, "header", None), "stamp", None)
-            if self._outcomes == outcomes and stamp is not None:  # accepted: the graph's time
+            if (
+                self.counters.outcomes == outcomes and stamp is not None
+            ):  # accepted: the graph's time
                 self._newest_input = max(self._newest_input, (stamp.sec, stamp.nanosec))
 
         self._subscribe_trusted(msg_type, topic, on_trusted)
@@ -190,9 +189,9 @@ class GraphNode(Node):
         diagnostics = key is not None and msg_type is DiagnosticArray
 
         def take(data: bytes, msg) -> None:
-            outcomes = self._outcomes
+            outcomes = self.counters.outcomes
             on_trusted(data, msg)
-            if self._outcomes == outcomes:
+            if self.counters.outcomes == outcomes:
                 self.counters.count(f"accepted.{name}")
 
         def on_raw(data: bytes) -> None:
@@ -255,7 +254,6 @@ class GraphNode(Node):
                 return
             where = getattr(callback, "__name__", "callback")
             self.counters.count(f"errors.{where}")
-            self._outcomes += 1
             self.log_limited(
                 "error",
                 f"errors.{where}",
@@ -266,27 +264,23 @@ class GraphNode(Node):
     def reject(self, reason: str, detail: str) -> None:
         """Count the message at hand as rejected (a callback may raise Rejected instead)."""
         self.counters.rejected(reason)
-        self._outcomes += 1
         self.log_limited("warning", f"rejected.{reason}", f"rejected {reason}: {detail}")
 
     def ignore(self, reason: str) -> None:
         """Count the message at hand as valid but not needed."""
         self.counters.count(f"ignored.{reason}")
-        self._outcomes += 1
 
     def reject_taken(self, type_name: str, reason: str, detail: str) -> None:
         """A message of type ``type_name`` accepted earlier turns out invalid (e.g. a scan not
         where its platform's state, which came after it, says): it moves from ``accepted`` to
         ``rejected.<reason>``, whichever message's callback finds it out."""
-        self.counters.count(f"accepted.{type_name}", -1)
-        self.counters.rejected(reason)
+        self.counters.move(f"accepted.{type_name}", f"rejected.{reason}")
         self.log_limited("warning", f"rejected.{reason}", f"rejected {reason}: {detail}")
 
     def ignore_taken(self, type_name: str, reason: str, n: int = 1) -> None:
         """``n`` messages of type ``type_name`` accepted earlier are let go unused (e.g.
         evicted from a bounded buffer): they move from ``accepted`` to ``ignored.<reason>``."""
-        self.counters.count(f"accepted.{type_name}", -n)
-        self.counters.count(f"ignored.{reason}", n)
+        self.counters.move(f"accepted.{type_name}", f"ignored.{reason}", n)
 
     def guarded_timer(self, period: float, callback: Callable):
         return self.create_timer(period, lambda: self.guarded(callback))
