@@ -13,6 +13,7 @@ from strategies import message
 
 from activetrack.scenarios import load_scenario
 from activetrack_bringup.runner import RunIncomplete, run_graph
+from activetrack_ros.node_base import unaccounted
 from activetrack_ros.trust import GraphKey
 from msgs_defs.msg import (
     BeamCommand,
@@ -49,6 +50,7 @@ def assert_every_message_counted(run, clean, foreign):
     for node, counts in run.diagnostics.items():
         base = clean.diagnostics[node]
         assert not {k: v for k, v in counts.items() if k.startswith(("errors.", "dropped."))}
+        assert unaccounted(counts) == 0, (node, counts)
         for type_name in _inputs(node):
             sent = foreign.sent[type_name]
             # The genuine count may differ by a late history delivery; the foreign one may not.

@@ -189,8 +189,7 @@ def test_an_insider_with_bad_data_is_rejected_for_the_right_reason(name, genuine
         if verdict is None:
             assert not changed, f"{node_name} on {name}: {changed}"
         else:
-            n = sum(len(m.status) for m in messages) if type_key is D else len(messages)
-            assert changed == {verdict: n}, f"{node_name} on {name}: {changed}"
+            assert changed == {verdict: len(messages)}, f"{node_name} on {name}: {changed}"
     # A member's invalid result message (truth, track, state, report) is a graph fault: the
     # runner stops the run on it instead of waiting for an epoch that never validates.
     verdict = VERDICTS[name].get("evaluator")

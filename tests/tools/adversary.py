@@ -15,6 +15,8 @@ from __future__ import annotations
 import copy
 import math
 import random
+import sys
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -331,7 +333,9 @@ class ForeignNode(Node):
     (:func:`random_message`); ``garbage``: raw random bytes per graph topic; ``replay``: every
     genuine per-epoch message seen so far, published again unchanged (valid tags);
     ``messages``: (type, message) pairs given by the caller (e.g. drawn by hypothesis); ``sign``:
-    the graph's key (a buggy insider) or None (an outsider).
+    the graph's key (a buggy insider) or None (an outsider). ``rate``: 0 publishes it all at
+    once; else a stream of ``rate`` messages per second going round all of it until ``stop()``
+    holds (e.g. the run's evaluator is complete).
     """
 
     def __init__(
@@ -346,10 +350,17 @@ class ForeignNode(Node):
         messages=(),
         sign: GraphKey | None = None,
         seed: int = 0,
+        rate: float = 0.0,
+        stop: Callable[[], bool] | None = None,
         **kwargs,
     ):
         super().__init__("foreign_node", **kwargs)
         self.dt = dt
+        self.rate = rate
+        self.stop = stop
+        self.stream: list[Callable[[], None]] = []
+        self.streamed = 0
+        self.timer = None
         self.at_epoch = at_epoch
         self.categories = [c for c in CATEGORIES if c.name in set(categories)]
         unknown = set(categories) - {c.name for c in self.categories}
@@ -368,9 +379,12 @@ class ForeignNode(Node):
             self.pools[msg_type] = [
                 serialize_message(random_message(msg_type, self.rng)) for _ in range(n)
             ]
+        # Not empty: Fast DDS 2.14 does not deliver a 0-byte payload to a reader in another
+        # process, and the reliable reader then holds every later sample of that writer
+        # (measured): the writer stalls itself, the graph sees none of it to count.
         for msg_type in TOPIC_OF if garbage else ():
             pool = self.pools.setdefault(msg_type, [])
-            pool.extend(self.rng.randbytes(self.rng.randrange(512)) for _ in range(garbage))
+            pool.extend(self.rng.randbytes(self.rng.randrange(1, 512)) for _ in range(garbage))
         self.sent: Counter[str] = Counter()  # message type name -> messages published
         self.sent_signed: Counter[str] = Counter()  # of which carry a valid tag
         self.fired = False
@@ -436,19 +450,35 @@ class ForeignNode(Node):
         if not all(self._matched(t) for t in types):
             return
         self.fired = True
-        for msg_type, msg in built:
-            self.publish(msg_type, msg)
-        for msg_type, pool in self.pools.items():
-            for data in pool:
-                self.publish(msg_type, data)
-        for msg_type, msg in self.messages:
-            self.publish(msg_type, msg)
+        sends = [lambda t=t, m=m: self.publish(t, m) for t, m in built]
+        sends += [
+            lambda t=t, d=d: self.publish(t, d) for t, pool in self.pools.items() for d in pool
+        ]
+        sends += [lambda t=t, m=m: self.publish(t, m) for t, m in self.messages]
         if self.replay:
-            for msg_type, raws in self.seen.items():
-                for raw in raws:
-                    self.pubs[msg_type].publish(raw)
-                    self.sent[msg_type.__name__] += 1
-                    self.sent_signed[msg_type.__name__] += 1  # genuine tags (diagnostics too)
+            sends += [
+                lambda t=t, raw=raw: self._replay(t, raw)
+                for t, raws in self.seen.items()
+                for raw in raws
+            ]
+        if not self.rate:
+            for send in sends:
+                send()
+            return
+        self.stream = sends
+        self.timer = self.create_timer(1.0 / self.rate, self._stream_next)
+
+    def _replay(self, msg_type, raw: bytes) -> None:
+        self.pubs[msg_type].publish(raw)
+        self.sent[msg_type.__name__] += 1
+        self.sent_signed[msg_type.__name__] += 1  # genuine tags (diagnostics too)
+
+    def _stream_next(self) -> None:
+        if self.stop is not None and self.stop():
+            self.timer.cancel()
+            return
+        self.stream[self.streamed % len(self.stream)]()
+        self.streamed += 1
 
 
 def flood(
@@ -458,12 +488,13 @@ def flood(
     seed: int = 0,
     wait: float = 30.0,
     settle: float = 2.0,
+    stop: threading.Event | None = None,
 ) -> Counter:
     """Publish random messages (no key) round-robin on ``readers``' topics at ``rate`` per
-    second for ``duration`` seconds, once each topic has its expected number of matched
-    readers (``{topic: n}``) and ``settle`` seconds more (a writer matches a reader before the
-    reader matches the writer: what it sends in between is lost at that reader, uncounted);
-    returns what was sent per message type."""
+    second for ``duration`` seconds (or until ``stop`` is set), once each topic has its
+    expected number of matched readers (``{topic: n}``) and ``settle`` seconds more (a writer
+    matches a reader before the reader matches the writer: what it sends in between is lost at
+    that reader, uncounted); returns what was sent per message type."""
     import rclpy
 
     rclpy.init()
@@ -475,9 +506,13 @@ def flood(
     }
     deadline = time.monotonic() + wait
     while any(pubs[tp].get_subscription_count() < n for tp, n in readers.items()):
+        if stop is not None and stop.is_set():
+            break
         if time.monotonic() > deadline:
             raise TimeoutError(f"readers not matched within {wait} s: {readers}")
         time.sleep(0.01)
+    print(f"flooder: readers matched after {wait - (deadline - time.monotonic()):.1f} s",
+          file=sys.stderr, flush=True)  # fmt: skip
     time.sleep(settle)
     rng = random.Random(seed)
     # A pool of random messages per topic, serialised once: the flood is then as fast as DDS.
@@ -485,11 +520,12 @@ def flood(
         tp: [serialize_message(random_message(t, rng)) for _ in range(64)]
         for tp, t in types.items()
     }
+    print("flooding", flush=True)  # for a caller that starts its run under the flood
     sent: Counter[str] = Counter()
     order = list(pubs)
     start = time.monotonic()
     i = 0
-    while (now := time.monotonic()) - start < duration:
+    while (now := time.monotonic()) - start < duration and not (stop and stop.is_set()):
         due = int((now - start) * rate)
         while i < due:
             topic = order[i % len(order)]
@@ -512,10 +548,16 @@ def main(argv=None) -> int:
     parser.add_argument("--rate", type=float, default=2000.0, help="messages per second")
     parser.add_argument("--duration", type=float, default=10.0, help="seconds")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--stop-on-input", action="store_true", help="stop early when a line (or EOF) comes in"
+    )
     parser.add_argument("readers", nargs="+", help="TOPIC=N: flood TOPIC once N readers match")
     args = parser.parse_args(argv)
     readers = {k: int(v) for k, v in (item.split("=") for item in args.readers)}
-    sent = flood(args.rate, args.duration, readers, args.seed)
+    stop = threading.Event()
+    if args.stop_on_input:
+        threading.Thread(target=lambda: (sys.stdin.readline(), stop.set()), daemon=True).start()
+    sent = flood(args.rate, args.duration, readers, args.seed, stop=stop)
     print(json.dumps(dict(sent)), flush=True)
     return 0
 

@@ -20,11 +20,15 @@ import time
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
+from rclpy.serialization import deserialize_message
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosgraph_msgs.msg import Clock
 
+from activetrack.closed_loop.counters import NodeCounters
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, check_rate, open_bag
 from activetrack_ros import graph as topics
@@ -32,10 +36,11 @@ from activetrack_ros.graph import (
     GRAPH_TOPICS,
     MAX_HISTORY_DEPTH,
     graph_topic_of,
-    reader_qos,
     writer_qos,
 )
+from activetrack_ros.node_base import subscribe_batched
 from activetrack_ros.params import ParamSpec, declare, fix_use_sim_time, warn_unknown
+from activetrack_ros.sizes import DIAGNOSTICS_BYTES
 from activetrack_ros.trust import is_signed_type
 
 
@@ -187,12 +192,16 @@ class BagRecorder(Node):
     rosbag2 directory; ``close()`` finishes it (summary, final metadata.yaml).
 
     Log time is the latest ``clock`` received (``ros2 bag record --use-sim-time``; 0 before).
-    With ``graph_key`` (activetrack_ros.trust), signed-type messages that do not verify are
-    counted in ``foreign``, not recorded; ``clock`` cannot be signed, so a clock value is taken
-    only while it never goes back and stays within ``clock_lead`` s of the newest verified
-    stamp: another writer's clock can shift log times by less than an epoch, never reorder the
-    run (``clock_refused`` counts the values not taken). The arguments are the defaults of
-    read-only parameters (:func:`recorder_params`) a standalone recorder takes from --ros-args.
+    With ``graph_key`` (activetrack_ros.trust), signed-type messages and ``/diagnostics`` that
+    do not verify are counted as ``foreign.<Type>``, not recorded; ``clock`` cannot be signed,
+    so a clock value is taken as log time only while it never goes back and stays within
+    ``clock_lead`` s of the newest verified stamp: another writer's clock can shift log times by
+    less than an epoch, never reorder the run (``clock_refused`` counts the values not taken;
+    they are recorded, as every clock: in free mode the sim's clock may lead the graph's
+    messages). Every message ends in one counter, as in a graph node: ``received.<Type>`` =
+    ``accepted.<Type>`` (recorded) + ``foreign.<Type>`` (``counters``). The
+    arguments are the defaults of read-only parameters (:func:`recorder_params`) a standalone
+    recorder takes from --ros-args.
     """
 
     TICK_S = 0.25  # timer period: closes chunks older than 0.5 s, rewrites metadata.yaml (1 s)
@@ -225,9 +234,8 @@ class BagRecorder(Node):
         except BaseException:
             super().destroy_node()
             raise
-        self.count = 0
-        self.foreign = 0
-        self.clock_refused = 0
+        self.count = 0  # messages written
+        self.counters = NodeCounters()
         self.failed: str | None = None
         self._lock = threading.Lock()
         self._channel = {t: self.writer.channel_ids[names[t]] for t in self.topic_types}
@@ -238,17 +246,36 @@ class BagRecorder(Node):
         for topic, msgtype in self.topic_types.items():
             cls = message_class(msgtype)
             if graph_key is not None and is_signed_type(cls):
-                callback = self._verifier(graph_key, topic)
+                callback = self._verifier(graph_key, topic, cls.__name__)
+            elif graph_key is not None and cls is DiagnosticArray:
+                callback = self._diagnostics_verifier(graph_key, topic)
             elif topic == topics.CLOCK:
                 callback = self._on_clock
             else:
-                callback = lambda data, t=topic: self._write(t, data)  # noqa: E731
-            self.create_subscription(cls, topic, callback, reader_qos(topic), raw=True)
+                callback = self._recorder_of(topic, cls.__name__)
+            self._subscribe(cls, topic, callback)
         if topics.CLOCK not in self.topic_types:  # the time source, recorded or not
-            self.create_subscription(
-                Clock, topics.CLOCK, self._on_clock, reader_qos(topics.CLOCK), raw=True
-            )
+            self._subscribe(Clock, topics.CLOCK, self._on_clock)
         self.create_timer(self.TICK_S, self._tick)
+
+    @property
+    def foreign(self) -> int:
+        return self.counters.total("foreign.")
+
+    @property
+    def clock_refused(self) -> int:
+        return self.counters.counts["clock_refused"]
+
+    def _subscribe(self, cls, topic: str, callback) -> None:
+        """A raw subscription counting every sample, and the samples DDS reports lost."""
+        name = cls.__name__
+
+        def on_raw(data: bytes) -> None:
+            self.counters.received(name)
+            callback(data)
+
+        lost = lambda info: self.counters.count(f"dropped.{name}", info.total_count_change)  # noqa: E731
+        subscribe_batched(self, cls, topic, on_raw, SubscriptionEventCallbacks(message_lost=lost))
 
     def _on_clock(self, data: bytes) -> None:
         try:
@@ -259,18 +286,49 @@ class BagRecorder(Node):
             self._now_ns = max(t, 0)
         elif t is not None and self._now_ns <= t <= self._signed_ns + self._lead_ns:
             self._now_ns = t
-        else:
-            self.clock_refused += 1
+        else:  # with the key: not taken as log time (in free mode the sim's clock may lead)
+            self.counters.count("clock_refused")
         if topics.CLOCK in self._channel:
             self._write(topics.CLOCK, data)
+            self.counters.count("accepted.Clock")
+        else:
+            self.counters.count("ignored.clock_not_recorded")
 
-    def _verifier(self, key, topic: str):
+    def _verifier(self, key, topic: str, name: str):
         def on_raw(data: bytes) -> None:
             if key.verify(data):
                 self._signed_ns = max(self._signed_ns, first_stamp_ns(data))
                 self._write(topic, data)
+                self.counters.count(f"accepted.{name}")
             else:
-                self.foreign += 1
+                self.counters.count(f"foreign.{name}")
+
+        return on_raw
+
+    def _diagnostics_verifier(self, key, topic: str):
+        """/diagnostics: the graph's own arrays carry their tag inside (trust.GraphKey)."""
+
+        def on_raw(data: bytes) -> None:
+            try:
+                ok = len(data) <= DIAGNOSTICS_BYTES and key.verify_diagnostics(
+                    deserialize_message(data, DiagnosticArray)
+                )
+            except Exception:  # no tag can be read from it: not the graph's
+                ok = False
+            if ok:
+                self._write(topic, data)
+                self.counters.count("accepted.DiagnosticArray")
+            else:
+                self.counters.count("foreign.DiagnosticArray")
+
+        return on_raw
+
+    def _recorder_of(self, topic: str, name: str):
+        """Streams for people and tools (tf, markers, poses): no tag, recorded as they come."""
+
+        def on_raw(data: bytes) -> None:
+            self._write(topic, data)
+            self.counters.count(f"accepted.{name}")
 
         return on_raw
 

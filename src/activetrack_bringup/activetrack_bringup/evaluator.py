@@ -212,22 +212,27 @@ class EvaluatorNode(GraphNode):
             raise
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
-        """Counters of the graph's nodes (only the graph's own statuses arrive with a key)."""
+        """Counters of the graph's nodes (only the graph's own statuses arrive with a key). A
+        message none of whose statuses is news is ignored once (each message ends in one
+        counter): ``other_diagnostics`` if none is a graph node's, else ``stale_diagnostics``."""
+        ours = news = 0
         for status in msg.status:
             node = status.name.rsplit("/", 1)[-1].removesuffix("_node")
             if not status.name.startswith("activetrack/") or node not in NODE_NAMES:
-                self.ignore("other_diagnostics")
                 continue
+            ours += 1
             counts = {kv.key: int(kv.value) for kv in status.values if kv.value.isdigit()}
             # Counters only grow: an older status (a replay, a late delivery) is not news.
             order = (msg.header.stamp.sec, msg.header.stamp.nanosec, sum(counts.values()))
             if order < self.diagnostics_order.get(node, (-1,)):
-                self.ignore("stale_diagnostics")
                 continue
+            news += 1
             self.diagnostics_order[node] = order
             self.diagnostics[node] = counts
             if node == "sim" and status.message == "finished" and self.sim_finished_at is None:
                 self.sim_finished_at = time.monotonic()
+        if not news:
+            self.ignore("stale_diagnostics" if ours else "other_diagnostics")
 
     def on_truth(self, msg: GroundTruthArray) -> None:
         truth = truth_array_from_msg(msg, self.scenario)

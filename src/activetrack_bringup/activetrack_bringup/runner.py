@@ -33,6 +33,7 @@ from activetrack_bringup.run_folder import run_dir_for
 from activetrack_bringup.supervisor import NodeDied, Supervisor
 from activetrack_ros.graph import history_depth
 from activetrack_ros.hold import MATCH_WAIT_S, SETTLE_S, WaitFor
+from activetrack_ros.node_base import REPUBLISH_S
 from activetrack_ros.trust import KEY_BYTES, KEY_ENV, GraphKey
 from planner_node.planner_node import PlannerNode
 from sim_node.sim_node import SimNode
@@ -299,10 +300,15 @@ class _GraphRunner:
         self.start = time.monotonic()
 
     def progress(self) -> int:
-        """Messages taken so far (for waiting until the graph is quiet)."""
+        """Messages taken so far (for waiting until the graph is quiet), node processes'
+        included as their counters last reported them."""
         nodes = (self.evaluator, *self.nodes.values())
         counted = sum(n.counters.total("received.") for n in nodes)
-        return counted + (self.recorder.count if self.recorder is not None else 0)
+        reported = sum(
+            v for c in self.evaluator.diagnostics.values() for k, v in c.items()
+            if k.startswith("received.")
+        )  # fmt: skip
+        return counted + reported + (self.recorder.count if self.recorder is not None else 0)
 
     def run(self, bag_path: Path | None) -> None:
         """Start, spin to the end (or a failure, a signal), stop; the outcome in status."""
@@ -423,8 +429,14 @@ class _GraphRunner:
             self._end("timeout", f"did not complete within {timeout} s: {missing}", 1)
         else:  # let the last messages be recorded and counted: the counters are final
             # (0.1 s without a new message: a burst sent as the last epoch closes, e.g. by a
-            # writer outside the graph, is still in flight after a 20 ms lull on a busy host)
-            self.graph.spin_until_quiet(self.progress, quiet=0.1)
+            # writer outside the graph, is still in flight after a 20 ms lull on a busy host;
+            # node processes publish counters that changed REPUBLISH_S after their last epoch,
+            # and a message may reach a busy node process a moment after the evaluator here)
+            if self.supervisor is None:
+                self.graph.spin_until_quiet(self.progress, quiet=0.1)
+            else:
+                quiet = 4 * REPUBLISH_S
+                self.graph.spin_until_quiet(self.progress, quiet=quiet, timeout=10 * quiet)
 
     def _stop(self) -> None:
         if self.status != "complete":  # take in what was delivered: a fuller partial run
@@ -440,8 +452,7 @@ class _GraphRunner:
         diagnostics = diagnostics or dict(self.evaluator.diagnostics)
         diagnostics["evaluator"] = dict(self.evaluator.counters.counts)
         if self.recorder is not None:
-            r = self.recorder
-            diagnostics["recorder"] = {"recorded": r.count, "foreign": r.foreign}
+            diagnostics["recorder"] = dict(self.recorder.counters.counts)
         return diagnostics
 
     def conclude(self, run_dir: Path, bag_path: Path | None) -> GraphRun:

@@ -11,8 +11,13 @@ planner) still gets the run so far; their messages carry the graph's authenticat
 
 Readers keep every sample (KEEP_ALL): with a reliable writer a full reader makes the writer
 wait instead of overwriting, so a flood on a topic cannot push the graph's own messages out of
-a reader's history; nodes drain their readers fast (foreign messages are dropped on a hash
-check before deserialisation).
+a reader's history (a foreign KEEP_LAST writer that overwrites its own unacknowledged samples
+has them reported lost to the reader: the message-lost event, ``dropped.<Type>``; measured:
+5,000 sent to a reader that took none for 6 s, 4,514 received and 486 reported lost). rclpy
+offers no history per writer, and a content filter cannot check a keyed tag (its expression
+travels in discovery, readable by anyone): the graph's room is the drain rate, so nodes drain
+their readers in batches (node_base.subscribe_batched) and drop foreign messages on their
+length or a hash before deserialisation.
 """
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy

@@ -11,7 +11,8 @@ Its value is a comma-separated list of ``<at>:<topic>#<n>=<action>``:
 - ``action``: ``drop``, or ``delay:<seconds>`` (sent on by a one-shot timer of the node).
 
 ``ACTIVETRACK_INJECT="publish:activetrack/scans#5=delay:2.0,tracker:activetrack/tracks#3=drop"``.
-Each injection is counted at its end (``injected.drop.<topic>``, ``injected.delay.<topic>``).
+Each injection is counted at its end (``injected.drop.<topic>``, ``injected.delay.<topic>``);
+a message dropped at a reader also ends in ``ignored.injected``, its outcome.
 """
 
 from __future__ import annotations
@@ -64,9 +65,10 @@ def matches(at: str, role: str) -> bool:
 class Injector:
     """Counts the messages one end sees on one topic and sends each now, later or never."""
 
-    def __init__(self, node, topic: str, faults: list[Fault]):
+    def __init__(self, node, topic: str, faults: list[Fault], reader: bool = False):
         self.node = node
         self.topic = topic
+        self.reader = reader  # a reader's drop is also its message's outcome (ignored.injected)
         self.faults = {f.n: f for f in faults}
         self.seen = 0
 
@@ -77,6 +79,8 @@ class Injector:
             return send()
         if fault.delay is None:
             self.node.counters.count(f"injected.drop.{self.topic}")
+            if self.reader:  # received, so it ends in one outcome counter like any other
+                self.node.counters.count("ignored.injected")
             return None
         self.node.counters.count(f"injected.delay.{self.topic}")
         timer = None
@@ -92,4 +96,4 @@ class Injector:
 def injector(node, at: str, topic: str, faults: list[Fault]) -> Injector | None:
     """The hook for one end (``at``: PUBLISH or the reader's role) of ``topic``, or None."""
     mine = [f for f in faults if f.topic == topic and matches(f.at, at)]
-    return Injector(node, topic, mine) if mine else None
+    return Injector(node, topic, mine, reader=at != PUBLISH) if mine else None

@@ -2,12 +2,16 @@
 counters and rate-limited logs.
 
 Every message a subscription takes ends in exactly one counter (docs/robustness.md):
-``foreign.<Type>`` (a writer outside the graph, dropped before deserialisation),
-``rejected.<reason>`` (the callback raised :class:`Rejected`, or the header names another frame
-than the node's ``frame_id``), ``ignored.<reason>`` (valid but not needed), or none: used.
-``received.<Type>`` counts them all; ``dropped.<Type>`` and ``incompatible_writers.<Type>``
-count DDS's events, ``errors.<callback>`` an unexpected exception (logged with its traceback;
-the node keeps running).
+``foreign.<Type>`` (a writer outside the graph, or bigger than any of the graph's messages of
+its type: dropped before deserialisation), ``rejected.<reason>`` (the callback raised
+:class:`Rejected`, or the header names another frame than the node's ``frame_id``),
+``ignored.<reason>`` (valid but not needed), ``errors.<callback>`` (an unexpected exception,
+logged with its traceback; the node keeps running) or ``accepted.<Type>`` (taken). So for every
+node ``received`` = ``accepted`` + ``rejected`` + ``ignored`` + ``foreign`` + ``errors`` (each
+summed over its names; :func:`unaccounted`). A message taken and found invalid later (a scan
+not where its platform's state, which came after it, says) moves from ``accepted`` to its
+reason (:meth:`GraphNode.reject_taken`). ``dropped.<Type>`` and ``incompatible_writers.<Type>``
+count DDS's events: samples that never reached the node.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import time
 import traceback
 from collections.abc import Callable
 
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
@@ -23,8 +28,14 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
 
 from activetrack.closed_loop.counters import NodeCounters
-from activetrack_ros import graph, inject, params
+from activetrack_ros import graph, inject, params, sizes
 from activetrack_ros.trust import GraphKey, is_signed_type
+
+# Samples one subscription takes per executor step: draining a flooded reader in batches
+# instead of one wait-set round per sample; bounded so the other readers and timers (and a
+# Ctrl-C) get their turn.
+TAKE_BATCH = 64
+REPUBLISH_S = 0.25  # s without a publication after which changed counters are published again
 
 
 class Rejected(Exception):
@@ -103,6 +114,11 @@ class GraphNode(Node):
         self.mode: str | None = None  # lockstep | free (None: a node without a mode parameter)
         self.history_depth: int | None = None  # per-epoch writers' depth (size_history)
         self.faults = inject.from_environment()  # a test's delays and drops; normally none
+        self.byte_limits: dict[str, int] = {}  # type name -> most bytes (sizes, size_history)
+        self._republish = None  # the timer of publish_diagnostics, from its first call
+        self._last_diagnostics: tuple | None = None
+        self._published: dict = {}
+        self._newest_input = (0, 0)  # stamp (sec, nanosec) of the newest message accepted
 
     def declare_params(
         self, specs: tuple[params.ParamSpec, ...], apply=None, *, last: bool = True
@@ -131,6 +147,7 @@ class GraphNode(Node):
     def size_history(self, scenario) -> None:
         """Per-epoch writers keep the whole run for late joiners; a run too long says so."""
         self.history_depth = graph.history_depth(scenario)
+        self.byte_limits = sizes.max_bytes(scenario)
         most = graph.run_history(scenario)
         if most > self.history_depth:
             self.get_logger().warning(
@@ -153,7 +170,13 @@ class GraphNode(Node):
                 return self.reject(
                     "wrong_frame", f"{name} on {topic} in frame {frame!r}, not {self.frame_id!r}"
                 )
+            outcomes = self.counters.outcomes
             self.guarded(callback, msg)
+            stamp = getattr(getattr(msg, "header", None), "stamp", None)
+            if (
+                self.counters.outcomes == outcomes and stamp is not None
+            ):  # accepted: the graph's time
+                self._newest_input = max(self._newest_input, (stamp.sec, stamp.nanosec))
 
         self._subscribe_trusted(msg_type, topic, on_trusted)
 
@@ -172,8 +195,18 @@ class GraphNode(Node):
         diagnostics = key is not None and msg_type is DiagnosticArray
         hook = inject.injector(self, self.role, topic, self.faults) if self.faults else None
 
+        def take(data: bytes, msg) -> None:
+            outcomes = self.counters.outcomes
+            on_trusted(data, msg)
+            if self.counters.outcomes == outcomes:
+                self.counters.count(f"accepted.{name}")
+
         def on_raw(data: bytes) -> None:
             self.counters.received(name)
+            if len(data) > self.byte_limits.get(name, len(data)):  # not worth a hash
+                if key is not None:
+                    return self._foreign(name, topic)
+                return self.reject("too_large", f"{name} on {topic}: {len(data)} bytes")
             msg, ok = None, True
             if signed:
                 ok = key.verify(data)
@@ -186,16 +219,14 @@ class GraphNode(Node):
             if not ok:
                 return self._foreign(name, topic)
             if hook is not None:  # a test's delay or drop (activetrack_ros.inject)
-                return hook(lambda: on_trusted(data, msg))
-            on_trusted(data, msg)
+                return hook(lambda: take(data, msg))
+            take(data, msg)
 
         events = SubscriptionEventCallbacks(
             message_lost=lambda info: self._lost(name, info),
             incompatible_qos=lambda info: self._incompatible(name, topic, info),
         )
-        self.create_subscription(
-            msg_type, topic, on_raw, graph.reader_qos(topic), raw=True, event_callbacks=events
-        )
+        subscribe_batched(self, msg_type, topic, on_raw, events)
 
     def _foreign(self, name: str, topic: str) -> None:
         self.counters.count(f"foreign.{name}")
@@ -240,11 +271,25 @@ class GraphNode(Node):
             )
 
     def reject(self, reason: str, detail: str) -> None:
+        """Count the message at hand as rejected (a callback may raise Rejected instead)."""
         self.counters.rejected(reason)
         self.log_limited("warning", f"rejected.{reason}", f"rejected {reason}: {detail}")
 
     def ignore(self, reason: str) -> None:
+        """Count the message at hand as valid but not needed."""
         self.counters.count(f"ignored.{reason}")
+
+    def reject_taken(self, type_name: str, reason: str, detail: str) -> None:
+        """A message of type ``type_name`` accepted earlier turns out invalid (e.g. a scan not
+        where its platform's state, which came after it, says): it moves from ``accepted`` to
+        ``rejected.<reason>``, whichever message's callback finds it out."""
+        self.counters.move(f"accepted.{type_name}", f"rejected.{reason}")
+        self.log_limited("warning", f"rejected.{reason}", f"rejected {reason}: {detail}")
+
+    def ignore_taken(self, type_name: str, reason: str, n: int = 1) -> None:
+        """``n`` messages of type ``type_name`` accepted earlier are let go unused (e.g.
+        evicted from a bounded buffer): they move from ``accepted`` to ``ignored.<reason>``."""
+        self.counters.move(f"accepted.{type_name}", f"ignored.{reason}", n)
 
     def guarded_timer(self, period: float, callback: Callable):
         return self.create_timer(period, lambda: self.guarded(callback))
@@ -253,7 +298,15 @@ class GraphNode(Node):
         return GraphPublisher(self, msg_type, topic, self.graph_key, self.history_depth)
 
     def publish_diagnostics(self, header: Header, message: str) -> None:
-        """Publish the node's counters as status ``activetrack/<node>`` (WARN once rejecting)."""
+        """Publish the node's counters as status ``activetrack/<node>`` (WARN once rejecting).
+        Counters that change afterwards (messages after the last epoch, a flood) are published
+        again with the same message once the node has published nothing for REPUBLISH_S (a node
+        in its own process reports its final counts to the runner), stamped with the newest
+        input the node accepted if that is later (a recorder logs it near that time)."""
+        if self._republish is None:
+            self._republish = self.create_timer(REPUBLISH_S, self._republish_changed)
+        self._last_diagnostics = (header, message, time.monotonic())
+        self._published = dict(self.counters.counts)
         warn = self.counters.total_rejected or self.counters.total("errors.")
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK,
@@ -263,6 +316,51 @@ class GraphNode(Node):
             values=[KeyValue(key=k, value=v) for k, v in self.counters.as_pairs()],
         )
         self.diag_pub.publish(DiagnosticArray(header=header, status=[status]))
+
+    def _republish_changed(self) -> None:
+        header, message, when = self._last_diagnostics
+        idle = time.monotonic() - when >= REPUBLISH_S
+        if idle and self.counters.counts != self._published:
+            sec, nanosec = max(self._newest_input, (header.stamp.sec, header.stamp.nanosec))
+            stamp = Time(sec=sec, nanosec=nanosec)
+            self.guarded(
+                self.publish_diagnostics, Header(stamp=stamp, frame_id=header.frame_id), message
+            )
+
+
+def subscribe_batched(node: Node, msg_type, topic: str, on_raw: Callable, events=None):
+    """A raw subscription with the graph's reader QoS whose callback ``on_raw(data)`` runs for
+    the sample the executor took and up to TAKE_BATCH - 1 more already queued: an executor
+    step (a wait-set round) per sample costs ten times more than dropping a foreign one
+    (measured in docs/robustness.md), and a reader served one sample a round falls behind
+    the readers served in batches."""
+    subscription = []
+
+    def on_ready(data: bytes) -> None:
+        on_raw(data)
+        sub = subscription[0]
+        for _ in range(TAKE_BATCH - 1):
+            with sub.handle:
+                taken = sub.handle.take_message(msg_type, True)
+            if taken is None:
+                return
+            on_raw(taken[0])
+
+    qos = graph.reader_qos(topic)
+    sub = node.create_subscription(msg_type, topic, on_ready, qos, raw=True, event_callbacks=events)
+    subscription.append(sub)
+    return sub
+
+
+OUTCOMES = ("accepted.", "rejected.", "ignored.", "foreign.", "errors.")
+
+
+def unaccounted(counts: dict) -> int:
+    """Messages a node received that no outcome counter holds: ``received`` minus the sum of
+    ``accepted``, ``rejected``, ``ignored``, ``foreign`` and ``errors`` (each over its names);
+    0 for every node (a test checks it under floods)."""
+    total = lambda prefix: sum(int(v) for k, v in counts.items() if k.startswith(prefix))  # noqa: E731
+    return total("received.") - sum(total(p) for p in OUTCOMES)
 
 
 def _interrupt_inside(exc: BaseException) -> BaseException | None:

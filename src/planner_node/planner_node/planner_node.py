@@ -79,8 +79,8 @@ class PlannerNode(GraphNode):
             raise Rejected("duplicate", f"second state of {snap.platform_id!r} at {snap.epoch}")
         states[snap.platform_id] = snap
         while len(self.states) > STATE_WINDOW:
-            del self.states[min(self.states)]
-            self.ignore("evicted_states")
+            evicted = self.states.pop(min(self.states))
+            self.ignore_taken("PlatformState", "evicted_states", len(evicted))
         self.try_decide()
 
     def try_decide(self) -> None:

@@ -206,7 +206,7 @@ class TrackerNode(GraphNode):
                 used.append(scan)
             else:
                 where = f"{scan.sensor_id!r} at {k} is not where its platform is"
-                self.reject("inconsistent", where)
+                self.reject_taken("Scan", "inconsistent", where)
         tracks = self.core.step(k, k * self.scenario.dt, used)
         self.last_epoch = k
         for e in [e for e in self.epochs if e <= k]:
