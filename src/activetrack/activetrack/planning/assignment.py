@@ -389,9 +389,10 @@ def footprint_pointing(
                 new, after = list(preds), costs.copy()
                 for t in np.flatnonzero(inside & (factor > 0.0)):
                     p = preds[t]
-                    if (s, t) not in looks:
-                        looks[s, t] = p.sure_look(sensors[s], pvs[s])
-                    new[t] = p.after_sure_look(looks[s, t], float(factor[t]))
+                    key = (s, int(t))
+                    if key not in looks:
+                        looks[key] = p.sure_look(sensors[s], pvs[s])
+                    new[t] = p.after_sure_look(looks[key], float(factor[t]))
                     after[t] = cost(new[t])
                 gain = float(w @ (costs - after))
                 if best is None or gain > best[0]:
