@@ -258,3 +258,25 @@ def test_criterion_registry_names_and_errors():
         criterion_jacobian("speed", x)
     with pytest.raises(ValueError, match="P"):
         trace_cost(np.ones((2, 3)))
+
+
+def test_a_sure_look_mixed_with_each_factor_is_after_look_bit_for_bit():
+    """TargetPrediction.after_sure_look (the Joseph update computed once per sensor and track,
+    as footprint pointing scores several beam centres) gives after_look's bits for every
+    detection factor, out of range (no update) too."""
+    from activetrack.planning.selection import TargetPrediction
+
+    F, Q = MODEL.transition_matrix(1.0), MODEL.process_noise(1.0)
+    p = TargetPrediction.from_posterior(
+        [1000.0, 5.0, 2000.0, -3.0], np.diag([400.0, 4.0, 400.0, 4.0]), F, Q
+    )
+    sensor = RangeBearingSensor(sigma_r=30.0, sigma_b=0.01, pd=0.85, r_max=3000.0)
+    for pv in ([0.0, 0.0, 0.0, 0.0], [-5000.0, 0.0, 0.0, 0.0]):  # in range, out of range
+        pv = np.array(pv)
+        look = p.sure_look(sensor, pv)
+        assert look[1] == float(sensor.in_range(p.x, pv))
+        for factor in (0.0, 0.3, 0.85, 1.0):
+            np.testing.assert_array_equal(
+                p.after_sure_look(look, factor).P, p.after_look(sensor, pv, factor).P
+            )
+    assert not np.array_equal(p.after_look(sensor, np.zeros(4), 0.85).P, p.P)

@@ -16,7 +16,14 @@ from activetrack.arraytypes import ArrayLike
 from activetrack.bounds.pcrlb import Sensors, _as_sensor_batch, _cholesky
 from activetrack.checks import require_finite, symmetrize
 
-__all__ = ["mre_predict", "mre_recursion", "mre_step", "mre_update"]
+__all__ = [
+    "joseph_update",
+    "mre_mix",
+    "mre_predict",
+    "mre_recursion",
+    "mre_step",
+    "mre_update",
+]
 
 
 def mre_update(P: ArrayLike, H: ArrayLike, R: ArrayLike, pd: ArrayLike = 1.0) -> np.ndarray:
@@ -26,11 +33,17 @@ def mre_update(P: ArrayLike, H: ArrayLike, R: ArrayLike, pd: ArrayLike = 1.0) ->
     ``pd`` scalar or ``(...)`` in [0, 1]. P_{k|k} is the Joseph form of Ramdaras eq. 20-22.
     """
     P = np.asarray(P, dtype=float)
+    pd = _check_pd(pd)
+    return _mix(P, joseph_update(P, H, R), pd)
+
+
+def joseph_update(P: ArrayLike, H: ArrayLike, R: ArrayLike) -> np.ndarray:
+    """P_{k|k} of a sure detection, Joseph form (Ramdaras eq. 20-22), ``(..., n, n)``: the
+    part of :func:`mre_update` that does not depend on pd (a planner scoring one look with
+    several detection factors computes it once)."""
+    P = np.asarray(P, dtype=float)
     H = np.asarray(H, dtype=float)
     R = np.atleast_2d(np.asarray(R, dtype=float))
-    pd = np.asarray(pd, dtype=float)
-    if not (np.isfinite(pd).all() and np.all((pd >= 0.0) & (pd <= 1.0))):
-        raise ValueError(f"pd must lie in [0, 1] (got {pd})")
     if H.shape[-2:] != (R.shape[0], P.shape[-1]):
         raise ValueError(
             f"H must have shape (..., m, n) = (..., {R.shape[0]}, {P.shape[-1]}); got {H.shape}"
@@ -42,9 +55,25 @@ def mre_update(P: ArrayLike, H: ArrayLike, R: ArrayLike, pd: ArrayLike = 1.0) ->
     _cholesky("S = H P H^T + R", S)
     K = np.swapaxes(np.linalg.solve(S, H @ P), -1, -2)  # gain P H^T S^{-1}, eq. 20
     I_KH = np.eye(P.shape[-1]) - K @ H
-    P_upd = I_KH @ P @ np.swapaxes(I_KH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)  # eq. 22
+    return I_KH @ P @ np.swapaxes(I_KH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)  # eq. 22
+
+
+def mre_mix(P: ArrayLike, P_upd: ArrayLike, pd: ArrayLike = 1.0) -> np.ndarray:
+    """(1 - pd) P + pd P_upd, symmetrized: :func:`mre_update` from its :func:`joseph_update`
+    ``P_upd``."""
+    return _mix(np.asarray(P, dtype=float), P_upd, _check_pd(pd))
+
+
+def _mix(P: np.ndarray, P_upd: ArrayLike, pd: np.ndarray) -> np.ndarray:
     pd = pd[..., None, None]
     return symmetrize((1.0 - pd) * P + pd * P_upd)
+
+
+def _check_pd(pd: ArrayLike) -> np.ndarray:
+    pd = np.asarray(pd, dtype=float)
+    if not (np.isfinite(pd).all() and np.all((pd >= 0.0) & (pd <= 1.0))):
+        raise ValueError(f"pd must lie in [0, 1] (got {pd})")
+    return pd
 
 
 def mre_step(

@@ -16,6 +16,7 @@ from activetrack.arraytypes import FloatArray
 
 __all__ = [
     "bearing_information",
+    "jacobian_information_sums",
     "range_bearing_information",
     "range_rate_bearing_information",
     "warm_up",
@@ -213,9 +214,38 @@ def range_rate_bearing_information(
     return out
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _jacobian_information_sums(G: FloatArray, w: FloatArray) -> FloatArray:
+    """``(B, n, n)``: sum over m, then a, of G[b, m, a, i] G[b, m, a, j] w[b, m], products and
+    sums in the order of numpy's einsum (no BLAS), the upper triangle mirrored (the products
+    commute, so einsum's two halves are equal too)."""
+    B, M, A, n = G.shape
+    out = np.empty((B, n, n))
+    for b in range(B):
+        for i in range(n):
+            for j in range(i, n):
+                acc = 0.0
+                for m in range(M):
+                    for a in range(A):
+                        acc += G[b, m, a, i] * G[b, m, a, j] * w[b, m]
+                out[b, i, j] = out[b, j, i] = acc
+    return out
+
+
+def jacobian_information_sums(G: FloatArray, w: FloatArray) -> FloatArray:
+    """``np.einsum("...mai,...maj,...m->...ij", G, G, w)`` bit for bit (the sums of
+    :func:`activetrack.models.base.jacobian_information`): whitened Jacobians ``G``
+    ``(..., M, m, n)``, sample weights ``w`` broadcasting to ``(..., M)``; ``(..., n, n)``."""
+    *batch, M, A, n = G.shape
+    G4 = np.ascontiguousarray(G, dtype=float).reshape(-1, M, A, n)
+    w2 = np.ascontiguousarray(np.broadcast_to(w, (*batch, M)), dtype=float).reshape(-1, M)
+    return _jacobian_information_sums(G4, w2).reshape(*batch, n, n)
+
+
 def warm_up() -> None:
     """Compile (or load) the kernels of this module (``activetrack.kernels.warm_up``)."""
     X = np.array([[1.0, 0.0, 2.0, 0.0], [3.0, 0.0, 1.0, 0.0]])
     bearing_information(X, np.zeros((1, 4)), 0.01, 1.0, 0.0, np.inf)
     range_bearing_information(X, np.zeros((1, 4)), 5.0, 0.01, 1.0, 0.0, np.inf)
     range_rate_bearing_information(X, np.zeros((1, 4)), 5.0, 0.5, 0.01, 1.0, 0.0, np.inf)
+    jacobian_information_sums(np.ones((1, 2, 2, 4)), np.ones((1, 2)))

@@ -245,8 +245,24 @@ def jacobian_information(
     G = whitener(sensor.R) @ H  # R^{-1/2} H
     if K is not None:
         G = G @ K
+    sums = _compiled_sums(G.size // (G.shape[-1] * G.shape[-2]))
+    if sums is not None:  # the einsum's bits, compiled
+        return symmetrize(sums(G, w))
     # einsum round-off can leave a tiny asymmetry.
     return symmetrize(np.einsum("...mai,...maj,...m->...ij", G, G, w))
+
+
+def _compiled_sums(work: int) -> Callable[[FloatArray, FloatArray], FloatArray] | None:
+    """The compiled sums of :func:`jacobian_information` when the compiled kernels run: they
+    give the einsum's bits, so, like the particle kernels, they may switch on mid-process
+    (``work``, the sample-state pairs, counts towards ``activetrack.kernels.AUTO_WORK``)."""
+    from activetrack.kernels import particle_kernels
+
+    if particle_kernels(work=work) is None:
+        return None
+    from activetrack.models._fisher_kernels import jacobian_information_sums
+
+    return jacobian_information_sums
 
 
 def _log_gauss_whitener(R: FloatArray) -> tuple[FloatArray, float]:

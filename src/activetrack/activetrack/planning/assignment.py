@@ -375,6 +375,8 @@ def footprint_pointing(
     while remaining:
         best: tuple[float, int, float, np.ndarray, list[TargetPrediction], np.ndarray] | None
         best = None
+        # (s, t) -> the update of preds[t] by a sure look of s, shared by s's beam centres
+        looks: dict[tuple[int, int], tuple[np.ndarray, float]] = {}
         for s in remaining:
             width = float(cast(float, sensors[s].beam_width))
             theta = np.arctan2(x[:, 2] - pvs[s, 2], x[:, 0] - pvs[s, 0])
@@ -387,7 +389,10 @@ def footprint_pointing(
                 new, after = list(preds), costs.copy()
                 for t in np.flatnonzero(inside & (factor > 0.0)):
                     p = preds[t]
-                    new[t] = p.after_look(sensors[s], pvs[s], float(factor[t]))
+                    key = (s, int(t))
+                    if key not in looks:
+                        looks[key] = p.sure_look(sensors[s], pvs[s])
+                    new[t] = p.after_sure_look(looks[key], float(factor[t]))
                     after[t] = cost(new[t])
                 gain = float(w @ (costs - after))
                 if best is None or gain > best[0]:

@@ -23,7 +23,7 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike
 from activetrack.bounds.costs import trace_cost
-from activetrack.bounds.mre import mre_predict, mre_update
+from activetrack.bounds.mre import joseph_update, mre_mix, mre_predict, mre_update
 from activetrack.checks import require_finite, require_spd, symmetrize
 from activetrack.planning.criteria import POSITIONING, SELECTION, Criterion, get_criterion
 from activetrack.planning.horizons import SearchSettings, check_horizon, search_horizon
@@ -138,6 +138,20 @@ class TargetPrediction:
         construction, so nothing is checked twice (a planner's inner loop)."""
         out = copy.copy(self)
         object.__setattr__(out, "P", _look(self.P, self.x, sensor, sensor_pv, detection))
+        return out
+
+    def sure_look(self, sensor: SensorModel, sensor_pv: np.ndarray) -> tuple[np.ndarray, float]:
+        """What :meth:`after_look` computes whatever the detection factor: P_{k|k} of a sure
+        detection (:func:`~activetrack.bounds.mre.joseph_update`) and I_r (1.0 or 0.0), for
+        :meth:`after_sure_look` with several factors."""
+        P_upd = joseph_update(self.P, sensor.jacobian(self.x, sensor_pv), sensor.R)
+        return P_upd, float(sensor.in_range(self.x, sensor_pv))
+
+    def after_sure_look(self, look: tuple[np.ndarray, float], detection: float) -> TargetPrediction:
+        """:meth:`after_look` (the same bits) from the :meth:`sure_look` of that sensor and pv."""
+        P_upd, in_range = look
+        out = copy.copy(self)
+        object.__setattr__(out, "P", mre_mix(self.P, P_upd, detection * in_range))
         return out
 
 
