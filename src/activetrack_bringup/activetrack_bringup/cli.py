@@ -14,7 +14,7 @@ activetrack record BAG [--topics T ...] [--duration S]
 activetrack play BAG [--topics T ...] [--rate R] [--skip-damaged]
                                         republish a bag
 activetrack bag info BAG                topics, types, counts and damage of a bag (CRC-checked)
-activetrack bag retrack BAG --scenario S
+activetrack bag retrack BAG --scenario S [--skip-damaged]
                                         replay a run's scans into a fresh tracker
 activetrack bag recover BAG             rebuild a readable bag from a damaged/unfinished one
 activetrack track DETECTIONS --config C track recorded detections (CSV, JSON, a bag)
@@ -496,14 +496,8 @@ def _add_bag_parser(sub) -> None:
     rec_b.set_defaults(func=_cmd_bag_recover)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from activetrack.argtypes import add_scheduler_option
-
-    parser = argparse.ArgumentParser(
-        prog="activetrack", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
-    )
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _add_run_parser(sub) -> None:
+    """``activetrack run SCENARIO ...``."""
     run = sub.add_parser("run", help="run the ROS node graph on a scenario, closed loop")
     run.add_argument("scenario", help="scenario YAML file")
     run.add_argument("--processes", action="store_true", help="one OS process per node (DDS)")
@@ -536,6 +530,17 @@ def build_parser() -> argparse.ArgumentParser:
     _add_node_setting_args(run)
     _add_live_view_args(run)
     run.set_defaults(func=_cmd_run)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from activetrack.argtypes import add_scheduler_option
+
+    parser = argparse.ArgumentParser(
+        prog="activetrack", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    _add_run_parser(sub)
 
     batch = sub.add_parser("batch", help="run a scenario closed loop without ROS")
     batch.add_argument("scenario", help="scenario YAML file")
