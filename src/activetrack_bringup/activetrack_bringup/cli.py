@@ -590,9 +590,12 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """The command line; ``argv`` None: this process's own (the console script)."""
     code, command = _main(argv)
-    if argv is None and command is _cmd_run and interrupts.received() is not None:
-        # A stopped run has written everything; Python's own teardown of the loaded modules
-        # and the DDS library takes a second or more under load, past the 2 s a stop may take.
+    if argv is None and command is _cmd_run:
+        # A run has written everything and stopped its processes; Python's own teardown of the
+        # loaded modules and the DDS library takes a second or more under load, during which a
+        # Ctrl-C would meet Python's default handler (past the 2 s a stop may take, too).
+        if code == 0 and interrupts.received() is not None:
+            code = interrupts.received()  # after summary.json: the run finished, then this
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)

@@ -280,10 +280,6 @@ class _GraphRunner:
     the supervised node processes, and how the run ended."""
 
     def __init__(self, scenario, scenario_path: str, opts: RunOptions, key: GraphKey, wait):
-        # GOSPA's assignment, which the evaluator needs from the first epoch on: loaded now,
-        # while a signal stops the start-up at once, not in a stop's summary (1 s under load).
-        import scipy.optimize  # noqa: F401
-
         self.scenario = scenario
         self.opts = opts
         self.key = key
