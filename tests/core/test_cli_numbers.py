@@ -37,10 +37,15 @@ BAD = [
     (["record", "bag", "--duration", "-1"], "--duration", "(0, 1e+07], got '-1'"),
     (["record", "bag", "--duration", "0"], "--duration", "(0, 1e+07], got '0'"),
     (["record", "bag", "--duration", "nan"], "--duration", "got 'nan'"),
-    (["play", "bag", "--rate", "0"], "--rate", "must be a finite number in (0, 1e+06], got '0'"),
-    (["play", "bag", "--rate", "-1"], "--rate", "(0, 1e+06], got '-1'"),
+    (
+        ["play", "bag", "--rate", "0"],
+        "--rate",
+        "must be a finite number in [0.001, 1e+06], got '0'",
+    ),
+    (["play", "bag", "--rate", "-1"], "--rate", "[0.001, 1e+06], got '-1'"),
     (["play", "bag", "--rate", "nan"], "--rate", "got 'nan'"),
     (["play", "bag", "--rate", "inf"], "--rate", "got 'inf'"),
+    (["play", "bag", "--rate", "1e-9"], "--rate", "[0.001, 1e+06], got '1e-9'"),  # for ever
     (["bag", "retrack", "b", "--scenario", S, "--run", "-2"], "--run", "got '-2'"),
     # the experiments' own parsers (activetrack reproduce NAME ARGS...)
     (["reproduce", "hernandez", "--runs", "-1"], "--runs", "[0, 100000] (0: the bounds only)"),

@@ -365,7 +365,8 @@ def test_damaged_bags_through_play_retrack_recover_and_record(original, tmp_path
         "corrupt chunk": _flip(chunk + 200),
         "killed (truncated)": _truncate(len(data) * 2 // 3),
     }
-    expected_play = {"corrupt chunk": 2, "killed (truncated)": 0}
+    # Every damaged bag is refused (rc 2) unless --skip-damaged; a truncated one too.
+    expected_play = {}
     for name, mutate in cases.items():
         bag = tmp_path / name.replace(" ", "_") / bag0.name
         if mutate is not None:
@@ -376,6 +377,8 @@ def test_damaged_bags_through_play_retrack_recover_and_record(original, tmp_path
         assert rc == expected_play.get(name, 2), (name, err)
         if name == "corrupt chunk":
             assert f"{bag / mcap_name}: corrupt chunk at offset {chunk} (CRC mismatch;" in err
+        if name in ("corrupt chunk", "killed (truncated)"):
+            assert "--skip-damaged" in err and "bag recover" in err
             rc, out, err, p = cli(capsys, "play", bag, "--rate", "1000", "--skip-damaged")
             assert not p and rc == 0 and "warning:" in err and "published" in out
         if name == "killed (truncated)":
@@ -385,6 +388,13 @@ def test_damaged_bags_through_play_retrack_recover_and_record(original, tmp_path
         assert rc in (0, 2)
         if name == "corrupt chunk":
             assert rc == 2 and "retrack needs every scan" in err
+        if name == "killed (truncated)":  # refused, unless told to take the epochs it holds
+            assert rc == 2 and "cut off" in err and "--skip-damaged" in err
+            rc, out, err, p = cli(
+                capsys, "bag", "retrack", bag, "--scenario", SCENARIO, "--skip-damaged"
+            )
+            assert not p and rc in (0, 2), (rc, err)
+            assert rc == 2 or "retracking epochs 1.." in err
         rc, out, err, p = cli(capsys, "record", bag, "--duration", "0.1")
         assert not p, (name, p)
         if mutate is not None:

@@ -54,3 +54,26 @@ def test_other_system_errors_are_counted_and_the_node_keeps_running():
     GraphNode.guarded(stub, on_track)
     assert counted == ["errors.on_track"]
     assert _interrupt_inside(np.linalg.LinAlgError("x")) is None
+
+
+def test_a_ctrl_c_inside_the_message_decoder_is_no_undecodable_message(graph, monkeypatch):
+    """rclpy's C decoder can hand the signal handler's KeyboardInterrupt back wrapped in a
+    SystemError: it must stop the spin, not count a genuine message as undecodable."""
+    from std_msgs.msg import String
+
+    from activetrack_ros import node_base
+
+    node = graph.add(GraphNode("decoding", context=graph.context))
+    got = []
+    node.subscribe(String, "decoded", got.append)
+    pub = node.create_publisher(String, "decoded", 10)
+
+    def interrupted_decoder(data, msg_type):
+        raise _wrapped(KeyboardInterrupt())
+
+    monkeypatch.setattr(node_base, "deserialize_message", interrupted_decoder)
+    with pytest.raises(KeyboardInterrupt):  # published until the reader has matched
+        graph.spin_until(lambda: pub.publish(String(data="genuine")), timeout=30.0)
+    assert node.counters.counts.get("received.String") == 1
+    assert not any(k.startswith(("rejected.", "errors.")) for k in node.counters.counts)
+    assert got == []

@@ -147,9 +147,8 @@ def _start(tmp_path: Path, *extra: str):
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
-        # As a terminal's foreground job: a shell starts background jobs (`make test &`) with
-        # SIGINT ignored, which the command line respects (interrupts.raising), and children
-        # inherit that.
+        # As a terminal's foreground job (a shell starts background jobs with SIGINT ignored;
+        # the command line takes it all the same: interrupts.raising).
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     return proc, out, scenario.name

@@ -88,6 +88,7 @@ MAX_RUNS = 100_000  # Monte Carlo runs (papers: 100-4,000)
 MAX_JOBS = 256  # worker processes
 MAX_WALL_SECONDS = 1e7  # s, --timeout and --duration (116 days)
 MAX_RATE = 1e6  # bag playback speed factor
+MIN_RATE = 1e-3  # bag playback speed factor: a bag's second in at most 1,000 s
 # Monte Carlo runs x epochs held in memory at once by a vectorised experiment (Valverde's
 # filters keep (epochs, runs, state) arrays: about 1 GB at the limit; default 1,000 x 252).
 MAX_RUN_EPOCHS = 25_000_000

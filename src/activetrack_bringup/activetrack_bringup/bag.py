@@ -29,8 +29,10 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosgraph_msgs.msg import Clock
 
 from activetrack.closed_loop.counters import NodeCounters
+from activetrack.limits import MAX_WALL_SECONDS
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag_io import BagError, Rosbag2Writer, TopicSpec, check_rate, open_bag
+from activetrack_bringup.mcap_reader import INCOMPLETE, LOST
 from activetrack_ros import graph as topics
 from activetrack_ros.graph import (
     GRAPH_TOPICS,
@@ -414,12 +416,8 @@ class BagPlayer(Node):
         bag = open_bag(path)
         try:
             self.warnings = [str(d) for d in bag.damage] + list(bag.notes)
-            lost = bag.lost
-            if lost and not skip_damaged:
-                raise BagError(
-                    f"{lost[0]} ({len(lost)} problem(s) with lost data: `--skip-damaged` plays "
-                    f"the rest, `activetrack bag recover {path}` rewrites the bag)"
-                )
+            check_damage(bag, path, skip_damaged, "`--skip-damaged` plays the rest")
+            check_playback_time(bag, rate)
             wanted = [bag_topic(bag, t) or t for t in topics_filter] if topics_filter else None
             missing = sorted(set(wanted or ()) - set(bag.topics))
             if missing:
@@ -485,6 +483,28 @@ class BagPlayer(Node):
         self.messages.close()
         self.bag.close()
         return super().destroy_node()
+
+
+def check_damage(bag, path, skip_damaged: bool, skip_note: str) -> None:
+    """BagError unless every message of ``bag`` is there or ``skip_damaged``: corrupt chunks
+    (lost data) and a cut-off end (a killed recorder: the last messages are missing) refuse;
+    damage proven harmless (a damaged index, summary or magic) does not."""
+    missing = [d for d in bag.damage if d.kind in (LOST, INCOMPLETE)]
+    if missing and not skip_damaged:
+        raise BagError(
+            f"{missing[0]} ({len(missing)} problem(s) that lose messages: {skip_note}, "
+            f"`activetrack bag recover {path}` rewrites the bag)"
+        )
+
+
+def check_playback_time(bag, rate: float) -> None:
+    """BagError when playing ``bag`` at ``rate`` would take longer than MAX_WALL_SECONDS."""
+    wall = bag.duration_ns * 1e-9 / rate
+    if wall > MAX_WALL_SECONDS:
+        raise BagError(
+            f"playing {bag.duration_ns * 1e-9:g} s of bag at --rate {rate:g} would take "
+            f"{wall:.3g} s, more than {MAX_WALL_SECONDS:g} s: raise --rate"
+        )
 
 
 def bag_topic(bag, name: str) -> str | None:

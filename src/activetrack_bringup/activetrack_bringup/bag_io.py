@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import yaml
 
+from activetrack.limits import MAX_RATE, MIN_RATE
 from activetrack_bringup.mcap_reader import LOST, Damage, McapFileError, McapScan
 from activetrack_bringup.mcap_writer import CHUNK_AGE_S, CHUNK_SIZE, McapWriter
 
@@ -520,11 +521,13 @@ def open_bag(path: str | Path) -> Bag:
 
 
 def check_rate(rate) -> float:
-    """A playback rate: a positive finite number (ValueError otherwise)."""
+    """A playback rate: a finite number in [MIN_RATE, MAX_RATE] (ValueError otherwise)."""
     try:
         value = float(rate)
     except (TypeError, ValueError):
         raise ValueError(f"rate must be a positive number, got {rate!r}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"rate must be a positive finite number, got {rate!r}")
+    if not (math.isfinite(value) and MIN_RATE <= value <= MAX_RATE):
+        raise ValueError(
+            f"rate must be a positive finite number in [{MIN_RATE:g}, {MAX_RATE:g}], got {rate!r}"
+        )
     return value

@@ -14,7 +14,7 @@ activetrack record BAG [--topics T ...] [--duration S]
 activetrack play BAG [--topics T ...] [--rate R] [--skip-damaged]
                                         republish a bag
 activetrack bag info BAG                topics, types, counts and damage of a bag (CRC-checked)
-activetrack bag retrack BAG --scenario S
+activetrack bag retrack BAG --scenario S [--skip-damaged]
                                         replay a run's scans into a fresh tracker
 activetrack bag recover BAG             rebuild a readable bag from a damaged/unfinished one
 activetrack track DETECTIONS --config C track recorded detections (CSV, JSON, a bag)
@@ -31,6 +31,7 @@ import contextlib
 import importlib
 import os
 import sys
+import time
 from pathlib import Path
 
 from activetrack.strict_json import write_json
@@ -66,11 +67,37 @@ def _print_summary(s) -> None:
 
 
 def _write_json(path: str, data: dict) -> None:
-    write_json(path, data)
+    try:
+        write_json(path, data)
+    except OSError as exc:  # checked up front (cli_types.output_file), yet it can still fail
+        raise _CommandError(f"--json {path}: {exc.strerror or exc}") from None
     print(f"  summary    {path}")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    started = time.monotonic()
+    concluded = []  # run_graph's answer came: it wrote the run's summary
+    try:
+        return _run(args, concluded)
+    except (KeyboardInterrupt, interrupts.Terminated) as exc:
+        if concluded:
+            raise
+        from activetrack_bringup.run_folder import interrupted_before_start, run_dir_for
+
+        code = interrupts.exit_code(exc)
+        with interrupts.held():  # a second signal must not cut the summary short
+            # The scenario's name is not known yet: the default folder takes the file's.
+            run_dir = Path(args.out or run_dir_for(Path(args.scenario).stem))
+            try:
+                interrupted_before_start(run_dir, code, time.monotonic() - started)
+                print(f"  INCOMPLETE interrupted before the graph started\n  run folder {run_dir}")
+            except OSError as err:
+                _error(f"{run_dir}: {err.strerror or err}: no summary written")
+        raise
+
+
+def _run(args: argparse.Namespace, concluded: list) -> int:
+    interrupts.check()  # a signal while the command line loaded
     from activetrack.scenarios import ScenarioError
     from activetrack_bringup.progress import Bar, epoch_hook
     from activetrack_bringup.runner import GraphSetupError, RunIncomplete, run_graph
@@ -105,10 +132,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
             wait_timeout=args.wait_timeout or WAIT_TIMEOUT_S,
             announce=_announce(args),
         )
+        concluded.append(True)
         code = 0
     except (ScenarioError, FileExistsError, GraphSetupError) as exc:
         return _error(exc)
     except RunIncomplete as exc:
+        concluded.append(True)
         _error(exc)
         result, code = exc.result, exc.exit_code
     finally:
@@ -373,7 +402,13 @@ def _cmd_bag_retrack(args: argparse.Namespace) -> int:
     from activetrack_bringup.retrack import retrack
 
     try:
-        r = retrack(args.bag, args.scenario, filter_kind=args.filter, run=args.run)
+        r = retrack(
+            args.bag,
+            args.scenario,
+            filter_kind=args.filter,
+            run=args.run,
+            skip_damaged=args.skip_damaged,
+        )
     except (ValueError, OSError) as exc:  # BagError/RetrackError, ScenarioError
         return _error(exc)
     _warn(r.warnings)
@@ -433,7 +468,9 @@ def _add_bag_parser(sub) -> None:
     bag_sub = bag.add_subparsers(dest="bag_command", required=True)
     info = bag_sub.add_parser("info", help="topics, types, counts and duration of a bag")
     info.add_argument("bag")
-    info.add_argument("--json", help="write the information to this JSON file")
+    info.add_argument(
+        "--json", type=cli_types.output_file, help="write the information to this JSON file"
+    )
     info.set_defaults(func=_cmd_bag_info)
     rt = bag_sub.add_parser("retrack", help="replay a run's scans into a fresh tracker")
     rt.add_argument("bag")
@@ -442,24 +479,25 @@ def _add_bag_parser(sub) -> None:
         "--filter", help="another registered filter: ekf, pf or a plugin's (default: as run)"
     )
     rt.add_argument("--run", type=cli_types.run_index, help="Monte Carlo run index of the run")
-    rt.add_argument("--json", help="write the report to this JSON file")
+    rt.add_argument(
+        "--skip-damaged",
+        action="store_true",
+        help="retrack the epochs a truncated bag holds (default: refuse a damaged bag)",
+    )
+    rt.add_argument("--json", type=cli_types.output_file, help="write the report to this JSON file")
     rt.set_defaults(func=_cmd_bag_retrack)
     rec_b = bag_sub.add_parser(
         "recover", help="rebuild a readable bag from a damaged or unfinished one"
     )
     rec_b.add_argument("bag")
-    rec_b.add_argument("--json", help="write the report to this JSON file")
+    rec_b.add_argument(
+        "--json", type=cli_types.output_file, help="write the report to this JSON file"
+    )
     rec_b.set_defaults(func=_cmd_bag_recover)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from activetrack.argtypes import add_scheduler_option
-
-    parser = argparse.ArgumentParser(
-        prog="activetrack", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
-    )
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _add_run_parser(sub) -> None:
+    """``activetrack run SCENARIO ...``."""
     run = sub.add_parser("run", help="run the ROS node graph on a scenario, closed loop")
     run.add_argument("scenario", help="scenario YAML file")
     run.add_argument("--processes", action="store_true", help="one OS process per node (DDS)")
@@ -476,16 +514,33 @@ def build_parser() -> argparse.ArgumentParser:
         help="start only these node processes here (sim, tracker, planner; none: evaluate "
         "only), implies --processes; the others run on other hosts (docs/multi-host.md)",
     )
-    run.add_argument("--out", help="run folder (default runs/<scenario>-<timestamp>)")
+    run.add_argument(
+        "--out",
+        type=cli_types.output_folder,
+        help="run folder (default runs/<scenario>-<timestamp>)",
+    )
     run.add_argument("--no-bag", action="store_true", help="do not record the bag")
     run.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
     run.add_argument(
         "--timeout", type=cli_types.timeout, default=600.0, help="wall seconds (default 600)"
     )
-    run.add_argument("--json", help="also write the summary to this JSON file")
+    run.add_argument(
+        "--json", type=cli_types.output_file, help="also write the summary to this JSON file"
+    )
     _add_node_setting_args(run)
     _add_live_view_args(run)
     run.set_defaults(func=_cmd_run)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from activetrack.argtypes import add_scheduler_option
+
+    parser = argparse.ArgumentParser(
+        prog="activetrack", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    _add_run_parser(sub)
 
     batch = sub.add_parser("batch", help="run a scenario closed loop without ROS")
     batch.add_argument("scenario", help="scenario YAML file")
@@ -497,11 +552,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="worker processes (the results do not depend on it)",
     )
     add_scheduler_option(batch)
-    batch.add_argument("--json", help="write the summary to this JSON file")
+    batch.add_argument(
+        "--json", type=cli_types.output_file, help="write the summary to this JSON file"
+    )
     batch.set_defaults(func=_cmd_batch)
 
     rec = sub.add_parser("record", help="record graph topics to a rosbag2 directory")
-    rec.add_argument("bag", help="output directory (must not exist)")
+    rec.add_argument("bag", type=cli_types.output_folder, help="output directory (must not exist)")
     rec.add_argument("--topics", nargs="+", help="topics (default: every graph topic)")
     rec.add_argument("--duration", type=cli_types.duration, help="seconds (default: until Ctrl-C)")
     rec.add_argument("--namespace", default="", help="the graph's ROS namespace (default none)")
@@ -514,7 +571,8 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument(
         "--skip-damaged",
         action="store_true",
-        help="play the verified chunks of a bag with corrupt ones (default: refuse)",
+        help="play what verifies of a damaged bag: the chunks around corrupt ones, a truncated "
+        "bag's messages up to the cut (default: refuse)",
     )
     play.set_defaults(func=_cmd_play)
 
@@ -530,24 +588,42 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line; ``argv`` None: this process's own (the console script)."""
+    code, command = _main(argv)
+    if argv is None and command is _cmd_run:
+        # A run has written everything and stopped its processes; Python's own teardown of the
+        # loaded modules and the DDS library takes a second or more under load, during which a
+        # Ctrl-C would meet Python's default handler (past the 2 s a stop may take, too).
+        if code == 0 and interrupts.received() is not None:
+            code = interrupts.received()  # after summary.json: the run finished, then this
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def _main(argv: list[str] | None) -> tuple[int, object]:
     from activetrack.allocator import tune_allocator
 
-    args = build_parser().parse_args(argv)
-    tune_allocator()  # a command-line process: numpy temporaries stay on the heap (faster)
+    args = None
     try:
+        # The handlers first: a signal while the modules and parsers load is a Ctrl-C too.
         with interrupts.raising():
-            return args.func(args)
+            with interrupts.held():  # raised once the arguments say where a run's summary goes
+                args = build_parser().parse_args(argv)
+                tune_allocator()  # a command-line process: numpy temporaries stay on the heap
+            if args.func is not _cmd_run:
+                interrupts.check()
+            return args.func(args), args.func
     except _CommandError as exc:
-        return _error(exc)
+        return _error(exc), args and args.func
     except BrokenPipeError:  # `activetrack bag info BAG | head`: the reader left, fine
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit
-        return 0
+        return 0, args and args.func
     except (KeyboardInterrupt, interrupts.Terminated) as exc:
         code = interrupts.exit_code(exc)
-        print(
-            f"activetrack: interrupted ({'SIGINT' if code == 130 else 'SIGTERM'})", file=sys.stderr
-        )
-        return code
+        print(f"activetrack: interrupted ({interrupts.SIGNAL_NAMES[code]})", file=sys.stderr)
+        return code, args and args.func
 
 
 if __name__ == "__main__":

@@ -1,8 +1,13 @@
-"""Ctrl-C and SIGTERM as exceptions, held back while a run cleans up.
+"""Ctrl-C and SIGTERM as exceptions, raised once, held back while a run cleans up.
 
 The command line turns SIGINT into KeyboardInterrupt (exit 130) and SIGTERM into Terminated
-(exit 143). Inside :func:`deferred` a signal is remembered instead of raised and raised when
-the block ends, so the bag is closed and the summary written first.
+(exit 143), from its first line (docs/robustness.md, "Supervised processes and signals").
+Only the first signal is raised: the ones after it are noted (:func:`received`) while the run
+stops, so a second Ctrl-C cannot cut the stop short and leave no summary. Inside
+:func:`deferred` a signal is remembered and raised when the block ends (a bag chunk is written
+whole); inside :func:`held` it is remembered and never raised: the runner asks
+:func:`received` and marks the run interrupted, so that a signal during the stop, the summary
+or the teardown still gives a summary that says so.
 """
 
 from __future__ import annotations
@@ -12,59 +17,91 @@ import threading
 from contextlib import contextmanager
 
 EXIT_CODES = {signal.SIGINT: 130, signal.SIGTERM: 143}
+SIGNAL_NAMES = {130: "SIGINT", 143: "SIGTERM"}
 
 
 class Terminated(BaseException):  # like KeyboardInterrupt: no callback guard catches it
     """SIGTERM arrived."""
 
 
-_defer = 0
-_pending: int | None = None
+_raising = 0  # nested raising() blocks
+_depth = 0  # nested deferred() / held() blocks
+_code: int | None = None  # exit code of the first signal since the outermost raising()
+_raised = False  # that signal was raised already
 
 
-def _raise_for(signum: int):
-    if signum == signal.SIGINT:
+def _raise_for(code: int):
+    global _raised
+    _raised = True
+    if code == EXIT_CODES[signal.SIGINT]:
         raise KeyboardInterrupt
     raise Terminated
 
 
 def _handler(signum, frame) -> None:
-    global _pending
-    if _defer:
-        _pending = _pending or signum
-        return
-    _raise_for(signum)
+    global _code
+    _code = _code or EXIT_CODES[signal.Signals(signum)]
+    if not _depth and not _raised:
+        _raise_for(_code)
 
 
 @contextmanager
 def raising():
-    """SIGINT and SIGTERM raise (KeyboardInterrupt, Terminated) in this block (main thread)."""
+    """SIGINT and SIGTERM raise (KeyboardInterrupt, Terminated) in this block (main thread).
+
+    Also when the process inherited SIGINT ignored, as a script's background job does
+    (``activetrack run ... &``): an explicit ``kill -INT`` must stop a run, not be lost."""
+    global _raising, _code, _raised
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {}
-    for s in (signal.SIGINT, signal.SIGTERM):
-        if signal.getsignal(s) is not signal.SIG_IGN:  # e.g. SIGINT of a background job
-            previous[s] = signal.signal(s, _handler)
+    if not _raising:
+        _code, _raised = None, False
+    _raising += 1
+    previous = {s: signal.signal(s, _handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
+        _raising -= 1
 
 
 @contextmanager
-def deferred():
-    """Signals arriving in this block are raised when it ends (first one wins)."""
-    global _defer, _pending
-    _defer += 1
+def _holding(raise_at_end: bool):
+    global _depth
+    _depth += 1
     try:
         yield
     finally:
-        _defer -= 1
-        if not _defer and _pending is not None:
-            signum, _pending = _pending, None
-            _raise_for(signum)
+        _depth -= 1
+        if raise_at_end and not _depth and _code is not None and not _raised:
+            _raise_for(_code)
+
+
+def deferred():
+    """Signals arriving in this block are raised when it ends (first one wins); inside a
+    :func:`held` block they stay noted only."""
+    return _holding(raise_at_end=True)
+
+
+def held():
+    """Signals arriving in this block are noted (:func:`received`), never raised."""
+    return _holding(raise_at_end=False)
+
+
+def received() -> int | None:
+    """The exit code (130, 143) of the first signal in the outermost :func:`raising` block so
+    far, raised or held; None if none came."""
+    return _code
+
+
+def check() -> None:
+    """Raise the first signal's exception again if one came: for loops that must stop even
+    where the first was swallowed (a C extension that replaced it with its own error, a
+    finalizer, whose exceptions Python only prints)."""
+    if _code is not None:
+        _raise_for(_code)
 
 
 def exit_code(exc: BaseException) -> int:

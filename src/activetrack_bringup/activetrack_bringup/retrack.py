@@ -30,10 +30,11 @@ from activetrack_bringup.bag import bag_topic, installed_type_hash
 from activetrack_bringup.bag_io import BagError, open_bag
 from activetrack_bringup.evaluator import held_estimates, truth_rows
 from activetrack_bringup.inprocess import InProcessGraph
+from activetrack_bringup.mcap_reader import INCOMPLETE
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import MessageError, TrackArrayChecker, truth_array_from_msg
 from activetrack_ros.graph import GRAPH_TOPICS, writer_qos
-from activetrack_ros.node_base import GraphNode
+from activetrack_ros.node_base import GraphNode, raise_interrupt_inside
 from activetrack_ros.trust import GraphKey
 from msgs_defs.msg import GroundTruthArray, PlatformState, TrackArray
 from msgs_defs.msg import Scan as ScanMsg
@@ -76,9 +77,10 @@ class RunData:
     warnings: list[str] = field(default_factory=list)
 
 
-def read_run(bag, use: str = "retrack") -> RunData:
+def read_run(bag, use: str = "retrack", skip_damaged: bool = False) -> RunData:
     """The run's scans, platform states, track arrays and truth; RetrackError when the bag has
-    lost data, or a needed topic is unreadable or of another type (version). ``use``: the
+    lost data, is cut off (a killed recorder) unless ``skip_damaged`` (its epochs up to the
+    cut are read), or a needed topic is unreadable or of another type (version). ``use``: the
     command, for the messages."""
     with open_bag(bag) as b:
         lost = b.lost
@@ -86,6 +88,13 @@ def read_run(bag, use: str = "retrack") -> RunData:
             raise RetrackError(
                 f"{lost[0]} ({len(lost)} problem(s) with lost data): {use} needs every scan "
                 "of the run"
+            )
+        cut = [d for d in b.damage if d.kind == INCOMPLETE]
+        if cut and not skip_damaged:
+            raise RetrackError(
+                f"{cut[0]} (the recording was cut off: its last messages are missing): "
+                f"`--skip-damaged` {use}s the epochs it holds, `activetrack bag recover "
+                f"{bag}` rewrites the bag"
             )
         former = [t for t in _FORMER_MEASUREMENT_TOPICS if bag_topic(b, t)]
         if former and not bag_topic(b, topics.SCANS):
@@ -118,7 +127,8 @@ def read_run(bag, use: str = "retrack") -> RunData:
             for _, log_time, data in b.messages([name]):
                 try:
                     msg = deserialize_message(data, cls)
-                except Exception:
+                except Exception as exc:
+                    raise_interrupt_inside(exc)
                     raise RetrackError(
                         f"{bag}: a {t.msgtype} message on {topic} (log time {log_time}) does "
                         "not deserialize"
@@ -141,7 +151,8 @@ def _read_diagnostics(b, run: RunData) -> None:
     for _, _, data in b.messages([name]):
         try:
             array = deserialize_message(data, DiagnosticArray)
-        except Exception:
+        except Exception as exc:
+            raise_interrupt_inside(exc)
             continue
         for status in array.status:
             if status.name.endswith("sim_node"):
@@ -388,6 +399,7 @@ def retrack(
     run: int | None = None,
     timeout: float = 300.0,
     stall_timeout: float = STALL_TIMEOUT,
+    skip_damaged: bool = False,
 ) -> RetrackReport:
     scenario = load_scenario(scenario_path)  # imports the scenario's plugins (filters too)
     if filter_kind is not None:
@@ -395,7 +407,7 @@ def retrack(
             filter_kinds.filter_kind(filter_kind)
         except ValueError as exc:
             raise RetrackError(f"--filter: {exc}") from None
-    data = read_run(bag)
+    data = read_run(bag, skip_damaged=skip_damaged)
     last = check_run(scenario, data, bag)
     check = TrackArrayChecker(scenario)
     try:

@@ -6,11 +6,13 @@ that no name (a scenario built in code, an older file) can put the folder outsid
 
 from __future__ import annotations
 
+import json
+import os
 import re
 from datetime import datetime
 from pathlib import Path
 
-__all__ = ["run_dir_for", "safe_name"]
+__all__ = ["interrupted_before_start", "run_dir_for", "safe_name", "write_summary"]
 
 MAX_NAME_LENGTH = 100
 _UNSAFE = re.compile(r"[^A-Za-z0-9_.-]+")
@@ -36,3 +38,37 @@ def run_dir_for(
     if Path(root).resolve() not in folder.resolve().parents:
         raise ValueError(f"run folder {folder} would lie outside {root}")
     return folder
+
+
+def interrupted_before_start(run_dir: Path, exit_code: int, wall: float) -> dict:
+    """The summary.json of a run stopped by a signal (exit code 130 or 143) before its graph
+    ran an epoch, written to ``run_dir`` (created) and returned: no metrics, the keys of every
+    run's summary (activetrack_bringup.runner.GraphRun.to_json)."""
+    signal_name = {130: "SIGINT", 143: "SIGTERM"}[exit_code]
+    data = {
+        "complete": False,
+        "status": "interrupted",
+        "detail": f"{signal_name} before the graph started",
+        "epochs_completed": 0,
+        "wall_time_s": wall,
+        "real_time_factor": 0.0,
+        "bag": None,
+        "run_dir": str(run_dir),
+        "diagnostics": {},
+        "foreign_messages_dropped": {},
+        "restarts": {},
+        "ros": None,
+    }
+    write_summary(run_dir, data)
+    return data
+
+
+def write_summary(run_dir: Path, data: dict) -> Path:
+    """``run_dir``/summary.json, written whole (a temporary file renamed over it)."""
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    path = run_dir / "summary.json"
+    part = run_dir / ".summary.json.part"
+    part.write_text(json.dumps(data, indent=2))
+    os.replace(part, path)
+    return path

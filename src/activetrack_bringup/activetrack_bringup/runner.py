@@ -8,7 +8,6 @@ then raises :class:`RunIncomplete`.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
@@ -29,7 +28,7 @@ from activetrack_bringup.bag import BagRecorder
 from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_bringup.ros_network import RosNetwork, ros_network
-from activetrack_bringup.run_folder import run_dir_for
+from activetrack_bringup.run_folder import interrupted_before_start, run_dir_for, write_summary
 from activetrack_bringup.supervisor import NodeDied, Supervisor
 from activetrack_ros.graph import history_depth
 from activetrack_ros.hold import MATCH_WAIT_S, SETTLE_S, WaitFor
@@ -206,6 +205,7 @@ def run_graph(
     and save the run folder. Raises RunIncomplete when the run stops early, ScenarioError,
     FileExistsError or GraphSetupError before anything starts.
     """
+    started = time.monotonic()
     opts = RunOptions(**options)
     opts.namespace = check_namespace(opts.namespace)
     wait = _check_wait_for(opts)
@@ -221,21 +221,40 @@ def run_graph(
     bag_path = run_dir / "bag" if opts.record else None
     if bag_path is not None and bag_path.exists():
         raise FileExistsError(f"{bag_path} exists already: choose another run folder (--out)")
-    run_dir.mkdir(parents=True, exist_ok=True)
-    runner = _GraphRunner(scenario, str(scenario_path), opts, graph_key, wait)
-    if opts.announce is not None:
-        opts.announce(runner.network)
-    with interrupts.raising(), runner.graph:
-        runner.run(bag_path)
-        with interrupts.deferred():
-            result = runner.conclude(run_dir, bag_path)
-    if runner.exit_code == 0 and result.status != "complete":
-        runner.exit_code = 1  # the run finished, but not well (non-finite metrics, node errors)
+    with interrupts.raising():  # from here on a signal at any moment leaves summary.json
+        try:
+            _make_run_dir(run_dir)
+            runner = _GraphRunner(scenario, str(scenario_path), opts, graph_key, wait)
+            if opts.announce is not None:
+                opts.announce(runner.network)
+        except (KeyboardInterrupt, interrupts.Terminated) as exc:
+            code = interrupts.exit_code(exc)
+            raise _interrupted_before_start(scenario, run_dir, code, started) from None
+        result = runner.execute(run_dir, bag_path)
     if runner.exit_code:
         raise RunIncomplete(
             f"scenario {scenario.name}: {result.status}: {result.detail}", result, runner.exit_code
         )
     return result
+
+
+def _interrupted_before_start(scenario, run_dir: Path, code: int, started: float) -> RunIncomplete:
+    """A signal while the graph was being built: summary.json says so (no epochs)."""
+    wall = time.monotonic() - started
+    data = interrupted_before_start(run_dir, code, wall)
+    result = GraphRun(None, run_dir, None, wall, 0.0, complete=False, status="interrupted")
+    result.detail = data["detail"]
+    return RunIncomplete(f"scenario {scenario.name}: interrupted: {result.detail}", result, code)
+
+
+def _make_run_dir(run_dir: Path) -> None:
+    """Create the run folder; an --out that cannot be one is a GraphSetupError (one line)."""
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise GraphSetupError(
+            f"run folder {run_dir} cannot be created: {exc.strerror or exc}"
+        ) from None
 
 
 def _check_filter(scenario, opts: RunOptions) -> None:
@@ -297,6 +316,7 @@ class _GraphRunner:
         self.nodes: dict = {}
         self.supervisor: Supervisor | None = None
         self.status, self.detail, self.exit_code = "complete", "", 0
+        self.stopped = False
         self.start = time.monotonic()
 
     def progress(self) -> int:
@@ -310,23 +330,62 @@ class _GraphRunner:
         )  # fmt: skip
         return counted + reported + (self.recorder.count if self.recorder is not None else 0)
 
+    def execute(self, run_dir: Path, bag_path: Path | None) -> GraphRun:
+        """Run the graph, stop it, summarise, close it and write summary.json. A signal at
+        any moment of it ends the same way, the summary marked interrupted: the first one is
+        raised (and caught here), later ones and those in the held stretches are noted."""
+        result = None
+        try:
+            try:
+                try:
+                    self.run(bag_path)
+                finally:
+                    with interrupts.held():  # the stop is not cut short
+                        self._stop()
+                result = self._summarize(run_dir, bag_path)
+                self._plot(result, run_dir)
+            finally:
+                with interrupts.held():  # nor the teardown
+                    self._stop()
+                    self.graph.close()
+        except (KeyboardInterrupt, interrupts.Terminated):
+            pass  # interrupts.received() has it
+        with interrupts.held():
+            if result is None:  # the signal came before the summary: take what the run held
+                result = self._summarize(run_dir, bag_path)
+            self._mark_signal(result)
+            write_summary(run_dir, result.to_json())
+        return result
+
     def run(self, bag_path: Path | None) -> None:
-        """Start, spin to the end (or a failure, a signal), stop; the outcome in status."""
+        """Start and spin to the end (or a failure, a signal); the outcome in status."""
         try:
             self._start(bag_path)
             self._spin()
         except (KeyboardInterrupt, interrupts.Terminated) as exc:
-            self._end("interrupted", "", interrupts.exit_code(exc))
-            self.detail = "SIGINT" if self.exit_code == 130 else "SIGTERM"
+            code = interrupts.exit_code(exc)
+            self._end("interrupted", interrupts.SIGNAL_NAMES[code], code)
         except NodeDied as exc:
             self._end("node_died", str(exc), 1)
         except GraphFault as exc:
             self._end("graph_fault", f"the graph published invalid {exc}", 1)
         except (RemoteNodesMissing, ViewersMissing) as exc:
             self._end("timeout", str(exc), 1)
-        finally:
-            with interrupts.deferred():  # a second Ctrl-C must not leave the bag open
-                self._stop()
+
+    def _mark_signal(self, result: GraphRun) -> None:
+        """A signal that came at any moment (raised or held) makes the exit code its own and,
+        unless the run had failed already, the run interrupted."""
+        code = interrupts.received()
+        if code is None:
+            if self.exit_code == 0 and result.status != "complete":
+                self.exit_code = 1  # finished, but not well (non-finite metrics, node errors)
+            return
+        self.exit_code = code
+        if result.status in ("complete", "interrupted", "node_errors", "non_finite"):
+            result.complete = False
+            result.status, result.detail = "interrupted", interrupts.SIGNAL_NAMES[code]
+            result.files = []
+        self.status, self.detail = result.status, result.detail
 
     def _end(self, status: str, detail: str, exit_code: int) -> None:
         self.status, self.detail, self.exit_code = status, detail, exit_code
@@ -413,6 +472,7 @@ class _GraphRunner:
         return {**self.common, "graph_key": self.key, "parameter_overrides": overrides}
 
     def _finished(self) -> bool:
+        interrupts.check()  # a signal whose exception something swallowed still stops the run
         if self.supervisor is not None:
             self.supervisor.poll()
         if self.evaluator.faults:
@@ -439,8 +499,15 @@ class _GraphRunner:
                 self.graph.spin_until_quiet(self.progress, quiet=quiet, timeout=10 * quiet)
 
     def _stop(self) -> None:
+        """Stop the node processes and close the bag (once; signals held by the caller)."""
+        if self.stopped:
+            return
+        self.stopped = True
         if self.status != "complete":  # take in what was delivered: a fuller partial run
-            self.graph.spin_until_quiet(self.progress, quiet=0.05, timeout=0.3)
+            try:
+                self.graph.spin_until_quiet(self.progress, quiet=0.05, timeout=0.3)
+            except Exception as exc:  # an executor left mid-step by the signal: stop anyway
+                print(f"activetrack: stopping: {type(exc).__name__}: {exc}", file=sys.stderr)
         if self.supervisor is not None:
             self.supervisor.stop()
         if self.recorder is not None:
@@ -455,9 +522,16 @@ class _GraphRunner:
             diagnostics["recorder"] = dict(self.recorder.counters.counts)
         return diagnostics
 
-    def conclude(self, run_dir: Path, bag_path: Path | None) -> GraphRun:
-        """Summarise what the evaluator holds (the completed epochs of an incomplete run) and
-        write summary.json (and the plots of a complete run)."""
+    def _summarize(self, run_dir: Path, bag_path: Path | None) -> GraphRun:
+        """The run's result from what the evaluator holds (the completed epochs of an
+        incomplete run), computed with signals held (a partial summary needs it whole)."""
+        with interrupts.held():
+            code = interrupts.received()
+            if code is not None and self.status == "complete":
+                self._end("interrupted", interrupts.SIGNAL_NAMES[code], code)
+            return self._result(run_dir, bag_path)
+
+    def _result(self, run_dir: Path, bag_path: Path | None) -> GraphRun:
         wall = time.monotonic() - self.start
         scenario, evaluator = self.scenario, self.evaluator
         complete = self.status == "complete"
@@ -485,10 +559,13 @@ class _GraphRunner:
             timeouts=epoch_timeouts(diagnostics),
         )
         _judge(result)
-        if self.opts.plots and result.status == "complete" and summary is not None:
-            result.files = _plots(scenario, summary, run_dir)
-        (run_dir / "summary.json").write_text(json.dumps(result.to_json(), indent=2))
         return result
+
+    def _plot(self, result: GraphRun, run_dir: Path) -> None:
+        """The figures of a complete run (matplotlib: seconds under load, so interruptible:
+        a signal here ends the run interrupted, without figures)."""
+        if self.opts.plots and result.status == "complete" and result.summary is not None:
+            result.files = _plots(self.scenario, result.summary, run_dir)
 
 
 def run_summary(scenario, record, wall: float, run: int | None) -> BatchSummary:

@@ -37,10 +37,18 @@ def add_track_parser(sub) -> None:
     )
     track.add_argument("--run", type=cli_types.run_index, help="Monte Carlo run index (seeding)")
     track.add_argument(
-        "--out", help="output folder (default runs/<name>-<timestamp>; must not exist)"
+        "--out",
+        type=cli_types.output_folder,
+        help="output folder (default runs/<name>-<timestamp>; must not exist)",
     )
-    track.add_argument("--json", help="also write the tracks (and GOSPA) to this JSON file")
-    track.add_argument("--csv", help="also write the tracks to this CSV file")
+    track.add_argument(
+        "--json",
+        type=cli_types.output_file,
+        help="also write the tracks (and GOSPA) to this JSON file",
+    )
+    track.add_argument(
+        "--csv", type=cli_types.output_file, help="also write the tracks to this CSV file"
+    )
     track.set_defaults(func=cmd_track)
 
 

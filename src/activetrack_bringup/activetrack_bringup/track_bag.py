@@ -42,7 +42,7 @@ def read_bag(
     """The bag's scans (by epoch, in the configuration's sensor order) and its truth (None
     without a ground_truth topic); BagError (one line) for a bag or message that does not fit
     the configuration."""
-    run = read_run(bag, use="track")
+    run = read_run(bag, use="track", skip_damaged=True)
     order = {sid: i for i, sid in enumerate(sensors)}
     by_epoch: dict[int, list[Scan]] = {}
     rows: dict[tuple[int, str], str] = {}
@@ -69,7 +69,7 @@ def read_bag(
 
 def read_bag_truth(bag, config: TrackingConfig) -> dict[int, TruthSet] | None:
     """The truth of a bag's ``ground_truth`` topic (None without one)."""
-    return _bag_truth(bag, read_run(bag, use="track"), config)
+    return _bag_truth(bag, read_run(bag, use="track", skip_damaged=True), config)
 
 
 def _bag_truth(bag, run, config: TrackingConfig) -> dict[int, TruthSet] | None:

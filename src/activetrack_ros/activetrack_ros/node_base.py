@@ -163,7 +163,8 @@ class GraphNode(Node):
             if msg is None:
                 try:
                     msg = deserialize_message(data, msg_type)
-                except Exception:  # a raw writer can send any bytes
+                except Exception as exc:  # a raw writer can send any bytes
+                    raise_interrupt_inside(exc)  # a Ctrl-C inside the C decoder: not the bytes'
                     return self.reject("undecodable", f"{name} on {topic}")
             frame = getattr(getattr(msg, "header", None), "frame_id", self.frame_id)
             if frame != self.frame_id:  # e.g. a driver in "map" feeding a graph in "world"
@@ -213,7 +214,8 @@ class GraphNode(Node):
             elif diagnostics:  # the tag travels inside the message
                 try:
                     msg = deserialize_message(data, msg_type)
-                except Exception:  # no tag can be read from it: not the graph's
+                except Exception as exc:  # no tag can be read from it: not the graph's
+                    raise_interrupt_inside(exc)
                     msg = None
                 ok = msg is not None and key.verify_diagnostics(msg)
             if not ok:
@@ -256,9 +258,7 @@ class GraphNode(Node):
         except Rejected as r:
             self.reject(r.reason, r.detail)
         except Exception as exc:
-            interrupt = _interrupt_inside(exc)
-            if interrupt is not None:  # Ctrl-C landed inside compiled code: still a Ctrl-C
-                raise interrupt from None
+            raise_interrupt_inside(exc)  # before anything is counted: a Ctrl-C is no error
             if not self.context.ok():  # shutting down (SIGTERM): publishing fails, as it may
                 return
             where = getattr(callback, "__name__", "callback")
@@ -361,6 +361,15 @@ def unaccounted(counts: dict) -> int:
     0 for every node (a test checks it under floods)."""
     total = lambda prefix: sum(int(v) for k, v in counts.items() if k.startswith(prefix))  # noqa: E731
     return total("received.") - sum(total(p) for p in OUTCOMES)
+
+
+def raise_interrupt_inside(exc: BaseException) -> None:
+    """Raise the Ctrl-C (KeyboardInterrupt, SystemExit or the runner's SIGTERM) that ``exc``
+    wraps, if any; callers of code that may wrap it (a numba kernel, the C message decoder)
+    call this first in their ``except Exception``."""
+    interrupt = _interrupt_inside(exc)
+    if interrupt is not None:
+        raise interrupt from None
 
 
 def _interrupt_inside(exc: BaseException) -> BaseException | None:

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import math
 import re
-from typing import TYPE_CHECKING, Annotated, Any, Self
+from typing import TYPE_CHECKING, Annotated, Any, Self, get_args
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
+from pydantic.fields import FieldInfo
 
 from activetrack import limits
 
@@ -88,9 +89,55 @@ def identifier(what: str, max_length: int = limits.MAX_ID_LENGTH) -> Any:
 
 
 class Strict(BaseModel):
-    """A section of a scenario file: unknown keys are errors, values are frozen."""
+    """A section of a scenario file: unknown keys are errors, values are frozen, and a
+    boolean is no number (pydantic would read ``dt: true`` as 1.0)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_booleans_as_numbers(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        problems = [
+            f"{name}: must be {_allowed(field)}, not a boolean (got {shown(value)})"
+            for name, value in data.items()
+            if (field := cls.model_fields.get(name)) is not None
+            and _holds_bool(value)
+            and not _mentions_bool(field.annotation)
+        ]
+        if problems:
+            raise ValueError("\n".join(problems))
+        return data
+
+
+def _holds_bool(value: Any) -> bool:
+    """A bool, or a list (of lists) holding one."""
+    if isinstance(value, list | tuple):
+        return any(_holds_bool(v) for v in value)
+    return isinstance(value, bool)
+
+
+def _mentions_bool(annotation: Any) -> bool:
+    """The field's type takes booleans (bool, StrictBool, bool | None, ...)."""
+    return annotation is bool or any(_mentions_bool(a) for a in get_args(annotation))
+
+
+def _allowed(field: FieldInfo) -> str:
+    """What a field that is not boolean takes, e.g. "a number in [0.001, 10000]"."""
+    bounds = {
+        k: getattr(m, k) for m in field.metadata for k in ("ge", "gt", "le", "lt")
+        if getattr(m, k, None) is not None
+    }  # fmt: skip
+    annotation = str(field.annotation)
+    what = "numbers" if "list" in annotation else "an integer" if field.annotation is int else (
+        "a number"
+    )  # fmt: skip
+    if not bounds:
+        return what
+    lo = f"[{bounds['ge']:g}" if "ge" in bounds else f"({bounds.get('gt', -math.inf):g}"
+    hi = f"{bounds['le']:g}]" if "le" in bounds else f"{bounds.get('lt', math.inf):g})"
+    return f"{what} in {lo}, {hi}"
 
 
 # --- states ------------------------------------------------------------------------------------

@@ -5,13 +5,19 @@ Exit codes: 0 done, 1 nothing answered in time, 2 bad input (docs/ros-tools.md).
 from __future__ import annotations
 
 import sys
+from typing import TYPE_CHECKING
 
-from activetrack_bringup.ros_tools.session import DISCOVERY_S, ToolError, ToolSession
+from activetrack_bringup.ros_tools import DISCOVERY_S
+
+if TYPE_CHECKING:  # rclpy loads when a command runs, not when the parser is built
+    from activetrack_bringup.ros_tools.session import ToolSession
 
 MAX_DOMAIN_ID = 232  # the highest ROS_DOMAIN_ID ROS 2 allows
 
 
 def _session(args, name: str) -> ToolSession:
+    from activetrack_bringup.ros_tools.session import ToolSession
+
     return ToolSession(args.domain, args.namespace, name)
 
 
@@ -85,6 +91,8 @@ def _cmd_param(args) -> int:
 
 def run(args) -> int:
     """Run a ``ros`` subcommand; a ToolError is one ``error:`` line and its exit code."""
+    from activetrack_bringup.ros_tools.session import ToolError
+
     try:
         return args.ros_func(args)
     except ToolError as exc:

@@ -9,14 +9,7 @@ from rclpy.expand_topic_name import expand_topic_name
 from rclpy.node import Node
 
 from activetrack_bringup.inprocess import InProcessGraph
-
-# How long a tool lets DDS discovery fill in the graph before it answers: until nothing new
-# appeared for SETTLE_S, at most DISCOVERY_S. There is no ros2 daemon keeping the graph, and a
-# new participant learns of some others only at their next periodic announcement (Fast DDS:
-# every 3 s; measured here: the runner's evaluator and recorder 2-3 s after the node
-# processes), so a quiet spell shorter than that period proves nothing.
-DISCOVERY_S = 10.0
-SETTLE_S = 3.5
+from activetrack_bringup.ros_tools import DISCOVERY_S, SETTLE_S
 
 
 class ToolError(Exception):
