@@ -79,12 +79,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
     concluded = []  # run_graph's answer came: it wrote the run's summary
     try:
         return _run(args, concluded)
-    except (KeyboardInterrupt, interrupts.Terminated) as exc:
+    except (KeyboardInterrupt, interrupts.Terminated, Exception) as exc:
+        code = interrupts.received()
+        if isinstance(exc, Exception) and code is None:
+            raise  # an error, not a signal
+        # An Exception with a signal noted: a C extension wrapped the signal's exception in
+        # its own error (pydantic-core building a scenario model gives a SchemaError).
         if concluded:
             raise
         from activetrack_bringup.run_folder import interrupted_before_start, run_dir_for
 
-        code = interrupts.exit_code(exc)
+        code = code or interrupts.exit_code(exc)
         with interrupts.held():  # a second signal must not cut the summary short
             # The scenario's name is not known yet: the default folder takes the file's.
             run_dir = Path(args.out or run_dir_for(Path(args.scenario).stem))
@@ -93,6 +98,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 print(f"  INCOMPLETE interrupted before the graph started\n  run folder {run_dir}")
             except OSError as err:
                 _error(f"{run_dir}: {err.strerror or err}: no summary written")
+        if isinstance(exc, Exception):
+            interrupts.check()  # the signal's own exception, for its exit code
         raise
 
 
@@ -589,16 +596,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; ``argv`` None: this process's own (the console script)."""
-    code, command = _main(argv)
-    if argv is None and command is _cmd_run:
-        # A run has written everything and stopped its processes; Python's own teardown of the
-        # loaded modules and the DDS library takes a second or more under load, during which a
-        # Ctrl-C would meet Python's default handler (past the 2 s a stop may take, too).
-        if code == 0 and interrupts.received() is not None:
-            code = interrupts.received()  # after summary.json: the run finished, then this
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
+    # The handlers stay in from the first line to the exit: a signal in the instant after a
+    # run finished meets them, not Python's own handler (a traceback) or nothing.
+    with interrupts.raising():
+        try:
+            code, command = _main(argv)
+        except (KeyboardInterrupt, interrupts.Terminated) as exc:  # as _main returned
+            code, command = interrupts.exit_code(exc), None
+        if argv is None and command is _cmd_run:
+            # A run has written everything and stopped its processes; Python's own teardown
+            # of the loaded modules and the DDS library takes a second or more under load
+            # (past the 2 s a stop may take): exit now, with any signal held till then.
+            with interrupts.held():
+                sys.stdout.flush()
+                sys.stderr.flush()
+                late = interrupts.received()  # after summary.json: the run finished, then this
+                os._exit(code if code or late is None else late)
     return code
 
 

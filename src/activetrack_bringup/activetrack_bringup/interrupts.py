@@ -13,6 +13,7 @@ or the teardown still gives a summary that says so.
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 
@@ -59,12 +60,26 @@ def raising():
         _code, _raised = None, False
     _raising += 1
     previous = {s: signal.signal(s, _handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    hook, sys.unraisablehook = sys.unraisablehook, _quiet_unraisable(sys.unraisablehook)
     try:
         yield
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
+        sys.unraisablehook = hook
         _raising -= 1
+
+
+def _quiet_unraisable(hook):
+    """A signal raised inside a finalizer or weakref callback is one Python can only print
+    ("Exception ignored in ..."): it is noted already (:func:`received`) and :func:`check`
+    raises it again where the run can stop, so it is not printed as a traceback."""
+
+    def quiet(unraisable) -> None:
+        if not isinstance(unraisable.exc_value, (KeyboardInterrupt, Terminated)):
+            hook(unraisable)
+
+    return quiet
 
 
 @contextmanager
