@@ -184,6 +184,18 @@ def load() -> str:
     return " ".join(f"{x:.1f}" for x in os.getloadavg())
 
 
+def _category_rows(categories, clean, tmp: Path, opts: dict, rate: float) -> list[dict]:
+    rows = [
+        category_row(cat.name, clean, tmp, opts, categories=[cat.name], rate=rate)
+        for cat in categories
+    ]
+    rows.append(category_row("replay_of_genuine", clean, tmp, opts, replay=True, rate=rate))
+    rows.append(category_row("raw_garbage", clean, tmp, opts, garbage=50, rate=rate))
+    floods = {t: 30 for t in TOPIC_OF}
+    rows.append(category_row("random_messages", clean, tmp, opts, floods=floods, seed=1, rate=rate))
+    return rows
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--processes", action="store_true", help="one process per node")
@@ -191,6 +203,7 @@ def main() -> int:
     parser.add_argument("--flood-rate", type=float, default=2000.0)
     parser.add_argument("--flood-seconds", type=float, default=10.0)
     parser.add_argument("--no-flood", action="store_true")
+    parser.add_argument("--flood-only", action="store_true", help="the flood row alone")
     parser.add_argument(
         "--quick", action="store_true", help="one category per message type, no flood"
     )
@@ -207,14 +220,8 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
         clean = run_graph(SHORT, run_dir=tmp / "clean", **opts)
-        for cat in categories:
-            rows.append(category_row(cat.name, clean, tmp, opts, categories=[cat.name], rate=rate))
-        rows.append(category_row("replay_of_genuine", clean, tmp, opts, replay=True, rate=rate))
-        rows.append(category_row("raw_garbage", clean, tmp, opts, garbage=50, rate=rate))
-        floods = {t: 30 for t in TOPIC_OF}
-        rows.append(
-            category_row("random_messages", clean, tmp, opts, floods=floods, seed=1, rate=rate)
-        )
+        if not args.flood_only:
+            rows += _category_rows(categories, clean, tmp, opts, rate)
         if not (args.no_flood or args.quick):
             rows.append(flood_row(args.flood_rate, args.flood_seconds, tmp, opts))
     width = max(len(r["name"]) for r in rows)

@@ -497,6 +497,9 @@ class _GraphRunner:
             else:
                 quiet = 4 * REPUBLISH_S
                 self.graph.spin_until_quiet(self.progress, quiet=quiet, timeout=10 * quiet)
+                # A node that died as the last epoch came in (the runner's poll came before
+                # the death) still fails the run: it did not end as a complete graph's node.
+                self.supervisor.poll()
 
     def _stop(self) -> None:
         """Stop the node processes and close the bag (once; signals held by the caller)."""
