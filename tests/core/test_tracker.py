@@ -955,6 +955,26 @@ def test_clusters_are_the_connected_components_of_the_gate_by_first_track():
     assert max(sizes) >= 5 and sizes.count(1) > 50  # chains and singletons both seen
 
 
+def _tracker_of(filter_class, stacked, sc, targets) -> Tracker:
+    """A tracker like ``stacked`` whose EKF tracks are ``filter_class`` (a subclass)."""
+    model = stacked.model
+    return Tracker(
+        model,
+        "ncv",
+        FilterSpec("ekf", False, lambda x0, P0, t0: filter_class(model, x0, P0, t0)),
+        stacked.sensors,
+        [
+            TrackPrior(t["id"], np.array(t["mean"]), np.diag([100.0, 4.0, 100.0, 4.0]))
+            for t in targets
+        ],
+        known_association=False,
+        management=sc.tracker.tracks,
+        planner_samples=1,
+        new_track_priority=1.0,
+        rng=np.random.default_rng(0),
+    )
+
+
 def test_an_ekf_subclass_that_overrides_one_step_keeps_it_and_the_numbers_stay():
     """The tracker predicts, starts and updates EKF tracks in stacked calls; a subclass that
     overrides predict or update_pda alone is called one track at a time (its own method), and
@@ -974,22 +994,7 @@ def test_an_ekf_subclass_that_overrides_one_step_keeps_it_and_the_numbers_stay()
     sc = make_scenario(targets, [range_bearing(clutter_density=3e-4)])
     _, scans = simulate(sc, 8, np.random.default_rng(12))
     stacked, sets = run(sc, scans)
-    model = stacked.model
-    own = Tracker(
-        model,
-        "ncv",
-        FilterSpec("ekf", False, lambda x0, P0, t0: Own(model, x0, P0, t0)),
-        stacked.sensors,
-        [
-            TrackPrior(t["id"], np.array(t["mean"]), np.diag([100.0, 4.0, 100.0, 4.0]))
-            for t in targets
-        ],
-        known_association=False,
-        management=sc.tracker.tracks,
-        planner_samples=1,
-        new_track_priority=1.0,
-        rng=np.random.default_rng(0),
-    )
+    own = _tracker_of(Own, stacked, sc, targets)
     for k, epoch_scans in enumerate(scans, start=1):
         ts = own.step(k, k * sc.dt, epoch_scans)
         assert [t.track_id for t in ts.tracks] == [t.track_id for t in sets[k].tracks]
@@ -1025,22 +1030,7 @@ def test_ekf_tracks_are_read_and_updated_stacked_and_a_subclass_of_its_own_momen
         assert np.array_equal(e.mean, track.filter.mean) and np.array_equal(e.state, e.mean)
         assert np.array_equal(e.cov, track.filter.cov) and np.array_equal(e.state_cov, e.cov)
         assert not np.shares_memory(e.mean, e.state) and not np.shares_memory(e.cov, e.state_cov)
-    model = stacked.model
-    own = Tracker(
-        model,
-        "ncv",
-        FilterSpec("ekf", False, lambda x0, P0, t0: OwnMean(model, x0, P0, t0)),
-        stacked.sensors,
-        [
-            TrackPrior(t["id"], np.array(t["mean"]), np.diag([100.0, 4.0, 100.0, 4.0]))
-            for t in targets
-        ],
-        known_association=False,
-        management=sc.tracker.tracks,
-        planner_samples=1,
-        new_track_priority=1.0,
-        rng=np.random.default_rng(0),
-    )
+    own = _tracker_of(OwnMean, stacked, sc, targets)
     for k, epoch_scans in enumerate(scans, start=1):
         ts = own.step(k, k * sc.dt, epoch_scans)
         assert own._stacked is None

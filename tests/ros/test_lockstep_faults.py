@@ -42,10 +42,11 @@ DEFAULT_DELAY = 2.5
 pytestmark = pytest.mark.ros
 
 
-def _run(tmp_path, monkeypatch, faults: str = ""):
+def _run(tmp_path, monkeypatch, faults: str = "", **options):
     monkeypatch.setenv(ENV, faults)
     return run_graph(
         SCENARIO,
+        **options,
         run_dir=tmp_path,
         record=False,
         plots=False,
@@ -216,17 +217,8 @@ def test_the_tracker_buffer_is_bounded(graph, monkeypatch):
 def test_node_processes_wait_for_a_late_scan_too(clean, tmp_path, monkeypatch, localhost_discovery):
     """With one process per node (each reads the hook from the environment): a scan 2.5 s
     late, past the command timeout, changes nothing; no timeout fires."""
-    monkeypatch.setenv(ENV, f"publish:{topics.SCANS}#{NTH[topics.SCANS]}=delay:{DEFAULT_DELAY}")
-    run = run_graph(
-        SCENARIO,
-        processes=True,
-        run_dir=tmp_path,
-        record=False,
-        plots=False,
-        sim_params={"command_timeout": COMMAND_TIMEOUT},
-        tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
-        timeout=120,
-    )
+    late = f"publish:{topics.SCANS}#{NTH[topics.SCANS]}=delay:{DEFAULT_DELAY}"
+    run = _run(tmp_path, monkeypatch, late, processes=True)
     assert run.complete and run.status == "complete"
     assert run.diagnostics["sim"].get(f"injected.delay.{topics.SCANS}") == 1
     assert run.timeouts == {}
