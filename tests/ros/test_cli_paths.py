@@ -9,6 +9,7 @@ Damaged bags through play and retrack: tests/ros/test_bag_damage.py.
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from pathlib import Path
@@ -103,3 +104,14 @@ def test_checked_output_paths_are_taken_as_given(tmp_path, capsys):
     )
     assert args.out == str(tmp_path / "a" / "b") and args.json == str(tmp_path / "old.json")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["old.json"]  # no probe left
+
+
+def test_a_summary_written_before_the_graph_started_has_every_run_summary_key(tmp_path):
+    """interrupted_before_start writes the keys GraphRun.to_json gives every run."""
+    from activetrack_bringup.run_folder import interrupted_before_start
+    from activetrack_bringup.runner import GraphRun
+
+    data = interrupted_before_start(tmp_path, 143, 0.5)
+    assert set(data) == set(GraphRun(None, tmp_path, None, 0.5, 0.0).to_json())
+    assert data["detail"] == "SIGTERM before the graph started"
+    assert json.loads((tmp_path / "summary.json").read_text()) == data

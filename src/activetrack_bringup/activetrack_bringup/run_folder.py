@@ -12,6 +12,8 @@ import re
 from datetime import datetime
 from pathlib import Path
 
+from activetrack_bringup.interrupts import SIGNAL_NAMES
+
 __all__ = ["interrupted_before_start", "run_dir_for", "safe_name", "write_summary"]
 
 MAX_NAME_LENGTH = 100
@@ -44,7 +46,7 @@ def interrupted_before_start(run_dir: Path, exit_code: int, wall: float) -> dict
     """The summary.json of a run stopped by a signal (exit code 130 or 143) before its graph
     ran an epoch, written to ``run_dir`` (created) and returned: no metrics, the keys of every
     run's summary (activetrack_bringup.runner.GraphRun.to_json)."""
-    signal_name = {130: "SIGINT", 143: "SIGTERM"}[exit_code]
+    signal_name = SIGNAL_NAMES[exit_code]
     data = {
         "complete": False,
         "status": "interrupted",
@@ -57,6 +59,7 @@ def interrupted_before_start(run_dir: Path, exit_code: int, wall: float) -> dict
         "diagnostics": {},
         "foreign_messages_dropped": {},
         "restarts": {},
+        "timeouts": {},
         "ros": None,
     }
     write_summary(run_dir, data)
