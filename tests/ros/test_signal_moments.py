@@ -200,9 +200,9 @@ def test_ctrl_c_at_twenty_moments_and_sigterm_at_four(tmp_path):
     # (deserialisation, kernels, bag writes), 4 in the stop, summary and figures.
     # (Only the last four draw the figures: they take seconds that the others need not wait.)
     # (A run here may go faster than the measured ones: the spans stop short of their ends.)
-    moments = _spread("start", 0.0, startup, 8) + _spread("graph", 0.0, 0.8 * wall, 8)
+    moments = _spread("start", 0.0, startup, 8) + _spread("graph", 0.0, 0.6 * wall, 8)
     runs = _sweep(tmp_path / "int", moments, signal.SIGINT, "--no-plots")
-    runs += _sweep(tmp_path / "end", _spread("graph", wall, 0.8 * after, 4), signal.SIGINT)
+    runs += _sweep(tmp_path / "end", _spread("graph", 0.6 * wall, 0.6 * after, 4), signal.SIGINT)
     assert len(runs) == SIGINT_MOMENTS
     term = _sweep(
         tmp_path / "term",
