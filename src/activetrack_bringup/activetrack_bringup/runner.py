@@ -8,6 +8,7 @@ then raises :class:`RunIncomplete`.
 
 from __future__ import annotations
 
+import importlib
 import math
 import os
 import re
@@ -223,6 +224,7 @@ def run_graph(
         raise FileExistsError(f"{bag_path} exists already: choose another run folder (--out)")
     with interrupts.raising():  # from here on a signal at any moment leaves summary.json
         try:
+            _import_lazy_modules()
             _make_run_dir(run_dir)
             runner = _GraphRunner(scenario, str(scenario_path), opts, graph_key, wait)
             if opts.announce is not None:
@@ -236,6 +238,20 @@ def run_graph(
             f"scenario {scenario.name}: {result.status}: {result.detail}", result, runner.exit_code
         )
     return result
+
+
+# What the core imports on first use (the GOSPA assignment, the planner's searches and special
+# functions, the tracker's k-d trees), imported before the graph starts: a signal inside one of
+# these imports mid-run leaves its compiled modules half-registered, and the interrupted run's
+# summary could then not import it again (seen: scipy.optimize's HiGHS wrapper, "type already
+# registered", in the run's GOSPA). A signal during start-up ends the run before any of them
+# is needed.
+LAZY_MODULES = ("scipy.optimize", "scipy.special", "scipy.spatial")
+
+
+def _import_lazy_modules() -> None:
+    for name in LAZY_MODULES:
+        importlib.import_module(name)
 
 
 def _interrupted_before_start(scenario, run_dir: Path, code: int, started: float) -> RunIncomplete:
