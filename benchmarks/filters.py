@@ -35,6 +35,7 @@ before timing for every implementation.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import platform
 import statistics
@@ -42,6 +43,7 @@ import sys
 import time
 from dataclasses import dataclass
 from datetime import datetime, timedelta
+from pathlib import Path
 
 import numpy as np
 
@@ -424,6 +426,16 @@ def time_pcrlb_step(sc: Scenario, n_mc: int, n_candidates: int, reps: int) -> fl
     return statistics.median(out[3:])
 
 
+def _machine():
+    """``benchmarks/machine.py`` (this file is also loaded by path, from the tests)."""
+    path = Path(__file__).resolve().parent / "machine.py"
+    spec = importlib.util.spec_from_file_location("bench_machine", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def us(t: float) -> str:
     return f"{t * 1e6:9.1f} us"
 
@@ -454,6 +466,7 @@ def main(argv=None) -> int:
     N = args.particles
 
     print(f"# filters benchmark  python {platform.python_version()}  numpy {np.__version__}")
+    print(f"# {_machine().describe()}")
     try:
         import stonesoup
 

@@ -935,8 +935,9 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     print(
         f"# multitarget benchmark  python {platform.python_version()}  numpy {np.__version__}"
-        f"  stonesoup {stonesoup.__version__}  load average {os.getloadavg()[0]:.1f}"
+        f"  stonesoup {stonesoup.__version__}"
     )
+    print(f"# {_sibling('machine').describe()}")
     sc = JPDAScenario()
     scale = _scale_module()
     t_start = time.perf_counter()

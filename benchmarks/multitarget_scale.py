@@ -50,6 +50,7 @@ import argparse
 import math
 import os
 import signal
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -434,7 +435,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--epochs", type=int, default=5, help="timed epochs per point")
     p.add_argument("--budget", type=float, default=POINT_BUDGET_S, help="POINT_BUDGET_S (s)")
     args = p.parse_args(argv)
-    print(f"# load average {os.getloadavg()[0]:.1f}")
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import machine  # benchmarks/machine.py, beside this script
+
+    print(f"# {machine.describe()}")
     print_header(args.implementations, args.epochs, args.budget)
     rows = scale_table(
         args.sizes, args.layouts, sorted(args.clutter), args.implementations, args.budget,
