@@ -121,6 +121,12 @@ if stamp_ok kernels "$h" && compgen -G "$A/kernels/__pycache__/*.nbi" >/dev/null
     echo "setup: [$STEP] unchanged, skipped"
 else
     rm -f "$STAMPS/kernels"
+    # numba keys a kernel's cache on its own file only: one that inlines another file's
+    # function (the PF's sampling inlines kernels/pcg64.py's draws) would keep the old code.
+    # Any change to a kernel source recompiles them all.
+    for d in "$A"/kernels "$A"/models "$A"/bounds "$A"/planning; do
+        rm -f "$d"/__pycache__/*.nbi "$d"/__pycache__/*.nbc
+    done
     env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE "$PY" -m activetrack.kernels
     stamp_write kernels "$h"
 fi

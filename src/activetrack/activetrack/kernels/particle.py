@@ -24,8 +24,8 @@ No ``fastmath``: without it LLVM neither reorders nor fuses the floating-point o
 keeps them those of the reference. ``error_model="numpy"``: a division by zero gives inf or NaN
 as in numpy (a particle on the sensor) instead of raising. Every kernel is cached on disk
 (``cache=True``). numba keys that cache on this file alone: the sampling kernels inline
-``pcg64.layer``, so a change there reaches them only once this file changes too, or once
-``kernels/__pycache__`` is cleared.
+``pcg64.layer``, so a change there reaches them only once ``kernels/__pycache__`` is cleared,
+which ``make setup`` does whenever a kernel source changed (tools/setup.sh).
 """
 
 from __future__ import annotations

@@ -63,8 +63,13 @@ _A4 = pow(_A, 4, _MOD128)
 _K4 = (_A**3 + _A**2 + _A + 1) % _MOD128  # c K4 is the four-step increment
 # uint64 halves (hi, lo) of a, a^4 and K4 for the compiled code.
 _HALVES = np.array([v >> s & _MASK64 for v in (_A, _A4, _K4) for s in (64, 0)], dtype=np.uint64)
-KI = np.array(ki_double, dtype=np.uint64)
+# The ziggurat's tables indexed by an output's low 9 bits, key = sign bit << 8 | layer: the
+# layer's rectangle bound KI and its width WI with the sign folded in (x = rabs * -WI is -(rabs *
+# WI) exactly: rounding is symmetric), so a draw needs no sign step and one index.
+_KI = np.array(ki_double, dtype=np.uint64)
+KI = np.concatenate([_KI, _KI])
 _WI = np.array(wi_double, dtype=np.float64)
+_WS = np.concatenate([_WI, -_WI])
 _FI = np.array(fi_double, dtype=np.float64)
 _TO_UNIT = 1.0 / 9007199254740992.0  # 2^-53: PCG64's next_double from a 64-bit output
 BUFFER = 2048  # raw outputs per refill (a multiple of 4: whole rounds of the four chains)
@@ -142,25 +147,25 @@ def refill(chains, buf, start):  # pragma: no cover - compiled
 
 @njit(inline="always")
 def layer(r):  # pragma: no cover - compiled
-    """numpy's ziggurat split of a 64-bit output: (layer, |x| bits, x on the layer); x is the
-    normal when |x| bits < KI[layer] (about 99 % of draws), else see :func:`rejected`."""
-    idx = r & np.uint64(0xFF)
-    r >>= np.uint64(8)
-    rabs = (r >> np.uint64(1)) & np.uint64(0x000FFFFFFFFFFFFF)
-    # rabs < 2^52: exact as a signed integer. The sign bit as a factor +-1 (exact, -x when
-    # set) rather than a branch: a random sign mispredicts half the time, which cost a third
-    # of the sampling kernel's time.
-    sign = 1.0 - 2.0 * np.float64(np.int64(r & np.uint64(1)))
-    x = np.float64(np.int64(rabs)) * _WI[idx] * sign
-    return idx, rabs, x
+    """numpy's ziggurat split of a 64-bit output: (key, |x| bits, x on the layer) with key the
+    low 9 bits (layer = key & 0xFF, then the sign bit); x is the normal when |x| bits <
+    KI[key] (about 99 % of draws), else see :func:`rejected`."""
+    key = r & np.uint64(0x1FF)
+    rabs = (r >> np.uint64(9)) & np.uint64(0x000FFFFFFFFFFFFF)
+    # rabs < 2^52: exact as a signed integer; the sign is the table's (no branch: a random
+    # sign mispredicts half the time).
+    x = np.float64(np.int64(rabs)) * _WS[key]
+    return key, rabs, x
 
 
 @njit(cache=True)
-def rejected(raw, j, end, idx, rabs, x):  # pragma: no cover - compiled
-    """numpy's ziggurat after a first output outside its layer's rectangle: the tail (layer 0)
-    or the wedge test, then new outputs until one is accepted, reading raw[j:end]. Returns
-    (x, next j), or (nan, -1) when the data runs out first."""
+def rejected(raw, j, end, key, rabs, x):  # pragma: no cover - compiled
+    """numpy's ziggurat after a first output outside its layer's rectangle (``key``, ``rabs``,
+    ``x`` of :func:`layer`): the tail (layer 0) or the wedge test, then new outputs until one
+    is accepted, reading raw[j:end]. Returns (x, next j), or (nan, -1) when the data runs out
+    first."""
     while True:
+        idx = key & np.uint64(0xFF)
         if idx == 0:
             while True:
                 if j + 2 > end:
@@ -177,9 +182,9 @@ def rejected(raw, j, end, idx, rabs, x):  # pragma: no cover - compiled
         u = (raw[j] >> np.uint64(11)) * _TO_UNIT
         if (_FI[idx - 1] - _FI[idx]) * u + _FI[idx] < np.exp(-0.5 * x * x):
             return x, j + 1
-        idx, rabs, x = layer(raw[j + 1])
+        key, rabs, x = layer(raw[j + 1])
         j += 2
-        if rabs < KI[idx]:
+        if rabs < KI[key]:
             return x, j
 
 
@@ -234,5 +239,5 @@ def warm_up() -> None:
     chains = new_stream(np.zeros(4, dtype=np.uint64))
     buf = np.empty(BUFFER, dtype=np.uint64)
     refill(chains, buf, 0)
-    idx, rabs, x = 0, np.uint64(0), 0.0
-    rejected(buf, 0, buf.shape[0], np.uint64(idx), rabs, x)
+    key, rabs, x = np.uint64(0), np.uint64(0), 0.0
+    rejected(buf, 0, buf.shape[0], key, rabs, x)
