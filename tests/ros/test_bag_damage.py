@@ -395,6 +395,15 @@ def test_damaged_bags_through_play_retrack_recover_and_record(original, tmp_path
             )
             assert not p and rc in (0, 2), (rc, err)
             assert rc == 2 or "retracking epochs 1.." in err
+            # `track` on the bag's scans alike: refused, unless told to take what it holds.
+            out_dir = bag.parent / "tracked"
+            rc, out, err, p = cli(capsys, "track", bag, "--config", SCENARIO, "--out", out_dir)
+            assert not p and rc == 2 and "cut off" in err and "--skip-damaged" in err, err
+            assert not out_dir.exists()
+            rc, out, err, p = cli(
+                capsys, "track", bag, "--config", SCENARIO, "--out", out_dir, "--skip-damaged"
+            )
+            assert not p and rc == 0 and (out_dir / "tracks.csv").exists(), (rc, err)
         rc, out, err, p = cli(capsys, "record", bag, "--duration", "0.1")
         assert not p, (name, p)
         if mutate is not None:

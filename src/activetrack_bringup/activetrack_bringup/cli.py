@@ -17,7 +17,8 @@ activetrack bag info BAG                topics, types, counts and damage of a ba
 activetrack bag retrack BAG --scenario S [--skip-damaged]
                                         replay a run's scans into a fresh tracker
 activetrack bag recover BAG             rebuild a readable bag from a damaged/unfinished one
-activetrack track DETECTIONS --config C track recorded detections (CSV, JSON, a bag)
+activetrack track DETECTIONS --config C [--skip-damaged]
+                                        track recorded detections (CSV, JSON, a bag)
 activetrack reproduce NAME [ARGS...]    reproduce a paper's tables (hernandez, ...)
 activetrack ros graph|echo|hz|param|tf|bag [--namespace NS] [--domain D]
                                         ROS 2 command-line stand-ins on a running graph

@@ -20,7 +20,7 @@ __all__ = ["add_track_parser"]
 
 def add_track_parser(sub) -> None:
     """``activetrack track DETECTIONS --config CONFIG [--truth T] [--run R] [--out DIR]
-    [--json PATH] [--csv PATH]``."""
+    [--json PATH] [--csv PATH] [--skip-damaged]``."""
     track = sub.add_parser(
         "track", help="track recorded detections (CSV, JSON or a bag) with a tracker configuration"
     )
@@ -49,6 +49,11 @@ def add_track_parser(sub) -> None:
     track.add_argument(
         "--csv", type=cli_types.output_file, help="also write the tracks to this CSV file"
     )
+    track.add_argument(
+        "--skip-damaged",
+        action="store_true",
+        help="track the epochs a truncated bag holds (default: refuse a damaged bag)",
+    )
     track.set_defaults(func=cmd_track)
 
 
@@ -64,7 +69,7 @@ def _inputs(args: argparse.Namespace, config, sensors):
     source = Path(args.detections)
     truth = None
     if _is_bag(source):
-        detections, truth = read_bag(source, config, sensors)
+        detections, truth = read_bag(source, config, sensors, args.skip_damaged)
     else:
         if not source.exists():
             raise ValueError(f"{source}: no such file")
@@ -73,7 +78,10 @@ def _inputs(args: argparse.Namespace, config, sensors):
         path = Path(args.truth)
         if not path.exists():
             raise ValueError(f"{path}: no such file (--truth)")
-        truth = read_bag_truth(path, config) if _is_bag(path) else read_truth(path, config.dt)
+        if _is_bag(path):
+            truth = read_bag_truth(path, config, args.skip_damaged)
+        else:
+            truth = read_truth(path, config.dt)
     return detections, truth
 
 

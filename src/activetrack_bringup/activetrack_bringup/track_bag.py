@@ -37,12 +37,13 @@ __all__ = ["platform_states", "read_bag", "read_bag_truth", "write_track_bag"]
 
 
 def read_bag(
-    bag, config: TrackingConfig, sensors: SensorTable
+    bag, config: TrackingConfig, sensors: SensorTable, skip_damaged: bool = False
 ) -> tuple[Detections, dict[int, TruthSet] | None]:
     """The bag's scans (by epoch, in the configuration's sensor order) and its truth (None
     without a ground_truth topic); BagError (one line) for a bag or message that does not fit
-    the configuration."""
-    run = read_run(bag, use="track", skip_damaged=True)
+    the configuration, or for a truncated bag unless ``skip_damaged`` (then its epochs up to
+    the cut)."""
+    run = read_run(bag, use="track", skip_damaged=skip_damaged)
     order = {sid: i for i, sid in enumerate(sensors)}
     by_epoch: dict[int, list[Scan]] = {}
     rows: dict[tuple[int, str], str] = {}
@@ -67,9 +68,12 @@ def read_bag(
     return Detections(str(bag), scans, rows), _bag_truth(bag, run, config)
 
 
-def read_bag_truth(bag, config: TrackingConfig) -> dict[int, TruthSet] | None:
-    """The truth of a bag's ``ground_truth`` topic (None without one)."""
-    return _bag_truth(bag, read_run(bag, use="track", skip_damaged=True), config)
+def read_bag_truth(
+    bag, config: TrackingConfig, skip_damaged: bool = False
+) -> dict[int, TruthSet] | None:
+    """The truth of a bag's ``ground_truth`` topic (None without one); a truncated bag as in
+    :func:`read_bag`."""
+    return _bag_truth(bag, read_run(bag, use="track", skip_damaged=skip_damaged), config)
 
 
 def _bag_truth(bag, run, config: TrackingConfig) -> dict[int, TruthSet] | None:
