@@ -41,6 +41,7 @@ from activetrack.data import (
 from activetrack.planning.manoeuvre import step_platform
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.build import build_motion_model
+from activetrack_bringup.refetch import TICK_S, Refetcher
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import (
     MAX_COORDINATE,
@@ -72,6 +73,9 @@ from msgs_defs.msg import (
 from msgs_defs.msg import Scan as ScanMsg
 
 NODE_NAMES = ("sim", "tracker", "planner")
+# What the evaluator needs of every epoch to score it (the others: the decisions, given up).
+DATA_TOPICS = (topics.GROUND_TRUTH, topics.PLATFORM_STATES, topics.SCANS, topics.TRACKS)
+SIM_TOPICS = (topics.GROUND_TRUTH, topics.PLATFORM_STATES, topics.SCANS)
 TRUTH_RGBA = (0.1, 0.75, 0.2, 1.0)
 LEG_RGBA = (1.0, 0.55, 0.0, 1.0)
 MEASURED_RGBA = (1.0, 0.85, 0.1, 0.45)
@@ -147,7 +151,9 @@ class EvaluatorNode(GraphNode):
         self.exit_when_done = p["exit_when_done"]
         self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
         self.diagnostics_order: dict[str, tuple] = {}
-        self.sim_finished_at: float | None = None
+        self.sim_finished_at: float | None = None  # its "finished" status, or epoch K came
+        self.tracker_done_at: float | None = None  # its track array of K came, or was counted
+        self.gave_up: str | None = None  # what was still missing when it gave up (lost)
         self.faults: list[str] = []  # the graph's own result messages that failed validation
         self.size_history(scenario)  # its metrics are per-epoch: a late viewer gets them all
         K = scenario.steps
@@ -186,6 +192,7 @@ class EvaluatorNode(GraphNode):
         self.metrics_pub = self.publisher(RunMetrics, topics.METRICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.subscribe(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics)
+        inputs = {}
         for msg_type, topic, callback in (
             (GroundTruthArray, topics.GROUND_TRUTH, self.on_truth),
             (TrackArray, topics.TRACKS, self.on_tracks),
@@ -196,12 +203,19 @@ class EvaluatorNode(GraphNode):
             (SensorSelection, topics.SENSOR_SELECTION, self.on_selection),
             (PlanReport, topics.PLAN_REPORT, self.on_report),
         ):
-            self.subscribe(msg_type, topic, lambda m, cb=callback: self._result_input(cb, m))
+            check = lambda m, cb=callback, t=topic: self._result_input(cb, m, t)  # noqa: E731
+            self.subscribe(msg_type, topic, lambda m, c=check, t=topic: self._own_input(c, m, t))
+            inputs[topic] = (msg_type, check)
+        # A message lost to a reader here is fetched again from its writer's history
+        # (refetch.py); the last epoch of each topic: K, or K - 1 for the decisions.
+        last = {t: K if t in DATA_TOPICS else K - 1 for t in inputs}
+        self.refetcher = Refetcher(self, inputs, self._has, last)
+        self.guarded_timer(TICK_S, self._on_tick)
 
     def _set_exit_when_done(self, value: bool) -> None:
         self.exit_when_done = value
 
-    def _result_input(self, check, msg) -> None:
+    def _result_input(self, check, msg, topic: str) -> None:
         """Run ``check(msg)``; a message of the graph's own that fails it (other than as a
         duplicate) is a fault of the graph: the runner stops the run instead of waiting."""
         try:
@@ -210,6 +224,61 @@ class EvaluatorNode(GraphNode):
             if self.graph_key is not None and r.reason != "duplicate":
                 self.faults.append(f"{type(msg).__name__} epoch {msg.epoch}: {r}")
             raise
+        K = self.scenario.steps
+        if msg.epoch == K and self.sim_finished_at is None and topic in SIM_TOPICS:
+            self.sim_finished_at = time.monotonic()  # its last epoch: nothing more will come
+        if msg.epoch == K and self.tracker_done_at is None and topic == topics.TRACKS:
+            self.tracker_done_at = time.monotonic()
+
+    def _own_input(self, check, msg, topic: str) -> None:
+        """A message on the evaluator's own reader: its epoch is the topic's news (a gap
+        below it is lost to this reader: refetch.py); a copy of one a fresh reader fetched
+        first is ignored, not a duplicate."""
+        self.refetcher.saw(topic, msg.epoch)
+        try:
+            check(msg)
+        except Rejected as r:
+            if r.reason != "duplicate" or not self.refetcher.filled_before(topic, msg.epoch):
+                raise
+            self.ignore("refetched_before")
+
+    def _has(self, topic: str, k: int) -> bool:
+        """Epoch k's messages of ``topic`` are all here."""
+        if topic == topics.GROUND_TRUTH:
+            return k in self.truth
+        if topic == topics.PLATFORM_STATES:
+            return k in self.platforms
+        if topic == topics.TRACKS:
+            return k in self.tracks
+        if topic == topics.SCANS:
+            return k == 0 or self._scans_in(k)
+        if topic == topics.MANOEUVRE_COMMANDS:
+            return all(p in self.commands.get(k, {}) for p in self.controllable)
+        if topic == topics.BEAM_COMMANDS:
+            return all(s in self.beams.get(k, {}) for s in self.steerable)
+        if topic == topics.SENSOR_SELECTION:
+            return not self.selects or k in self.selections
+        return not self.expects_reports or k in self.reports  # PLAN_REPORT
+
+    def _on_tick(self) -> None:
+        """Fetch lost messages again (refetch.py); once the sim and the tracker have finished
+        and report_grace has passed, a last fetch of everything missing, then give up what
+        is still missing (a message never sent: the run ends, not complete)."""
+        ended = self._finished_at()
+        final = ended is not None and time.monotonic() - ended > self.report_grace_s
+        self.refetcher.tick(final)
+        if self.gave_up is None and self._reports_given_up() and not self.complete:
+            self.gave_up = self.missing()
+            self.log_limited("warning", "gave_up", f"gave up: {self.gave_up}")
+
+    def _finished_at(self) -> float | None:
+        """When both the sim (its last epoch) and the tracker (its update of it) were done."""
+        updates = self.diagnostics.get("tracker", {}).get("updates", 0)
+        if self.tracker_done_at is None and updates >= self.scenario.steps:
+            self.tracker_done_at = time.monotonic()  # its track array of K: lost, or coming
+        if self.sim_finished_at is None or self.tracker_done_at is None:
+            return None
+        return max(self.sim_finished_at, self.tracker_done_at)
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         """Counters of the graph's nodes (only the graph's own statuses arrive with a key). A
@@ -449,13 +518,13 @@ class EvaluatorNode(GraphNode):
     # --- completion ---------------------------------------------------------------------------
 
     # Plan reports (and commands, beams, selections) may be missing for good (a planner that
-    # died); once the sim has finished and they stopped coming for report_grace_s, the run is
-    # complete without them. Between processes the runner gives more: a DDS participant that
-    # missed the planner's first announcements only learns of it at the next periodic one.
+    # died); once the sim and the tracker have finished, report_grace_s has passed and the
+    # last fetch from the writers' histories ended, the run is complete without them. Between
+    # processes the runner gives more: a DDS participant that missed the planner's first
+    # announcements only learns of it at the next periodic one.
 
     def _reports_given_up(self) -> bool:
-        t = self.sim_finished_at
-        return t is not None and time.monotonic() - t > self.report_grace_s
+        return self.refetcher.final_done and not self.refetcher.busy()
 
     @property
     def expects_reports(self) -> bool:
@@ -503,13 +572,14 @@ class EvaluatorNode(GraphNode):
 
     def completed_epochs(self) -> int:
         """The last epoch K' such that truth, tracks, platform states and scans of 0..K' are
-        all here."""
+        all here (once the evaluator gave up: scans lost for good do not end it, the record
+        holds the scans that came, as the tracker did)."""
         k = -1
         while (
             k + 1 in self.truth
             and k + 1 in self.tracks
             and k + 1 in self.platforms
-            and (k + 1 == 0 or self._scans_in(k + 1))
+            and (k + 1 == 0 or self._scans_in(k + 1) or self.gave_up is not None)
         ):
             k += 1
         return k
