@@ -73,6 +73,10 @@ from msgs_defs.msg import (
 from msgs_defs.msg import Scan as ScanMsg
 
 NODE_NAMES = ("sim", "tracker", "planner")
+# Seconds after the sim and the tracker finished that a missing message the result needs may
+# still come (late at its writer) before the run ends without it: the graph itself waits as
+# long (the tracker's default epoch_timeout) for a late scan or state.
+LOST_GRACE_S = 5.0
 # What the evaluator needs of every epoch to score it (the others: the decisions, given up).
 DATA_TOPICS = (topics.GROUND_TRUTH, topics.PLATFORM_STATES, topics.SCANS, topics.TRACKS)
 SIM_TOPICS = (topics.GROUND_TRUTH, topics.PLATFORM_STATES, topics.SCANS)
@@ -110,7 +114,9 @@ class EpochTable:
         return self.values[: last + 1]
 
 
-def evaluator_params(scenario_given: bool, report_grace_s: float) -> tuple[ParamSpec, ...]:
+def evaluator_params(
+    scenario_given: bool, report_grace_s: float, lost_grace_s: float = LOST_GRACE_S
+) -> tuple[ParamSpec, ...]:
     """An evaluator's parameters (what ``ros2 param describe`` shows of it). ``scenario`` is
     required unless the runner hands the node its scenario (and names the file)."""
     return (
@@ -120,6 +126,13 @@ def evaluator_params(scenario_given: bool, report_grace_s: float) -> tuple[Param
         ParamSpec(
             "report_grace", float(report_grace_s),
             "seconds to wait for missing plan reports once the sim has finished",
+            low=0.0, high=3600.0,
+        ),
+        ParamSpec(
+            "lost_grace", float(lost_grace_s),
+            "seconds to wait, once the sim and the tracker have finished, for a missing truth "
+            "array, platform state, scan or track array (late at its writer) before giving it "
+            "up: the run ends messages_lost",
             low=0.0, high=3600.0,
         ),
         ParamSpec(
@@ -138,15 +151,19 @@ class EvaluatorNode(GraphNode):
     """Collects a run per epoch (module docstring); ``record()`` gives it. ``scenario``: the
     run's, or None to load the file of its ``scenario`` parameter (a standalone evaluator)."""
 
-    def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
-        super().__init__("activetrack_evaluator", **kwargs)
+    def __init__(
+        self, scenario, *, report_grace_s: float = 1.0, lost_grace_s: float = LOST_GRACE_S, **kw
+    ):
+        super().__init__("activetrack_evaluator", **kw)
         changes = {"exit_when_done": self._set_exit_when_done}
-        p = self.declare_params(evaluator_params(scenario is not None, report_grace_s), changes)
+        specs = evaluator_params(scenario is not None, report_grace_s, lost_grace_s)
+        p = self.declare_params(specs, changes)
         if scenario is None:
             scenario = load_scenario(p["scenario"])
         self.scenario = scenario
         self.run_index = None if p["run"] < 0 else p["run"]
         self.report_grace_s = p["report_grace"]
+        self.lost_grace_s = p["lost_grace"]
         self.summary_path = p["summary"]
         self.exit_when_done = p["exit_when_done"]
         self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
@@ -262,12 +279,14 @@ class EvaluatorNode(GraphNode):
 
     def _on_tick(self) -> None:
         """Fetch lost messages again (refetch.py); once the sim and the tracker have finished
-        and report_grace has passed, a last fetch of everything missing, then give up what
-        is still missing (a message never sent: the run ends, not complete)."""
+        and report_grace has passed, a last fetch of everything missing (then the decisions
+        still missing are given up); lost_grace after they finished, give up what is still
+        missing (never sent: the run ends, not complete)."""
         ended = self._finished_at()
-        final = ended is not None and time.monotonic() - ended > self.report_grace_s
-        self.refetcher.tick(final)
-        if self.gave_up is None and self._reports_given_up() and not self.complete:
+        waited = -1.0 if ended is None else time.monotonic() - ended
+        self.refetcher.tick(final=waited > self.report_grace_s)
+        lost = waited > self.lost_grace_s and self._reports_given_up()
+        if self.gave_up is None and lost and not self.complete:
             self.gave_up = self.missing()
             self.log_limited("warning", "gave_up", f"gave up: {self.gave_up}")
 

@@ -25,7 +25,7 @@ from activetrack.scenarios import first_epochs, load_scenario
 from activetrack.strict_json import json_safe
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag import BagRecorder
-from activetrack_bringup.evaluator import EvaluatorNode
+from activetrack_bringup.evaluator import LOST_GRACE_S, EvaluatorNode
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_bringup.ros_network import RosNetwork, ros_network
 from activetrack_bringup.run_folder import interrupted_before_start, run_dir_for, write_summary
@@ -194,6 +194,9 @@ class RunOptions:
     wait_for: str | None = None  # N | TOPIC: hold the first epoch for outside subscribers
     wait_timeout: float = 60.0  # s, for wait_for
     announce: object = None  # announce(network): the run's RosNetwork, before the graph starts
+    # s after the sim and the tracker finished before a missing truth, state, scan or track
+    # array is given up (the run ends messages_lost); at least the report grace
+    lost_grace: float = LOST_GRACE_S
 
 
 def run_graph(
@@ -311,7 +314,8 @@ class _GraphRunner:
         self.evaluator = self.graph.add(
             EvaluatorNode(
                 scenario, graph_key=key, report_grace_s=REPORT_GRACE_PROCESSES_S
-                if opts.processes else 1.0, parameter_overrides=named, **self.common,
+                if opts.processes else 1.0, lost_grace_s=opts.lost_grace,
+                parameter_overrides=named, **self.common,
             )
         )  # fmt: skip
         self.recorder: BagRecorder | None = None
@@ -492,7 +496,7 @@ class _GraphRunner:
             self._end("timeout", f"did not complete within {timeout} s: {missing}", 1)
         else:
             if not self.evaluator.complete:  # messages never sent (nor in any history)
-                grace = self.evaluator.report_grace_s
+                grace = self.evaluator.lost_grace_s
                 when = f"given up {grace:g} s after the sim and the tracker finished"
                 self._end("messages_lost", f"{self.evaluator.gave_up} ({when})", 1)
             # Let the last messages be recorded and counted: the counters are final
