@@ -232,9 +232,10 @@ class EvaluatorNode(GraphNode):
     def _set_exit_when_done(self, value: bool) -> None:
         self.exit_when_done = value
 
-    def _result_input(self, check, msg, topic: str) -> None:
+    def _result_input(self, check, msg, topic: str | None = None) -> None:
         """Run ``check(msg)``; a message of the graph's own that fails it (other than as a
-        duplicate) is a fault of the graph: the runner stops the run instead of waiting."""
+        duplicate) is a fault of the graph: the runner stops the run instead of waiting.
+        ``topic``: its topic (the last epoch of the sim's or the tracker's says it finished)."""
         try:
             check(msg)
         except Rejected as r:
