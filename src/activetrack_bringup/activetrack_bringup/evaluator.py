@@ -279,26 +279,23 @@ class EvaluatorNode(GraphNode):
         return not self.expects_reports or k in self.reports  # PLAN_REPORT
 
     def _on_tick(self) -> None:
-        """Fetch lost messages again (refetch.py); once the sim and the tracker have finished
-        and report_grace has passed, a last fetch of everything missing (then the decisions
-        still missing are given up); lost_grace after they finished, give up what is still
+        """Fetch lost messages again (refetch.py). report_grace after the sim finished, a
+        sweep of everything missing (then the decisions still missing are given up);
+        lost_grace after the tracker finished too, another, then give up what is still
         missing (never sent: the run ends, not complete)."""
-        ended = self._finished_at()
-        waited = -1.0 if ended is None else time.monotonic() - ended
-        self.refetcher.tick(final=waited > self.report_grace_s)
-        lost = waited > self.lost_grace_s and self._reports_given_up()
+        now = time.monotonic()
+        updates = self.diagnostics.get("tracker", {}).get("updates", 0)
+        if self.tracker_done_at is None and updates >= self.scenario.steps:
+            self.tracker_done_at = now  # its track array of K: lost, or coming
+        sim, tracker = self.sim_finished_at, self.tracker_done_at
+        sweeps = 0
+        if sim is not None and now - sim > self.report_grace_s:
+            sweeps = 1 + (tracker is not None and now - max(sim, tracker) > self.lost_grace_s)
+        self.refetcher.tick(sweeps)
+        lost = self.refetcher.passes == 2 and not self.refetcher.busy()
         if self.gave_up is None and lost and not self.complete:
             self.gave_up = self.missing()
             self.log_limited("warning", "gave_up", f"gave up: {self.gave_up}")
-
-    def _finished_at(self) -> float | None:
-        """When both the sim (its last epoch) and the tracker (its update of it) were done."""
-        updates = self.diagnostics.get("tracker", {}).get("updates", 0)
-        if self.tracker_done_at is None and updates >= self.scenario.steps:
-            self.tracker_done_at = time.monotonic()  # its track array of K: lost, or coming
-        if self.sim_finished_at is None or self.tracker_done_at is None:
-            return None
-        return max(self.sim_finished_at, self.tracker_done_at)
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         """Counters of the graph's nodes (only the graph's own statuses arrive with a key). A
@@ -538,13 +535,13 @@ class EvaluatorNode(GraphNode):
     # --- completion ---------------------------------------------------------------------------
 
     # Plan reports (and commands, beams, selections) may be missing for good (a planner that
-    # died); once the sim and the tracker have finished, report_grace_s has passed and the
-    # last fetch from the writers' histories ended, the run is complete without them. Between
+    # died); once the sim has finished, report_grace_s has passed and a last fetch from the
+    # writers' histories ended, the run is complete without them. Between
     # processes the runner gives more: a DDS participant that missed the planner's first
     # announcements only learns of it at the next periodic one.
 
     def _reports_given_up(self) -> bool:
-        return self.refetcher.final_done and not self.refetcher.busy()
+        return self.refetcher.passes >= 1 and not self.refetcher.busy()
 
     @property
     def expects_reports(self) -> bool:

@@ -5,10 +5,11 @@ The graph's per-epoch writers keep the whole run, transient-local, for late join
 A message the evaluator's reader lost (DDS, or the test hook) is known to be lost once a later
 epoch's message came on the same topic (each topic has one writer, which publishes in epoch
 order, and delivery is reliable and in order), or, for the last epochs, once the run finished
-(the final pass). For each topic with such a gap the evaluator opens one fresh reader (never
-two at once on a topic, and each gap is tried once before the final pass), takes from it only
-the epochs it lacks, and destroys it once it has them, once its history stopped coming
-(REFETCH_QUIET_S after its last sample) or after REFETCH_S. Counted on the evaluator:
+(the sweeps at the end). For each topic with such a gap the evaluator opens one fresh reader
+(never two at once on a topic; each gap tried once, then once more in each sweep: a message
+late at its writer may have come since), takes from it only the epochs it lacks, and destroys
+it once it has them, once its history stopped coming (REFETCH_QUIET_S after its last sample)
+or after REFETCH_S. Counted on the evaluator:
 ``refetches.<Type>`` (readers opened), ``refetch_unfilled.<Type>`` (a reader that ended
 without every epoch it was for), and per sample of the fresh reader ``received.refetched.<Type>``
 ending in ``accepted.refetched.<Type>`` (a gap filled) or ``ignored.refetch_known`` (held
@@ -65,7 +66,7 @@ class Refetcher:
         self.filled: set[tuple[str, int]] = set()  # (topic, epoch) a fresh reader filled
         self.opened = dict.fromkeys(inputs, 0)
         self.limited: set[str] = set()  # topics that reached READERS_PER_TOPIC
-        self.final_done = False
+        self.passes = 0  # sweeps of every epoch still lacking (tick's ``sweeps``) made
 
     def saw(self, topic: str, epoch: int) -> None:
         """A message of ``topic`` came for ``epoch`` (on the evaluator's own reader)."""
@@ -79,9 +80,11 @@ class Refetcher:
     def busy(self) -> bool:
         return bool(self.active)
 
-    def tick(self, final: bool = False) -> None:
+    def tick(self, sweeps: int = 0) -> None:
         """End the fresh readers that are done, note new gaps, open readers for untried
-        ones; ``final`` (the run finished): once, every epoch still lacking, tried or not."""
+        ones; once ``sweeps`` exceeds the sweeps made (the run finished: the evaluator asks
+        for one when the sim finished, one when the tracker did), a sweep: every epoch still
+        lacking, tried or not."""
         now = time.monotonic()
         for topic, r in list(self.active.items()):
             if all(self.has(topic, k) for k in r.wanted) or r.ended(now):
@@ -91,8 +94,8 @@ class Refetcher:
             start, self.checked[topic] = self.checked[topic], max(self.checked[topic], upto)
             self.gaps[topic].update(k for k in range(start, upto) if not self.has(topic, k))
             self.gaps[topic] = {k for k in self.gaps[topic] if not self.has(topic, k)}
-        if final and not self.final_done:
-            self.final_done = True
+        if sweeps > self.passes and not self.active:
+            self.passes += 1
             for topic in self.inputs:
                 lacking = [k for k in range(self.last[topic] + 1) if not self.has(topic, k)]
                 self.gaps[topic].update(lacking)
@@ -101,7 +104,7 @@ class Refetcher:
             untried = gaps - self.tried[topic]
             if not untried or topic in self.active:
                 continue
-            if self.opened[topic] >= READERS_PER_TOPIC and not self.final_done:
+            if self.opened[topic] >= READERS_PER_TOPIC and not self.passes:
                 if topic not in self.limited:
                     self.limited.add(topic)
                     self.node.counters.count(f"refetch_limit.{self.inputs[topic][0].__name__}")

@@ -496,7 +496,7 @@ class _GraphRunner:
             self._end("timeout", f"did not complete within {timeout} s: {missing}", 1)
         else:
             if not self.evaluator.complete:  # messages never sent (nor in any history)
-                grace = self.evaluator.lost_grace_s
+                grace = max(self.evaluator.lost_grace_s, self.evaluator.report_grace_s)
                 when = f"given up {grace:g} s after the sim and the tracker finished"
                 self._end("messages_lost", f"{self.evaluator.gave_up} ({when})", 1)
             # Let the last messages be recorded and counted: the counters are final
