@@ -14,10 +14,10 @@ import pytest
 from parity import assert_same_run
 from rclpy.parameter import Parameter
 
-from activetrack_bringup.runner import epoch_timeouts, run_graph
+from activetrack_bringup.runner import RunIncomplete, epoch_timeouts, run_graph
 from activetrack_ros import graph as topics
 from activetrack_ros.inject import ENV, parse
-from activetrack_ros.node_base import Rejected
+from activetrack_ros.node_base import Rejected, unaccounted
 from tracker_node import tracker_node
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
@@ -42,17 +42,17 @@ DEFAULT_DELAY = 2.5
 pytestmark = pytest.mark.ros
 
 
-def _run(tmp_path, monkeypatch, faults: str = "", **options):
+def _run(tmp_path, monkeypatch, faults: str = "", sim_params=None, **options):
     monkeypatch.setenv(ENV, faults)
+    options.setdefault("timeout", 120)
     return run_graph(
         SCENARIO,
         **options,
         run_dir=tmp_path,
         record=False,
         plots=False,
-        sim_params={"command_timeout": COMMAND_TIMEOUT},
+        sim_params={"command_timeout": COMMAND_TIMEOUT, **(sim_params or {})},
         tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
-        timeout=120,
     )
 
 
@@ -223,3 +223,92 @@ def test_node_processes_wait_for_a_late_scan_too(clean, tmp_path, monkeypatch, l
     assert run.diagnostics["sim"].get(f"injected.delay.{topics.SCANS}") == 1
     assert run.timeouts == {}
     assert_same_run(_record(run), _record(clean))
+
+
+def _all_counted(run) -> None:
+    assert {node: unaccounted(c) for node, c in run.diagnostics.items()} == dict.fromkeys(
+        run.diagnostics, 0
+    )
+
+
+# The evaluator's reader loses one message (the n-th of its topic, as NTH; tracks#9: epoch 8's,
+# the last, which no later message reveals): it is fetched again from the writer's history.
+REFETCHED = {
+    (topics.SCANS, 5): "Scan",  # one of two of an epoch
+    (topics.TRACKS, 9): "TrackArray",  # found by the last fetch, report_grace after the end
+    (topics.MANOEUVRE_COMMANDS, 7): "ManoeuvreCommand",  # a decision, not given up
+}
+
+
+@pytest.mark.parametrize(("topic", "n"), list(REFETCHED), ids=lambda v: str(v).rsplit("/")[-1])
+def test_a_message_lost_to_the_evaluator_is_fetched_again(topic, n, clean, tmp_path, monkeypatch):
+    run = _run(tmp_path, monkeypatch, f"activetrack_evaluator:{topic}#{n}=drop", timeout=20)
+    assert run.complete and run.status == "complete" and run.timeouts == {}
+    evaluator = run.diagnostics["evaluator"]
+    assert _injected(run, "evaluator", "drop", topic) == 1
+    name = REFETCHED[topic, n]
+    assert evaluator[f"accepted.refetched.{name}"] == 1
+    assert evaluator.get(f"refetch_unfilled.{name}", 0) == 0
+    assert_same_run(_record(run), _record(clean))
+    _all_counted(run)
+    assert run.wall_time_s < clean.wall_time_s + 5  # not the run's timeout
+
+
+# A message never sent (dropped at its writer): what the graph's timeouts decide at epoch 3,
+# what the evaluator gives up, and the last epoch its summary covers. Not parametrised:
+# platform states (the tracker closes the epoch without it, as for a scan, and the planner
+# cannot decide it, as for a track array; docs/robustness.md has its cost).
+NEVER_SENT = {
+    # only the evaluator reads truth: nothing in the graph waits
+    topics.GROUND_TRUTH: ({}, "truth missing at epochs 3", EPOCH - 1),
+    # the tracker closes epoch 3 after its epoch timeout; the run is scored without the scan
+    topics.SCANS: (
+        {"tracker": {"closed_incomplete": 1, "missing_scans": 1}},
+        "scans missing at epochs 3",
+        8,
+    ),
+    # the sim waits tracks_timeout (here 2 s) for the tracker, the planner has nothing to plan
+    topics.TRACKS: (
+        {"sim": {"no_track_array": 1, "held_course": 2}},
+        "track array missing at epochs 3",
+        EPOCH - 1,
+    ),
+}
+TRACKS_TIMEOUT = 2.0
+# (only there: shorter than the tracker's epoch timeout, it would make a lost scan cost the
+# sim's wait too, test_a_tracker_behind_the_sim_catches_up_from_its_buffer)
+SIM_PARAMS = {topics.TRACKS: {"tracks_timeout": TRACKS_TIMEOUT}}
+LOST_GRACE = 1.0  # the report grace: given up at the last fetch
+
+
+@pytest.mark.parametrize("topic", list(NEVER_SENT), ids=lambda v: v.rsplit("/", 1)[-1])
+def test_a_message_never_sent_ends_the_run_promptly_not_complete(
+    topic, clean, tmp_path, monkeypatch
+):
+    """No history holds it: once the sim and the tracker finished and lost_grace passed, the
+    evaluator gives it up and the run ends messages_lost (rc 1), naming it, with the summary
+    of the epochs it can score; no epoch after the affected one timed out."""
+    start = time.monotonic()
+    with pytest.raises(RunIncomplete) as info:
+        _run(
+            tmp_path, monkeypatch, f"publish:{topic}#{NTH[topic]}=drop",
+            sim_params=SIM_PARAMS.get(topic), lost_grace=LOST_GRACE, timeout=30,
+        )  # fmt: skip
+    wall = time.monotonic() - start
+    run, (timeouts, missing, last) = info.value.result, NEVER_SENT[topic]
+    assert info.value.exit_code == 1 and not run.complete and run.status == "messages_lost"
+    covered = "all epochs" if last == 8 else f"epochs 0-{last} of 8"
+    assert run.detail.startswith(missing) and run.detail.endswith(f"summary covers {covered}")
+    assert run.timeouts == ({EPOCH: timeouts} if timeouts else {})
+    assert run.epochs_completed == last and run.summary.records[0].truth.shape[0] == last + 1
+    record, clean_record = _record(run), _record(clean)
+    if last == 8:
+        _same_until(record, clean_record, EPOCH)
+    else:
+        assert np.array_equal(record.truth, clean_record.truth[: last + 1])
+        assert np.array_equal(record.platform_paths, clean_record.platform_paths[: last + 1])
+    name = {topics.GROUND_TRUTH: "GroundTruthArray", topics.SCANS: "Scan"}.get(topic, "TrackArray")
+    assert run.diagnostics["evaluator"][f"refetch_unfilled.{name}"] >= 1  # looked for it
+    _all_counted(run)
+    cost = {topics.SCANS: EPOCH_TIMEOUT, topics.TRACKS: TRACKS_TIMEOUT + COMMAND_TIMEOUT}
+    assert wall < clean.wall_time_s + cost.get(topic, 0) + LOST_GRACE + 10

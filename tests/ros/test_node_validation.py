@@ -281,19 +281,29 @@ def test_no_input_makes_a_callback_raise(node_name, msg_type, graph):
     check()
 
 
-def test_the_evaluator_gives_up_on_plan_reports_only_after_its_grace(graph):
+def test_the_evaluator_gives_up_on_plan_reports_only_after_its_grace(graph, monkeypatch):
     """Missing plan reports (a dead planner) stop blocking completion report_grace_s after the
-    sim finished: 1 s in one process, longer between processes (a participant that missed the
-    planner's first discovery announcements hears the next one about 3 s later)."""
+    sim and the tracker finished, and a last fetch from the writers' histories (here: none,
+    ending at once): 1 s in one process, longer between processes (a participant that missed
+    the planner's first discovery announcements hears the next one about 3 s later)."""
+    from activetrack_bringup import refetch
     from activetrack_bringup.runner import REPORT_GRACE_PROCESSES_S
 
+    monkeypatch.setattr(refetch, "REFETCH_S", 0.0)
     assert REPORT_GRACE_PROCESSES_S > 3.0
     sc = load_scenario(SCENARIO)
     kw = {"context": graph.context, "start_parameter_services": False}
     quick = graph.add(EvaluatorNode(sc, **kw))
     patient = graph.add(EvaluatorNode(sc, report_grace_s=REPORT_GRACE_PROCESSES_S, **kw))
     for node in (quick, patient):
+        node._on_tick()
         assert node.expects_reports and not node._reports_given_up()  # sim not finished
-        node.sim_finished_at = time.monotonic() - 2.0
+        node.sim_finished_at = node.tracker_done_at = time.monotonic() - 2.0
+        node._on_tick()  # quick: the last fetch starts
+    assert quick.refetcher.busy() and not quick._reports_given_up()
+    quick._on_tick()  # ... and ends (REFETCH_S 0), nothing found
     assert quick._reports_given_up() and not patient._reports_given_up()
+    assert quick.counters.counts["refetch_unfilled.PlanReport"] == 1
     assert "plan report missing" in patient.missing() and "plan report" not in quick.missing()
+    # the truth, states, scans and tracks are given up later (lost_grace: 5 s)
+    assert quick.gave_up is None and "truth missing at epochs 0-" in quick.missing()

@@ -258,7 +258,8 @@ def test_evaluator_and_recorder_answer_parameter_services(graph, every_node, tmp
     _, clients = every_node
     expected = {
         "activetrack_evaluator": {
-            "scenario", "run", "frame_id", "report_grace", "summary", "exit_when_done",
+            "scenario", "run", "frame_id", "report_grace", "lost_grace", "summary",
+            "exit_when_done",
         },
         "activetrack_recorder": {"bag", "topics", "depth", "clock_lead"},
     }  # fmt: skip

@@ -41,6 +41,7 @@ from activetrack.data import (
 from activetrack.planning.manoeuvre import step_platform
 from activetrack.scenarios import load_scenario
 from activetrack.scenarios.build import build_motion_model
+from activetrack_bringup.refetch import TICK_S, Refetcher
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import (
     MAX_COORDINATE,
@@ -72,6 +73,13 @@ from msgs_defs.msg import (
 from msgs_defs.msg import Scan as ScanMsg
 
 NODE_NAMES = ("sim", "tracker", "planner")
+# Seconds after the sim and the tracker finished that a missing message the result needs may
+# still come (late at its writer) before the run ends without it: the graph itself waits as
+# long (the tracker's default epoch_timeout) for a late scan or state.
+LOST_GRACE_S = 5.0
+# What the evaluator needs of every epoch to score it (the others: the decisions, given up).
+DATA_TOPICS = (topics.GROUND_TRUTH, topics.PLATFORM_STATES, topics.SCANS, topics.TRACKS)
+SIM_TOPICS = (topics.GROUND_TRUTH, topics.PLATFORM_STATES, topics.SCANS)
 TRUTH_RGBA = (0.1, 0.75, 0.2, 1.0)
 LEG_RGBA = (1.0, 0.55, 0.0, 1.0)
 MEASURED_RGBA = (1.0, 0.85, 0.1, 0.45)
@@ -106,7 +114,9 @@ class EpochTable:
         return self.values[: last + 1]
 
 
-def evaluator_params(scenario_given: bool, report_grace_s: float) -> tuple[ParamSpec, ...]:
+def evaluator_params(
+    scenario_given: bool, report_grace_s: float, lost_grace_s: float = LOST_GRACE_S
+) -> tuple[ParamSpec, ...]:
     """An evaluator's parameters (what ``ros2 param describe`` shows of it). ``scenario`` is
     required unless the runner hands the node its scenario (and names the file)."""
     return (
@@ -116,6 +126,13 @@ def evaluator_params(scenario_given: bool, report_grace_s: float) -> tuple[Param
         ParamSpec(
             "report_grace", float(report_grace_s),
             "seconds to wait for missing plan reports once the sim has finished",
+            low=0.0, high=3600.0,
+        ),
+        ParamSpec(
+            "lost_grace", float(lost_grace_s),
+            "seconds to wait, once the sim and the tracker have finished, for a missing truth "
+            "array, platform state, scan or track array (late at its writer) before giving it "
+            "up: the run ends messages_lost",
             low=0.0, high=3600.0,
         ),
         ParamSpec(
@@ -134,20 +151,26 @@ class EvaluatorNode(GraphNode):
     """Collects a run per epoch (module docstring); ``record()`` gives it. ``scenario``: the
     run's, or None to load the file of its ``scenario`` parameter (a standalone evaluator)."""
 
-    def __init__(self, scenario, *, report_grace_s: float = 1.0, **kwargs):
-        super().__init__("activetrack_evaluator", **kwargs)
+    def __init__(
+        self, scenario, *, report_grace_s: float = 1.0, lost_grace_s: float = LOST_GRACE_S, **kw
+    ):
+        super().__init__("activetrack_evaluator", **kw)
         changes = {"exit_when_done": self._set_exit_when_done}
-        p = self.declare_params(evaluator_params(scenario is not None, report_grace_s), changes)
+        specs = evaluator_params(scenario is not None, report_grace_s, lost_grace_s)
+        p = self.declare_params(specs, changes)
         if scenario is None:
             scenario = load_scenario(p["scenario"])
         self.scenario = scenario
         self.run_index = None if p["run"] < 0 else p["run"]
         self.report_grace_s = p["report_grace"]
+        self.lost_grace_s = p["lost_grace"]
         self.summary_path = p["summary"]
         self.exit_when_done = p["exit_when_done"]
         self.diagnostics: dict[str, dict[str, int]] = {}  # latest counters per node
         self.diagnostics_order: dict[str, tuple] = {}
-        self.sim_finished_at: float | None = None
+        self.sim_finished_at: float | None = None  # its "finished" status, or epoch K came
+        self.tracker_done_at: float | None = None  # its track array of K came, or was counted
+        self.gave_up: str | None = None  # what was still missing when it gave up (lost)
         self.faults: list[str] = []  # the graph's own result messages that failed validation
         self.size_history(scenario)  # its metrics are per-epoch: a late viewer gets them all
         K = scenario.steps
@@ -186,6 +209,7 @@ class EvaluatorNode(GraphNode):
         self.metrics_pub = self.publisher(RunMetrics, topics.METRICS)
         self.marker_pub = self.publisher(MarkerArray, topics.MARKERS)
         self.subscribe(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics)
+        inputs = {}
         for msg_type, topic, callback in (
             (GroundTruthArray, topics.GROUND_TRUTH, self.on_truth),
             (TrackArray, topics.TRACKS, self.on_tracks),
@@ -196,20 +220,82 @@ class EvaluatorNode(GraphNode):
             (SensorSelection, topics.SENSOR_SELECTION, self.on_selection),
             (PlanReport, topics.PLAN_REPORT, self.on_report),
         ):
-            self.subscribe(msg_type, topic, lambda m, cb=callback: self._result_input(cb, m))
+            check = lambda m, cb=callback, t=topic: self._result_input(cb, m, t)  # noqa: E731
+            self.subscribe(msg_type, topic, lambda m, c=check, t=topic: self._own_input(c, m, t))
+            inputs[topic] = (msg_type, check)
+        # A message lost to a reader here is fetched again from its writer's history
+        # (refetch.py); the last epoch of each topic: K, or K - 1 for the decisions.
+        last = {t: K if t in DATA_TOPICS else K - 1 for t in inputs}
+        self.refetcher = Refetcher(self, inputs, self._has, last)
+        self.guarded_timer(TICK_S, self._on_tick)
 
     def _set_exit_when_done(self, value: bool) -> None:
         self.exit_when_done = value
 
-    def _result_input(self, check, msg) -> None:
+    def _result_input(self, check, msg, topic: str | None = None) -> None:
         """Run ``check(msg)``; a message of the graph's own that fails it (other than as a
-        duplicate) is a fault of the graph: the runner stops the run instead of waiting."""
+        duplicate) is a fault of the graph: the runner stops the run instead of waiting.
+        ``topic``: its topic (the last epoch of the sim's or the tracker's says it finished)."""
         try:
             check(msg)
         except Rejected as r:
             if self.graph_key is not None and r.reason != "duplicate":
                 self.faults.append(f"{type(msg).__name__} epoch {msg.epoch}: {r}")
             raise
+        K = self.scenario.steps
+        if msg.epoch == K and self.sim_finished_at is None and topic in SIM_TOPICS:
+            self.sim_finished_at = time.monotonic()  # its last epoch: nothing more will come
+        if msg.epoch == K and self.tracker_done_at is None and topic == topics.TRACKS:
+            self.tracker_done_at = time.monotonic()
+
+    def _own_input(self, check, msg, topic: str) -> None:
+        """A message on the evaluator's own reader: its epoch is the topic's news (a gap
+        below it is lost to this reader: refetch.py); a copy of one a fresh reader fetched
+        first is ignored, not a duplicate."""
+        self.refetcher.saw(topic, msg.epoch)
+        try:
+            check(msg)
+        except Rejected as r:
+            if r.reason != "duplicate" or not self.refetcher.filled_before(topic, msg.epoch):
+                raise
+            self.ignore("refetched_before")
+
+    def _has(self, topic: str, k: int) -> bool:
+        """Epoch k's messages of ``topic`` are all here."""
+        if topic == topics.GROUND_TRUTH:
+            return k in self.truth
+        if topic == topics.PLATFORM_STATES:
+            return k in self.platforms
+        if topic == topics.TRACKS:
+            return k in self.tracks
+        if topic == topics.SCANS:
+            return k == 0 or self._scans_in(k)
+        if topic == topics.MANOEUVRE_COMMANDS:
+            return all(p in self.commands.get(k, {}) for p in self.controllable)
+        if topic == topics.BEAM_COMMANDS:
+            return all(s in self.beams.get(k, {}) for s in self.steerable)
+        if topic == topics.SENSOR_SELECTION:
+            return not self.selects or k in self.selections
+        return not self.expects_reports or k in self.reports  # PLAN_REPORT
+
+    def _on_tick(self) -> None:
+        """Fetch lost messages again (refetch.py). report_grace after the sim finished, a
+        sweep of everything missing (then the decisions still missing are given up);
+        lost_grace after the tracker finished too, another, then give up what is still
+        missing (never sent: the run ends, not complete)."""
+        now = time.monotonic()
+        updates = self.diagnostics.get("tracker", {}).get("updates", 0)
+        if self.tracker_done_at is None and updates >= self.scenario.steps:
+            self.tracker_done_at = now  # its track array of K: lost, or coming
+        sim, tracker = self.sim_finished_at, self.tracker_done_at
+        sweeps = 0
+        if sim is not None and now - sim > self.report_grace_s:
+            sweeps = 1 + (tracker is not None and now - max(sim, tracker) > self.lost_grace_s)
+        self.refetcher.tick(sweeps)
+        lost = self.refetcher.passes == 2 and not self.refetcher.busy()
+        if self.gave_up is None and lost and not self.complete:
+            self.gave_up = self.missing()
+            self.log_limited("warning", "gave_up", f"gave up: {self.gave_up}")
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         """Counters of the graph's nodes (only the graph's own statuses arrive with a key). A
@@ -449,13 +535,13 @@ class EvaluatorNode(GraphNode):
     # --- completion ---------------------------------------------------------------------------
 
     # Plan reports (and commands, beams, selections) may be missing for good (a planner that
-    # died); once the sim has finished and they stopped coming for report_grace_s, the run is
-    # complete without them. Between processes the runner gives more: a DDS participant that
-    # missed the planner's first announcements only learns of it at the next periodic one.
+    # died); once the sim has finished, report_grace_s has passed and a last fetch from the
+    # writers' histories ended, the run is complete without them. Between
+    # processes the runner gives more: a DDS participant that missed the planner's first
+    # announcements only learns of it at the next periodic one.
 
     def _reports_given_up(self) -> bool:
-        t = self.sim_finished_at
-        return t is not None and time.monotonic() - t > self.report_grace_s
+        return self.refetcher.passes >= 1 and not self.refetcher.busy()
 
     @property
     def expects_reports(self) -> bool:
@@ -503,13 +589,14 @@ class EvaluatorNode(GraphNode):
 
     def completed_epochs(self) -> int:
         """The last epoch K' such that truth, tracks, platform states and scans of 0..K' are
-        all here."""
+        all here (once the evaluator gave up: scans lost for good do not end it, the record
+        holds the scans that came, as the tracker did)."""
         k = -1
         while (
             k + 1 in self.truth
             and k + 1 in self.tracks
             and k + 1 in self.platforms
-            and (k + 1 == 0 or self._scans_in(k + 1))
+            and (k + 1 == 0 or self._scans_in(k + 1) or self.gave_up is not None)
         ):
             k += 1
         return k

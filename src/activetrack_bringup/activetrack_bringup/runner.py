@@ -26,7 +26,7 @@ from activetrack.scenarios import first_epochs, load_scenario
 from activetrack.strict_json import json_safe
 from activetrack_bringup import interrupts
 from activetrack_bringup.bag import BagRecorder
-from activetrack_bringup.evaluator import EvaluatorNode
+from activetrack_bringup.evaluator import LOST_GRACE_S, EvaluatorNode
 from activetrack_bringup.inprocess import InProcessGraph
 from activetrack_bringup.ros_network import RosNetwork, ros_network
 from activetrack_bringup.run_folder import interrupted_before_start, run_dir_for, write_summary
@@ -85,7 +85,9 @@ class GraphRun:
     files: list = field(default_factory=list)
     complete: bool = True
     # complete | interrupted (SIGINT/SIGTERM) | node_died | graph_fault | timeout, or, for a
-    # run that finished: node_errors (exceptions in callbacks) | non_finite (metrics)
+    # run that finished: node_errors (exceptions in callbacks) | non_finite (metrics) |
+    # messages_lost (the evaluator gave up messages never sent: the summary covers the epochs
+    # before the first one lacking truth, tracks or a platform state; lost scans are left out)
     status: str = "complete"
     detail: str = ""
     epochs_completed: int = 0
@@ -193,6 +195,9 @@ class RunOptions:
     wait_for: str | None = None  # N | TOPIC: hold the first epoch for outside subscribers
     wait_timeout: float = 60.0  # s, for wait_for
     announce: object = None  # announce(network): the run's RosNetwork, before the graph starts
+    # s after the sim and the tracker finished before a missing truth, state, scan or track
+    # array is given up (the run ends messages_lost); at least the report grace
+    lost_grace: float = LOST_GRACE_S
 
 
 def run_graph(
@@ -325,7 +330,8 @@ class _GraphRunner:
         self.evaluator = self.graph.add(
             EvaluatorNode(
                 scenario, graph_key=key, report_grace_s=REPORT_GRACE_PROCESSES_S
-                if opts.processes else 1.0, parameter_overrides=named, **self.common,
+                if opts.processes else 1.0, lost_grace_s=opts.lost_grace,
+                parameter_overrides=named, **self.common,
             )
         )  # fmt: skip
         self.recorder: BagRecorder | None = None
@@ -397,7 +403,8 @@ class _GraphRunner:
                 self.exit_code = 1  # finished, but not well (non-finite metrics, node errors)
             return
         self.exit_code = code
-        if result.status in ("complete", "interrupted", "node_errors", "non_finite"):
+        finished = ("complete", "interrupted", "node_errors", "non_finite", "messages_lost")
+        if result.status in finished:
             result.complete = False
             result.status, result.detail = "interrupted", interrupts.SIGNAL_NAMES[code]
             result.files = []
@@ -496,14 +503,19 @@ class _GraphRunner:
         self._check_started()
         if self.opts.during_spin is not None:
             self.opts.during_spin(self.graph)
-        return self.evaluator.complete
+        return self.evaluator.complete or self.evaluator.gave_up is not None
 
     def _spin(self) -> None:
         timeout = self.opts.timeout
         if not self.graph.spin_until(self._finished, timeout=timeout):
             missing = self.evaluator.missing()
             self._end("timeout", f"did not complete within {timeout} s: {missing}", 1)
-        else:  # let the last messages be recorded and counted: the counters are final
+        else:
+            if not self.evaluator.complete:  # messages never sent (nor in any history)
+                grace = max(self.evaluator.lost_grace_s, self.evaluator.report_grace_s)
+                when = f"given up {grace:g} s after the sim and the tracker finished"
+                self._end("messages_lost", f"{self.evaluator.gave_up} ({when})", 1)
+            # Let the last messages be recorded and counted: the counters are final
             # (0.1 s without a new message: a burst sent as the last epoch closes, e.g. by a
             # writer outside the graph, is still in flight after a 20 ms lull on a busy host;
             # node processes publish counters that changed REPUBLISH_S after their last epoch,
@@ -577,6 +589,10 @@ class _GraphRunner:
             network=self.network,
             timeouts=epoch_timeouts(diagnostics),
         )
+        if self.status == "messages_lost":
+            K = scenario.steps
+            covered = "all epochs" if last == K else f"epochs 0-{last} of {K}"
+            result.detail += f"; the summary covers {covered}"
         _judge(result)
         return result
 

@@ -80,7 +80,7 @@ class GraphPublisher:
         self.key = key if is_signed_type(msg_type) else None
         self.is_diagnostics = msg_type is DiagnosticArray
         self.graph_key = key
-        faults = getattr(node, "faults", [])
+        faults = getattr(node, "injections", [])
         self.inject = inject.injector(node, inject.PUBLISH, topic, faults) if faults else None
 
     def publish(self, msg) -> None:
@@ -113,7 +113,8 @@ class GraphNode(Node):
         self.frame_id = graph.FIXED_FRAME
         self.mode: str | None = None  # lockstep | free (None: a node without a mode parameter)
         self.history_depth: int | None = None  # per-epoch writers' depth (size_history)
-        self.faults = inject.from_environment()  # a test's delays and drops; normally none
+        # (not "faults": the evaluator's are the invalid messages of the graph it saw)
+        self.injections = inject.from_environment()  # a test's delays and drops; normally none
         self.byte_limits: dict[str, int] = {}  # type name -> most bytes (sizes, size_history)
         self._republish = None  # the timer of publish_diagnostics, from its first call
         self._last_diagnostics: tuple | None = None
@@ -155,8 +156,11 @@ class GraphNode(Node):
                 f"last {self.history_depth}: a late joiner misses the start"
             )
 
-    def subscribe(self, msg_type, topic: str, callback: Callable) -> None:
-        """Subscribe with the graph's reader QoS; ``callback(msg)`` may raise Rejected."""
+    def subscribe(self, msg_type, topic: str, callback: Callable, *, label: str | None = None):
+        """Subscribe with the graph's reader QoS; ``callback(msg)`` may raise Rejected. Returns
+        the subscription. ``label``: a second reader of the topic (the evaluator's refetch)
+        counts under its own name (``received.<label>``...) and no test hook drops its
+        messages (a fresh reader has not lost what the first one did)."""
         name = msg_type.__name__
 
         def on_trusted(data: bytes, msg) -> None:
@@ -179,22 +183,27 @@ class GraphNode(Node):
             ):  # accepted: the graph's time
                 self._newest_input = max(self._newest_input, (stamp.sec, stamp.nanosec))
 
-        self._subscribe_trusted(msg_type, topic, on_trusted)
+        return self._subscribe_trusted(msg_type, topic, on_trusted, label)
 
     def subscribe_raw(self, msg_type, topic: str, callback: Callable[[bytes], None]) -> None:
         """Like :meth:`subscribe` for a node that passes the bytes on (the live view):
         ``callback(data)`` gets the graph's own messages, undecoded, counted and guarded."""
         self._subscribe_trusted(msg_type, topic, lambda data, _: self.guarded(callback, data))
 
-    def _subscribe_trusted(self, msg_type, topic: str, on_trusted: Callable) -> None:
+    def _subscribe_trusted(self, msg_type, topic: str, on_trusted: Callable, label=None):
         """A raw subscription counting every sample and DDS event, dropping a foreign writer's;
-        ``on_trusted(data, msg)`` gets the rest (``msg``: decoded if the check had to, or None)."""
-        name = msg_type.__name__
-        self.inputs[name] = topic
+        ``on_trusted(data, msg)`` gets the rest (``msg``: decoded if the check had to, or None).
+        ``label``: see :meth:`subscribe`."""
+        kind = msg_type.__name__  # its byte limit
+        name = label or kind  # its counters
+        if label is None:
+            self.inputs[name] = topic
         key = self.graph_key
         signed = key is not None and is_signed_type(msg_type)
         diagnostics = key is not None and msg_type is DiagnosticArray
-        hook = inject.injector(self, self.role, topic, self.faults) if self.faults else None
+        hook = None
+        if self.injections and label is None:
+            hook = inject.injector(self, self.role, topic, self.injections)
 
         def take(data: bytes, msg) -> None:
             outcomes = self.counters.outcomes
@@ -204,7 +213,7 @@ class GraphNode(Node):
 
         def on_raw(data: bytes) -> None:
             self.counters.received(name)
-            if len(data) > self.byte_limits.get(name, len(data)):  # not worth a hash
+            if len(data) > self.byte_limits.get(kind, len(data)):  # not worth a hash
                 if key is not None:
                     return self._foreign(name, topic)
                 return self.reject("too_large", f"{name} on {topic}: {len(data)} bytes")
@@ -228,7 +237,7 @@ class GraphNode(Node):
             message_lost=lambda info: self._lost(name, info),
             incompatible_qos=lambda info: self._incompatible(name, topic, info),
         )
-        subscribe_batched(self, msg_type, topic, on_raw, events)
+        return subscribe_batched(self, msg_type, topic, on_raw, events)
 
     def _foreign(self, name: str, topic: str) -> None:
         self.counters.count(f"foreign.{name}")
