@@ -171,16 +171,22 @@ def test_planner_death_holds_course_then_a_new_planner_resumes(tmp_path):
                 PlannerNode(context=graph.context, parameter_overrides=params, graph_key=key)
             )
 
-    result = run_graph(
-        SCENARIO,
-        run_dir=tmp_path,
-        record=False,
-        plots=False,
-        sim_params={"command_timeout": 0.3},
-        during_spin=chaos,
-        timeout=60,
-        graph_key=key,
-    )
+    with pytest.raises(RunIncomplete) as info:  # every epoch run, but not all in lockstep
+        run_graph(
+            SCENARIO,
+            run_dir=tmp_path,
+            record=False,
+            plots=False,
+            sim_params={"command_timeout": 0.3},
+            during_spin=chaos,
+            timeout=60,
+            graph_key=key,
+        )
+    result = info.value.result
+    assert info.value.exit_code == 1 and result.complete and result.status == "lockstep_timeouts"
+    held = {k: v["sim"]["held_course"] for k, v in result.timeouts.items()}
+    assert min(held) == state["first_held"] and set(held.values()) == {2}
+    assert result.detail.startswith(f"lockstep lost at epoch(s) {state['first_held']} (sim ")
     sim = result.diagnostics["sim"]
     assert state["killed"] and state["revived"] is not None
     assert sim["command_timeouts"] >= 2  # both platforms held course at least once

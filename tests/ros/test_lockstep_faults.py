@@ -43,17 +43,35 @@ pytestmark = pytest.mark.ros
 
 
 def _run(tmp_path, monkeypatch, faults: str = "", sim_params=None, **options):
+    """The run; one that a timeout decided an epoch of is returned too (it ends
+    lockstep_timeouts, exit code 1: :func:`_assert_status`); any other failure raises."""
     monkeypatch.setenv(ENV, faults)
     options.setdefault("timeout", 120)
-    return run_graph(
-        SCENARIO,
-        **options,
-        run_dir=tmp_path,
-        record=False,
-        plots=False,
-        sim_params={"command_timeout": COMMAND_TIMEOUT, **(sim_params or {})},
-        tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
-    )
+    try:
+        return run_graph(
+            SCENARIO,
+            **options,
+            run_dir=tmp_path,
+            record=False,
+            plots=False,
+            sim_params={"command_timeout": COMMAND_TIMEOUT, **(sim_params or {})},
+            tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
+        )
+    except RunIncomplete as exc:
+        if exc.result.status != "lockstep_timeouts":
+            raise
+        assert exc.exit_code == 1
+        return exc.result
+
+
+def _assert_status(run) -> None:
+    """Every epoch run; a run where a timeout decided an epoch does not say complete."""
+    assert run.complete
+    if run.timeouts:
+        assert run.status == "lockstep_timeouts", run.status
+        assert run.detail.startswith(f"lockstep lost at epoch(s) {min(run.timeouts)} (")
+    else:
+        assert run.status == "complete", (run.status, run.detail)
 
 
 @pytest.fixture(scope="module")
@@ -110,7 +128,7 @@ def test_a_late_message_costs_nothing_but_time(topic, clean, tmp_path, monkeypat
     start = time.monotonic()
     delay = DELAY.get(topic, DEFAULT_DELAY)
     run = _run(tmp_path, monkeypatch, f"publish:{topic}#{NTH[topic]}=delay:{delay}")
-    assert run.complete and run.status == "complete"
+    _assert_status(run)
     writer = {topics.TRACKS: "tracker", topics.MANOEUVRE_COMMANDS: "planner"}
     writer |= {topics.PLAN_REPORT: "planner"}
     assert _injected(run, writer.get(topic, "sim"), "delay", topic) == 1
@@ -160,7 +178,7 @@ SAME_RESULT = {("tracker", topics.PLATFORM_STATES), ("sim", topics.TRACKS)}
 def test_a_lost_message_costs_one_epoch_at_most(reader, topic, clean, tmp_path, monkeypatch):
     start = time.monotonic()
     run = _run(tmp_path, monkeypatch, f"{reader}:{topic}#{NTH[topic]}=drop")
-    assert run.complete and run.status == "complete"
+    _assert_status(run)
     assert _injected(run, reader, "drop", topic) == 1
     want = LOST[reader, topic]
     assert run.timeouts == ({} if want is None else {EPOCH: want})
@@ -177,17 +195,9 @@ def test_a_tracker_behind_the_sim_catches_up_from_its_buffer(clean, tmp_path, mo
     (tracks_timeout 1 s < epoch_timeout 4 s): epoch 4 arrives while the tracker still waits;
     it is buffered, not refused, and once complete it closes epoch 3 with what came. Only
     epoch 3 held course; epoch 4 on proceeds without a timeout."""
-    monkeypatch.setenv(ENV, f"tracker:{topics.SCANS}#{NTH[topics.SCANS]}=drop")
-    run = run_graph(
-        SCENARIO,
-        run_dir=tmp_path,
-        record=False,
-        plots=False,
-        sim_params={"command_timeout": COMMAND_TIMEOUT, "tracks_timeout": 1.0},
-        tracker_params={"epoch_timeout": EPOCH_TIMEOUT},
-        timeout=120,
-    )
-    assert run.complete and run.status == "complete"
+    fault = f"tracker:{topics.SCANS}#{NTH[topics.SCANS]}=drop"
+    run = _run(tmp_path, monkeypatch, fault, sim_params={"tracks_timeout": 1.0})
+    _assert_status(run)
     assert run.timeouts == {
         EPOCH: {
             "sim": {"no_track_array": 1, "held_course": 2},
@@ -219,7 +229,7 @@ def test_node_processes_wait_for_a_late_scan_too(clean, tmp_path, monkeypatch, l
     late, past the command timeout, changes nothing; no timeout fires."""
     late = f"publish:{topics.SCANS}#{NTH[topics.SCANS]}=delay:{DEFAULT_DELAY}"
     run = _run(tmp_path, monkeypatch, late, processes=True)
-    assert run.complete and run.status == "complete"
+    _assert_status(run)
     assert run.diagnostics["sim"].get(f"injected.delay.{topics.SCANS}") == 1
     assert run.timeouts == {}
     assert_same_run(_record(run), _record(clean))
@@ -243,7 +253,8 @@ REFETCHED = {
 @pytest.mark.parametrize(("topic", "n"), list(REFETCHED), ids=lambda v: str(v).rsplit("/")[-1])
 def test_a_message_lost_to_the_evaluator_is_fetched_again(topic, n, clean, tmp_path, monkeypatch):
     run = _run(tmp_path, monkeypatch, f"activetrack_evaluator:{topic}#{n}=drop", timeout=20)
-    assert run.complete and run.status == "complete" and run.timeouts == {}
+    _assert_status(run)
+    assert run.timeouts == {}
     evaluator = run.diagnostics["evaluator"]
     assert _injected(run, "evaluator", "drop", topic) == 1
     name = REFETCHED[topic, n]

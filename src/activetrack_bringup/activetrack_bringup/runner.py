@@ -86,6 +86,7 @@ class GraphRun:
     complete: bool = True
     # complete | interrupted (SIGINT/SIGTERM) | node_died | graph_fault | timeout, or, for a
     # run that finished: node_errors (exceptions in callbacks) | non_finite (metrics) |
+    # lockstep_timeouts (a timeout decided an epoch: hold course, an epoch closed incomplete) |
     # messages_lost (the evaluator gave up messages never sent: the summary covers the epochs
     # before the first one lacking truth, tracks or a platform state; lost scans are left out)
     status: str = "complete"
@@ -400,10 +401,13 @@ class _GraphRunner:
         code = interrupts.received()
         if code is None:
             if self.exit_code == 0 and result.status != "complete":
-                self.exit_code = 1  # finished, but not well (non-finite metrics, node errors)
+                self.exit_code = 1  # finished, but not well (node errors, timeouts, ...)
             return
         self.exit_code = code
-        finished = ("complete", "interrupted", "node_errors", "non_finite", "messages_lost")
+        finished = (
+            "complete", "interrupted", "node_errors", "non_finite", "messages_lost",
+            "lockstep_timeouts",
+        )  # fmt: skip
         if result.status in finished:
             result.complete = False
             result.status, result.detail = "interrupted", interrupts.SIGNAL_NAMES[code]
@@ -593,7 +597,7 @@ class _GraphRunner:
             K = scenario.steps
             covered = "all epochs" if last == K else f"epochs 0-{last} of {K}"
             result.detail += f"; the summary covers {covered}"
-        _judge(result)
+        _judge(result, lockstep=self.opts.mode == "lockstep")
         return result
 
     def _plot(self, result: GraphRun, run_dir: Path) -> None:
@@ -640,9 +644,11 @@ def _total(counts: dict, prefix: str) -> int:
     return sum(v for k, v in counts.items() if k.startswith(prefix))
 
 
-def _judge(result: GraphRun) -> None:
-    """A run that completed can still have failed: exceptions in node callbacks, or a
-    non-finite metric."""
+def _judge(result: GraphRun, lockstep: bool = True) -> None:
+    """A run that completed can still have failed: exceptions in node callbacks, a non-finite
+    metric, or, in lockstep, a timeout (what a node decided for lack of a message, e.g. hold
+    course: the result is no longer the lockstep one, which the batch loop reproduces; free
+    mode promises no such result)."""
     if not result.complete:
         return
     errors = sum(_total(c, "errors.") for c in result.diagnostics.values())
@@ -652,6 +658,18 @@ def _judge(result: GraphRun) -> None:
     elif result.summary is not None and not _finite_metrics(result.summary):
         result.status = "non_finite"
         result.detail = "a metric is not finite: the track diverged or was corrupted"
+    elif lockstep and result.timeouts:
+        result.status = "lockstep_timeouts"
+        result.detail = describe_timeouts(result.timeouts)
+
+
+def describe_timeouts(timeouts: dict) -> str:
+    """One line: each epoch a timeout decided, with what (``GraphRun.timeouts``)."""
+    epochs = [
+        f"{k} ({', '.join(f'{node} {what} {n}' for node, d in v.items() for what, n in d.items())})"
+        for k, v in timeouts.items()
+    ]
+    return f"lockstep lost at epoch(s) {'; '.join(epochs)}: the timeouts decided there"
 
 
 def _finite_metrics(summary: BatchSummary) -> bool:
