@@ -8,7 +8,7 @@ scenario with a foreign node streaming that category at ``--stream-rate`` messag
 from epoch 2 until the run's evaluator is complete, compared with a clean run of the same seed.
 Then a flood: another process publishes random messages at ``--flood-rate`` per second on every
 topic the graph reads, for ``--flood-seconds`` or until the run is complete, during a run of the
-Hernandez 3-sensor two-step scenario that starts once the flood has. ``--processes``: the
+Hernandez 3-sensor three-step scenario that starts once the flood has. ``--processes``: the
 nodes in their own processes (the
 foreign node and the evaluator in this one). Columns: messages sent, survived (complete, no
 exception in any callback), result unchanged (bit for bit), timeouts (commands the sim waited
@@ -47,7 +47,9 @@ sys.path.insert(0, str(TOOLS))
 from adversary import CATEGORIES, READERS, TOPIC_OF, ForeignNode, uncounted  # noqa: E402
 
 SHORT = "tests/ros/data/short_two_sensors.yaml"
-LONG = "scenarios/hernandez_3sensor_two.yaml"
+# The flood's run: three-step planning with 3 sensors, 10-15 s in one process here, so that a
+# 10-s flood covers 10 s of epochs (the two-step one took 1.4 s on a fast host).
+LONG = "scenarios/hernandez_3sensor_three.yaml"
 
 
 def same(a, b) -> bool:
