@@ -27,6 +27,12 @@ def _evaluator(graph):
     return next(n for n in graph.nodes if n.get_name() == "activetrack_evaluator")
 
 
+# docs/robustness.md: a death is "noticed at the next executor step (under 2 s)". An executor
+# step takes up to 64 queued samples per reader, and on a loaded host the first poll after a
+# kill came 1.007 s after it once (a 1-s bound, stricter than the promise, failed in CI).
+NOTICE_S = 2.0
+
+
 def _kill_at(node_name: str, epoch: int, log: dict):
     """A during_spin hook: SIGKILL one node process once the evaluator has that epoch."""
 
@@ -75,7 +81,7 @@ def test_a_killed_tracker_fails_the_run_at_once_and_says_which(tmp_path):
     assert "tracker_node was killed by SIGKILL" in result.detail
     # Noticed at the runner's next poll; then the other nodes are stopped and the summary of
     # the completed epochs written.
-    assert noticed < 1.0, f"noticed {noticed:.2f} s after the kill"
+    assert noticed < NOTICE_S, f"noticed {noticed:.2f} s after the kill"
     assert returned < 10.0, f"run_graph returned {returned:.2f} s after the kill"
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["complete"] is False and summary["status"] == "node_died"
@@ -96,7 +102,7 @@ def test_a_killed_planner_is_restarted_and_the_run_completes(tmp_path):
         during_spin=_kill_at("planner_node", 1, log),
     )
     assert "killed_at" in log and "noticed_at" in log, log
-    assert log["noticed_at"] - log["killed_at"] < 1.0
+    assert log["noticed_at"] - log["killed_at"] < NOTICE_S
     assert result.complete and result.restarts == {"planner_node": 1}
     assert len(result.summary.records[0].tracks) == 9
 
