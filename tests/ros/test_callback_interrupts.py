@@ -77,3 +77,31 @@ def test_a_ctrl_c_inside_the_message_decoder_is_no_undecodable_message(graph, mo
     assert node.counters.counts.get("received.String") == 1
     assert not any(k.startswith(("rejected.", "errors.")) for k in node.counters.counts)
     assert got == []
+
+
+def test_a_finalizer_of_an_object_a_signal_cut_short_prints_nothing(monkeypatch):
+    """A signal inside an ``__init__`` leaves an object whose ``__del__`` misses an attribute
+    (rclpy's Task without ``_exception``): once a signal came, that AttributeError is not
+    printed; before any signal, and any other finalizer error, still is."""
+    from activetrack_bringup import interrupts
+
+    class HalfBuilt:
+        def __del__(self):
+            return self._exception
+
+    printed = []
+    quiet = interrupts._quiet_unraisable(printed.append)
+
+    def unraisable(exc):
+        return SimpleNamespace(exc_value=exc, object=HalfBuilt.__del__)
+
+    missing = AttributeError("'HalfBuilt' object has no attribute '_exception'")
+    monkeypatch.setattr(interrupts, "_code", None)
+    quiet(unraisable(missing))  # no signal: a bug, printed
+    monkeypatch.setattr(interrupts, "_code", 130)
+    quiet(unraisable(missing))  # after Ctrl-C: the half-built object, quiet
+    quiet(unraisable(KeyboardInterrupt()))  # the signal itself, quiet
+    quiet(unraisable(ValueError("a real bug")))  # printed
+    quiet(SimpleNamespace(exc_value=missing, object=print))  # not a finalizer: printed
+    assert [u.exc_value for u in printed] == [missing, printed[1].exc_value, missing]
+    assert isinstance(printed[1].exc_value, ValueError)

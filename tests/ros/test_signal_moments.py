@@ -22,7 +22,10 @@ from pathlib import Path
 
 import pytest
 
-SCENARIO = "tests/ros/data/short_two_sensors.yaml"  # 8 epochs: a few seconds a run
+SCENARIO = "tests/ros/data/short_two_sensors.yaml"  # 8 epochs
+# Its epochs, for the sweep: 40 (about 3 s on a fast host; 8 took 0.6 s there, and runs that
+# went faster than the measured ones ended before their moments: 15 of 20 real, once).
+STEPS = 40
 EXE = str(Path(sys.executable).parent / "activetrack")
 STOP_S = 2.0  # the promise: stopped within 2 s of the signal
 EXIT_INSTANT_S = 0.05  # a process that had ended: gone this soon after the signal, rc 0
@@ -30,10 +33,20 @@ SIGINT_MOMENTS = 20
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.usefixtures("localhost_discovery")]
 
 
-def _launch(out: Path, *extra: str) -> subprocess.Popen:
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory) -> Path:
+    """The short scenario with STEPS epochs."""
+    text = Path(SCENARIO).read_text()
+    assert text.count("\nsteps: 8\n") == 1
+    path = tmp_path_factory.mktemp("scenario") / "long_two_sensors.yaml"
+    path.write_text(text.replace("\nsteps: 8\n", f"\nsteps: {STEPS}\n"))
+    return path
+
+
+def _launch(scenario: Path, out: Path, *extra: str) -> subprocess.Popen:
     env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
     return subprocess.Popen(
-        [EXE, "run", SCENARIO, "--out", str(out), *extra],
+        [EXE, "run", str(scenario), "--out", str(out), *extra],
         env=env,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -91,11 +104,11 @@ def _complete_before(out: Path, wall: float) -> bool:
     )
 
 
-def _interrupt(out: Path, moment: tuple[str, float], sig: int, *extra: str) -> dict:
+def _interrupt(scenario: Path, out: Path, moment: tuple[str, float], sig: int, *extra: str) -> dict:
     """One run, ``sig`` sent at ``moment``: (anchor, seconds after it), the anchor "start"
     (moment 0) or "graph" (the ROS line); what happened."""
     anchor, offset = moment
-    proc = _launch(out, *extra)
+    proc = _launch(scenario, out, *extra)
     t0 = _handlers_installed(proc)
     output = _Output(proc)
     if anchor == "graph":
@@ -155,11 +168,11 @@ def _problems(r: dict, code: int) -> list[str]:
     return out
 
 
-def _sweep(tmp_path: Path, moments: list, sig: int, *extra: str) -> list[dict]:
+def _sweep(scenario: Path, tmp_path: Path, moments: list, sig: int, *extra: str) -> list[dict]:
     with ThreadPoolExecutor(max_workers=2) as pool:  # two runs at a time
         runs = list(
             pool.map(
-                lambda im: _interrupt(tmp_path / f"run{im[0]}", im[1], sig, *extra),
+                lambda im: _interrupt(scenario, tmp_path / f"run{im[0]}", im[1], sig, *extra),
                 enumerate(moments),
             )
         )
@@ -168,13 +181,13 @@ def _sweep(tmp_path: Path, moments: list, sig: int, *extra: str) -> list[dict]:
     return runs
 
 
-def _phases(tmp_path: Path) -> tuple[float, float, float]:
+def _phases(scenario: Path, tmp_path: Path) -> tuple[float, float, float]:
     """Two uninterrupted runs at once, here and now (the sweep's conditions): seconds from
     moment 0 to the graph's start (the ROS line), the epochs' wall time, and from the graph's
     start to the exit; the longer of the two each."""
 
     def one(out: Path) -> tuple[float, float, float]:
-        proc = _launch(out)
+        proc = _launch(scenario, out)
         t0 = _handlers_installed(proc)
         output = _Output(proc)
         output.graph.wait(120)
@@ -194,17 +207,19 @@ def _spread(anchor: str, start: float, stop: float, n: int) -> list[tuple[str, f
     return [(anchor, start + (stop - start) * (i + 0.5) / n) for i in range(n)]
 
 
-def test_ctrl_c_at_twenty_moments_and_sigterm_at_four(tmp_path):
-    startup, wall, after = _phases(tmp_path)
+def test_ctrl_c_at_twenty_moments_and_sigterm_at_four(scenario, tmp_path):
+    startup, wall, after = _phases(scenario, tmp_path)
     # 8 moments in the start-up (imports, the scenario, the nodes), 8 in the epochs
     # (deserialisation, kernels, bag writes), 4 in the stop, summary and figures.
     # (Only the last four draw the figures: they take seconds that the others need not wait.)
     # (A run here may go faster than the measured ones: the spans stop short of their ends.)
     moments = _spread("start", 0.0, startup, 8) + _spread("graph", 0.0, 0.6 * wall, 8)
-    runs = _sweep(tmp_path / "int", moments, signal.SIGINT, "--no-plots")
-    runs += _sweep(tmp_path / "end", _spread("graph", 0.6 * wall, 0.6 * after, 4), signal.SIGINT)
+    runs = _sweep(scenario, tmp_path / "int", moments, signal.SIGINT, "--no-plots")
+    end = _spread("graph", 0.6 * wall, 0.6 * after, 4)
+    runs += _sweep(scenario, tmp_path / "end", end, signal.SIGINT)
     assert len(runs) == SIGINT_MOMENTS
     term = _sweep(
+        scenario,
         tmp_path / "term",
         [("start", startup / 2), ("graph", wall / 2)],
         signal.SIGTERM,
@@ -212,6 +227,7 @@ def test_ctrl_c_at_twenty_moments_and_sigterm_at_four(tmp_path):
     )
     # node processes: in the start-up, and once they run (their discovery takes seconds)
     term += _sweep(
+        scenario,
         tmp_path / "proc",
         [("start", startup / 2), ("graph", 3.0)],
         signal.SIGTERM,

@@ -73,11 +73,19 @@ def raising():
 def _quiet_unraisable(hook):
     """A signal raised inside a finalizer or weakref callback is one Python can only print
     ("Exception ignored in ..."): it is noted already (:func:`received`) and :func:`check`
-    raises it again where the run can stop, so it is not printed as a traceback."""
+    raises it again where the run can stop, so it is not printed as a traceback. Nor is the
+    AttributeError of a finalizer once a signal came: the signal cut an ``__init__`` short and
+    the object's ``__del__`` then misses an attribute (seen: rclpy's ``Task`` without
+    ``_exception``, interrupted while the executor made it)."""
 
     def quiet(unraisable) -> None:
-        if not isinstance(unraisable.exc_value, (KeyboardInterrupt, Terminated)):
-            hook(unraisable)
+        exc = unraisable.exc_value
+        if isinstance(exc, (KeyboardInterrupt, Terminated)):
+            return
+        finalizer = getattr(unraisable.object, "__name__", "") == "__del__"
+        if finalizer and isinstance(exc, AttributeError) and received() is not None:
+            return
+        hook(unraisable)
 
     return quiet
 

@@ -360,19 +360,17 @@ class _GraphRunner:
         result = None
         try:
             try:
-                try:
-                    self.run(bag_path)
-                finally:
-                    with interrupts.held():  # the stop is not cut short
-                        self._stop()
-                result = self._summarize(run_dir, bag_path)
-                self._plot(result, run_dir)
+                self.run(bag_path)
             finally:
-                with interrupts.held():  # nor the teardown
+                with interrupts.held():  # the stop is not cut short
                     self._stop()
-                    self.graph.close()
+            result = self._summarize(run_dir, bag_path)
+            self._plot(result, run_dir)
         except (KeyboardInterrupt, interrupts.Terminated):
             pass  # interrupts.received() has it
+        finally:
+            with interrupts.held():  # nor the teardown
+                self.graph.close()
         with interrupts.held():
             if result is None:  # the signal came before the summary: take what the run held
                 result = self._summarize(run_dir, bag_path)
