@@ -15,6 +15,7 @@ import pytest
 from scipy.special import gammainc
 from scipy.stats import poisson
 
+import activetrack.models.irf as irf_module
 from activetrack.models.irf import (
     IRF_TABLE_RANGE,
     IRF_TABLE_TOLERANCE,
@@ -90,6 +91,21 @@ def test_cache_hits_and_identical_values() -> None:
     info = irf_cache_info()
     assert again == first and nudged == first
     assert (info.hits, info.misses) == (2, 1)
+
+
+def test_shared_time_integrals_change_no_bit() -> None:
+    # Densities whose clutter rate is <= 1 share the lambda-free integrals (one grid in log t):
+    # a value is the same whether it is computed first or from integrals another filled.
+    irf_cache_clear()
+    first = information_reduction_factor(0.9, 1e-4, 3.5, 2)
+    irf_cache_clear()
+    others = [information_reduction_factor(pd, 1e-3, 3.5, 2) for pd in (0.5, 0.7)]
+    after = information_reduction_factor(0.9, 1e-4, 3.5, 2)
+    assert irf_module._time_integrals.cache_info().hits == 2  # computed once, shared twice
+    assert after == first and 0.85 < first < 0.9 and others[0] < others[1] < first
+    # A high density has its own grid (it starts lower in log t).
+    assert information_reduction_factor(0.9, 10.0, 3.5, 2) < 0.1
+    assert irf_module._time_integrals.cache_info().misses == 2
 
 
 @pytest.mark.parametrize(
