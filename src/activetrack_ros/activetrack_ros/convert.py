@@ -102,7 +102,8 @@ def marker(hdr: Header, ns: str, id_: int, kind: int, rgba, points=()) -> Marker
     m = Marker(header=hdr, ns=ns, id=id_, type=kind, action=Marker.ADD)
     m.pose.orientation.w = 1.0
     m.color = ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
-    m.points = [Point(x=float(x), y=float(y)) for x, y in points]
+    # (as Python floats in one go: a float() per numpy scalar doubled the time of an ellipse)
+    m.points = [Point(x=x, y=y) for x, y in np.asarray(points, dtype=float).reshape(-1, 2).tolist()]
     return m
 
 
@@ -128,9 +129,10 @@ def check_epoch_stamp(msg, scenario: Scenario | TrackingConfig, what: str) -> fl
 def finite(values, what: str, limit: float) -> np.ndarray:
     """``values`` as a float array, all finite and within +-limit, else MessageError."""
     a = np.asarray(values, dtype=float)
-    if not np.all(np.isfinite(a)):
+    # (the methods, not np.all / np.max: their dispatch was a third of a track item's check)
+    if not np.isfinite(a).all():
         raise MessageError("non_finite", f"{what} must be finite")
-    if a.size and np.max(np.abs(a)) > limit:
+    if a.size and np.abs(a).max() > limit:
         raise MessageError("out_of_range", f"{what} must be within +-{limit:g}")
     return a
 
@@ -144,7 +146,7 @@ def pv_of(position, velocity, what: str) -> np.ndarray:
 
 def spd(P: np.ndarray, what: str) -> np.ndarray:
     """A symmetric positive definite covariance, else MessageError("bad_covariance")."""
-    if not np.allclose(P, P.T, rtol=1e-9, atol=0.0):
+    if not _symmetric(P):
         raise MessageError("bad_covariance", f"{what} covariance is not symmetric")
     try:
         np.linalg.cholesky(P)
@@ -153,6 +155,14 @@ def spd(P: np.ndarray, what: str) -> np.ndarray:
             "bad_covariance", f"{what} covariance is not positive definite"
         ) from None
     return P
+
+
+def _symmetric(P: np.ndarray) -> bool:
+    """``np.allclose(P, P.T, rtol=1e-9, atol=0)`` by its own formula (``|a - b| <= rtol |b|``
+    where b is finite, or a == b): the same verdict, a fifth of the time on a 4 x 4 (spd checks
+    two per track item, and the planner and the evaluator each read every track array)."""
+    T = P.T
+    return bool(((np.abs(P - T) <= 1e-9 * np.abs(T)) & np.isfinite(T) | (P == T)).all())
 
 
 def _doubles(values) -> array.array:
