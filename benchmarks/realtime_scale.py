@@ -8,9 +8,11 @@ lockstep, the graph in one process, the order alternating: as the command runs b
 (the bag recorded) and with ``--no-bag``. Both pass ``--no-plots``: the command draws the plots
 after its clock stops, so they are not in the real-time factor (sim seconds / wall seconds of
 the run, from its ``summary.json``). One untimed warm-up run comes first (numba's disk cache
-read once). Every run must give the same mean GOSPA to the last bit. Prints the machine line
-(``machine.describe``), each run's factor and the load average, and last
-``run_30t_real_time_factor=<median>`` (the default command's median).
+read once). The runs take a DDS domain of their own (``ROS_DOMAIN_ID``, unless set): in one
+process a run joins domain 0, where graphs of other jobs on a shared host would match its
+topics and cost it their traffic. Every run must give the same mean GOSPA to the last bit.
+Prints the machine line (``machine.describe``), each run's factor and the load average, and
+last ``run_30t_real_time_factor=<median>`` (the default command's median).
 
     .venv/bin/python benchmarks/realtime_scale.py [--repeats 5] [--steps 60] [--targets 30]
         [--platforms 4]
@@ -36,6 +38,10 @@ from planning_scale import scale_scene_data
 
 ACTIVETRACK = Path(sys.executable).with_name("activetrack")  # the venv's command
 MODES = {"default": [], "no-bag": ["--no-bag"]}
+ENV = {
+    **os.environ,
+    "ROS_DOMAIN_ID": os.environ.get("ROS_DOMAIN_ID") or str(150 + os.getpid() % 80),
+}
 
 
 def write_scene(folder: Path, n_targets: int, n_platforms: int, steps: int) -> Path:
@@ -51,7 +57,7 @@ def one_run(scenario: Path, folder: Path, tag: str, mode: str) -> tuple[float, f
     """(real-time factor, wall s, mean GOSPA) of one `activetrack run` in a fresh run folder."""
     out = folder / tag
     cmd = [str(ACTIVETRACK), "run", str(scenario), "--no-plots", "--out", str(out), *MODES[mode]]
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False, env=ENV)
     if proc.returncode != 0:
         raise RuntimeError(f"run {tag}: exit {proc.returncode}: {proc.stderr[-2000:]}")
     summary = json.loads((out / "summary.json").read_text())
@@ -70,7 +76,10 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="realtime_scale_") as tmp:
         folder = Path(tmp)
         scenario = write_scene(folder, args.targets, args.platforms, args.steps)
-        print(f"# {scenario.name}: {args.steps} epochs of 1 s, one process, lockstep")
+        print(
+            f"# {scenario.name}: {args.steps} epochs of 1 s, one process, lockstep, "
+            f"ROS_DOMAIN_ID={ENV['ROS_DOMAIN_ID']}"
+        )
         _, _, gospa = one_run(scenario, folder, "warmup", "no-bag")
         for i in range(args.repeats):
             order = list(MODES) if i % 2 == 0 else list(MODES)[::-1]
