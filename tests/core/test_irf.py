@@ -108,6 +108,25 @@ def test_shared_time_integrals_change_no_bit() -> None:
     assert irf_module._time_integrals.cache_info().misses == 2
 
 
+def test_table_nodes_kept_on_disk_give_the_same_bits(tmp_path, monkeypatch) -> None:
+    # A table's exact nodes are kept between processes; read back they are the computed bits,
+    # and a damaged file is computed around (and written again), never trusted.
+    monkeypatch.setattr(irf_module, "IRF_TABLE_CACHE", tmp_path)
+    lam = np.array([3e-4, 0.02, 5.0])
+    irf_cache_clear()
+    computed = information_reduction_factors(0.85, lam, 3.5, 2)
+    (stored,) = tmp_path.glob("*.npy")
+    irf_cache_clear()
+    read = information_reduction_factors(0.85, lam, 3.5, 2)
+    assert irf_module._time_integrals.cache_info().misses == 0  # nothing integrated
+    assert read.tobytes() == computed.tobytes() and 0.0 < read[2] < read[1] < read[0] < 0.85
+    stored.write_bytes(stored.read_bytes()[:100])  # cut short
+    irf_cache_clear()
+    again = information_reduction_factors(0.85, lam, 3.5, 2)
+    assert irf_module._time_integrals.cache_info().misses > 0
+    assert again.tobytes() == computed.tobytes() and stored.stat().st_size > 1000
+
+
 @pytest.mark.parametrize(
     ("args", "match"),
     [

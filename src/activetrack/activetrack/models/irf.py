@@ -41,9 +41,14 @@ both radial, by composite Gauss-Legendre in ``r`` and in ``log t``.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
+import platform
+import sys
 from collections.abc import Callable
 from functools import lru_cache
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -72,6 +77,9 @@ _GL_NODES = 8
 # _TABLE_PER_DECADE per decade, to within IRF_TABLE_TOLERANCE of the exact integral (tested at
 # the midpoints); densities outside it (and 0) take the exact integral.
 IRF_TABLE_RANGE = (1e-6, 1e2)
+# Where the tables' exact node values are kept between processes (as numba keeps its kernels):
+# the same bits as computing them, keyed by everything they depend on (_table_key).
+IRF_TABLE_CACHE = Path(__file__).resolve().parent / "__pycache__" / "irf_tables"
 IRF_TABLE_TOLERANCE = 1e-6
 _TABLE_PER_DECADE = 16
 _TABLE_PAD = 4
@@ -131,8 +139,7 @@ def _irf_table(pd: float, g: float, n: int) -> Callable[[FloatArray], FloatArray
     nodes = round(math.log10(hi / lo) * _TABLE_PER_DECADE)
     h = math.log(hi / lo) / nodes
     u = math.log(lo) + h * np.arange(-_TABLE_PAD, nodes + _TABLE_PAD + 1)
-    exact = _irf_core.__wrapped__  # the table's nodes would only crowd the cache
-    q = np.array([exact(pd, float(math.exp(v)), g, n) for v in u])
+    q = _table_nodes(pd, g, n, u)
     # Second derivatives M at the nodes: M_{i-1} + 4 M_i + M_{i+1} = 6 (q_{i-1} - 2 q_i +
     # q_{i+1}) / h^2 inside, M = 0 at both ends.
     m = len(u) - 2
@@ -150,13 +157,66 @@ def _irf_table(pd: float, g: float, n: int) -> Callable[[FloatArray], FloatArray
     return spline
 
 
+def _table_nodes(pd: float, g: float, n: int, u: FloatArray) -> FloatArray:
+    """Exact ``q`` at the nodes ``exp(u)`` of a table: read from :data:`IRF_TABLE_CACHE` when
+    this code on this interpreter, numpy and CPU computed them before (the same bits), else
+    computed (0.1 s a table; each run's planner needs one per kind of sensor) and stored.
+    A cache that cannot be read or written is computed around, never trusted in part."""
+    path = IRF_TABLE_CACHE / f"{_table_key(pd, g, n, u)}.npy"
+    try:
+        q = np.load(path, allow_pickle=False)
+        if q.dtype == np.float64 and q.shape == u.shape and np.isfinite(q).all():
+            return q
+    except (OSError, ValueError):
+        pass  # not there (or not whole): computed below
+    exact = _irf_core.__wrapped__  # the table's nodes would only crowd the cache
+    q = np.array([exact(pd, float(math.exp(v)), g, n) for v in u])
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        part = path.with_suffix(f".{os.getpid()}.part")
+        with open(part, "wb") as f:
+            np.save(f, q, allow_pickle=False)
+        os.replace(part, path)  # whole or not at all, whoever else writes it
+    except OSError:
+        pass  # a read-only install: computed each time, as before the cache
+    return q
+
+
+def _table_key(pd: float, g: float, n: int, u: FloatArray) -> str:
+    """What a table's node values depend on: the inputs, the code that computes them (this
+    module and ``chi2_cdf``'s) and what runs it (Python and its libm, numpy and the CPU
+    features it dispatches to: an AVX-512 exp differs from an AVX2 one in the last bit; scipy,
+    whose gammainc ``chi2_cdf`` is)."""
+    import scipy
+
+    from activetrack import stats
+
+    h = hashlib.sha256()
+    for source in (__file__, stats.__file__):
+        h.update(Path(source).read_bytes())
+    versions = (sys.version, platform.libc_ver(), np.__version__, scipy.__version__)
+    h.update(repr((pd, g, n, versions)).encode())
+    h.update(repr(sorted(k for k, on in _numpy_cpu_features().items() if on)).encode())
+    h.update(np.ascontiguousarray(u, dtype=float).tobytes())
+    return h.hexdigest()[:32]
+
+
+def _numpy_cpu_features() -> dict[str, bool]:
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:  # numpy < 2
+        from numpy.core._multiarray_umath import __cpu_features__ as features
+    return dict(features)
+
+
 def irf_cache_info() -> Any:
     """``functools.lru_cache`` statistics of the cached IRF core."""
     return _irf_core.cache_info()
 
 
 def irf_cache_clear() -> None:
-    """Empty the IRF cache (and the tables of :func:`information_reduction_factors`)."""
+    """Empty the IRF caches in memory (the tables of :func:`information_reduction_factors`
+    too; their nodes on disk, IRF_TABLE_CACHE, stay: they are the same bits)."""
     _irf_core.cache_clear()
     _irf_table.cache_clear()
     _time_integrals.cache_clear()
