@@ -22,7 +22,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovarianceStamped
-from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -33,7 +32,13 @@ from activetrack.filters import filter_names
 from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_tracking, with_tracker_overrides
 from activetrack_ros import graph as topics
-from activetrack_ros.convert import marker, platform_from_msg, scan_from_msg, track_array_msg
+from activetrack_ros.convert import (
+    header,
+    marker,
+    platform_from_msg,
+    scan_from_msg,
+    track_array_msg,
+)
 from activetrack_ros.frames import estimate_frame, planar_transform
 from activetrack_ros.node_base import GraphNode, Rejected
 from activetrack_ros.params import COMMON, SCENARIO, ParamSpec
@@ -299,8 +304,9 @@ class TrackerNode(GraphNode):
         return markers
 
     def _track_view(self, track_id: int) -> tuple[Marker, Marker]:
-        """A track's ellipse (no points yet) and id label, kept in ``track_views``."""
-        hdr = Header()
+        """A track's ellipse (no points yet) and id label, kept in ``track_views`` (each epoch
+        gives them its header)."""
+        hdr = header(0.0, self.frame_id)
         ellipse = marker(hdr, "tracks", track_id, Marker.LINE_STRIP, CONFIRMED_RGBA)
         ellipse.scale.x = 5.0  # line width, m
         label = marker(hdr, "track_ids", track_id, Marker.TEXT_VIEW_FACING, CONFIRMED_RGBA)
