@@ -42,6 +42,7 @@ both radial, by composite Gauss-Legendre in ``r`` and in ``log t``.
 from __future__ import annotations
 
 import hashlib
+import importlib
 import math
 import os
 import platform
@@ -162,15 +163,17 @@ def _table_nodes(pd: float, g: float, n: int, u: FloatArray) -> FloatArray:
     this code on this interpreter, numpy and CPU computed them before (the same bits), else
     computed (0.1 s a table; each run's planner needs one per kind of sensor) and stored.
     A cache that cannot be read or written is computed around, never trusted in part."""
-    path = IRF_TABLE_CACHE / f"{_table_key(pd, g, n, u)}.npy"
+    key = _table_key(pd, g, n, u)
+    if key is None:
+        return _exact_nodes(pd, g, n, u)
+    path = IRF_TABLE_CACHE / f"{key}.npy"
     try:
         q = np.load(path, allow_pickle=False)
         if q.dtype == np.float64 and q.shape == u.shape and np.isfinite(q).all():
             return q
     except (OSError, ValueError):
         pass  # not there (or not whole): computed below
-    exact = _irf_core.__wrapped__  # the table's nodes would only crowd the cache
-    q = np.array([exact(pd, float(math.exp(v)), g, n) for v in u])
+    q = _exact_nodes(pd, g, n, u)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         part = path.with_suffix(f".{os.getpid()}.part")
@@ -182,11 +185,16 @@ def _table_nodes(pd: float, g: float, n: int, u: FloatArray) -> FloatArray:
     return q
 
 
-def _table_key(pd: float, g: float, n: int, u: FloatArray) -> str:
+def _exact_nodes(pd: float, g: float, n: int, u: FloatArray) -> FloatArray:
+    exact = _irf_core.__wrapped__  # the table's nodes would only crowd the cache
+    return np.array([exact(pd, float(math.exp(v)), g, n) for v in u])
+
+
+def _table_key(pd: float, g: float, n: int, u: FloatArray) -> str | None:
     """What a table's node values depend on: the inputs, the code that computes them (this
     module and ``chi2_cdf``'s) and what runs it (Python and its libm, numpy and the CPU
     features it dispatches to: an AVX-512 exp differs from an AVX2 one in the last bit; scipy,
-    whose gammainc ``chi2_cdf`` is)."""
+    whose gammainc ``chi2_cdf`` is). None where numpy's features are unknown: not kept."""
     import scipy
 
     from activetrack import stats
@@ -196,17 +204,24 @@ def _table_key(pd: float, g: float, n: int, u: FloatArray) -> str:
         h.update(Path(source).read_bytes())
     versions = (sys.version, platform.libc_ver(), np.__version__, scipy.__version__)
     h.update(repr((pd, g, n, versions)).encode())
-    h.update(repr(sorted(k for k, on in _numpy_cpu_features().items() if on)).encode())
+    features = _numpy_cpu_features()
+    if features is None:
+        return None
+    h.update(repr(features).encode())
     h.update(np.ascontiguousarray(u, dtype=float).tobytes())
     return h.hexdigest()[:32]
 
 
-def _numpy_cpu_features() -> dict[str, bool]:
-    try:
-        from numpy._core._multiarray_umath import __cpu_features__ as features
-    except ImportError:  # numpy < 2
-        from numpy.core._multiarray_umath import __cpu_features__ as features
-    return dict(features)
+def _numpy_cpu_features() -> list[str] | None:
+    """The CPU features numpy dispatches to on this machine (from its private table), or None
+    where that table is not found (then the tables are not kept)."""
+    for name in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):
+        try:
+            features = importlib.import_module(name).__cpu_features__
+        except (ImportError, AttributeError):
+            continue
+        return sorted(k for k, on in features.items() if on)
+    return None
 
 
 def irf_cache_info() -> Any:
