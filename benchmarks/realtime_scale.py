@@ -7,10 +7,12 @@ process as a user runs it (what a process does once, e.g. the planner's IRF tabl
 lockstep, the graph in one process, the order alternating: as the command runs by default
 (the bag recorded) and with ``--no-bag``. Both pass ``--no-plots``: the command draws the plots
 after its clock stops, so they are not in the real-time factor (sim seconds / wall seconds of
-the run, from its ``summary.json``). One untimed warm-up run comes first (numba's disk cache
-read once). The runs take a DDS domain of their own (``ROS_DOMAIN_ID``, unless set): in one
-process a run joins domain 0, where graphs of other jobs on a shared host would match its
-topics and cost it their traffic. Every run must give the same mean GOSPA to the last bit.
+the run, from its ``summary.json``). One untimed warm-up run comes first: numba's disk cache
+read once, and a scene's first run on a machine computes its IRF tables, which later runs
+read from disk (``models/irf.py``; about 0.35 s of the first run). The runs take a DDS
+domain of their own (``ROS_DOMAIN_ID``, unless set): in one process a run joins domain 0,
+where graphs of other jobs on a shared host would match its topics and cost it their
+traffic. Every run must give the same mean GOSPA to the last bit.
 Prints the machine line (``machine.describe``), each run's factor and the load average, and
 last ``run_30t_real_time_factor=<median>`` (the default command's median).
 
