@@ -73,6 +73,14 @@ def scale_scene(
     """(b) scaled: ``n_targets`` on a jittered grid ``SPACING`` apart, ``n_platforms`` on a
     ring 5 km outside the region flying tangentially, one beam radar each (module
     docstring); ``planner`` overrides entries of (b)'s planner section."""
+    data = scale_scene_data(n_targets, n_platforms, seed, planner)
+    return parse_scenario(data, data["name"])
+
+
+def scale_scene_data(
+    n_targets: int, n_platforms: int, seed: int = SEED, planner: dict | None = None
+) -> dict:
+    """The scenario file's contents of :func:`scale_scene`."""
     rng = np.random.default_rng(seed)
     side = math.ceil(math.sqrt(n_targets))
     half = 0.5 * side * SPACING
@@ -129,7 +137,7 @@ def scale_scene(
         "evaluation": {"cutoff": 500.0, "order": 2, "alpha": 2},
     }
     data["planner"].update(planner or {})
-    return parse_scenario(data, data["name"])
+    return data
 
 
 def confirmed_tracks(scenario: Scenario) -> TrackSet:

@@ -15,6 +15,7 @@ import pytest
 from scipy.special import gammainc
 from scipy.stats import poisson
 
+import activetrack.models.irf as irf_module
 from activetrack.models.irf import (
     IRF_TABLE_RANGE,
     IRF_TABLE_TOLERANCE,
@@ -90,6 +91,40 @@ def test_cache_hits_and_identical_values() -> None:
     info = irf_cache_info()
     assert again == first and nudged == first
     assert (info.hits, info.misses) == (2, 1)
+
+
+def test_shared_time_integrals_change_no_bit() -> None:
+    # Densities whose clutter rate is <= 1 share the lambda-free integrals (one grid in log t):
+    # a value is the same whether it is computed first or from integrals another filled.
+    irf_cache_clear()
+    first = information_reduction_factor(0.9, 1e-4, 3.5, 2)
+    irf_cache_clear()
+    others = [information_reduction_factor(pd, 1e-3, 3.5, 2) for pd in (0.5, 0.7)]
+    after = information_reduction_factor(0.9, 1e-4, 3.5, 2)
+    assert irf_module._time_integrals.cache_info().hits == 2  # computed once, shared twice
+    assert after == first and 0.85 < first < 0.9 and others[0] < others[1] < first
+    # A high density has its own grid (it starts lower in log t).
+    assert information_reduction_factor(0.9, 10.0, 3.5, 2) < 0.1
+    assert irf_module._time_integrals.cache_info().misses == 2
+
+
+def test_table_nodes_kept_on_disk_give_the_same_bits(tmp_path, monkeypatch) -> None:
+    # A table's exact nodes are kept between processes; read back they are the computed bits,
+    # and a damaged file is computed around (and written again), never trusted.
+    monkeypatch.setattr(irf_module, "IRF_TABLE_CACHE", tmp_path)
+    lam = np.array([3e-4, 0.02, 5.0])
+    irf_cache_clear()
+    computed = information_reduction_factors(0.85, lam, 3.5, 2)
+    (stored,) = tmp_path.glob("*.npy")
+    irf_cache_clear()
+    read = information_reduction_factors(0.85, lam, 3.5, 2)
+    assert irf_module._time_integrals.cache_info().misses == 0  # nothing integrated
+    assert read.tobytes() == computed.tobytes() and 0.0 < read[2] < read[1] < read[0] < 0.85
+    stored.write_bytes(stored.read_bytes()[:100])  # cut short
+    irf_cache_clear()
+    again = information_reduction_factors(0.85, lam, 3.5, 2)
+    assert irf_module._time_integrals.cache_info().misses > 0
+    assert again.tobytes() == computed.tobytes() and stored.stat().st_size > 1000
 
 
 @pytest.mark.parametrize(

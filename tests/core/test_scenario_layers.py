@@ -116,3 +116,23 @@ def test_the_schema_alone_has_the_built_in_sensor_kinds():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "BearingSensorConfig"
+
+
+def test_a_file_read_again_is_parsed_once_and_a_changed_one_again(tmp_path, monkeypatch):
+    """The runner and its nodes in one process read one file four times: the YAML of the same
+    text is parsed once, each reader gets its own copy, and a changed file is parsed anew."""
+    from activetrack.scenarios import load
+
+    changed = _default()
+    parses = []
+    real = load.yaml.safe_load
+    monkeypatch.setattr(load.yaml, "safe_load", lambda text: parses.append(1) or real(text))
+    path = tmp_path / "s.yaml"
+    path.write_text(DEFAULT.read_text())
+    first, second = load_scenario(path), load_scenario(path)
+    assert first == second and len(parses) == 1
+    _, data = load._read_yaml(path)
+    data["steps"] = 3  # a reader's copy: the next reader's is the file's
+    assert load._read_yaml(path)[1]["steps"] == first.steps != 3 and len(parses) == 1
+    path.write_text(yaml.safe_dump(changed | {"steps": first.steps + 1}))
+    assert load_scenario(path).steps == first.steps + 1 and len(parses) == 2

@@ -493,6 +493,35 @@ def test_bad_track_arrays_are_rejected_naming_the_field(mutate, reason, field):
     _expect(lambda: track_array_from_msg(_cdr(msg), scenario), reason, field)
 
 
+@pytest.mark.parametrize(
+    ("faults", "reason", "field"),
+    [
+        ((_track(1, "covariance", NOT_SPD), _track(2, "status", 7)), "bad_covariance", "{1}"),
+        ((_track(1, "status", 7), _track(2, "covariance", NOT_SPD)), "bad_field", "{1}: status"),
+        (
+            (_track(1, "covariance", NOT_SPD), _track(3, "mean", [math.nan] * 4)),
+            "bad_covariance",
+            "{1}",
+        ),
+        (
+            (_track(2, "state_covariance", NOT_SPD), _track(2, "covariance", ASYMMETRIC)),
+            "bad_covariance",
+            "{2} covariance is not symmetric",
+        ),
+    ],
+)
+def test_the_first_fault_of_a_track_array_is_the_one_named(faults, reason, field):
+    """The covariances of all items are checked at once after the items' other fields: the
+    error is still the first one in the items' order (an item's covariance, then its state
+    covariance, before the next item's fields)."""
+    scenario, msg = _tracks_msg()
+    ids = [item.track_id for item in msg.tracks]
+    for fault in faults:
+        fault(msg)
+    field = field.format(*(f"track {i}" for i in ids))
+    _expect(lambda: track_array_from_msg(_cdr(msg), scenario), reason, field)
+
+
 def test_too_many_samples_and_tracks_are_refused():
     scenario, msg = _tracks_msg()
     n = scenario.tracker.planner_samples + 1

@@ -102,7 +102,8 @@ def marker(hdr: Header, ns: str, id_: int, kind: int, rgba, points=()) -> Marker
     m = Marker(header=hdr, ns=ns, id=id_, type=kind, action=Marker.ADD)
     m.pose.orientation.w = 1.0
     m.color = ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
-    m.points = [Point(x=float(x), y=float(y)) for x, y in points]
+    # (as Python floats in one go: a float() per numpy scalar doubled the time of an ellipse)
+    m.points = [Point(x=x, y=y) for x, y in np.asarray(points, dtype=float).reshape(-1, 2).tolist()]
     return m
 
 
@@ -128,9 +129,10 @@ def check_epoch_stamp(msg, scenario: Scenario | TrackingConfig, what: str) -> fl
 def finite(values, what: str, limit: float) -> np.ndarray:
     """``values`` as a float array, all finite and within +-limit, else MessageError."""
     a = np.asarray(values, dtype=float)
-    if not np.all(np.isfinite(a)):
+    # (the methods, not np.all / np.max: their dispatch was a third of a track item's check)
+    if not np.isfinite(a).all():
         raise MessageError("non_finite", f"{what} must be finite")
-    if a.size and np.max(np.abs(a)) > limit:
+    if a.size and np.abs(a).max() > limit:
         raise MessageError("out_of_range", f"{what} must be within +-{limit:g}")
     return a
 
@@ -144,7 +146,7 @@ def pv_of(position, velocity, what: str) -> np.ndarray:
 
 def spd(P: np.ndarray, what: str) -> np.ndarray:
     """A symmetric positive definite covariance, else MessageError("bad_covariance")."""
-    if not np.allclose(P, P.T, rtol=1e-9, atol=0.0):
+    if not _symmetric(P):
         raise MessageError("bad_covariance", f"{what} covariance is not symmetric")
     try:
         np.linalg.cholesky(P)
@@ -153,6 +155,14 @@ def spd(P: np.ndarray, what: str) -> np.ndarray:
             "bad_covariance", f"{what} covariance is not positive definite"
         ) from None
     return P
+
+
+def _symmetric(P: np.ndarray) -> bool:
+    """``np.allclose(P, P.T, rtol=1e-9, atol=0)`` by its own formula (``|a - b| <= rtol |b|``
+    where b is finite, or a == b): the same verdict, a fifth of the time on a 4 x 4 (spd checks
+    two per track item, and the planner and the evaluator each read every track array)."""
+    T = P.T
+    return bool(((np.abs(P - T) <= 1e-9 * np.abs(T)) & np.isfinite(T) | (P == T)).all())
 
 
 def _doubles(values) -> array.array:
@@ -481,12 +491,29 @@ class TrackArrayChecker:
             filter_kind=msg.filter_kind,
             motion_model=msg.motion_model,
             state_names=self.state_names,
-            tracks=tuple(self._track(item, what) for item in msg.tracks),
+            tracks=self._tracks(msg.tracks, what),
             **{name: getattr(msg, name) for name in _ARRAY_COUNTS},
         )
 
+    def _tracks(self, items, what: str) -> tuple[TrackEstimate, ...]:
+        """Every item by :meth:`_track`, then their covariances checked SPD all at once
+        (:func:`_spd_all`; one by one they were a third of the check, which the planner and
+        the evaluator each run on every track array). The first error is the one the items
+        checked in turn would raise: an item's failure first checks the covariances of the
+        items before it."""
+        tracks: list[TrackEstimate] = []
+        for item in items:
+            try:
+                tracks.append(self._track(item, what))
+            except Exception:
+                _spd_all(tracks, what)
+                raise
+        _spd_all(tracks, what)
+        return tuple(tracks)
+
     def _track(self, item: TrackItem, what: str) -> TrackEstimate:
-        """One TrackItem: status, origin, priority, finite state and pv, SPD covariances."""
+        """One TrackItem: status, origin, priority, finite state and pv (its covariances SPD:
+        :func:`_spd_all`, for all items at once)."""
         what = f"{what} track {item.track_id}"
         n = len(self.state_names)
         if item.status not in _STATUS_NAME:
@@ -529,13 +556,35 @@ class TrackArrayChecker:
             track_id=item.track_id,
             status=_STATUS_NAME[item.status],
             mean=mean,
-            cov=spd(cov.copy(), what),
+            cov=cov.copy(),
             state=state,
-            state_cov=spd(state_cov.reshape(n, n).copy(), what),
+            state_cov=state_cov.reshape(n, n).copy(),
             origin=item.origin,
             samples=samples,
             **{name: getattr(item, name) for name in (*_TRACK_COUNTS, *_TRACK_FLOATS)},
         )
+
+
+def _spd_all(tracks: list[TrackEstimate], what: str) -> None:
+    """:func:`spd` of each track's ``cov`` then ``state_cov``, in turn, with its error: in
+    one batch (allclose's formula and a Cholesky of the stack), and only if that fails track
+    by track for the first error."""
+    if not tracks:
+        return
+    for stack in (np.stack([t.cov for t in tracks]), np.stack([t.state_cov for t in tracks])):
+        T = np.swapaxes(stack, -1, -2)
+        close = (np.abs(stack - T) <= 1e-9 * np.abs(T)) & np.isfinite(T) | (stack == T)
+        if not close.all():
+            break
+        try:
+            np.linalg.cholesky(stack)
+        except np.linalg.LinAlgError:
+            break
+    else:
+        return
+    for t in tracks:
+        spd(t.cov, f"{what} track {t.track_id}")
+        spd(t.state_cov, f"{what} track {t.track_id}")
 
 
 def track_array_from_msg(msg: TrackArray, scenario: Scenario) -> TrackSet:

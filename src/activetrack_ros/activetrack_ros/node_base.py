@@ -83,6 +83,12 @@ class GraphPublisher:
         faults = getattr(node, "injections", [])
         self.inject = inject.injector(node, inject.PUBLISH, topic, faults) if faults else None
 
+    def has_readers(self) -> bool:
+        """Some subscription (in this process or another) matches the topic now: a view on a
+        volatile topic that nobody reads need not be built (a reader that joins later gets
+        the next one, as it would anyway)."""
+        return self.publisher.get_subscription_count() > 0
+
     def publish(self, msg) -> None:
         if self.key is not None:
             data = self.key.sign(serialize_message(msg))

@@ -327,7 +327,8 @@ class SimNode(GraphNode):
         for s in self.sim.platform_snapshots():
             self.platform_pub.publish(platform_state_msg(s, len(scans), self.frame_id))
         self.counters.count("epochs_published")
-        self.publish_frames(t, truth)
+        if self.tf_pub.has_readers():  # a view (volatile): built for readers only
+            self.publish_frames(t, truth)
         self.publish_markers(t)
         message = f"epoch {self.sim.epoch}/{self.scenario.steps}"
         self.publish_diagnostics(header(t, self.frame_id), message)
@@ -355,14 +356,18 @@ class SimNode(GraphNode):
 
     def publish_markers(self, t: float) -> None:
         """Each platform's path as line strips of PATH_CHUNK points (``platforms/<id>``, id: the
-        chunk's index) sharing end points: only the newest is republished (linear bytes)."""
-        array = MarkerArray()
+        chunk's index) sharing end points: only the newest is republished (linear bytes).
+        The paths grow whether or not the markers have a reader (one may join later)."""
         for pid, p in self.sim.platforms.items():
             path = self.paths[pid]
             if len(path) == PATH_CHUNK:  # chunk full: the next one starts where it ended
                 self.path_chunk[pid] += 1
                 del path[:-1]
             path.append(Point(x=float(p.pv[0]), y=float(p.pv[2])))
+        if not self.marker_pub.has_readers():
+            return
+        array = MarkerArray()
+        for pid, path in self.paths.items():
             hdr = header(t, self.frame_id)
             chunk = self.path_chunk[pid]
             m = marker(hdr, f"platforms/{pid}", chunk, Marker.LINE_STRIP, (0.1, 0.4, 0.9, 1.0))

@@ -40,6 +40,7 @@ __all__ = [
     "pcrlb_step",
     "pcrlb_trajectory",
     "propagate_samples",
+    "propagate_step",
     "sensor_information",
 ]
 
@@ -284,11 +285,19 @@ def propagate_samples(
     S = _psd_sqrt("Q", np.asarray(Q, dtype=float)) if rng is not None else None
     out = np.empty((int(n_steps), *X.shape))
     for k in range(int(n_steps)):
-        X = X @ F.T
-        if rng is not None and S is not None:
-            X = X + rng.standard_normal(X.shape) @ S.T
+        X = X @ F.T if rng is None or S is None else propagate_step(X, F, S, rng)
         out[k] = X
     return out
+
+
+def propagate_step(
+    X: FloatArray, F: FloatArray, S: FloatArray, rng: np.random.Generator
+) -> FloatArray:
+    """One step of :func:`propagate_samples` (eq. 2, w_k = S times standard normals) for
+    samples ``X`` ``(M, n)`` checked finite, F checked, and ``S = psd_sqrt(Q)``: for a caller
+    that steps epoch by epoch and takes the root once (the root of a singular Q, an eigh after
+    a failed Cholesky, was a third of such a step)."""
+    return X @ F.T + rng.standard_normal(X.shape) @ S.T
 
 
 def pcrlb_trajectory(

@@ -44,11 +44,13 @@ from activetrack.bounds.pcrlb import (
     gaussian_samples,
     measurement_information,
     pcrlb_step,
-    propagate_samples,
+    propagate_step,
 )
+from activetrack.checks import require_finite
 from activetrack.closed_loop.components import scene_sensors, scene_targets
 from activetrack.closed_loop.record import RunRecord
 from activetrack.data import TrackSet
+from activetrack.linalg import psd_sqrt
 from activetrack.metrics import GospaResult, gospa, ospa
 from activetrack.models.base import as_linear
 from activetrack.models.clutter import ClutteredSensor
@@ -324,6 +326,7 @@ class TargetBound:
         self.C0 = target.prior.covariance()
         self.X: FloatArray | None = None
         self.J: FloatArray | None = None
+        self.S: FloatArray | None = None  # psd_sqrt(Q), taken at the first propagation
         if self.linear:
             linear = as_linear(model)
             self.F, self.Q = linear.transition_matrix(dt), linear.process_noise(dt)
@@ -342,6 +345,15 @@ class TargetBound:
         assert self.X is not None
         return measurement_information(chosen, np.asarray(sensor_pv)[idx], self.X)
 
+    def _propagate(self, X: FloatArray) -> FloatArray:
+        """``propagate_samples(X, F, Q, 1, rng)[0]``: its checks and its draws, with the root
+        of Q taken once (a third of the step)."""
+        require_finite("target_samples", X)
+        if self.S is None:
+            require_finite("F", self.F)
+            self.S = psd_sqrt("Q", np.asarray(self.Q, dtype=float))
+        return propagate_step(X, self.F, self.S, self.rng)
+
     def information(self, sensor_pv: FloatArray, counts: np.ndarray) -> FloatArray | None:
         """J ``(4, 4)`` at the next epoch from the sensors' pv there ``(S, 4)`` and which count
         ``(S,)``; None while the target is not alive or for nonlinear dynamics."""
@@ -356,7 +368,7 @@ class TargetBound:
             self.J = self.J + self._information(sensor_pv, counts)
         else:
             assert self.X is not None
-            self.X = propagate_samples(self.X, self.F, self.Q, 1, self.rng)[0]
+            self.X = self._propagate(self.X)
             self.J = pcrlb_step(self.J, self.F, self.Q, self._information(sensor_pv, counts))
         return self.J
 

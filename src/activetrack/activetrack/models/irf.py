@@ -41,9 +41,15 @@ both radial, by composite Gauss-Legendre in ``r`` and in ``log t``.
 
 from __future__ import annotations
 
+import hashlib
+import importlib
 import math
+import os
+import platform
+import sys
 from collections.abc import Callable
 from functools import lru_cache
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -72,6 +78,9 @@ _GL_NODES = 8
 # _TABLE_PER_DECADE per decade, to within IRF_TABLE_TOLERANCE of the exact integral (tested at
 # the midpoints); densities outside it (and 0) take the exact integral.
 IRF_TABLE_RANGE = (1e-6, 1e2)
+# Where the tables' exact node values are kept between processes (as numba keeps its kernels):
+# the same bits as computing them, keyed by everything they depend on (_table_key).
+IRF_TABLE_CACHE = Path(__file__).resolve().parent / "__pycache__" / "irf_tables"
 IRF_TABLE_TOLERANCE = 1e-6
 _TABLE_PER_DECADE = 16
 _TABLE_PAD = 4
@@ -131,8 +140,7 @@ def _irf_table(pd: float, g: float, n: int) -> Callable[[FloatArray], FloatArray
     nodes = round(math.log10(hi / lo) * _TABLE_PER_DECADE)
     h = math.log(hi / lo) / nodes
     u = math.log(lo) + h * np.arange(-_TABLE_PAD, nodes + _TABLE_PAD + 1)
-    exact = _irf_core.__wrapped__  # the table's nodes would only crowd the cache
-    q = np.array([exact(pd, float(math.exp(v)), g, n) for v in u])
+    q = _table_nodes(pd, g, n, u)
     # Second derivatives M at the nodes: M_{i-1} + 4 M_i + M_{i+1} = 6 (q_{i-1} - 2 q_i +
     # q_{i+1}) / h^2 inside, M = 0 at both ends.
     m = len(u) - 2
@@ -150,20 +158,94 @@ def _irf_table(pd: float, g: float, n: int) -> Callable[[FloatArray], FloatArray
     return spline
 
 
+def _table_nodes(pd: float, g: float, n: int, u: FloatArray) -> FloatArray:
+    """Exact ``q`` at the nodes ``exp(u)`` of a table: read from :data:`IRF_TABLE_CACHE` when
+    this code on this interpreter, numpy and CPU computed them before (the same bits), else
+    computed (0.1 s a table; each run's planner needs one per kind of sensor) and stored.
+    A cache that cannot be read or written is computed around, never trusted in part."""
+    key = _table_key(pd, g, n, u)
+    if key is None:
+        return _exact_nodes(pd, g, n, u)
+    path = IRF_TABLE_CACHE / f"{key}.npy"
+    try:
+        q = np.load(path, allow_pickle=False)
+        if q.dtype == np.float64 and q.shape == u.shape and np.isfinite(q).all():
+            return q
+    except (OSError, ValueError):
+        pass  # not there (or not whole): computed below
+    q = _exact_nodes(pd, g, n, u)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        part = path.with_suffix(f".{os.getpid()}.part")
+        with open(part, "wb") as f:
+            np.save(f, q, allow_pickle=False)
+        os.replace(part, path)  # whole or not at all, whoever else writes it
+    except OSError:
+        pass  # a read-only install: computed each time, as before the cache
+    return q
+
+
+def _exact_nodes(pd: float, g: float, n: int, u: FloatArray) -> FloatArray:
+    exact = _irf_core.__wrapped__  # the table's nodes would only crowd the cache
+    return np.array([exact(pd, float(math.exp(v)), g, n) for v in u])
+
+
+def _table_key(pd: float, g: float, n: int, u: FloatArray) -> str | None:
+    """What a table's node values depend on: the inputs, the code that computes them (this
+    module and ``chi2_cdf``'s) and what runs it (Python and its libm, numpy and the CPU
+    features it dispatches to: an AVX-512 exp differs from an AVX2 one in the last bit; scipy,
+    whose gammainc ``chi2_cdf`` is). None where numpy's features are unknown: not kept."""
+    import scipy
+
+    from activetrack import stats
+
+    h = hashlib.sha256()
+    for source in (__file__, stats.__file__):
+        h.update(Path(source).read_bytes())
+    versions = (sys.version, platform.libc_ver(), np.__version__, scipy.__version__)
+    h.update(repr((pd, g, n, versions)).encode())
+    features = _numpy_cpu_features()
+    if features is None:
+        return None
+    h.update(repr(features).encode())
+    h.update(np.ascontiguousarray(u, dtype=float).tobytes())
+    return h.hexdigest()[:32]
+
+
+def _numpy_cpu_features() -> list[str] | None:
+    """The CPU features numpy dispatches to on this machine (from its private table), or None
+    where that table is not found (then the tables are not kept)."""
+    for name in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):
+        try:
+            features = importlib.import_module(name).__cpu_features__
+        except (ImportError, AttributeError):
+            continue
+        return sorted(k for k, on in features.items() if on)
+    return None
+
+
 def irf_cache_info() -> Any:
     """``functools.lru_cache`` statistics of the cached IRF core."""
     return _irf_core.cache_info()
 
 
 def irf_cache_clear() -> None:
-    """Empty the IRF cache (and the tables of :func:`information_reduction_factors`)."""
+    """Empty the IRF caches in memory (the tables of :func:`information_reduction_factors`
+    too; their nodes on disk, IRF_TABLE_CACHE, stay: they are the same bits)."""
     _irf_core.cache_clear()
     _irf_table.cache_clear()
+    _time_integrals.cache_clear()
+
+
+@lru_cache(maxsize=1)
+def _legendre() -> tuple[FloatArray, FloatArray]:
+    """The _GL_NODES-point Gauss-Legendre rule on [-1, 1] (an eigenproblem: ~0.1 ms a call)."""
+    return np.polynomial.legendre.leggauss(_GL_NODES)
 
 
 def _gauss_legendre(lo: float, hi: float, n_panels: int) -> tuple[FloatArray, FloatArray]:
     """Composite Gauss-Legendre nodes and weights on ``[lo, hi]``."""
-    x, w = np.polynomial.legendre.leggauss(_GL_NODES)
+    x, w = _legendre()
     edges = np.linspace(lo, hi, n_panels + 1)
     half = 0.5 * np.diff(edges)
     mid = 0.5 * (edges[1:] + edges[:-1])
@@ -182,23 +264,36 @@ def _irf_core(pd: float, lam: float, g: float, n: int, resolution: float = 1.0) 
     p_gate = chi2_cdf(g * g, n)  # F_{chi2, n}(g^2)
     n0 = (2.0 * math.pi) ** (-n / 2)  # N(0; 0, I_n)
 
-    # Radial grid: exp(-s phi(r)) switches over a width ~1/r, so panels of <= 0.125 sigma.
-    r, wr = _gauss_legendre(0.0, g, max(4, math.ceil(8.0 * g * resolution)))
-    phi = np.exp(-0.5 * r * r)  # N(r) / N(0)
-
     # Scaled time s = t Pd N(0), integrated in u = log s.  Below s_lo the integrand is ~ s
     # (30 e-folds are negligible); above s_hi, exp(-s phi) < e^-50 everywhere in the gate.
     clutter_rate = lam * (volume + (1.0 - pd * p_gate) / (pd * n0))
     u_lo = -30.0 - max(0.0, math.log(clutter_rate)) if clutter_rate > 0.0 else -30.0
-    u_hi = 0.5 * g * g + math.log(50.0)
-    u, wu = _gauss_legendre(u_lo, u_hi, max(8, math.ceil(2.0 * (u_hi - u_lo) * resolution)))
-    s = np.exp(u)
-
-    decay = np.exp(-s[:, None] * phi[None, :])  # exp(-t Pd N(nu)), shape (u, r)
-    a_int = (decay * (phi * phi * r ** (n + 1) * wr)[None, :]).sum(axis=1)
-    c_int = (-np.expm1(-s[:, None] * phi[None, :]) * (r ** (n - 1) * wr)[None, :]).sum(axis=1)
+    s, wu, a_int, c_int = _time_integrals(g, n, resolution, u_lo)
     log_damp = -s * lam * (1.0 - pd * p_gate) / (pd * n0) - lam * surface * c_int
     # dt = ds / (Pd N0) and N^2 = N0^2 phi^2:  q = Pd N0 S_n / n * int s a(s) damp(s) du
     total = float(np.sum(wu * s * a_int * np.exp(log_damp)))
     q = pd * n0 * surface * total / n
     return float(min(max(q, 0.0), 1.0))
+
+
+@lru_cache(maxsize=64)
+def _time_integrals(
+    g: float, n: int, resolution: float, u_lo: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The radial integrals ``A`` and ``C`` of :func:`_irf_core` (module docstring, up to
+    constant factors) at the nodes ``s = exp(u)`` of the ``log t`` grid from ``u_lo``, with
+    ``s`` and the grid's weights. They depend on neither ``Pd`` nor ``lambda``: every density
+    whose clutter rate is <= 1 (u_lo = -30, the lower half of a table's nodes) shares them,
+    which makes a table three times as fast (the exp over the (u, r) grid is the work)."""
+    # Radial grid: exp(-s phi(r)) switches over a width ~1/r, so panels of <= 0.125 sigma.
+    r, wr = _gauss_legendre(0.0, g, max(4, math.ceil(8.0 * g * resolution)))
+    phi = np.exp(-0.5 * r * r)  # N(r) / N(0)
+    u_hi = 0.5 * g * g + math.log(50.0)
+    u, wu = _gauss_legendre(u_lo, u_hi, max(8, math.ceil(2.0 * (u_hi - u_lo) * resolution)))
+    s = np.exp(u)
+    minus_s_phi = -s[:, None] * phi[None, :]  # -t Pd N(nu), shape (u, r)
+    a_int = (np.exp(minus_s_phi) * (phi * phi * r ** (n + 1) * wr)[None, :]).sum(axis=1)
+    c_int = (-np.expm1(minus_s_phi) * (r ** (n - 1) * wr)[None, :]).sum(axis=1)
+    for a in (s, wu, a_int, c_int):
+        a.flags.writeable = False  # shared by the cache
+    return s, wu, a_int, c_int

@@ -13,6 +13,7 @@ fields are validated: a scenario file that names plugins is as trusted as a Pyth
 
 from __future__ import annotations
 
+import copy
 import re
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -234,6 +235,8 @@ def _read_yaml(path: str | Path) -> tuple[Path, Any]:
         if isinstance(exc, ScenarioError):
             raise
         raise ScenarioError(f"{path}: cannot read scenario file: {exc}") from None
+    if _last_parsed is not None and _last_parsed[0] == text:
+        return path, copy.deepcopy(_last_parsed[1])
     try:
         _check_structure(text)
         data = yaml.safe_load(text)
@@ -249,7 +252,19 @@ def _read_yaml(path: str | Path) -> tuple[Path, Any]:
         ) from None
     if data is None:
         raise ScenarioError(f"{path}: the file holds no scenario (only comments)")
+    _remember(text, data)
     return path, data
+
+
+# The last text parsed and its data (kept as parsed): `activetrack run` in one process reads
+# its scenario file four times (runner, sim, tracker, planner), 30 ms of YAML each at 30
+# targets. Keyed by the whole text, so a changed file is parsed again.
+_last_parsed: tuple[str, Any] | None = None
+
+
+def _remember(text: str, data: Any) -> None:
+    global _last_parsed
+    _last_parsed = (text, copy.deepcopy(data))
 
 
 def load_scenario(path: str | Path) -> Scenario:
