@@ -267,10 +267,11 @@ class ClosingClient(threading.Thread):
                     if not isinstance(data, str):
                         continue
                     msg = json.loads(data)
-                    if msg["op"] == "advertise":
-                        clock = next(c for c in msg["channels"] if c["topic"] == "/clock")
-                        request = [{"id": 1, "channelId": clock["id"]}]
-                        ws.send(json.dumps({"op": "subscribe", "subscriptions": request}))
+                    if msg["op"] == "advertise":  # channels come as their topics appear
+                        clock = [c for c in msg["channels"] if c["topic"] == "/clock"]
+                        if clock:  # (an advertise without it came first once: StopIteration)
+                            request = [{"id": 1, "channelId": clock[0]["id"]}]
+                            ws.send(json.dumps({"op": "subscribe", "subscriptions": request}))
                     elif msg["op"] == "status":
                         self.statuses.append(msg)
         except ConnectionClosed as closed:
