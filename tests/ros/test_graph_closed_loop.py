@@ -22,6 +22,7 @@ from activetrack_bringup.retrack import retrack
 from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
 from activetrack_ros.graph import qos_for
+from activetrack_ros.node_base import unaccounted
 from msgs_defs.msg import ManoeuvreCommand, PlanReport, TrackArray
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
@@ -191,6 +192,14 @@ def test_processes_mode_reproduces_the_batch_run(batch, tmp_path, localhost_disc
         SCENARIO, processes=True, run_dir=tmp_path, record=False, plots=False, timeout=120
     )
     _assert_parity(result, batch)
+    # Every node process's counters reached the runner (a short run can end before discovery
+    # matched its /diagnostics reader: before, one node's in two runs of three), each adding up.
+    assert set(result.diagnostics) == {"sim", "tracker", "planner", "evaluator"}
+    assert not [k for k in result.diagnostics["evaluator"] if k.startswith("diagnostics_missing")]
+    assert result.diagnostics["tracker"]["updates"] == 8
+    assert {n: unaccounted(c) for n, c in result.diagnostics.items()} == dict.fromkeys(
+        result.diagnostics, 0
+    )
 
 
 def test_processes_mode_refuses_when_discovery_is_off(tmp_path, capsys):

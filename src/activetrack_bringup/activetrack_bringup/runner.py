@@ -45,6 +45,8 @@ NODE_NAMES = tuple(NODES)  # the graph's nodes, as ``nodes`` (RunOptions) names 
 # How long the evaluator waits for missing plan reports after the sim finished, with node
 # processes (DDS discovery between them): past one periodic discovery announcement.
 REPORT_GRACE_PROCESSES_S = 5.0
+# s the runner waits after a run for node processes' counters it has not had yet
+COUNTERS_WAIT_S = 5.0
 
 
 class GraphSetupError(ValueError):
@@ -527,9 +529,24 @@ class _GraphRunner:
             else:
                 quiet = 4 * REPUBLISH_S
                 self.graph.spin_until_quiet(self.progress, quiet=quiet, timeout=10 * quiet)
+                self._await_counters()
                 # A node that died as the last epoch came in (the runner's poll came before
                 # the death) still fails the run: it did not end as a complete graph's node.
                 self.supervisor.poll()
+
+    def _await_counters(self) -> None:
+        """Node processes: until every one's counters came on /diagnostics (a short run can
+        end before discovery matched the runner's reader to a node's writer; the node sends
+        them again once it sees the reader), at most COUNTERS_WAIT_S; a node whose counters
+        never came is counted on the evaluator (``diagnostics_missing.<node>``): its counts
+        are then not in the summary."""
+        assert self.supervisor is not None
+        nodes = [n.name.removesuffix("_node") for n in self.supervisor.nodes]
+        have = self.evaluator.diagnostics
+        self.graph.spin_until(lambda: all(n in have for n in nodes), timeout=COUNTERS_WAIT_S)
+        for n in nodes:
+            if n not in have:
+                self.evaluator.counters.count(f"diagnostics_missing.{n}")
 
     def _stop(self) -> None:
         """Stop the node processes and close the bag (once; signals held by the caller)."""

@@ -124,6 +124,7 @@ class GraphNode(Node):
         self.byte_limits: dict[str, int] = {}  # type name -> most bytes (sizes, size_history)
         self._republish = None  # the timer of publish_diagnostics, from its first call
         self._last_diagnostics: tuple | None = None
+        self._diagnostics_readers = 0  # matched readers of /diagnostics at the last publication
         self._published: dict = {}
         self._newest_input = (0, 0)  # stamp (sec, nanosec) of the newest message accepted
 
@@ -316,12 +317,14 @@ class GraphNode(Node):
         """Publish the node's counters as status ``activetrack/<node>`` (WARN once rejecting).
         Counters that change afterwards (messages after the last epoch, a flood) are published
         again with the same message once the node has published nothing for REPUBLISH_S (a node
-        in its own process reports its final counts to the runner), stamped with the newest
-        input the node accepted if that is later (a recorder logs it near that time)."""
+        in its own process reports its final counts to the runner), and so are unchanged ones
+        once a reader matched since the last publication; stamped with the newest input the
+        node accepted if that is later (a recorder logs it near that time)."""
         if self._republish is None:
             self._republish = self.create_timer(REPUBLISH_S, self._republish_changed)
         self._last_diagnostics = (header, message, time.monotonic())
         self._published = dict(self.counters.counts)
+        self._diagnostics_readers = self.diag_pub.publisher.get_subscription_count()
         warn = self.counters.total_rejected or self.counters.total("errors.")
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK,
@@ -335,7 +338,10 @@ class GraphNode(Node):
     def _republish_changed(self) -> None:
         header, message, when = self._last_diagnostics
         idle = time.monotonic() - when >= REPUBLISH_S
-        if idle and self.counters.counts != self._published:
+        # A reader that matched since (the runner's, between processes, after a short run's
+        # last epoch: /diagnostics is a stream) has not seen the counts: they go again.
+        joined = self.diag_pub.publisher.get_subscription_count() > self._diagnostics_readers
+        if idle and (joined or self.counters.counts != self._published):
             sec, nanosec = max(self._newest_input, (header.stamp.sec, header.stamp.nanosec))
             stamp = Time(sec=sec, nanosec=nanosec)
             self.guarded(
