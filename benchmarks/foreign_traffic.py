@@ -35,7 +35,6 @@ from pathlib import Path
 import numpy as np
 
 from activetrack.scenarios import load_scenario
-from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.runner import RunIncomplete, run_graph
 from activetrack_ros.node_base import unaccounted
 
@@ -80,10 +79,6 @@ def in_no_counter(run) -> int:
     return sum(abs(unaccounted(c)) for c in run.diagnostics.values())
 
 
-def evaluator_of(graph) -> EvaluatorNode:
-    return next(n for n in graph.nodes if isinstance(n, EvaluatorNode))
-
-
 def misses(run, sent: Counter, signed: Counter) -> list[str]:
     """Where uncounted messages are: reader and type short of foreign, reader out of balance."""
     out = []
@@ -116,7 +111,7 @@ def category_row(name: str, clean, tmp: Path, opts: dict, **foreign_kwargs) -> d
     dt = load_scenario(SHORT).dt
 
     def add(graph):
-        evaluator = evaluator_of(graph)
+        evaluator = graph.evaluator
         stop = lambda: evaluator.complete  # noqa: E731
         foreign = ForeignNode(dt=dt, context=graph.context, stop=stop, **foreign_kwargs)
         nodes.append(graph.add(foreign))
@@ -158,7 +153,7 @@ def flood_row(rate: float, seconds: float, tmp: Path, opts: dict) -> dict:
     def stop_when_complete(graph):
         """Stop the flood once the run is complete and take its count (the flooder waits for
         delivery of its tail): the readers count the rest while the run drains."""
-        if not report and evaluator_of(graph).complete:
+        if not report and graph.evaluator.complete:
             report.append(proc.communicate(input="stop\n", timeout=120)[0])
 
     try:

@@ -14,7 +14,6 @@ import pytest
 from adversary import READERS, TOPIC_OF
 from parity import assert_same_run
 
-from activetrack_bringup.evaluator import EvaluatorNode
 from activetrack_bringup.runner import run_graph
 from activetrack_ros.node_base import unaccounted
 
@@ -25,10 +24,6 @@ ADVERSARY = Path(__file__).parents[1] / "tools" / "adversary.py"  # run in its o
 RATE = 2000  # messages per second, over all the topics
 MIN_FLOOD_S = 10.0
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
-
-
-def _evaluator(graph) -> EvaluatorNode:
-    return next(n for n in graph.nodes if isinstance(n, EvaluatorNode))
 
 
 def test_a_flood_on_every_topic_for_a_whole_run_is_counted_and_changes_nothing(
@@ -54,7 +49,7 @@ def test_a_flood_on_every_topic_for_a_whole_run_is_counted_and_changes_nothing(
         window.append(time.monotonic())
 
     def stop_when_complete(graph):  # the flooder waits for delivery of its tail
-        if not report and _evaluator(graph).complete:
+        if not report and graph.evaluator.complete:
             window.append(time.monotonic())
             report.append(flooder.communicate(input="stop\n", timeout=120)[0])
 

@@ -23,10 +23,6 @@ LONG = "scenarios/hernandez_3sensor_three.yaml"
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.usefixtures("localhost_discovery")]
 
 
-def _evaluator(graph):
-    return next(n for n in graph.nodes if n.get_name() == "activetrack_evaluator")
-
-
 # docs/robustness.md: a death is "noticed at the next executor step (under 2 s)". An executor
 # step takes up to 64 queued samples per reader, and on a loaded host the first poll after a
 # kill came 1.007 s after it once (a 1-s bound, stricter than the promise, failed in CI).
@@ -37,7 +33,7 @@ def _kill_at(node_name: str, epoch: int, log: dict):
     """A during_spin hook: SIGKILL one node process once the evaluator has that epoch."""
 
     def hook(graph):
-        if "killed_at" in log or epoch not in _evaluator(graph).tracks:
+        if "killed_at" in log or epoch not in graph.evaluator.tracks:
             return
         supervisor = graph.supervisor
         proc = next(n for n in supervisor.nodes if n.name == node_name).popen

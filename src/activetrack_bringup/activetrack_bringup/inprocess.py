@@ -30,6 +30,7 @@ class InProcessGraph:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.nodes: list[Node] = []
         self.supervisor = None  # the node processes' supervisor, when the runner spawned them
+        self.evaluator = None  # the runner's evaluator node, when a run scores the graph
 
     def add(self, node: Node) -> Node:
         self.nodes.append(node)

@@ -337,6 +337,7 @@ class _GraphRunner:
                 parameter_overrides=named, **self.common,
             )
         )  # fmt: skip
+        self.graph.evaluator = self.evaluator  # for during_spin hooks (tests, benchmarks)
         self.recorder: BagRecorder | None = None
         self.nodes: dict = {}
         self.supervisor: Supervisor | None = None
