@@ -24,9 +24,7 @@ reader: must be 0). The load average is printed at the start and the end.
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import subprocess
 import sys
 import tempfile
 from collections import Counter
@@ -43,7 +41,14 @@ from activetrack_ros.node_base import unaccounted
 TOOLS = Path(__file__).resolve().parents[1] / "tests" / "tools"
 ADVERSARY = TOOLS / "adversary.py"
 sys.path.insert(0, str(TOOLS))
-from adversary import CATEGORIES, READERS, TOPIC_OF, ForeignNode, uncounted  # noqa: E402
+from adversary import (  # noqa: E402
+    CATEGORIES,
+    READERS,
+    TOPIC_OF,
+    FloodProcess,
+    ForeignNode,
+    uncounted,
+)
 
 SHORT = "tests/ros/data/short_two_sensors.yaml"
 # The flood's run: three-step planning with 3 sensors, 10-15 s in one process here, so that a
@@ -129,49 +134,24 @@ def category_row(name: str, clean, tmp: Path, opts: dict, **foreign_kwargs) -> d
 
 
 def flood_row(rate: float, seconds: float, tmp: Path, opts: dict) -> dict:
-    env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
-    env.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.update({k: env[k] for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")})
-    readers = [f"{topic}={len(READERS[t.__name__])}" for t, topic in TOPIC_OF.items()]
+    os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     clean = run_graph(LONG, run_dir=tmp / "flood_clean", **opts)
-    cmd = [sys.executable, str(ADVERSARY), "--rate", str(rate), "--stop-on-input"]
-    proc = subprocess.Popen(
-        [*cmd, "--duration", str(seconds), *readers],
-        env=env,
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    report: list[str] = []
-
-    def start_under_flood(graph):
-        """The run starts once the flood has (in one process: before the sim's first epoch)."""
-        while (line := proc.stdout.readline()) and line.strip() != "flooding":
-            pass
-
-    def stop_when_complete(graph):
-        """Stop the flood once the run is complete and take its count (the flooder waits for
-        delivery of its tail): the readers count the rest while the run drains."""
-        if not report and graph.evaluator.complete:
-            report.append(proc.communicate(input="stop\n", timeout=120)[0])
-
+    flood = FloodProcess(rate, seconds, os.environ)
     try:
         run = run_graph(
             LONG,
             run_dir=tmp / "flood",
-            before_spin=start_under_flood,
-            during_spin=stop_when_complete,
+            # the run starts once the flood has (in one process: before the sim's first epoch)
+            before_spin=flood.start_under,
+            during_spin=flood.stop_when_complete,
             **opts,
         )
         survived = errors(run) == 0
     except RunIncomplete as exc:
         run, survived = exc.result, False
     finally:
-        if not report:
-            report.append(proc.communicate(input="stop\n", timeout=120)[0])
-        proc.kill()
-    sent = Counter(json.loads(report[0].strip().splitlines()[-1]))
+        sent = flood.finish()
     row = outcome(run, survived, clean, sent, Counter())
     name = f"flood {rate:g}/s, at most {seconds:g} s (other process)"
     return dict(name=name, **row, wall=(clean.wall_time_s, run.wall_time_s))

@@ -3,15 +3,10 @@ graph reads, for the whole of a lockstep run of at least 10 s: the run's result 
 run's bit for bit, no lockstep timeout fires, and every foreign message is counted by each of
 its readers (issue 26)."""
 
-import json
 import os
-import subprocess
-import sys
-import time
-from pathlib import Path
 
 import pytest
-from adversary import READERS, TOPIC_OF
+from adversary import READERS, TOPIC_OF, FloodProcess
 from parity import assert_same_run
 
 from activetrack_bringup.runner import run_graph
@@ -20,7 +15,6 @@ from activetrack_ros.node_base import unaccounted
 # Three-step planning with 3 sensors: 10-15 s in one process on the 2-core machines here, so the
 # flood covers at least 10 s of epochs (asserted: a faster host needs a longer scenario).
 SCENARIO = "scenarios/hernandez_3sensor_three.yaml"
-ADVERSARY = Path(__file__).parents[1] / "tools" / "adversary.py"  # run in its own process
 RATE = 2000  # messages per second, over all the topics
 MIN_FLOOD_S = 10.0
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -30,40 +24,15 @@ def test_a_flood_on_every_topic_for_a_whole_run_is_counted_and_changes_nothing(
     tmp_path, localhost_discovery
 ):
     clean = run_graph(SCENARIO, run_dir=tmp_path / "clean", record=False, plots=False)
-    env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
-    readers = [f"{topic}={len(READERS[t.__name__])}" for t, topic in TOPIC_OF.items()]
-    command = [sys.executable, str(ADVERSARY), "--rate", str(RATE), "--stop-on-input"]
-    flooder = subprocess.Popen(
-        [*command, "--duration", "600", *readers],
-        env=env,
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    window: list[float] = []  # when the flood started, and when it was stopped
-    report: list[str] = []
-
-    def start_under_flood(graph):  # the graph's readers exist: the flooder has matched them
-        while (line := flooder.stdout.readline()) and line.strip() != "flooding":
-            pass
-        window.append(time.monotonic())
-
-    def stop_when_complete(graph):  # the flooder waits for delivery of its tail
-        if not report and graph.evaluator.complete:
-            window.append(time.monotonic())
-            report.append(flooder.communicate(input="stop\n", timeout=120)[0])
-
+    flood = FloodProcess(RATE, 600, os.environ)
     try:
         result = run_graph(
             SCENARIO, run_dir=tmp_path / "flooded", record=False, plots=False,
-            before_spin=start_under_flood, during_spin=stop_when_complete,
+            before_spin=flood.start_under, during_spin=flood.stop_when_complete,
         )  # fmt: skip
     finally:
-        if not report:
-            report.append(flooder.communicate(input="stop\n", timeout=120)[0])
-        flooder.kill()
-    sent = json.loads(report[0].strip().splitlines()[-1])
-    seconds = window[1] - window[0]
+        sent = flood.finish()
+    seconds = flood.stopped - flood.started
     assert seconds >= MIN_FLOOD_S, f"the run lasted {seconds:.1f} s under the flood"
     assert set(sent) == {t.__name__ for t in TOPIC_OF}  # every topic the graph reads
     assert sum(sent.values()) >= 0.9 * RATE * seconds

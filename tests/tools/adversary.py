@@ -13,8 +13,10 @@ the graph's counters account for every message.
 from __future__ import annotations
 
 import copy
+import json
 import math
 import random
+import subprocess
 import sys
 import threading
 import time
@@ -539,10 +541,55 @@ def flood(
     return sent
 
 
+class FloodProcess:
+    """:func:`flood` in a process of its own, on every topic the graph reads, for a run
+    (``run_graph``'s hooks): :meth:`start_under` (``before_spin``) waits until the flood has
+    begun, :meth:`stop_when_complete` (``during_spin``) stops it once the run's evaluator is
+    complete (the flooder waits for delivery of its tail; the readers count the rest while the
+    run drains), :meth:`finish` stops it if it still runs and returns what it sent per type.
+    ``started`` and ``stopped``: when (``time.monotonic``)."""
+
+    def __init__(self, rate: float, duration: float, env: dict):
+        readers = [f"{topic}={len(READERS[t.__name__])}" for t, topic in TOPIC_OF.items()]
+        command = [sys.executable, __file__, "--rate", str(rate), "--stop-on-input"]
+        self.proc = subprocess.Popen(
+            [*command, "--duration", str(duration), *readers],
+            env={k: v for k, v in env.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"},
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        self.started: float | None = None
+        self.stopped: float | None = None
+        self.report: str | None = None
+
+    def start_under(self, graph) -> None:
+        """The graph's readers exist: once the flooder has matched them and begun."""
+        while (line := self.proc.stdout.readline()) and line.strip() != "flooding":
+            pass
+        self.started = time.monotonic()
+
+    def stop_when_complete(self, graph) -> None:
+        if self.report is None and graph.evaluator.complete:
+            self._stop()
+
+    def _stop(self) -> None:
+        self.stopped = time.monotonic()
+        self.report = self.proc.communicate(input="stop\n", timeout=120)[0]
+
+    def finish(self) -> Counter:
+        """Stop (if the run did not) and end the process; what it sent per message type."""
+        try:
+            if self.report is None:
+                self._stop()
+        finally:
+            self.proc.kill()
+        return Counter(json.loads(self.report.strip().splitlines()[-1]))
+
+
 def main(argv=None) -> int:
     """python tests/tools/adversary.py --rate R --duration S TOPIC=READERS ..."""
     import argparse
-    import json
 
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("--rate", type=float, default=2000.0, help="messages per second")
