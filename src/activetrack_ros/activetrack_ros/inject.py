@@ -89,7 +89,7 @@ class Injector:
             self.node.destroy_timer(timer)
             send()
 
-        timer = self.node.create_timer(fault.delay, lambda: self.node.guarded(fire))
+        timer = self.node.guarded_timer(fault.delay, fire)
         return None
 
 

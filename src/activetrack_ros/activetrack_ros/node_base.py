@@ -75,13 +75,12 @@ class RateLimitedLog:
 class GraphPublisher:
     """A publisher that signs msgs_defs messages with the graph's key (if it has one)."""
 
-    def __init__(self, node: Node, msg_type, topic: str, key: GraphKey | None, depth=None):
+    def __init__(self, node: GraphNode, msg_type, topic: str, key: GraphKey | None, depth=None):
         self.publisher = node.create_publisher(msg_type, topic, graph.writer_qos(topic, depth))
         self.key = key if is_signed_type(msg_type) else None
         self.is_diagnostics = msg_type is DiagnosticArray
         self.graph_key = key
-        faults = getattr(node, "injections", [])
-        self.inject = inject.injector(node, inject.PUBLISH, topic, faults) if faults else None
+        self.inject = inject.injector(node, inject.PUBLISH, topic, node.injections)
 
     def has_readers(self) -> bool:
         """Some subscription (in this process or another) matches the topic now: a view on a
@@ -355,11 +354,9 @@ def subscribe_batched(node: Node, msg_type, topic: str, on_raw: Callable, events
     step (a wait-set round) per sample costs ten times more than dropping a foreign one
     (measured in docs/robustness.md), and a reader served one sample a round falls behind
     the readers served in batches."""
-    subscription = []
 
     def on_ready(data: bytes) -> None:
         on_raw(data)
-        sub = subscription[0]
         for _ in range(TAKE_BATCH - 1):
             with sub.handle:
                 taken = sub.handle.take_message(msg_type, True)
@@ -369,7 +366,6 @@ def subscribe_batched(node: Node, msg_type, topic: str, on_raw: Callable, events
 
     qos = graph.reader_qos(topic)
     sub = node.create_subscription(msg_type, topic, on_ready, qos, raw=True, event_callbacks=events)
-    subscription.append(sub)
     return sub
 
 

@@ -296,11 +296,11 @@ class SimNode(GraphNode):
         ):
             if n:
                 self.counters.count(f"timeout.{k}.{what}", int(n))
-        waited = self.timeout if self.answered else self.tracks_timeout
+        waited = time.monotonic() - self.epoch_started  # (the sim alone: command_timeout)
         self.get_logger().warning(
             f"epoch {k}: {'' if self.answered else 'no track array, '}no command for "
             f"{missing}, no beam for {beams}{', no selection' if selection else ''} after "
-            f"{waited} s; holding course"
+            f"{waited:.1f} s; holding course"
         )
 
     def step(self) -> None:
