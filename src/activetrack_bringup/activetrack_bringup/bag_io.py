@@ -26,7 +26,7 @@ from typing import NamedTuple
 import yaml
 
 from activetrack.limits import MAX_RATE, MIN_RATE
-from activetrack_bringup.mcap_reader import LOST, Damage, McapFileError, McapScan
+from activetrack_bringup.mcap_reader import INCOMPLETE, LOST, Damage, McapFileError, McapScan
 from activetrack_bringup.mcap_writer import CHUNK_AGE_S, CHUNK_SIZE, McapWriter
 
 METADATA = "metadata"  # damage kind: metadata.yaml disagrees with the MCAP file(s)
@@ -426,6 +426,11 @@ class Bag:
     def lost(self) -> list[Damage]:
         """Damage that may have cost messages or definitions."""
         return [d for d in self.damage if d.kind == LOST]
+
+    @property
+    def cut(self) -> list[Damage]:
+        """A cut-off end (a killed recorder): the last messages are missing."""
+        return [d for d in self.damage if d.kind == INCOMPLETE]
 
     @property
     def intact(self) -> bool:

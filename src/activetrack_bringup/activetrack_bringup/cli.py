@@ -621,14 +621,13 @@ def _main(argv: list[str] | None) -> tuple[int, object]:
 
     args = None
     try:
-        # The handlers first: a signal while the modules and parsers load is a Ctrl-C too.
-        with interrupts.raising():
-            with interrupts.held():  # raised once the arguments say where a run's summary goes
-                args = build_parser().parse_args(argv)
-                tune_allocator()  # a command-line process: numpy temporaries stay on the heap
-            if args.func is not _cmd_run:
-                interrupts.check()
-            return args.func(args), args.func
+        # (main's handlers are in: a signal while the modules and parsers load is a Ctrl-C too)
+        with interrupts.held():  # raised once the arguments say where a run's summary goes
+            args = build_parser().parse_args(argv)
+            tune_allocator()  # a command-line process: numpy temporaries stay on the heap
+        if args.func is not _cmd_run:
+            interrupts.check()
+        return args.func(args), args.func
     except _CommandError as exc:
         return _error(exc), args and args.func
     except BrokenPipeError:  # `activetrack bag info BAG | head`: the reader left, fine

@@ -73,6 +73,8 @@ from msgs_defs.msg import (
 from msgs_defs.msg import Scan as ScanMsg
 
 NODE_NAMES = ("sim", "tracker", "planner")
+# The answers that make an epoch's decision (a plan report is its account, not part of it).
+DECISION_TOPICS = (topics.MANOEUVRE_COMMANDS, topics.BEAM_COMMANDS, topics.SENSOR_SELECTION)
 # Seconds after the sim and the tracker finished that a missing message the result needs may
 # still come (late at its writer) before the run ends without it: the graph itself waits as
 # long (the tracker's default epoch_timeout) for a late scan or state.
@@ -552,13 +554,7 @@ class EvaluatorNode(GraphNode):
         )
 
     def _decided(self, k: int) -> bool:
-        commands = self.commands.get(k, {})
-        beams = self.beams.get(k, {})
-        return (
-            all(p in commands for p in self.controllable)
-            and all(s in beams for s in self.steerable)
-            and (not self.selects or k in self.selections)
-        )
+        return all(self._has(t, k) for t in DECISION_TOPICS)
 
     @property
     def complete(self) -> bool:

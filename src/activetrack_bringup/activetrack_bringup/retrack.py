@@ -30,7 +30,6 @@ from activetrack_bringup.bag import bag_topic, installed_type_hash
 from activetrack_bringup.bag_io import BagError, open_bag
 from activetrack_bringup.evaluator import held_estimates, truth_rows
 from activetrack_bringup.inprocess import InProcessGraph
-from activetrack_bringup.mcap_reader import INCOMPLETE
 from activetrack_ros import graph as topics
 from activetrack_ros.convert import MessageError, TrackArrayChecker, truth_array_from_msg
 from activetrack_ros.graph import GRAPH_TOPICS, writer_qos
@@ -89,7 +88,7 @@ def read_run(bag, use: str = "retrack", skip_damaged: bool = False) -> RunData:
                 f"{lost[0]} ({len(lost)} problem(s) with lost data): {use} needs every scan "
                 "of the run"
             )
-        cut = [d for d in b.damage if d.kind == INCOMPLETE]
+        cut = b.cut
         if cut and not skip_damaged:
             raise RetrackError(
                 f"{cut[0]} (the recording was cut off: its last messages are missing): "

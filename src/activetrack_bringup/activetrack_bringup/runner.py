@@ -342,7 +342,6 @@ class _GraphRunner:
         self.nodes: dict = {}
         self.supervisor: Supervisor | None = None
         self.status, self.detail, self.exit_code = "complete", "", 0
-        self.stopped = False
         self.start = time.monotonic()
 
     def progress(self) -> int:
@@ -350,10 +349,7 @@ class _GraphRunner:
         included as their counters last reported them."""
         nodes = (self.evaluator, *self.nodes.values())
         counted = sum(n.counters.total("received.") for n in nodes)
-        reported = sum(
-            v for c in self.evaluator.diagnostics.values() for k, v in c.items()
-            if k.startswith("received.")
-        )  # fmt: skip
+        reported = sum(_total(c, "received.") for c in self.evaluator.diagnostics.values())
         return counted + reported + (self.recorder.count if self.recorder is not None else 0)
 
     def execute(self, run_dir: Path, bag_path: Path | None) -> GraphRun:
@@ -550,10 +546,7 @@ class _GraphRunner:
                 self.evaluator.counters.count(f"diagnostics_missing.{n}")
 
     def _stop(self) -> None:
-        """Stop the node processes and close the bag (once; signals held by the caller)."""
-        if self.stopped:
-            return
-        self.stopped = True
+        """Stop the node processes and close the bag (signals held by the caller)."""
         if self.status != "complete":  # take in what was delivered: a fuller partial run
             try:
                 self.graph.spin_until_quiet(self.progress, quiet=0.05, timeout=0.3)
