@@ -397,16 +397,8 @@ class Tracker:
         for (cls, _), group in batches.items():
             rows = np.array([row for row, _, _ in group])
             cols = np.array([used for _, used, _ in group])
-            cls.update_pda_many(
-                [tracks[row].filter for row in rows],
-                H[rows],
-                nu[rows[:, None], cols],
-                np.array([b for _, _, b in group]),
-                R,
-                c.scan.sensor_id,
-            )
-            for row in rows:
-                tracks[row].ess = math.nan
+            beta = np.array([b for _, _, b in group])
+            _pda_many(cls, tracks, rows, cols, beta, H, nu, R, c.scan.sensor_id)
 
     # --- track starts ------------------------------------------------------------------------
     def _start(
@@ -611,12 +603,28 @@ def _update_stacked(
     no loop per track."""
     for rows, cols in by_size.values():
         beta = scan_beta[rows[:, None], np.column_stack((np.zeros_like(rows), cols + 1))]
-        cls.update_pda_many(  # type: ignore[attr-defined]
-            [tracks[row].filter for row in rows], H[rows], nu[rows[:, None], cols], beta, R,
-            sensor_id,
-        )  # fmt: skip
-        for row in rows.tolist():
-            tracks[row].ess = math.nan
+        _pda_many(cls, tracks, rows, cols, beta, H, nu, R, sensor_id)
+
+
+def _pda_many(
+    cls: type,
+    tracks: list[Track],
+    rows: np.ndarray,
+    cols: np.ndarray,
+    beta: FloatArray,
+    H: FloatArray,
+    nu: FloatArray,
+    R: FloatArray,
+    sensor_id: str,
+) -> None:
+    """One ``update_pda_many`` of the tracks ``rows`` ``(G,)`` (all of filter class ``cls``),
+    each with its detections ``cols`` ``(G, m)`` and association probabilities ``beta``
+    ``(G, m + 1)``; their ESS is NaN (no particles)."""
+    cls.update_pda_many(  # type: ignore[attr-defined]
+        [tracks[row].filter for row in rows], H[rows], nu[rows[:, None], cols], beta, R, sensor_id
+    )
+    for row in rows.tolist():
+        tracks[row].ess = math.nan
 
 
 def _by_size(
