@@ -84,7 +84,7 @@ def test_sampling_draws_the_same_normals_and_gives_the_same_bits(model):
 
 @pytest.mark.parametrize("cv", [True, False])
 def test_pcg64_route_draws_numpys_normals_and_leaves_its_state(cv):
-    """The compiled PCG64 stream (four LCG chains, numpy's ziggurat, a 2,048-output buffer
+    """The compiled PCG64 stream (16 LCG chains, numpy's ziggurat, a 2,048-output buffer
     refilled inside rows) gives ``standard_normal``'s bits and state for many seeds and sizes:
     rows that straddle a refill, rejections in the tail and the wedge, a 32-bit half kept
     buffered by an earlier ``integers`` draw."""
@@ -113,6 +113,29 @@ def test_pcg64_route_draws_numpys_normals_and_leaves_its_state(cv):
             assert ours.random() == ref.random()
             draws += 4 * n
     assert draws > 300_000  # about 4,700 rejections (1.5 %), about 80 in layer 0's tail
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2**63 + 5])
+def test_the_lane_stream_gives_numpys_raw_outputs(seed):
+    """The 16 chains in 512-bit vectors (kernels.pcg64_lanes) against numpy's own outputs:
+    refills of whole rounds at offsets that are not a multiple of 16, an empty one, and the
+    chains' state carried from one refill to the next."""
+    from activetrack.kernels import pcg64
+    from activetrack.kernels.pcg64_lanes import LANES
+
+    rng = np.random.default_rng(seed)
+    words, _ = pcg64.stream_words(rng)
+    want = np.random.default_rng(seed).bit_generator.random_raw(6000)
+    chains, got = pcg64.new_stream(words), []
+    for size, start in ((2048, 0), (2048, 5), (21, 7), (16, 16), (100, 3), (2048, 2000)):
+        buf = np.zeros(size, dtype=np.uint64)
+        end = pcg64.refill(chains, buf, start)
+        assert end == start + (size - start) // LANES * LANES
+        assert not buf[:start].any() and not buf[end:].any()  # nothing written outside
+        got.append(buf[start:end])
+    got = np.concatenate(got)
+    assert got.size > 4000
+    np.testing.assert_array_equal(got, want[: got.size])
 
 
 def test_other_bit_generators_take_numbas_generator_route():

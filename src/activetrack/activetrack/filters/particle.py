@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from functools import lru_cache, partial
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -405,17 +405,16 @@ class ParticleFilter:
         resample if due (:meth:`update`)."""
         ids = tuple([m.sensor_id for m in measurements])
         n_det = len(measurements) - n_missed
-        common = partial(
-            UpdateInfo, time=self._t, n_detections=n_det, n_missed=n_missed, sensor_ids=ids
-        )
         if ell is None:  # nothing informative: weights unchanged, no resampling
-            info = common(ess=self.ess)
+            info = UpdateInfo(
+                time=self._t, n_detections=n_det, n_missed=n_missed, sensor_ids=ids, ess=self.ess
+            )
             self.last_info = info
             return info
 
         # log w_k = log w_k-1 + log p(z | x), normalised by log-sum-exp (no underflow).
         logw = ell if self._logw is None else ell + self._logw  # None: uniform prior weights
-        top = float(logw.max())
+        top = float(np.maximum.reduce(logw))  # logw.max() without its Python wrapper
         if math.isnan(top):  # NaN likelihoods (e.g. a particle on the sensor) count as zero
             logw = np.where(np.isnan(logw), -math.inf, logw)
             top = float(logw.max())
@@ -426,7 +425,11 @@ class ParticleFilter:
             )
             if self.on_collapse == "raise":
                 raise FilterCollapseError(message)
-            info = common(
+            info = UpdateInfo(
+                time=self._t,
+                n_detections=n_det,
+                n_missed=n_missed,
+                sensor_ids=ids,
                 ess=self.ess,
                 collapsed=True,
                 log_likelihood=-math.inf,
@@ -463,7 +466,15 @@ class ParticleFilter:
             self._logw = logw
         self._moments = None
         self._mean = None
-        info = common(ess=ess, resampled=resampled, log_likelihood=log_lik)
+        info = UpdateInfo(
+            time=self._t,
+            n_detections=n_det,
+            n_missed=n_missed,
+            sensor_ids=ids,
+            ess=ess,
+            resampled=resampled,
+            log_likelihood=log_lik,
+        )
         self.last_info = info
         return info
 

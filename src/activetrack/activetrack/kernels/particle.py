@@ -61,27 +61,38 @@ __all__ = [
 
 @njit(inline="always")
 def _cv_row(out, i, X, w0, w1, w2, w3, f, g):  # pragma: no cover - compiled
-    """out[i] = X[i] F^T + w L^T from the non-zero terms of two constant-velocity axes only
-    (F, L row-major 16-tuples f, g), the operations of ``models.ncv.cv_rows``. True when
-    X[i] holds a NaN or an infinity."""
-    x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
-    out[i, 0] = (x0 * f[0] + x1 * f[1]) + w0 * g[0]
-    out[i, 1] = x1 * f[5] + (w0 * g[4] + w1 * g[5])
-    out[i, 2] = (x2 * f[10] + x3 * f[11]) + w2 * g[10]
-    out[i, 3] = x3 * f[15] + (w2 * g[14] + w3 * g[15])
-    return x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0  # NaN for a non-finite x
+    """Row i of out = X F^T + w L^T from the non-zero terms of two constant-velocity axes only
+    (F, L row-major 16-tuples f, g), the operations of ``models.ncv.cv_rows``; out and X
+    flat ``(4 N,)`` (no stride product per row). Returns the sum of X's row: not finite when
+    the row holds a NaN or an infinity (:func:`_finiteness`)."""
+    k = 4 * i
+    x0, x1, x2, x3 = X[k], X[k + 1], X[k + 2], X[k + 3]
+    out[k] = (x0 * f[0] + x1 * f[1]) + w0 * g[0]
+    out[k + 1] = x1 * f[5] + (w0 * g[4] + w1 * g[5])
+    out[k + 2] = (x2 * f[10] + x3 * f[11]) + w2 * g[10]
+    out[k + 3] = x3 * f[15] + (w2 * g[14] + w3 * g[15])
+    return (x0 + x1) + (x2 + x3)
 
 
 @njit(inline="always")
 def _full_row(out, i, X, w0, w1, w2, w3, f, g):  # pragma: no cover - compiled
-    """out[i] = X[i] F^T + w L^T, full sums over k = 0..3 in order (``models.ncv.rows_times``).
-    True when X[i] holds a NaN or an infinity."""
-    x0, x1, x2, x3 = X[i, 0], X[i, 1], X[i, 2], X[i, 3]
+    """Row i of out = X F^T + w L^T, full sums over k = 0..3 in order
+    (``models.ncv.rows_times``); flat arrays and the return as :func:`_cv_row`."""
+    k = 4 * i
+    x0, x1, x2, x3 = X[k], X[k + 1], X[k + 2], X[k + 3]
     for r in range(4):
-        out[i, r] = (x0 * f[4 * r] + x1 * f[4 * r + 1] + x2 * f[4 * r + 2] + x3 * f[4 * r + 3]) + (
+        out[k + r] = (x0 * f[4 * r] + x1 * f[4 * r + 1] + x2 * f[4 * r + 2] + x3 * f[4 * r + 3]) + (
             w0 * g[4 * r] + w1 * g[4 * r + 1] + w2 * g[4 * r + 2] + w3 * g[4 * r + 3]
         )
-    return x0 * 0.0 + x1 * 0.0 + x2 * 0.0 + x3 * 0.0 != 0.0
+    return (x0 + x1) + (x2 + x3)
+
+
+@njit(inline="always")
+def _finiteness(total):  # pragma: no cover - compiled
+    """Whether X may hold a NaN or an infinity, from the sum of its rows' sums: a non-finite x
+    makes the sum non-finite; a finite X whose sum overflows is a false alarm only (the
+    caller then checks X itself and goes on). One add per row instead of a test of each x."""
+    return not math.isfinite(total)
 
 
 @njit(inline="always")
@@ -94,20 +105,22 @@ def _entries(A):  # pragma: no cover - compiled
 
 
 # ``out = X F^T + W L^T`` with W's normals drawn row by row: from the PCG64 stream of state
-# ``words`` (``pcg64``; returning (outputs used or -1, any non-finite x)), or given ``(N, 4)``
-# (returning any non-finite x); with the constant-velocity zeros or the full sums. Separate
-# small kernels with the common case written out, the two PCG64 ones alike but for the row:
-# measured, a flag for the arithmetic form or the draws in an inlined helper compiled to code
-# two to four times slower, the row function as an argument cost 7 us more per call, and a
-# closure factory is recompiled in every process (numba does not cache it: about 5 s).
+# ``words`` (``pcg64``; returning (outputs used or -1, X may be non-finite)), or given
+# ``(N, 4)`` (returning whether X may be non-finite); with the constant-velocity zeros or the
+# full sums. Separate small kernels with the common case written out, the two PCG64 ones alike
+# but for the row: measured, a flag for the arithmetic form or the draws in an inlined helper
+# compiled to code two to four times slower, the row function as an argument cost 7 us more
+# per call, and a closure factory is recompiled in every process (numba does not cache it:
+# about 5 s).
 
 
 @njit(cache=True, error_model="numpy")
 def _cv_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
     f, g = _entries(F), _entries(L)
+    Xf, of = X.reshape(X.size), out.reshape(out.size)
     chains, buf = new_stream(words), np.empty(BUFFER, dtype=np.uint64)
     end = refill(chains, buf, 0)
-    base, i, j, bad = 0, 0, 0, False
+    base, i, j, total = 0, 0, 0, 0.0
     while i < X.shape[0]:
         if j + 4 <= end:  # all four in their layers' rectangles: ~94 % of rows
             i0, a0, w0 = layer(buf[j])
@@ -116,7 +129,7 @@ def _cv_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
             i3, a3, w3 = layer(buf[j + 3])
             if a0 < KI[i0] and a1 < KI[i1] and a2 < KI[i2] and a3 < KI[i3]:
                 j += 4
-                bad |= _cv_row(out, i, X, w0, w1, w2, w3, f, g)
+                total += _cv_row(of, i, Xf, w0, w1, w2, w3, f, g)
                 i += 1
                 continue
         j0, k = j, 0  # one output at a time, rejections included
@@ -145,19 +158,20 @@ def _cv_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
             base += j0
             end, j = refill(chains, buf, keep), 0
             if end == keep:  # a row needing more than a buffer (never seen): give up
-                return -1, bad
+                return -1, _finiteness(total)
             continue
-        bad |= _cv_row(out, i, X, w0, w1, w2, w3, f, g)
+        total += _cv_row(of, i, Xf, w0, w1, w2, w3, f, g)
         i += 1
-    return base + j, bad
+    return base + j, _finiteness(total)
 
 
 @njit(cache=True, error_model="numpy")
 def _full_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
     f, g = _entries(F), _entries(L)
+    Xf, of = X.reshape(X.size), out.reshape(out.size)
     chains, buf = new_stream(words), np.empty(BUFFER, dtype=np.uint64)
     end = refill(chains, buf, 0)
-    base, i, j, bad = 0, 0, 0, False
+    base, i, j, total = 0, 0, 0, 0.0
     while i < X.shape[0]:
         if j + 4 <= end:  # as in _cv_rows_pcg64
             i0, a0, w0 = layer(buf[j])
@@ -166,7 +180,7 @@ def _full_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
             i3, a3, w3 = layer(buf[j + 3])
             if a0 < KI[i0] and a1 < KI[i1] and a2 < KI[i2] and a3 < KI[i3]:
                 j += 4
-                bad |= _full_row(out, i, X, w0, w1, w2, w3, f, g)
+                total += _full_row(of, i, Xf, w0, w1, w2, w3, f, g)
                 i += 1
                 continue
         j0, k = j, 0  # one output at a time, rejections included
@@ -195,27 +209,29 @@ def _full_rows_pcg64(words, X, F, L, out):  # pragma: no cover - compiled
             base += j0
             end, j = refill(chains, buf, keep), 0
             if end == keep:  # a row needing more than a buffer (never seen): give up
-                return -1, bad
+                return -1, _finiteness(total)
             continue
-        bad |= _full_row(out, i, X, w0, w1, w2, w3, f, g)
+        total += _full_row(of, i, Xf, w0, w1, w2, w3, f, g)
         i += 1
-    return base + j, bad
+    return base + j, _finiteness(total)
 
 
 @njit(cache=True, error_model="numpy")
 def _cv_rows_from_normals(W, X, F, L, out):  # pragma: no cover - compiled
-    f, g, bad = _entries(F), _entries(L), False
+    f, g, total = _entries(F), _entries(L), 0.0
+    Xf, of = X.reshape(X.size), out.reshape(out.size)
     for i in range(X.shape[0]):
-        bad |= _cv_row(out, i, X, W[i, 0], W[i, 1], W[i, 2], W[i, 3], f, g)
-    return bad
+        total += _cv_row(of, i, Xf, W[i, 0], W[i, 1], W[i, 2], W[i, 3], f, g)
+    return _finiteness(total)
 
 
 @njit(cache=True, error_model="numpy")
 def _full_rows_from_normals(W, X, F, L, out):  # pragma: no cover - compiled
-    f, g, bad = _entries(F), _entries(L), False
+    f, g, total = _entries(F), _entries(L), 0.0
+    Xf, of = X.reshape(X.size), out.reshape(out.size)
     for i in range(X.shape[0]):
-        bad |= _full_row(out, i, X, W[i, 0], W[i, 1], W[i, 2], W[i, 3], f, g)
-    return bad
+        total += _full_row(of, i, Xf, W[i, 0], W[i, 1], W[i, 2], W[i, 3], f, g)
+    return _finiteness(total)
 
 
 @njit(cache=True)
@@ -278,8 +294,9 @@ def gaussian_sample(X, F, L, cv, rng):
     constant-velocity axes (``models.ncv.has_cv_zeros``) and only the non-zero terms are
     summed, as ``models.ncv.cv_rows`` does; else the full sums of ``rows_times``.
 
-    finite is False when X holds a NaN or an infinity (the caller then raises as the
-    reference's ``check_state`` does; the draws are spent by then)."""
+    finite is False when X may hold a NaN or an infinity (:func:`_finiteness`: the caller
+    then checks X, raising as the reference's ``check_state`` does; the draws are spent by
+    then)."""
     name = "cv_rows" if cv else "full_rows"
     if pcg64_route(rng, name, _CHECKS[cv]):
         result = _sample_pcg64(X, F, L, cv, rng)

@@ -7,10 +7,9 @@ compiled PF step. numba's own ``Generator`` support calls the bit generator thro
 pointer per draw and costs about 9 us per kernel call to unbox the generator; here:
 
 - **the stream**: PCG64 is a 128-bit LCG, s_{k+1} = a s_k + c (mod 2^128), whose output is the
-  XSL-RR mix of the new state. :func:`refill` steps it in four interleaved chains,
-  s_{k+4} = a^4 s_k + c (a^3 + a^2 + a + 1), so four 128-bit products are in flight at once
-  instead of one long dependency chain, into a small buffer (16 KiB, cache-resident) that the
-  kernel consumes and refills as it goes;
+  XSL-RR mix of the new state. :func:`refill` steps it in LANES (16) interleaved chains,
+  s_{k+16} = a^16 s_k + c (a^15 + ... + a + 1), in 512-bit vectors (``pcg64_lanes``), into a
+  small buffer (16 KiB, cache-resident) that the kernel consumes and refills as it goes;
 - **the normals**: numpy's ziggurat on those outputs (:func:`layer` for the ~99 % accepted at
   once, :func:`rejected` for the rest, with numpy's 256-layer tables as numba ships them); one
   output per normal except after a rejection;
@@ -44,6 +43,8 @@ from numba.np.random._constants import (
     ziggurat_nor_r,
 )
 
+from activetrack.kernels.pcg64_lanes import LANES, step_lanes
+
 __all__ = [
     "BUFFER",
     "KI",
@@ -59,10 +60,10 @@ __all__ = [
 _MASK64 = (1 << 64) - 1
 _MOD128 = 1 << 128
 _A = (0x2360ED051FC65DA4 << 64) | 0x4385DF649FCCF645  # PCG64's multiplier (numpy's)
-_A4 = pow(_A, 4, _MOD128)
-_K4 = (_A**3 + _A**2 + _A + 1) % _MOD128  # c K4 is the four-step increment
-# uint64 halves (hi, lo) of a, a^4 and K4 for the compiled code.
-_HALVES = np.array([v >> s & _MASK64 for v in (_A, _A4, _K4) for s in (64, 0)], dtype=np.uint64)
+_AL = pow(_A, LANES, _MOD128)
+_KL = sum(pow(_A, k, _MOD128) for k in range(LANES)) % _MOD128  # c K is the LANES-step increment
+# uint64 halves (hi, lo) of a, a^LANES and K for the compiled code.
+_HALVES = np.array([v >> s & _MASK64 for v in (_A, _AL, _KL) for s in (64, 0)], dtype=np.uint64)
 # The ziggurat's tables indexed by an output's low 9 bits, key = sign bit << 8 | layer: the
 # layer's rectangle bound KI and its width WI with the sign folded in (x = rabs * -WI is -(rabs *
 # WI) exactly: rounding is symmetric), so a draw needs no sign step and one index.
@@ -72,7 +73,7 @@ _WI = np.array(wi_double, dtype=np.float64)
 _WS = np.concatenate([_WI, -_WI])
 _FI = np.array(fi_double, dtype=np.float64)
 _TO_UNIT = 1.0 / 9007199254740992.0  # 2^-53: PCG64's next_double from a 64-bit output
-BUFFER = 2048  # raw outputs per refill (a multiple of 4: whole rounds of the four chains)
+BUFFER = 2048  # raw outputs per refill (a multiple of LANES: whole rounds of the chains)
 
 
 def _mul_add_128_typing(typingctx, hi, lo, ahi, alo, chi, clo):  # pragma: no cover - compiled
@@ -108,41 +109,30 @@ def _xsl_rr(hi, lo):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def new_stream(words):  # pragma: no cover - compiled
-    """The four chains after state ``words`` = (s_hi, s_lo, c_hi, c_lo): a uint64 array
-    (chain states s_1..s_4 as hi, lo pairs, then a^4 and c K4) for :func:`refill`."""
+    """The LANES chains after state ``words`` = (s_hi, s_lo, c_hi, c_lo): a uint64 array for
+    :func:`refill` (``pcg64_lanes``' layout: the chains' states s_1..s_LANES as high halves,
+    then low halves, then a^LANES and c K as hi, lo pairs)."""
     a_hi, a_lo = _HALVES[0], _HALVES[1]
     c_hi, c_lo = words[2], words[3]
-    chains = np.empty(12, dtype=np.uint64)
+    chains = np.empty(2 * LANES + 4, dtype=np.uint64)
     h, low = words[0], words[1]
-    for k in range(4):
+    for k in range(LANES):
         h, low = _mul_add_128(h, low, a_hi, a_lo, c_hi, c_lo)
-        chains[2 * k], chains[2 * k + 1] = h, low
+        chains[k], chains[LANES + k] = h, low
     zero = np.uint64(0)
-    chains[8], chains[9] = _HALVES[2], _HALVES[3]
-    chains[10], chains[11] = _mul_add_128(c_hi, c_lo, _HALVES[4], _HALVES[5], zero, zero)
+    chains[2 * LANES], chains[2 * LANES + 1] = _HALVES[2], _HALVES[3]
+    hi, lo = _mul_add_128(c_hi, c_lo, _HALVES[4], _HALVES[5], zero, zero)
+    chains[2 * LANES + 2], chains[2 * LANES + 3] = hi, lo
     return chains
 
 
 @njit(cache=True)
 def refill(chains, buf, start):  # pragma: no cover - compiled
-    """Write the stream's next outputs into buf[start:], whole rounds of the four chains
-    (``len(buf) - start`` rounded down to a multiple of 4); returns the end of the data."""
-    h0, l0, h1, l1 = chains[0], chains[1], chains[2], chains[3]
-    h2, l2, h3, l3 = chains[4], chains[5], chains[6], chains[7]
-    bh, bl, dh, dl = chains[8], chains[9], chains[10], chains[11]
-    end = start + (buf.shape[0] - start) // 4 * 4
-    for i in range(start, end, 4):
-        buf[i] = _xsl_rr(h0, l0)
-        buf[i + 1] = _xsl_rr(h1, l1)
-        buf[i + 2] = _xsl_rr(h2, l2)
-        buf[i + 3] = _xsl_rr(h3, l3)
-        h0, l0 = _mul_add_128(h0, l0, bh, bl, dh, dl)
-        h1, l1 = _mul_add_128(h1, l1, bh, bl, dh, dl)
-        h2, l2 = _mul_add_128(h2, l2, bh, bl, dh, dl)
-        h3, l3 = _mul_add_128(h3, l3, bh, bl, dh, dl)
-    chains[0], chains[1], chains[2], chains[3] = h0, l0, h1, l1
-    chains[4], chains[5], chains[6], chains[7] = h2, l2, h3, l3
-    return end
+    """Write the stream's next outputs into buf[start:], whole rounds of the LANES chains
+    (``len(buf) - start`` rounded down to a multiple of LANES); returns the end of the data."""
+    rounds = (buf.shape[0] - start) // LANES
+    step_lanes(chains, buf, start, rounds)
+    return start + rounds * LANES
 
 
 @njit(inline="always")

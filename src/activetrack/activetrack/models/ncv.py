@@ -153,7 +153,7 @@ class _LinearPV(ABC):
         # The NCV models' F and L: the zero terms left out (the same numbers, has_cv_zeros).
         out, finite = kernels.gaussian_sample(X, F, L, cv, rng)
         if not finite:
-            check_state("x", X, 4)  # raises, naming the argument as the numpy path does
+            check_state("x", X, 4)  # raises for a non-finite x, as the numpy path does
         return out
 
     def kinematics(self, x: ArrayLike) -> FloatArray:
