@@ -315,14 +315,12 @@ def bearing_sines(pv, sx, sy, cz, sz):  # pragma: no cover - compiled
     behind: dx cos zb + dy sin zb < 0 (cos e < 0, so |e| = pi - arcsin s); r the range.
     """
     N = pv.shape[0]
+    flat = pv.reshape(pv.size)  # one loop on the flat rows: no stride product per particle
     s = np.empty(N)
     behind = np.empty(N, dtype=np.bool_)
     r = np.empty(N)
-    for i in range(N):  # the strided columns first, into the outputs (a faster second loop)
-        s[i] = pv[i, 0] - sx
-        r[i] = pv[i, 2] - sy
     for i in range(N):
-        dx, dy = s[i], r[i]
+        dx, dy = flat[4 * i] - sx, flat[4 * i + 2] - sy
         ri = math.sqrt(dx * dx + dy * dy)
         a = abs(dx * sz - dy * cz) / ri
         if a > 1.0:  # NaN (a particle on the sensor) stays NaN, as with np.minimum

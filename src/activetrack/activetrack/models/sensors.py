@@ -152,13 +152,15 @@ def _compiled_sines(
 ) -> tuple[FloatArray, BoolArray, FloatArray] | None:
     """The compiled first pass of the bearing likelihood for a particle array ``(N, 4)``
     (``kernels.bearing_sines``) with the arcsin applied: ``(arcsin |sin e|, behind, r)``, the
-    intermediates of :func:`_abs_bearing_error`. None for other shapes (the numpy path)."""
+    intermediates of :func:`_abs_bearing_error`. None for other shapes and for a strided view
+    (the numpy path; the kernel reads the rows flat)."""
     pv, s = target_pv, sensor_pv
     if not (
         type(pv) is np.ndarray
         and pv.ndim == 2
         and pv.shape[1] == 4
         and pv.dtype == np.float64
+        and pv.flags.c_contiguous
         and type(s) is np.ndarray
         and s.shape == (4,)
     ):
