@@ -12,6 +12,7 @@ from activetrack.scenarios import load_scenario
 from activetrack_bringup.bag_io import open_bag
 from activetrack_bringup.runner import run_graph
 from activetrack_ros import graph as topics
+from activetrack_ros import node_base
 from activetrack_ros.convert import header
 from activetrack_ros.node_base import GraphNode, unaccounted
 from activetrack_ros.sizes import max_bytes
@@ -20,6 +21,14 @@ from msgs_defs.msg import Scan
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
 pytestmark = pytest.mark.ros
+
+
+def _decoder_interrupted(data, msg_type):
+    """rclpy's C decoder when a Ctrl-C arrives inside it: a SystemError over the interrupt."""
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as exc:
+        raise SystemError("returned a result with an exception set") from exc
 
 
 def test_unaccounted_is_received_minus_every_outcome():
@@ -129,10 +138,15 @@ def test_the_recorder_writes_only_the_graphs_diagnostics_and_counts_the_rest(tmp
     kept = {topics.DIAGNOSTICS: topics.GRAPH_TOPICS[topics.DIAGNOSTICS]}
     with InProcessGraph() as g:
         rec = g.add(BagRecorder(tmp_path / "b", kept, graph_key=key, context=g.context))
-        on_raw = rec._diagnostics_verifier(key, topics.DIAGNOSTICS)
+        on_raw = rec._verifier(key, topics.DIAGNOSTICS, DiagnosticArray)
         on_raw(serialize_message(key.sign_diagnostics(ours)))
         on_raw(serialize_message(theirs))
         on_raw(b"\x00\x01\x00\x00garbage")
+        # a Ctrl-C inside the C decoder (wrapped, as rclpy surfaces it) is raised, not counted
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(node_base, "deserialize_message", _decoder_interrupted)
+            with pytest.raises(KeyboardInterrupt):
+                on_raw(serialize_message(theirs))
         rec.close()
     assert dict(rec.counters.counts) == {
         "accepted.DiagnosticArray": 1, "foreign.DiagnosticArray": 2

@@ -565,7 +565,7 @@ def test_a_foreign_clock_cannot_stretch_or_reorder_a_keyed_recording(tmp_path):
         rec = g.add(
             BagRecorder(tmp_path / "b", kept, graph_key=key, clock_lead=10.0, context=g.context)
         )
-        on_state = rec._verifier(key, topics.PLATFORM_STATES, "PlatformState")
+        on_state = rec._verifier(key, topics.PLATFORM_STATES, PlatformState)
         rec._on_clock(clock(0.0))
         on_state(state(0.0, 0))
         rec._on_clock(clock(5.0))  # the graph's next epoch: within the lead

@@ -24,7 +24,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
-from rclpy.serialization import deserialize_message
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosgraph_msgs.msg import Clock
 
@@ -40,7 +39,7 @@ from activetrack_ros.graph import (
     graph_topic_of,
     writer_qos,
 )
-from activetrack_ros.node_base import subscribe_batched
+from activetrack_ros.node_base import graph_verdict, subscribe_batched
 from activetrack_ros.params import ParamSpec, declare, fix_use_sim_time, warn_unknown
 from activetrack_ros.sizes import DIAGNOSTICS_BYTES
 from activetrack_ros.trust import is_signed_type
@@ -247,10 +246,8 @@ class BagRecorder(Node):
         self._lead_ns = int(clock_lead * 1e9)
         for topic, msgtype in self.topic_types.items():
             cls = message_class(msgtype)
-            if graph_key is not None and is_signed_type(cls):
-                callback = self._verifier(graph_key, topic, cls.__name__)
-            elif graph_key is not None and cls is DiagnosticArray:
-                callback = self._diagnostics_verifier(graph_key, topic)
+            if graph_key is not None and (is_signed_type(cls) or cls is DiagnosticArray):
+                callback = self._verifier(graph_key, topic, cls)
             elif topic == topics.CLOCK:
                 callback = self._on_clock
             else:
@@ -296,32 +293,21 @@ class BagRecorder(Node):
         else:
             self.counters.count("ignored.clock_not_recorded")
 
-    def _verifier(self, key, topic: str, name: str):
+    def _verifier(self, key, topic: str, cls):
+        """The graph's tagged streams (node_base.graph_verdict, as the nodes' readers ask):
+        recorded when they carry the graph's tag, counted as foreign when not."""
+        name = cls.__name__
+        signed = is_signed_type(cls)
+
         def on_raw(data: bytes) -> None:
-            if key.verify(data):
-                self._signed_ns = max(self._signed_ns, first_stamp_ns(data))
-                self._write(topic, data)
-                self.counters.count(f"accepted.{name}")
-            else:
+            ok = (signed or len(data) <= DIAGNOSTICS_BYTES) and graph_verdict(key, cls, data)[0]
+            if not ok:
                 self.counters.count(f"foreign.{name}")
-
-        return on_raw
-
-    def _diagnostics_verifier(self, key, topic: str):
-        """/diagnostics: the graph's own arrays carry their tag inside (trust.GraphKey)."""
-
-        def on_raw(data: bytes) -> None:
-            try:
-                ok = len(data) <= DIAGNOSTICS_BYTES and key.verify_diagnostics(
-                    deserialize_message(data, DiagnosticArray)
-                )
-            except Exception:  # no tag can be read from it: not the graph's
-                ok = False
-            if ok:
-                self._write(topic, data)
-                self.counters.count("accepted.DiagnosticArray")
-            else:
-                self.counters.count("foreign.DiagnosticArray")
+                return
+            if signed:
+                self._signed_ns = max(self._signed_ns, first_stamp_ns(data))
+            self._write(topic, data)
+            self.counters.count(f"accepted.{name}")
 
         return on_raw
 

@@ -224,15 +224,8 @@ class GraphNode(Node):
                     return self._foreign(name, topic)
                 return self.reject("too_large", f"{name} on {topic}: {len(data)} bytes")
             msg, ok = None, True
-            if signed:
-                ok = key.verify(data)
-            elif diagnostics:  # the tag travels inside the message
-                try:
-                    msg = deserialize_message(data, msg_type)
-                except Exception as exc:  # no tag can be read from it: not the graph's
-                    raise_interrupt_inside(exc)
-                    msg = None
-                ok = msg is not None and key.verify_diagnostics(msg)
+            if signed or diagnostics:
+                ok, msg = graph_verdict(key, msg_type, data)
             if not ok:
                 return self._foreign(name, topic)
             if hook is not None:  # a test's delay or drop (activetrack_ros.inject)
@@ -378,6 +371,24 @@ def unaccounted(counts: dict) -> int:
     0 for every node (a test checks it under floods)."""
     total = lambda prefix: sum(int(v) for k, v in counts.items() if k.startswith(prefix))  # noqa: E731
     return total("received.") - sum(total(p) for p in OUTCOMES)
+
+
+def graph_verdict(key: GraphKey, msg_type, data: bytes) -> tuple[bool, object | None]:
+    """``(from the graph, the message if decoding was needed)`` for raw bytes of a topic the
+    graph's key covers: a signed type by its trailing tag, a DiagnosticArray by the tag inside
+    it (decoded for that; bytes that do not decode carry no tag). Any other type is trusted. A
+    Ctrl-C inside the C decoder is raised, not counted as foreign. The nodes' readers and the
+    recorder (``activetrack_bringup.bag``) both ask here."""
+    if is_signed_type(msg_type):
+        return key.verify(data), None
+    if msg_type is not DiagnosticArray:
+        return True, None
+    try:
+        msg = deserialize_message(data, msg_type)
+    except Exception as exc:  # no tag can be read from it: not the graph's
+        raise_interrupt_inside(exc)
+        return False, None
+    return key.verify_diagnostics(msg), msg
 
 
 def raise_interrupt_inside(exc: BaseException) -> None:
