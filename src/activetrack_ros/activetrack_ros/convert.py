@@ -42,6 +42,7 @@ from activetrack.scenarios.build import build_motion_model
 from activetrack.scenarios.schema import Scenario
 from activetrack.scenarios.tracking import TrackingConfig
 from activetrack_ros import graph as topics
+from activetrack_ros import sizes
 from activetrack_ros.node_base import Rejected
 from msgs_defs.msg import BeamCommand as BeamCommandMsg
 from msgs_defs.msg import (
@@ -462,7 +463,7 @@ class TrackArrayChecker:
         self.state_names = tuple(build_motion_model(motion).state_names)
         self.targets = [t.id for t in scene_targets(scenario)]
         self.max_samples = scenario.tracker.planner_samples
-        self.most = scenario.tracker.tracks.max_tracks + len(self.targets)
+        self.most = sizes.most_tracks(scenario)
 
     def __call__(self, msg: TrackArray) -> TrackSet:
         what = f"track array epoch {msg.epoch}"

@@ -24,13 +24,19 @@ ID = 4 + limits.MAX_ID_LENGTH + 4  # a CDR string: length, characters, NUL and p
 DIAGNOSTICS_BYTES = 16 * 1024 * 1024
 
 
+def most_tracks(scenario) -> int:
+    """Tracks one TrackArray may hold: the tracker's ``max_tracks`` started from detections
+    and one per target started from its prior."""
+    return scenario.tracker.tracks.max_tracks + len(scene_targets(scenario))
+
+
 def max_bytes(scenario) -> dict[str, int]:
     """Message type name -> the most bytes one message of it may take in this scenario's graph."""
     sensors = scene_sensors(scenario)
     dim = max((int(s.dim_z) for _, s in sensors.values()), default=1)
     n_sensors = max(len(sensors), 1)
     n_targets = max(len(scene_targets(scenario)), 1)
-    tracks = scenario.tracker.tracks.max_tracks + n_targets
+    tracks = most_tracks(scenario)
     n = limits.MAX_STATE_DIM
     per_track = (
         FIXED + ID + DOUBLE * (2 * (n + n * n) + 4 + 16 + scenario.tracker.planner_samples * n)
