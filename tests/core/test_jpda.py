@@ -126,6 +126,51 @@ def test_one_call_over_a_scan_gives_each_cluster_its_own_call_to_the_bit():
     assert kinds == {"alone", "net", "enumerated"}
 
 
+def test_the_gates_clusters_split_where_a_ratio_is_0_give_the_marginals_to_the_bit():
+    """A caller's gate clusters (the tracker's, :class:`GateClusters`) give the marginals of
+    clustering ``l > 0`` itself, to the bit, where gated pairs have a ratio of 0 (underflow)
+    that splits their cluster. Taken unsplit they would not: the same sums in another order."""
+    from activetrack.filters.jpda_net import GateClusters
+
+    class Unsplit(GateClusters):  # the gate's clusters as they are, not split where l is 0
+        def split(self, positive):
+            return self.clusters
+
+    rng = np.random.default_rng(7)
+    split = differs = 0  # scans where the gate's clusters split; where unsplit differs
+    for _ in range(80):
+        T, m = int(rng.integers(2, 30)), int(rng.integers(1, 30))
+        L = np.exp(rng.uniform(-20, 20, (T, m))) * (rng.random((T, m)) < rng.uniform(0.02, 0.1))
+        if rng.random() < 0.3 and T >= 8 and m >= 8:  # a dense block: the net
+            L[:8, :8] = np.exp(rng.uniform(-5, 5, (8, 8)))
+        gated = (L > 0.0) | (rng.random((T, m)) < 0.03)  # and gated pairs of ratio 0
+        pd, pg = float(rng.uniform(0.5, 0.99)), 0.99
+        want = jpda_probabilities(L, pd, pg)
+        gate = GateClusters(gated)
+        assert np.array_equal(jpda_probabilities(L, pd, pg, clusters=gate), want)
+        with np.errstate(divide="ignore"):  # unsplit, a lone track reads log(0) of its pair
+            unsplit = jpda_probabilities(L, pd, pg, clusters=Unsplit(gated))
+        if not np.array_equal(gated, L > 0.0):
+            split += len(gate.split(L > 0.0)) > len(gate.clusters)
+            differs += not np.array_equal(unsplit, want)
+    assert split >= 45 and differs >= 40  # seen: 55 and 50 of 80
+
+
+def test_gate_clusters_passed_in_are_checked():
+    from activetrack.filters.jpda_net import GateClusters
+
+    L = np.array([[2.0, 0.0], [0.0, 3.0]])
+    with pytest.raises(ValueError, match="clusters: a pair of positive likelihood ratio"):
+        jpda_probabilities(L, 0.9, 0.99, clusters=GateClusters(np.eye(2)[::-1] > 0))
+    with pytest.raises(ValueError, match=r"clusters: a gate of shape \(2, 2\)"):
+        jpda_probabilities(L, 0.9, 0.99, clusters=GateClusters(np.ones((2, 3), dtype=bool)))
+    with pytest.raises(ValueError, match="clusters: a GateClusters or None, got list"):
+        jpda_probabilities(L, 0.9, 0.99, clusters=[])  # type: ignore[arg-type]
+    beta = jpda_probabilities(L, 0.9, 0.99, clusters=GateClusters(np.ones((2, 2), dtype=bool)))
+    np.testing.assert_array_equal(beta, jpda_probabilities(L, 0.9, 0.99))
+    assert beta[0, 2] == beta[1, 1] == 0.0 and beta[0, 1] > 0.0
+
+
 # --- gating -----------------------------------------------------------------------------------
 
 

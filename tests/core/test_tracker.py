@@ -923,6 +923,7 @@ def test_initiation_from_detections_can_be_switched_off():
 
 
 def test_clusters_are_the_connected_components_of_the_gate_by_first_track():
+    from activetrack.filters.jpda_net import GateClusters
     from activetrack.tracking.tracker import _clusters
 
     def reference(mask):  # breadth-first search over tracks sharing a gated detection
@@ -947,7 +948,7 @@ def test_clusters_are_the_connected_components_of_the_gate_by_first_track():
     sizes = []
     for _ in range(300):
         mask = rng.random(rng.integers(0, 25, 2)) < rng.uniform(0.0, 0.15)
-        got, want = _clusters(mask), reference(mask)
+        got, want = _clusters(GateClusters(mask)), reference(mask)
         assert len(got) == len(want)
         for (r1, c1), (r2, c2) in zip(got, want, strict=True):
             assert np.array_equal(r1, r2) and np.array_equal(c1, c2)

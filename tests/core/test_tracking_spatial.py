@@ -90,3 +90,13 @@ def test_fov_index_candidates_hold_every_track_in_view_after_moves_and_starts():
     many.moved_many([], np.zeros((0, 2)))
     # an unbounded range: every track
     assert len(index.candidates(FieldOfView(), s)) == n + 2
+    # many starts (past the buffer's first 16 rows, some without a position): the placed ones
+    # within reach are candidates, the far ones not, the unplaced ones always, in their order
+    starts = rng.uniform(-1e6 - 20_000.0, -1e6 + 20_000.0, (40, 2))
+    for k, p in enumerate(starts):
+        index.add(f"s{k}", None if k % 9 == 0 else p)
+    reach = 7_000.0 + 1_000.0  # the radius after the moves above (widened by ~1e-9 relative)
+    near = np.hypot(starts[:, 0] + 1e6, starts[:, 1] + 1e6) <= reach
+    got = index.candidates(all_around, far)
+    want = ["new", "placed"] + [f"s{k}" for k in range(40) if k % 9 == 0 or near[k]]
+    assert got == want and 5 < len(want) < 30

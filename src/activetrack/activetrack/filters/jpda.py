@@ -50,7 +50,12 @@ import numpy.typing as npt
 
 from activetrack.arraytypes import ArrayLike, BoolArray, FloatArray
 from activetrack.checks import require_int, require_positive
-from activetrack.filters.jpda_net import DEFAULT_MAX_EDGES, gate_clusters, net_marginals
+from activetrack.filters.jpda_net import (
+    DEFAULT_MAX_EDGES,
+    GateClusters,
+    gate_clusters,
+    net_marginals,
+)
 from activetrack.models.base import MotionModel, SensorModel
 from activetrack.models.sensors import state_jacobian
 from activetrack.stats import chi2_cdf
@@ -235,6 +240,7 @@ def jpda_probabilities(
     pg: ArrayLike,
     *,
     max_edges: int = DEFAULT_MAX_EDGES,
+    clusters: GateClusters | None = None,
 ) -> FloatArray:
     """JPDA marginal association probabilities ``beta`` ``(T, m + 1)``; column 0 is "no
     measurement", column ``j`` measurement ``j - 1``.
@@ -247,16 +253,28 @@ def jpda_probabilities(
     cheaper there); in log space (no overflow).  ValueError when one cluster's net would exceed
     ``max_edges`` edges (memory) or when no event is possible (``Pd Pg = 1`` and no gated
     measurement).  :func:`jpda_probabilities_enumerated` enumerates every cluster.
+
+    ``clusters``: the caller's gate and its clusters (:class:`~.jpda_net.GateClusters`), the
+    gate holding every pair of ``l > 0``, so that a scan is clustered once: each cluster is
+    split where its ``l`` is 0 (a gated pair's ratio can underflow), which gives the clusters
+    of ``l > 0`` and so the same marginals, to the bit (ValueError naming ``clusters`` for a
+    pair of ``l > 0`` outside its gate).
     """
     L = _ratios(likelihood_ratios)  # only the gated pairs are read after the checks
     T, m = L.shape
     miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
     max_edges = require_int("max_edges", max_edges, 1, 2**62)
     beta = np.zeros((T, m + 1))
-    clusters = gate_clusters(L > 0.0)
-    alone = [(tracks[0], measurements) for tracks, measurements in clusters if tracks.size == 1]
+    positive = L > 0.0
+    if clusters is None:
+        found = gate_clusters(positive)
+    elif isinstance(clusters, GateClusters):
+        found = clusters.split(positive)
+    else:
+        raise ValueError(f"clusters: a GateClusters or None, got {type(clusters).__name__}")
+    alone = [(tracks[0], measurements) for tracks, measurements in found if tracks.size == 1]
     _pdaf_marginals(beta, alone, L, miss)
-    for tracks, measurements in clusters:
+    for tracks, measurements in found:
         if tracks.size == 1:
             continue
         columns = np.concatenate(([0], measurements + 1))

@@ -40,7 +40,7 @@ import numpy.typing as npt
 
 from activetrack.arraytypes import BoolArray, FloatArray
 
-__all__ = ["DEFAULT_MAX_EDGES", "gate_clusters", "net_marginals", "track_order"]
+__all__ = ["DEFAULT_MAX_EDGES", "GateClusters", "gate_clusters", "net_marginals", "track_order"]
 
 # About 50 bytes and 0.3-1 us per edge (numpy 2.4, loaded 2-core VM: 1.95 M edges, 99 MB peak,
 # 1.8 s): the default bounds one cluster's net near 250 MB.
@@ -81,6 +81,44 @@ def gate_clusters(gated: BoolArray) -> list[tuple[IntArray, IntArray]]:
         (by_track[bounds[k] : bounds[k + 1]], by_measurement[a:b])
         for k, (a, b) in enumerate(zip(lo, hi, strict=True))
     ]
+
+
+class GateClusters:
+    """A gate ``gated`` ``(T, m)`` and its :func:`gate_clusters` (``clusters``), computed once
+    here: a caller that needs them and the marginals too (the tracker's updates go by the gate's
+    clusters) passes this to :func:`~activetrack.filters.jpda.jpda_probabilities`, which then
+    does not cluster again. The gate is held, not copied: it must not change afterwards."""
+
+    __slots__ = ("clusters", "gated")
+
+    def __init__(self, gated: BoolArray):
+        self.gated = np.asarray(gated, dtype=bool)
+        self.clusters = gate_clusters(self.gated)
+
+    def split(self, positive: BoolArray) -> list[tuple[IntArray, IntArray]]:
+        """:func:`gate_clusters` of ``positive`` ``(T, m)``, a part of the gate (the pairs of a
+        positive likelihood ratio: a gated pair's ratio can underflow to 0), from the gate's
+        clusters: the same list where ``positive`` is the gate, else each cluster that lost a
+        pair is clustered again on its own block (the same tracks and measurements, in the same
+        order, as clustering ``positive`` whole gives; the list's order may differ). ValueError
+        if ``positive`` has a pair outside the gate."""
+        if positive.shape != self.gated.shape:
+            raise ValueError(
+                f"clusters: a gate of shape {positive.shape} expected, got {self.gated.shape}"
+            )
+        if np.array_equal(positive, self.gated):
+            return self.clusters
+        if (positive & ~self.gated).any():
+            raise ValueError("clusters: a pair of positive likelihood ratio lies outside the gate")
+        lost = (self.gated & ~positive).any(axis=1)  # tracks that lost a gated pair
+        out: list[tuple[IntArray, IntArray]] = []
+        for tracks, measurements in self.clusters:
+            if not lost[tracks].any():
+                out.append((tracks, measurements))
+                continue
+            for t, j in gate_clusters(positive[np.ix_(tracks, measurements)]):
+                out.append((tracks[t], measurements[j]))
+        return out
 
 
 def _component_labels(T: int, m: int, rows: IntArray, cols: IntArray) -> IntArray:

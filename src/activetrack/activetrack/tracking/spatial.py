@@ -46,16 +46,21 @@ class FovIndex:
         self._tree = _kd_tree(self.xy) if len(self.items) >= _MIN_TREE else None
         self._row = {id(item): k for k, item in enumerate(self.items)}
         self._added: list[object] = []
-        self._added_xy: list[tuple[float, float]] = []  # NaN: no position given
+        # The added tracks' positions, rows [:len(_added)] of a buffer that doubles when full
+        # (NaN: no position given): each scan reads them as one array, no list converted again.
+        self._added_xy = np.empty((16, 2))
         self._added_row: dict[int, int] = {}
         self._moved = 0.0  # largest distance of a track from its indexed position
 
     def add(self, item: object, xy: FloatArray | None = None) -> None:
         """A track started after the index was built, at ``xy`` ``(2,)`` (None: a candidate
         of every scan)."""
-        self._added_row[id(item)] = len(self._added)
+        k = len(self._added)
+        if k == self._added_xy.shape[0]:
+            self._added_xy = np.concatenate((self._added_xy, np.empty_like(self._added_xy)))
+        self._added_row[id(item)] = k
         self._added.append(item)
-        self._added_xy.append((math.nan, math.nan) if xy is None else (float(xy[0]), float(xy[1])))
+        self._added_xy[k] = (math.nan, math.nan) if xy is None else (float(xy[0]), float(xy[1]))
 
     def _origin(self, item: object) -> tuple[float, float] | None:
         """Where the index holds ``item`` (None: not held, or added without a position)."""
@@ -63,7 +68,10 @@ class FovIndex:
         if row is not None:
             return float(self.xy[row, 0]), float(self.xy[row, 1])
         row = self._added_row.get(id(item))
-        return None if row is None else self._added_xy[row]
+        if row is None:
+            return None
+        x, y = self._added_xy[row].tolist()
+        return None if math.isnan(x) else (x, y)
 
     def moved(self, item: object, xy: FloatArray) -> None:
         """The track's position is now ``xy`` ``(2,)``."""
@@ -95,7 +103,7 @@ class FovIndex:
         rows.sort()
         added = self._added
         if added:
-            A = np.array(self._added_xy)
+            A = self._added_xy[: len(added)]
             far = np.hypot(A[:, 0] - sensor_pv[0], A[:, 1] - sensor_pv[2]) > radius  # NaN: not
             added = [item for item, out in zip(added, far.tolist(), strict=True) if not out]
         return [self.items[k] for k in rows] + added

@@ -57,7 +57,7 @@ from activetrack.filters.jpda import (
     likelihood_ratios,
     predict_measurements,
 )
-from activetrack.filters.jpda_net import gate_clusters
+from activetrack.filters.jpda_net import GateClusters
 from activetrack.filters.jpda_particle import ParticleLikelihoods, particle_likelihoods
 from activetrack.filters.measurement import TIME_TOLERANCE, Measurement, TrackingFilter
 from activetrack.filters.resampling import systematic_resample
@@ -355,15 +355,16 @@ class Tracker:
         pd = effective_pd(c.sensor.pd)
         pg = gate_probability(self.gamma, int(c.sensor.base.dim_z))
         lam = effective_clutter_density(c.sensor.clutter_density)
-        clusters = _clusters(mask)
+        gate = GateClusters(mask)  # clustered once: the updates and the marginals alike
+        clusters = _clusters(gate)
         by_size = _by_size(clusters)
         if particles is None:  # each cluster's ratios from its own pairs, in one scan matrix
             scan_ratios = _cluster_ratios(by_size, nu, S, pd, lam, self.gamma, mask.shape)
         else:
             scan_ratios = particles.ratios(pd, lam)
-        # One call for the scan: it splits the gate into the same clusters and gives each
-        # cluster's marginals as a call on that cluster alone would (tested to the bit).
-        scan_beta = jpda_probabilities(scan_ratios, pd, pg)
+        # One call for the scan, on the gate's clusters (split where a ratio is 0): each
+        # cluster's marginals as a call on that cluster alone would give (tested to the bit).
+        scan_beta = jpda_probabilities(scan_ratios, pd, pg, clusters=gate)
         R = c.sensor.base.R
         stacked = self._stacked
         if particles is None and stacked is not None and _has_many(stacked, "update_pda"):
@@ -666,8 +667,8 @@ def _cluster_ratios(
     return out
 
 
-def _clusters(mask: BoolArray) -> list[tuple[np.ndarray, np.ndarray]]:
+def _clusters(gate: GateClusters) -> list[tuple[np.ndarray, np.ndarray]]:
     """Tracks linked through shared gated detections: ``(rows, cols)`` per cluster, by their
     first row (tracks without a gated detection are in none). The JPDA's joint events
     factorise over them (:func:`~activetrack.filters.jpda_net.gate_clusters`)."""
-    return [(rows, cols) for rows, cols in gate_clusters(mask) if cols.size]
+    return [(rows, cols) for rows, cols in gate.clusters if cols.size]
