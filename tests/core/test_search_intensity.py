@@ -54,6 +54,95 @@ def test_intensity_by_hand_on_a_two_by_two_grid():
         u.look([True] * 4, pd=1.5)
 
 
+def test_uniform_births_are_the_default_and_the_same_bits():
+    # today's intensity: birth_rate dt / N per cell per epoch, written out as before
+    region, rate, dt = (-5000.0, 5000.0, 0.0, 10000.0), 4.0 / 180.0, 4.0
+    u = UndetectedIntensity(Surveillance(region, rate, 250.0), dt)
+    same = UndetectedIntensity(Surveillance(region, rate, 250.0, "uniform"), dt)
+    assert u.layers.shape == (1, 1600) and u.shifts is None
+    inside = np.arange(1600) % 7 == 0
+    before = np.zeros(1600)
+    for _ in range(5):
+        for v in (u, same):
+            v.predict()
+            v.look(inside, 0.9)
+        before = before + np.full(1600, rate * dt / 1600)
+        before = np.where(inside, before * (1.0 - 0.9), before)
+    np.testing.assert_array_equal(u.intensity, before)
+    np.testing.assert_array_equal(same.intensity, before)
+    assert u.left == 0.0
+
+
+def _edges(speed: float, edges=("west", "north")) -> UndetectedIntensity:
+    # 4 x 4 cells of 250 m; 0.1 targets / s * 4 s = 0.4 per epoch, half per edge (equal
+    # lengths), 0.05 per edge cell; 25 m/s * 4 s = 100 m = 0.4 cell per epoch
+    return UndetectedIntensity(
+        Surveillance((0.0, 1000.0, 0.0, 1000.0), 0.1, 250.0, "edges", edges, speed), 4.0
+    )
+
+
+def test_edge_births_drift_inward_and_conserve_their_mass():
+    u = _edges(25.0)
+    grid = u.birth.reshape(2, 4, 4)
+    np.testing.assert_allclose(grid[0, 0, :], 0.05)  # west: x row 0
+    np.testing.assert_allclose(grid[1, :, -1], 0.05)  # north: y column 3
+    assert u.birth.sum() == pytest.approx(0.4)  # birth_rate dt, all of it
+    assert u.shifts == ((0, pytest.approx(0.4)), (1, pytest.approx(-0.4)))
+    for _ in range(3):
+        u.predict()
+    # west layer along x: row 0 keeps 0.6 of each epoch's mass, 0.4 moves on each epoch
+    # 0.05 (1 + 0.6 + 0.36), 0.05 (0.4 + 2 * 0.6 * 0.4), 0.05 * 0.4^2, 0
+    west = u.layers.reshape(2, 4, 4)[0]
+    np.testing.assert_allclose(west[:, 2], [0.098, 0.044, 0.008, 0.0], atol=1e-15)
+    north = u.layers.reshape(2, 4, 4)[1]
+    np.testing.assert_allclose(north[1, :], [0.0, 0.008, 0.044, 0.098], atol=1e-15)
+    assert u.left == 0.0 and u.intensity.sum() == pytest.approx(1.2)
+    # after 10 cells of travel the first births have left: nothing lost but what left
+    for _ in range(20):
+        u.predict()
+    assert u.left > 0.5
+    assert u.intensity.sum() + u.left == pytest.approx(23 * 0.4, rel=1e-12)
+    # a look depletes every layer by 1 - Pd in its footprint only
+    layers, inside = u.layers.copy(), np.arange(16) < 4
+    u.look(inside, 0.9)
+    np.testing.assert_allclose(u.layers[:, inside], 0.1 * layers[:, inside])
+    np.testing.assert_array_equal(u.layers[:, ~inside], layers[:, ~inside])
+    # without a speed the births stay on their edges
+    still = _edges(0.0, ("east",))
+    still.predict()
+    still.predict()
+    np.testing.assert_allclose(still.intensity.reshape(4, 4)[-1], 0.2)
+    assert still.intensity.sum() == pytest.approx(0.8) and still.shifts is None
+
+
+def test_a_drift_of_more_than_a_cell_splits_between_the_two_cells_it_reaches():
+    u = _edges(80.0, ("south",))  # 320 m = 1.28 cells per epoch along +y
+    u.predict()
+    u.predict()
+    col = u.intensity.reshape(4, 4)[0]  # 0.1 per south cell per epoch
+    np.testing.assert_allclose(col, [0.1, 0.072, 0.028, 0.0], atol=1e-15)
+    for _ in range(3):
+        u.predict()
+    assert u.intensity.sum() + u.left == pytest.approx(5 * 0.4, rel=1e-12)
+    assert u.left > 0.0
+
+
+def test_the_birth_model_is_checked():
+    region = (0.0, 1000.0, 0.0, 1000.0)
+    for kwargs, field in (
+        ({"births": "edge"}, "surveillance.births"),
+        ({"births": "edges"}, "surveillance.edges"),
+        ({"births": "edges", "edges": ("west", "west")}, "surveillance.edges"),
+        ({"births": "edges", "edges": ("up",)}, "surveillance.edges"),
+        ({"births": "edges", "edges": ("west",), "birth_speed": -1.0}, "birth_speed"),
+        ({"births": "edges", "edges": ("west",), "birth_speed": math.nan}, "birth_speed"),
+        ({"edges": ("west",)}, "need births 'edges'"),
+        ({"birth_speed": 25.0}, "need births 'edges'"),
+    ):
+        with pytest.raises(ValueError, match=field):
+            Surveillance(region, 0.1, 250.0, **kwargs)
+
+
 def test_search_value_by_hand():
     # c = 500 m, p = 2, alpha = 2: c^p / alpha = 125000 m^2 per missed target
     k = GospaWeights(500.0, 2.0, 2.0).cardinality
@@ -182,6 +271,20 @@ def test_the_surveillance_section_is_checked():
     ):
         with pytest.raises(ValueError, match=field):
             parse_scenario(_scene(bad), "s")
+    for bad, field in (
+        ({"births": "edges"}, "edges"),
+        ({"births": "edges", "edges": ["north", "north"]}, "distinct edges"),
+        ({"births": "edges", "edges": ["up"]}, "edges"),
+        ({"births": "edges", "edges": ["west"], "birth_speed": -1.0}, "birth_speed"),
+        ({"births": "along", "edges": ["west"]}, "births"),
+        ({"birth_speed": 25.0}, "need births 'edges'"),
+    ):
+        with pytest.raises(ValueError, match=field):
+            parse_scenario(_scene({**SURVEILLANCE, **bad}), "s")
+    edges = {**SURVEILLANCE, "births": "edges", "edges": ["west", "east"], "birth_speed": 25.0}
+    planner = build_across_targets(parse_scenario(_scene(edges), "s"), np.random.default_rng(0))
+    assert planner.undetected.surveillance.edges == ("west", "east")
+    assert planner.undetected.layers.shape == (2, 1600)
     # absent: the planner keeps no intensity (every other scenario's numbers stay)
     plain = build_across_targets(parse_scenario(_scene(None), "s"), np.random.default_rng(0))
     assert plain.undetected is None
