@@ -5,6 +5,7 @@ of a search pointing in GOSPA units and its column in the beams' assignment
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from activetrack.planning.gospa_rollout import FirstLegSearch, GospaRollout, Loo
 from activetrack.planning.search_intensity import (
     Surveillance,
     UndetectedIntensity,
+    birth_odds,
     footprint,
     footprints,
     search_bearings,
@@ -141,6 +143,26 @@ def test_the_birth_model_is_checked():
     ):
         with pytest.raises(ValueError, match=field):
             Surveillance(region, 0.1, 250.0, **kwargs)
+
+
+def test_birth_odds_by_hand():
+    # one 1 km cell centred at (0, 1000) holding D = 0.25 / s * 4 s = 1 target, a radar at the
+    # origin (Pd 0.9, clutter 3e-4 per m rad): e = Pd D / A = 0.9e-6 per m^2; a range-bearing
+    # z has |det dh/dx| = 1 / r = 1e-3, so kappa = 3e-4 * 1e-3 = 3e-7 per m^2: odds 3 (r 0.75)
+    u = UndetectedIntensity(Surveillance((-500.0, 500.0, 500.0, 1500.0), 0.25, 1000.0), 4.0)
+    u.predict()
+    assert u.cell_area == 1e6 and u.intensity.tolist() == [1.0]
+    radar = RangeBearingSensor(sigma_r=10.0, sigma_b=0.01, pd=0.9, r_max=5000.0)
+    sensor = ClutteredSensor(radar, clutter_density=3e-4, beam_width=0.2)
+    pv = np.zeros(4)
+    np.testing.assert_allclose(birth_odds(sensor, u, pv, [True]), [3.0], rtol=1e-12)
+    assert birth_odds(sensor, u, pv, [False]).tolist() == [0.0]  # not seen: no odds
+    u.look([True], 0.9)  # a depleted cell: a tenth of the odds
+    np.testing.assert_allclose(birth_odds(sensor, u, pv, [True]), [0.3], rtol=1e-12)
+    clean = ClutteredSensor(radar, beam_width=0.2)  # no clutter: any detection is a target
+    assert birth_odds(clean, u, pv, [True]).tolist() == [math.inf]
+    # a position within one cell outside the region maps to its nearest cell; farther: none
+    assert u.cell_of([[0.0, 1000.0], [-1400.0, 1000.0], [0.0, 2600.0]]).tolist() == [0, 0, -1]
 
 
 def test_search_value_by_hand():
@@ -434,3 +456,39 @@ def test_the_rollout_searches_on_the_first_leg_where_that_beats_serving():
     # shared with another platform's look: the beam keeps serving (their choice is joint)
     got = _one_track_rollouts(value, shared=True)["search"].advance(P1, 0, pvs)
     np.testing.assert_allclose(got[:, 1], 0.0)
+
+
+def test_a_new_tentative_track_weighs_the_birth_odds_of_its_cell():
+    # births along the north edge: a detection there is likely a target, one in the middle
+    # of the region (no intensity) clutter; the tracker's fixed 0.2 gives way to e / (e + kappa)
+    north = {**SURVEILLANCE, "births": "edges", "edges": ["north"], "birth_speed": 25.0}
+    sc = parse_scenario(_scene(north), "s")
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    pv = np.array(sc.platforms[0].initial_state)
+    _plan(planner, 0, (), pv)
+    planner.pending_looks = [(0, math.pi / 2)]  # the next look north, over both tracks
+    P = np.diag([2500.0, 900.0, 2500.0, 900.0])
+    edge = np.array([0.0, 0.0, 9900.0, 0.0])
+    middle = np.array([0.0, 0.0, 5000.0, 0.0])
+    outside = np.array([0.0, 0.0, 12000.0, 0.0])
+    tracks = tuple(
+        TrackEstimate(i, "tentative", m, P, m, P, hits=1, existence=0.2)
+        for i, m in ((5, edge), (6, middle), (7, outside))
+    )
+    pv1 = planner._ahead(pv)
+    _plan(planner, 1, tracks, pv1)
+    u = planner.undetected
+    odds = birth_odds(planner.sensors[0].model, u, pv1, np.ones(len(u.xy), dtype=bool))
+    # the look depleted the cell after the odds were taken: D before = D now / (1 - Pd)
+    cell = int(u.cell_of([[0.0, 9900.0]])[0])
+    expect = 10.0 * odds[cell]
+    assert planner._tentative_existence(tracks[0]) == pytest.approx(expect / (1.0 + expect))
+    assert 0.2 < planner._tentative_existence(tracks[0]) < 1.0
+    assert planner._tentative_existence(tracks[1]) == 0.0  # no births in the middle yet
+    assert planner._tentative_existence(tracks[2]) == 0.0  # beyond the region
+    # a later miss moves the tracker's odds, the birth factor stays with the track
+    missed = replace(tracks[0], misses=1, existence=0.05)
+    f = expect / 0.25
+    assert planner._tentative_existence(missed) == pytest.approx(
+        0.05 / 0.95 * f / (1 + 0.05 / 0.95 * f)
+    )

@@ -30,6 +30,15 @@ mixture filter", IEEE TAES 2018, eq. 21 and 35):
   and range limits) by (1 - Pd) (the missed-detection update of the PHD, D (1 - Pd)), in
   every layer.
 
+A detection in a look's footprint is a new target or clutter: the PMBM's update starts a new
+Bernoulli per measurement z with existence r = e(z) / (e(z) + kappa(z)), e(z) = int Pd D(x)
+l(z | x) dx the detection density of the undetected targets and kappa(z) the clutter density
+(Garcia-Fernandez et al. 2018, the update of the undetected PPP; Williams, "Marginal multi-
+Bernoulli filters", IEEE TAES 2015, its new tracks). On the grid, with a measurement z of the
+position (two components), e(z) = Pd D_cell / A_cell / |det dh/dx| at the cell's centre, so
+:func:`birth_odds` gives e / kappa = Pd D_cell / (A_cell kappa |det dh/dx|) per cell (D the
+intensity the look saw, before its own depletion).
+
 A search pointing's value in GOSPA units (Rahmathullah, Garcia-Fernandez & Svensson, FUSION
 2017, eq. 1: c^p / alpha per missed target): the expected number of new targets it detects,
 Pd times the intensity in its footprint (cells farther than c from every track: a target
@@ -57,6 +66,7 @@ __all__ = [
     "EDGES",
     "Surveillance",
     "UndetectedIntensity",
+    "birth_odds",
     "footprint",
     "footprints",
     "search_bearings",
@@ -210,6 +220,27 @@ class UndetectedIntensity:
         inside = np.asarray(inside, dtype=bool)
         self.layers = np.where(inside, self.layers * (1.0 - pd), self.layers)
 
+    @property
+    def cell_area(self) -> float:
+        """A cell's area [m^2]."""
+        nx, ny = self.surveillance.shape
+        x0, x1, y0, y1 = self.surveillance.region
+        return (x1 - x0) * (y1 - y0) / (nx * ny)
+
+    def cell_of(self, xy: ArrayLike) -> np.ndarray:
+        """The cell ``(M,)`` of each position ``(M, 2)``, -1 for a position farther than one
+        cell outside the region (one inside that margin: the nearest cell; a target entering
+        at an edge is detected within a cell of it)."""
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        nx, ny = self.surveillance.shape
+        x0, x1, y0, y1 = self.surveillance.region
+        fx = (xy[:, 0] - x0) / (x1 - x0) * nx
+        fy = (xy[:, 1] - y0) / (y1 - y0) * ny
+        inside = (fx >= -1.0) & (fx < nx + 1.0) & (fy >= -1.0) & (fy < ny + 1.0)
+        ix = np.clip(np.floor(fx), 0, nx - 1).astype(int)
+        iy = np.clip(np.floor(fy), 0, ny - 1).astype(int)
+        return np.where(inside, ix * ny + iy, -1)
+
     def uncovered(self, track_xy: ArrayLike, cutoff: float) -> np.ndarray:
         """Cells farther than ``cutoff`` from every track position ``(T, 2)``: bool ``(N,)``."""
         t = np.asarray(track_xy, dtype=float).reshape(-1, 2)
@@ -302,6 +333,36 @@ def search_bearings(xy: ArrayLike, pv: ArrayLike, beam_width: float) -> np.ndarr
     n = max(1, math.ceil(arc / beam_width - 1e-9))
     offsets = 0.5 * arc + beam_width * (np.arange(n) - 0.5 * (n - 1))
     return np.asarray(wrap_angle(start + offsets), dtype=float)
+
+
+def birth_odds(
+    sensor: ClutteredSensor, u: UndetectedIntensity, pv: ArrayLike, seen: ArrayLike
+) -> np.ndarray:
+    """e / kappa ``(N,)`` in each cell of a look from pv ``(4,)`` that saw the cells ``seen``
+    (bool ``(N,)``), 0 elsewhere (module docstring): the odds that one detection there is a
+    target not yet detected rather than clutter, for the intensity ``u.intensity`` the look
+    saw. Needs a sensor whose measurement fixes a position (two components; a bearing alone
+    starts no track); without clutter the odds are infinite where the intensity is not 0."""
+    seen = np.asarray(seen, dtype=bool)
+    out = np.zeros(len(seen))
+    cells = np.flatnonzero(seen & (u.intensity > 0.0))
+    if cells.size == 0:
+        return out
+    pv = np.asarray(pv, dtype=float)
+    x = np.zeros((cells.size, 4))
+    x[:, 0], x[:, 2] = u.xy[cells, 0], u.xy[cells, 1]
+    H = np.asarray(sensor.jacobian(x, pv), dtype=float)
+    if H.shape[-2] != 2:
+        raise ValueError(
+            f"sensor: birth odds need a measurement of the position (2 components), got "
+            f"{H.shape[-2]}"
+        )
+    det = np.abs(np.linalg.det(H[..., [0, 2]]))
+    e = float(sensor.pd) * u.intensity[cells] / u.cell_area
+    kappa = float(sensor.clutter_density) * det
+    with np.errstate(divide="ignore"):
+        out[cells] = np.where(kappa > 0.0, e / np.where(kappa > 0.0, kappa, 1.0), np.inf)
+    return out
 
 
 def search_value(
