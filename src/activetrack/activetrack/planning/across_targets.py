@@ -45,8 +45,10 @@ depletes (:mod:`activetrack.planning.search_intensity`); each beam's search poin
 tentative tracks) are columns of its assignment next to the tracks, valued in the same GOSPA
 units, and the rollout scores every candidate manoeuvre, hold course too, with the search its
 beams may make from where it takes them (:class:`activetrack.planning.gospa_rollout.
-FirstLegSearch`). The intensity is state a restarted planner does not rebuild (it starts
-empty again).
+FirstLegSearch`). A tentative track the looks just started weighs the PMBM's existence of a
+new target at its cell (:func:`activetrack.planning.search_intensity.birth_odds`), not the
+tracker's fixed initial one. The intensity is state a restarted planner does not rebuild (it
+starts empty again).
 
 Random draws, all from the planner's generator, in order: the tracks' Gaussian samples and
 process noise (pcrlb), the evolutionary search, the random assignment.
