@@ -5,6 +5,7 @@ of a search pointing in GOSPA units and its column in the beams' assignment
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from activetrack.planning.gospa_rollout import FirstLegSearch, GospaRollout, Loo
 from activetrack.planning.search_intensity import (
     Surveillance,
     UndetectedIntensity,
+    birth_odds,
     footprint,
     footprints,
     search_bearings,
@@ -52,6 +54,115 @@ def test_intensity_by_hand_on_a_two_by_two_grid():
     np.testing.assert_array_equal(u.uncovered(np.zeros((0, 2)), 0.5), [True] * 4)
     with pytest.raises(ValueError, match="pd must lie in"):
         u.look([True] * 4, pd=1.5)
+
+
+def test_uniform_births_are_the_default_and_the_same_bits():
+    # today's intensity: birth_rate dt / N per cell per epoch, written out as before
+    region, rate, dt = (-5000.0, 5000.0, 0.0, 10000.0), 4.0 / 180.0, 4.0
+    u = UndetectedIntensity(Surveillance(region, rate, 250.0), dt)
+    same = UndetectedIntensity(Surveillance(region, rate, 250.0, "uniform"), dt)
+    assert u.layers.shape == (1, 1600) and u.shifts is None
+    inside = np.arange(1600) % 7 == 0
+    before = np.zeros(1600)
+    for _ in range(5):
+        for v in (u, same):
+            v.predict()
+            v.look(inside, 0.9)
+        before = before + np.full(1600, rate * dt / 1600)
+        before = np.where(inside, before * (1.0 - 0.9), before)
+    np.testing.assert_array_equal(u.intensity, before)
+    np.testing.assert_array_equal(same.intensity, before)
+    assert u.left == 0.0
+
+
+def _edges(speed: float, edges=("west", "north")) -> UndetectedIntensity:
+    # 4 x 4 cells of 250 m; 0.1 targets / s * 4 s = 0.4 per epoch, half per edge (equal
+    # lengths), 0.05 per edge cell; 25 m/s * 4 s = 100 m = 0.4 cell per epoch
+    return UndetectedIntensity(
+        Surveillance((0.0, 1000.0, 0.0, 1000.0), 0.1, 250.0, "edges", edges, speed), 4.0
+    )
+
+
+def test_edge_births_drift_inward_and_conserve_their_mass():
+    u = _edges(25.0)
+    grid = u.birth.reshape(2, 4, 4)
+    np.testing.assert_allclose(grid[0, 0, :], 0.05)  # west: x row 0
+    np.testing.assert_allclose(grid[1, :, -1], 0.05)  # north: y column 3
+    assert u.birth.sum() == pytest.approx(0.4)  # birth_rate dt, all of it
+    assert u.shifts == ((0, pytest.approx(0.4)), (1, pytest.approx(-0.4)))
+    for _ in range(3):
+        u.predict()
+    # west layer along x: row 0 keeps 0.6 of each epoch's mass, 0.4 moves on each epoch
+    # 0.05 (1 + 0.6 + 0.36), 0.05 (0.4 + 2 * 0.6 * 0.4), 0.05 * 0.4^2, 0
+    west = u.layers.reshape(2, 4, 4)[0]
+    np.testing.assert_allclose(west[:, 2], [0.098, 0.044, 0.008, 0.0], atol=1e-15)
+    north = u.layers.reshape(2, 4, 4)[1]
+    np.testing.assert_allclose(north[1, :], [0.0, 0.008, 0.044, 0.098], atol=1e-15)
+    assert u.left == 0.0 and u.intensity.sum() == pytest.approx(1.2)
+    # after 10 cells of travel the first births have left: nothing lost but what left
+    for _ in range(20):
+        u.predict()
+    assert u.left > 0.5
+    assert u.intensity.sum() + u.left == pytest.approx(23 * 0.4, rel=1e-12)
+    # a look depletes every layer by 1 - Pd in its footprint only
+    layers, inside = u.layers.copy(), np.arange(16) < 4
+    u.look(inside, 0.9)
+    np.testing.assert_allclose(u.layers[:, inside], 0.1 * layers[:, inside])
+    np.testing.assert_array_equal(u.layers[:, ~inside], layers[:, ~inside])
+    # without a speed the births stay on their edges
+    still = _edges(0.0, ("east",))
+    still.predict()
+    still.predict()
+    np.testing.assert_allclose(still.intensity.reshape(4, 4)[-1], 0.2)
+    assert still.intensity.sum() == pytest.approx(0.8) and still.shifts is None
+
+
+def test_a_drift_of_more_than_a_cell_splits_between_the_two_cells_it_reaches():
+    u = _edges(80.0, ("south",))  # 320 m = 1.28 cells per epoch along +y
+    u.predict()
+    u.predict()
+    col = u.intensity.reshape(4, 4)[0]  # 0.1 per south cell per epoch
+    np.testing.assert_allclose(col, [0.1, 0.072, 0.028, 0.0], atol=1e-15)
+    for _ in range(3):
+        u.predict()
+    assert u.intensity.sum() + u.left == pytest.approx(5 * 0.4, rel=1e-12)
+    assert u.left > 0.0
+
+
+def test_the_birth_model_is_checked():
+    region = (0.0, 1000.0, 0.0, 1000.0)
+    for kwargs, field in (
+        ({"births": "edge"}, "surveillance.births"),
+        ({"births": "edges"}, "surveillance.edges"),
+        ({"births": "edges", "edges": ("west", "west")}, "surveillance.edges"),
+        ({"births": "edges", "edges": ("up",)}, "surveillance.edges"),
+        ({"births": "edges", "edges": ("west",), "birth_speed": -1.0}, "birth_speed"),
+        ({"births": "edges", "edges": ("west",), "birth_speed": math.nan}, "birth_speed"),
+        ({"edges": ("west",)}, "need births 'edges'"),
+        ({"birth_speed": 25.0}, "need births 'edges'"),
+    ):
+        with pytest.raises(ValueError, match=field):
+            Surveillance(region, 0.1, 250.0, **kwargs)
+
+
+def test_birth_odds_by_hand():
+    # one 1 km cell centred at (0, 1000) holding D = 0.25 / s * 4 s = 1 target, a radar at the
+    # origin (Pd 0.9, clutter 3e-4 per m rad): e = Pd D / A = 0.9e-6 per m^2; a range-bearing
+    # z has |det dh/dx| = 1 / r = 1e-3, so kappa = 3e-4 * 1e-3 = 3e-7 per m^2: odds 3 (r 0.75)
+    u = UndetectedIntensity(Surveillance((-500.0, 500.0, 500.0, 1500.0), 0.25, 1000.0), 4.0)
+    u.predict()
+    assert u.cell_area == 1e6 and u.intensity.tolist() == [1.0]
+    radar = RangeBearingSensor(sigma_r=10.0, sigma_b=0.01, pd=0.9, r_max=5000.0)
+    sensor = ClutteredSensor(radar, clutter_density=3e-4, beam_width=0.2)
+    pv = np.zeros(4)
+    np.testing.assert_allclose(birth_odds(sensor, u, pv, [True]), [3.0], rtol=1e-12)
+    assert birth_odds(sensor, u, pv, [False]).tolist() == [0.0]  # not seen: no odds
+    u.look([True], 0.9)  # a depleted cell: a tenth of the odds
+    np.testing.assert_allclose(birth_odds(sensor, u, pv, [True]), [0.3], rtol=1e-12)
+    clean = ClutteredSensor(radar, beam_width=0.2)  # no clutter: any detection is a target
+    assert birth_odds(clean, u, pv, [True]).tolist() == [math.inf]
+    # a position within one cell outside the region maps to its nearest cell; farther: none
+    assert u.cell_of([[0.0, 1000.0], [-1400.0, 1000.0], [0.0, 2600.0]]).tolist() == [0, 0, -1]
 
 
 def test_search_value_by_hand():
@@ -182,6 +293,20 @@ def test_the_surveillance_section_is_checked():
     ):
         with pytest.raises(ValueError, match=field):
             parse_scenario(_scene(bad), "s")
+    for bad, field in (
+        ({"births": "edges"}, "edges"),
+        ({"births": "edges", "edges": ["north", "north"]}, "distinct edges"),
+        ({"births": "edges", "edges": ["up"]}, "edges"),
+        ({"births": "edges", "edges": ["west"], "birth_speed": -1.0}, "birth_speed"),
+        ({"births": "along", "edges": ["west"]}, "births"),
+        ({"birth_speed": 25.0}, "need births 'edges'"),
+    ):
+        with pytest.raises(ValueError, match=field):
+            parse_scenario(_scene({**SURVEILLANCE, **bad}), "s")
+    edges = {**SURVEILLANCE, "births": "edges", "edges": ["west", "east"], "birth_speed": 25.0}
+    planner = build_across_targets(parse_scenario(_scene(edges), "s"), np.random.default_rng(0))
+    assert planner.undetected.surveillance.edges == ("west", "east")
+    assert planner.undetected.layers.shape == (2, 1600)
     # absent: the planner keeps no intensity (every other scenario's numbers stay)
     plain = build_across_targets(parse_scenario(_scene(None), "s"), np.random.default_rng(0))
     assert plain.undetected is None
@@ -331,3 +456,39 @@ def test_the_rollout_searches_on_the_first_leg_where_that_beats_serving():
     # shared with another platform's look: the beam keeps serving (their choice is joint)
     got = _one_track_rollouts(value, shared=True)["search"].advance(P1, 0, pvs)
     np.testing.assert_allclose(got[:, 1], 0.0)
+
+
+def test_a_new_tentative_track_weighs_the_birth_odds_of_its_cell():
+    # births along the north edge: a detection there is likely a target, one in the middle
+    # of the region (no intensity) clutter; the tracker's fixed 0.2 gives way to e / (e + kappa)
+    north = {**SURVEILLANCE, "births": "edges", "edges": ["north"], "birth_speed": 25.0}
+    sc = parse_scenario(_scene(north), "s")
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    pv = np.array(sc.platforms[0].initial_state)
+    _plan(planner, 0, (), pv)
+    planner.pending_looks = [(0, math.pi / 2)]  # the next look north, over both tracks
+    P = np.diag([2500.0, 900.0, 2500.0, 900.0])
+    edge = np.array([0.0, 0.0, 9900.0, 0.0])
+    middle = np.array([0.0, 0.0, 5000.0, 0.0])
+    outside = np.array([0.0, 0.0, 12000.0, 0.0])
+    tracks = tuple(
+        TrackEstimate(i, "tentative", m, P, m, P, hits=1, existence=0.2)
+        for i, m in ((5, edge), (6, middle), (7, outside))
+    )
+    pv1 = planner._ahead(pv)
+    _plan(planner, 1, tracks, pv1)
+    u = planner.undetected
+    odds = birth_odds(planner.sensors[0].model, u, pv1, np.ones(len(u.xy), dtype=bool))
+    # the look depleted the cell after the odds were taken: D before = D now / (1 - Pd)
+    cell = int(u.cell_of([[0.0, 9900.0]])[0])
+    expect = 10.0 * odds[cell]
+    assert planner._tentative_existence(tracks[0]) == pytest.approx(expect / (1.0 + expect))
+    assert 0.2 < planner._tentative_existence(tracks[0]) < 1.0
+    assert planner._tentative_existence(tracks[1]) == 0.0  # no births in the middle yet
+    assert planner._tentative_existence(tracks[2]) == 0.0  # beyond the region
+    # a later miss moves the tracker's odds, the birth factor stays with the track
+    missed = replace(tracks[0], misses=1, existence=0.05)
+    f = expect / 0.25
+    assert planner._tentative_existence(missed) == pytest.approx(
+        0.05 / 0.95 * f / (1 + 0.05 / 0.95 * f)
+    )

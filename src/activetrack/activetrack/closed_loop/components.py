@@ -308,7 +308,14 @@ def surveillance_of(cfg: SurveillanceConfig | None) -> Surveillance | None:
     if cfg is None:
         return None
     x0, x1, y0, y1 = cfg.region
-    return Surveillance((x0, x1, y0, y1), cfg.birth_rate, cfg.cell_size)
+    return Surveillance(
+        (x0, x1, y0, y1),
+        cfg.birth_rate,
+        cfg.cell_size,
+        cfg.births,
+        tuple(cfg.edges),
+        cfg.birth_speed,
+    )
 
 
 def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiTargetPlanner:

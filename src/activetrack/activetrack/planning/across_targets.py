@@ -45,8 +45,10 @@ depletes (:mod:`activetrack.planning.search_intensity`); each beam's search poin
 tentative tracks) are columns of its assignment next to the tracks, valued in the same GOSPA
 units, and the rollout scores every candidate manoeuvre, hold course too, with the search its
 beams may make from where it takes them (:class:`activetrack.planning.gospa_rollout.
-FirstLegSearch`). The intensity is state a restarted planner does not rebuild (it starts
-empty again).
+FirstLegSearch`). A tentative track the looks just started weighs the PMBM's existence of a
+new target at its cell (:func:`activetrack.planning.search_intensity.birth_odds`), not the
+tracker's fixed initial one. The intensity is state a restarted planner does not rebuild (it
+starts empty again).
 
 Random draws, all from the planner's generator, in order: the tracks' Gaussian samples and
 process noise (pcrlb), the evolutionary search, the random assignment.
@@ -80,7 +82,7 @@ from activetrack.data import (
     TrackEstimate,
     TrackSet,
 )
-from activetrack.models.clutter import CLUTTER_GATES, ClutteredSensor
+from activetrack.models.clutter import CLUTTER_GATES, ClutteredSensor, starts_tracks
 from activetrack.models.fov import sector_coverage
 from activetrack.planning.assignment import (
     NO_MISSES,
@@ -123,6 +125,7 @@ from activetrack.planning.objective import (
 from activetrack.planning.search_intensity import (
     Surveillance,
     UndetectedIntensity,
+    birth_odds,
     footprint,
     footprints,
     search_bearings,
@@ -130,6 +133,7 @@ from activetrack.planning.search_intensity import (
 )
 from activetrack.planning.selection import TargetPrediction, expected_update
 from activetrack.planning.strategies import LinearDynamics
+from activetrack.tracking.management import EXISTENCE_INIT
 
 __all__ = ["AcrossTargetsSettings", "MultiTargetPlanner", "ScenePlatform"]
 
@@ -428,6 +432,14 @@ class MultiTargetPlanner:
         )
         self.pending_looks: list[tuple[int, float | None]] = []
         self.all_tracks: tuple[TrackEstimate, ...] = ()
+        # the odds e / kappa per cell of this epoch's looks, and per track from a detection
+        # the factor from the tracker's initial odds to the birth odds of its first detection
+        self.odds_now = np.zeros(0)
+        self.birth_factor: dict[int, float] = {}
+        # sensors whose one detection, a position of two components, may start a track
+        self.births_from = tuple(
+            starts_tracks(s.model) and np.shape(s.model.R)[0] == 2 for s in self.sensors
+        )
 
     def decide(self, context: DecisionContext) -> DecisionPart:
         """:meth:`plan` as a :class:`~activetrack.planning.decision.PlannerStrategy` part."""
@@ -459,6 +471,7 @@ class MultiTargetPlanner:
         self.all_tracks = tracks.tracks  # tentative ones too: their cells are not searched
         if self.undetected is not None:
             self._deplete(snaps)
+            self._note_births(tracks)
         if not tracks.confirmed:
             return self._sweep(epoch, planners, start, tracks)
         ep = self._epoch(epoch, planners, tracks.confirmed)
@@ -493,11 +506,47 @@ class MultiTargetPlanner:
         made (commanded last epoch) from where the platforms are now."""
         u = cast(UndetectedIntensity, self.undetected)
         u.predict()
+        self.odds_now = np.full(len(u.xy), np.nan)  # NaN: no look with birth odds saw it
         for i, bearing in self.pending_looks:
             s = self.sensors[i]
             pv = snaps[self.platform_ids[s.platform]].pv
-            u.look(footprint(s.model, u.xy, pv, bearing), float(s.model.pd))
+            seen = footprint(s.model, u.xy, pv, bearing)
+            if self.births_from[i]:  # the look that best explains a detection
+                odds = birth_odds(s.model, u, pv, seen)
+                self.odds_now = np.where(seen, np.fmax(self.odds_now, odds), self.odds_now)
+            u.look(seen, float(s.model.pd))
         self.pending_looks = []
+
+    def _note_births(self, tracks: TrackSet) -> None:
+        """Tracks from one detection made now: the planner's existence of each is the PMBM's
+        new Bernoulli, e / (e + kappa) at its cell (:func:`birth_odds`), in place of the
+        tracker's fixed initial existence; the factor between their odds stays with the track
+        (its later hits and misses move the tracker's odds as they would the planner's). A
+        track outside the region (beyond a cell) has odds 0; one the planner did not see
+        born (hits > 1 when first seen: a restarted planner) or in a cell no look of a
+        sensor measuring a position of two components saw (:func:`birth_odds` needs one: a
+        range-rate radar's) keeps the tracker's existence."""
+        u = cast(UndetectedIntensity, self.undetected)
+        init = EXISTENCE_INIT / (1.0 - EXISTENCE_INIT)
+        live = {t.track_id for t in tracks.tracks}
+        self.birth_factor = {i: f for i, f in self.birth_factor.items() if i in live}
+        for t in tracks.tracks:
+            if t.track_id in self.birth_factor or t.origin or t.status == "confirmed":
+                continue
+            if t.hits > 1:
+                self.birth_factor[t.track_id] = 1.0
+                continue
+            cell = int(u.cell_of([[t.mean[0], t.mean[2]]])[0])
+            odds = float(self.odds_now[cell]) if cell >= 0 else 0.0
+            self.birth_factor[t.track_id] = 1.0 if math.isnan(odds) else odds / init
+
+    def _tentative_existence(self, t: TrackEstimate) -> float:
+        """A tentative track's existence as the planner weighs it (:meth:`_note_births`)."""
+        f = self.birth_factor.get(t.track_id, 1.0)
+        if t.existence >= 1.0 or math.isinf(f):
+            return 1.0 if f > 0.0 else t.existence
+        odds = t.existence / (1.0 - t.existence) * f
+        return odds / (1.0 + odds)
 
     def _ahead(self, pv: np.ndarray) -> np.ndarray:
         """A pv ``(4,)`` one epoch on at constant velocity (holding course)."""
@@ -546,7 +595,9 @@ class MultiTargetPlanner:
             seen = footprints(s.model, u.xy, pv, bearings) & free
             values = search_value(u.intensity, seen, float(s.model.pd), cardinality, epochs)
             at = [math.atan2(x[2] - pv[2], x[0] - pv[0]) for _, x, _ in tentative]
-            found = [t.existence * s.hit(x, pv, P, NO_MISSES) for t, x, P in tentative]
+            found = [
+                self._tentative_existence(t) * s.hit(x, pv, P, NO_MISSES) for t, x, P in tentative
+            ]
             out.append(
                 _Pointings(
                     np.concatenate([bearings, at]),

@@ -380,8 +380,11 @@ class CautiousConfig(Strict):
 
 class SurveillanceConfig(Strict):
     """Where targets not yet tracked may appear (search versus track): a rectangle ``region``
-    ``[x_min, x_max, y_min, y_max]`` [m], ``birth_rate`` new targets per second over it, and
-    the ``cell_size`` [m] of the planner's grid of their intensity
+    ``[x_min, x_max, y_min, y_max]`` [m], ``birth_rate`` new targets per second over it, the
+    ``cell_size`` [m] of the planner's grid of their intensity, and ``births``: ``uniform``
+    over the region (the default), or ``edges``: along the named ``edges`` (``west``: x_min,
+    ``east``: x_max, ``south``: y_min, ``north``: y_max), entering at ``birth_speed`` [m/s]
+    inward, the planner's intensity drifting with them between epochs
     (:mod:`activetrack.planning.search_intensity`)."""
 
     region: Annotated[
@@ -390,9 +393,21 @@ class SurveillanceConfig(Strict):
     ]
     birth_rate: Annotated[float, Field(ge=0, le=1e3)]
     cell_size: Annotated[float, Field(gt=0, le=limits.MAX_RANGE)] = 250.0
+    births: Literal["uniform", "edges"] = "uniform"
+    edges: Annotated[list[Literal["west", "east", "south", "north"]], Field(max_length=4)] = Field(
+        default_factory=list
+    )
+    birth_speed: Annotated[float, Field(ge=0, le=limits.MAX_SPEED)] = 0.0
 
     @model_validator(mode="after")
     def _region(self) -> SurveillanceConfig:
+        if self.births == "edges" and (not self.edges or len(set(self.edges)) < len(self.edges)):
+            raise ValueError(f"edges: births 'edges' needs distinct edges, got {self.edges}")
+        if self.births == "uniform" and (self.edges or self.birth_speed != 0.0):
+            raise ValueError(
+                f"edges and birth_speed need births 'edges' (uniform births have no entry edge "
+                f"or direction), got edges {self.edges}, birth_speed {self.birth_speed}"
+            )
         x0, x1, y0, y1 = self.region
         if not (x0 < x1 and y0 < y1):
             raise ValueError(
