@@ -52,7 +52,7 @@ from activetrack.filters.clutter_likelihood import (
     effective_pd,
 )
 from activetrack.filters.ekf import ExtendedKalmanFilter
-from activetrack.filters.jpda import jpda_update
+from activetrack.filters.jpda import NetOversize, jpda_update
 from activetrack.filters.measurement import Measurement, pda_weights
 from activetrack.filters.particle import ParticleFilter
 from activetrack.models.clutter import ClutteredSensor
@@ -317,6 +317,47 @@ def test_max_tracks_caps_the_live_tracks_and_counts_the_rest(caplog):
     # the limit speaks once per run, naming itself; every detection not started is counted
     warned = [r.getMessage() for r in caplog.records if "max_tracks" in r.getMessage()]
     assert len(warned) == 1 and "max_tracks=5 reached" in warned[0]
+
+
+def clump_scan(tracker, n):
+    """One scan of the n targets of ``clump_scenario`` seen where they are."""
+    sensor = tracker.sensors["s1"]
+    xy = np.column_stack((20.0 * np.arange(n), np.zeros(n)))
+    X = np.column_stack((xy[:, 0], np.zeros(n), xy[:, 1], np.zeros(n)))
+    Z = np.asarray(sensor.base.measure(X, SENSOR_PV))
+    return [Scan("s1", 1, 1.0, SENSOR_PV, Z, sensor.field_of_view(SENSOR_PV))]
+
+
+def clump_scenario(n, oversize):
+    """n stationary targets 20 m apart on a line: their gates chain into one cluster."""
+    targets = [{"id": f"t{i}", "mean": [20.0 * i, 0.0, 0.0, 0.0]} for i in range(n)]
+    return make_scenario(targets, [range_bearing()], tracks={"oversize_cluster": oversize})
+
+
+def test_the_tracker_names_its_option_or_prunes_counts_and_warns_once(caplog):
+    n = 8
+    error = build_tracker(clump_scenario(n, "error"), np.random.default_rng(0))
+    error.max_edges = 20
+    with pytest.raises(NetOversize, match="tracker.tracks.oversize_cluster: error .* set "
+                       "tracker.tracks.oversize_cluster: prune"):  # fmt: skip
+        error.step(1, 1.0, clump_scan(error, n))
+    prune = build_tracker(clump_scenario(n, "prune"), np.random.default_rng(0))
+    prune.max_edges = 20
+    with caplog.at_level(logging.WARNING, logger="activetrack.tracking.tracker"):
+        prune.step(1, 1.0, clump_scan(prune, n))
+    counts = prune.counters
+    assert (counts["association.pruned_clusters"], counts["association.dropped_pairs"]) == (1, 26)
+    warned = [r.getMessage() for r in caplog.records if "oversize_cluster" in r.getMessage()]
+    assert len(warned) == 1 and "prune" in warned[0]
+    # the net fits at the default bound: both options give the same tracks, to the bit
+    same = [
+        build_tracker(clump_scenario(n, o), np.random.default_rng(0)) for o in ("error", "prune")
+    ]
+    sets = [t.step(1, 1.0, clump_scan(t, n)) for t in same]
+    assert [t.mean.tolist() for t in sets[0].tracks] == [t.mean.tolist() for t in sets[1].tracks]
+    assert same[1].counters["association.pruned_clusters"] == 0
+    with pytest.raises(ValueError, match="oversize_cluster"):
+        TrackManagementConfig(oversize_cluster="approximate")
 
 
 def test_a_scan_beyond_the_detection_limit_is_refused_by_name(monkeypatch):

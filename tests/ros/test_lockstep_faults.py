@@ -14,6 +14,7 @@ import pytest
 from parity import assert_same_run
 from rclpy.parameter import Parameter
 
+from activetrack.filters.jpda import NetOversize
 from activetrack_bringup.runner import RunIncomplete, epoch_timeouts, run_graph
 from activetrack_ros import graph as topics
 from activetrack_ros.inject import ENV, parse
@@ -221,6 +222,37 @@ def test_the_tracker_buffer_is_bounded(graph, monkeypatch):
     with pytest.raises(Rejected, match="future_epoch"):
         tracker.open_epoch(3, "scan")
     assert list(tracker.epochs) == [2]
+
+
+def test_an_oversize_cluster_is_counted_and_reported_and_the_tracker_goes_on(graph, monkeypatch):
+    """oversize_cluster: error: an epoch whose step meets a JPDA cluster too large for exact
+    association is closed untracked, counted, logged and reported on /diagnostics (no error
+    escapes the callback); the next epoch is tracked, and pruning done under ``prune`` is
+    counted in the node's counters as the tracker counts it."""
+    params = [Parameter("scenario", value=SCENARIO)]
+    node = graph.add(tracker_node.TrackerNode(context=graph.context, parameter_overrides=params))
+    step, reports = node.core.step, []
+    monkeypatch.setattr(node, "publish_diagnostics", lambda hdr, text: reports.append(text))
+
+    def oversize(k, t, scans):
+        raise NetOversize("set tracker.tracks.oversize_cluster: prune", tracks=347,
+                          measurements=347, pairs=1626, max_edges=5_000_000)  # fmt: skip
+
+    def pruned(k, t, scans):
+        node.core.pruning.clusters += 2
+        node.core.pruning.pairs += 40
+        return step(k, t, scans)
+
+    for k, fake in ((1, oversize), (2, pruned), (3, pruned)):
+        monkeypatch.setattr(node.core, "step", fake)
+        node.open_epoch(k, "scan")
+        node.guarded(node.process, k, True)
+    counts = node.counters.counts
+    assert counts["association.oversize_epochs"] == 1 and node.last_epoch == 3
+    assert counts["updates"] == 2 and node.counters.total("errors.") == 0
+    assert (counts["association.pruned_clusters"], counts["association.dropped_pairs"]) == (4, 80)
+    assert "epoch 1 not tracked: a JPDA cluster of 347 tracks" in reports[0]
+    assert len(reports) == 3 and not node.epochs
 
 
 @pytest.mark.slow

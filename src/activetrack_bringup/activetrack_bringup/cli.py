@@ -43,7 +43,8 @@ from activetrack_bringup.track import add_track_parser
 EXPERIMENTS = ("hernandez", "multitarget", "ramdaras", "valverde", "vanderhook")
 WAIT_TIMEOUT_S = 60.0  # --wait-for's default --wait-timeout
 LAYOUT = "docs/foxglove-layout.json"  # the Foxglove layout of a live run and of a bag
-NOTABLE_COUNTERS = ("rejected", "errors", "dropped", "incompatible_writers")  # shown after a run
+# shown after a run (association: oversize JPDA clusters, tracker.tracks.oversize_cluster)
+NOTABLE_COUNTERS = ("rejected", "errors", "dropped", "incompatible_writers", "association")
 
 
 def _print_summary(s) -> None:

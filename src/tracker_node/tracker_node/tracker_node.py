@@ -11,7 +11,12 @@ filter). Epochs are processed in order; messages of up to BUFFER_EPOCHS epochs a
 last update are kept until their turn (a message of a later epoch is refused, counted). An
 epoch incomplete for ``epoch_timeout`` seconds, or when a later epoch is complete (the sim went
 on without it), is closed with what arrived (warned, counted, and recorded per epoch as
-``timeout.<k>.*``), so nothing can stall the tracker (docs/robustness.md, "Lockstep").
+``timeout.<k>.*``), so nothing can stall the tracker (docs/robustness.md, "Lockstep"). A JPDA
+cluster too large for its exact hypothesis net under ``tracker.tracks.oversize_cluster: error``
+leaves its epoch untracked: counted (``association.oversize_epochs``), logged with the way out,
+reported on /diagnostics, and the node goes on with the next epoch; under ``prune`` the
+tracker's ``association.pruned_clusters`` and ``association.dropped_pairs`` are the node's
+counters too (the run's summary prints them).
 For standard tools: each confirmed track's pose with covariance, tf frame, 2-sigma ellipse
 and id label, and a subsampled particle cloud.
 """
@@ -29,6 +34,7 @@ from activetrack import limits
 from activetrack.closed_loop.components import build_tracker, component_rngs, scene_sensors
 from activetrack.data import PlatformSnapshot, Scan, TrackSet
 from activetrack.filters import filter_names
+from activetrack.filters.jpda import NetOversize
 from activetrack.geometry import covariance_ellipse
 from activetrack.scenarios import load_tracking, with_tracker_overrides
 from activetrack_ros import graph as topics
@@ -214,16 +220,39 @@ class TrackerNode(GraphNode):
             else:
                 where = f"{scan.sensor_id!r} at {k} is not where its platform is"
                 self.reject_taken("Scan", "inconsistent", where)
-        tracks = self.core.step(k, k * self.scenario.dt, used)
-        self.last_epoch = k
-        for e in [e for e in self.epochs if e <= k]:
-            del self.epochs[e]
+        try:
+            tracks = self.core.step(k, k * self.scenario.dt, used)
+        except NetOversize as e:  # oversize_cluster: error (the message names the way out)
+            return self.untracked(k, e)
+        self.close_epoch(k)
+        for name, value in self.core.association_counters.items():
+            if value != self.counters.counts[name]:  # the tracker's running totals, as ours
+                self.counters.count(name, value - self.counters.counts[name])
         self.counters.count("updates")
         self.counters.count("detections", tracks.detections)
         self.counters.count("empty_scans", sum(len(s.Z) == 0 for s in used))
         if not used:
             self.counters.count("epochs_without_scans")
         self.publish_tracks(tracks)
+
+    def close_epoch(self, k: int) -> None:
+        """Epoch k is done: its messages, and any of earlier epochs, are old from now on."""
+        self.last_epoch = k
+        for e in [e for e in self.epochs if e <= k]:
+            del self.epochs[e]
+
+    def untracked(self, k: int, error: NetOversize) -> None:
+        """Epoch k's step stopped at a JPDA cluster too large for exact association: the
+        epoch is closed without a track array, counted, logged and on /diagnostics (the
+        tracker keeps the scans it had applied and steps on with the next epoch)."""
+        self.close_epoch(k)
+        self.counters.count("association.oversize_epochs")
+        self.log_limited("error", "association.oversize", f"epoch {k} not tracked: {error}")
+        self.publish_diagnostics(
+            header(k * self.scenario.dt, self.frame_id),
+            f"epoch {k} not tracked: a JPDA cluster of {error.tracks} tracks is too large for "
+            "exact association (tracker.tracks.oversize_cluster: error)",
+        )
 
     def record_gap(self, k: int, epoch: OpenEpoch) -> None:
         """What epoch k was closed without, for the run's summary (``timeout.<k>.*``)."""

@@ -24,8 +24,10 @@ at most one track; with Poisson clutter its posterior probability is (BDH 2009, 
 and the marginals ``beta[t, j] = sum_{theta: t -> j} P(theta | Z)`` (``j = 0``: no measurement)
 are found here exactly, per cluster of the gate, on a hypothesis net whose size follows the
 measurements shared between tracks rather than the number of events (efficient hypothesis
-management, :mod:`activetrack.filters.jpda_net`; memory bound ``max_edges``); enumeration of
-the events is kept as the reference.  With one track this is the PDAF:
+management, :mod:`activetrack.filters.jpda_net`; memory bound ``max_edges``, beyond which a
+cluster raises or, as the named option ``oversize="prune"``, loses its weakest gated pairs,
+counted: :mod:`activetrack.filters.jpda_prune`); enumeration of the events is kept as the
+reference.  With one track this is the PDAF:
 ``beta_j = l_j / (1 - Pd Pg + sum_i l_i)``, ``beta_0 = (1 - Pd Pg) / (1 - Pd Pg + sum_i l_i)``.
 
 Update of each track with its betas (the PDAF update, BDH 2009 eq. 23-27)::
@@ -43,7 +45,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -53,9 +55,14 @@ from activetrack.checks import require_int, require_positive
 from activetrack.filters.jpda_net import (
     DEFAULT_MAX_EDGES,
     GateClusters,
+    NetOversize,
+    events_bound,
     gate_clusters,
+    net_edges_lower,
     net_marginals,
+    track_order,
 )
+from activetrack.filters.jpda_prune import Pruning, prune_gate
 from activetrack.models.base import MotionModel, SensorModel
 from activetrack.models.sensors import state_jacobian
 from activetrack.stats import chi2_cdf
@@ -64,7 +71,10 @@ __all__ = [
     "DEFAULT_MAX_EDGES",
     "DEFAULT_MAX_EVENTS",
     "ENUMERATION_EVENTS",
+    "OVERSIZE",
     "JPDAResult",
+    "NetOversize",
+    "Pruning",
     "gate",
     "gate_probability",
     "jpda_association",
@@ -82,6 +92,10 @@ DEFAULT_MAX_EVENTS = 200_000
 # jpda_probabilities enumerates a cluster of at most this many events (product bound) rather
 # than build its net: the same exact sums, with less overhead on the many small clusters.
 ENUMERATION_EVENTS = 4096
+# What jpda_probabilities does with a cluster whose net exceeds max_edges: raise NetOversize
+# (exact everywhere), or prune its weakest pairs (activetrack.filters.jpda_prune, counted).
+OVERSIZE = ("error", "prune")
+Oversize = Literal["error", "prune"]
 _NO_EVENT = (
     "jpda_probabilities: no feasible joint event has positive probability "
     "(a track with Pd * Pg = 1 has no measurement in its gate)"
@@ -241,6 +255,8 @@ def jpda_probabilities(
     *,
     max_edges: int = DEFAULT_MAX_EDGES,
     clusters: GateClusters | None = None,
+    oversize: Oversize = "error",
+    pruning: Pruning | None = None,
 ) -> FloatArray:
     """JPDA marginal association probabilities ``beta`` ``(T, m + 1)``; column 0 is "no
     measurement", column ``j`` measurement ``j - 1``.
@@ -250,9 +266,16 @@ def jpda_probabilities(
     cluster's marginals are summed over all its feasible events, on a hypothesis net
     (:mod:`activetrack.filters.jpda_net`) or, for a cluster of at most
     :data:`ENUMERATION_EVENTS` events by the product bound, by enumerating them (the same sums,
-    cheaper there); in log space (no overflow).  ValueError when one cluster's net would exceed
-    ``max_edges`` edges (memory) or when no event is possible (``Pd Pg = 1`` and no gated
-    measurement).  :func:`jpda_probabilities_enumerated` enumerates every cluster.
+    cheaper there); in log space (no overflow).  ValueError when no event is possible
+    (``Pd Pg = 1`` and no gated measurement).  :func:`jpda_probabilities_enumerated`
+    enumerates every cluster.
+
+    ``oversize``: a cluster whose net would exceed ``max_edges`` edges (memory) raises
+    :class:`~.jpda_net.NetOversize` (a ValueError; ``"error"``, the default), or
+    (``"prune"``) loses its weakest gated pairs until its parts fit and takes the exact JPDA
+    of the pruned gate (:mod:`activetrack.filters.jpda_prune`: a gating approximation),
+    counted in ``pruning`` if given. A cluster whose net fits is the same, to the bit, either
+    way.
 
     ``clusters``: the caller's gate and its clusters (:class:`~.jpda_net.GateClusters`), the
     gate holding every pair of ``l > 0``, so that a scan is clustered once: each cluster is
@@ -261,10 +284,11 @@ def jpda_probabilities(
     pair of ``l > 0`` outside its gate).
     """
     L = _ratios(likelihood_ratios)  # only the gated pairs are read after the checks
-    T, m = L.shape
+    T, _ = L.shape
     miss = 1.0 - _per_track("pd", pd, T) * _per_track("pg", pg, T)
     max_edges = require_int("max_edges", max_edges, 1, 2**62)
-    beta = np.zeros((T, m + 1))
+    if oversize not in OVERSIZE:
+        raise ValueError(f"oversize: must be one of {OVERSIZE}, got {oversize!r}")
     positive = L > 0.0
     if clusters is None:
         found = gate_clusters(positive)
@@ -272,6 +296,22 @@ def jpda_probabilities(
         found = clusters.split(positive)
     else:
         raise ValueError(f"clusters: a GateClusters or None, got {type(clusters).__name__}")
+    return _marginals(L, miss, found, max_edges, oversize == "prune", pruning)
+
+
+def _marginals(
+    L: FloatArray,
+    miss: FloatArray,
+    found: list[tuple[IntArray, IntArray]],
+    max_edges: int,
+    prune: bool,
+    pruning: Pruning | None,
+) -> FloatArray:
+    """:func:`jpda_probabilities` of the ratios ``L`` ``(T, m)`` and miss weights ``miss``
+    ``(T,)`` on the clusters ``found`` of ``L > 0``: an oversize cluster raises, or with
+    ``prune`` is pruned, counted in ``pruning`` (if given)."""
+    T, m = L.shape
+    beta = np.zeros((T, m + 1))
     alone = [(tracks[0], measurements) for tracks, measurements in found if tracks.size == 1]
     _pdaf_marginals(beta, alone, L, miss)
     for tracks, measurements in found:
@@ -281,13 +321,42 @@ def jpda_probabilities(
         ratios = L[np.ix_(tracks, measurements)]
         with np.errstate(divide="ignore"):
             cluster = np.log(np.column_stack((miss[tracks], ratios)))
-        if np.prod(1.0 + (ratios > 0.0).sum(axis=1)) <= ENUMERATION_EVENTS:
+        if events_bound(ratios > 0.0) <= ENUMERATION_EVENTS:
             beta[np.ix_(tracks, columns)] = _enumerated_marginals(cluster, ENUMERATION_EVENTS)
-        else:
+        elif not prune:
             beta[np.ix_(tracks, columns)] = net_marginals(cluster, max_edges=max_edges)
+        else:
+            beta[np.ix_(tracks, columns)] = _net_or_pruned(
+                cluster, ratios, miss[tracks], max_edges, pruning
+            )
     # A sum of normalised weights can round one ulp above 1 (seen: 1 + 2e-16 next to 1e-25),
     # which a PDA update rightly refuses as a probability.
     return np.minimum(beta, 1.0)
+
+
+def _net_or_pruned(
+    cluster: FloatArray,
+    ratios: FloatArray,
+    miss: FloatArray,
+    max_edges: int,
+    pruning: Pruning | None,
+) -> FloatArray:
+    """One cluster's marginals on its net if it fits (tried unless the lower bound on its
+    edges already exceeds ``max_edges``), else those of its pruned gate, counted."""
+    gated = ratios > 0.0
+    order = track_order(gated)
+    if not (miss > 0.0).all() or net_edges_lower(gated, order) <= max_edges:
+        try:
+            return net_marginals(cluster, max_edges=max_edges, order=order)
+        except NetOversize:
+            pass
+    kept = prune_gate(cluster, max_edges=max_edges, enumeration_events=ENUMERATION_EVENTS)
+    if pruning is not None:
+        pruning.clusters += 1
+        pruning.pairs += int(gated.sum() - kept.sum())
+    pruned = np.where(kept, ratios, 0.0)
+    # Every part fits (prune_gate): their exact marginals, as for the pruned gate whole.
+    return _marginals(pruned, miss, gate_clusters(kept), max_edges, False, None)
 
 
 def jpda_probabilities_enumerated(

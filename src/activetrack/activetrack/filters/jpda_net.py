@@ -30,23 +30,47 @@ layer, not on the number of events: tracks are first split into clusters (connec
 of the gate, which are independent), then each cluster's tracks are ordered greedily so the
 set ``A_k & (gates of t_1..t_k)`` stays small.  All weights are carried in log space (no under-
 or overflow at any cluster size).  The only limit is memory: ``max_edges`` edges per cluster's
-net, a ValueError naming it beyond.
+net, :class:`NetOversize` (a ValueError naming it) beyond.
+
+Bounds on a net's edges without building it (:func:`net_edges_upper`, :func:`net_edges_lower`),
+from the order's cuts ``C_k = (gates of t_1..t_k) & A_k``: a node of layer ``k`` is a subset of
+``C_k``, fixed by what each placed track took of ``C_k`` (nothing, or one of its
+``n_i = |gate_i & C_k|``), so
+
+    nodes_k <= min(2^|C_k|, prod_{i <= k} (1 + n_i)),   edges_k <= nodes_{k-1} (1 + |gate_{t_k}|)
+
+and, when every track can miss, placed tracks whose ``gate_i & C_k`` are pairwise disjoint
+choose independently while the others take nothing: ``nodes_k >= prod_{i in D} (1 + n_i)``
+for any such set ``D`` (a greedy one), and each node has an edge into it.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import numpy.typing as npt
 
 from activetrack.arraytypes import BoolArray, FloatArray
 
-__all__ = ["DEFAULT_MAX_EDGES", "GateClusters", "gate_clusters", "net_marginals", "track_order"]
+__all__ = [
+    "DEFAULT_MAX_EDGES",
+    "GateClusters",
+    "NetOversize",
+    "events_bound",
+    "gate_clusters",
+    "net_edges_lower",
+    "net_edges_upper",
+    "net_marginals",
+    "track_order",
+]
 
 # About 50 bytes and 0.3-1 us per edge (numpy 2.4, loaded 2-core VM: 1.95 M edges, 99 MB peak,
 # 1.8 s): the default bounds one cluster's net near 250 MB.
 DEFAULT_MAX_EDGES = 5_000_000
 _BROADCAST_CELLS = 1 << 20  # _free: above this many (node, option, word) cells, by columns
 _UNION_FIND_PAIRS = 500  # gate_clusters: above this many gated pairs, vectorised propagation
+_LOWER_BOUND_LAYERS = 8  # net_edge_bounds: the layers of largest upper bound given a lower one
 
 IntArray = npt.NDArray[np.intp]
 
@@ -54,6 +78,18 @@ _NO_EVENT = (
     "jpda_probabilities: no feasible joint event has positive probability "
     "(a track with Pd * Pg = 1 has no measurement in its gate)"
 )
+
+
+class NetOversize(ValueError):
+    """A cluster's hypothesis net would hold more than ``max_edges`` edges: its ``tracks``,
+    ``measurements`` and gated ``pairs``, for a caller that names its own way out."""
+
+    def __init__(self, message: str, *, tracks: int, measurements: int, pairs: int, max_edges: int):
+        super().__init__(message)
+        self.tracks = tracks
+        self.measurements = measurements
+        self.pairs = pairs
+        self.max_edges = max_edges
 
 
 def gate_clusters(gated: BoolArray) -> list[tuple[IntArray, IntArray]]:
@@ -160,26 +196,109 @@ def track_order(gated: BoolArray) -> IntArray:
     """A track order for the net of one cluster ``(T, m)``: greedy, each step the track that
     least grows the cut (measurements gated both by a placed track and by a track still to
     place), ties to the lower index.  Any order gives the same marginals; a small cut keeps
-    the net small (a chain of overlapping gates gives a cut of one or two measurements)."""
-    T, _ = gated.shape
-    G = gated.astype(np.int64)
-    remaining = G.sum(axis=0)  # tracks still to place that gate each measurement
-    in_cut = np.zeros(gated.shape[1], dtype=bool)
-    left = np.ones(T, dtype=bool)
+    the net small (a chain of overlapping gates gives a cut of one or two measurements).
+
+    Placing ``t`` grows the cut by ``sum_{j in gate_t} v_j``, ``v_j = +1`` for a measurement
+    outside the cut that another track still to place gates, ``-1`` for one in the cut that
+    only ``t`` still gates; placing ``t`` changes ``v`` only on its own gate, so each track's
+    growth is kept and changed there (``O(T^2 + pairs x tracks per measurement)``, not a
+    product with the gate per step)."""
+    G = np.asarray(gated, dtype=bool)
+    T, m = G.shape
+    rows, cols = np.nonzero(G)  # by track
+    starts = np.searchsorted(rows, np.arange(T + 1))
+    by_col = np.argsort(cols, kind="stable")
+    col_tracks = rows[by_col]  # the tracks of each measurement, by measurement
+    col_starts = np.searchsorted(cols[by_col], np.arange(m + 1))
+    remaining = G.sum(axis=0).astype(np.int64)  # tracks still to place that gate each one
+    in_cut = np.zeros(m, dtype=bool)
+
+    def value(j: IntArray) -> npt.NDArray[np.int64]:
+        r, c = remaining[j], in_cut[j]
+        return (~c & (r >= 2)).astype(np.int64) - (c & (r == 1)).astype(np.int64)
+
+    # exact small integers in float64 (inf: placed)
+    growth = np.bincount(rows, weights=value(cols), minlength=T).astype(float)
     order = np.empty(T, dtype=np.intp)
     for k in range(T):
-        # Placing t: its measurements gated by others still to place enter the cut, its cut
-        # measurements that no one else still needs leave it.
-        enters = (~in_cut & (remaining >= 2)).astype(np.int64)
-        leaves = (in_cut & (remaining == 1)).astype(np.int64)
-        growth = G @ (enters - leaves)
-        growth[~left] = np.iinfo(np.int64).max
         t = int(np.argmin(growth))
         order[k] = t
-        left[t] = False
-        remaining -= G[t]
-        in_cut = (in_cut | gated[t]) & (remaining > 0)
+        growth[t] = np.inf
+        js = cols[starts[t] : starts[t + 1]]
+        before = value(js)
+        remaining[js] -= 1
+        in_cut[js] = remaining[js] > 0
+        change = value(js) - before
+        for j, d in zip(js[change != 0].tolist(), change[change != 0].tolist(), strict=True):
+            growth[col_tracks[col_starts[j] : col_starts[j + 1]]] += d
     return order
+
+
+def events_bound(gated: BoolArray) -> float:
+    """The product bound ``prod_t (1 + |gate_t|)`` on a cluster's feasible joint events, from
+    its gate ``(T, m)`` (``inf`` past the float range, as a cluster of hundreds of tracks)."""
+    with np.errstate(over="ignore"):
+        return float(np.prod(1.0 + np.asarray(gated, dtype=bool).sum(axis=1)))
+
+
+def net_edges_upper(gated: BoolArray, order: IntArray) -> float:
+    """An upper bound on the edges of the net :func:`net_marginals` builds for one cluster's
+    gate ``gated`` ``(T, m)`` in track ``order``, without building it (module docstring):
+    ``O(T^2)`` on ``O(T m)`` data; a float (``inf`` past its range)."""
+    log_nodes, size = _layer_log_nodes(np.asarray(gated, dtype=bool)[order])
+    with np.errstate(over="ignore"):
+        return float(np.exp(log_nodes[:-1]) @ (1.0 + size))
+
+
+def net_edges_lower(gated: BoolArray, order: IntArray) -> float:
+    """A lower bound on those edges when every track of the cluster may take no measurement
+    (module docstring): the greedy disjoint tracks' product at the :data:`_LOWER_BOUND_LAYERS`
+    layers of largest upper bound, at least one node per layer."""
+    G = np.asarray(gated, dtype=bool)[order]
+    log_nodes, _ = _layer_log_nodes(G)
+    lower = float(G.shape[0])
+    for k in np.argsort(-log_nodes[1:], kind="stable")[:_LOWER_BOUND_LAYERS].tolist():
+        lower = max(lower, _disjoint_nodes(G[: k + 1], G[k + 1 :].any(axis=0)))
+    return lower
+
+
+def _layer_log_nodes(G: BoolArray) -> tuple[FloatArray, IntArray]:
+    """For the gate ``G`` ``(T, m)`` in net order: the log of the upper bound on the nodes of
+    layers 0..T, ``min(|C_k| log 2, sum_i log(1 + n_i))``, and each track's gate size."""
+    T, m = G.shape
+    remaining = G.sum(axis=0)  # tracks from position k on that gate each measurement
+    placed = np.zeros(m, dtype=bool)
+    in_cut = np.zeros(m, dtype=bool)
+    per = np.zeros(T, dtype=np.int64)  # n_i = |gate_i & C_k| of the placed tracks
+    log_nodes = np.zeros(T + 1)
+    log2 = math.log(2.0)
+    for k in range(T):
+        remaining -= G[k]
+        placed |= G[k]
+        cut = placed & (remaining > 0)
+        leaving = np.flatnonzero(in_cut & ~cut)  # all in gate k: no later track gates them
+        if leaving.size and k:
+            per[:k] -= G[:k, leaving].sum(axis=1)
+        per[k] = int((G[k] & cut).sum())
+        in_cut = cut
+        log_nodes[k + 1] = min(int(cut.sum()) * log2, float(np.log1p(per[: k + 1]).sum()))
+    return log_nodes, G.sum(axis=1)
+
+
+def _disjoint_nodes(placed: BoolArray, accessible: BoolArray) -> float:
+    """A lower bound on the nodes after the tracks ``placed`` ``(k, m)`` (in order) when the
+    later tracks gate ``accessible`` ``(m,)``: ``prod (1 + n_i)`` over a greedy set of placed
+    tracks whose parts of the cut are pairwise disjoint, the fewest first."""
+    cut = placed.any(axis=0) & accessible
+    parts = placed[:, cut]
+    counts = parts.sum(axis=1)
+    taken = np.zeros(parts.shape[1], dtype=bool)
+    nodes = 1.0
+    for i in np.argsort(counts, kind="stable").tolist():
+        if counts[i] and not (parts[i] & taken).any():
+            taken |= parts[i]
+            nodes *= 1.0 + float(counts[i])
+    return nodes
 
 
 def _logsumexp_by(values: FloatArray, groups: IntArray, n: int) -> FloatArray:
@@ -230,14 +349,17 @@ def _node_ids(keys: npt.NDArray[np.uint64]) -> tuple[npt.NDArray[np.uint64], Int
     return keys[first], inverse.ravel()
 
 
-def net_marginals(log_w: FloatArray, *, max_edges: int = DEFAULT_MAX_EDGES) -> FloatArray:
+def net_marginals(
+    log_w: FloatArray, *, max_edges: int = DEFAULT_MAX_EDGES, order: IntArray | None = None
+) -> FloatArray:
     """Exact marginals ``beta`` ``(T, m + 1)`` of one cluster from the log weights ``log_w``
     ``(T, m + 1)`` (column 0 no measurement, ``-inf`` for an ungated pair or an impossible
-    miss), by the net of the module docstring built in :func:`track_order`.  The result's
-    rows sum to 1 (``beta[t, j] = 0`` where ``log_w[t, j] = -inf``).
+    miss), by the net of the module docstring built in :func:`track_order` (``order``: that
+    order, when the caller has it).  The result's rows sum to 1 (``beta[t, j] = 0`` where
+    ``log_w[t, j] = -inf``).
 
-    Raises ValueError when the net would hold more than ``max_edges`` edges, or when no
-    feasible event has positive weight.
+    Raises :class:`NetOversize` (a ValueError) when the net would hold more than
+    ``max_edges`` edges, ValueError when no feasible event has positive weight.
     """
     T, m1 = log_w.shape
     m = m1 - 1
@@ -247,7 +369,7 @@ def net_marginals(log_w: FloatArray, *, max_edges: int = DEFAULT_MAX_EDGES) -> F
             raise ValueError(_NO_EVENT)
         w = np.exp(log_w[0] - np.max(log_w[0]))
         return np.asarray(w / w.sum(), dtype=float)[None]
-    order = track_order(allowed[:, 1:])
+    order = track_order(allowed[:, 1:]) if order is None else order
     # Sets of measurements as bit masks, ``words`` uint64 each: row t of gate_bits is track
     # t's gate, bits[j] option j's measurement (none for j = 0).
     gate_bits = _bit_masks(allowed[:, 1:])
@@ -265,11 +387,15 @@ def net_marginals(log_w: FloatArray, *, max_edges: int = DEFAULT_MAX_EDGES) -> F
         src, which = np.nonzero(_free(keys, bits[options]))  # node-option pairs allowed
         total_edges += src.size
         if total_edges > max_edges:
-            raise ValueError(
+            pairs = int(allowed[:, 1:].sum())
+            raise NetOversize(
                 f"JPDA hypothesis net needs more than max_edges={max_edges} edges "
-                f"(cluster of {T} tracks, {m} measurements, {int(allowed[:, 1:].sum())} gated "
-                f"pairs, {n_src} nodes at track {k + 1} of {T}): tighten the gate or raise "
-                "max_edges"
+                f"(cluster of {T} tracks, {m} measurements, {pairs} gated pairs, {n_src} nodes "
+                f"at track {k + 1} of {T}): tighten the gate or raise max_edges",
+                tracks=T,
+                measurements=m,
+                pairs=pairs,
+                max_edges=max_edges,
             )
         if src.size == 0:
             raise ValueError(_NO_EVENT)

@@ -309,7 +309,8 @@ class TrackManagementConfig(Strict):
     ``existence_delete``; a confirmed track is terminated below ``existence_terminate``
     (Musicki's IPDA practice: confirm ~0.9-0.95, terminate ~0.01-0.05), one from a prior below
     ``existence_terminate_prior`` (lower: its target may never be picked up again, a bearing
-    starts no track and a beam looks only where tracks are)."""
+    starts no track and a beam looks only where tracks are). ``oversize_cluster``: what a
+    cluster too large for exact JPDA does (an error, or pruned: counted)."""
 
     gate_sigmas: Annotated[float, Field(gt=0, le=limits.MAX_GATE_SIGMAS)] = 3.5
     confirm_m: Annotated[int, Field(ge=1, le=100)] = 2
@@ -323,6 +324,10 @@ class TrackManagementConfig(Strict):
     existence_delete: Annotated[float, Field(ge=0, lt=1)] = 0.1  # tentative tracks
     existence_terminate: Annotated[float, Field(ge=0, lt=1)] = 0.02  # confirmed tracks
     existence_terminate_prior: Annotated[float, Field(ge=0, lt=1)] = 0.001  # from priors
+    # A JPDA cluster whose hypothesis net exceeds its memory bound (max_edges): "error" stops
+    # the tracker with an error naming this field (exact JPDA everywhere), "prune" drops the
+    # cluster's weakest gated pairs until it fits (activetrack.filters.jpda_prune; counted).
+    oversize_cluster: Literal["error", "prune"] = "error"
 
     @model_validator(mode="after")
     def _m_of_n(self) -> TrackManagementConfig:

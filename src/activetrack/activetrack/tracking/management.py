@@ -72,6 +72,7 @@ class TrackManagementConfig(Protocol):
     existence_delete: float
     existence_terminate: float
     existence_terminate_prior: float
+    oversize_cluster: str  # "error" | "prune" (activetrack.filters.jpda.OVERSIZE)
 
 
 __all__ = [

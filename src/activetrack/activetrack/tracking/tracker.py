@@ -25,7 +25,14 @@ sensor order:
      estimates of the predicted likelihood, the same enumeration gives ``beta``, and each
      gated pair's per-particle likelihoods go to the filter's weight update (computed once).
      Zero clutter and ``Pd = 1`` go through the floor and cap of
-     :mod:`activetrack.filters.clutter_likelihood`. The same likelihood ratios first give
+     :mod:`activetrack.filters.clutter_likelihood`. A cluster too large for its exact JPDA
+     (a hypothesis net beyond ``max_edges``: hundreds of tentative tracks from heavy clutter,
+     chained through shared detections) raises :class:`NetOversize` naming
+     ``tracker.tracks.oversize_cluster`` (``error``, the default), or (``prune``) loses its
+     weakest gated pairs until it fits, then takes the exact JPDA of the pruned gate
+     (:mod:`activetrack.filters.jpda_prune`, a gating approximation), each pruned cluster and
+     dropped pair counted (:attr:`Tracker.counters`), with one warning per run. The same
+     likelihood ratios first give
      each track's existence its LM-IPDA update, with Pd times the probability that the target
      lies in the scan's sector. Detections no track gated start tentative tracks at once where
      the sensor fixes a position from one (:meth:`Tracker._start_from_detections`). Then M-of-N
@@ -52,6 +59,9 @@ from activetrack.arraytypes import BoolArray, FloatArray
 from activetrack.data import CONFIRMED, TENTATIVE, Scan, TrackSet
 from activetrack.filters.clutter_likelihood import effective_clutter_density, effective_pd
 from activetrack.filters.jpda import (
+    DEFAULT_MAX_EDGES,
+    NetOversize,
+    Pruning,
     gate_probability,
     jpda_probabilities,
     likelihood_ratios,
@@ -73,7 +83,9 @@ from activetrack.tracking.management import (
 )
 from activetrack.tracking.spatial import FovIndex
 
-__all__ = ["FilterSpec", "TrackPrior", "Tracker"]
+__all__ = ["OVERSIZE_FIELD", "FilterSpec", "NetOversize", "TrackPrior", "Tracker"]
+
+OVERSIZE_FIELD = "tracker.tracks.oversize_cluster"  # the scenario field of the choice
 
 _log = logging.getLogger(__name__)
 
@@ -148,6 +160,9 @@ class Tracker:
         self.new_track_priority = new_track_priority
         self.rng = rng
         self.gamma = management.gate_sigmas**2
+        self.oversize = management.oversize_cluster
+        self.pruning = Pruning()  # oversize clusters pruned, pairs dropped (oversize "prune")
+        self.max_edges = DEFAULT_MAX_EDGES  # a cluster's net memory bound (jpda_net)
         self.book = TrackManager(management)
         self.epoch = 0
         self.time = 0.0
@@ -162,7 +177,10 @@ class Tracker:
     # --- the epoch ---------------------------------------------------------------------------
     def step(self, epoch: int, t: float, scans: Sequence[Scan]) -> TrackSet:
         """Predict to ``t``, update with the epoch's ``scans``, manage the tracks; the
-        :class:`TrackSet` after it. ValueError (state unchanged) for a bad scan."""
+        :class:`TrackSet` after it. ValueError (state unchanged) for a bad scan;
+        :class:`NetOversize` (``oversize_cluster: error``) part-way: the epoch is left
+        unfinished (its earlier scans applied, no track management, the epoch not taken),
+        and a later epoch may still be stepped."""
         t, checked = self._check(epoch, t, scans)
         if self.known_association:
             detections = self._step_known(t, checked)
@@ -206,10 +224,21 @@ class Tracker:
     @property
     def counters(self) -> Counter[str]:
         """What the tracker did that changes its result: deletions by reason, detections not
-        started (``max_tracks`` reached)."""
+        started (``max_tracks`` reached), JPDA clusters pruned and gated pairs dropped from
+        them (``oversize_cluster: prune``)."""
         out = Counter({f"deleted.{k}": v for k, v in self.book.deleted.items()})
         out["not_started"] = self.book.not_started
+        out.update(self.association_counters)
         return out
+
+    @property
+    def association_counters(self) -> dict[str, int]:
+        """``association.pruned_clusters`` and ``association.dropped_pairs`` so far: what the
+        ``prune`` approximation did (both 0 while every cluster's exact JPDA fits)."""
+        return {
+            "association.pruned_clusters": self.pruning.clusters,
+            "association.dropped_pairs": self.pruning.pairs,
+        }
 
     # --- known association: the papers' single target -----------------------------------------
     def _step_known(self, t: float, checked: list[_Checked]) -> int:
@@ -364,7 +393,7 @@ class Tracker:
             scan_ratios = particles.ratios(pd, lam)
         # One call for the scan, on the gate's clusters (split where a ratio is 0): each
         # cluster's marginals as a call on that cluster alone would give (tested to the bit).
-        scan_beta = jpda_probabilities(scan_ratios, pd, pg, clusters=gate)
+        scan_beta = self._marginals(scan_ratios, pd, pg, gate, c)
         R = c.sensor.base.R
         stacked = self._stacked
         if particles is None and stacked is not None and _has_many(stacked, "update_pda"):
@@ -400,6 +429,48 @@ class Tracker:
             cols = np.array([used for _, used, _ in group])
             beta = np.array([b for _, _, b in group])
             _pda_many(cls, tracks, rows, cols, beta, H, nu, R, c.scan.sensor_id)
+
+    def _marginals(
+        self, ratios: FloatArray, pd: float, pg: float, gate: GateClusters, c: _Checked
+    ) -> FloatArray:
+        """The scan's JPDA marginals, an oversize cluster handled as ``oversize_cluster``
+        says (module docstring): NetOversize naming the field, or pruned, counted and warned
+        once per run."""
+        before = self.pruning.clusters
+        try:
+            beta = jpda_probabilities(
+                ratios,
+                pd,
+                pg,
+                max_edges=self.max_edges,
+                clusters=gate,
+                oversize=self.oversize,
+                pruning=self.pruning,
+            )
+        except NetOversize as e:
+            if self.oversize != "error":
+                raise
+            raise NetOversize(
+                f"{OVERSIZE_FIELD}: error (exact JPDA everywhere) at epoch {c.scan.epoch}, "
+                f"scan of {c.scan.sensor_id!r}: {e}; or set {OVERSIZE_FIELD}: prune to drop "
+                "such a cluster's weakest gated pairs until it fits (counted in "
+                "association.pruned_clusters and association.dropped_pairs)",
+                tracks=e.tracks,
+                measurements=e.measurements,
+                pairs=e.pairs,
+                max_edges=e.max_edges,
+            ) from None
+        if before == 0 and self.pruning.clusters:
+            _log.warning(
+                "%s: prune: a JPDA cluster too large for its exact hypothesis net at epoch %d "
+                "(scan of %r) lost its weakest gated pairs (each pruned cluster and dropped "
+                "pair counted in association.pruned_clusters and association.dropped_pairs; "
+                "this warning once per run)",
+                OVERSIZE_FIELD,
+                c.scan.epoch,
+                c.scan.sensor_id,
+            )
+        return beta
 
     # --- track starts ------------------------------------------------------------------------
     def _start(
