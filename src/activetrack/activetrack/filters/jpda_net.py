@@ -146,7 +146,7 @@ class GateClusters:
             return self.clusters
         if (positive & ~self.gated).any():
             raise ValueError("clusters: a pair of positive likelihood ratio lies outside the gate")
-        lost = (self.gated & ~positive).any(axis=1)  # tracks that lost a gated pair
+        lost = np.asarray((self.gated & ~positive).any(axis=1))  # tracks that lost a pair
         out: list[tuple[IntArray, IntArray]] = []
         for tracks, measurements in self.clusters:
             if not lost[tracks].any():
@@ -258,7 +258,7 @@ def net_edges_lower(gated: BoolArray, order: IntArray) -> float:
     log_nodes, _ = _layer_log_nodes(G)
     lower = float(G.shape[0])
     for k in np.argsort(-log_nodes[1:], kind="stable")[:_LOWER_BOUND_LAYERS].tolist():
-        lower = max(lower, _disjoint_nodes(G[: k + 1], G[k + 1 :].any(axis=0)))
+        lower = max(lower, _disjoint_nodes(G[: k + 1], np.asarray(G[k + 1 :].any(axis=0))))
     return lower
 
 

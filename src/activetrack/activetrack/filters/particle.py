@@ -406,11 +406,7 @@ class ParticleFilter:
         ids = tuple([m.sensor_id for m in measurements])
         n_det = len(measurements) - n_missed
         if ell is None:  # nothing informative: weights unchanged, no resampling
-            info = UpdateInfo(
-                time=self._t, n_detections=n_det, n_missed=n_missed, sensor_ids=ids, ess=self.ess
-            )
-            self.last_info = info
-            return info
+            return self._report(ids, n_det, n_missed, ess=self.ess)
 
         # log w_k = log w_k-1 + log p(z | x), normalised by log-sum-exp (no underflow).
         logw = ell if self._logw is None else ell + self._logw  # None: uniform prior weights
@@ -425,18 +421,15 @@ class ParticleFilter:
             )
             if self.on_collapse == "raise":
                 raise FilterCollapseError(message)
-            info = UpdateInfo(
-                time=self._t,
-                n_detections=n_det,
-                n_missed=n_missed,
-                sensor_ids=ids,
+            return self._report(
+                ids,
+                n_det,
+                n_missed,
                 ess=self.ess,
                 collapsed=True,
                 log_likelihood=-math.inf,
                 message=message + "; update discarded, predicted particles kept",
             )
-            self.last_info = info
-            return info
 
         # numpy's vectorised exp, sum and dot are at the memory floor here (a compiled pass
         # would be slower: numba's scalar exp costs ~8x numpy's per element).
@@ -466,14 +459,14 @@ class ParticleFilter:
             self._logw = logw
         self._moments = None
         self._mean = None
+        return self._report(
+            ids, n_det, n_missed, ess=ess, resampled=resampled, log_likelihood=log_lik
+        )
+
+    def _report(self, ids: tuple, n_det: int, n_missed: int, **fields: Any) -> UpdateInfo:
+        """The update's :class:`UpdateInfo` at the filter's time, kept as ``last_info``."""
         info = UpdateInfo(
-            time=self._t,
-            n_detections=n_det,
-            n_missed=n_missed,
-            sensor_ids=ids,
-            ess=ess,
-            resampled=resampled,
-            log_likelihood=log_lik,
+            time=self._t, n_detections=n_det, n_missed=n_missed, sensor_ids=ids, **fields
         )
         self.last_info = info
         return info

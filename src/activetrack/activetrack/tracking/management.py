@@ -51,6 +51,7 @@ import numpy as np
 from activetrack.arraytypes import FloatArray
 from activetrack.checks import symmetrize
 from activetrack.data import CONFIRMED, TENTATIVE, TrackEstimate
+from activetrack.filters.jpda import Oversize
 from activetrack.filters.measurement import TrackingFilter
 from activetrack.models.base import MotionModel
 from activetrack.tracking.spatial import close_pairs, largest_xy_eigenvalue
@@ -72,7 +73,7 @@ class TrackManagementConfig(Protocol):
     existence_delete: float
     existence_terminate: float
     existence_terminate_prior: float
-    oversize_cluster: str  # "error" | "prune" (activetrack.filters.jpda.OVERSIZE)
+    oversize_cluster: Oversize  # "error" | "prune" (activetrack.filters.jpda.OVERSIZE)
 
 
 __all__ = [
