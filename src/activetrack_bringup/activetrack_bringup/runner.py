@@ -524,12 +524,19 @@ class _GraphRunner:
             if self.supervisor is None:
                 self.graph.spin_until_quiet(self.progress, quiet=0.1)
             else:
+                # The supervisor is polled all along: a node that died as the last epoch came
+                # in (the runner's poll came before the death) still fails the run at once
+                # (it did not end as a complete graph's node), not after these waits.
                 quiet = 4 * REPUBLISH_S
-                self.graph.spin_until_quiet(self.progress, quiet=quiet, timeout=10 * quiet)
+                self.graph.spin_until_quiet(self._polled_progress, quiet=quiet, timeout=10 * quiet)
                 self._await_counters()
-                # A node that died as the last epoch came in (the runner's poll came before
-                # the death) still fails the run: it did not end as a complete graph's node.
                 self.supervisor.poll()
+
+    def _polled_progress(self):
+        """:meth:`progress` after a poll of the node processes (NodeDied for a dead one)."""
+        assert self.supervisor is not None
+        self.supervisor.poll()
+        return self.progress()
 
     def _await_counters(self) -> None:
         """Node processes: until every one's counters came on /diagnostics (a short run can
@@ -537,10 +544,16 @@ class _GraphRunner:
         them again once it sees the reader), at most COUNTERS_WAIT_S; a node whose counters
         never came is counted on the evaluator (``diagnostics_missing.<node>``): its counts
         are then not in the summary."""
-        assert self.supervisor is not None
-        nodes = [n.name.removesuffix("_node") for n in self.supervisor.nodes]
+        supervisor = self.supervisor
+        assert supervisor is not None
+        nodes = [n.name.removesuffix("_node") for n in supervisor.nodes]
         have = self.evaluator.diagnostics
-        self.graph.spin_until(lambda: all(n in have for n in nodes), timeout=COUNTERS_WAIT_S)
+
+        def all_came() -> bool:
+            supervisor.poll()  # a dead node sends nothing more: NodeDied now, not after the wait
+            return all(n in have for n in nodes)
+
+        self.graph.spin_until(all_came, timeout=COUNTERS_WAIT_S)
         for n in nodes:
             if n not in have:
                 self.evaluator.counters.count(f"diagnostics_missing.{n}")

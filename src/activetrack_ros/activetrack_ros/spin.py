@@ -23,6 +23,13 @@ def spin_node(node_class, args=None, done: Callable[[object], bool] | None = Non
         print(f"{node_class.__name__}: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         raise SystemExit(2) from None
+    except (KeyboardInterrupt, ExternalShutdownException):
+        rclpy.try_shutdown()  # stopped while it was being built: nothing to tear down
+        return
+    except _rclpy.RCLError:
+        if rclpy.ok():
+            raise
+        return  # SIGTERM shut the context down while the node was being built
     try:
         while rclpy.ok() and not (done is not None and done(node)):
             rclpy.spin_once(node, timeout_sec=0.1)
