@@ -420,7 +420,6 @@ class JPDAComparison:
     max_state_diff: np.ndarray
     times_ours: np.ndarray
     times_theirs: np.ndarray
-    pruned: int = 0  # JPDA clusters ours pruned over all runs (0: every one exact)
 
     @property
     def gospa_diff(self) -> tuple[float, float]:

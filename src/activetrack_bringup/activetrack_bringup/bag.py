@@ -39,7 +39,7 @@ from activetrack_ros.graph import (
     graph_topic_of,
     writer_qos,
 )
-from activetrack_ros.node_base import graph_verdict, subscribe_batched
+from activetrack_ros.node_base import graph_check, subscribe_batched
 from activetrack_ros.params import ParamSpec, declare, fix_use_sim_time, warn_unknown
 from activetrack_ros.sizes import DIAGNOSTICS_BYTES
 from activetrack_ros.trust import is_signed_type
@@ -294,13 +294,15 @@ class BagRecorder(Node):
             self.counters.count("ignored.clock_not_recorded")
 
     def _verifier(self, key, topic: str, cls):
-        """The graph's tagged streams (node_base.graph_verdict, as the nodes' readers ask):
+        """The graph's tagged streams (node_base.graph_check, as the nodes' readers take it):
         recorded when they carry the graph's tag, counted as foreign when not."""
         name = cls.__name__
         signed = is_signed_type(cls)
+        check = graph_check(key, cls)
+        assert check is not None  # the caller's types: signed ones and /diagnostics
 
         def on_raw(data: bytes) -> None:
-            ok = (signed or len(data) <= DIAGNOSTICS_BYTES) and graph_verdict(key, cls, data)[0]
+            ok = (signed or len(data) <= DIAGNOSTICS_BYTES) and check(data)[0]
             if not ok:
                 self.counters.count(f"foreign.{name}")
                 return

@@ -205,8 +205,7 @@ class GraphNode(Node):
         if label is None:
             self.inputs[name] = topic
         key = self.graph_key
-        signed = key is not None and is_signed_type(msg_type)
-        diagnostics = key is not None and msg_type is DiagnosticArray
+        check = None if key is None else graph_check(key, msg_type)
         hook = None
         if self.injections and label is None:
             hook = inject.injector(self, self.role, topic, self.injections)
@@ -224,8 +223,8 @@ class GraphNode(Node):
                     return self._foreign(name, topic)
                 return self.reject("too_large", f"{name} on {topic}: {len(data)} bytes")
             msg, ok = None, True
-            if signed or diagnostics:
-                ok, msg = graph_verdict(key, msg_type, data)
+            if check is not None:
+                ok, msg = check(data)
             if not ok:
                 return self._foreign(name, topic)
             if hook is not None:  # a test's delay or drop (activetrack_ros.inject)
@@ -373,22 +372,27 @@ def unaccounted(counts: dict) -> int:
     return total("received.") - sum(total(p) for p in OUTCOMES)
 
 
-def graph_verdict(key: GraphKey, msg_type, data: bytes) -> tuple[bool, object | None]:
-    """``(from the graph, the message if decoding was needed)`` for raw bytes of a topic the
-    graph's key covers: a signed type by its trailing tag, a DiagnosticArray by the tag inside
-    it (decoded for that; bytes that do not decode carry no tag). Any other type is trusted. A
-    Ctrl-C inside the C decoder is raised, not counted as foreign. The nodes' readers and the
-    recorder (``activetrack_bringup.bag``) both ask here."""
+def graph_check(key: GraphKey, msg_type) -> Callable[[bytes], tuple[bool, object]] | None:
+    """The check of a reader of ``msg_type`` on a topic the graph's key covers, chosen once per
+    reader: ``check(data) -> (from the graph, the message if decoding was needed)``; a signed
+    type by its trailing tag, a DiagnosticArray by the tag inside it (decoded for that; bytes
+    that do not decode carry no tag); None for any other type (trusted). A Ctrl-C inside the
+    C decoder is raised, not counted as foreign. The nodes' readers and the recorder
+    (``activetrack_bringup.bag``) both take their check here."""
     if is_signed_type(msg_type):
-        return key.verify(data), None
+        return lambda data: (key.verify(data), None)
     if msg_type is not DiagnosticArray:
-        return True, None
-    try:
-        msg = deserialize_message(data, msg_type)
-    except Exception as exc:  # no tag can be read from it: not the graph's
-        raise_interrupt_inside(exc)
-        return False, None
-    return key.verify_diagnostics(msg), msg
+        return None
+
+    def diagnostics(data: bytes) -> tuple[bool, object]:
+        try:
+            msg = deserialize_message(data, msg_type)
+        except Exception as exc:  # no tag can be read from it: not the graph's
+            raise_interrupt_inside(exc)
+            return False, None
+        return key.verify_diagnostics(msg), msg
+
+    return diagnostics
 
 
 def raise_interrupt_inside(exc: BaseException) -> None:

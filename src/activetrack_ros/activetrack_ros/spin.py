@@ -17,27 +17,22 @@ def spin_node(node_class, args=None, done: Callable[[object], bool] | None = Non
     """Run one node until shutdown or ``done(node)``; exit 2 on bad parameters, unpublished."""
     tune_allocator()  # a node process: numpy temporaries stay on the heap (faster)
     rclpy.init(args=args)
+    node = None
     try:
-        node = node_class()
-    except (ValueError, ScenarioError) as exc:
-        print(f"{node_class.__name__}: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        raise SystemExit(2) from None
-    except (KeyboardInterrupt, ExternalShutdownException):
-        rclpy.try_shutdown()  # stopped while it was being built: nothing to tear down
-        return
-    except _rclpy.RCLError:
-        if rclpy.ok():
-            raise
-        return  # SIGTERM shut the context down while the node was being built
-    try:
+        try:
+            node = node_class()
+        except (ValueError, ScenarioError) as exc:
+            print(f"{node_class.__name__}: error: {exc}", file=sys.stderr)
+            rclpy.try_shutdown()
+            raise SystemExit(2) from None
         while rclpy.ok() and not (done is not None and done(node)):
             rclpy.spin_once(node, timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        pass  # stopped while being built or while spinning
     except _rclpy.RCLError:
-        if rclpy.ok():  # else SIGTERM shut the context down while the executor waited
+        if rclpy.ok():  # else SIGTERM shut the context down under the constructor or the wait
             raise
     finally:
-        node.destroy_node()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()

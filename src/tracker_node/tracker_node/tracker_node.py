@@ -251,7 +251,7 @@ class TrackerNode(GraphNode):
         self.publish_diagnostics(
             header(k * self.scenario.dt, self.frame_id),
             f"epoch {k} not tracked: a JPDA cluster of {error.tracks} tracks is too large for "
-            "exact association (tracker.tracks.oversize_cluster: error)",
+            f"exact association (tracker.tracks.oversize_cluster: {self.core.oversize})",
         )
 
     def record_gap(self, k: int, epoch: OpenEpoch) -> None:

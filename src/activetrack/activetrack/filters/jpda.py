@@ -45,7 +45,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 import numpy.typing as npt
@@ -94,8 +94,8 @@ DEFAULT_MAX_EVENTS = 200_000
 ENUMERATION_EVENTS = 4096
 # What jpda_probabilities does with a cluster whose net exceeds max_edges: raise NetOversize
 # (exact everywhere), or prune its weakest pairs (activetrack.filters.jpda_prune, counted).
-OVERSIZE = ("error", "prune")
 Oversize = Literal["error", "prune"]
+OVERSIZE = get_args(Oversize)
 _NO_EVENT = (
     "jpda_probabilities: no feasible joint event has positive probability "
     "(a track with Pd * Pg = 1 has no measurement in its gate)"

@@ -70,7 +70,7 @@ __all__ = [
 DEFAULT_MAX_EDGES = 5_000_000
 _BROADCAST_CELLS = 1 << 20  # _free: above this many (node, option, word) cells, by columns
 _UNION_FIND_PAIRS = 500  # gate_clusters: above this many gated pairs, vectorised propagation
-_LOWER_BOUND_LAYERS = 8  # net_edge_bounds: the layers of largest upper bound given a lower one
+_LOWER_BOUND_LAYERS = 8  # net_edges_lower: the layers of largest upper bound given a lower one
 
 IntArray = npt.NDArray[np.intp]
 

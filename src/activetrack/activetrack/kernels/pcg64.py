@@ -99,14 +99,6 @@ def _mul_add_128_typing(typingctx, hi, lo, ahi, alo, chi, clo):  # pragma: no co
 _mul_add_128: Any = intrinsic(_mul_add_128_typing)  # called from compiled code only
 
 
-@njit(inline="always")
-def _xsl_rr(hi, lo):  # pragma: no cover - compiled
-    """PCG's XSL-RR output of a 128-bit state: (hi ^ lo) rotated right by hi >> 58."""
-    x = hi ^ lo
-    rot = hi >> np.uint64(58)
-    return (x >> rot) | (x << ((np.uint64(64) - rot) & np.uint64(63)))
-
-
 @njit(cache=True)
 def new_stream(words):  # pragma: no cover - compiled
     """The LANES chains after state ``words`` = (s_hi, s_lo, c_hi, c_lo): a uint64 array for

@@ -589,15 +589,16 @@ class MultiTargetPlanner:
             if a[0].status != "confirmed" and not near
         ]
         out = []
+        D = u.intensity  # the beams' common data: summed over the layers once
+        exist = [self._tentative_existence(t) for t, _, _ in tentative]
         for i, pv in zip(beams, pvs, strict=True):
             s = self.sensors[i]
             bearings = search_bearings(u.xy, pv, cast(float, s.model.beam_width))
             seen = footprints(s.model, u.xy, pv, bearings) & free
-            values = search_value(u.intensity, seen, float(s.model.pd), cardinality, epochs)
+            values = search_value(D, seen, float(s.model.pd), cardinality, epochs)
             at = [math.atan2(x[2] - pv[2], x[0] - pv[0]) for _, x, _ in tentative]
-            found = [
-                self._tentative_existence(t) * s.hit(x, pv, P, NO_MISSES) for t, x, P in tentative
-            ]
+            hits = [s.hit(x, pv, P, NO_MISSES) for _, x, P in tentative]
+            found = [r * h for r, h in zip(exist, hits, strict=True)]
             out.append(
                 _Pointings(
                     np.concatenate([bearings, at]),

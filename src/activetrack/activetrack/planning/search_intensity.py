@@ -345,7 +345,8 @@ def birth_odds(
     starts no track); without clutter the odds are infinite where the intensity is not 0."""
     seen = np.asarray(seen, dtype=bool)
     out = np.zeros(len(seen))
-    cells = np.flatnonzero(seen & (u.intensity > 0.0))
+    D = u.intensity  # summed over the layers once
+    cells = np.flatnonzero(seen & (D > 0.0))
     if cells.size == 0:
         return out
     pv = np.asarray(pv, dtype=float)
@@ -358,7 +359,7 @@ def birth_odds(
             f"{H.shape[-2]}"
         )
     det = np.abs(np.linalg.det(H[..., [0, 2]]))
-    e = float(sensor.pd) * u.intensity[cells] / u.cell_area
+    e = float(sensor.pd) * D[cells] / u.cell_area
     kappa = float(sensor.clutter_density) * det
     with np.errstate(divide="ignore"):
         out[cells] = np.where(kappa > 0.0, e / np.where(kappa > 0.0, kappa, 1.0), np.inf)
