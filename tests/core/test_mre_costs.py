@@ -234,10 +234,15 @@ def test_criterion_registry_names_and_errors():
     assert get_criterion("b_k").of_covariance(P) == 3.0  # Hernandez eq. 10
     assert get_criterion("det_pos").of_covariance(P) == 36.0  # Ramdaras eq. 24
     assert get_criterion("trace").of_information(np.linalg.inv(P)) == pytest.approx(15.0)
+    # GOSPA's localisation (p = 2) of a held track: E|e|^2 = P(1,1) + P(3,3)
+    assert get_criterion("trace_pos").of_covariance(P) == 13.0
+    assert get_criterion("trace_pos").of_information(np.linalg.inv(P)) == pytest.approx(13.0)
+    with pytest.raises(ValueError, match="singular"):
+        get_criterion("trace_pos").of_information(np.zeros((4, 4)))
     assert criterion_names() == (
-        "b_k", "trace", "det_pos", "heading", "range", "doppler", "bearing"
+        "b_k", "trace", "trace_pos", "det_pos", "heading", "range", "doppler", "bearing"
     )  # fmt: skip
-    assert criterion_names("pcrlb") == ("b_k", "trace", "det_pos")
+    assert criterion_names("pcrlb") == ("b_k", "trace", "trace_pos", "det_pos")
     assert criterion_names("selection") == ("det_pos", "heading", "range", "doppler", "bearing")
     # One vocabulary: the old aliases are gone.
     for old in ("rmse_bound", "position_determinant", "determinant", "nope"):

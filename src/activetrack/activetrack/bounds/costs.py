@@ -17,6 +17,8 @@ __all__ = [
     "criterion_variance",
     "determinant_cost",
     "position_determinant",
+    "position_trace",
+    "position_trace_of_information",
     "rmse_bound",
     "rmse_bound_of_information",
     "trace_cost",
@@ -82,6 +84,28 @@ def _rmse_bound_of_information_numpy(J: np.ndarray) -> np.ndarray:
     if not np.all(var > 0.0):
         raise ValueError(_NOT_SPD[2])
     return np.sqrt(var)
+
+
+def position_trace(P: ArrayLike, position_indices: tuple[int, int] = (0, 2)) -> np.ndarray:
+    """P(1,1) + P(3,3), ``(..., n, n) -> (...)``: the mean squared position error E|e|^2 of a
+    track with error covariance P, what GOSPA's localisation (order p = 2) counts for it."""
+    P = _cov(P)
+    ix, iy = position_indices
+    return P[..., ix, ix] + P[..., iy, iy]
+
+
+def position_trace_of_information(J: np.ndarray) -> np.ndarray:
+    """:func:`position_trace` of J^{-1} from pv information ``(..., 4, 4) -> (...)``, from one
+    solve J V = [e_x, e_y] (as :func:`rmse_bound_of_information`)."""
+    J = np.asarray(J, dtype=float)
+    try:
+        V = np.linalg.solve(J, _POSITION_COLUMNS)  # (..., 4, 2) = columns x, y of J^{-1}
+    except np.linalg.LinAlgError:
+        raise ValueError(_NOT_SPD[1]) from None
+    var = V[..., 0, 0] + V[..., 2, 1]
+    if not np.all(var > 0.0):
+        raise ValueError(_NOT_SPD[2])
+    return var
 
 
 def trace_cost(P: ArrayLike) -> np.ndarray:

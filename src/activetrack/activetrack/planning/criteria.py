@@ -10,6 +10,7 @@ pcrlb``), ``"positioning"`` (Ramdaras sec. 4, with ``planner.cost: mre``), ``"se
 |---|---|---|---|---|
 | ``b_k`` | Hernandez eq. 10, max(sqrt(P(1,1)), sqrt(P(3,3))) | yes | yes | |
 | ``trace`` | tr(P) | yes | yes | |
+| ``trace_pos`` | P(1,1) + P(3,3), mean squared position error (GOSPA's, p = 2) | yes | yes | |
 | ``det_pos`` | Ramdaras eq. 24, det of the position block | yes | yes | yes |
 | ``heading`` | Ramdaras eq. 25, H^c P H^c^T, H^c of eq. 26 at x | | yes | yes |
 | ``range``, ``doppler``, ``bearing`` | the same, other rows of eq. 26 | | yes | yes |
@@ -34,6 +35,8 @@ from activetrack.bounds.costs import (
     EQ26_ROWS,
     criterion_variance,
     position_determinant,
+    position_trace,
+    position_trace_of_information,
     rmse_bound,
     rmse_bound_of_information,
     trace_cost,
@@ -197,6 +200,14 @@ def _register_built_ins() -> None:
             information_cost=rmse_bound_of_information,
         ),
         Criterion("trace", lambda P, x: trace_cost(P), frozenset({PCRLB, POSITIONING}), "tr(P)"),
+        Criterion(
+            "trace_pos",
+            lambda P, x: position_trace(P),
+            frozenset({PCRLB, POSITIONING}),
+            "P(1,1) + P(3,3), the mean squared position error: what GOSPA's localisation "
+            "(order p = 2) counts for a held track",
+            information_cost=position_trace_of_information,
+        ),
         Criterion(
             "det_pos",
             lambda P, x: position_determinant(P),
