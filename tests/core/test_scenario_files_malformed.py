@@ -450,7 +450,8 @@ CASES = [
         "pcrlb-criterion-heading",
         "default",
         _set("planner.criterion", "heading"),
-        "  planner.criterion: must be one of ('b_k', 'trace', 'trace_pos', 'det_pos') with cost 'pcrlb'",
+        "  planner.criterion: must be one of ('b_k', 'trace', 'trace_pos', 'det_pos') with cost "
+        "'pcrlb'",
     ),
     (
         "mre-with-evolution",
