@@ -74,13 +74,19 @@ _NOT_SPD = {
 }
 
 
-def _rmse_bound_of_information_numpy(J: np.ndarray) -> np.ndarray:
-    """:func:`rmse_bound_of_information` by ``numpy.linalg.solve`` (the reference)."""
+def _position_variances_of_information(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The x and y variances of J^{-1} ``(..., 4, 4) -> (...), (...)`` from one
+    ``numpy.linalg.solve`` of J V = [e_x, e_y] (ValueError if J is singular)."""
     try:
         V = np.linalg.solve(J, _POSITION_COLUMNS)  # (..., 4, 2) = columns x, y of J^{-1}
     except np.linalg.LinAlgError:
         raise ValueError(_NOT_SPD[1]) from None
-    var = np.maximum(V[..., 0, 0], V[..., 2, 1])
+    return V[..., 0, 0], V[..., 2, 1]
+
+
+def _rmse_bound_of_information_numpy(J: np.ndarray) -> np.ndarray:
+    """:func:`rmse_bound_of_information` by ``numpy.linalg.solve`` (the reference)."""
+    var = np.maximum(*_position_variances_of_information(J))
     if not np.all(var > 0.0):
         raise ValueError(_NOT_SPD[2])
     return np.sqrt(var)
@@ -97,12 +103,8 @@ def position_trace(P: ArrayLike, position_indices: tuple[int, int] = (0, 2)) -> 
 def position_trace_of_information(J: np.ndarray) -> np.ndarray:
     """:func:`position_trace` of J^{-1} from pv information ``(..., 4, 4) -> (...)``, from one
     solve J V = [e_x, e_y] (as :func:`rmse_bound_of_information`)."""
-    J = np.asarray(J, dtype=float)
-    try:
-        V = np.linalg.solve(J, _POSITION_COLUMNS)  # (..., 4, 2) = columns x, y of J^{-1}
-    except np.linalg.LinAlgError:
-        raise ValueError(_NOT_SPD[1]) from None
-    var = V[..., 0, 0] + V[..., 2, 1]
+    var_x, var_y = _position_variances_of_information(np.asarray(J, dtype=float))
+    var = var_x + var_y
     if not np.all(var > 0.0):
         raise ValueError(_NOT_SPD[2])
     return var
