@@ -208,6 +208,27 @@ def test_a_false_track_gives_the_closed_form_and_tentative_tracks_do_not_count()
     assert (ev.breaks, ev.swaps) == (0, 0)
 
 
+def test_a_withheld_track_is_not_scored_a_held_target_then_counts_missed():
+    """GOSPA scores the tracker's estimate: a confirmed track it withholds (report: gospa)
+    counts neither as a false track nor as holding its target."""
+    from dataclasses import replace
+
+    sensor = {"id": "s1", "kind": "range_bearing", "sigma_r": 10.0, "sigma_b": 0.01}
+    scenario = make_scenario(THREE[:1], [{**sensor, "r_max": 9000.0, "clutter_density": 1e-4}])
+    truth = straight_truth(scenario, 10)
+    false = confirmed(9, [5000.0, 0, 5000.0, 0])
+    shown = [[*ts, false] for ts in perfect(truth)]
+    hidden = [[replace(t, withheld=True) for t in ts] for ts in shown]
+    shown = evaluate(scenario, make_record(scenario, truth, shown))
+    ev = evaluate(scenario, make_record(scenario, truth, hidden))
+    np.testing.assert_array_equal(shown.false, 1)
+    np.testing.assert_array_equal(shown.missed, 0)
+    np.testing.assert_array_equal(ev.false, 0)
+    np.testing.assert_array_equal(ev.missed, 1)  # the target's own track withheld
+    np.testing.assert_allclose(ev.gospa, math.sqrt(C**2 / 2), rtol=1e-12)
+    assert (ev.held == -1).all() and np.isnan(ev.error).all()
+
+
 def test_a_constant_offset_track_has_that_rmse():
     scenario = make_scenario(THREE[:1])
     truth = straight_truth(scenario, 10)

@@ -263,3 +263,31 @@ def test_bad_alpha():
 def test_exported_lazily_from_the_package():
     assert at.ospa is ospa and at.gospa is gospa and at.GospaResult is GospaResult
     assert at.ospa_over_time is ospa_over_time and at.gospa_over_time is gospa_over_time
+
+
+# --- which tracks to report (tracker.tracks.report: gospa) -------------------------------------
+
+
+def test_gospa_reported_picks_the_lower_expected_cost_by_brute_force():
+    """Reported: r L + (1 - r) k; left out: r k (k = c^p / alpha, L = E[min(d, c)^p]); the
+    rule reports exactly where the first is lower, over a grid of r and spreads, p 1 and 2."""
+    from activetrack.metrics import GospaWeights, expected_localisation, gospa_reported
+
+    r = np.linspace(0.0, 1.0, 41)[:, None]
+    m = np.array([0.0, 1e2, 1e4, 5e4, 1e5, 2e5, 1e6])[None, :]
+    for w in (GospaWeights(500.0, 2.0, 2.0), GospaWeights(300.0, 1.0, 1.5)):
+        k, L = w.cardinality, expected_localisation(m, w.c, w.p)
+        reported, left_out = r * L + (1 - r) * k, r * k
+        clear = np.abs(reported - left_out) > 1e-9 * k  # ties either way
+        got = np.broadcast_to(gospa_reported(r, m, w), clear.shape)
+        assert np.array_equal(got[clear], (reported < left_out)[clear])
+
+
+def test_gospa_reported_is_r_above_one_half_for_a_point_and_never_past_the_cutoff():
+    from activetrack.metrics import GospaWeights, gospa_reported
+
+    w = GospaWeights(500.0, 2.0, 2.0)
+    assert gospa_reported([0.49, 0.5, 0.51, 1.0], 0.0, w).tolist() == [False, False, True, True]
+    # L = m (1 - exp(-c^2 / m)) reaches k = c^2 / 2 at m = 0.628 c^2: beyond, not even at r = 1
+    assert not gospa_reported(1.0, 0.64 * 500.0**2, w)
+    assert gospa_reported(1.0, 0.62 * 500.0**2, w)

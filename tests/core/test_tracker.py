@@ -434,6 +434,42 @@ def test_a_dead_target_loses_its_track_after_delete_misses_looks():
     assert tracker.book.deleted == {"misses": 1}
 
 
+def test_report_gospa_withholds_a_dying_track_by_its_existence_and_changes_nothing_else():
+    """A target dies at epoch 10; its track's existence falls with each miss (pd 0.9). Under
+    ``report: gospa`` the track is withheld from the estimate exactly where reporting it
+    would raise its expected GOSPA (r (2k - L) <= k), while still confirmed and tracked; every
+    other number is the same as under ``report: confirmed``, which withholds nothing."""
+    from activetrack.metrics import GospaWeights, gospa_reported, position_spread
+
+    def scenario(report):
+        return make_scenario(
+            [{"id": "a", "mean": [100.0, 5.0, 100.0, 5.0], "death": 10}],
+            [range_bearing(pd=0.9)],
+            tracks={"existence_terminate_prior": 0.0, "delete_misses": 8, "report": report},
+        )
+
+    _, scans = simulate(scenario("confirmed"), 20, np.random.default_rng(8))
+    _, plain = run(scenario("confirmed"), scans)
+    _, gospa = run(scenario("gospa"), scans)
+    w = GospaWeights(1000.0, 2.0, 2.0)  # the scenario's evaluation defaults
+    withheld = []
+    for a, b in zip(plain, gospa, strict=True):
+        for x, y in zip(a.tracks, b.tracks, strict=True):
+            assert (x.track_id, x.status, x.existence) == (y.track_id, y.status, y.existence)
+            assert np.array_equal(x.mean, y.mean) and np.array_equal(x.cov, y.cov)
+        assert not any(t.withheld for t in a.tracks) and len(a.reported) == len(a.confirmed)
+        reported = {t.track_id for t in b.reported}
+        for t in b.confirmed:
+            expected = not gospa_reported(t.existence, position_spread(t.cov), w)
+            assert t.withheld == expected
+            assert (t.track_id in reported) == (not expected)
+        withheld.append(any(t.withheld for t in b.tracks))
+    # reported while the target lives, withheld once the misses take r below 1/2
+    assert not any(withheld[:10]) and any(withheld[10:])
+    first = withheld.index(True)
+    assert gospa[first].tracks[0].confirmed and gospa[first].tracks[0].existence < 0.5
+
+
 def test_a_track_nobody_looks_at_goes_when_its_position_std_passes_the_limit():
     sc = make_scenario(
         [{"id": "a", "mean": [100.0, 5.0, 100.0, 5.0]}],

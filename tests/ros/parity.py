@@ -8,11 +8,14 @@ import numpy as np
 from activetrack.closed_loop.record import RunRecord
 from activetrack.data import TrackSet
 
-_TRACK_FIELDS = ("track_id", "status", "origin", "hits", "misses", "missed_detections")
+_TRACK_FIELDS = (
+    "track_id", "status", "origin", "hits", "misses", "missed_detections", "existence", "withheld"
+)  # fmt: skip
 
 
 def same_tracks(a: TrackSet, b: TrackSet) -> bool:
-    """The same tracks: ids, status, bookkeeping, filter states and pv kinematics."""
+    """The same tracks: ids, status, bookkeeping, existence and the report, filter states and
+    pv kinematics."""
     return (a.epoch, a.filter_kind, a.detections, a.unassociated) == (
         b.epoch,
         b.filter_kind,

@@ -206,6 +206,7 @@ def _random_tracks(rng: np.random.Generator, n: int, epoch: int, scenario) -> Tr
                 ess=float(rng.uniform(10, 500)) if pf else math.nan,
                 particle_count=1000 if pf else 0,
                 samples=rng.normal(0.0, 1e3, (int(rng.integers(1, 60)), dim)) if pf else None,
+                withheld=bool(i % 3 == 2),  # confirmed tracks left out of the estimate
             )
         )
     return TrackSet(
@@ -223,7 +224,7 @@ def _random_tracks(rng: np.random.Generator, n: int, epoch: int, scenario) -> Tr
 
 _FIELDS = (
     "track_id", "status", "origin", "priority", "age", "hits", "misses", "missed_detections",
-    "existence", "particle_count",
+    "existence", "particle_count", "withheld",
 )  # fmt: skip
 
 
@@ -467,6 +468,7 @@ TRACK_CASES = [
         "covariance is not positive definite",
     ),
     ("existence", _track(0, "existence", 1.5), "out_of_range", "existence"),
+    ("withheld_tentative", _track(0, "withheld", True), "bad_field", "withheld"),
     ("nis_inf", _track(0, "nis", math.inf), "non_finite", "nis"),
     (
         "motion_model",
@@ -635,6 +637,7 @@ BAD_VALUES = {
     "int64": [-(2**63), -2, 2**63 - 1],
     "int32": [-(2**31), -1, 2**31 - 1],
     "string": ["", "x", "s1", "t1", "é" * 50],
+    "boolean": [True, False],
 }
 
 

@@ -143,7 +143,9 @@ class TrackEstimate:
     detection, ``missed_detections`` the scans that covered it without one; ``existence`` its
     probability of existence (1 for a target known to exist); ``nis`` / ``ess`` of the last
     update (EKF / particle filters, NaN otherwise); ``samples`` ``(M, n)`` equally weighted
-    posterior samples for the planner (particle filters)."""
+    posterior samples for the planner (particle filters); ``withheld``: a confirmed track the
+    tracker leaves out of its estimate of the targets (``tracker.tracks.report: gospa``,
+    :func:`activetrack.metrics.gospa_reported`), still tracked and planned for."""
 
     track_id: int
     status: str
@@ -162,10 +164,16 @@ class TrackEstimate:
     ess: float = math.nan
     particle_count: int = 0
     samples: np.ndarray | None = None
+    withheld: bool = False
 
     @property
     def confirmed(self) -> bool:
         return self.status == CONFIRMED
+
+    @property
+    def reported(self) -> bool:
+        """In the tracker's estimate of the targets: confirmed and not withheld."""
+        return self.status == CONFIRMED and not self.withheld
 
 
 @dataclass(frozen=True)
@@ -187,6 +195,12 @@ class TrackSet:
     @property
     def confirmed(self) -> tuple[TrackEstimate, ...]:
         return tuple(t for t in self.tracks if t.confirmed)
+
+    @property
+    def reported(self) -> tuple[TrackEstimate, ...]:
+        """The tracker's estimate of the targets: the confirmed tracks it does not withhold
+        (what GOSPA scores; the planner plans for every confirmed track)."""
+        return tuple(t for t in self.tracks if t.reported)
 
     def without_samples(self) -> TrackSet:
         """The same tracks without their posterior samples (what a run's record keeps)."""

@@ -675,8 +675,8 @@ def truth_rows(truth, target_index: dict[str, int]) -> np.ndarray:
 
 
 def held_estimates(assessment, tracks: TrackSet, truth: np.ndarray) -> np.ndarray:
-    """``(N, 4)``: the mean of the confirmed track that holds each target (NaN: none)."""
-    means = {t.track_id: np.asarray(t.mean) for t in tracks.confirmed}
+    """``(N, 4)``: the mean of the reported track that holds each target (NaN: none)."""
+    means = {t.track_id: np.asarray(t.mean) for t in tracks.reported}
     est = np.full_like(truth, math.nan)
     for n, track_id in enumerate(assessment.held):
         if track_id in means:

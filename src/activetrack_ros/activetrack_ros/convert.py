@@ -435,6 +435,7 @@ def _track_item(t: TrackEstimate) -> TrackItem:
         covariance=np.asarray(t.cov, dtype=float).reshape(16),
         samples=_doubles(samples),
         sample_count=int(samples.shape[0]),
+        withheld=bool(t.withheld),
         **{name: int(getattr(t, name)) for name in _TRACK_COUNTS},
         **{name: float(getattr(t, name)) for name in _TRACK_FLOATS},
     )
@@ -537,6 +538,8 @@ class TrackArrayChecker:
                 finite((value,), f"{what} {name}", limits.MAX_PARTICLES)
         if not 0.0 <= item.existence <= 1.0:
             raise MessageError("out_of_range", f"{what}: existence must be in [0, 1]")
+        if item.withheld and _STATUS_NAME[item.status] != CONFIRMED:
+            raise MessageError("bad_field", f"{what}: withheld must be false on a TENTATIVE track")
         if len(item.state) != n or len(item.state_covariance) != n * n:
             raise MessageError(
                 "wrong_dimension", f"{what}: state must have {n} values, state_covariance {n * n}"
@@ -563,6 +566,7 @@ class TrackArrayChecker:
             state_cov=state_cov.reshape(n, n).copy(),
             origin=item.origin,
             samples=samples,
+            withheld=bool(item.withheld),
             **{name: getattr(item, name) for name in (*_TRACK_COUNTS, *_TRACK_FLOATS)},
         )
 

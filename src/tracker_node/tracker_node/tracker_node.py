@@ -278,8 +278,8 @@ class TrackerNode(GraphNode):
         """What tools show of the tracks: pose, tf, ellipses and ids, particles, diagnostics.
         A view is built only while its topic has a reader (a viewer, the bag recorder): the
         views are volatile, and at 30 tracks they take 10 ms an epoch (a fifth of a 30-target
-        run without a bag)."""
-        confirmed = tracks.confirmed
+        run without a bag). They show the tracker's estimate: its reported tracks."""
+        confirmed = tracks.reported
         poses, frames = self.pose_pub.has_readers(), self.tf_pub.has_readers()
         if poses or frames:
             transforms = []

@@ -29,6 +29,7 @@ import numpy as np
 from activetrack.filters.measurement import TrackingFilter
 from activetrack.filters.registry import filter_kind, make_filter
 from activetrack.kernels import expect_particle_work
+from activetrack.metrics import GospaWeights
 from activetrack.models.base import as_linear
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.planning.across_targets import (
@@ -39,7 +40,6 @@ from activetrack.planning.across_targets import (
 from activetrack.planning.cautious import CautiousController, CautiousPlanner
 from activetrack.planning.criteria import PCRLB, POSITIONING, get_criterion
 from activetrack.planning.decision import Planner, PlannerStrategy
-from activetrack.planning.expected_gospa import GospaWeights
 from activetrack.planning.search_intensity import Surveillance
 from activetrack.planning.strategies import (
     CautiousLocalisation,
@@ -194,6 +194,11 @@ def build_tracker(
         planner_samples=cfg.planner_samples,
         new_track_priority=config.new_track_priority,
         rng=rng,
+        report=(
+            GospaWeights(config.evaluation.cutoff, config.evaluation.order, config.evaluation.alpha)
+            if cfg.tracks.report == "gospa"
+            else None
+        ),
     )
 
 

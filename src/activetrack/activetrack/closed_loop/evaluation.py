@@ -1,13 +1,14 @@
 """The evaluation of one run, the same for every scene: each target's error against its PCRLB,
 GOSPA / OSPA over time, track breaks and swaps.
 
-**Held.** Target n is held at epoch k by a confirmed track: under known association (one
+**Held.** Target n is held at epoch k by a reported track (a confirmed one the tracker does
+not withhold, ``tracker.tracks.report``): under known association (one
 target, no clutter) the track its prior started; otherwise the track paired with it in that
 epoch's optimal GOSPA assignment with alpha = 2 (pairs closer than the cut-off ``c``,
 Rahmathullah, Garcia-Fernandez & Svensson 2017, Proposition 1). Its error is that track's pv
 mean minus the truth; NaN where not held.
 
-**GOSPA / OSPA** at k = 1..K between confirmed tracks' and alive targets' positions
+**GOSPA / OSPA** at k = 1..K between reported tracks' and alive targets' positions
 (``scenario.evaluation``'s ``c``, ``p``, alpha): GOSPA (Rahmathullah et al. eq. 1) with its
 alpha = 2 split (eq. 2) into localisation, missed and false, and OSPA (Schuhmacher, Vo & Vo
 2008, eq. 3).
@@ -65,11 +66,11 @@ __all__ = [
     "RunEvaluation",
     "TargetBound",
     "alive_mask",
-    "confirmed_positions",
     "count_breaks_swaps",
     "epoch_gospa",
     "evaluate_run",
     "held_tracks",
+    "reported_positions",
     "target_bounds",
 ]
 
@@ -191,9 +192,10 @@ class EpochAssessment:
     held: np.ndarray
 
 
-def confirmed_positions(tracks: TrackSet, k: int = 0) -> FloatArray:
-    """``(M, 2)`` x, y of the confirmed tracks; ValueError for a mean that is not finite."""
-    Y = np.array([np.asarray(t.mean)[[0, 2]] for t in tracks.confirmed], dtype=float).reshape(-1, 2)
+def reported_positions(tracks: TrackSet, k: int = 0) -> FloatArray:
+    """``(M, 2)`` x, y of the tracks the tracker reports (its confirmed tracks but those it
+    withholds, ``tracker.tracks.report``); ValueError for a mean that is not finite."""
+    Y = np.array([np.asarray(t.mean)[[0, 2]] for t in tracks.reported], dtype=float).reshape(-1, 2)
     if not np.isfinite(Y).all():
         raise ValueError(f"record.tracks[{k}]: a confirmed track's mean must be finite")
     return Y
@@ -227,8 +229,8 @@ class EpochAssessor:
         truth = np.asarray(truth, dtype=float)
         targets = np.flatnonzero(~np.isnan(truth[:, 0]))
         X = truth[targets][:, [0, 2]]
-        confirmed = tracks.confirmed
-        Y = confirmed_positions(tracks, k)
+        confirmed = tracks.reported
+        Y = reported_positions(tracks, k)
         distance, split = epoch_gospa(X, Y, self.evaluation)
         held = np.full(truth.shape[0], NOT_HELD, dtype=int)
         if self.known:  # the track is the target's by construction
@@ -294,7 +296,7 @@ def _errors(record: RunRecord, held: np.ndarray) -> np.ndarray:
     truth = np.asarray(record.truth, dtype=float)[1:]
     out = np.full((*held.shape, 4), math.nan)
     for k, row in enumerate(held):
-        means = {t.track_id: t.mean for t in record.tracks[k + 1].confirmed}
+        means = {t.track_id: t.mean for t in record.tracks[k + 1].reported}
         for n in np.flatnonzero(row != NOT_HELD):
             out[k, n] = np.asarray(means[int(row[n])]) - truth[k, n]
     return out

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from activetrack.closed_loop.components import build_tracker, component_rngs
-from activetrack.closed_loop.evaluation import confirmed_positions, epoch_gospa
+from activetrack.closed_loop.evaluation import epoch_gospa, reported_positions
 from activetrack.data import TrackSet, TruthSet
 from activetrack.scenarios.schema import EvaluationConfig
 from activetrack.scenarios.tracking import TrackingConfig
@@ -71,7 +71,7 @@ def gospa_series(
     for ts in track_sets[1:]:
         t = truth.get(ts.epoch)
         X = np.empty((0, 2)) if t is None else np.asarray(t.pv, dtype=float)[:, [0, 2]]
-        distance, split = epoch_gospa(X, confirmed_positions(ts, ts.epoch), evaluation)
+        distance, split = epoch_gospa(X, reported_positions(ts, ts.epoch), evaluation)
         rows.append((ts.epoch, distance, split.localisation, split.missed, split.false_tracks))
     epochs, dist, loc, missed, false = (np.array(c) for c in zip(*rows, strict=True))
     return GospaSeries(epochs.astype(int), dist, loc, missed.astype(int), false.astype(int))

@@ -32,13 +32,10 @@ which lowers r a little more) and clutter in the gate (which lowers it less); th
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import numpy as np
 
 from activetrack.arraytypes import ArrayLike
-from activetrack.checks import require_in_range, require_positive
+from activetrack.metrics import GospaWeights, beyond_cutoff, expected_localisation, position_spread
 
 __all__ = [
     "GospaWeights",
@@ -51,62 +48,6 @@ __all__ = [
     "position_spread",
     "track_split",
 ]
-
-
-@dataclass(frozen=True)
-class GospaWeights:
-    """GOSPA's cut-off ``c`` [m], order ``p`` >= 1 and ``alpha`` in (0, 2] (the scenario's
-    ``evaluation``): ``cardinality`` = c^p / alpha, the cost of one missed or false target."""
-
-    c: float
-    p: float
-    alpha: float
-
-    def __post_init__(self) -> None:
-        require_positive("c", self.c)
-        require_in_range("p", self.p, 1.0, math.inf, hi_inclusive=False)
-        require_in_range("alpha", self.alpha, 0.0, 2.0, lo_inclusive=False)
-
-    @property
-    def cardinality(self) -> float:
-        return float(self.c**self.p / self.alpha)
-
-
-def position_spread(P: ArrayLike) -> np.ndarray:
-    """m = tr of the xy block of pv covariances ``(..., 4, 4)`` ``(...)`` [m^2]: E[d^2] of the
-    position error."""
-    P = np.asarray(P, dtype=float)
-    return np.maximum(P[..., 0, 0] + P[..., 2, 2], 0.0)
-
-
-def beyond_cutoff(m: ArrayLike, c: float) -> np.ndarray:
-    """P(d > c) = exp(-c^2 / m) ``(...)`` for a position error d whose squared length has mean
-    ``m`` (exact for an isotropic 2-D Gaussian error: d^2 / (m / 2) is chi-square with 2
-    degrees of freedom, i.e. d^2 is exponential with mean m; m = 0: 0)."""
-    m = np.asarray(m, dtype=float)
-    with np.errstate(divide="ignore", over="ignore"):
-        return np.where(m > 0.0, np.exp(-(c * c) / np.where(m > 0.0, m, 1.0)), 0.0)
-
-
-def expected_localisation(m: ArrayLike, c: float, p: float) -> np.ndarray:
-    """E[min(d, c)^p] ``(...)`` for d^2 exponential with mean ``m`` (:func:`beyond_cutoff`).
-
-    With a = p/2 and u = c^2 / m: E[min(d^2, c^2)^a] = m^a gamma(a + 1, u) + c^p e^{-u}, where
-    gamma(a + 1, u) = Gamma(a + 1) P(a + 1, u) is the lower incomplete gamma function (split
-    the integral of x^a e^{-x/m} / m at c^2). p = 2: m (1 - e^{-u}). It rises like m^a for a
-    track well inside the cut-off and saturates at c^p, GOSPA's cost of a pair at or beyond it
-    (eq. 2: one missed and one false target)."""
-    from scipy.special import gamma, gammainc
-
-    m = np.asarray(m, dtype=float)
-    a = 0.5 * p
-    safe = np.where(m > 0.0, m, 1.0)
-    u = (c * c) / safe
-    if p == 2.0:  # m gamma(2, u) + c^2 e^{-u} = m (1 - e^{-u} (1 + u)) + m u e^{-u}
-        value = safe * -np.expm1(-u)
-    else:
-        value = safe**a * gamma(a + 1.0) * gammainc(a + 1.0, u) + c**p * np.exp(-u)
-    return np.where(m > 0.0, value, 0.0)
 
 
 def hit_probability(detections: ArrayLike) -> np.ndarray:

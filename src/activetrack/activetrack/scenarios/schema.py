@@ -310,7 +310,12 @@ class TrackManagementConfig(Strict):
     (Musicki's IPDA practice: confirm ~0.9-0.95, terminate ~0.01-0.05), one from a prior below
     ``existence_terminate_prior`` (lower: its target may never be picked up again, a bearing
     starts no track and a beam looks only where tracks are). ``oversize_cluster``: what a
-    cluster too large for exact JPDA does (an error, or pruned: counted)."""
+    cluster too large for exact JPDA does (an error, or pruned: counted). ``report``: which
+    confirmed tracks make the tracker's estimate of the targets (what GOSPA scores):
+    ``confirmed`` every one; ``gospa`` those whose reporting lowers their expected GOSPA with
+    ``evaluation``'s c, p and alpha, by probability of existence and spread
+    (:func:`activetrack.metrics.gospa_reported`: r > 1/2 for a well localised track); the
+    others are withheld but still tracked and planned for."""
 
     gate_sigmas: Annotated[float, Field(gt=0, le=limits.MAX_GATE_SIGMAS)] = 3.5
     confirm_m: Annotated[int, Field(ge=1, le=100)] = 2
@@ -328,6 +333,7 @@ class TrackManagementConfig(Strict):
     # the tracker with an error naming this field (exact JPDA everywhere), "prune" drops the
     # cluster's weakest gated pairs until it fits (activetrack.filters.jpda_prune; counted).
     oversize_cluster: Literal["error", "prune"] = "error"
+    report: Literal["confirmed", "gospa"] = "confirmed"
 
     @model_validator(mode="after")
     def _m_of_n(self) -> TrackManagementConfig:

@@ -2,7 +2,8 @@
 
 CSV: one row per track and epoch, ``epoch, time, track, status, origin, existence`` and the pv
 mean ``x, vx, y, vy`` with the upper triangle of its covariance in that order (``P_x_x,
-P_x_vx, ..., P_vy_vy``). JSON: the track sets themselves (every field of
+P_x_vx, ..., P_vy_vy``), then ``withheld`` (1: a confirmed track left out of the tracker's
+estimate, ``tracker.tracks.report: gospa``; else 0). JSON: the track sets themselves (every field of
 :class:`~activetrack.data.TrackSet` and :class:`~activetrack.data.TrackEstimate` but the
 planner's samples; NaN as null), which :func:`read_tracks_json` reads back bit for bit.
 """
@@ -36,7 +37,8 @@ _PV = ("x", "vx", "y", "vy")
 _UPPER = tuple(itertools.combinations_with_replacement(range(4), 2))  # (i, j), i <= j
 COVARIANCE_COLUMNS = tuple(f"P_{_PV[i]}_{_PV[j]}" for i, j in _UPPER)
 TRACK_COLUMNS = (
-    "epoch", "time", "track", "status", "origin", "existence", *_PV, *COVARIANCE_COLUMNS
+    "epoch", "time", "track", "status", "origin", "existence", *_PV, *COVARIANCE_COLUMNS,
+    "withheld",
 )  # fmt: skip
 _ARRAYS = ("mean", "cov", "state", "state_cov")
 _FLOATS = ("priority", "existence", "nis", "ess")
@@ -55,6 +57,7 @@ def write_tracks_csv(path: str | Path, track_sets: Iterable[TrackSet]) -> None:
                 out.writerow(
                     [ts.epoch, repr(float(ts.time)), t.track_id, t.status, t.origin]
                     + [repr(float(v)) for v in (t.existence, *values)]
+                    + [int(t.withheld)]
                 )
 
 

@@ -50,13 +50,13 @@ import logging
 import math
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from activetrack import limits
 from activetrack.arraytypes import BoolArray, FloatArray
-from activetrack.data import CONFIRMED, TENTATIVE, Scan, TrackSet
+from activetrack.data import CONFIRMED, TENTATIVE, Scan, TrackEstimate, TrackSet
 from activetrack.filters.clutter_likelihood import effective_clutter_density, effective_pd
 from activetrack.filters.jpda import (
     DEFAULT_MAX_EDGES,
@@ -71,6 +71,7 @@ from activetrack.filters.jpda_net import GateClusters
 from activetrack.filters.jpda_particle import ParticleLikelihoods, particle_likelihoods
 from activetrack.filters.measurement import TIME_TOLERANCE, Measurement, TrackingFilter
 from activetrack.filters.resampling import systematic_resample
+from activetrack.metrics import GospaWeights, gospa_reported, position_spread
 from activetrack.models.base import MotionModel
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.tracking.management import (
@@ -131,7 +132,8 @@ class Tracker:
     its scenario name), the ``filter`` run per track, the scene's ``sensors`` by id in scenario
     order, the ``priors`` of the targets present at epoch 0, JPDA with ``management`` unless
     ``known_association``, ``planner_samples`` per particle track, and ``rng``, the tracker's
-    only source of randomness."""
+    only source of randomness; ``report``: the GOSPA weights by which confirmed tracks are
+    withheld from the estimate (:func:`activetrack.metrics.gospa_reported`; None: none is)."""
 
     def __init__(
         self,
@@ -146,6 +148,7 @@ class Tracker:
         planner_samples: int,
         new_track_priority: float,
         rng: np.random.Generator,
+        report: GospaWeights | None = None,
     ):
         if known_association and len(priors) != 1:
             raise ValueError(
@@ -159,6 +162,7 @@ class Tracker:
         self.planner_samples = planner_samples
         self.new_track_priority = new_track_priority
         self.rng = rng
+        self.report = report
         self.gamma = management.gate_sigmas**2
         self.oversize = management.oversize_cluster
         self.pruning = Pruning()  # oversize clusters pruned, pairs dropped (oversize "prune")
@@ -205,6 +209,8 @@ class Tracker:
             )
         else:
             estimates = tuple(track.estimate(self.epoch) for track in live)
+        if self.report is not None:
+            estimates = self._withhold(estimates)
         return TrackSet(
             self.epoch,
             self.time,
@@ -215,6 +221,22 @@ class Tracker:
             self.updates,
             *self._counts,
         )
+
+    def _withhold(self, estimates: tuple[TrackEstimate, ...]) -> tuple[TrackEstimate, ...]:
+        """The confirmed estimates whose reporting would raise their expected GOSPA marked
+        ``withheld`` (:func:`activetrack.metrics.gospa_reported` with ``self.report``)."""
+        assert self.report is not None
+        confirmed = [i for i, e in enumerate(estimates) if e.confirmed]
+        if not confirmed:
+            return estimates
+        r = np.array([estimates[i].existence for i in confirmed])
+        spread = position_spread(np.stack([estimates[i].cov for i in confirmed]))
+        keep = gospa_reported(r, spread, self.report)
+        out = list(estimates)
+        for i, reported in zip(confirmed, keep, strict=True):
+            if not reported:
+                out[i] = replace(out[i], withheld=True)
+        return tuple(out)
 
     @property
     def not_started(self) -> int:
