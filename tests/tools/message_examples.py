@@ -81,6 +81,7 @@ def _track_item() -> TrackItem:
         missed_detections=1,
         age=9,
         existence=0.75,
+        withheld=True,
         nis=1.5,
         ess=4321.0,
         particle_count=10000,
