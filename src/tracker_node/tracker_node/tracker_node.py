@@ -279,11 +279,11 @@ class TrackerNode(GraphNode):
         A view is built only while its topic has a reader (a viewer, the bag recorder): the
         views are volatile, and at 30 tracks they take 10 ms an epoch (a fifth of a 30-target
         run without a bag). They show the tracker's estimate: its reported tracks."""
-        confirmed = tracks.reported
+        shown = tracks.reported
         poses, frames = self.pose_pub.has_readers(), self.tf_pub.has_readers()
         if poses or frames:
             transforms = []
-            for t in confirmed:
+            for t in shown:
                 xy = np.asarray(t.mean)[[0, 2]]
                 course = math.atan2(t.mean[3], t.mean[1])
                 if poses:
@@ -291,18 +291,20 @@ class TrackerNode(GraphNode):
                 transforms.append(planar_transform(hdr, track_frame(t), xy[0], xy[1], course))
             if frames and transforms:
                 self.tf_pub.publish(TFMessage(transforms=transforms))
-        now = {t.track_id for t in confirmed}
+        now = {t.track_id for t in shown}
         if self.marker_pub.has_readers():
-            self.marker_pub.publish(MarkerArray(markers=self.track_markers(hdr, confirmed, now)))
+            self.marker_pub.publish(MarkerArray(markers=self.track_markers(hdr, shown, now)))
         self.drawn = now  # (without a reader too: one that joins later saw none of them)
         for gone in self.track_views.keys() - now:
             del self.track_views[gone]
         if self.cloud_pub.has_readers():
             self.publish_cloud(hdr, tracks)
         ess = [t.ess for t in tracks.tracks if not math.isnan(t.ess)]
+        withheld = len(tracks.confirmed) - len(shown)
         message = (
-            f"epoch {tracks.epoch} {tracks.filter_kind}: {len(confirmed)} confirmed of "
+            f"epoch {tracks.epoch} {tracks.filter_kind}: {len(tracks.confirmed)} confirmed of "
             f"{len(tracks.tracks)} tracks, {tracks.detections} detections"
+            + (f", {withheld} withheld from the estimate" if withheld else "")
             + (f", lowest ESS {min(ess):.0f}" if ess else "")
         )
         self.publish_diagnostics(hdr, message)

@@ -229,12 +229,12 @@ class EpochAssessor:
         truth = np.asarray(truth, dtype=float)
         targets = np.flatnonzero(~np.isnan(truth[:, 0]))
         X = truth[targets][:, [0, 2]]
-        confirmed = tracks.reported
+        reported = tracks.reported
         Y = reported_positions(tracks, k)
         distance, split = epoch_gospa(X, Y, self.evaluation)
         held = np.full(truth.shape[0], NOT_HELD, dtype=int)
         if self.known:  # the track is the target's by construction
-            for t in confirmed:
+            for t in reported:
                 n = self.index.get(t.origin)
                 if n is None:
                     raise ValueError(
@@ -244,7 +244,7 @@ class EpochAssessor:
                 held[n] = t.track_id
         else:
             for i, j in split.assignment:
-                held[targets[i]] = confirmed[j].track_id
+                held[targets[i]] = reported[j].track_id
         return EpochAssessment(
             distance,
             split.localisation,
