@@ -33,7 +33,7 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 from activetrack.checks import require_finite, require_spd
-from activetrack.filters.jpda import pda_residuals, pda_update
+from activetrack.filters.jpda import pda_residuals, pda_update, pda_update_many
 from activetrack.filters.measurement import (
     Measurement,
     UpdateInfo,
@@ -90,28 +90,6 @@ def _joseph_update(
     I_KH = I - K @ H
     P = I_KH @ P @ I_KH.T + K @ R @ K.T
     return x, 0.5 * (P + P.T), nis, log_det_S
-
-
-def _pda_update_stacked(
-    X: FloatArray, P: FloatArray, H: FloatArray, R: FloatArray, nu: FloatArray, B: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """:func:`activetrack.filters.jpda.pda_update` of ``G`` tracks at once: means ``(G, n)``,
-    covariances ``(G, n, n)``, Jacobians ``(G, d, n)``, ``R`` ``(d, d)``, residuals ``(G, m,
-    d)``, probabilities ``(G, m + 1)``. The same products in the same order, stacked (numpy
-    runs each stacked product as that track's own: equal to the bit, tested)."""
-    HT = np.swapaxes(H, 1, 2)
-    PHT = P @ HT
-    S = H @ PHT + R
-    K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHT, 1, 2)), 1, 2)  # P H^T S^-1
-    b0, bj = B[:, 0], B[:, 1:]
-    nu_c = (bj[:, None, :] @ nu)[:, 0, :]  # combined innovations (G, d)
-    spread = (np.swapaxes(nu, 1, 2) * bj[:, None, :]) @ nu - nu_c[:, :, None] * nu_c[:, None, :]
-    KT = np.swapaxes(K, 1, 2)
-    I_KH = np.eye(X.shape[1]) - K @ H
-    P_c = I_KH @ P @ np.swapaxes(I_KH, 1, 2) + K @ R @ KT
-    P_new = b0[:, None, None] * P + (1.0 - b0)[:, None, None] * P_c + K @ spread @ KT
-    X_new = X + (K @ nu_c[:, :, None])[:, :, 0]
-    return X_new, 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
 
 
 def _check_t0(t0: float) -> float:
@@ -352,7 +330,7 @@ class ExtendedKalmanFilter:
         and its ``linearization``: Jacobians ``H`` ``(G, d, n)`` at the current means, wrapped
         residuals ``nu`` ``(G, m, d)``, probabilities ``beta`` ``(G, m + 1)`` and the sensor's
         ``R`` ``(d, d)``. The filters must be at the scan's time (the tracker predicted them).
-        The same algebra stacked (:func:`_pda_update_stacked`): the same numbers to the bit."""
+        The same algebra stacked (:func:`activetrack.filters.jpda.pda_update_many`)."""
         B = np.asarray(beta, dtype=float)
         G = len(filters)
         m = B.shape[1] - 1 if B.ndim == 2 else -1
@@ -367,7 +345,7 @@ class ExtendedKalmanFilter:
             X = np.array([filters[g]._x for g in go])
             P = np.array([filters[g]._P for g in go])
             R = np.asarray(R, dtype=float)
-            X, P = _pda_update_stacked(X, P, np.asarray(H)[go], R, np.asarray(nu)[go], B[go])
+            X, P = pda_update_many(X, P, np.asarray(H)[go], R, np.asarray(nu)[go], B[go])
             for k, g in enumerate(go):
                 filters[g]._x, filters[g]._P = X[k], P[k]
         ids = (sensor_id,) * m

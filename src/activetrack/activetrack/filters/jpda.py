@@ -85,6 +85,7 @@ __all__ = [
     "mahalanobis2",
     "pda_residuals",
     "pda_update",
+    "pda_update_many",
     "predict_measurements",
 ]
 
@@ -433,7 +434,8 @@ def pda_update(
 ) -> tuple[FloatArray, FloatArray]:
     """PDAF update of one Gaussian track (module docstring): ``x`` ``(n,)``, ``P`` ``(n, n)``,
     ``H`` ``(d, n)``, ``R`` ``(d, d)``, residuals ``nu`` ``(m, d)`` (wrapped), ``beta``
-    ``(m + 1,)`` with ``beta[0]`` for "no measurement".  Returns ``(x+, P+)``."""
+    ``(m + 1,)`` with ``beta[0]`` for "no measurement".  Returns ``(x+, P+)``:
+    :func:`pda_update_many` of one track."""
     x = np.asarray(x, dtype=float)
     P = np.asarray(P, dtype=float)
     H = np.asarray(H, dtype=float)
@@ -443,16 +445,32 @@ def pda_update(
     nu = np.asarray(nu, dtype=float).reshape(-1, d)
     if b.shape != (nu.shape[0] + 1,):
         raise ValueError(f"beta must have shape ({nu.shape[0] + 1},), got {b.shape}")
-    PHT = P @ H.T
+    X_new, P_new = pda_update_many(x[None], P[None], H[None], R, nu[None], b[None])
+    return X_new[0], P_new[0]
+
+
+def pda_update_many(
+    X: FloatArray, P: FloatArray, H: FloatArray, R: FloatArray, nu: FloatArray, B: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The PDAF update of ``G`` tracks at once (module docstring; Bar-Shalom & Tse 1975):
+    means ``(G, n)``, covariances ``(G, n, n)``, Jacobians ``(G, d, n)``, ``R`` ``(d, d)``,
+    residuals ``(G, m, d)``, probabilities ``(G, m + 1)`` (column 0: no measurement). K = P H^T
+    S^-1 by a solve; the combined innovation nu_c = sum_j beta_j nu_j; P+ = beta_0 P + (1 -
+    beta_0) P_c + K (sum_j beta_j nu_j nu_j^T - nu_c nu_c^T) K^T with P_c the Joseph form.
+    Each track's numbers are its own (numpy runs a stacked product track by track)."""
+    HT = np.swapaxes(H, 1, 2)
+    PHT = P @ HT
     S = H @ PHT + R
-    K = np.linalg.solve(S, PHT.T).T  # P H^T S^-1 (S symmetric)
-    b0, bj = float(b[0]), b[1:]
-    nu_c = bj @ nu  # combined innovation
-    spread = (nu.T * bj) @ nu - np.outer(nu_c, nu_c)
-    I_KH = np.eye(x.shape[0]) - K @ H
-    P_c = I_KH @ P @ I_KH.T + K @ R @ K.T
-    P_new = b0 * P + (1.0 - b0) * P_c + K @ spread @ K.T
-    return x + K @ nu_c, 0.5 * (P_new + P_new.T)
+    K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHT, 1, 2)), 1, 2)  # P H^T S^-1
+    b0, bj = B[:, 0], B[:, 1:]
+    nu_c = (bj[:, None, :] @ nu)[:, 0, :]  # combined innovations (G, d)
+    spread = (np.swapaxes(nu, 1, 2) * bj[:, None, :]) @ nu - nu_c[:, :, None] * nu_c[:, None, :]
+    KT = np.swapaxes(K, 1, 2)
+    I_KH = np.eye(X.shape[1]) - K @ H
+    P_c = I_KH @ P @ np.swapaxes(I_KH, 1, 2) + K @ R @ KT
+    P_new = b0[:, None, None] * P + (1.0 - b0)[:, None, None] * P_c + K @ spread @ KT
+    X_new = X + (K @ nu_c[:, :, None])[:, :, 0]
+    return X_new, 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
 
 
 @dataclass(frozen=True)
