@@ -67,7 +67,6 @@ from activetrack.tracking.management import (
     COALESCE_D2,
     COALESCE_LOOKS,
     EXISTENCE_INIT,
-    EXISTENCE_SURVIVAL,
     Track,
     existence_update,
     weaker,
@@ -838,7 +837,7 @@ def test_confirmation_waits_for_existence_and_existence_deletes_a_confirmed_trac
     # Then misses (Pd 0.9, Pg = 1 - exp(-12.25 / 2), delta = 0.898032): each epoch psi *=
     # 0.98, then psi' = (1 - delta) psi / (1 - delta psi): 0.833235, 0.312210, 0.043019 <
     # existence_terminate = 0.1, so the track goes at its 3rd miss, before delete_misses (4).
-    assert EXISTENCE_SURVIVAL == 0.98
+    assert TrackManagementConfig().existence_survival == 0.98
     empty = np.zeros((0, 2))
     for k, expected in ((3, 0.833235), (4, 0.312210)):
         ts = tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty)])
@@ -916,6 +915,26 @@ def test_a_scan_whose_sector_misses_a_track_leaves_its_existence():
     assert track.existence == pytest.approx(0.833235, rel=1e-3)
 
 
+@pytest.mark.parametrize("survival", [0.98, 0.9, 1.0])
+def test_existence_survival_predicts_each_epochs_existence(survival):
+    """IPDA's prediction psi- = p11 psi (``existence_survival``), then a scan without a
+    detection (Pd 0.9, Pg = 1 - exp(-12.25 / 2), delta = Pd Pg): psi' = (1 - delta) psi- /
+    (1 - delta psi-), from psi = 1 (the prior's track), over three empty epochs."""
+    sc = make_scenario(
+        [{"id": "a", "mean": [300.0, 0.0, 100.0, 0.0]}],
+        [range_bearing(pd=0.9)],
+        tracks={"existence_survival": survival, "existence_terminate_prior": 0.0},
+    )
+    tracker = build_tracker(sc, np.random.default_rng(0))
+    delta = 0.9 * (1.0 - math.exp(-12.25 / 2.0))
+    psi, empty = 1.0, np.zeros((0, 2))
+    for k in (1, 2, 3):
+        tracker.step(k, float(k), [Scan("s1", k, float(k), SENSOR_PV, empty)])
+        psi = survival * psi
+        psi = (1.0 - delta) * psi / (1.0 - delta * psi)
+        assert tracker.book.tracks[1].existence == pytest.approx(psi, rel=1e-12)
+
+
 @pytest.mark.parametrize(
     ("field", "value", "message"),
     [
@@ -923,6 +942,8 @@ def test_a_scan_whose_sector_misses_a_track_leaves_its_existence():
         ("existence_delete", -0.1, "existence_delete"),
         ("existence_terminate", 1.0, "existence_terminate"),
         ("existence_terminate_prior", -1e-3, "existence_terminate_prior"),
+        ("existence_survival", 0.0, "existence_survival"),
+        ("existence_survival", 1.01, "existence_survival"),
     ],
 )
 def test_existence_settings_are_range_checked(field, value, message):

@@ -307,7 +307,8 @@ class TrackManagementConfig(Strict):
     (``initiate: false``: only the priors' tracks). Probability of existence: a tentative
     track is confirmed at M of N and ``existence_confirm``, deleted past N looks below
     ``existence_delete``; a confirmed track is terminated below ``existence_terminate``
-    (Musicki's IPDA practice: confirm ~0.9-0.95, terminate ~0.01-0.05), one from a prior below
+    (Musicki's IPDA practice: confirm ~0.9-0.95, terminate ~0.01-0.05; ``existence_survival``
+    per epoch predicts it), one from a prior below
     ``existence_terminate_prior`` (lower: its target may never be picked up again, a bearing
     starts no track and a beam looks only where tracks are). ``oversize_cluster``: what a
     cluster too large for exact JPDA does (an error, or pruned: counted). ``report``: which
@@ -329,6 +330,9 @@ class TrackManagementConfig(Strict):
     existence_delete: Annotated[float, Field(ge=0, lt=1)] = 0.1  # tentative tracks
     existence_terminate: Annotated[float, Field(ge=0, lt=1)] = 0.02  # confirmed tracks
     existence_terminate_prior: Annotated[float, Field(ge=0, lt=1)] = 0.001  # from priors
+    # IPDA's probability that a target lives on through an epoch (p11, Musicki et al. 1994):
+    # the prediction of every track's existence; 1 for targets that never die.
+    existence_survival: Annotated[float, Field(gt=0, le=1)] = 0.98
     # A JPDA cluster whose hypothesis net exceeds its memory bound (max_edges): "error" stops
     # the tracker with an error naming this field (exact JPDA everywhere), "prune" drops the
     # cluster's weakest gated pairs until it fits (activetrack.filters.jpda_prune; counted).

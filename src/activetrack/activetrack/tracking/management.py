@@ -20,7 +20,7 @@ epoch (M-of-N: Blackman & Popoli, *Design and Analysis of Modern Tracking System
   crossing targets pass through that distance for an epoch or two;
 - **probability of existence** (IPDA: Musicki, Evans & Stankovic, IEEE TAC 39(6), 1994; among
   tracks that share detections LM-IPDA: Musicki & La Scala, IEEE TAES 44(3), 2008): predicted
-  by ``EXISTENCE_SURVIVAL`` once per epoch at the track's first scan, updated by every scan that
+  by ``existence_survival`` once per epoch at the track's first scan, updated by every scan that
   held it (:func:`existence_update`, with Pd times the chance that the target is in the field
   of view: a scan whose sector missed the track lowers nothing); 1 for a track from a prior,
   ``EXISTENCE_INIT`` from a detection. Confirmation also needs ``existence >=
@@ -73,6 +73,7 @@ class TrackManagementConfig(Protocol):
     existence_delete: float
     existence_terminate: float
     existence_terminate_prior: float
+    existence_survival: float  # per epoch (IPDA's Markov chain: p11)
     oversize_cluster: Oversize  # "error" | "prune" (activetrack.filters.jpda.OVERSIZE)
 
 
@@ -80,7 +81,6 @@ __all__ = [
     "COALESCE_D2",
     "COALESCE_LOOKS",
     "EXISTENCE_INIT",
-    "EXISTENCE_SURVIVAL",
     "Track",
     "TrackManager",
     "existence_update",
@@ -91,7 +91,6 @@ __all__ = [
 COALESCE_D2 = 0.5  # squared Mahalanobis distance of the two positions (2 dof: ~22 % quantile)
 COALESCE_LOOKS = 5  # consecutive joint looks
 EXISTENCE_INIT = 0.2  # a track started from one detection
-EXISTENCE_SURVIVAL = 0.98  # per epoch (IPDA's Markov chain one: p11)
 _P_MAX = 1.0 - 1e-9  # cap of LM-IPDA's a priori probability that a detection is a track's
 _XY = np.ix_([0, 2], [0, 2])
 

@@ -76,7 +76,6 @@ from activetrack.models.base import MotionModel
 from activetrack.models.clutter import ClutteredSensor
 from activetrack.tracking.management import (
     EXISTENCE_INIT,
-    EXISTENCE_SURVIVAL,
     Track,
     TrackManagementConfig,
     TrackManager,
@@ -163,6 +162,7 @@ class Tracker:
         self.new_track_priority = new_track_priority
         self.rng = rng
         self.report = report
+        self.survival = management.existence_survival
         self.gamma = management.gate_sigmas**2
         self.oversize = management.oversize_cluster
         self.pruning = Pruning()  # oversize clusters pruned, pairs dropped (oversize "prune")
@@ -356,7 +356,7 @@ class Tracker:
             ratios = particles.ratios(1.0, lam)
         for track in tracks:
             if track.track_id not in self._aged:
-                track.existence *= EXISTENCE_SURVIVAL
+                track.existence *= self.survival
                 self._aged.add(track.track_id)
         pv_means = pv[inside]
         pv_covs = covs if pv_state else np.array([track.cov for track in tracks])
