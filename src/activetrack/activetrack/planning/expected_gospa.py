@@ -25,9 +25,10 @@ r to ``r (1 - q) / (1 - r q)`` (IPDA's update with no detection in the gate, the
 misses multiplied: Musicki, Evans & Stankovic 1994); where that is below tau the track ends
 then (:func:`managed_split`): a target that exists is missed (``r (1 - q)``), and a track whose
 target has died is no longer a false one. So a look at a track whose target may have died is
-worth the false track it ends. Not modelled: the tracker's survival factor per epoch (0.98,
-which lowers r a little more) and clutter in the gate (which lowers it less); the rule of
-``delete_misses`` consecutive misses (the planner does not see the run of misses).
+worth the false track it ends. Not modelled: the tracker's survival factor per epoch
+(``tracker.tracks.existence_survival``, which lowers r a little more) and clutter in the gate
+(which lowers it less); the rule of ``delete_misses`` consecutive misses (the planner does
+not see the run of misses).
 """
 
 from __future__ import annotations
