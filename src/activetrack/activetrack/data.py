@@ -173,7 +173,7 @@ class TrackEstimate:
     @property
     def reported(self) -> bool:
         """In the tracker's estimate of the targets: confirmed and not withheld."""
-        return self.status == CONFIRMED and not self.withheld
+        return self.confirmed and not self.withheld
 
 
 @dataclass(frozen=True)

@@ -300,9 +300,10 @@ class TrackerNode(GraphNode):
         if self.cloud_pub.has_readers():
             self.publish_cloud(hdr, tracks)
         ess = [t.ess for t in tracks.tracks if not math.isnan(t.ess)]
-        withheld = len(tracks.confirmed) - len(shown)
+        confirmed = len(tracks.confirmed)
+        withheld = confirmed - len(shown)
         message = (
-            f"epoch {tracks.epoch} {tracks.filter_kind}: {len(tracks.confirmed)} confirmed of "
+            f"epoch {tracks.epoch} {tracks.filter_kind}: {confirmed} confirmed of "
             f"{len(tracks.tracks)} tracks, {tracks.detections} detections"
             + (f", {withheld} withheld from the estimate" if withheld else "")
             + (f", lowest ESS {min(ess):.0f}" if ess else "")

@@ -64,6 +64,7 @@ from activetrack.scenarios.build import (
     steered_limits,
 )
 from activetrack.scenarios.schema import (
+    EvaluationConfig,
     PlannerConfig,
     Scenario,
     SelectionConfig,
@@ -147,6 +148,12 @@ def build_simulator(scenario: Scenario, rng: np.random.Generator) -> Simulator:
     return Simulator(targets, platforms, scenario.dt, scenario.steps, rng, scenario.random_streams)
 
 
+def _gospa_weights(evaluation: EvaluationConfig) -> GospaWeights:
+    """GOSPA's c, p and alpha of a scenario's ``evaluation`` (the tracker's report and the
+    planner's expected GOSPA weigh by the metric that scores them)."""
+    return GospaWeights(evaluation.cutoff, evaluation.order, evaluation.alpha)
+
+
 def build_tracker(
     source: Scenario | TrackingConfig, rng: np.random.Generator, steps: int | None = None
 ) -> Tracker:
@@ -194,11 +201,7 @@ def build_tracker(
         planner_samples=cfg.planner_samples,
         new_track_priority=config.new_track_priority,
         rng=rng,
-        report=(
-            GospaWeights(config.evaluation.cutoff, config.evaluation.order, config.evaluation.alpha)
-            if cfg.tracks.report == "gospa"
-            else None
-        ),
+        report=_gospa_weights(config.evaluation) if cfg.tracks.report == "gospa" else None,
     )
 
 
@@ -326,7 +329,7 @@ def surveillance_of(cfg: SurveillanceConfig | None) -> Surveillance | None:
 def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiTargetPlanner:
     """Planning across targets for the scene: its platforms with their sensors in the scene
     and, where the planner steers them, their limits."""
-    cfg, ev = scenario.planner, scenario.evaluation
+    cfg = scenario.planner
     sensors = scene_sensors(scenario)
     platforms = [
         ScenePlatform(
@@ -348,7 +351,7 @@ def build_across_targets(scenario: Scenario, rng: np.random.Generator) -> MultiT
         aggregate=cfg.targets.aggregate,
         assignment=cfg.targets.assignment,
         objective=cfg.targets.objective,
-        gospa=GospaWeights(ev.cutoff, ev.order, ev.alpha),
+        gospa=_gospa_weights(scenario.evaluation),
         surveillance=surveillance_of(cfg.targets.surveillance),
         pointing=cfg.targets.pointing,
         clutter_gate=cfg.targets.clutter_gate,
