@@ -182,9 +182,10 @@ def test_pd1_no_clutter_wide_gate_equals_the_ekf():
     sensor = tracker.sensors["s1"].base
     for k, (epoch_scans, ts) in enumerate(zip(scans, sets[1:], strict=True), start=1):
         (z,) = epoch_scans[0].Z  # Pd 1, no clutter: exactly the target's detection
-        ekf.step(float(k), [Measurement(sensor, SENSOR_PV, z, float(k), "s1")])
+        info = ekf.step(float(k), [Measurement(sensor, SENSOR_PV, z, float(k), "s1")])
         (track,) = ts.tracks
         assert (track.track_id, track.status, track.origin) == (1, CONFIRMED, "a")
+        assert track.nis == pytest.approx(info.nis, rel=1e-9)  # beta_1 = 1: the EKF's NIS
         assert (ts.detections, ts.unassociated, track.hits, track.misses) == (1, 0, k, 0)
         np.testing.assert_allclose(track.mean, ekf.mean, rtol=1e-9, atol=1e-9)
         scale = np.abs(ekf.cov).max()
@@ -262,6 +263,17 @@ def test_jpda_by_clusters_equals_one_joint_update():
         np.testing.assert_allclose(track.cov, joint.covs[k], rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(ts.tracks[3].mean, X[3])  # no gated detection: predicted
     assert (ts.detections, ts.unassociated) == (4, 0)
+    # Each track's NIS: its detections' nu^T S^-1 nu weighted by beta_j / (1 - beta_0), by hand
+    H = np.stack([sensor.base.jacobian(x, SENSOR_PV) for x in X])
+    for k in range(3):
+        S = H[k] @ P[k] @ H[k].T + sensor.base.R
+        nu = sensor.base.residual(Z, sensor.base.measure(X[k], SENSOR_PV))
+        d2 = np.einsum("jd,jd->j", nu, np.linalg.solve(S, nu.T).T)
+        b = joint.beta[k]
+        assert ts.tracks[k].nis == pytest.approx(b[1:] @ d2 / (1.0 - b[0]), rel=1e-9)
+    assert 0.0 < ts.tracks[2].nis < 3.5**2 and math.isnan(ts.tracks[3].nis)
+    ts = tracker.step(2, 2.0, [Scan("s1", 2, 2.0, SENSOR_PV, np.empty((0, 2)))])
+    assert all(math.isnan(t.nis) for t in ts.tracks)  # looked at, no update: none this epoch
 
 
 # --- M-of-N confirmation and deletion -----------------------------------------------------------

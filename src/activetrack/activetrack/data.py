@@ -141,8 +141,10 @@ class TrackEstimate:
     prior started it ("" for a track started from detections), ``priority`` its planner
     weight; ``hits`` / ``misses`` its looks (epochs a scan covered it) with and without a
     detection, ``missed_detections`` the scans that covered it without one; ``existence`` its
-    probability of existence (1 for a target known to exist); ``nis`` / ``ess`` of the last
-    update (EKF / particle filters, NaN otherwise); ``samples`` ``(M, n)`` equally weighted
+    probability of existence (1 for a target known to exist); ``nis`` of the epoch's last
+    update of a Gaussian track (under JPDA the association-weighted NIS on the gate's S,
+    :func:`activetrack.filters.jpda.pda_nis`; NaN without one), ``ess`` of a particle track's;
+    ``samples`` ``(M, n)`` equally weighted
     posterior samples for the planner (particle filters); ``withheld``: a confirmed track the
     tracker leaves out of its estimate of the targets (``tracker.tracks.report: gospa``,
     :func:`activetrack.metrics.gospa_reported`), still tracked and planned for."""

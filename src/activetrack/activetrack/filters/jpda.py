@@ -83,6 +83,7 @@ __all__ = [
     "jpda_update",
     "likelihood_ratios",
     "mahalanobis2",
+    "pda_nis",
     "pda_residuals",
     "pda_update",
     "pda_update_many",
@@ -139,6 +140,24 @@ def mahalanobis2(nu: FloatArray, S: FloatArray) -> FloatArray:
         return np.zeros(nu.shape[:2])
     w = np.linalg.solve(L, np.swapaxes(nu, -1, -2))  # (T, d, m) = L^-1 nu^T
     return np.asarray(np.einsum("tdm,tdm->tm", w, w), dtype=float)
+
+
+def pda_nis(nu: FloatArray, S: FloatArray, beta: FloatArray) -> FloatArray:
+    """The NIS of ``T`` tracks' PDA updates ``(T,)``: the expected ``nu_j^T S^-1 nu_j`` of the
+    target's detection given that one of the scan's detections is the target's, ``sum_j
+    beta_j nu_j^T S^-1 nu_j / (1 - beta_0)``, from residuals ``nu`` ``(T, m, d)``, innovation
+    covariances ``S`` ``(T, d, d)`` and association probabilities ``beta`` ``(T, m + 1)``
+    (column 0: no detection). A detection certainly the target's gives the EKF's NIS; NaN
+    where ``beta_0`` = 1 (no update)."""
+    B = np.asarray(beta, dtype=float)
+    detected = 1.0 - B[:, 0]
+    if nu.shape[1] == 0:
+        return np.full(B.shape[0], math.nan)
+    d2 = np.where(B[:, 1:] > 0.0, mahalanobis2(nu, S), 0.0)  # beta 0 outside the gate
+    weighted = np.sum(B[:, 1:] * d2, axis=1)
+    out = np.full(B.shape[0], math.nan)
+    np.divide(weighted, detected, out=out, where=detected > 0.0)
+    return out
 
 
 def gate(

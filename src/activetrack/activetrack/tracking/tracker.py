@@ -65,6 +65,7 @@ from activetrack.filters.jpda import (
     gate_probability,
     jpda_probabilities,
     likelihood_ratios,
+    pda_nis,
     predict_measurements,
 )
 from activetrack.filters.jpda_net import GateClusters
@@ -294,6 +295,8 @@ class Tracker:
         else:
             for f in filters:
                 f.predict(t)
+        for track in live:  # this epoch's updates set it (pda_nis)
+            track.nis = math.nan
         self._aged.clear()
         # The filters' class when it reads many filters' moments at once (the EKF), else None
         self._stacked = cls if cls and _has_many(cls, "mean", "means_many") else None
@@ -416,6 +419,10 @@ class Tracker:
         # One call for the scan, on the gate's clusters (split where a ratio is 0): each
         # cluster's marginals as a call on that cluster alone would give (tested to the bit).
         scan_beta = self._marginals(scan_ratios, pd, pg, gate, c)
+        if particles is None:  # the last update's NIS of each Gaussian track it moved
+            for track, nis in zip(tracks, pda_nis(nu, S, scan_beta).tolist(), strict=True):
+                if not math.isnan(nis):
+                    track.nis = nis
         R = c.sensor.base.R
         stacked = self._stacked
         if particles is None and stacked is not None and _has_many(stacked, "update_pda"):
