@@ -487,6 +487,8 @@ class PlannerConfig(Strict):
     quadrant_patience: Divisions = 6
     sector_levels: SectorLevels = 3
     mode: Literal["renewal", "open_loop"] = "renewal"
+    # J_Z's Gaussian draws (eq. 8) for a Gaussian track or the open-loop prior; particle tracks
+    # in renewal give their own (tracker.planner_samples).
     mc_samples: Samples = 1000
     max_sensor_iterations: SensorIterations = 10
     selection: SelectionConfig = SelectionConfig()
