@@ -136,9 +136,7 @@ class TargetPrediction:
         detection factor ``detection`` in [0, 1]: :func:`expected_update` of this prediction,
         which is valid already and whose update (Joseph form, a convex mix) is SPD by
         construction, so nothing is checked twice (a planner's inner loop)."""
-        out = copy.copy(self)
-        object.__setattr__(out, "P", _look(self.P, self.x, sensor, sensor_pv, detection))
-        return out
+        return self.after_sure_look(self.sure_look(sensor, sensor_pv), detection)
 
     def sure_look(self, sensor: SensorModel, sensor_pv: np.ndarray) -> tuple[np.ndarray, float]:
         """What :meth:`after_look` computes whatever the detection factor: P_{k|k} of a sure
@@ -148,7 +146,8 @@ class TargetPrediction:
         return P_upd, float(sensor.in_range(self.x, sensor_pv))
 
     def after_sure_look(self, look: tuple[np.ndarray, float], detection: float) -> TargetPrediction:
-        """:meth:`after_look` (the same bits) from the :meth:`sure_look` of that sensor and pv."""
+        """:meth:`after_look` from the :meth:`sure_look` of that sensor and pv (computed once
+        for several detection factors)."""
         P_upd, in_range = look
         out = copy.copy(self)
         object.__setattr__(out, "P", mre_mix(self.P, P_upd, detection * in_range))
