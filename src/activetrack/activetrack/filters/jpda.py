@@ -150,12 +150,15 @@ def pda_nis(nu: FloatArray, S: FloatArray, beta: FloatArray) -> FloatArray:
     (column 0: no detection). A detection certainly the target's gives the EKF's NIS; NaN
     where ``beta_0`` = 1 (no update)."""
     B = np.asarray(beta, dtype=float)
-    detected = 1.0 - B[:, 0]
-    if nu.shape[1] == 0:
-        return np.full(B.shape[0], math.nan)
-    d2 = np.where(B[:, 1:] > 0.0, mahalanobis2(nu, S), 0.0)  # beta 0 outside the gate
-    weighted = np.sum(B[:, 1:] * d2, axis=1)
     out = np.full(B.shape[0], math.nan)
+    # Only the pairs with beta_j > 0 (inside the gate), not all T x m pairs a second time
+    rows, cols = np.nonzero(B[:, 1:] > 0.0)
+    if rows.size == 0:
+        return out
+    v = nu[rows, cols]  # (K, d)
+    d2 = np.einsum("kd,kd->k", v, np.linalg.solve(S[rows], v[..., None])[..., 0])
+    weighted = np.bincount(rows, weights=B[rows, cols + 1] * d2, minlength=B.shape[0])
+    detected = 1.0 - B[:, 0]
     np.divide(weighted, detected, out=out, where=detected > 0.0)
     return out
 
