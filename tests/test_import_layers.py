@@ -45,6 +45,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "activetrack.kernels",
             "activetrack.limits",
             "activetrack.linalg",
+            "activetrack.regions",
             "activetrack.stats",
         ),
     ),

@@ -5,6 +5,7 @@ of a search pointing in GOSPA units and its column in the beams' assignment
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -310,6 +311,31 @@ def test_the_surveillance_section_is_checked():
     # absent: the planner keeps no intensity (every other scenario's numbers stay)
     plain = build_across_targets(parse_scenario(_scene(None), "s"), np.random.default_rng(0))
     assert plain.undetected is None
+
+
+def test_a_file_and_a_caller_are_told_the_same_about_a_region():
+    # one set of rules (activetrack.regions): the schema's message is the planner's own
+    for bad in (
+        {"region": [1.0, 0.0, 0.0, 1.0]},
+        {"region": [0.0, 1e6, 0.0, 1e6], "cell_size": 1.0},
+        {"births": "edges"},
+        {"births": "edges", "edges": ["north", "north"]},
+        {"edges": ["west"]},
+        {"birth_speed": 25.0},
+    ):
+        section = {**SURVEILLANCE, **bad}
+        with pytest.raises(ValueError) as direct:
+            Surveillance(
+                tuple(section["region"]),
+                section["birth_rate"],
+                section.get("cell_size", 250.0),
+                section.get("births", "uniform"),
+                tuple(section.get("edges", ())),
+                section.get("birth_speed", 0.0),
+            )
+        told = str(direct.value).replace("surveillance.", "")
+        with pytest.raises(ValueError, match=re.escape(told)):
+            parse_scenario(_scene(section), "s")
 
 
 def _plan(planner, epoch: int, tracks: tuple, pv: np.ndarray):

@@ -55,11 +55,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from activetrack import limits
 from activetrack.angles import wrap_angle
 from activetrack.arraytypes import ArrayLike
 from activetrack.checks import require_positive
 from activetrack.models.clutter import ClutteredSensor
+from activetrack.regions import BIRTHS, EDGES, check_surveillance, grid_shape
 
 __all__ = [
     "BIRTHS",
@@ -74,8 +74,6 @@ __all__ = [
 ]
 
 
-BIRTHS = ("uniform", "edges")
-EDGES = ("west", "east", "south", "north")
 # each edge's (grid axis, direction inward): the grid is (nx, ny), x along axis 0
 _INWARD = {"west": (0, 1), "east": (0, -1), "south": (1, 1), "north": (1, -1)}
 
@@ -95,50 +93,22 @@ class Surveillance:
     birth_speed: float = 0.0
 
     def __post_init__(self) -> None:
-        x0, x1, y0, y1 = (float(v) for v in self.region)
-        if not (x0 < x1 and y0 < y1 and all(map(math.isfinite, (x0, x1, y0, y1)))):
-            raise ValueError(
-                f"surveillance.region must be finite [x_min, x_max, y_min, y_max] with "
-                f"x_min < x_max and y_min < y_max, got {list(self.region)}"
-            )
         if not (math.isfinite(self.birth_rate) and self.birth_rate >= 0.0):
             raise ValueError(f"surveillance.birth_rate must be >= 0, got {self.birth_rate}")
         require_positive("surveillance.cell_size", self.cell_size)
-        if self.shape[0] * self.shape[1] > limits.MAX_SURVEILLANCE_CELLS:
-            raise ValueError(
-                f"surveillance.cell_size {self.cell_size} m gives {self.shape[0]} x "
-                f"{self.shape[1]} cells over the region, more than "
-                f"{limits.MAX_SURVEILLANCE_CELLS}"
-            )
-        if self.births not in BIRTHS:
-            raise ValueError(f"surveillance.births must be one of {BIRTHS}, got {self.births!r}")
-        if not (math.isfinite(self.birth_speed) and 0.0 <= self.birth_speed <= limits.MAX_SPEED):
-            raise ValueError(
-                f"surveillance.birth_speed must lie in [0, {limits.MAX_SPEED}] m/s, got "
-                f"{self.birth_speed}"
-            )
-        if self.births == "edges":
-            bad = [e for e in self.edges if e not in EDGES]
-            if not self.edges or bad or len(set(self.edges)) != len(self.edges):
-                raise ValueError(
-                    f"surveillance.edges: births 'edges' needs one or more distinct edges of "
-                    f"{EDGES}, got {list(self.edges)}"
-                )
-        elif self.edges or self.birth_speed != 0.0:
-            raise ValueError(
-                "surveillance.edges and surveillance.birth_speed need births 'edges' (uniform "
-                f"births have no entry edge or direction), got edges {list(self.edges)}, "
-                f"birth_speed {self.birth_speed}"
-            )
+        check_surveillance(
+            self.region,
+            self.cell_size,
+            self.births,
+            self.edges,
+            self.birth_speed,
+            prefix="surveillance.",
+        )
 
     @property
     def shape(self) -> tuple[int, int]:
         """Cells along x and y (the region's sides over ``cell_size``, rounded up)."""
-        x0, x1, y0, y1 = self.region
-        return (
-            max(1, math.ceil((x1 - x0) / self.cell_size)),
-            max(1, math.ceil((y1 - y0) / self.cell_size)),
-        )
+        return grid_shape(self.region, self.cell_size)
 
 
 class UndetectedIntensity:

@@ -11,7 +11,6 @@ the registered kinds' configs (:mod:`.registry`).
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -21,6 +20,7 @@ from pydantic_core import core_schema
 from activetrack import limits
 from activetrack.checks import require_spd
 from activetrack.limits import MAX_SENSORS  # in PlatformConfig, whose field limits hides the module
+from activetrack.regions import check_surveillance
 from activetrack.scenarios.fields import (
     MOTION_STATE,
     PV,
@@ -416,25 +416,8 @@ class SurveillanceConfig(Strict):
 
     @model_validator(mode="after")
     def _region(self) -> SurveillanceConfig:
-        if self.births == "edges" and (not self.edges or len(set(self.edges)) < len(self.edges)):
-            raise ValueError(f"edges: births 'edges' needs distinct edges, got {self.edges}")
-        if self.births == "uniform" and (self.edges or self.birth_speed != 0.0):
-            raise ValueError(
-                f"edges and birth_speed need births 'edges' (uniform births have no entry edge "
-                f"or direction), got edges {self.edges}, birth_speed {self.birth_speed}"
-            )
-        x0, x1, y0, y1 = self.region
-        if not (x0 < x1 and y0 < y1):
-            raise ValueError(
-                f"region must be [x_min, x_max, y_min, y_max] with x_min < x_max and "
-                f"y_min < y_max, got {self.region}"
-            )
-        cells = math.ceil((x1 - x0) / self.cell_size) * math.ceil((y1 - y0) / self.cell_size)
-        if cells > limits.MAX_SURVEILLANCE_CELLS:
-            raise ValueError(
-                f"cell_size {self.cell_size} m gives {cells} cells over the region, more than "
-                f"{limits.MAX_SURVEILLANCE_CELLS}"
-            )
+        # the planner's own rules (activetrack.regions), so a file fails as a caller would
+        check_surveillance(self.region, self.cell_size, self.births, self.edges, self.birth_speed)
         return self
 
 
