@@ -19,9 +19,9 @@ dependencies, ``requirements-bench.txt``). The last line is ::
 - the crowded flag: on 10 targets crossing at one point (the bare filter's radar and
   clutter), our tracker's time-averaged GOSPA equals that of Stone Soup's exact JPDA (its
   efficient hypothesis management, ``JPDAWithEHM2``) within 0.01 m, association alone: no
-  initiation and no track deleted (the exact JPDA deletes none; coalescence, which would end
-  tracks as they cross, held off). The GOSPA with our track management as configured is
-  printed beside it with the deletions by reason.
+  initiation and no track deleted (the exact JPDA deletes none; coalescence held off). The
+  GOSPA with our track management as configured is printed beside it with the deletions by
+  reason.
 
 ``--quick`` (about a minute): part 1 on 2 runs of 20 scans, the bare line on 2 runs, the scale
 table on spread scenes of 3, 10, 30, 300 and 1,000 targets at 10 false alarms per scan with a

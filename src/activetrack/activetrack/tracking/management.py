@@ -14,10 +14,12 @@ epoch (M-of-N: Blackman & Popoli, *Design and Analysis of Modern Tracking System
   once its position standard deviation (sqrt of the largest eigenvalue of its xy covariance)
   exceeds ``max_position_std`` (lost: a planner cannot use it);
 - **coalescence** (two JPDA tracks drawn onto one target, Fitzgerald 1985; Blom & Bloem 2000):
-  of two confirmed tracks within Mahalanobis distance ``d^2 = dp^T (P_a + P_b)^-1 dp <=
-  COALESCE_D2`` at ``COALESCE_LOOKS`` consecutive joint looks the less supported is deleted
-  (lower existence, then fewer hits per look, then the younger: the larger id); tracks on two
-  crossing targets pass through that distance for an epoch or two;
+  of two confirmed tracks within Mahalanobis distance ``d^2 = dx^T (P_a + P_b)^-1 dx <=``
+  :func:`coalesce_d2` at ``COALESCE_LOOKS`` consecutive joint looks the less supported is
+  deleted (lower existence, then fewer hits per look, then the younger: the larger id). ``dx``
+  is the whole state, as in the track-to-track association test (Bar-Shalom 1981): two tracks
+  on one target agree in velocity too, while targets that cross, even crowded at one point,
+  differ in it and are kept;
 - **probability of existence** (IPDA: Musicki, Evans & Stankovic, IEEE TAC 39(6), 1994; among
   tracks that share detections LM-IPDA: Musicki & La Scala, IEEE TAES 44(3), 2008): predicted
   by ``existence_survival`` once per epoch at the track's first scan, updated by every scan that
@@ -40,6 +42,7 @@ epoch (M-of-N: Blackman & Popoli, *Design and Analysis of Modern Tracking System
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import Counter, deque
 from collections.abc import Callable
@@ -47,6 +50,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+from scipy.stats import chi2
 
 from activetrack.arraytypes import FloatArray
 from activetrack.checks import symmetrize
@@ -80,19 +84,32 @@ class TrackManagementConfig(Protocol):
 __all__ = [
     "COALESCE_D2",
     "COALESCE_LOOKS",
+    "COALESCE_QUANTILE",
     "EXISTENCE_INIT",
     "Track",
     "TrackManager",
+    "coalesce_d2",
     "existence_update",
     "position_std",
     "weaker",
 ]
 
-COALESCE_D2 = 0.5  # squared Mahalanobis distance of the two positions (2 dof: ~22 % quantile)
+# The chi^2 quantile of the coalescence test: 1 - exp(-1/4), ~22 %, the quantile of a squared
+# distance of 0.5 between two positions (2 dof), applied to the whole state.
+COALESCE_QUANTILE = 1.0 - math.exp(-0.25)
 COALESCE_LOOKS = 5  # consecutive joint looks
+
+
+@functools.cache
+def coalesce_d2(dim: int) -> float:
+    """The squared Mahalanobis distance below which two ``dim``-state tracks are close: the
+    chi^2 quantile :data:`COALESCE_QUANTILE` with ``dim`` degrees of freedom."""
+    return float(chi2.ppf(COALESCE_QUANTILE, dim))
+
+
+COALESCE_D2 = coalesce_d2(4)  # for pv states, ~1.77
 EXISTENCE_INIT = 0.2  # a track started from one detection
 _P_MAX = 1.0 - 1e-9  # cap of LM-IPDA's a priori probability that a detection is a track's
-_XY = np.ix_([0, 2], [0, 2])
 
 
 def position_std(cov: FloatArray) -> FloatArray:
@@ -331,7 +348,10 @@ class TrackManager:
         means = [t.mean for t in seen]
         covs = [t.cov for t in seen]
         xy = np.array([m[[0, 2]] for m in means])
-        reach2 = COALESCE_D2 * largest_xy_eigenvalue(np.array(covs))
+        # the positions' distance is at most the states' (a marginal of the same test): pairs
+        # within the threshold's reach in position hold every close pair
+        threshold = coalesce_d2(len(means[0]))
+        reach2 = threshold * largest_xy_eigenvalue(np.array(covs))
         row = {t.track_id: k for k, t in enumerate(seen)}
         out: set[int] = set()
         tested: set[tuple[int, int]] = set()
@@ -339,9 +359,9 @@ class TrackManager:
             a, b = seen[i], seen[j]
             pair = (a.track_id, b.track_id)
             tested.add(pair)
-            dp = (means[i] - means[j])[[0, 2]]
-            d2 = float(dp @ np.linalg.solve(covs[i][_XY] + covs[j][_XY], dp))
-            count = self._close.get(pair, 0) + 1 if d2 <= COALESCE_D2 else 0
+            dx = means[i] - means[j]
+            d2 = float(dx @ np.linalg.solve(covs[i] + covs[j], dx))
+            count = self._close.get(pair, 0) + 1 if d2 <= threshold else 0
             self._count(pair, count)
             if count >= COALESCE_LOOKS:
                 out.add(weaker(a, b).track_id)
