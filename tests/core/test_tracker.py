@@ -64,10 +64,11 @@ from activetrack.scenarios import load_scenario, with_tracker_overrides
 from activetrack.scenarios.build import build_motion_model, build_sensor
 from activetrack.scenarios.schema import Scenario, TrackManagementConfig
 from activetrack.tracking.management import (
-    COALESCE_D2,
     COALESCE_LOOKS,
+    COALESCE_QUANTILE,
     EXISTENCE_INIT,
     Track,
+    coalesce_d2,
     existence_update,
     weaker,
 )
@@ -542,8 +543,8 @@ def test_two_tracks_coalesced_on_one_target_lose_the_younger():
     assert tracker.book.deleted == {"coalesced": 1}
     # Exactly the rule: the COALESCE_LOOKS epochs up to the deletion were close, the one
     # before them (if any) was not.
-    assert all(x <= COALESCE_D2 for x in d2[gone - COALESCE_LOOKS + 1 :])
-    assert gone - COALESCE_LOOKS < 1 or d2[gone - COALESCE_LOOKS] > COALESCE_D2
+    assert all(x <= coalesce_d2(4) for x in d2[gone - COALESCE_LOOKS + 1 :])
+    assert gone - COALESCE_LOOKS < 1 or d2[gone - COALESCE_LOOKS] > coalesce_d2(4)
     assert gone <= 15  # the velocities agree within a few more epochs than the positions
     assert all(len(ts.tracks) == 1 for ts in sets[gone:])
     tracker, sets = run(make_scenario(both, [range_bearing(pd=0.9)]), scans)
@@ -1005,6 +1006,15 @@ def test_snapshots_draw_nothing():
         np.testing.assert_array_equal(a.mean, b.mean)
         np.testing.assert_array_equal(a.samples, b.samples)
         np.testing.assert_array_equal(again.samples, b.samples)  # the same samples each look
+
+
+def test_the_coalescence_threshold_is_the_position_test_s_quantile_on_the_whole_state():
+    from activetrack.stats import chi2_cdf
+
+    assert coalesce_d2(2) == pytest.approx(0.5, rel=1e-12)  # the old position-only threshold
+    for dim in (4, 5):  # pv, and a turn-rate state
+        assert chi2_cdf(coalesce_d2(dim), dim) == pytest.approx(COALESCE_QUANTILE, rel=1e-12)
+    assert 1.76 < coalesce_d2(4) < 1.77
 
 
 def test_targets_crossing_at_a_shallow_angle_keep_both_tracks():

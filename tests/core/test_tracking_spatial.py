@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from activetrack.models.fov import FieldOfView
-from activetrack.tracking.management import COALESCE_D2
+from activetrack.tracking.management import coalesce_d2
 from activetrack.tracking.spatial import FovIndex, close_pairs, largest_xy_eigenvalue
 
 
@@ -31,12 +31,12 @@ def test_close_pairs_holds_every_pair_the_mahalanobis_test_accepts():
     xy = rng.uniform(0.0, 3000.0, (n, 2))  # crowded: many pairs within reach
     covs = _covs(rng, n)
     P = covs[:, [0, 2]][:, :, [0, 2]]
-    found = set(close_pairs(xy, COALESCE_D2 * largest_xy_eigenvalue(covs)))
+    found = set(close_pairs(xy, coalesce_d2(4) * largest_xy_eigenvalue(covs)))
     close = set()
     for i in range(n):
         dp = xy[i] - xy[i + 1 :]
         d2 = np.einsum("kd,kd->k", dp, np.linalg.solve(P[i] + P[i + 1 :], dp[..., None])[..., 0])
-        close |= {(i, i + 1 + k) for k in np.flatnonzero(d2 <= COALESCE_D2)}
+        close |= {(i, i + 1 + k) for k in np.flatnonzero(d2 <= coalesce_d2(4))}
     assert len(close) > 50
     assert close <= found
     assert len(found) < n * (n - 1) // 4  # and it is not all the pairs

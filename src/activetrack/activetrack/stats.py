@@ -11,7 +11,7 @@ import numpy as np
 
 from activetrack.arraytypes import FloatArray
 
-__all__ = ["chi2_cdf", "log_sum_exp", "t_quantile"]
+__all__ = ["chi2_cdf", "chi2_quantile", "log_sum_exp", "t_quantile"]
 
 
 def chi2_cdf(x: float, dof: float) -> float:
@@ -20,6 +20,14 @@ def chi2_cdf(x: float, dof: float) -> float:
     from scipy.special import gammainc
 
     return float(gammainc(0.5 * dof, 0.5 * x))
+
+
+def chi2_quantile(q: float, dof: float) -> float:
+    """The q quantile of chi-square with ``dof`` degrees of freedom: 2 P^-1(dof / 2, q), the
+    inverse of :func:`chi2_cdf`."""
+    from scipy.special import gammaincinv
+
+    return float(2.0 * gammaincinv(0.5 * dof, q))
 
 
 def t_quantile(q: float, dof: float) -> float:

@@ -50,7 +50,6 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-from scipy.stats import chi2
 
 from activetrack.arraytypes import FloatArray
 from activetrack.checks import symmetrize
@@ -58,6 +57,7 @@ from activetrack.data import CONFIRMED, TENTATIVE, TrackEstimate
 from activetrack.filters.jpda import Oversize
 from activetrack.filters.measurement import TrackingFilter
 from activetrack.models.base import MotionModel
+from activetrack.stats import chi2_quantile
 from activetrack.tracking.spatial import close_pairs, largest_xy_eigenvalue
 
 
@@ -82,7 +82,6 @@ class TrackManagementConfig(Protocol):
 
 
 __all__ = [
-    "COALESCE_D2",
     "COALESCE_LOOKS",
     "COALESCE_QUANTILE",
     "EXISTENCE_INIT",
@@ -104,10 +103,9 @@ COALESCE_LOOKS = 5  # consecutive joint looks
 def coalesce_d2(dim: int) -> float:
     """The squared Mahalanobis distance below which two ``dim``-state tracks are close: the
     chi^2 quantile :data:`COALESCE_QUANTILE` with ``dim`` degrees of freedom."""
-    return float(chi2.ppf(COALESCE_QUANTILE, dim))
+    return chi2_quantile(COALESCE_QUANTILE, dim)  # 1.77 for pv states
 
 
-COALESCE_D2 = coalesce_d2(4)  # for pv states, ~1.77
 EXISTENCE_INIT = 0.2  # a track started from one detection
 _P_MAX = 1.0 - 1e-9  # cap of LM-IPDA's a priori probability that a detection is a track's
 
