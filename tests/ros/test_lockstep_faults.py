@@ -6,6 +6,7 @@ The short scenario's messages per epoch: a truth array, two platform states, two
 epoch 1), a track array, two commands and a plan report (to epoch 7); the n-th message of a
 topic below is epoch 3's (its first platform's, where there are two)."""
 
+import sys
 import time
 from dataclasses import replace
 
@@ -16,6 +17,7 @@ from rclpy.parameter import Parameter
 
 from activetrack.filters.jpda import NetOversize
 from activetrack_bringup.runner import RunIncomplete, epoch_timeouts, run_graph
+from activetrack_bringup.supervisor import Supervisor
 from activetrack_ros import graph as topics
 from activetrack_ros.inject import ENV, parse
 from activetrack_ros.node_base import Rejected, unaccounted
@@ -265,6 +267,35 @@ def test_node_processes_wait_for_a_late_scan_too(clean, tmp_path, monkeypatch, l
     assert run.diagnostics["sim"].get(f"injected.delay.{topics.SCANS}") == 1
     assert run.timeouts == {}
     assert_same_run(_record(run), _record(clean))
+
+
+@pytest.mark.slow
+def test_a_tracker_process_that_starts_slowly_is_waited_for(
+    clean, tmp_path, monkeypatch, localhost_discovery
+):
+    """The tracker's process takes 2 s more than the command timeout to start: the runner's
+    sim expects a tracker (expect_tracker), so it waits for the track array although no
+    writer of it is discovered yet; no timeout fires and the run is the clean one. Without
+    expect_tracker the sim takes the tracker for absent and holds course (below)."""
+    spawn = Supervisor._spawn
+    pause = COMMAND_TIMEOUT + 2.0
+    slow = f"import os, sys, time; time.sleep({pause}); os.execv(sys.argv[1], sys.argv[1:])"
+
+    def slow_tracker(self, node):
+        if node.name == "tracker_node" and node.argv[0] != sys.executable:
+            node.argv = [sys.executable, "-c", slow, *node.argv]
+        spawn(self, node)
+
+    monkeypatch.setattr(Supervisor, "_spawn", slow_tracker)
+    started = time.monotonic()
+    run = _run(tmp_path, monkeypatch, processes=True)
+    _assert_status(run)
+    assert run.timeouts == {}
+    assert time.monotonic() - started > pause
+    assert_same_run(_record(run), _record(clean))
+    off = {"expect_tracker": False}
+    alone = _run(tmp_path / "alone", monkeypatch, sim_params=off, processes=True)
+    assert alone.timeouts[0]["sim"]["no_track_array"] == 1
 
 
 def _all_counted(run) -> None:

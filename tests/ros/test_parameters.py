@@ -21,7 +21,7 @@ from tracker_node.tracker_node import TrackerNode
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
 READ_ONLY = {
-    "sim_node": {"scenario", "run", "mode", "frame_id", "tick"},
+    "sim_node": {"scenario", "run", "mode", "frame_id", "tick", "expect_tracker"},
     "tracker_node": {"scenario", "run", "mode", "frame_id", "particles", "filter"},
     "planner_node": {"scenario", "run", "frame_id"},
 }

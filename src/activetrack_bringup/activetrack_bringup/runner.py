@@ -315,6 +315,8 @@ class _GraphRunner:
         every = {"scenario": scenario_path, "run": -1 if opts.run is None else int(opts.run)}
         mode = {"mode": opts.mode}  # the planner plans alike in both modes: it has no mode
         self.params = {"sim": every | mode, "tracker": every | mode, "planner": dict(every)}
+        # every graph run has a tracker (here or on another host): the sim waits for it
+        self.params["sim"]["expect_tracker"] = True
         self.params["tracker"].update(opts.tracker_params or {})
         self.wait = wait  # --wait-for: the sim holds its first epoch (activetrack_ros.hold)
         self.sim_started = self.wait is None

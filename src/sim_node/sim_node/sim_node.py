@@ -73,6 +73,13 @@ PARAMS = (
         read_only=False, low=1e-3, high=3600.0,
     ),
     ParamSpec(
+        "expect_tracker", False,
+        "lockstep: a tracker belongs to this graph (the graph runner sets it), so the sim waits "
+        "tracks_timeout for its track array even while its writer is not yet discovered (a "
+        "tracker process still starting); false: no track array writer on the graph after "
+        "command_timeout means the sim runs alone",
+    ),
+    ParamSpec(
         "tick", 0.01, "wall seconds between timeout checks (free mode: between clock ticks)",
         low=1e-3, high=1.0,
     ),
@@ -94,6 +101,7 @@ class SimNode(GraphNode):
         self.rate = p["rate"]
         self.timeout = p["command_timeout"]
         self.tracks_timeout = p["tracks_timeout"]
+        self.expect_tracker = p["expect_tracker"]
         self.exit_when_done = p["exit_when_done"]
         rng = component_rngs(self.scenario.seed, None if p["run"] < 0 else p["run"])[0]
         self.sim = build_simulator(self.scenario, rng)
@@ -270,13 +278,15 @@ class SimNode(GraphNode):
         """Lockstep, epoch incomplete: has the wait for its answers run out? Until the tracker
         answers, the epoch's messages are still in the graph (a late scan the tracker waits
         for): the sim waits up to tracks_timeout, or command_timeout if no tracker is on the
-        graph (the sim alone); then command_timeout from the tracker's answer."""
+        graph (the sim alone; never with expect_tracker); then command_timeout from the
+        tracker's answer."""
         waited = time.monotonic() - self.epoch_started
         if self.answered:
             return waited >= self.timeout
         if waited >= self.tracks_timeout:
             return True
-        return waited >= self.timeout and self.count_publishers(topics.TRACKS) == 0
+        alone = not self.expect_tracker and self.count_publishers(topics.TRACKS) == 0
+        return waited >= self.timeout and alone
 
     def hold_missing(self) -> None:
         """Past the timeout: hold course, keep the beams and the selection (warned, counted,
