@@ -83,6 +83,7 @@ def _parameters():
         **graph, **mode, "rate": _value("rate", float), "exit_when_done": _sim_exits(),
         "wait_for_subscribers": _value("wait_for_subscribers", int),
         "wait_for_topic": _value("wait_for_topic", str), "wait_for_nodes": _run_readers(),
+        "expect_tracker": True,  # started below: waited for even while still starting
     }  # fmt: skip
     return {  # the planner plans alike in both modes: it has no mode
         "sim_node": ("sim_node", "sim_node", sim),
