@@ -280,6 +280,8 @@ def test_every_parameter_is_declared_by_its_node(launched, declared_parameters):
         assert not unknown, f"{name} declares no parameter {unknown}"
         # A launch argument's default is the node's (scenario and bag: required).
         for param, value in passed.items():
+            if not hasattr(value, "args"):
+                continue  # a literal the launch file sets, not a launch argument
             typed = _perform(value, defaults)
             if typed is None or param == "bag" or value.args[0].api.endswith("Expression"):
                 continue  # a required argument, or one computed from several
@@ -289,7 +291,9 @@ def test_every_parameter_is_declared_by_its_node(launched, declared_parameters):
 def _perform(value, arguments: dict):
     """A recorded ParameterValue evaluated as launch would, given the arguments' values (None
     if a required one has none): LaunchConfiguration, AndSubstitution, NotSubstitution,
-    PythonExpression."""
+    PythonExpression; a literal (no ParameterValue) as it is."""
+    if not hasattr(value, "args"):
+        return value
 
     def text(sub) -> str | None:
         kind = sub.api.rsplit(".", 1)[1]
