@@ -6,7 +6,6 @@ The short scenario's messages per epoch: a truth array, two platform states, two
 epoch 1), a track array, two commands and a plan report (to epoch 7); the n-th message of a
 topic below is epoch 3's (its first platform's, where there are two)."""
 
-import sys
 import time
 from dataclasses import replace
 
@@ -17,10 +16,10 @@ from rclpy.parameter import Parameter
 
 from activetrack.filters.jpda import NetOversize
 from activetrack_bringup.runner import RunIncomplete, epoch_timeouts, run_graph
-from activetrack_bringup.supervisor import Supervisor
 from activetrack_ros import graph as topics
 from activetrack_ros.inject import ENV, parse
 from activetrack_ros.node_base import Rejected, unaccounted
+from sim_node import sim_node
 from tracker_node import tracker_node
 
 SCENARIO = "tests/ros/data/short_two_sensors.yaml"
@@ -269,33 +268,27 @@ def test_node_processes_wait_for_a_late_scan_too(clean, tmp_path, monkeypatch, l
     assert_same_run(_record(run), _record(clean))
 
 
-@pytest.mark.slow
-def test_a_tracker_process_that_starts_slowly_is_waited_for(
-    clean, tmp_path, monkeypatch, localhost_discovery
-):
-    """The tracker's process takes 2 s more than the command timeout to start: the runner's
-    sim expects a tracker (expect_tracker), so it waits for the track array although no
-    writer of it is discovered yet; no timeout fires and the run is the clean one. Without
-    expect_tracker the sim takes the tracker for absent and holds course (below)."""
-    spawn = Supervisor._spawn
-    pause = COMMAND_TIMEOUT + 2.0
-    slow = f"import os, sys, time; time.sleep({pause}); os.execv(sys.argv[1], sys.argv[1:])"
-
-    def slow_tracker(self, node):
-        if node.name == "tracker_node" and node.argv[0] != sys.executable:
-            node.argv = [sys.executable, "-c", slow, *node.argv]
-        spawn(self, node)
-
-    monkeypatch.setattr(Supervisor, "_spawn", slow_tracker)
-    started = time.monotonic()
-    run = _run(tmp_path, monkeypatch, processes=True)
-    _assert_status(run)
-    assert run.timeouts == {}
-    assert time.monotonic() - started > pause
-    assert_same_run(_record(run), _record(clean))
-    off = {"expect_tracker": False}
-    alone = _run(tmp_path / "alone", monkeypatch, sim_params=off, processes=True)
-    assert alone.timeouts[0]["sim"]["no_track_array"] == 1
+@pytest.mark.parametrize("expect_tracker", [False, True])
+def test_a_sim_that_expects_a_tracker_waits_for_one_not_yet_discovered(graph, expect_tracker):
+    """No track array writer on the graph (a tracker process still starting): a sim alone holds
+    course after command_timeout; one that expects a tracker (the graph runner's) waits up to
+    tracks_timeout for its track array."""
+    params = [
+        Parameter("scenario", value=SCENARIO),
+        Parameter("command_timeout", value=0.5),
+        Parameter("tracks_timeout", value=1.5),
+        Parameter("expect_tracker", value=expect_tracker),
+    ]
+    sim = graph.add(sim_node.SimNode(context=graph.context, parameter_overrides=params))
+    started = sim.epoch_started  # epoch 0, published at start-up
+    held = lambda: sim.counters.counts.get("timeout.0.no_track_array", 0) == 1  # noqa: E731
+    assert graph.spin_until(held, timeout=5.0, step=0.005)
+    waited = time.monotonic() - started
+    assert sim.count_publishers(topics.TRACKS) == 0
+    if expect_tracker:
+        assert 1.5 <= waited < 2.5
+    else:
+        assert 0.5 <= waited < 1.4
 
 
 def _all_counted(run) -> None:
