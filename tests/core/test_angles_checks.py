@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from activetrack.angles import angle_diff, wrap_angle, wrap_half_angle
+from activetrack.angles import angle_diff, within_angle, wrap_angle, wrap_half_angle
 from activetrack.checks import (
     require_finite,
     require_in_range,
@@ -53,6 +53,44 @@ def test_wrap_half_angle_modulo_pi():
 def test_angle_diff_across_wrap():
     assert angle_diff(math.pi - 0.1, -math.pi + 0.1) == pytest.approx(-0.2)
     assert angle_diff(-math.pi + 0.1, math.pi - 0.1) == pytest.approx(0.2)
+
+
+def _within_directly(a, c, half):
+    return np.abs(wrap_angle(np.asarray(a)[None, :] - np.asarray(c)[:, None])) <= half
+
+
+@pytest.mark.parametrize("half", [1e-7, 0.05, 0.1, 1.0, 3.0, math.pi - 1e-12])
+def test_within_angle_is_the_wrapped_test_to_the_bit_at_every_edge(half):
+    """Cells exactly at a beam's edge (c +- half, rounded), a hair inside and outside it,
+    across the +-pi cut, and at random: the cosine test decides every pair as the wrapped
+    difference does."""
+    rng = np.random.default_rng(20261128)
+    c = np.concatenate([rng.uniform(-math.pi, math.pi, 40), [-math.pi, math.pi - 1e-15, 0.0]])
+    edges = np.concatenate([c + half, c - half])
+    a = np.concatenate(
+        [
+            rng.uniform(-4.0, 4.0, 2000),
+            edges,
+            np.nextafter(edges, np.inf),
+            np.nextafter(edges, -np.inf),
+            edges + 2.0 * math.pi,
+            edges - 2.0 * math.pi,
+            edges + 1e-12,
+            edges - 1e-12,
+        ]
+    )
+    got = within_angle(a, c, half)
+    assert got.shape == (c.size, a.size)
+    assert np.array_equal(got, _within_directly(a, c, half))
+    assert got.any() and not got.all()
+
+
+def test_within_angle_a_half_width_of_pi_or_more_holds_every_angle():
+    a = np.linspace(-10.0, 10.0, 101)
+    assert within_angle(a, [0.0, 2.0], math.pi).all()
+    assert np.array_equal(
+        within_angle(a, [1.0], math.pi - 1e-9), _within_directly(a, [1.0], math.pi - 1e-9)
+    )
 
 
 def test_require_finite():

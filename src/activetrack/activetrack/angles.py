@@ -12,9 +12,12 @@ import numpy as np
 
 from activetrack.arraytypes import ArrayLike, FloatArray
 
-__all__ = ["angle_diff", "wrap_angle", "wrap_half_angle"]
+__all__ = ["angle_diff", "within_angle", "wrap_angle", "wrap_half_angle"]
 
 TWO_PI = 2.0 * np.pi
+# |cos(a - c) - cos(half)| below which within_angle takes the wrapped difference: far above the
+# rounding of the cosines' products (~1e-16), so no pair the direct test decides otherwise escapes
+EDGE_BAND = 1e-9
 
 
 def wrap_angle(a: ArrayLike) -> FloatArray:
@@ -36,3 +39,24 @@ def wrap_half_angle(a: ArrayLike) -> FloatArray:
 def angle_diff(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """Shortest signed difference ``a - b`` wrapped to ``[-pi, pi)``."""
     return wrap_angle(np.asarray(a, dtype=float) - np.asarray(b, dtype=float))
+
+
+def within_angle(a: ArrayLike, centres: ArrayLike, half: float) -> np.ndarray:
+    """``|wrap_angle(a_n - c_j)| <= half`` for angles a ``(N,)`` and centres c ``(J,)``, bool
+    ``(J, N)``, as cos(a_n - c_j) >= cos(half): one ``(J, 2)`` by ``(2, N)`` product in place of
+    J x N wrapped differences (the planner's search tests every cell for every pointing of
+    every candidate). The pairs whose cosine lies within EDGE_BAND of cos(half) take the
+    wrapped difference itself, so the result is the direct test's, to the bit."""
+    a = np.asarray(a, dtype=float).reshape(-1)
+    c = np.asarray(centres, dtype=float).reshape(-1)
+    if half >= np.pi:
+        return np.ones((c.size, a.size), dtype=bool)
+    cos_off = np.stack([np.cos(c), np.sin(c)], axis=1) @ np.stack([np.cos(a), np.sin(a)])
+    edge = np.cos(half)
+    inside = cos_off >= edge
+    near = cos_off > edge - EDGE_BAND
+    near &= cos_off < edge + EDGE_BAND  # compared, not subtracted: no J x N float temporaries
+    if near.any():
+        rows, cols = np.nonzero(near)
+        inside[rows, cols] = np.abs(wrap_angle(a[cols] - c[rows])) <= half
+    return inside

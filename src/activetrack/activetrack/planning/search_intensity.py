@@ -55,7 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from activetrack.angles import wrap_angle
+from activetrack.angles import within_angle, wrap_angle
 from activetrack.arraytypes import ArrayLike
 from activetrack.checks import require_positive
 from activetrack.models.clutter import ClutteredSensor
@@ -276,8 +276,7 @@ def footprints(
     bearings = np.asarray(bearings, dtype=float).reshape(-1)
     if sensor.beam_width is None:
         return np.broadcast_to(inside, (len(bearings), len(inside))).copy()
-    off = np.abs(wrap_angle(b[None, :] - bearings[:, None]))
-    return inside[None, :] & (off <= 0.5 * sensor.beam_width)
+    return inside[None, :] & within_angle(b, bearings, 0.5 * sensor.beam_width)
 
 
 def cell_bearings(xy: np.ndarray, pv: np.ndarray) -> np.ndarray:
