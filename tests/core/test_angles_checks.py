@@ -85,9 +85,11 @@ def test_within_angle_is_the_wrapped_test_to_the_bit_at_every_edge(half):
     assert got.any() and not got.all()
 
 
-def test_within_angle_a_half_width_of_pi_or_more_holds_every_angle():
+def test_within_angle_a_half_width_of_pi_or_more_holds_every_angle_and_a_negative_one_none():
     a = np.linspace(-10.0, 10.0, 101)
     assert within_angle(a, [0.0, 2.0], math.pi).all()
+    assert not within_angle(a, [0.0, 2.0], -0.1).any()
+    assert not within_angle([math.nan], [0.0], 1.0).any()
     assert np.array_equal(
         within_angle(a, [1.0], math.pi - 1e-9), _within_directly(a, [1.0], math.pi - 1e-9)
     )

@@ -49,8 +49,8 @@ def within_angle(a: ArrayLike, centres: ArrayLike, half: float) -> np.ndarray:
     wrapped difference itself, so the result is the direct test's, to the bit."""
     a = np.asarray(a, dtype=float).reshape(-1)
     c = np.asarray(centres, dtype=float).reshape(-1)
-    if half >= np.pi:
-        return np.ones((c.size, a.size), dtype=bool)
+    if half >= np.pi or half < 0.0:  # every angle, or none (the direct test's answers)
+        return np.full((c.size, a.size), half >= np.pi)
     cos_off = np.stack([np.cos(c), np.sin(c)], axis=1) @ np.stack([np.cos(a), np.sin(a)])
     edge = np.cos(half)
     inside = cos_off >= edge
