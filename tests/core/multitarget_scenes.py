@@ -44,6 +44,8 @@ def assert_the_report_states_the_verdict(result) -> None:
             sc.paired(b).high < 0 for b in multitarget.BASELINES
         )
         assert f"{letter} {100 * margin:.0f}%: {'met' if met else 'MISSED'}" in verdict
+    missed = "MISSED" in verdict
+    assert (multitarget.MISSED_NOTE in text.splitlines()) == missed
     rows = result.table()
     assert [r["strategy"] for r in rows] == list(multitarget.STRATEGIES) * len(names)
     assert [r["scenario"] for r in rows] == [n for n in names for _ in multitarget.STRATEGIES]

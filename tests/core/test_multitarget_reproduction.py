@@ -89,3 +89,13 @@ def test_stonesoup_manager_runs_paired_on_scenario_d():
     assert text.splitlines()[-1] == (
         f"planner_gain_vs_best_baseline_pct=d:{100 * sc.gain_vs_best_baseline():.1f}"
     )
+
+
+def test_the_command_prints_the_gain_key_as_its_last_line(capsys):
+    """What ``activetrack reproduce multitarget`` prints ends with the gain key (the figures
+    written and the wall time go to stderr), so ``| tail -1`` reads it."""
+    argv = ["--scenario", "mt_radars_beams", "--runs", "1", "--no-stonesoup", "--no-figures"]
+    assert multitarget.main(argv) == 0
+    out, err = capsys.readouterr()
+    assert out.rstrip("\n").splitlines()[-1].startswith("planner_gain_vs_best_baseline_pct=b:")
+    assert "wall time" in err and "wall time" not in out

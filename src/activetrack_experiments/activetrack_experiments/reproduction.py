@@ -122,7 +122,8 @@ class Reproduction:
         task_progress: Callable[[int, int], None] | None = None,
     ) -> int:
         """``activetrack reproduce NAME`` with ``argv`` (default: ``sys.argv[1:]``): run, print
-        the report, the figures written and the wall time, write the JSON document; 0."""
+        the report (stdout), the figures written and the wall time (stderr), write the JSON
+        document; 0."""
         args = self.parse(sys.argv[1:] if argv is None else argv)
         start = time.perf_counter()
         kw = dict(jobs=args.jobs, scheduler=args.scheduler, task_progress=task_progress)
@@ -134,10 +135,11 @@ class Reproduction:
             figures = self.figures(res, args)
         else:
             figures = self._paper("save_figures")(res, args.out)
+        # On stderr: the report is stdout's last lines (multitarget's last is the gain key)
         if figures:
-            print("\nfigures: " + ", ".join(str(f) for f in figures))
+            print("figures: " + ", ".join(str(f) for f in figures), file=sys.stderr)
         wall_time_s = time.perf_counter() - start
-        print(f"wall time {wall_time_s:.1f} s")
+        print(f"wall time {wall_time_s:.1f} s", file=sys.stderr)
         doc = res.to_json() if self.document is None else self.document(res, figures, wall_time_s)
         paths = [] if args.no_figures else [args.out / "results.json"]
         for path in paths + ([args.json] if args.json is not None else []):
