@@ -332,16 +332,15 @@ def format_report(res: MultiTargetResult) -> str:
     if res.manager_note:
         lines.append(res.manager_note)
     lines.append("")
+    judged = [(sc.name, sc.meets_margin()) for sc in res.scenarios if sc.name in MARGINS]
     verdicts = [
-        f"{LETTERS.get(sc.name, sc.name)} {100 * MARGINS[sc.name]:.0f}%: "
-        + ("met" if sc.meets_margin() else "MISSED")
-        for sc in res.scenarios
-        if sc.name in MARGINS
+        f"{LETTERS.get(name, name)} {100 * MARGINS[name]:.0f}%: " + ("met" if met else "MISSED")
+        for name, met in judged
     ]
     lines.append(
         "margin below the better baseline, both paired intervals below zero: " + ", ".join(verdicts)
     )
-    if any(v.endswith("MISSED") for v in verdicts):
+    if not all(met for _, met in judged):
         lines.append(MISSED_NOTE)
     gains = ",".join(
         f"{LETTERS.get(sc.name, sc.name)}:{100 * sc.gain_vs_best_baseline():.1f}"
