@@ -518,3 +518,42 @@ def test_a_new_tentative_track_weighs_the_birth_odds_of_its_cell():
     assert planner._tentative_existence(missed) == pytest.approx(
         0.05 / 0.95 * f / (1 + 0.05 / 0.95 * f)
     )
+
+
+def test_a_beams_hits_on_many_targets_are_its_hit_on_each_to_the_bit():
+    """``hits`` (the tentative tracks of a search, all at once) against ``hit`` one by one:
+    targets 50 m to 42 km off (r_max 16 km), wide and tight spreads."""
+    sc = parse_scenario(_scene(SURVEILLANCE), "s")
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    sensor = planner.sensors[0]
+    rng = np.random.default_rng(7)
+    pv = planner._ahead(np.array(sc.platforms[0].initial_state))
+    xs = np.zeros((40, 4))
+    xs[:, ::2] = pv[::2] + rng.uniform(-30000.0, 30000.0, (40, 2))
+    xs[:, 1::2] = rng.normal(0.0, 10.0, (40, 2))
+    xs[0, ::2] = pv[::2] + np.array([50.0, 0.0])
+    A = rng.normal(0.0, 1.0, (40, 4, 4))
+    Ps = A @ np.swapaxes(A, 1, 2) * rng.uniform(1.0, 1e4, (40, 1, 1)) + 1e-3 * np.eye(4)
+    many = sensor.hits(xs, pv, Ps)
+    one = [sensor.hit(x, pv, P, NO_MISSES) for x, P in zip(xs, Ps, strict=True)]
+    assert many.tolist() == one
+    assert 0.0 in one and max(one) > 0.5  # out of range and in the beam
+
+
+def test_the_candidates_of_one_decision_share_one_search_scene():
+    """The tracks' predictions, the uncovered cells and the tentative tracks are worked out
+    once per decision, and again for other tracks."""
+    sc = parse_scenario(_scene(SURVEILLANCE), "s")
+    planner = build_across_targets(sc, np.random.default_rng(0))
+    pv = np.array(sc.platforms[0].initial_state)
+    m = np.array([3000.0, 0.0, 5000.0, 0.0])
+    P = np.diag([25.0, 0.25, 25.0, 0.25])
+    tracks = (TrackEstimate(2, "tentative", m, P, m, P, existence=0.2),)
+    ahead = planner._ahead(pv)
+    (first,) = planner._search_options(tracks, [0], ahead[None])
+    scene = planner._search_scene
+    (again,) = planner._search_options(tracks, [0], ahead[None])
+    assert planner._search_scene is scene
+    assert again.values.tolist() == first.values.tolist() and again.track_ids[-1] == 2
+    (other,) = planner._search_options((), [0], ahead[None])
+    assert planner._search_scene is not scene and -1 == other.track_ids.max()

@@ -192,6 +192,12 @@ class _Sensor:
         inside, c = look_factors(self.model, x, pv, P, missed)
         return float(self.model.pd) * float(inside) * float(c)
 
+    def hits(self, xs: np.ndarray, pv: np.ndarray, Ps: np.ndarray) -> np.ndarray:
+        """:meth:`hit` of K targets N(xs, Ps), ``(K, 4)`` and ``(K, 4, 4)``, from one pv
+        ``(4,)`` without misses: ``(K,)``, the same numbers as target by target."""
+        inside, c = look_factors(self.model, xs, pv, Ps, NO_MISSES)
+        return float(self.model.pd) * inside * c
+
 
 @dataclass
 class _PcrlbStage:
@@ -293,6 +299,21 @@ class _Pointings:
     bearings: np.ndarray
     values: np.ndarray
     track_ids: np.ndarray
+
+
+@dataclass(frozen=True)
+class _SearchScene:
+    """What every beam's search pointings share in one decision (:meth:`MultiTargetPlanner.
+    _search_options`): the cells no track covers ``free`` ``(N,)``, the tentative tracks
+    that may hold a target not yet tracked with their predictions ``x`` ``(K, 4)``, ``P``
+    ``(K, 4, 4)`` and existences ``exist`` ``(K,)``."""
+
+    tracks: Sequence[TrackEstimate]
+    free: np.ndarray
+    tentative: tuple[TrackEstimate, ...]
+    x: np.ndarray
+    P: np.ndarray
+    exist: np.ndarray
 
 
 @dataclass
@@ -432,6 +453,7 @@ class MultiTargetPlanner:
         )
         self.pending_looks: list[tuple[int, float | None]] = []
         self.all_tracks: tuple[TrackEstimate, ...] = ()
+        self._search_scene: _SearchScene | None = None  # this decision's, once computed
         # the odds e / kappa per cell of this epoch's looks, and per track from a detection
         # the factor from the tracker's initial odds to the birth odds of its first detection
         self.odds_now = np.zeros(0)
@@ -469,6 +491,7 @@ class MultiTargetPlanner:
         ]
         self._note_looks(tracks)
         self.all_tracks = tracks.tracks  # tentative ones too: their cells are not searched
+        self._search_scene = None
         if self.undetected is not None:
             self._deplete(snaps)
             self._note_births(tracks)
@@ -574,39 +597,53 @@ class MultiTargetPlanner:
         track, the target it may hold found with its existence r times the chance of a hit
         (r Pd I c_beam c^p / alpha per epoch: confirming it needs looks at it)."""
         u = cast(UndetectedIntensity, self.undetected)
+        scene = self._search_scene
+        if scene is None or scene.tracks is not tracks:  # the candidates of one decision share it
+            scene = self._search_scene = self._scene_for_search(tracks)
+        k = self.settings.gospa
+        cardinality = k.cardinality if k is not None else 1.0
+        epochs = self.lookahead if self.gospa is not None else 1
+        out = []
+        D = u.intensity  # the beams' common data: summed over the layers once
+        ids = [t.track_id for t in scene.tentative]
+        for i, pv in zip(beams, pvs, strict=True):
+            s = self.sensors[i]
+            bearings = search_bearings(u.xy, pv, cast(float, s.model.beam_width))
+            seen = footprints(s.model, u.xy, pv, bearings) & scene.free
+            values = search_value(D, seen, float(s.model.pd), cardinality, epochs)
+            at = [math.atan2(x[2] - pv[2], x[0] - pv[0]) for x in scene.x]
+            found = scene.exist * s.hits(scene.x, pv, scene.P) if ids else np.zeros(0)
+            out.append(
+                _Pointings(
+                    np.concatenate([bearings, at]),
+                    np.concatenate([values, found * cardinality * epochs]),
+                    np.array([-1] * len(bearings) + ids),
+                )
+            )
+        return out
+
+    def _scene_for_search(self, tracks: Sequence[TrackEstimate]) -> _SearchScene:
+        """:class:`_SearchScene` of ``tracks`` at the next epoch (their CV predictions)."""
+        u = cast(UndetectedIntensity, self.undetected)
         F = self.dynamics.F
         Q = self.dynamics.Q
         ahead = [(t, F @ t.mean[:4], F @ t.cov[:4, :4] @ F.T + Q) for t in tracks]
         xy = np.array([[x[0], x[2]] for _, x, _ in ahead]).reshape(-1, 2)
         k = self.settings.gospa
-        free = u.uncovered(xy, k.c if k is not None else 0.0)
-        cardinality = k.cardinality if k is not None else 1.0
-        epochs = self.lookahead if self.gospa is not None else 1
         held = xy[[t.status == "confirmed" for t, _, _ in ahead]]
         tentative = [  # one within c of a confirmed track is that track's target again
             a
             for a, near in zip(ahead, self._near_held(xy, held, k), strict=True)
             if a[0].status != "confirmed" and not near
         ]
-        out = []
-        D = u.intensity  # the beams' common data: summed over the layers once
-        exist = [self._tentative_existence(t) for t, _, _ in tentative]
-        for i, pv in zip(beams, pvs, strict=True):
-            s = self.sensors[i]
-            bearings = search_bearings(u.xy, pv, cast(float, s.model.beam_width))
-            seen = footprints(s.model, u.xy, pv, bearings) & free
-            values = search_value(D, seen, float(s.model.pd), cardinality, epochs)
-            at = [math.atan2(x[2] - pv[2], x[0] - pv[0]) for _, x, _ in tentative]
-            hits = [s.hit(x, pv, P, NO_MISSES) for _, x, P in tentative]
-            found = [r * h for r, h in zip(exist, hits, strict=True)]
-            out.append(
-                _Pointings(
-                    np.concatenate([bearings, at]),
-                    np.concatenate([values, np.array(found) * cardinality * epochs]),
-                    np.array([-1] * len(bearings) + [t.track_id for t, _, _ in tentative]),
-                )
-            )
-        return out
+        return _SearchScene(
+            tracks,
+            u.uncovered(xy, k.c if k is not None else 0.0),
+            tuple(t for t, _, _ in tentative),
+            np.array([x for _, x, _ in tentative]).reshape(-1, 4),
+            np.array([P for _, _, P in tentative]).reshape(-1, 4, 4),
+            np.array([self._tentative_existence(t) for t, _, _ in tentative], dtype=float),
+        )
 
     def _epoch(
         self, epoch: int, planners: list[PlannerPlatform], tracks: tuple[TrackEstimate, ...]
