@@ -305,12 +305,12 @@ class _Pointings:
 class _SearchScene:
     """What every beam's search pointings share in one decision (:meth:`MultiTargetPlanner.
     _search_options`): the cells no track covers ``free`` ``(N,)``, the tentative tracks
-    that may hold a target not yet tracked with their predictions ``x`` ``(K, 4)``, ``P``
-    ``(K, 4, 4)`` and existences ``exist`` ``(K,)``."""
+    that may hold a target not yet tracked (``track_ids``) with their predictions ``x``
+    ``(K, 4)``, ``P`` ``(K, 4, 4)`` and existences ``exist`` ``(K,)``."""
 
     tracks: Sequence[TrackEstimate]
     free: np.ndarray
-    tentative: tuple[TrackEstimate, ...]
+    track_ids: list[int]
     x: np.ndarray
     P: np.ndarray
     exist: np.ndarray
@@ -605,19 +605,18 @@ class MultiTargetPlanner:
         epochs = self.lookahead if self.gospa is not None else 1
         out = []
         D = u.intensity  # the beams' common data: summed over the layers once
-        ids = [t.track_id for t in scene.tentative]
         for i, pv in zip(beams, pvs, strict=True):
             s = self.sensors[i]
             bearings = search_bearings(u.xy, pv, cast(float, s.model.beam_width))
             seen = footprints(s.model, u.xy, pv, bearings) & scene.free
             values = search_value(D, seen, float(s.model.pd), cardinality, epochs)
             at = [math.atan2(x[2] - pv[2], x[0] - pv[0]) for x in scene.x]
-            found = scene.exist * s.hits(scene.x, pv, scene.P) if ids else np.zeros(0)
+            found = scene.exist * s.hits(scene.x, pv, scene.P)
             out.append(
                 _Pointings(
                     np.concatenate([bearings, at]),
                     np.concatenate([values, found * cardinality * epochs]),
-                    np.array([-1] * len(bearings) + ids),
+                    np.array([-1] * len(bearings) + scene.track_ids),
                 )
             )
         return out
@@ -639,7 +638,7 @@ class MultiTargetPlanner:
         return _SearchScene(
             tracks,
             u.uncovered(xy, k.c if k is not None else 0.0),
-            tuple(t for t, _, _ in tentative),
+            [t.track_id for t, _, _ in tentative],
             np.array([x for _, x, _ in tentative]).reshape(-1, 4),
             np.array([P for _, _, P in tentative]).reshape(-1, 4, 4),
             np.array([self._tentative_existence(t) for t, _, _ in tentative], dtype=float),
